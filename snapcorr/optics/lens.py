@@ -1,0 +1,204 @@
+"""The lens as the filters see it: exit pupil, vignetting circle and working f-number.
+
+References
+----------
+.. [1] T. Goossens et al., Appl. Opt. 58, 1789 (2019): variable-cone vignetting model
+   (Sec. 2.4, Fig. 3), working f-number Eq. (27), exit-pupil radius Eq. (28),
+   onset of vignetting Eq. (24)-(25) and (46).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Lens"]
+
+
+def _finite(name, value, *, positive=False):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or (positive and v <= 0):
+        need = "a finite number > 0" if positive else "a finite number"
+        raise ValueError(f"{name} must be {need}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Lens:
+    """An objective lens described by its exit pupil and (optionally) one vignetting circle.
+
+    Parameters
+    ----------
+    name : str
+        Human-readable name.
+    exit_pupil_mm : float
+        Distance x from the sensor to the exit-pupil plane, mm.
+    vignetting_radius_mm, vignetting_distance_mm : float, optional
+        Radius P and distance h of the projected vignetting circle (variable-cone model,
+        Goossens 2019 Fig. 3). Give both, or neither for a lens without optical vignetting.
+        ``h`` may be any finite number; ``h >= x`` and ``h < x`` are the two regimes of Eq. (18).
+    magnification : float
+        Linear magnification m (0: focused at infinity).
+    pupil_magnification : float
+        Pupil magnification m_P (> 0).
+    calibration : dict, optional
+        Free-form record of how the profile was obtained (the ``[calibration]`` table of a lens
+        file). Kept as-is through load/save; not used in computations.
+
+    Examples
+    --------
+    >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    >>> round(lens.exit_pupil_radius_mm(1.4), 4)
+    7.1715
+    """
+
+    name: str
+    exit_pupil_mm: float
+    vignetting_radius_mm: float | None = None
+    vignetting_distance_mm: float | None = None
+    magnification: float = 0.0
+    pupil_magnification: float = 1.0
+    calibration: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        set_(self, "name", str(self.name))
+        set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True))
+        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
+        if (P is None) != (h is None):
+            raise ValueError(
+                "give both vignetting_radius_mm (P) and vignetting_distance_mm (h), or neither "
+                f"for a lens without optical vignetting (got P={P!r}, h={h!r})."
+            )
+        if P is not None:
+            set_(self, "vignetting_radius_mm", _finite("vignetting_radius_mm", P, positive=True))
+            set_(self, "vignetting_distance_mm", _finite("vignetting_distance_mm", h))
+        m = _finite("magnification", self.magnification)
+        if m < 0:
+            raise ValueError(f"magnification must be >= 0 (its magnitude), got {m}")
+        set_(self, "magnification", m)
+        set_(
+            self,
+            "pupil_magnification",
+            _finite("pupil_magnification", self.pupil_magnification, positive=True),
+        )
+        set_(self, "calibration", dict(self.calibration or {}))
+
+    # -- optics ---------------------------------------------------------------------------
+    @property
+    def has_vignetting(self) -> bool:
+        """True if the lens has a vignetting circle (P and h)."""
+        return self.vignetting_radius_mm is not None
+
+    def working_f_number(self, f_number):
+        """Working f-number, Eq. (27): ``(1 + m / m_P) * f_number``."""
+        f = np.asarray(f_number, dtype=float)
+        if not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+        return (1.0 + self.magnification / self.pupil_magnification) * f
+
+    def exit_pupil_radius_mm(self, f_number):
+        """Exit-pupil radius R, Eq. (28): ``x / (2 f_W)``."""
+        return self.exit_pupil_mm / (2.0 * self.working_f_number(f_number))
+
+    def cone_angle_deg(self, f_number):
+        """Half-cone angle of the image-side light cone, ``arctan(R / x)``, degrees."""
+        return np.rad2deg(np.arctan(1.0 / (2.0 * self.working_f_number(f_number))))
+
+    def onset_cra_deg(self, f_number):
+        """Chief-ray angle where optical vignetting starts, Eq. (24)-(25) and (46).
+
+        ``arctan((P - R) / h)``; 0 where ``P < R`` (vignetted on axis); ``inf`` for a lens
+        without vignetting or where the circle never moves (``h == 0`` with ``P >= R``).
+        """
+        R = self.exit_pupil_radius_mm(f_number)
+        if not self.has_vignetting:
+            return np.full(np.shape(R), np.inf)[()]
+        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
+        with np.errstate(divide="ignore"):
+            on = np.where(P < R, 0.0, np.rad2deg(np.arctan((P - R) / abs(h))) if h else np.inf)
+        return on[()]
+
+    def cutoff_cra_deg(self, f_number):
+        """Chief-ray angle beyond which the pupil is fully cut off: ``arctan((P + R) / |h|)``."""
+        R = self.exit_pupil_radius_mm(f_number)
+        if not self.has_vignetting or self.vignetting_distance_mm == 0:
+            return np.full(np.shape(R), np.inf)[()]
+        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
+        return np.rad2deg(np.arctan((P + R) / abs(h)))[()]
+
+    # -- files ----------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The ``[lens]`` table as a dict (optional keys left out when unset)."""
+        d = {"name": self.name, "exit_pupil_mm": self.exit_pupil_mm}
+        if self.has_vignetting:
+            d["vignetting_radius_mm"] = self.vignetting_radius_mm
+            d["vignetting_distance_mm"] = self.vignetting_distance_mm
+        d["magnification"] = self.magnification
+        d["pupil_magnification"] = self.pupil_magnification
+        return d
+
+    @classmethod
+    def from_dict(cls, table: dict, *, calibration: dict | None = None) -> Lens:
+        """Build a lens from a ``[lens]`` table; unknown keys are an error."""
+        known = {f for f in asdict(cls("x", 1.0)) if f != "calibration"}
+        unknown = set(table) - known
+        if unknown:
+            raise ValueError(
+                f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are {sorted(known)}"
+            )
+        missing = {"name", "exit_pupil_mm"} - set(table)
+        if missing:
+            raise ValueError(f"[lens] is missing required key(s) {sorted(missing)}")
+        return cls(**table, calibration=calibration or {})
+
+    @classmethod
+    def load(cls, path) -> Lens:
+        """Read a lens profile (TOML with a ``[lens]`` table and optional ``[calibration]``)."""
+        path = Path(path)
+        try:
+            with path.open("rb") as fh:
+                doc = tomllib.load(fh)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"lens profile not found: {path}") from None
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"{path} is not valid TOML: {err}") from None
+        if "lens" not in doc:
+            raise ValueError(f"{path} has no [lens] table")
+        try:
+            return cls.from_dict(doc["lens"], calibration=doc.get("calibration"))
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{path}: {err}") from None
+
+    def save(self, path, *, overwrite=False) -> Path:
+        """Write the profile as TOML, atomically (temporary file, then rename).
+
+        Refuses to replace an existing file unless ``overwrite=True``.
+        """
+        import tomli_w
+
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+        doc = {"lens": self.to_dict()}
+        if self.calibration:
+            doc["calibration"] = self.calibration
+        text = tomli_w.dumps(doc)
+        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path

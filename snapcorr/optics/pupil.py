@@ -1,0 +1,138 @@
+"""Geometry of the (vignetted) exit pupil seen from one pixel.
+
+All lengths in mm. A pixel at distance ``d = x tan(CRA)`` from the optical axis (Eq. 8) looks at
+the exit pupil (radius ``R``, on axis, distance ``x``) through the projected vignetting circle
+(radius ``P``, centre ``d_v = h tan(CRA)`` from the axis, Eq. 9). Rays at incidence angle
+``phi`` meet the pupil plane on a circle of radius ``r = x tan(phi)`` about the pixel's foot.
+
+References
+----------
+.. [1] T. Goossens et al., Appl. Opt. 58, 1789 (2019), Eq. (8)-(9), (14)-(18), (33)-(35),
+   (43)-(44).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "eta",
+    "gamma",
+    "lens_boundary_arcs",
+    "max_radius_mm",
+    "nu",
+    "vignetted_area_mm2",
+]
+
+
+def _re_arccos(num, den):
+    """``Re(arccos(num / den))`` with ``den >= 0``; ``den == 0`` is the limit num/den -> +-inf."""
+    num, den = np.broadcast_arrays(np.asarray(num, float), np.asarray(den, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.sign(num) * np.inf)
+    # Re(arccos z) = pi for z <= -1 and 0 for z >= 1 (Goossens 2019, after Eq. 15).
+    return np.arccos(np.clip(z, -1.0, 1.0))
+
+
+def eta(r_mm, d_mm, R_mm):
+    """Half-angle of the arc of radius ``r`` about the pixel that lies in the pupil, Eq. (15).
+
+    ``eta = Re(arccos((d^2 - R^2 + r^2) / (2 d r)))``. On axis (``d = 0``) or at ``r = 0``
+    the limit is taken: ``pi`` inside the pupil, 0 outside.
+    """
+    r, d, R = (np.asarray(v, float) for v in (r_mm, d_mm, R_mm))
+    return _re_arccos(d * d - R * R + r * r, 2.0 * np.abs(d) * r)
+
+
+def nu(r_mm, dr_mm, P_mm):
+    """Arc half-angle set by the vignetting circle, Eq. (17), with ``d_r = d - d_v``.
+
+    Eq. (17) covers both regimes: for ``h >= x`` (``d_r <= 0``) it is the half-angle cut
+    off, Eq. (16); for ``h < x`` the half-angle kept. ``d_r = 0`` (``h == x``) takes the limit.
+    """
+    r, dr, P = (np.asarray(v, float) for v in (r_mm, dr_mm, P_mm))
+    # Eq. (17) with the sign of d_r moved into the numerator keeps the denominator >= 0:
+    # arccos(z / sign(d_r)) = arccos(z) for d_r > 0 and pi - arccos(z) for d_r < 0.
+    a = _re_arccos(dr * dr - P * P + r * r, 2.0 * np.abs(dr) * r)
+    return np.where(dr <= 0, np.pi - a, a)
+
+
+def gamma(r_mm, d_mm, R_mm, dv_mm=None, P_mm=None, *, h_ge_x=None):
+    """Half-angle of the contributing arc, Eq. (18).
+
+    ``max(eta - nu, 0)`` for ``h >= x`` and ``min(eta, nu)`` for ``h < x``; ``eta`` alone
+    without a vignetting circle (``P_mm=None``). ``h_ge_x`` defaults to ``d_v >= d``.
+    """
+    e = eta(r_mm, d_mm, R_mm)
+    if P_mm is None:
+        return e
+    d, dv = np.asarray(d_mm, float), np.asarray(dv_mm, float)
+    dr = d - dv
+    n = nu(r_mm, dr, P_mm)
+    ge = (dv >= d) if h_ge_x is None else np.asarray(h_ge_x, bool)
+    return np.where(ge, np.maximum(e - n, 0.0), np.minimum(e, n))
+
+
+def vignetted_area_mm2(R_mm, P_mm, dv_mm):
+    """Area of the vignetted exit pupil, Eq. (33)-(35).
+
+    ``A = P^2 (alpha - sin alpha cos alpha) + R^2 (beta - sin beta cos beta)``. With
+    ``d_v = 0`` the limits of Eq. (34)-(35) give the smaller disc.
+    """
+    R, P, dv = (np.asarray(v, float) for v in (R_mm, P_mm, dv_mm))
+    dv = np.abs(dv)
+    alpha = _re_arccos(P * P - R * R + dv * dv, 2.0 * P * dv)
+    beta = _re_arccos(R * R - P * P + dv * dv, 2.0 * R * dv)
+    # d_v = 0 and P == R: both limits are 0/0; the overlap is the whole pupil.
+    same = (dv == 0) & (P == R)
+    alpha = np.where(same, np.pi, alpha)
+    return P * P * (alpha - np.sin(alpha) * np.cos(alpha)) + R * R * (
+        beta - np.sin(beta) * np.cos(beta)
+    ) * ~same
+
+
+def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
+    """Largest ray radius ``r_max`` on the pupil plane, App. B Eq. (43)-(44).
+
+    ``min(R + d, P + d_r)`` for ``h < x``; for ``h >= x``, ``min(R + d, r*)`` with ``r*`` the
+    radius where the pupil and vignetting circles cross, Eq. (43) (``R + d`` before they cross).
+    """
+    d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
+    if P_mm is None:
+        return R + d
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    dr = d - dv
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inner = (d - dr) * (d * (P * P - dr * dr) + dr * (d * d - R * R))
+        rstar = np.sqrt(inner) / np.abs(d - dr)
+    rstar = np.where(np.isfinite(rstar), rstar, np.inf)
+    return np.where(dv > d, np.minimum(R + d, rstar), np.minimum(R + d, P + dr))
+
+
+def lens_boundary_arcs(rho1, rho2, v):
+    """Boundary of the intersection of the pupil disc and the vignetting disc.
+
+    The pupil is centred at 0 with radius ``rho1``, the vignetting disc at ``v >= 0`` on the
+    same axis with radius ``rho2`` (``rho2 = inf`` for no vignetting). By symmetry about the
+    axis, the boundary is traversed as two arcs given by their polar angle about their own
+    centre: pupil arc ``t in [0, t1]`` and vignetting arc ``t in [t2, pi]`` (each mirrored).
+
+    Returns
+    -------
+    t1, t2 : ndarray
+        ``t1 = pi, t2 = pi``: the whole pupil; ``t1 = 0, t2 = 0``: the whole vignetting disc;
+        ``t1 = 0, t2 = pi``: empty (fully cut off).
+    """
+    rho1, rho2, v = np.broadcast_arrays(*(np.asarray(a, float) for a in (rho1, rho2, v)))
+    pupil_inside = v + rho1 <= rho2
+    circle_inside = v + rho2 <= rho1
+    apart = v >= rho1 + rho2
+    crossing = ~(pupil_inside | circle_inside | apart)
+    vs = np.where(crossing, v, 1.0)
+    a = (rho1 * rho1 - rho2 * rho2 + vs * vs) / (2.0 * vs)
+    y = np.sqrt(np.clip(rho1 * rho1 - a * a, 0.0, None))
+    t1 = np.where(crossing, np.arctan2(y, a), np.where(pupil_inside, np.pi, 0.0))
+    t2 = np.where(
+        crossing, np.arctan2(y, a - vs), np.where(pupil_inside | apart, np.pi, 0.0)
+    )
+    return t1, t2
