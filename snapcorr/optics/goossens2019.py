@@ -38,7 +38,12 @@ from functools import cache
 
 import numpy as np
 
-from .pupil import gamma, lens_boundary_arcs, max_radius_mm, vignetted_area_mm2
+from .pupil import (
+    gamma,
+    lens_boundary_arcs,
+    max_radius_mm,
+    vignetted_area_mm2,
+)
 from .shift import AOI_VALIDITY_DEG, check_n_eff, warn_validity
 
 __all__ = [
@@ -59,7 +64,7 @@ DEFAULT_NODES = 12
 RIEMANN_STEP_NM = 0.01
 
 
-class PupilCutOffError(ValueError):  # noqa: N818 (reads as a ValueError)
+class PupilCutOffError(ValueError):
     """The vignetting circle cuts off the whole exit pupil: no light reaches the pixel."""
 
 
@@ -152,7 +157,8 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     # Area (Green's theorem with f = 1, closed form): sum over arcs of rho^2 dt + rho e d(sin t).
     e1, e2 = -F, v - F
     r2 = np.where(np.isfinite(rho2), rho2, 0.0)
-    area = rho1**2 * t1 + rho1 * e1 * np.sin(t1) + r2**2 * (np.pi - t2) - r2 * e2 * np.sin(t2)
+    sin2 = np.where(t2 < np.pi, np.sin(t2), 0.0)  # sin(pi) is not 0 in floating point
+    area = rho1**2 * t1 + rho1 * e1 * np.sin(t1) + r2**2 * (np.pi - t2) - r2 * e2 * sin2
     if np.any(area <= 0):
         raise PupilCutOffError(
             f"the vignetting circle cuts off the whole exit pupil for {int(np.sum(area <= 0))} "
@@ -258,6 +264,8 @@ def mean_shift_riemann(
     shape = arrays[0].shape
     cwl, n, x, R, d, P, dv = (a.ravel() for a in arrays)
     vign = P_mm is not None
+    # App. B's limits; the exact r_max (equal to Eq. 44 wherever Eq. 44 holds) is also right
+    # when the vignetting circle sits wholly inside the pupil.
     rmax = max_radius_mm(d, R, dv if vign else None, P if vign else None)
     s2max = np.sin(np.arctan(rmax / x)) ** 2 / n**2
     lam_min = -cwl * s2max / (1.0 + np.sqrt(1.0 - s2max))  # Eq. (45)
@@ -273,7 +281,15 @@ def mean_shift_riemann(
         args = [a[sl, None] for a in (cwl, n, x, R, d)]
         extra = (P[sl, None], dv[sl, None]) if vign else (None, None)
         K = kernel(lam, *args, *extra) * inside
-        out[sl] = np.sum(lam * K, axis=1) / np.sum(K, axis=1)
+        norm = np.sum(K, axis=1)
+        if np.any(norm <= 0):
+            raise ValueError(
+                f"the kernel is narrower than the Riemann step ({step_nm} nm) for "
+                f"{int(np.sum(norm <= 0))} input(s) (a nearly collimated beam, or a pupil cut off "
+                "by vignetting): the sum sees no sample. Goossens 2019 App. B advises Eq. (6) "
+                "there; use method='auto' or 'vignetted'."
+            )
+        out[sl] = np.sum(lam * K, axis=1) / norm
     return out.reshape(shape)
 
 

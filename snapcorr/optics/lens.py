@@ -128,6 +128,14 @@ class Lens:
             on = np.where(P < R, 0.0, np.rad2deg(np.arctan((P - R) / abs(h))) if h else np.inf)
         return on[()]
 
+    def is_vignetted(self, f_number, cra_deg):
+        """True where the vignetting circle cuts the pupil: ``P < R`` or CRA past the onset."""
+        if not self.has_vignetting:
+            return np.zeros(np.broadcast_shapes(np.shape(f_number), np.shape(cra_deg)), bool)
+        R = self.exit_pupil_radius_mm(f_number)
+        cra = np.abs(np.asarray(cra_deg, float))
+        return (R > self.vignetting_radius_mm) | (cra > self.onset_cra_deg(f_number))
+
     def cutoff_cra_deg(self, f_number):
         """Chief-ray angle beyond which the pupil is fully cut off: ``arctan((P + R) / |h|)``."""
         R = self.exit_pupil_radius_mm(f_number)

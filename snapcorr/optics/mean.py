@@ -106,8 +106,7 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     Before the onset the vignetted and the ideal kernels are identical, so step 2 loses nothing.
     """
     cra = np.abs(np.asarray(cra_deg, float))
-    onset = lens.onset_cra_deg(f_number)
-    not_vign = cra <= onset
+    not_vign = ~lens.is_vignetted(f_number, cra)
     tan_cone = 1.0 / (2.0 * lens.working_f_number(f_number))
     err = g19.asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, np.tan(np.deg2rad(cra)))
     asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm)
@@ -187,7 +186,7 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     # Large groups sharing (n_eff, f-number): a table over CRA is cheapest.
     if cwl.size >= AUTO_TABLE_MIN_SIZE:
         keys = np.stack([n, f], axis=1)
-        uniq, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        _uniq, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
         inverse = inverse.ravel()
         for i in np.flatnonzero(counts >= AUTO_TABLE_MIN_SIZE):
             sel = inverse == i

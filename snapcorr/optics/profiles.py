@@ -65,14 +65,16 @@ class Airy:
     @classmethod
     def from_passband(cls, cwl_nm, fwhm_nm, n_eff=1.5, order=1, phase=0.0, loss=0.0):
         """The cavity whose order-``order`` peak at normal incidence is ``cwl_nm`` wide
-        ``fwhm_nm`` (FWHM of the Airy peak; exact for the periodic Airy function)."""
+        ``fwhm_nm`` (the exact FWHM of the Airy peak in wavelength)."""
         n = float(check_n_eff(n_eff))
         h = (order - phase / np.pi) * cwl_nm / (2.0 * n)
-        # Half maximum where F sin^2(delta/2) = 1; delta = 4 pi n h / lambda.
-        d_hi = 4 * np.pi * n * h / (cwl_nm - fwhm_nm / 2) + 2 * phase
-        d_lo = 4 * np.pi * n * h / (cwl_nm + fwhm_nm / 2) + 2 * phase
-        quarter = (d_hi - d_lo) / 4  # a quarter of the FWHM in delta
-        F = 1.0 / np.sin(quarter) ** 2
+        # Half maximum where F sin^2(delta/2) = 1, i.e. delta - 2 pi m = +-w with
+        # sin(w/2) = 1/sqrt(F). With c = 4 pi n h and D = c / cwl, the half-maximum wavelengths
+        # c/(D -+ w) are fwhm apart when fwhm w^2 + 2 c w - fwhm D^2 = 0.
+        c = 4 * np.pi * n * h
+        D = c / cwl_nm
+        w = (np.sqrt(c * c + (fwhm_nm * D) ** 2) - c) / fwhm_nm
+        F = 1.0 / np.sin(w / 2) ** 2
         # F = 4R/(1-R)^2  ->  R = (2 + F - 2 sqrt(1 + F)) / F
         R = (2.0 + F - 2.0 * np.sqrt(1.0 + F)) / F
         return cls(n, h, float(R), float(phase), float(loss), int(order))

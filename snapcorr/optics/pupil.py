@@ -19,6 +19,7 @@ __all__ = [
     "eta",
     "gamma",
     "lens_boundary_arcs",
+    "max_radius_eq44",
     "max_radius_mm",
     "nu",
     "vignetted_area_mm2",
@@ -28,7 +29,7 @@ __all__ = [
 def _re_arccos(num, den):
     """``Re(arccos(num / den))`` with ``den >= 0``; ``den == 0`` is the limit num/den -> +-inf."""
     num, den = np.broadcast_arrays(np.asarray(num, float), np.asarray(den, float))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         z = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.sign(num) * np.inf)
     # Re(arccos z) = pi for z <= -1 and 0 for z >= 1 (Goossens 2019, after Eq. 15).
     return np.arccos(np.clip(z, -1.0, 1.0))
@@ -91,11 +92,14 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
     ) * ~same
 
 
-def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
-    """Largest ray radius ``r_max`` on the pupil plane, App. B Eq. (43)-(44).
+def max_radius_eq44(d_mm, R_mm, dv_mm=None, P_mm=None):
+    """Largest ray radius ``r_max`` on the pupil plane as App. B Eq. (43)-(44) states it.
 
     ``min(R + d, P + d_r)`` for ``h < x``; for ``h >= x``, ``min(R + d, r*)`` with ``r*`` the
-    radius where the pupil and vignetting circles cross, Eq. (43) (``R + d`` before they cross).
+    radius where the pupil and vignetting circles cross, Eq. (43) (``R + d`` where they do not
+    cross). It is exact whenever the vignetting circle is not wholly inside the pupil; when it
+    is (``P < R`` with ``h >= x``) it over-estimates, which is harmless as an integration limit.
+    :func:`max_radius_mm` is exact everywhere.
     """
     d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
     if P_mm is None:
@@ -107,6 +111,29 @@ def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
         rstar = np.sqrt(inner) / np.abs(d - dr)
     rstar = np.where(np.isfinite(rstar), rstar, np.inf)
     return np.where(dv > d, np.minimum(R + d, rstar), np.minimum(R + d, P + dr))
+
+
+def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
+    """Exact largest distance from the pixel's foot to the vignetted pupil, mm.
+
+    The farthest point lies on the boundary (:func:`lens_boundary_arcs`): on an arc of a circle
+    with centre ``c`` and radius ``rho`` the distance ``|c - d + rho e^{it}|`` is monotonic in
+    ``t`` on ``[0, pi]``, so it peaks at an end of the arc. Zero where the pupil is cut off.
+    """
+    d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
+    if P_mm is None:
+        return np.abs(d) + R
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    flip = dv < 0
+    d, dv = np.where(flip, -d, d), np.abs(dv)
+    t1, t2 = lens_boundary_arcs(R, P, dv)
+
+    def dist(c, rho, t):
+        return np.hypot(c - d + rho * np.cos(t), rho * np.sin(t))
+
+    r1 = np.where(t1 > 0, np.maximum(dist(0.0, R, 0.0), dist(0.0, R, t1)), 0.0)
+    r2 = np.where(t2 < np.pi, np.maximum(dist(dv, P, np.pi), dist(dv, P, t2)), 0.0)
+    return np.maximum(r1, r2)
 
 
 def lens_boundary_arcs(rho1, rho2, v):
@@ -129,7 +156,8 @@ def lens_boundary_arcs(rho1, rho2, v):
     apart = v >= rho1 + rho2
     crossing = ~(pupil_inside | circle_inside | apart)
     vs = np.where(crossing, v, 1.0)
-    a = (rho1 * rho1 - rho2 * rho2 + vs * vs) / (2.0 * vs)
+    with np.errstate(over="ignore"):
+        a = (rho1 * rho1 - rho2 * rho2 + vs * vs) / (2.0 * vs)
     y = np.sqrt(np.clip(rho1 * rho1 - a * a, 0.0, None))
     t1 = np.where(crossing, np.arctan2(y, a), np.where(pupil_inside, np.pi, 0.0))
     t2 = np.where(

@@ -51,9 +51,8 @@ def check_n_eff(n_eff):
 def _check_aoi(aoi_deg):
     aoi = np.abs(np.asarray(aoi_deg, dtype=float))
     if not np.all(np.isfinite(aoi)) or np.any(aoi >= 90.0):
-        raise ValueError(
-            f"angle of incidence must be finite and below 90 deg (got max {np.nanmax(aoi)!r})."
-        )
+        bad = aoi[~(np.isfinite(aoi) & (aoi < 90.0))].ravel()[:3]
+        raise ValueError(f"angle of incidence must be finite and below 90 deg (got {bad.tolist()})")
     if np.any(aoi > AOI_VALIDITY_DEG):
         warn_validity(float(aoi.max()))
     return aoi

@@ -10,6 +10,7 @@ tolerance. The onset of vignetting (Eq. 46 of Goossens 2019), where the mean tur
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,7 +73,7 @@ class ShiftTable:
                 breaks.append(kink)
         breaks = np.unique(breaks)
         grid = [np.linspace(a, b, max(3, int(np.ceil((b - a) / _INITIAL_STEP_DEG)) + 1))
-                for a, b in zip(breaks[:-1], breaks[1:], strict=True)]
+                for a, b in itertools.pairwise(breaks)]
         cra = np.unique(np.concatenate(grid))
 
         def exact(c):
