@@ -137,7 +137,9 @@ class MultiLorentzian:
 
         k = brentq(width, 0.01 * self.fwhm_nm, 10 * self.fwhm_nm, xtol=1e-12)
         object.__setattr__(self, "scale", k)
-        object.__setattr__(self, "_norm", shape(0.0, k))
+        # The product is slightly double-humped: normalise by its true maximum.
+        lam = np.linspace(-8 * k, 8 * k, 160001)
+        object.__setattr__(self, "_norm", float(shape(lam, k).max()))
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
         centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
