@@ -12,9 +12,13 @@ def test_exit_pupil_radius_eq27_28(edmund):
     # rounding in the paper, not a formula difference; the reference CSV uses m_P = 1.3.
     R = edmund.exit_pupil_radius_mm([1.4, 2, 2.8, 4])
     assert_allclose(R, [7.1715, 5.0201, 3.5858, 2.5100], rtol=4e-4)
-    assert_allclose(Lens("x", 21.0, magnification=0.06, pupil_magnification=1.31)
-                    .exit_pupil_radius_mm([1.4, 2, 2.8, 4]),
-                    [7.1715, 5.0201, 3.5858, 2.5100], atol=5e-5)
+    assert_allclose(
+        Lens("x", 21.0, magnification=0.06, pupil_magnification=1.31).exit_pupil_radius_mm(
+            [1.4, 2, 2.8, 4]
+        ),
+        [7.1715, 5.0201, 3.5858, 2.5100],
+        atol=5e-5,
+    )
 
 
 def test_onset_satisfies_eq25(edmund):
@@ -44,9 +48,11 @@ def test_toml_round_trip(tmp_path, edmund):
 
 def test_toml_schema_keys(tmp_path):
     path = tmp_path / "l.toml"
-    path.write_text('[lens]\nname = "x"\nexit_pupil_mm = 21.0\nvignetting_radius_mm = 7.4236\n'
-                    'vignetting_distance_mm = 16.991\nmagnification = 0.06\n'
-                    'pupil_magnification = 1.3\n')
+    path.write_text(
+        '[lens]\nname = "x"\nexit_pupil_mm = 21.0\nvignetting_radius_mm = 7.4236\n'
+        "vignetting_distance_mm = 16.991\nmagnification = 0.06\n"
+        "pupil_magnification = 1.3\n"
+    )
     lens = Lens.load(path)
     assert lens.has_vignetting and lens.magnification == 0.06
     path.write_text('[lens]\nname = "x"\nexit_pupil_mm = 21.0\nfocal_mm = 16\n')
@@ -64,8 +70,13 @@ def test_toml_schema_keys(tmp_path):
 
 @pytest.mark.parametrize(
     "kwargs",
-    [dict(exit_pupil_mm=0), dict(exit_pupil_mm=np.nan), dict(vignetting_radius_mm=-1,
-     vignetting_distance_mm=5), dict(pupil_magnification=0), dict(magnification=-0.1)],
+    [
+        dict(exit_pupil_mm=0),
+        dict(exit_pupil_mm=np.nan),
+        dict(vignetting_radius_mm=-1, vignetting_distance_mm=5),
+        dict(pupil_magnification=0),
+        dict(magnification=-0.1),
+    ],
 )
 def test_bad_lens(kwargs):
     base = dict(name="x", exit_pupil_mm=21.0)

@@ -101,8 +101,12 @@ def test_asymptotic_eq6_error_and_convergence():
     errs = []
     for k in range(5):
         f, cra = 4.0 * 2**k, 10.0 / 2**k
-        errs.append(abs(mean_shift(700, 1.7, f, cra, lens, method="asymptotic")
-                        - mean_shift(700, 1.7, f, cra, lens, method="ideal")))
+        errs.append(
+            abs(
+                mean_shift(700, 1.7, f, cra, lens, method="asymptotic")
+                - mean_shift(700, 1.7, f, cra, lens, method="ideal")
+            )
+        )
     ratios = np.array(errs[:-1]) / np.array(errs[1:])
     assert np.all(ratios > 12) and np.all(ratios < 20)
     # The fourth-order estimate used by "auto" is right to leading order.
@@ -136,8 +140,7 @@ def test_table_is_used_for_large_groups_and_meets_tolerance(edmund):
     got = mean_shift(700.0, 1.7, 1.4, cra, edmund)
     exact = mean_shift(700.0, 1.7, 1.4, cra, edmund, method="vignetted")
     assert np.max(np.abs(got - exact)) <= 0.001
-    table = ShiftTable.build(1.7, 1.4, edmund, cra_max_deg=25, tolerance_nm=0.001,
-                             cwl_max_nm=700)
+    table = ShiftTable.build(1.7, 1.4, edmund, cra_max_deg=25, tolerance_nm=0.001, cwl_max_nm=700)
     onset = float(edmund.onset_cra_deg(1.4))
     assert np.any(np.isclose(table.cra_deg, onset))  # the kink is a node
     with pytest.raises(ValueError, match="beyond this table"):
@@ -149,10 +152,16 @@ def test_every_method_broadcasts_and_is_finite(method, edmund):
     cra = np.linspace(0, 20, 6)
     flat = mean_shift(700.0, 1.7, 2.0, cra, edmund, method=method)
     assert flat.shape == (6,) and np.all(np.isfinite(flat)) and np.all(flat < 0)
-    assert_allclose(mean_shift(700.0, 1.7, 2.0, cra.reshape(2, 3), edmund, method=method),
-                    flat.reshape(2, 3), atol=1e-12)
-    assert_allclose(mean_shift(700.0, 1.7, 2.0, cra[3], edmund, method=method), flat[3],
-                    atol=1e-12 if method != "table" else 0.001)
+    assert_allclose(
+        mean_shift(700.0, 1.7, 2.0, cra.reshape(2, 3), edmund, method=method),
+        flat.reshape(2, 3),
+        atol=1e-12,
+    )
+    assert_allclose(
+        mean_shift(700.0, 1.7, 2.0, cra[3], edmund, method=method),
+        flat[3],
+        atol=1e-12 if method != "table" else 0.001,
+    )
 
 
 def test_unknown_method_lists_choices(edmund):
@@ -160,8 +169,16 @@ def test_unknown_method_lists_choices(edmund):
         mean_shift(700, 1.7, 2, 5, edmund, method="simpson")
 
 
-@pytest.mark.parametrize("bad", [dict(cra_deg=np.nan), dict(f_number=0.0), dict(n_eff=1.0),
-                                 dict(cra_deg=95.0), dict(f_number=np.inf)])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(cra_deg=np.nan),
+        dict(f_number=0.0),
+        dict(n_eff=1.0),
+        dict(cra_deg=95.0),
+        dict(f_number=np.inf),
+    ],
+)
 def test_bad_arguments_raise(bad, edmund):
     args = dict(cwl_nm=700.0, n_eff=1.7, f_number=2.0, cra_deg=5.0) | bad
     for method in ("auto", "vignetted", "ideal", "asymptotic"):
@@ -171,6 +188,7 @@ def test_bad_arguments_raise(bad, edmund):
 
 # -- where methods fail --------------------------------------------------------------------
 
+
 def test_cra_zero_is_finite_and_exact(edmund):
     # d = 0: arcs about the axis are whole circles; compare with a direct radial integral.
     R = edmund.exit_pupil_radius_mm(2.0)
@@ -179,8 +197,11 @@ def test_cra_zero_is_finite_and_exact(edmund):
     sin2 = r**2 / (r**2 + X**2)
     direct = np.trapezoid(-700 * (1 - np.sqrt(1 - sin2 / 1.7**2)) * dA, r) / (np.pi * R**2)
     for method in ("vignetted", "ideal", "riemann"):
-        assert_allclose(mean_shift(700, 1.7, 2.0, 0.0, edmund, method=method), direct,
-                        atol=5e-3 if method == "riemann" else 1e-6)
+        assert_allclose(
+            mean_shift(700, 1.7, 2.0, 0.0, edmund, method=method),
+            direct,
+            atol=5e-3 if method == "riemann" else 1e-6,
+        )
 
 
 def test_h_equals_x_d_r_zero():
@@ -212,8 +233,9 @@ def test_cone_to_zero_becomes_dirac():
             # pupil 1e-6 x its distance (~1e-6 nm at f/1e6).
             near = shift_nm(700, 1.7, cra) - 700 * np.arctan(1 / (2 * f)) ** 2 / (4 * 1.7**2)
             assert_allclose(got, near, atol=1e-5)
-        assert_allclose(mean_shift(700, 1.7, 1e6, cra, lens), shift_nm(700, 1.7, cra),
-                        atol=1e-9)  # "auto" takes Eq. 6 there, exact in the limit
+        assert_allclose(
+            mean_shift(700, 1.7, 1e6, cra, lens), shift_nm(700, 1.7, cra), atol=1e-9
+        )  # "auto" takes Eq. 6 there, exact in the limit
     with pytest.raises(ValueError, match="narrower than the Riemann step"):
         mean_shift(700, 1.7, 1e6, 10.0, lens, method="riemann")
 
@@ -240,9 +262,7 @@ def test_beyond_effective_index_validity_warns(edmund):
 
 # -- properties ----------------------------------------------------------------------------
 
-geom = dict(
-    f=st.floats(1.2, 22), cra=st.floats(0, 30), P=st.floats(0.5, 30), h=st.floats(1, 60)
-)
+geom = dict(f=st.floats(1.2, 22), cra=st.floats(0, 30), P=st.floats(0.5, 30), h=st.floats(1, 60))
 
 
 @settings(max_examples=200, deadline=None)
@@ -261,8 +281,11 @@ def test_infinite_vignetting_circle_is_the_ideal_aperture(f, cra, n):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EffectiveIndexWarning)
         big = Lens("big", X, 1e6, 17.0)
-        assert_allclose(mean_shift(700, n, f, cra, big, method="vignetted"),
-                        mean_shift(700, n, f, cra, big, method="ideal"), atol=1e-9)
+        assert_allclose(
+            mean_shift(700, n, f, cra, big, method="vignetted"),
+            mean_shift(700, n, f, cra, big, method="ideal"),
+            atol=1e-9,
+        )
 
 
 @settings(max_examples=100, deadline=None)
@@ -272,14 +295,18 @@ def test_before_onset_vignetted_equals_ideal(f, P, h, frac):
     R = float(lens.exit_pupil_radius_mm(f))
     if P < R:
         # On axis the circle already cuts the pupil: the vignetted mean shifts less.
-        assert (mean_shift(700, 1.7, f, 0.0, lens, method="vignetted")
-                > mean_shift(700, 1.7, f, 0.0, lens, method="ideal"))
+        assert mean_shift(700, 1.7, f, 0.0, lens, method="vignetted") > mean_shift(
+            700, 1.7, f, 0.0, lens, method="ideal"
+        )
         return
     cra = frac * float(lens.onset_cra_deg(f))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EffectiveIndexWarning)
-        assert_allclose(mean_shift(700, 1.7, f, cra, lens, method="vignetted"),
-                        mean_shift(700, 1.7, f, cra, lens, method="ideal"), atol=1e-9)
+        assert_allclose(
+            mean_shift(700, 1.7, f, cra, lens, method="vignetted"),
+            mean_shift(700, 1.7, f, cra, lens, method="ideal"),
+            atol=1e-9,
+        )
 
 
 @settings(max_examples=150, deadline=None)
@@ -289,8 +316,12 @@ def test_contour_area_matches_eq33_and_rmax_matches_eq44(f, cra, P, h):
     d, dv = X * np.tan(np.deg2rad(cra)), h * np.tan(np.deg2rad(cra))
     t1, t2 = lens_boundary_arcs(R / X, P / X, dv / X)
     F = d / X
-    area = ((R / X) ** 2 * t1 - (R / X) * F * np.sin(t1)
-            + (P / X) ** 2 * (np.pi - t2) - (P / X) * (dv / X - F) * np.sin(t2)) * X**2
+    area = (
+        (R / X) ** 2 * t1
+        - (R / X) * F * np.sin(t1)
+        + (P / X) ** 2 * (np.pi - t2)
+        - (P / X) * (dv / X - F) * np.sin(t2)
+    ) * X**2
     assert_allclose(area, vignetted_area_mm2(R, P, dv), rtol=1e-9, atol=1e-9)
     if area > 1e-6:
         # Farthest point of the vignetted pupil from the pixel's foot, sampled on its boundary.

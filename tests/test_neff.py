@@ -43,8 +43,12 @@ def _peak(spacer, aoi_deg):
     guess = DESIGN * np.sqrt(1 - (np.sin(np.deg2rad(aoi_deg)) / 1.75) ** 2)
     lam = np.arange(guess - 12, guess + 6, 0.25)
     i = int(np.argmax([_T(spacer, v, aoi_deg) for v in lam]))
-    res = minimize_scalar(lambda v: -_T(spacer, v, aoi_deg), method="bounded",
-                          bounds=(lam[i] - 0.25, lam[i] + 0.25), options={"xatol": 1e-6})
+    res = minimize_scalar(
+        lambda v: -_T(spacer, v, aoi_deg),
+        method="bounded",
+        bounds=(lam[i] - 0.25, lam[i] + 0.25),
+        options={"xatol": 1e-6},
+    )
     return res.x
 
 

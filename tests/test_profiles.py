@@ -73,7 +73,10 @@ def test_tabulated_round_trip_and_errors():
 
 def test_registry_profiles_are_callable():
     for name, make in PROFILES.items():
-        prof = make(LAM[::1000], np.ones(LAM[::1000].size)) if name == "tabulated" else make(
-            700.0, 10.0)
+        prof = (
+            make(LAM[::1000], np.ones(LAM[::1000].size))
+            if name == "tabulated"
+            else make(700.0, 10.0)
+        )
         out = prof(np.array([650.0, 700.0]), 5.0)
         assert out.shape == (2,) and np.all(np.isfinite(out))

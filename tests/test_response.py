@@ -27,18 +27,19 @@ def test_kernel_integrates_to_one_and_its_mean_is_mean_shift(edmund, f, cra):
     K = kernel(lam, 700.0, 1.7, x, R, d, P, dv)
     assert_allclose(np.trapezoid(K, lam), 1.0, atol=2e-3)  # sqrt kinks limit the sum
     mu, w = kernel_bins(700.0, 1.7, f, cra, edmund)
-    assert_allclose(mu @ w, mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"),
-                    atol=1e-3)
+    assert_allclose(mu @ w, mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"), atol=1e-3)
 
 
 @pytest.mark.parametrize(("f", "cra"), CASES)
 def test_convolution_centroid_is_kernel_mean(edmund, f, cra):
     T = MultiLorentzian(700.0, 10.0)(P_GRID)
-    out = filter_response(P_GRID, T, cwl_nm=700.0, n_eff=1.7, f_number=f, cra_deg=cra,
-                          lens=edmund)
+    out = filter_response(P_GRID, T, cwl_nm=700.0, n_eff=1.7, f_number=f, cra_deg=cra, lens=edmund)
     # Convolution adds means: centroid(K * T) = centroid(T) + mean(K).
-    assert_allclose(centroid(P_GRID, out) - centroid(P_GRID, T),
-                    mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"), atol=2e-3)
+    assert_allclose(
+        centroid(P_GRID, out) - centroid(P_GRID, T),
+        mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"),
+        atol=2e-3,
+    )
     assert_allclose(np.trapezoid(out, P_GRID), np.trapezoid(T, P_GRID), rtol=1e-6)
 
 
@@ -82,9 +83,18 @@ def test_rienstra_temperature_factor_scales_wavelengths():
     prof = Tabulated(P_GRID * 5, MultiLorentzian(3500.0, 60.0)(P_GRID * 5), n_eff=2.037)
     w, t = prof.wavelength_nm, prof.transmission
     lens = Lens("cold shield", 100.0)
-    out = filter_response(w, t, cwl_nm=3500.0, n_eff=2.037, f_number=500.0, cra_deg=0.0,
-                          lens=lens, method="rienstra", temperature_factor=0.992,
-                          step_deg=0.001)
+    out = filter_response(
+        w,
+        t,
+        cwl_nm=3500.0,
+        n_eff=2.037,
+        f_number=500.0,
+        cra_deg=0.0,
+        lens=lens,
+        method="rienstra",
+        temperature_factor=0.992,
+        step_deg=0.001,
+    )
     assert_allclose(centroid(w, out), 0.992 * centroid(w, t), rtol=2e-5)
     assert_allclose(shift_factors([0.0, 30.0], 1.775)[1], np.cos(np.arcsin(0.5 / 1.775)))
 
@@ -92,8 +102,11 @@ def test_rienstra_temperature_factor_scales_wavelengths():
 def test_asymptotic_kernel_close_for_small_shifts(edmund):
     x, R, d, P, dv = _geometry(8.0, 2.0, edmund)
     lam = np.linspace(-0.6, -0.01, 200)
-    assert_allclose(kernel_asymptotic(lam, 700, 1.7, x, R, d, P, dv),
-                    kernel(lam, 700, 1.7, x, R, d, P, dv), rtol=0.02)
+    assert_allclose(
+        kernel_asymptotic(lam, 700, 1.7, x, R, d, P, dv),
+        kernel(lam, 700, 1.7, x, R, d, P, dv),
+        rtol=0.02,
+    )
 
 
 def test_bad_curves_and_methods(edmund):

@@ -247,7 +247,15 @@ def kernel_asymptotic(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=
 
 
 def mean_shift_riemann(
-    cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, step_nm=RIEMANN_STEP_NM,
+    cwl_nm,
+    n_eff,
+    x_mm,
+    R_mm,
+    d_mm,
+    P_mm=None,
+    dv_mm=None,
+    *,
+    step_nm=RIEMANN_STEP_NM,
     chunk=256,
 ):
     """Kernel mean by the paper's left Riemann sum in wavelength (App. B).

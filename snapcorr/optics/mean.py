@@ -63,8 +63,9 @@ def _asymptotic(cwl_nm, n_eff, f_number, cra_deg, lens):
 
 
 def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
-    cwl, n, f, cra = np.broadcast_arrays(*(np.asarray(a, float) for a in
-                                           (cwl_nm, n_eff, f_number, cra_deg)))
+    cwl, n, f, cra = np.broadcast_arrays(
+        *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))
+    )
     out = np.empty(cwl.shape)
     keys = np.stack([n.ravel(), f.ravel()], axis=1)
     uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
@@ -73,8 +74,12 @@ def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     for i, (n_i, f_i) in enumerate(uniq):
         sel = inverse == i
         table = ShiftTable.build(
-            n_i, f_i, lens, cra_max_deg=float(flat_cra[sel].max()),
-            tolerance_nm=tolerance_nm, cwl_max_nm=float(np.abs(flat_cwl[sel]).max()),
+            n_i,
+            f_i,
+            lens,
+            cra_max_deg=float(flat_cra[sel].max()),
+            tolerance_nm=tolerance_nm,
+            cwl_max_nm=float(np.abs(flat_cwl[sel]).max()),
         )
         flat_out[sel] = table(flat_cwl[sel], flat_cra[sel])
     return out
@@ -175,8 +180,9 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
 
 
 def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
-    arrays = np.broadcast_arrays(*(np.asarray(a, float) for a in
-                                   (cwl_nm, n_eff, f_number, cra_deg)))
+    arrays = np.broadcast_arrays(
+        *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))
+    )
     shape = arrays[0].shape
     cwl, n, f, cra = (a.ravel() for a in arrays)
     check = g19.check_n_eff(n)  # fail early, before any work
@@ -194,8 +200,9 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
             todo &= ~sel
     if np.any(todo):
         idx = np.flatnonzero(todo)
-        choice = select_method(n[idx], f[idx], cra[idx], lens, cwl_nm=np.abs(cwl[idx]),
-                               tolerance_nm=tolerance_nm)
+        choice = select_method(
+            n[idx], f[idx], cra[idx], lens, cwl_nm=np.abs(cwl[idx]), tolerance_nm=tolerance_nm
+        )
         for name in ("asymptotic", "ideal", "vignetted"):
             sub = idx[choice == name]
             if sub.size:

@@ -21,9 +21,11 @@ class NeffFit:
     residuals_nm: np.ndarray
 
     def __repr__(self):
-        return (f"NeffFit(n_eff={self.n_eff:.4f} +- {self.n_eff_stderr:.4f}, "
-                f"cwl_nm={self.cwl_nm:.3f} +- {self.cwl_stderr_nm:.3f}, "
-                f"max |residual|={np.abs(self.residuals_nm).max():.3g} nm)")
+        return (
+            f"NeffFit(n_eff={self.n_eff:.4f} +- {self.n_eff_stderr:.4f}, "
+            f"cwl_nm={self.cwl_nm:.3f} +- {self.cwl_stderr_nm:.3f}, "
+            f"max |residual|={np.abs(self.residuals_nm).max():.3g} nm)"
+        )
 
 
 def _law(aoi_deg, cwl, n):
@@ -62,10 +64,12 @@ def fit_n_eff(aoi_deg, centre_nm, *, sigma_nm=None):
     s2 = np.sin(np.deg2rad(phi)) ** 2
     slope, icept = np.polyfit(s2, lam**2, 1)
     if icept <= 0 or slope >= 0:
-        raise ValueError("centre wavelengths do not move to the blue with angle; "
-                         "cannot fit an effective index")
+        raise ValueError(
+            "centre wavelengths do not move to the blue with angle; cannot fit an effective index"
+        )
     p0 = (np.sqrt(icept), np.sqrt(-icept / slope))
-    (cwl, n), cov = curve_fit(_law, phi, lam, p0=p0, sigma=sigma_nm,
-                              absolute_sigma=sigma_nm is not None)
+    (cwl, n), cov = curve_fit(
+        _law, phi, lam, p0=p0, sigma=sigma_nm, absolute_sigma=sigma_nm is not None
+    )
     err = np.sqrt(np.clip(np.diag(cov), 0, None)) if np.all(np.isfinite(cov)) else (np.nan,) * 2
     return NeffFit(float(n), float(cwl), float(err[1]), float(err[0]), lam - _law(phi, cwl, n))

@@ -128,8 +128,11 @@ class MultiLorentzian:
             raise ValueError("cwl_nm and fwhm_nm must be > 0")
 
         def shape(lam, k):
-            return (_lorentz(lam, 0.0, 16 * k) * _lorentz(lam, -4 * k, 6 * k)
-                    * _lorentz(lam, 4 * k, 6 * k))
+            return (
+                _lorentz(lam, 0.0, 16 * k)
+                * _lorentz(lam, -4 * k, 6 * k)
+                * _lorentz(lam, 4 * k, 6 * k)
+            )
 
         def width(k):
             lam = np.linspace(-40 * k, 40 * k, 16001)
@@ -192,8 +195,10 @@ class Tabulated:
         w = np.asarray(self.wavelength_nm, float)
         t = np.asarray(self.transmission, float)
         if w.ndim != 1 or w.shape != t.shape or w.size < 2 or np.any(np.diff(w) <= 0):
-            raise ValueError("a tabulated profile needs 1-D wavelength and transmission arrays "
-                             "of equal length (>= 2), wavelengths strictly increasing")
+            raise ValueError(
+                "a tabulated profile needs 1-D wavelength and transmission arrays "
+                "of equal length (>= 2), wavelengths strictly increasing"
+            )
         object.__setattr__(self, "wavelength_nm", w)
         object.__setattr__(self, "transmission", t)
         if self.cwl_nm is None:
@@ -205,8 +210,13 @@ class Tabulated:
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
         shift = shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
-        return np.interp(np.asarray(wavelength_nm, float) - shift, self.wavelength_nm,
-                         self.transmission, left=0.0, right=0.0)
+        return np.interp(
+            np.asarray(wavelength_nm, float) - shift,
+            self.wavelength_nm,
+            self.transmission,
+            left=0.0,
+            right=0.0,
+        )
 
 
 #: Registry of filter-profile models.

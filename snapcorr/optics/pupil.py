@@ -87,9 +87,10 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
     # d_v = 0 and P == R: both limits are 0/0; the overlap is the whole pupil.
     same = (dv == 0) & (P == R)
     alpha = np.where(same, np.pi, alpha)
-    return P * P * (alpha - np.sin(alpha) * np.cos(alpha)) + R * R * (
-        beta - np.sin(beta) * np.cos(beta)
-    ) * ~same
+    return (
+        P * P * (alpha - np.sin(alpha) * np.cos(alpha))
+        + R * R * (beta - np.sin(beta) * np.cos(beta)) * ~same
+    )
 
 
 def max_radius_eq44(d_mm, R_mm, dv_mm=None, P_mm=None):
@@ -160,7 +161,5 @@ def lens_boundary_arcs(rho1, rho2, v):
         a = (rho1 * rho1 - rho2 * rho2 + vs * vs) / (2.0 * vs)
     y = np.sqrt(np.clip(rho1 * rho1 - a * a, 0.0, None))
     t1 = np.where(crossing, np.arctan2(y, a), np.where(pupil_inside, np.pi, 0.0))
-    t2 = np.where(
-        crossing, np.arctan2(y, a - vs), np.where(pupil_inside | apart, np.pi, 0.0)
-    )
+    t2 = np.where(crossing, np.arctan2(y, a - vs), np.where(pupil_inside | apart, np.pi, 0.0))
     return t1, t2

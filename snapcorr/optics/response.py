@@ -46,9 +46,20 @@ def kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0.05, n
     return mu, mass[keep] / mass[keep].sum()
 
 
-def filter_response(wavelength_nm, transmission, *, cwl_nm, n_eff, f_number, cra_deg,
-                    lens: Lens, method="kernel", step_nm=0.05, step_deg=0.25,
-                    temperature_factor=1.0):
+def filter_response(
+    wavelength_nm,
+    transmission,
+    *,
+    cwl_nm,
+    n_eff,
+    f_number,
+    cra_deg,
+    lens: Lens,
+    method="kernel",
+    step_nm=0.05,
+    step_deg=0.25,
+    temperature_factor=1.0,
+):
     """Transmission of a filter behind ``lens`` at ``f_number`` and ``cra_deg``.
 
     Parameters
@@ -81,12 +92,22 @@ def filter_response(wavelength_nm, transmission, *, cwl_nm, n_eff, f_number, cra
     p = np.asarray(wavelength_nm, float)
     t = np.asarray(transmission, float)
     if p.ndim != 1 or p.shape != t.shape or p.size < 2 or np.any(np.diff(p) <= 0):
-        raise ValueError("wavelength_nm and transmission must be 1-D, the same length (>= 2), "
-                         "with wavelengths strictly increasing")
+        raise ValueError(
+            "wavelength_nm and transmission must be 1-D, the same length (>= 2), "
+            "with wavelengths strictly increasing"
+        )
     if method == "rienstra":
         return rienstra1998.transform(
-            p, t, n_eff, float(lens.working_f_number(f_number)), cra_deg, step_deg=step_deg,
-            temperature_factor=temperature_factor, lens=lens, normalize=True)
+            p,
+            t,
+            n_eff,
+            float(lens.working_f_number(f_number)),
+            cra_deg,
+            step_deg=step_deg,
+            temperature_factor=temperature_factor,
+            lens=lens,
+            normalize=True,
+        )
     if temperature_factor != 1.0:
         raise ValueError("temperature_factor applies to method='rienstra' only")
     mu, w = kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=step_nm)

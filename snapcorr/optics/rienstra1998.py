@@ -106,8 +106,18 @@ def shift_factors(theta_deg, n_eff, temperature_factor=1.0):
     return float(temperature_factor) * np.sqrt(1.0 - s * s)
 
 
-def transform(wavelength_nm, transmission, n_eff, f_number_w, cra_deg, *,
-              step_deg=DEFAULT_STEP_DEG, temperature_factor=1.0, lens=None, normalize=False):
+def transform(
+    wavelength_nm,
+    transmission,
+    n_eff,
+    f_number_w,
+    cra_deg,
+    *,
+    step_deg=DEFAULT_STEP_DEG,
+    temperature_factor=1.0,
+    lens=None,
+    normalize=False,
+):
     """Transform a measured transmission curve for f-number and CRA, Eq. (5)-(7).
 
     ``L = p S^T`` (shifted wavelengths), ``K = t W^T`` (weighted transmissions), and
@@ -135,8 +145,10 @@ def transform(wavelength_nm, transmission, n_eff, f_number_w, cra_deg, *,
     p = np.asarray(wavelength_nm, float)
     t = np.asarray(transmission, float)
     if p.ndim != 1 or p.shape != t.shape or p.size < 2 or np.any(np.diff(p) <= 0):
-        raise ValueError("wavelength_nm and transmission must be 1-D, the same length (>= 2), "
-                         "with wavelengths strictly increasing")
+        raise ValueError(
+            "wavelength_nm and transmission must be 1-D, the same length (>= 2), "
+            "with wavelengths strictly increasing"
+        )
     theta, W = ray_bundle_weights(f_number_w, cra_deg, step_deg=step_deg, lens=lens)
     S = shift_factors(theta, n_eff, temperature_factor)
     if normalize:

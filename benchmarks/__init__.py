@@ -1,0 +1,1 @@
+"""Speed and accuracy benchmarks for snapcorr (``python -m benchmarks``)."""

@@ -1,0 +1,17 @@
+"""``python -m benchmarks [--quick]``: print speed and accuracy measured in one run."""
+
+import argparse
+import platform
+
+import numpy as np
+
+from snapcorr import __version__
+
+from . import mean_shift
+
+parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
+args = parser.parse_args()
+print(f"snapcorr {__version__}, numpy {np.__version__}, Python {platform.python_version()}, "
+      f"{platform.machine()}")
+mean_shift.run(quick=args.quick)

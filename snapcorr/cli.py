@@ -1,0 +1,148 @@
+"""Command-line interface: a thin shell around the library.
+
+Every expected failure becomes one line on stderr and a non-zero exit status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+
+EXAMPLES = textwrap.dedent(
+    """
+    examples:
+      snapcorr demo                       run the optics on the bundled 16 mm lens
+      snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
+      snapcorr shift --f-number 1.4 --cra 0 10 20
+                                          mean shift of 700 nm filters behind the bundled lens
+      snapcorr shift --lens my_lens.toml --f-number 2.8 --cra 15 --cwl-nm 850 --n-eff 1.9
+    """
+)
+
+
+def _lens(value):
+    from .data import lens_path
+    from .optics import Lens
+
+    path = Path(value)
+    if path.suffix == ".toml" or path.exists():
+        return Lens.load(path)
+    return Lens.load(lens_path(value))
+
+
+def _cmd_demo(args):
+    from .demo import run_demo
+
+    run_demo(args.out)
+    return 0
+
+
+def _cmd_shift(args):
+    from .optics import mean_shift, select_method
+
+    lens = _lens(args.lens)
+    cra = np.asarray(args.cra, float)
+    shift = mean_shift(
+        args.cwl_nm,
+        args.n_eff,
+        args.f_number,
+        cra,
+        lens,
+        method=args.method,
+        tolerance_nm=args.tolerance_nm,
+    )
+    if args.method == "auto":
+        used = select_method(
+            args.n_eff,
+            args.f_number,
+            cra,
+            lens,
+            cwl_nm=args.cwl_nm,
+            tolerance_nm=args.tolerance_nm,
+        )
+    else:
+        used = np.full(cra.shape, args.method)
+    print(f"# {lens.name}, f/{args.f_number:g}, cwl {args.cwl_nm:g} nm, n_eff {args.n_eff:g}")
+    print(f"{'cra_deg':>8} {'shift_nm':>10} {'corrected_nm':>13}  method")
+    for c, s, m in zip(cra, np.atleast_1d(shift), np.atleast_1d(used), strict=True):
+        print(f"{c:>8.3f} {s:>10.4f} {args.cwl_nm + s:>13.4f}  {m}")
+    return 0
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="snapcorr",
+        description="Wavelength correction for spectral cameras with thin-film "
+        "Fabry-Perot filters (Goossens et al. 2019).",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    demo = sub.add_parser(
+        "demo",
+        help="run the main job on the bundled default lens and write figures",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    demo.add_argument(
+        "--out", default="snapcorr-demo", type=Path, help="output folder (default: %(default)s)"
+    )
+    demo.set_defaults(func=_cmd_demo)
+
+    shift = sub.add_parser(
+        "shift",
+        help="mean central-wavelength shift at chief-ray angles (Eq. 22-23)",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    shift.add_argument(
+        "--lens",
+        default="edmund_optics_16mm",
+        help="lens profile (.toml) or a bundled lens name (default: %(default)s)",
+    )
+    shift.add_argument("--f-number", type=float, required=True)
+    shift.add_argument("--cra", type=float, nargs="+", required=True, metavar="DEG")
+    shift.add_argument("--cwl-nm", type=float, default=700.0)
+    shift.add_argument("--n-eff", type=float, default=1.7)
+    from .optics import METHODS
+
+    shift.add_argument("--method", default="auto", choices=list(METHODS))
+    shift.add_argument("--tolerance-nm", type=float, default=0.001)
+    shift.set_defaults(func=_cmd_shift)
+    return parser
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 0
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = _one_line_warning
+            return args.func(args)
+    except (ValueError, TypeError, OSError) as err:
+        print(f"snapcorr {args.command}: error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("snapcorr: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"snapcorr: warning: {message}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,114 @@
+"""``snapcorr demo``: the optics on the bundled lens of Goossens et al. 2019.
+
+Computes the kernel-mean shift of 700 nm filters (n_eff = 1.7) over the field of the
+Edmund Optics 16 mm lens at f/1.4-f/8 with the three models (Eq. 6, the exact ideal aperture
+and the vignetted aperture), the relative illumination of the vignetted pupil, and the spread
+between the paper's three positions (CRA 1.9, 10.3, 17.4 deg). Writes a figure (the paper's
+Fig. 12, extended), a CSV and a text summary.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from ._io import atomic_write
+from .data import lens_path
+from .optics import Lens, mean_shift
+from .optics.pupil import vignetted_area_mm2
+
+__all__ = ["run_demo"]
+
+F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
+PAPER_CRAS = (1.9, 10.3, 17.4)
+CWL_NM, N_EFF = 700.0, 1.7
+MODELS = ("asymptotic", "ideal", "vignetted")
+
+
+def _relative_illumination(lens, f, cra):
+    R = lens.exit_pupil_radius_mm(f)
+    dv = lens.vignetting_distance_mm * np.tan(np.deg2rad(cra))
+    return vignetted_area_mm2(R, lens.vignetting_radius_mm, dv) / (np.pi * R**2)
+
+
+def run_demo(out_dir, *, lens: Lens | None = None, echo=print):
+    """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    lens = lens or Lens.load(lens_path())
+    cra = np.linspace(0.0, 20.0, 201)
+    rows, lines = [], []
+    lines.append(f"snapcorr {__version__} demo: {lens.name}, cwl {CWL_NM:g} nm, n_eff {N_EFF:g}")
+    lines.append(
+        f"exit pupil x = {lens.exit_pupil_mm:g} mm, P = {lens.vignetting_radius_mm:g} mm, "
+        f"h = {lens.vignetting_distance_mm:g} mm, m = {lens.magnification:g}, "
+        f"m_P = {lens.pupil_magnification:g}"
+    )
+    lines.append("")
+    lines.append("spread of the mean shift between CRA 1.9, 10.3 and 17.4 deg (nm):")
+    lines.append(f"{'f/#':>6} {'onset':>8} {'Eq. 6':>8} {'ideal':>8} {'vignetted':>10}")
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    colours = plt.cm.viridis(np.linspace(0, 0.9, len(F_NUMBERS)))
+    for f, colour in zip(F_NUMBERS, colours, strict=True):
+        curves = {m: mean_shift(CWL_NM, N_EFF, f, cra, lens, method=m) for m in MODELS}
+        rel = _relative_illumination(lens, f, cra)
+        for i, c in enumerate(cra):
+            rows.append((f, c, *(curves[m][i] for m in MODELS), rel[i]))
+        onset = float(lens.onset_cra_deg(f))
+        spread = {
+            m: np.ptp(mean_shift(CWL_NM, N_EFF, f, PAPER_CRAS, lens, method=m)) for m in MODELS
+        }
+        lines.append(
+            f"{f:>6g} {onset:>7.2f}° {spread['asymptotic']:>8.2f} {spread['ideal']:>8.2f} "
+            f"{spread['vignetted']:>10.2f}"
+        )
+        ax.plot(cra, curves["vignetted"], color=colour, lw=2, label=f"f/{f:g} vignetted")
+        ax.plot(cra, curves["asymptotic"], color=colour, lw=1, ls="--")
+        if onset < cra[-1]:
+            ax.plot(onset, mean_shift(CWL_NM, N_EFF, f, onset, lens), "o", color=colour)
+        ax2.plot(cra, rel, color=colour, lw=2, label=f"f/{f:g}")
+    ax.set(
+        xlabel="chief-ray angle (deg)",
+        ylabel="mean shift of a 700 nm filter (nm)",
+        title="Kernel mean: vignetted (solid), Eq. 6 (dashed), onset (dots)",
+    )
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    ax2.set(
+        xlabel="chief-ray angle (deg)",
+        ylabel="relative illumination A / (pi R^2)",
+        title="Relative illumination of the vignetted pupil (no cos^4)",
+    )
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=8)
+    first = F_NUMBERS[0]
+    spread_first = {
+        m: np.ptp(mean_shift(CWL_NM, N_EFF, first, PAPER_CRAS, lens, method=m)) for m in MODELS
+    }
+    lines.append("")
+    lines.append(
+        f"Reading: without vignetting the field spreads the filters by ~{spread_first['ideal']:.0f}"
+        f"-{spread_first['asymptotic']:.0f} nm at any f-number; the vignetting circle cuts the "
+        f"oblique rays at wide apertures, so at f/{first:g} the spread is only "
+        f"{spread_first['vignetted']:.1f} nm (Goossens et al. measured ~2 nm). Correcting with "
+        "Eq. 6 there would over-correct the field edge by the difference."
+    )
+    figure = atomic_write(out / "mean_shift.png", lambda p: fig.savefig(p, dpi=120, format="png"))
+    plt.close(fig)
+    header = "f_number,cra_deg,asymptotic_nm,ideal_nm,vignetted_nm,relative_illumination"
+
+    def write_csv(p):
+        np.savetxt(p, np.array(rows), delimiter=",", header=header, comments="", fmt="%.6f")
+
+    table = atomic_write(out / "mean_shift.csv", write_csv)
+    text = "\n".join(lines) + "\n"
+    summary = atomic_write(out / "summary.txt", lambda p: p.write_text(text, encoding="utf-8"))
+    echo(text)
+    echo(f"wrote {figure}, {table} and {summary}")
+    return {"figure": figure, "table": table, "summary": summary}
