@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from snapcorr import EffectiveIndexWarning, Lens, PupilCutOffError, ShiftTable, mean_shift
-from snapcorr.optics import METHODS, select_method, shift_nm
+from snapcorr.optics import METHODS, ShiftGrid, select_method, shift_nm
 from snapcorr.optics import goossens2019 as g19
 from snapcorr.optics.pupil import (
     lens_boundary_arcs,
@@ -147,6 +147,32 @@ def test_table_is_used_for_large_groups_and_meets_tolerance(edmund):
         table(700, 26)
 
 
+@pytest.mark.filterwarnings("ignore::snapcorr.EffectiveIndexWarning")
+@pytest.mark.parametrize(
+    "lens",
+    [Lens("h<x", X, 7.4236, 16.991, 0.06, 1.3), Lens("h>=x", X, 6.5, 27.0, 0.06, 1.3),
+     Lens("ideal", X, magnification=0.06, pupil_magnification=1.3)],
+    ids=lambda lens: lens.name,
+)
+def test_grid_meets_tolerance_on_scattered_pairs(lens):
+    # Both regimes, P = R inside the f-range (h<x at f/1.37, h>=x at f/1.56) and the full
+    # cut-off inside the CRA range for the slow f-numbers.
+    rng = np.random.default_rng(11)
+    f = np.exp(rng.uniform(np.log(1.2), np.log(16), 60_000))
+    cra = rng.uniform(0, 30, 60_000)
+    keep = cra < lens.cutoff_cra_deg(f) - 0.01
+    f, cra = f[keep], cra[keep]
+    grid = ShiftGrid.build(1.7, lens, f_range=(1.2, 16), cra_max_deg=30, tolerance_nm=0.001,
+                           cwl_max_nm=700)
+    exact = mean_shift(700.0, 1.7, f, cra, lens, method="vignetted")
+    assert np.max(np.abs(grid(700.0, f, cra) - exact)) <= 0.001
+    assert grid.cell_ok.mean() > 0.99  # the exact fallback stays rare
+    with pytest.raises(ValueError, match="range"):
+        grid(700.0, 20.0, 5.0)
+    with pytest.raises(ValueError, match="f_range"):
+        ShiftGrid.build(1.7, lens, f_range=(2.0, 2.0))
+
+
 @pytest.mark.parametrize("method", [m for m in METHODS])
 def test_every_method_broadcasts_and_is_finite(method, edmund):
     cra = np.linspace(0, 20, 6)
@@ -160,7 +186,7 @@ def test_every_method_broadcasts_and_is_finite(method, edmund):
     assert_allclose(
         mean_shift(700.0, 1.7, 2.0, cra[3], edmund, method=method),
         flat[3],
-        atol=1e-12 if method != "table" else 0.001,
+        atol=0.001 if method in ("table", "grid") else 1e-12,
     )
 
 

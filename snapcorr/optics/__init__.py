@@ -13,7 +13,7 @@ from .shift import (
     shift_nm,
     tilted_cwl_nm,
 )
-from .table import ShiftTable
+from .table import ShiftGrid, ShiftTable
 
 __all__ = [
     "AOI_VALIDITY_DEG",
@@ -21,6 +21,7 @@ __all__ = [
     "EffectiveIndexWarning",
     "Lens",
     "PupilCutOffError",
+    "ShiftGrid",
     "ShiftTable",
     "aoi_from_shift_deg",
     "kernel",

@@ -137,24 +137,40 @@ class ShiftTable:
         return self.cra_deg.size
 
 
-_GRID_START = (33, 65)
-_GRID_MAX = (513, 1025)
-_CUTOFF_MARGIN_DEG = 1e-3
+_GRID_START = (17, 33)
+_GRID_MAX = (257, 513)
+_CUTOFF_MARGIN = 1e-5  # relative, in tan(CRA)
+
+
+def _lagrange4(u, lo, hi):
+    """Base index and the 4 cubic Lagrange weights at fractional node position ``u``.
+
+    The 4-node stencil stays inside the smooth segment ``[lo, hi]`` (node indices) holding
+    ``u``, so it never straddles a kink.
+    """
+    base = np.clip(u.astype(np.intp) - 1, lo, hi - 3)  # u >= 0: truncation is floor
+    x = u - base  # in [1, 2] inside, [0, 1] or [2, 3] next to an edge
+    x1, x2, x3 = x - 1.0, x - 2.0, x - 3.0
+    x12, x03 = x1 * x2, x * x3
+    w = (x12 * x3 * (-1.0 / 6.0), x03 * x2 * 0.5, x03 * x1 * -0.5, x12 * x * (1.0 / 6.0))
+    return base, w
 
 
 @dataclass(frozen=True)
 class ShiftGrid:
     """Mean shift per nm of central wavelength, tabulated over (f-number, CRA) for one lens.
 
-    For arbitrary (f-number, CRA) pairs. The grid is uniform in ``a = 1 / f_W^2`` (the shift
-    is nearly linear in it) and in a normalised CRA ``xi`` that pins the onset of vignetting
-    (Eq. 46) to ``xi = 1`` for every f-number: ``xi = CRA / onset`` before it and
-    ``xi = 1 + sqrt((CRA - onset) / (top - onset))`` after it, which turns the
-    ``(CRA - onset)^(3/2)`` behaviour into a smooth cubic. ``top`` is ``cra_max`` or just short
-    of the full cut-off. Bilinear interpolation is checked against the exact contour quadrature
-    at every cell centre and edge midpoint; the grid is refined until they agree to half the
-    tolerance, and the few cells that still do not (where ``P = R`` or where the cut-off meets
-    ``cra_max``: kinks in ``a``) are answered by the exact quadrature instead.
+    For arbitrary (f-number, CRA) pairs. The grid is uniform in ``a = 1 / f_W = 2 R / x`` (the
+    shift is nearly quadratic in it) and in a normalised ``xi`` along ``t = tan(CRA)`` that
+    pins the onset of vignetting (Eq. 46) to ``xi = 1`` for every f-number: ``xi = t / onset``
+    before it and ``t = onset + (top - onset) sin^2(pi (xi - 1) / 2)`` after it, which turns
+    the ``(CRA - onset)^(3/2)`` turn-on and the approach to the full cut-off into smooth
+    functions. ``top`` is ``cra_max`` or just short of the full cut-off. The grid is split in
+    ``a`` at its kinks (``P = R``, and where the cut-off crosses ``cra_max``), and values are
+    interpolated with tensor-product cubic Lagrange polynomials that never straddle a kink
+    (error ~ h^4). Every cell centre and edge midpoint is checked against the exact contour
+    quadrature; the grid is refined until 99.5 % of cells agree to half the tolerance, and the
+    rest are answered by the exact quadrature.
     """
 
     lens: Lens
@@ -163,116 +179,162 @@ class ShiftGrid:
     cra_max_deg: float
     tolerance_nm: float
     cwl_max_nm: float
-    a_nodes: np.ndarray
+    a_breaks: np.ndarray  # a at the segment ends (kinks in a), increasing
+    a_break_nodes: np.ndarray  # their node indices
     values: np.ndarray
     cell_ok: np.ndarray
 
     @staticmethod
     def _frame(lens, a, cra_max):
-        """Onset ``k`` and top ``U`` (degrees) at ``a = 1/f_W^2``."""
-        R = 0.5 * lens.exit_pupil_mm * np.sqrt(a)
+        """Tangents of the onset ``k`` and of the top ``U`` at ``a = 1/f_W``.
+
+        Everything along the CRA axis works with ``t = tan(CRA)`` (the pixel's distance from
+        the axis over x, Eq. 8), which saves trigonometry per query.
+        """
+        R = 0.5 * lens.exit_pupil_mm * a
+        top = np.tan(np.deg2rad(cra_max))
         if lens.has_vignetting and lens.vignetting_distance_mm != 0:
             P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
-            k = np.rad2deg(np.arctan(np.abs(P - R) / h))
-            cut = np.rad2deg(np.arctan((P + R) / h)) - _CUTOFF_MARGIN_DEG
+            k = np.abs(P - R) / h
+            U = np.minimum(top, (P + R) / h * (1.0 - _CUTOFF_MARGIN))
         else:
-            k = np.full(np.shape(a), np.inf)
-            cut = np.full(np.shape(a), np.inf)
-        U = np.minimum(cra_max, cut)
+            k = U = np.full(np.shape(a), top)
         return np.minimum(k, U), U
 
     @staticmethod
-    def _to_xi(cra, k, U):
+    def _to_xi(t, k, U):
         with np.errstate(divide="ignore", invalid="ignore"):
-            lo = np.where(k > 0, cra / k, 0.0)
-            hi = 1.0 + np.sqrt(np.clip((cra - k) / (U - k), 0.0, None))
-        return np.where(cra <= k, lo, hi)
+            lo = np.where(k > 0, t / k, 0.0)
+            frac = np.clip((t - k) / (U - k), 0.0, 1.0)
+        return np.where(t <= k, lo, 1.0 + (2.0 / np.pi) * np.arcsin(np.sqrt(frac)))
 
     @staticmethod
     def _from_xi(xi, k, U):
-        return np.where(xi <= 1.0, xi * k, k + (U - k) * (xi - 1.0) ** 2)
+        # After the onset t - k = (U - k) sin^2(pi (xi - 1) / 2): quadratic at both ends, so
+        # the (CRA - onset)^(3/2) turn-on and the approach to the cut-off are both smooth.
+        return np.where(xi <= 1.0, xi * k, k + (U - k) * np.sin(0.5 * np.pi * (xi - 1.0)) ** 2)
+
+    @staticmethod
+    def _interp(vals, u, v, a_break_nodes):
+        """Cubic interpolation of ``vals`` at fractional node positions ``(u, v)``.
+
+        ``a_break_nodes`` are the node indices bounding the smooth segments along ``a``; along
+        ``xi`` the onset node (the middle one) splits the two halves.
+        """
+        nx = vals.shape[1]
+        seg = np.clip(np.searchsorted(a_break_nodes, u, side="right") - 1, 0,
+                      a_break_nodes.size - 2)
+        i, wu = _lagrange4(u, a_break_nodes[seg], a_break_nodes[seg + 1])
+        mid = (nx - 1) // 2
+        upper = v >= mid
+        j, wv = _lagrange4(v, np.where(upper, mid, 0), np.where(upper, nx - 1, mid))
+        flat = vals.ravel()
+        out = 0.0
+        for p in range(4):
+            row = (i + p) * nx + j
+            out = out + wu[p] * (wv[0] * flat[row] + wv[1] * flat[row + 1]
+                                 + wv[2] * flat[row + 2] + wv[3] * flat[row + 3])
+        return out
+
+    @staticmethod
+    def _kinks(lens, a_lo, a_hi, cra_max):
+        """Values of ``a`` in ``(a_lo, a_hi)`` where the frame has a kink: ``P = R`` and where
+        the full cut-off crosses ``cra_max``."""
+        out = []
+        if lens.has_vignetting and lens.vignetting_distance_mm != 0:
+            P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
+            x = lens.exit_pupil_mm
+            out.append(2 * P / x)  # R = x a / 2 = P
+            R_c = h * np.tan(np.deg2rad(cra_max)) / (1.0 - _CUTOFF_MARGIN) - P
+            if R_c > 0:
+                out.append(2 * R_c / x)
+        return sorted(k for k in out if a_lo < k < a_hi)
+
+    def _u(self, a):
+        return np.interp(a, self.a_breaks, self.a_break_nodes.astype(float))
 
     @classmethod
     def build(cls, n_eff, lens: Lens, *, f_range=(1.2, 22.0), cra_max_deg=30.0,
               tolerance_nm=0.001, cwl_max_nm=1000.0):
         """Tabulate ``mean_shift / cwl`` for ``f_range`` and CRA 0-``cra_max_deg``."""
         f_lo, f_hi = sorted(float(v) for v in f_range)
+        if not f_hi > f_lo:
+            raise ValueError(f"f_range must span an interval, got {f_range!r}; for a single "
+                             "f-number use ShiftTable")
         fw = lens.working_f_number(np.array([f_lo, f_hi]))
-        a_lo, a_hi = 1.0 / fw[1] ** 2, 1.0 / fw[0] ** 2
+        a_lo, a_hi = 1.0 / fw[1], 1.0 / fw[0]
         tol_rel = 0.5 * tolerance_nm / cwl_max_nm
         x = lens.exit_pupil_mm
 
         def exact(a, xi):
             k, U = cls._frame(lens, a, cra_max_deg)
-            cra = cls._from_xi(xi, k, U)
-            t = np.tan(np.deg2rad(cra))
-            R = 0.5 * x * np.sqrt(a)
+            t = cls._from_xi(xi, k, U)
+            R = 0.5 * x * a
             if lens.has_vignetting:
                 P, h = lens.vignetting_radius_mm, lens.vignetting_distance_mm
                 return g19.mean_shift_contour(1.0, n_eff, x, R, x * t, P, h * t)
             return g19.mean_shift_contour(1.0, n_eff, x, R, x * t)
 
+        breaks = np.array([a_lo, *cls._kinks(lens, a_lo, a_hi, cra_max_deg), a_hi])
         na, nx = _GRID_START
         while True:
-            a = np.linspace(a_lo, a_hi, na)
+            # Piecewise-uniform nodes in a, >= 4 per smooth segment, ~na in all.
+            counts = np.maximum(4, np.round((na - 1) * np.diff(breaks) / (a_hi - a_lo)))
+            counts = counts.astype(np.intp)
+            bnodes = np.concatenate([[0], np.cumsum(counts)])
+            a = np.concatenate([np.linspace(b0, b1, c, endpoint=False) for b0, b1, c
+                                in zip(breaks[:-1], breaks[1:], counts, strict=True)] + [[a_hi]])
             xi = np.linspace(0.0, 2.0, nx)
-            A, XI = np.meshgrid(a, xi, indexing="ij")
-            vals = exact(A, XI)
-            am, xm = 0.5 * (a[1:] + a[:-1]), 0.5 * (xi[1:] + xi[:-1])
-            # Cell centres and edge midpoints, against bilinear / linear interpolation.
-            centre = np.abs(exact(*np.meshgrid(am, xm, indexing="ij"))
-                            - 0.25 * (vals[1:, 1:] + vals[:-1, 1:] + vals[1:, :-1]
-                                      + vals[:-1, :-1]))
-            edge_a = np.abs(exact(*np.meshgrid(am, xi, indexing="ij"))
-                            - 0.5 * (vals[1:] + vals[:-1]))
-            edge_x = np.abs(exact(*np.meshgrid(a, xm, indexing="ij"))
-                            - 0.5 * (vals[:, 1:] + vals[:, :-1]))
+            vals = exact(*np.meshgrid(a, xi, indexing="ij"))
+            n_a = a.size
+            # Cell centres and edge midpoints, in node units and in (a, xi).
+            ui, vi = np.arange(n_a - 1) + 0.5, np.arange(nx - 1) + 0.5
+            errs = []
+            for uu, vv in ((ui, vi), (ui, np.arange(nx)), (np.arange(n_a), vi)):
+                U_, V_ = np.meshgrid(uu, vv, indexing="ij")
+                A_ = np.interp(U_, bnodes.astype(float), breaks)
+                errs.append(np.abs(exact(A_, 2.0 * V_ / (nx - 1))
+                                   - cls._interp(vals, U_, V_, bnodes)))
+            centre, edge_a, edge_x = errs
             ok = ((centre <= tol_rel) & (edge_a[:, 1:] <= tol_rel) & (edge_a[:, :-1] <= tol_rel)
                   & (edge_x[1:] <= tol_rel) & (edge_x[:-1] <= tol_rel))
-            if ok.mean() > 0.99 or (na, nx) == _GRID_MAX:
+            if ok.mean() > 0.995 or (na, nx) == _GRID_MAX:
                 break
             # Refine the direction that fails more.
-            bad_a = np.mean(edge_a > tol_rel)
-            bad_x = np.mean(edge_x > tol_rel)
-            if bad_a >= bad_x and na < _GRID_MAX[0]:
+            if np.mean(edge_a > tol_rel) >= np.mean(edge_x > tol_rel) and na < _GRID_MAX[0]:
                 na = 2 * na - 1
             elif nx < _GRID_MAX[1]:
                 nx = 2 * nx - 1
             else:
                 na = 2 * na - 1
         return cls(lens, float(n_eff), (f_lo, f_hi), float(cra_max_deg), float(tolerance_nm),
-                   float(cwl_max_nm), a, vals, ok)
+                   float(cwl_max_nm), breaks, bnodes, vals, ok)
 
     def __call__(self, cwl_nm, f_number, cra_deg):
         """Mean shift in nm; arguments broadcast."""
         cwl, f, cra = np.broadcast_arrays(*(np.asarray(v, float) for v in
                                             (cwl_nm, f_number, cra_deg)))
-        cra = np.abs(cra)
         if f.size and (f.min() < self.f_range[0] or f.max() > self.f_range[1]):
             raise ValueError(f"f-numbers outside this grid's range {self.f_range}")
-        a = 1.0 / self.lens.working_f_number(f) ** 2
+        a = 1.0 / self.lens.working_f_number(f)
         k, U = self._frame(self.lens, a, self.cra_max_deg)
-        if cra.size and np.any(cra > U):
+        t = np.tan(np.deg2rad(np.abs(cra)))
+        if t.size and np.any(t > U):
             raise ValueError(
                 f"CRA beyond this grid (cra_max {self.cra_max_deg} deg, or past the full "
                 "cut-off of the pupil for that f-number)")
-        xi = self._to_xi(cra, k, U)
         na, nx = self.values.shape
-        a0, a1 = self.a_nodes[0], self.a_nodes[-1]
-        u = (a - a0) / (a1 - a0) * (na - 1)
-        v = xi * 0.5 * (nx - 1)
-        i = np.clip(u.astype(np.intp), 0, na - 2)
-        j = np.clip(v.astype(np.intp), 0, nx - 2)
-        du, dv = u - i, v - j
-        vals = self.values
-        out = ((vals[i, j] * (1 - du) + vals[i + 1, j] * du) * (1 - dv)
-               + (vals[i, j + 1] * (1 - du) + vals[i + 1, j + 1] * du) * dv)
-        bad = ~self.cell_ok[i, j]
+        u = self._u(a)
+        v = self._to_xi(t, k, U) * (0.5 * (nx - 1))
+        out = self._interp(self.values, u, v, self.a_break_nodes)
+        bad = ~self.cell_ok[np.minimum(u.astype(np.intp), na - 2),
+                            np.minimum(v.astype(np.intp), nx - 2)]
         if np.any(bad):
             x = self.lens.exit_pupil_mm
-            t = np.tan(np.deg2rad(cra[bad]))
+            tb = t[bad]
             R = self.lens.exit_pupil_radius_mm(f[bad])
             P = self.lens.vignetting_radius_mm
-            dvv = None if P is None else self.lens.vignetting_distance_mm * t
-            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, R, x * t, P, dvv)
+            dvv = None if P is None else self.lens.vignetting_distance_mm * tb
+            out = np.array(out, dtype=float, copy=True)
+            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, R, x * tb, P, dvv)
         return cwl * out
