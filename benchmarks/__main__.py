@@ -14,4 +14,6 @@ parser.add_argument("--quick", action="store_true", help="small sizes: a smoke r
 args = parser.parse_args()
 print(f"snapcorr {__version__}, numpy {np.__version__}, Python {platform.python_version()}, "
       f"{platform.machine()}")
-mean_shift.run(quick=args.quick)
+mean_shift.targets(mean_shift.run(quick=args.quick))
+if args.quick:
+    print("(quick mode: sizes are too small for the rates to be representative)")

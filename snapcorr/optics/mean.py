@@ -96,27 +96,33 @@ def _asymptotic(cwl_nm, n_eff, f_number, cra_deg, lens):
     return g19.mean_shift_asymptotic(cwl_nm, n_eff, cone, np.deg2rad(np.abs(cra_deg)))
 
 
+def _groups(n, f):
+    """Indices of the elements sharing each (n_eff, f-number) pair (1-D keys sort fast)."""
+    same_n = np.all(n == n.flat[0])
+    if same_n and np.all(f == f.flat[0]):  # the usual cube: skip the sort
+        return [np.arange(f.size)], np.array([f.size])
+    key = f if same_n else f + 1j * n
+    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    if uniq.size == 1:
+        return [np.arange(key.size)], counts
+    order = np.argsort(inverse, kind="stable")
+    return np.split(order, np.cumsum(counts)[:-1]), counts
+
+
 def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
-    cwl, n, f, cra = np.broadcast_arrays(
-        *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))
-    )
+    cwl, n, f, cra = (a.ravel() for a in np.broadcast_arrays(
+        *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))))
+    g19.check_n_eff(n)
     out = np.empty(cwl.shape)
-    keys = np.stack([n.ravel(), f.ravel()], axis=1)
-    uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
-    inverse = inverse.ravel()
-    flat_cwl, flat_cra, flat_out = cwl.ravel(), np.abs(cra.ravel()), out.reshape(-1)
-    for i, (n_i, f_i) in enumerate(uniq):
-        sel = inverse == i
+    for sel in _groups(n, f)[0]:
+        c = np.abs(cra[sel])
         table = ShiftTable.build(
-            n_i,
-            f_i,
-            lens,
-            cra_max_deg=float(flat_cra[sel].max()),
-            tolerance_nm=tolerance_nm,
-            cwl_max_nm=float(np.abs(flat_cwl[sel]).max()),
+            n[sel[0]], f[sel[0]], lens, cra_max_deg=float(c.max()),
+            tolerance_nm=tolerance_nm, cwl_max_nm=float(np.abs(cwl[sel]).max()),
         )
-        flat_out[sel] = table(flat_cwl[sel], flat_cra[sel])
-    return out
+        out[sel] = table(cwl[sel], c)
+    return out.reshape(np.broadcast_shapes(*(np.shape(a) for a in
+                                             (cwl_nm, n_eff, f_number, cra_deg))))
 
 
 def _grid_method(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
@@ -244,12 +250,12 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     todo = np.ones(cwl.shape, bool)
     # Large groups sharing (n_eff, f-number): a table over CRA is cheapest.
     if cwl.size >= AUTO_TABLE_MIN_SIZE:
-        key = f if np.all(n == n[0]) else f + 1j * n  # 1-D keys sort fast
-        _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-        for i in np.flatnonzero(counts >= AUTO_TABLE_MIN_SIZE):
-            sel = inverse == i
+        groups, counts = _groups(n, f)
+        if len(groups) == 1:  # one f-number and n_eff: the whole call is one table
+            return _table(cwl, n, f, cra, lens, tolerance_nm).reshape(shape)
+        for sel in (g for g, c in zip(groups, counts, strict=True) if c >= AUTO_TABLE_MIN_SIZE):
             out[sel] = _table(cwl[sel], n[sel], f[sel], cra[sel], lens, tolerance_nm)
-            todo &= ~sel
+            todo[sel] = False
     if np.count_nonzero(todo) >= AUTO_GRID_MIN_SIZE:
         idx = np.flatnonzero(todo)
         out[idx] = _grid_method(cwl[idx], n[idx], f[idx], cra[idx], lens, tolerance_nm)

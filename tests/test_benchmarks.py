@@ -1,0 +1,16 @@
+"""The benchmarks run in CI in their quick mode, so they cannot rot."""
+
+import numpy as np
+
+from benchmarks import mean_shift as bench
+
+
+def test_quick_benchmark_runs_and_reports_sane_numbers():
+    lines = []
+    rows = bench.run(quick=True, echo=lines.append)
+    assert rows and all(np.isfinite(r["rate"]) and r["rate"] > 0 for r in rows)
+    exact = [r for r in rows if r["method"] in ("mean_shift('vignetted')", "ShiftTable",
+                                                "ShiftGrid (built)")]
+    assert all(r["error"] <= 1e-3 for r in exact)
+    ok1, ok2 = bench.targets(rows, echo=lines.append)
+    assert any("target 1" in line for line in lines)
