@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 from conftest import brute_force_mean, load_reference_csv
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
@@ -364,3 +364,32 @@ def test_contour_area_matches_eq33_and_rmax_matches_eq44(f, cra, P, h):
         # subnormal CRAs where its 0/0 in Eq. 43 underflows.
         if cra > 1e-6:
             assert max_radius_eq44(d, R, dv, P) >= far * (1 - 1e-9) - 1e-9
+
+
+@settings(max_examples=150, deadline=None)
+@given(r=st.floats(0.01, 20), **geom)
+def test_gamma_is_the_arc_inside_both_circles(r, f, cra, P, h):
+    # Eq. 15-18 against a direct count: the fraction of the circle of radius r about the
+    # pixel's foot that lies inside the pupil and the vignetting circle is gamma / pi.
+    from snapcorr.optics.pupil import gamma
+
+    R = X / (2 * f)
+    d, dv = X * np.tan(np.deg2rad(cra)), h * np.tan(np.deg2rad(cra))
+    # A ring lying exactly on a circle's edge is inside or out by round-off: skip that case.
+    assume(abs(r - P) > 1e-6 or abs(d - dv) > 1e-9)
+    assume(abs(r - R) > 1e-6 or d > 1e-9)
+    psi = (np.arange(200_000) + 0.5) * (2 * np.pi / 200_000)
+    px, py = d + r * np.cos(psi), r * np.sin(psi)
+    inside = (px**2 + py**2 <= R * R) & ((px - dv) ** 2 + py**2 <= P * P)
+    regime = X <= h  # Eq. 18 picks its branch by h >= x
+    assert_allclose(gamma(r, d, R, dv, P, h_ge_x=regime) / np.pi, inside.mean(), atol=2e-4)
+
+
+@settings(max_examples=100, deadline=None)
+@given(f=st.floats(1.2, 22), P=st.floats(0.5, 30), h=st.floats(-60, 60))
+def test_axis_is_never_vignetted_when_p_covers_the_pupil(f, P, h):
+    lens = Lens("t", X, P, h)
+    if P >= lens.exit_pupil_radius_mm(f):
+        assert not lens.is_vignetted(f, 0.0)
+        assert_allclose(mean_shift(700, 1.7, f, 0.0, lens, method="vignetted"),
+                        mean_shift(700, 1.7, f, 0.0, lens, method="ideal"), atol=1e-9)

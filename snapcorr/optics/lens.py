@@ -10,13 +10,13 @@ References
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .._io import atomic_write
 
 __all__ = ["Lens"]
 
@@ -124,7 +124,7 @@ class Lens:
         if not self.has_vignetting:
             return np.full(np.shape(R), np.inf)[()]
         P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", over="ignore"):
             on = np.where(P < R, 0.0, np.rad2deg(np.arctan((P - R) / abs(h))) if h else np.inf)
         return on[()]
 
@@ -142,7 +142,8 @@ class Lens:
         if not self.has_vignetting or self.vignetting_distance_mm == 0:
             return np.full(np.shape(R), np.inf)[()]
         P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
-        return np.rad2deg(np.arctan((P + R) / abs(h)))[()]
+        with np.errstate(over="ignore"):
+            return np.rad2deg(np.arctan((P + R) / abs(h)))[()]
 
     # -- files ----------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -201,12 +202,5 @@ class Lens:
         if self.calibration:
             doc["calibration"] = self.calibration
         text = tomli_w.dumps(doc)
-        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         return path

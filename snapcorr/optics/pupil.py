@@ -30,7 +30,8 @@ def _re_arccos(num, den):
     """``Re(arccos(num / den))`` with ``den >= 0``; ``den == 0`` is the limit num/den -> +-inf."""
     num, den = np.broadcast_arrays(np.asarray(num, float), np.asarray(den, float))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        z = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.sign(num) * np.inf)
+        # At den == 0 a point on the circle's edge counts as inside (num == 0 -> -inf -> pi).
+        z = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, np.inf, -np.inf))
     # Re(arccos z) = pi for z <= -1 and 0 for z >= 1 (Goossens 2019, after Eq. 15).
     return np.arccos(np.clip(z, -1.0, 1.0))
 
@@ -45,17 +46,20 @@ def eta(r_mm, d_mm, R_mm):
     return _re_arccos(d * d - R * R + r * r, 2.0 * np.abs(d) * r)
 
 
-def nu(r_mm, dr_mm, P_mm):
+def nu(r_mm, dr_mm, P_mm, *, h_ge_x=None):
     """Arc half-angle set by the vignetting circle, Eq. (17), with ``d_r = d - d_v``.
 
     Eq. (17) covers both regimes: for ``h >= x`` (``d_r <= 0``) it is the half-angle cut
-    off, Eq. (16); for ``h < x`` the half-angle kept. ``d_r = 0`` (``h == x``) takes the limit.
+    off, Eq. (16); for ``h < x`` the half-angle kept. At ``d_r = 0`` (CRA = 0, or ``h == x``)
+    the value is the limit from the regime's own side, so give ``h_ge_x`` there (default:
+    ``d_r <= 0``).
     """
     r, dr, P = (np.asarray(v, float) for v in (r_mm, dr_mm, P_mm))
+    ge = (dr <= 0) if h_ge_x is None else np.asarray(h_ge_x, bool)
     # Eq. (17) with the sign of d_r moved into the numerator keeps the denominator >= 0:
     # arccos(z / sign(d_r)) = arccos(z) for d_r > 0 and pi - arccos(z) for d_r < 0.
     a = _re_arccos(dr * dr - P * P + r * r, 2.0 * np.abs(dr) * r)
-    return np.where(dr <= 0, np.pi - a, a)
+    return np.where(ge, np.pi - a, a)
 
 
 def gamma(r_mm, d_mm, R_mm, dv_mm=None, P_mm=None, *, h_ge_x=None):
@@ -68,9 +72,8 @@ def gamma(r_mm, d_mm, R_mm, dv_mm=None, P_mm=None, *, h_ge_x=None):
     if P_mm is None:
         return e
     d, dv = np.asarray(d_mm, float), np.asarray(dv_mm, float)
-    dr = d - dv
-    n = nu(r_mm, dr, P_mm)
     ge = (dv >= d) if h_ge_x is None else np.asarray(h_ge_x, bool)
+    n = nu(r_mm, d - dv, P_mm, h_ge_x=ge)
     return np.where(ge, np.maximum(e - n, 0.0), np.minimum(e, n))
 
 

@@ -1,0 +1,77 @@
+"""The command line: help, version, the demo, and one-line errors instead of tracebacks."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from snapcorr import __version__
+from snapcorr.cli import main
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "snapcorr", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_version_and_help():
+    res = run("--version")
+    assert res.returncode == 0 and __version__ in res.stdout
+    res = run("--help")
+    assert res.returncode == 0 and "examples:" in res.stdout and "demo" in res.stdout
+    for sub in ("demo", "shift"):
+        res = run(sub, "--help")
+        assert res.returncode == 0 and "examples:" in res.stdout
+
+
+def test_demo_writes_figure_table_and_summary(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path / "out")]) == 0
+    out = tmp_path / "out"
+    assert (out / "mean_shift.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    table = np.loadtxt(out / "mean_shift.csv", delimiter=",", skiprows=1)
+    assert table.shape[1] == 6 and np.all(np.isfinite(table))
+    text = (out / "summary.txt").read_text()
+    assert "f/#" in text and "vignetted" in text
+    assert not list(out.glob(".*"))  # no temporary files left behind
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_shift_table(capsys):
+    assert main(["shift", "--f-number", "1.4", "--cra", "0", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "-8.954" in out and "vignetted" in out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["shift", "--f-number", "8", "--cra", "40"], "cuts off the whole exit pupil"),
+        (["shift", "--lens", "nope", "--f-number", "2", "--cra", "1"], "no bundled lens"),
+        (["shift", "--lens", "missing.toml", "--f-number", "2", "--cra", "1"], "not found"),
+        (["shift", "--f-number", "0", "--cra", "1"], "f_number"),
+        (["shift", "--f-number", "2", "--cra", "1", "--n-eff", "0.9"], "n_eff"),
+    ],
+)
+def test_foreseeable_mistakes_are_one_line_errors(args, message):
+    res = run(*args)
+    assert res.returncode != 0
+    assert "Traceback" not in res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0]
+
+
+def test_bad_lens_file_is_one_line_error(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[lens]\nname = 'x'\n")
+    res = run("shift", "--lens", str(bad), "--f-number", "2", "--cra", "1")
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "exit_pupil_mm" in res.stderr
+
+
+def test_warning_is_one_line(tmp_path):
+    lens = tmp_path / "wide.toml"
+    lens.write_text("[lens]\nname = 'wide'\nexit_pupil_mm = 21.0\n")
+    res = run("shift", "--lens", str(lens), "--f-number", "1.2", "--cra", "30")
+    assert res.returncode == 0
+    assert "warning" in res.stderr and "Traceback" not in res.stderr
