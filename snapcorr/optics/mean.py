@@ -96,17 +96,21 @@ def _asymptotic(cwl_nm, n_eff, f_number, cra_deg, lens):
     return g19.mean_shift_asymptotic(cwl_nm, n_eff, cone, np.deg2rad(np.abs(cra_deg)))
 
 
-def _groups(n, f):
-    """Indices of the elements sharing each (n_eff, f-number) pair (1-D keys sort fast)."""
+def _groups(n, f, min_count=1):
+    """Indices of the elements sharing each (n_eff, f-number) pair, for the pairs with at
+    least ``min_count`` elements (1-D keys sort fast)."""
     same_n = np.all(n == n.flat[0])
     if same_n and np.all(f == f.flat[0]):  # the usual cube: skip the sort
-        return [np.arange(f.size)], np.array([f.size])
+        return [np.arange(f.size)] if f.size >= min_count else []
     key = f if same_n else f + 1j * n
-    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    if uniq.size == 1:
-        return [np.arange(key.size)], counts
-    order = np.argsort(inverse, kind="stable")
-    return np.split(order, np.cumsum(counts)[:-1]), counts
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    big = np.flatnonzero(counts >= min_count)
+    if big.size > 64:  # many groups: one sort beats a mask per group
+        order = np.argsort(inverse, kind="stable")
+        parts = np.split(order, np.cumsum(counts)[:-1])
+        return [parts[i] for i in big]
+    return [np.flatnonzero(inverse == i) for i in big]
 
 
 def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
@@ -114,7 +118,7 @@ def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
         *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))))
     g19.check_n_eff(n)
     out = np.empty(cwl.shape)
-    for sel in _groups(n, f)[0]:
+    for sel in _groups(n, f):
         c = np.abs(cra[sel])
         table = ShiftTable.build(
             n[sel[0]], f[sel[0]], lens, cra_max_deg=float(c.max()),
@@ -250,10 +254,10 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     todo = np.ones(cwl.shape, bool)
     # Large groups sharing (n_eff, f-number): a table over CRA is cheapest.
     if cwl.size >= AUTO_TABLE_MIN_SIZE:
-        groups, counts = _groups(n, f)
-        if len(groups) == 1:  # one f-number and n_eff: the whole call is one table
+        groups = _groups(n, f, AUTO_TABLE_MIN_SIZE)
+        if len(groups) == 1 and groups[0].size == cwl.size:  # one f-number and n_eff
             return _table(cwl, n, f, cra, lens, tolerance_nm).reshape(shape)
-        for sel in (g for g, c in zip(groups, counts, strict=True) if c >= AUTO_TABLE_MIN_SIZE):
+        for sel in groups:
             out[sel] = _table(cwl[sel], n[sel], f[sel], cra[sel], lens, tolerance_nm)
             todo[sel] = False
     if np.count_nonzero(todo) >= AUTO_GRID_MIN_SIZE:
