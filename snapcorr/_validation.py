@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-__all__ = ["validate_method"]
+import numpy as np
+
+__all__ = ["check_curve", "validate_method"]
 
 
 def validate_method(method, methods, what="method"):
@@ -11,3 +13,15 @@ def validate_method(method, methods, what="method"):
         names = ", ".join(repr(m) for m in methods)
         raise ValueError(f"unknown {what} {method!r}; choose one of {names}")
     return method
+
+
+def check_curve(wavelength_nm, transmission):
+    """Return a sampled curve as float arrays, raising unless it is 1-D, of equal lengths
+    (>= 2), finite, with strictly increasing wavelengths."""
+    w = np.asarray(wavelength_nm, float)
+    t = np.asarray(transmission, float)
+    if (w.ndim != 1 or w.shape != t.shape or w.size < 2 or np.any(np.diff(w) <= 0)
+            or not (np.all(np.isfinite(w)) and np.all(np.isfinite(t)))):
+        raise ValueError("a transmission curve needs finite 1-D wavelength and transmission "
+                         "arrays of equal length (>= 2), wavelengths strictly increasing")
+    return w, t

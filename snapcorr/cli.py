@@ -87,23 +87,17 @@ def build_parser():
     parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    demo = sub.add_parser(
-        "demo",
-        help="run the main job on the bundled default lens and write figures",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    def command(name, help_):
+        return sub.add_parser(name, help=help_, epilog=EXAMPLES,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+
+    demo = command("demo", "run the main job on the bundled default lens and write figures")
     demo.add_argument(
         "--out", default="snapcorr-demo", type=Path, help="output folder (default: %(default)s)"
     )
     demo.set_defaults(func=_cmd_demo)
 
-    shift = sub.add_parser(
-        "shift",
-        help="mean central-wavelength shift at chief-ray angles (Eq. 22-23)",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    shift = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     shift.add_argument(
         "--lens",
         default="edmund_optics_16mm",

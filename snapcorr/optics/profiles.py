@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
+from .._validation import check_curve
 from .shift import check_n_eff, shift_nm
 
 __all__ = ["PROFILES", "Airy", "MultiLorentzian", "PiShaped", "Tabulated", "fwhm_of"]
@@ -192,13 +193,7 @@ class Tabulated:
     cwl_nm: float | None = None
 
     def __post_init__(self):
-        w = np.asarray(self.wavelength_nm, float)
-        t = np.asarray(self.transmission, float)
-        if w.ndim != 1 or w.shape != t.shape or w.size < 2 or np.any(np.diff(w) <= 0):
-            raise ValueError(
-                "a tabulated profile needs 1-D wavelength and transmission arrays "
-                "of equal length (>= 2), wavelengths strictly increasing"
-            )
+        w, t = check_curve(self.wavelength_nm, self.transmission)
         object.__setattr__(self, "wavelength_nm", w)
         object.__setattr__(self, "transmission", t)
         if self.cwl_nm is None:

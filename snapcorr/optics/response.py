@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import validate_method
+from .._validation import check_curve, validate_method
 from . import rienstra1998
 from .goossens2019 import _gauss_legendre, kernel
 from .lens import Lens
@@ -89,13 +89,7 @@ def filter_response(
         ``~ cwl * Var(S)``: scaling (Rienstra) and shifting (Goossens) differ at second order.
     """
     validate_method(method, RESPONSE_METHODS)
-    p = np.asarray(wavelength_nm, float)
-    t = np.asarray(transmission, float)
-    if p.ndim != 1 or p.shape != t.shape or p.size < 2 or np.any(np.diff(p) <= 0):
-        raise ValueError(
-            "wavelength_nm and transmission must be 1-D, the same length (>= 2), "
-            "with wavelengths strictly increasing"
-        )
+    p, t = check_curve(wavelength_nm, transmission)
     if method == "rienstra":
         return rienstra1998.transform(
             p,

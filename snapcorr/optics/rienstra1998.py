@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validation import check_curve
 from .pupil import gamma, max_radius_mm, vignetted_area_mm2
 from .shift import check_n_eff
 
@@ -142,13 +143,7 @@ def transform(
     -------
     ndarray, shape (m,)
     """
-    p = np.asarray(wavelength_nm, float)
-    t = np.asarray(transmission, float)
-    if p.ndim != 1 or p.shape != t.shape or p.size < 2 or np.any(np.diff(p) <= 0):
-        raise ValueError(
-            "wavelength_nm and transmission must be 1-D, the same length (>= 2), "
-            "with wavelengths strictly increasing"
-        )
+    p, t = check_curve(wavelength_nm, transmission)
     theta, W = ray_bundle_weights(f_number_w, cra_deg, step_deg=step_deg, lens=lens)
     S = shift_factors(theta, n_eff, temperature_factor)
     if normalize:
