@@ -393,3 +393,21 @@ def test_axis_is_never_vignetted_when_p_covers_the_pupil(f, P, h):
         assert not lens.is_vignetted(f, 0.0)
         assert_allclose(mean_shift(700, 1.7, f, 0.0, lens, method="vignetted"),
                         mean_shift(700, 1.7, f, 0.0, lens, method="ideal"), atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["auto", "vignetted", "asymptotic", "table"])
+def test_float_policy_and_empty_inputs(method, edmund):
+    cra32 = np.array([0.0, 10.0], dtype=np.float32)
+    out = mean_shift(700.0, 1.7, 2.0, cra32, edmund, method=method)
+    assert out.dtype == np.float32
+    assert_allclose(out, mean_shift(700.0, 1.7, 2.0, cra32.astype(float), edmund,
+                                    method=method), rtol=1e-6)
+    assert mean_shift(700.0, 1.7, 2.0, [0.0, 10.0], edmund, method=method).dtype == np.float64
+    empty = mean_shift(700.0, 1.7, 2.0, np.zeros((0, 3)), edmund, method=method)
+    assert empty.shape == (0, 3)
+
+
+@pytest.mark.parametrize("cwl", [np.nan, 0.0, -700.0])
+def test_bad_wavelength(cwl, edmund):
+    with pytest.raises(ValueError, match="cwl_nm"):
+        mean_shift(cwl, 1.7, 2.0, 5.0, edmund)

@@ -212,7 +212,8 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     Returns
     -------
     shift : ndarray
-        Shift in nm, negative towards the blue; the arguments broadcast.
+        Shift in nm, negative towards the blue; the arguments broadcast. float32 if any
+        argument is float16/float32 (computed in float64), float64 otherwise.
 
     Raises
     ------
@@ -235,11 +236,24 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     validate_method(method, METHODS)
     if not np.isfinite(tolerance_nm) or tolerance_nm <= 0:
         raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+    args = (cwl_nm, n_eff, f_number, cra_deg)
+    cwl = np.asarray(cwl_nm, dtype=float)
+    if not (np.all(np.isfinite(cwl)) and np.all(cwl > 0)):
+        raise ValueError("cwl_nm must be finite and > 0 (nm)")
+    # Float policy: float16/32 in -> float32 out; everything else float64.
+    low = any(np.asarray(a).dtype in (np.float16, np.float32) for a in args)
+    shape = np.broadcast_shapes(*(np.shape(a) for a in args))
+    if 0 in shape:
+        if not isinstance(lens, Lens):
+            raise TypeError(f"lens must be a snapcorr.Lens, got {type(lens).__name__}")
+        return np.zeros(shape, np.float32 if low else float)
     if method in ("table", "grid"):
-        return METHODS[method](cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm)
-    if method != "auto":
-        return METHODS[method](cwl_nm, n_eff, f_number, cra_deg, lens)
-    return _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm)
+        out = METHODS[method](*args, lens, tolerance_nm)
+    elif method != "auto":
+        out = METHODS[method](*args, lens)
+    else:
+        out = _auto(*args, lens, tolerance_nm)
+    return np.asarray(out, dtype=np.float32) if low else out
 
 
 def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
