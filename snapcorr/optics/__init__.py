@@ -6,6 +6,9 @@ Pure numpy, no file I/O beyond lens profiles; every function broadcasts.
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
 from .mean import METHODS, mean_shift, select_method
+from .neff import NeffFit, fit_n_eff
+from .profiles import PROFILES, Airy, MultiLorentzian, PiShaped, Tabulated
+from .response import RESPONSE_METHODS, filter_response
 from .shift import (
     AOI_VALIDITY_DEG,
     EffectiveIndexWarning,
@@ -18,12 +21,21 @@ from .table import ShiftGrid, ShiftTable
 __all__ = [
     "AOI_VALIDITY_DEG",
     "METHODS",
+    "PROFILES",
+    "RESPONSE_METHODS",
+    "Airy",
     "EffectiveIndexWarning",
     "Lens",
+    "MultiLorentzian",
+    "NeffFit",
+    "PiShaped",
     "PupilCutOffError",
     "ShiftGrid",
     "ShiftTable",
+    "Tabulated",
     "aoi_from_shift_deg",
+    "filter_response",
+    "fit_n_eff",
     "kernel",
     "kernel_asymptotic",
     "mean_shift",
