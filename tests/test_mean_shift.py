@@ -13,6 +13,7 @@ from snapcorr import EffectiveIndexWarning, Lens, PupilCutOffError, ShiftTable, 
 from snapcorr.optics import METHODS, ShiftGrid, select_method, shift_nm
 from snapcorr.optics import goossens2019 as g19
 from snapcorr.optics.pupil import (
+    lens_area,
     lens_boundary_arcs,
     max_radius_eq44,
     max_radius_mm,
@@ -340,24 +341,22 @@ def test_before_onset_vignetted_equals_ideal(f, P, h, frac):
 def test_contour_area_matches_eq33_and_rmax_matches_eq44(f, cra, P, h):
     R = X / (2 * f)
     d, dv = X * np.tan(np.deg2rad(cra)), h * np.tan(np.deg2rad(cra))
-    t1, t2 = lens_boundary_arcs(R / X, P / X, dv / X)
+    beta, alpha = lens_boundary_arcs(R / X, P / X, dv / X)
     F = d / X
-    area = (
-        (R / X) ** 2 * t1
-        - (R / X) * F * np.sin(t1)
-        + (P / X) ** 2 * (np.pi - t2)
-        - (P / X) * (dv / X - F) * np.sin(t2)
-    ) * X**2
-    assert_allclose(area, vignetted_area_mm2(R, P, dv), rtol=1e-9, atol=1e-9)
-    if area > 1e-6:
+    # Green's theorem on the two arcs (the contour method's own bookkeeping) vs Eq. 33-35.
+    green = ((R / X) ** 2 * beta - (R / X) * F * np.sin(beta)
+             + (P / X) ** 2 * alpha - (P / X) * (dv / X - F) * np.sin(alpha)) * X**2
+    eq33 = vignetted_area_mm2(R, P, dv)
+    assert_allclose(green, eq33, rtol=1e-9, atol=1e-9)
+    assert_allclose(lens_area(R, P, beta, alpha), eq33, rtol=1e-9, atol=1e-9)
+    if eq33 > 1e-6:
         # Farthest point of the vignetted pupil from the pixel's foot, sampled on its boundary.
-        t = np.linspace(0, np.pi, 20001)
-        pts = [np.stack([R * np.cos(t1 * t / np.pi), R * np.sin(t1 * t / np.pi)])]
-        if t1 == 0:
-            pts = []
-        if t2 < np.pi:
-            u = t2 + (np.pi - t2) * t / np.pi
-            pts.append(np.stack([dv + P * np.cos(u), P * np.sin(u)]))
+        u = np.linspace(0, 1, 20001)
+        pts = []
+        if beta > 0:
+            pts.append(np.stack([R * np.cos(beta * u), R * np.sin(beta * u)]))
+        if alpha > 0:
+            pts.append(np.stack([dv - P * np.cos(alpha * u), P * np.sin(alpha * u)]))
         far = max(np.hypot(p[0] - d, p[1]).max() for p in pts)
         assert_allclose(max_radius_mm(d, R, dv, P), far, rtol=1e-9, atol=1e-9)
         # The paper's Eq. 44 is never below it (a safe integration limit), except at

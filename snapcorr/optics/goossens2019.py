@@ -40,6 +40,7 @@ import numpy as np
 
 from .pupil import (
     gamma,
+    lens_area,
     lens_boundary_arcs,
     max_radius_mm,
     vignetted_area_mm2,
@@ -60,6 +61,10 @@ __all__ = [
 
 #: Gauss-Legendre nodes per boundary arc used by the ``"ideal"`` and ``"vignetted"`` methods.
 DEFAULT_NODES = 12
+#: Axial extent (in units of x) below which a pupil counts as a point (see mean_shift_contour).
+_TINY_EXTENT = 1e-9
+#: Elements per block of the contour quadrature (bounds its memory to a few MB).
+_CONTOUR_CHUNK = 16_384
 #: Step of the paper's left Riemann sum in wavelength, nm (Goossens 2019, App. B).
 RIEMANN_STEP_NM = 0.01
 
@@ -153,32 +158,50 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     F, rho1, rho2, v = _validate_geometry(x_mm, R_mm, d_mm, P_mm, dv_mm)
     shape = np.broadcast_shapes(F.shape, np.shape(cwl_nm), n.shape)
     F, rho1, rho2, v, n = (np.broadcast_to(a, shape).ravel() for a in (F, rho1, rho2, v, n))
-    t1, t2 = lens_boundary_arcs(rho1, rho2, v)
-    # Area (Green's theorem with f = 1, closed form): sum over arcs of rho^2 dt + rho e d(sin t).
-    e1, e2 = -F, v - F
-    r2 = np.where(np.isfinite(rho2), rho2, 0.0)
-    sin2 = np.where(t2 < np.pi, np.sin(t2), 0.0)  # sin(pi) is not 0 in floating point
-    area = rho1**2 * t1 + rho1 * e1 * np.sin(t1) + r2**2 * (np.pi - t2) - r2 * e2 * sin2
+    beta, alpha = lens_boundary_arcs(rho1, rho2, v)
+    area = lens_area(rho1, rho2, beta, alpha)
     if np.any(area <= 0):
         raise PupilCutOffError(
             f"the vignetting circle cuts off the whole exit pupil for {int(np.sum(area <= 0))} "
             "input(s): no light reaches those pixels, so their filter shift is undefined. "
             "Restrict the chief-ray angles to below Lens.cutoff_cra_deg(f_number)."
         )
+    # Subtract Psi at a point inside the vignetted pupil (the middle of its extent along the
+    # axis): the constant part integrates exactly (to 2 A Psi_ref), and the remainder stays
+    # small where the boundary terms cancel -- slivers near the full cut-off and pupils far
+    # smaller than their distance from the pixel's foot.
+    x_mid = 0.5 * (np.maximum(-rho1, v - rho2) + np.minimum(rho1, v + rho2))
+    psi_ref = shift_potential((x_mid - F) ** 2, n)
     xi, w = _gauss_legendre(nodes or DEFAULT_NODES)
-    total = np.zeros_like(F)
-    for rho, e, lo, hi in ((rho1, e1, 0.0, t1), (r2, e2, t2, np.pi)):
-        half = 0.5 * (hi - lo)
-        if not np.any(half > 0):
-            continue
-        t = (lo + half)[:, None] + half[:, None] * xi
-        c, s_ = np.cos(t), np.sin(t)
-        rr, ee = rho[:, None], e[:, None]
-        s = (ee + rr * c) ** 2 + (rr * s_) ** 2  # |p - F|^2, >= 0 by construction
-        integrand = shift_potential(s, n[:, None]) * (rr * rr + rr * ee * c)
-        total += half * (integrand @ w)
+    r2 = np.where(np.isfinite(rho2), rho2, 0.0)
+    rest = np.zeros_like(F)
+    # Arc k: centre offset e from the pixel's foot, radius rho, half-angle theta, and the sign
+    # of its polar axis (the pupil arc faces +x, the vignetting arc -x).
+    arcs = ((rho1, -F, beta, 1.0), (r2, v - F, alpha, -1.0))
+    for lo_i in range(0, F.size, _CONTOUR_CHUNK):  # bounded memory for any input size
+        sl = slice(lo_i, lo_i + _CONTOUR_CHUNK)
+        for rho, e, theta, sign in arcs:
+            half = 0.5 * theta[sl]
+            if not np.any(half > 0):
+                continue
+            t = half[:, None] * (1.0 + xi)
+            c, s_ = sign * np.cos(t), np.sin(t)
+            rr, ee = rho[sl, None], e[sl, None]
+            s = (ee + rr * c) ** 2 + (rr * s_) ** 2  # |p - F|^2, >= 0 by construction
+            integrand = (shift_potential(s, n[sl, None]) - psi_ref[sl, None]) * (
+                rr * rr + rr * ee * c
+            )
+            rest[sl] += half * (integrand @ w)
     # The mirrored halves double both the integral and the area: the factor 2 cancels.
-    mean = -(total / (0.5 * area))
+    mean = -(2.0 * psi_ref + rest / (0.5 * area))
+    # A pupil (or the sliver left just before the full cut-off) thinner than _TINY_EXTENT
+    # along the axis is a point for Eq. (3): its mean is the shift at its middle to ~1e-7 nm,
+    # while the contour terms would cancel to their last digits.
+    tiny = (np.minimum(rho1, v + rho2) - np.maximum(-rho1, v - rho2)) < _TINY_EXTENT
+    if np.any(tiny):
+        s_mid = (x_mid[tiny] - F[tiny]) ** 2
+        q = s_mid / ((1.0 + s_mid) * n[tiny] ** 2)
+        mean[tiny] = -q / (1.0 + np.sqrt(1.0 - q))
     return (np.broadcast_to(cwl_nm, shape).ravel() * mean).reshape(shape)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 __all__ = [
     "eta",
     "gamma",
+    "lens_area",
     "lens_boundary_arcs",
     "max_radius_eq44",
     "max_radius_mm",
@@ -130,13 +131,13 @@ def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
     flip = dv < 0
     d, dv = np.where(flip, -d, d), np.abs(dv)
-    t1, t2 = lens_boundary_arcs(R, P, dv)
+    beta, alpha = lens_boundary_arcs(R, P, dv)
 
     def dist(c, rho, t):
         return np.hypot(c - d + rho * np.cos(t), rho * np.sin(t))
 
-    r1 = np.where(t1 > 0, np.maximum(dist(0.0, R, 0.0), dist(0.0, R, t1)), 0.0)
-    r2 = np.where(t2 < np.pi, np.maximum(dist(dv, P, np.pi), dist(dv, P, t2)), 0.0)
+    r1 = np.where(beta > 0, np.maximum(dist(0.0, R, 0.0), dist(0.0, R, beta)), 0.0)
+    r2 = np.where(alpha > 0, np.maximum(dist(dv, P, np.pi), dist(dv, P, np.pi - alpha)), 0.0)
     return np.maximum(r1, r2)
 
 
@@ -145,14 +146,20 @@ def lens_boundary_arcs(rho1, rho2, v):
 
     The pupil is centred at 0 with radius ``rho1``, the vignetting disc at ``v >= 0`` on the
     same axis with radius ``rho2`` (``rho2 = inf`` for no vignetting). By symmetry about the
-    axis, the boundary is traversed as two arcs given by their polar angle about their own
-    centre: pupil arc ``t in [0, t1]`` and vignetting arc ``t in [t2, pi]`` (each mirrored).
+    axis the boundary is two mirrored pairs of arcs, given by their half-angles: the pupil arc
+    ``|t| <= beta`` about the pupil's centre, facing the vignetting circle (polar angle ``t``
+    from the +axis), and the vignetting arc ``|tau| <= alpha`` about its centre, facing the
+    pupil (``tau`` from the -axis). These are the ``beta`` and ``alpha`` of Eq. (34)-(35).
+
+    The crossing point's height comes from the triangle (``rho1``, ``rho2``, ``v``) in Heron's
+    factored form, so the angles stay accurate right up to external or internal tangency, where
+    the naive ``sqrt(rho1^2 - a^2)`` loses all its digits.
 
     Returns
     -------
-    t1, t2 : ndarray
-        ``t1 = pi, t2 = pi``: the whole pupil; ``t1 = 0, t2 = 0``: the whole vignetting disc;
-        ``t1 = 0, t2 = pi``: empty (fully cut off).
+    beta, alpha : ndarray
+        ``(pi, 0)``: the whole pupil; ``(0, pi)``: the whole vignetting disc; ``(0, 0)``:
+        empty (fully cut off).
     """
     rho1, rho2, v = np.broadcast_arrays(*(np.asarray(a, float) for a in (rho1, rho2, v)))
     pupil_inside = v + rho1 <= rho2
@@ -160,9 +167,32 @@ def lens_boundary_arcs(rho1, rho2, v):
     apart = v >= rho1 + rho2
     crossing = ~(pupil_inside | circle_inside | apart)
     vs = np.where(crossing, v, 1.0)
+    r1, r2 = np.where(crossing, rho1, 1.0), np.where(crossing, rho2, 1.0)
+    heron = (r1 + r2 - vs) * (r2 + vs - r1) * (r1 + vs - r2) * (r1 + r2 + vs)
+    y = np.sqrt(np.clip(heron, 0.0, None)) / (2.0 * vs)
     with np.errstate(over="ignore"):
-        a = (rho1 * rho1 - rho2 * rho2 + vs * vs) / (2.0 * vs)
-    y = np.sqrt(np.clip(rho1 * rho1 - a * a, 0.0, None))
-    t1 = np.where(crossing, np.arctan2(y, a), np.where(pupil_inside, np.pi, 0.0))
-    t2 = np.where(crossing, np.arctan2(y, a - vs), np.where(pupil_inside | apart, np.pi, 0.0))
-    return t1, t2
+        beta = np.arctan2(y, (r1 * r1 - r2 * r2 + vs * vs) / (2.0 * vs))
+        alpha = np.arctan2(y, (r2 * r2 - r1 * r1 + vs * vs) / (2.0 * vs))
+    beta = np.where(crossing, beta, np.where(pupil_inside, np.pi, 0.0))
+    alpha = np.where(crossing, alpha, np.where(circle_inside & ~pupil_inside, np.pi, 0.0))
+    return beta, alpha
+
+
+def _segment(theta):
+    """``theta - sin(theta) cos(theta)`` (a circular segment over its radius squared, times
+    two), accurate for small ``theta`` where it is ~ 2 theta^3 / 3."""
+    x = 2.0 * np.asarray(theta, float)
+    small = x < 0.6
+    xs = np.where(small, x, 0.0)
+    x2 = xs * xs
+    # x - sin x = x^3/3! - x^5/5! + ... ; the x^15 term is < 1e-16 of the first at x = 0.6.
+    series = xs * x2 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 * (1 / 362880 - x2 * (
+        1 / 39916800 - x2 * (1 / 6227020800))))))
+    return 0.5 * np.where(small, series, x - np.sin(x))
+
+
+def lens_area(rho1, rho2, beta, alpha):
+    """Area of the vignetted pupil from its arcs: Eq. (33), ``R^2 seg(beta) + P^2 seg(alpha)``
+    with ``seg(t) = t - sin t cos t`` evaluated without cancellation."""
+    r2 = np.where(np.isfinite(rho2), rho2, 0.0)
+    return rho1 * rho1 * _segment(beta) + r2 * r2 * _segment(alpha)
