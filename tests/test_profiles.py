@@ -23,7 +23,8 @@ def test_airy_peak_and_width(cwl, fwhm, n):
     t = a(lam)
     assert abs(lam[np.argmax(t)] - cwl) < 0.002
     assert_allclose(fwhm_of(lam, t), fwhm, rtol=2e-4)
-    assert_allclose(a.cwl_nm, cwl) and assert_allclose(a.fwhm_nm, fwhm, rtol=2e-4)
+    assert_allclose(a.cwl_nm, cwl)
+    assert_allclose(a.fwhm_nm, fwhm, rtol=2e-4)
 
 
 def test_airy_peak_follows_the_effective_index_law():

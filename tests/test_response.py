@@ -27,7 +27,13 @@ def test_kernel_integrates_to_one_and_its_mean_is_mean_shift(edmund, f, cra):
     K = kernel(lam, 700.0, 1.7, x, R, d, P, dv)
     assert_allclose(np.trapezoid(K, lam), 1.0, atol=2e-3)  # sqrt kinks limit the sum
     mu, w = kernel_bins(700.0, 1.7, f, cra, edmund)
-    assert_allclose(mu @ w, mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"), atol=1e-3)
+    # The bins are placed so their mean is the exact kernel mean; their spread must match the
+    # kernel's own second moment (independent of that placement) to the bin width.
+    exact = mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted")
+    assert_allclose(mu @ w, exact, atol=1e-9)
+    m1 = np.trapezoid(lam * K, lam) / np.trapezoid(K, lam)
+    var_k = np.trapezoid(lam**2 * K, lam) / np.trapezoid(K, lam) - m1**2
+    assert_allclose(w @ (mu - exact) ** 2, var_k, rtol=0.02, atol=1e-3)
 
 
 @pytest.mark.parametrize(("f", "cra"), CASES)
@@ -38,7 +44,7 @@ def test_convolution_centroid_is_kernel_mean(edmund, f, cra):
     assert_allclose(
         centroid(P_GRID, out) - centroid(P_GRID, T),
         mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted"),
-        atol=2e-3,
+        atol=2e-5,
     )
     assert_allclose(np.trapezoid(out, P_GRID), np.trapezoid(T, P_GRID), rtol=1e-6)
 
@@ -107,6 +113,26 @@ def test_asymptotic_kernel_close_for_small_shifts(edmund):
         kernel(lam, 700, 1.7, x, R, d, P, dv),
         rtol=0.02,
     )
+
+
+def test_no_light_and_dirac_kernels(edmund):
+    T = MultiLorentzian(700.0, 10.0)(P_GRID)
+    kw = dict(cwl_nm=700.0, n_eff=1.7, f_number=8.0, lens=edmund)
+    cut = float(edmund.cutoff_cra_deg(8.0))
+    for method in ("kernel", "rienstra"):
+        with pytest.raises(ValueError, match="cut"):
+            filter_response(P_GRID, T, cra_deg=cut + 1, method=method, **kw)
+    # A nearly collimated beam: the response is the curve shifted by Eq. 3, not zeros.
+    lens = Lens("ideal", 21.0)
+    out = filter_response(P_GRID, T, cwl_nm=700.0, n_eff=1.7, f_number=1e6, cra_deg=10.0,
+                          lens=lens)
+    assert_allclose(centroid(P_GRID, out) - centroid(P_GRID, T),
+                    mean_shift(700.0, 1.7, 1e6, 10.0, lens, method="vignetted"), atol=1e-4)
+    for step in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match="step"):
+            filter_response(P_GRID, T, cra_deg=5.0, step_nm=step, **kw)
+    with pytest.raises(ValueError, match="cra_deg"):
+        filter_response(P_GRID, T, cra_deg=np.nan, method="rienstra", **kw)
 
 
 def test_bad_curves_and_methods(edmund):

@@ -237,9 +237,12 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     if not np.isfinite(tolerance_nm) or tolerance_nm <= 0:
         raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
     args = (cwl_nm, n_eff, f_number, cra_deg)
+    # Every method checks the same things first, so none can fail later in its own way.
     cwl = np.asarray(cwl_nm, dtype=float)
     if not (np.all(np.isfinite(cwl)) and np.all(cwl > 0)):
         raise ValueError("cwl_nm must be finite and > 0 (nm)")
+    g19.check_n_eff(n_eff)
+    _geometry(f_number, cra_deg, lens)
     # Float policy: float16/32 in -> float32 out; everything else float64.
     low = any(np.asarray(a).dtype in (np.float16, np.float32) for a in args)
     shape = np.broadcast_shapes(*(np.shape(a) for a in args))

@@ -22,6 +22,7 @@ __all__ = [
     "lens_boundary_arcs",
     "max_radius_eq44",
     "max_radius_mm",
+    "min_radius_mm",
     "nu",
     "vignetted_area_mm2",
 ]
@@ -139,6 +140,32 @@ def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     r1 = np.where(beta > 0, np.maximum(dist(0.0, R, 0.0), dist(0.0, R, beta)), 0.0)
     r2 = np.where(alpha > 0, np.maximum(dist(dv, P, np.pi), dist(dv, P, np.pi - alpha)), 0.0)
     return np.maximum(r1, r2)
+
+
+def min_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
+    """Smallest distance from the pixel's foot to the vignetted pupil, mm (0 inside it).
+
+    The smallest incidence angle reaching the pixel is ``arctan(r_min / x)``. Outside the
+    region the nearest point is on its boundary, at an end of an arc (see
+    :func:`max_radius_mm`).
+    """
+    d, R = np.abs(np.asarray(d_mm, float)), np.asarray(R_mm, float)
+    if P_mm is None:
+        return np.maximum(d - R, 0.0)
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    flip = dv < 0
+    d = np.where(flip, -np.asarray(d_mm, float), np.asarray(d_mm, float))
+    dv = np.abs(dv)
+    beta, alpha = lens_boundary_arcs(R, P, dv)
+
+    def dist(c, rho, t):
+        return np.hypot(c - d + rho * np.cos(t), rho * np.sin(t))
+
+    inf = np.inf
+    r1 = np.where(beta > 0, np.minimum(dist(0.0, R, 0.0), dist(0.0, R, beta)), inf)
+    r2 = np.where(alpha > 0, np.minimum(dist(dv, P, np.pi), dist(dv, P, np.pi - alpha)), inf)
+    inside = (np.abs(d) <= R) & (np.abs(d - dv) <= P)
+    return np.where(inside, 0.0, np.minimum(r1, r2))
 
 
 def lens_boundary_arcs(rho1, rho2, v):

@@ -11,10 +11,11 @@ import numpy as np
 
 from .._validation import check_curve, validate_method
 from . import rienstra1998
-from .goossens2019 import _gauss_legendre, kernel
+from .goossens2019 import _gauss_legendre, kernel, mean_shift_contour
 from .lens import Lens
 from .mean import _geometry
-from .pupil import max_radius_mm
+from .pupil import max_radius_mm, min_radius_mm
+from .shift import check_n_eff, shift_nm
 
 __all__ = ["RESPONSE_METHODS", "filter_response", "kernel_bins"]
 
@@ -24,26 +25,39 @@ RESPONSE_METHODS = ("kernel", "rienstra")
 def kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0.05, nodes=6):
     """The kernel of Eq. (37) as point masses: bin centroids ``mu_k`` (nm) and masses ``w_k``.
 
-    Each ``step_nm`` bin between ``lambda_min`` (Eq. 44-45) and 0 is integrated with
-    Gauss-Legendre; the masses are normalised to sum to 1 (the raw sum is 1 up to the
-    quadrature error of the kernel's square-root kinks) and each centroid is the bin's own first
-    moment, so the mean of the masses is the kernel mean.
+    The kernel's support, from the largest to the smallest incidence angle that reaches the
+    pixel (Eq. 44-45 and its counterpart), is cut into bins of at most ``step_nm`` (at least
+    8); each bin is integrated with Gauss-Legendre and placed at its own first moment. The
+    masses are normalised to sum to 1, and the centroids are shifted together by the (tiny)
+    difference between their mean and the exact kernel mean, so the discrete kernel has exactly
+    the mean of :func:`~snapcorr.optics.goossens2019.mean_shift_contour`.
+
+    Raises
+    ------
+    PupilCutOffError
+        If no light reaches the pixel.
     """
+    if not (np.isfinite(step_nm) and step_nm > 0):
+        raise ValueError(f"step_nm must be finite and > 0, got {step_nm!r}")
+    n_eff = float(check_n_eff(n_eff))
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
+    exact = float(mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv))  # raises if cut off
+    rmin = float(min_radius_mm(d, R, dv, P))
     rmax = float(max_radius_mm(d, R, dv, P))
-    s2 = np.sin(np.arctan(rmax / x)) ** 2 / n_eff**2
-    lam_min = -cwl_nm * s2 / (1 + np.sqrt(1 - s2))
-    nbins = max(1, int(np.ceil(-lam_min / step_nm)))
-    edges = np.linspace(lam_min, 0.0, nbins + 1)
+    lo, hi = (float(shift_nm(cwl_nm, n_eff, np.rad2deg(np.arctan(r / x)))) for r in (rmax, rmin))
+    nbins = max(8, int(np.ceil((hi - lo) / step_nm)))
+    edges = np.linspace(lo, hi, nbins + 1)
     xi, w = _gauss_legendre(nodes)
     half = 0.5 * np.diff(edges)
     lam = (edges[:-1] + half)[:, None] + half[:, None] * xi
     K = kernel(lam, cwl_nm, n_eff, x, R, d, P, dv)
     mass = (K * w).sum(axis=1) * half
-    moment = (K * lam * w).sum(axis=1) * half
     keep = mass > 0
-    mu = moment[keep] / mass[keep]
-    return mu, mass[keep] / mass[keep].sum()
+    if not np.any(keep):  # narrower than the nodes can see: a Dirac at the mean
+        return np.array([exact]), np.array([1.0])
+    mu = (K * lam * w).sum(axis=1)[keep] * half[keep] / mass[keep]
+    weights = mass[keep] / mass[keep].sum()
+    return mu + (exact - mu @ weights), weights
 
 
 def filter_response(

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import check_curve
+from .goossens2019 import PupilCutOffError
 from .pupil import gamma, max_radius_mm, vignetted_area_mm2
 from .shift import check_n_eff
 
@@ -76,6 +77,10 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     """
     if not (np.isfinite(step_deg) and step_deg > 0):
         raise ValueError(f"step_deg must be > 0, got {step_deg!r}")
+    if not (np.isfinite(f_number_w) and f_number_w > 0):
+        raise ValueError(f"f_number_w must be finite and > 0, got {f_number_w!r}")
+    if not (np.isfinite(cra_deg) and abs(cra_deg) < 90):
+        raise ValueError(f"cra_deg must be finite and between -90 and 90, got {cra_deg!r}")
     A = 1.0 / (2.0 * float(f_number_w))
     D = np.tan(np.deg2rad(abs(float(cra_deg))))
     vign = lens is not None and lens.has_vignetting
@@ -94,6 +99,11 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     if vign:
         arc = gamma(R_j, D, A, dv, P)
         area = vignetted_area_mm2(A, P, dv)
+        if area <= 0:
+            raise PupilCutOffError(
+                f"at CRA {cra_deg} deg the vignetting circle cuts off the whole bundle; "
+                "no light reaches the filter"
+            )
     else:
         arc = arc_half_angle(R_j, A, D)
         area = np.pi * A * A

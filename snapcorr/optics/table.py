@@ -24,6 +24,27 @@ _INITIAL_STEP_DEG = 0.5
 _MAX_ROUNDS = 40
 
 
+#: Below this the tables would only chase the exact method's own round-off (~1e-11 nm).
+MIN_TOLERANCE_NM = 1e-8
+
+
+def _check_build(tolerance_nm, cwl_max_nm, cra_max_deg):
+    if not (np.isfinite(tolerance_nm) and tolerance_nm >= MIN_TOLERANCE_NM):
+        raise ValueError(f"tolerance_nm must be finite and >= {MIN_TOLERANCE_NM} nm, "
+                         f"got {tolerance_nm!r}")
+    if not (np.isfinite(cwl_max_nm) and cwl_max_nm > 0):
+        raise ValueError(f"cwl_max_nm must be finite and > 0, got {cwl_max_nm!r}")
+    if not (np.isfinite(cra_max_deg) and 0 <= cra_max_deg < 90):
+        raise ValueError(f"cra_max_deg must lie in [0, 90), got {cra_max_deg!r}")
+
+
+def _check_cra(cra_deg):
+    cra = np.abs(np.asarray(cra_deg, dtype=float))
+    if not (np.all(np.isfinite(cra)) and np.all(cra < 90)):
+        raise ValueError("cra_deg must be finite and between -90 and 90 degrees")
+    return cra
+
+
 @dataclass(frozen=True)
 class ShiftTable:
     """Mean shift per nm of central wavelength, tabulated over CRA.
@@ -64,8 +85,7 @@ class ShiftTable:
     ):
         """Tabulate ``mean_shift / cwl`` from 0 to ``cra_max_deg`` to ``tolerance_nm``."""
         n_eff, f_number = float(n_eff), float(f_number)
-        if not (np.isfinite(tolerance_nm) and tolerance_nm > 0):
-            raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+        _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
         cutoff = float(lens.cutoff_cra_deg(f_number))
         if cra_max_deg >= cutoff:
             raise g19.PupilCutOffError(
@@ -125,7 +145,7 @@ class ShiftTable:
 
     def __call__(self, cwl_nm, cra_deg):
         """Mean shift in nm for central wavelengths ``cwl_nm`` at chief-ray angles ``cra_deg``."""
-        cra = np.abs(np.asarray(cra_deg, dtype=float))
+        cra = _check_cra(cra_deg)
         if cra.size and cra.max() > self.cra_deg[-1]:
             raise ValueError(
                 f"CRA {cra.max():.3f} deg is beyond this table ({self.cra_deg[-1]:.3f} deg); "
@@ -279,16 +299,18 @@ class ShiftGrid:
 
     @staticmethod
     def _kinks(lens, a_lo, a_hi, cra_max):
-        """Values of ``a`` in ``(a_lo, a_hi)`` where the frame has a kink: ``P = R`` and where
-        the full cut-off crosses ``cra_max``."""
+        """Values of ``a`` in ``(a_lo, a_hi)`` where the frame has a kink: ``P = R``, and where
+        the onset or the full cut-off crosses ``cra_max``."""
         out = []
         if lens.has_vignetting and lens.vignetting_distance_mm != 0:
             P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
             x = lens.exit_pupil_mm
-            out.append(2 * P / x)  # R = x a / 2 = P
-            R_c = h * np.tan(np.deg2rad(cra_max)) / (1.0 - _CUTOFF_MARGIN) - P
-            if R_c > 0:
-                out.append(2 * R_c / x)
+            top = np.tan(np.deg2rad(cra_max))
+            # R = x a / 2 equal to: P (onset at 0); P -+ h top (onset at cra_max); and
+            # h top / (1 - margin) - P (cut-off at cra_max).
+            for R_k in (P, P - h * top, P + h * top, h * top / (1.0 - _CUTOFF_MARGIN) - P):
+                if R_k > 0:
+                    out.append(2 * R_k / x)
         return sorted(k for k in out if a_lo < k < a_hi)
 
     def _u(self, a):
@@ -298,6 +320,7 @@ class ShiftGrid:
     def build(cls, n_eff, lens: Lens, *, f_range=(1.2, 22.0), cra_max_deg=30.0,
               tolerance_nm=0.001, cwl_max_nm=1000.0):
         """Tabulate ``mean_shift / cwl`` for ``f_range`` and CRA 0-``cra_max_deg``."""
+        _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
         f_lo, f_hi = sorted(float(v) for v in f_range)
         if not f_hi > f_lo:
             raise ValueError(f"f_range must span an interval, got {f_range!r}; for a single "
@@ -367,14 +390,11 @@ class ShiftGrid:
             raise ValueError(f"f-numbers outside this grid's range {self.f_range}")
         a = 1.0 / self.lens.working_f_number(f)
         k, U = self._frame(self.lens, a, self.cra_max_deg)
-        t = np.tan(np.deg2rad(np.abs(cra)))
-        if t.size and np.any(t > U):
-            raise ValueError(
-                f"CRA beyond this grid (cra_max {self.cra_max_deg} deg, or past the full "
-                "cut-off of the pupil for that f-number)")
+        t = np.tan(np.deg2rad(_check_cra(cra)))
+        beyond = t > U  # past cra_max or within the margin of the cut-off: exact method
         na, nx = self.values.shape
         u = self._u(a)
-        v = self._to_xi(t, k, U) * (0.5 * (nx - 1))
+        v = np.minimum(self._to_xi(t, k, U), 2.0) * (0.5 * (nx - 1))
         iu = np.minimum(u.astype(np.intp), na - 2)
         iv = np.minimum(v.astype(np.intp), nx - 2)
         cell = iu * (nx - 1) + iv
@@ -384,7 +404,7 @@ class ShiftGrid:
         for i in (12, 8, 4, 0):  # Horner in x of Horner rows in y
             row = ((c[i + 3][cell] * y + c[i + 2][cell]) * y + c[i + 1][cell]) * y + c[i][cell]
             out = out * x + row
-        bad = ~self.cell_ok.ravel()[cell]
+        bad = ~self.cell_ok.ravel()[cell] | beyond
         if np.any(bad):
             x = self.lens.exit_pupil_mm
             tb = t[bad]
