@@ -25,7 +25,7 @@ LENSES = {
 }
 
 
-def _timed(fn, repeat=3):
+def _timed(fn, repeat=7):
     best, out = np.inf, None
     for _ in range(repeat):
         t0 = time.perf_counter()
