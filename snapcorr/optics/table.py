@@ -267,9 +267,9 @@ class ShiftGrid:
     @staticmethod
     def _to_xi(t, k, U):
         with np.errstate(divide="ignore", invalid="ignore"):
-            lo = np.where(k > 0, t / k, 0.0)
-            frac = np.clip((t - k) / (U - k), 0.0, 1.0)
-        return np.where(t <= k, lo, 1.0 + np.sqrt(frac))
+            r = (t - k) / (U - k)
+            return np.where(r > 0, 1.0 + np.sqrt(np.maximum(r, 0.0)),
+                            np.where(k > 0, t / k, 0.0))
 
     @staticmethod
     def _from_xi(xi, k, U):
@@ -389,13 +389,22 @@ class ShiftGrid:
         a = 1.0 / self.lens.working_f_number(f.ravel())
         t = np.tan(np.deg2rad(_check_cra(cra.ravel())))
         out = np.empty(a.size)
+        bad = np.empty(a.size, bool)
         for lo in range(0, a.size, _GRID_CHUNK):  # cache-sized pieces run faster
             sl = slice(lo, lo + _GRID_CHUNK)
-            out[sl] = self._relative(a[sl], t[sl])
+            out[sl], bad[sl] = self._relative(a[sl], t[sl])
+        if np.any(bad):  # failed cells and CRAs past the grid's top: the exact method, once
+            lens, tb = self.lens, t[bad]
+            x = lens.exit_pupil_mm
+            P = lens.vignetting_radius_mm
+            dvv = None if P is None else lens.vignetting_distance_mm * tb
+            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, 0.5 * x * a[bad], x * tb, P,
+                                              dvv)
         return (cwl.ravel() * out).reshape(cwl.shape)
 
     def _relative(self, a, t):
-        """``mean_shift / cwl`` at ``a = 1/f_W`` and ``t = tan(CRA)`` (checked inputs)."""
+        """``mean_shift / cwl`` at ``a = 1/f_W`` and ``t = tan(CRA)`` (checked inputs), and
+        where it must come from the exact method instead."""
         k, U = self._frame(self.lens, a, self.cra_max_deg)
         beyond = t > U  # past cra_max or within the margin of the cut-off: exact method
         na, nx = self.values.shape
@@ -410,13 +419,4 @@ class ShiftGrid:
         for i in (12, 8, 4, 0):  # Horner in x of Horner rows in y
             row = ((c[i + 3] * y + c[i + 2]) * y + c[i + 1]) * y + c[i]
             out = out * x + row
-        out = out.astype(float)
-        bad = ~np.take(self.cell_ok, cell) | beyond
-        if np.any(bad):
-            lens, tb = self.lens, t[bad]
-            x = lens.exit_pupil_mm
-            P = lens.vignetting_radius_mm
-            dvv = None if P is None else lens.vignetting_distance_mm * tb
-            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, 0.5 * x * a[bad], x * tb, P,
-                                              dvv)
-        return out
+        return out, ~np.take(self.cell_ok, cell) | beyond
