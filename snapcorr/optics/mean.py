@@ -72,16 +72,16 @@ def _geometry(f_number, cra_deg, lens):
     return x, R, d, None, None
 
 
-def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens, nodes=None):
+def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d, P, dv)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, nodes=nodes)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv)
 
 
-def _ideal(cwl_nm, n_eff, f_number, cra_deg, lens, nodes=None):
+def _ideal(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, _, _ = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, nodes=nodes)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d)
 
 
 def _riemann(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=g19.RIEMANN_STEP_NM):
@@ -264,9 +264,7 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
         *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))
     )
     shape = arrays[0].shape
-    cwl, n, f, cra = (a.ravel() for a in arrays)
-    check = g19.check_n_eff(n)  # fail early, before any work
-    del check
+    cwl, n, f, cra = (a.ravel() for a in arrays)  # checked by mean_shift
     out = np.empty(cwl.shape)
     todo = np.ones(cwl.shape, bool)
     # Large groups sharing (n_eff, f-number): a table over CRA is cheapest.
