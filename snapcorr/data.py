@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path"]
+__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "sensor_path"]
 
 #: The lens of Goossens et al. 2019, used by ``snapcorr demo``.
 DEFAULT_LENS = "edmund_optics_16mm"
@@ -28,4 +28,14 @@ def lens_path(name: str = DEFAULT_LENS) -> Path:
     if not path.exists():
         names = sorted(p.stem for p in folder.glob("*.toml"))
         raise FileNotFoundError(f"no bundled lens {name!r}; bundled lenses: {names}")
+    return path
+
+
+def sensor_path(name: str) -> Path:
+    """Path of a bundled sensor description by name (file stem), e.g. ``"snapscan_vnir"``."""
+    folder = calibration_dir() / "sensors"
+    path = folder / f"{name}.toml"
+    if not path.exists():
+        names = sorted(p.stem for p in folder.glob("*.toml"))
+        raise FileNotFoundError(f"no bundled sensor {name!r}; bundled sensors: {names}")
     return path

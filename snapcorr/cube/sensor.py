@@ -1,0 +1,156 @@
+"""Sensor descriptions: band layout, pixel pitch, filter centres and effective indices."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_write
+
+__all__ = ["LAYOUTS", "Sensor"]
+
+#: ``snapscan``: every band of a cube pixel was exposed at the same sensor position (the sensor
+#: moves behind the lens). ``mosaic``: a snapshot mosaic; each band sits at its own offset in a
+#: repeating tile.
+LAYOUTS = ("snapscan", "mosaic")
+_KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosaic_shape",
+         "band_offset"}
+
+
+def _per_band(name, value, n_bands, *, minimum=None, strict=True):
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(n_bands, float(arr))
+    if arr.shape != (n_bands,):
+        raise ValueError(f"{name} must be a scalar or have one value per band ({n_bands}), "
+                         f"got {arr.size}")
+    if not np.all(np.isfinite(arr)) or (
+        minimum is not None and np.any(arr <= minimum if strict else arr < minimum)
+    ):
+        raise ValueError(f"{name} must be finite and > {minimum}, got {arr.tolist()[:5]}...")
+    return tuple(float(v) for v in arr)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A spectral image sensor (the ``[sensor]`` table of ``calibration/sensors/*.toml``).
+
+    Parameters
+    ----------
+    name : str
+    layout : {"snapscan", "mosaic"}
+    pixel_pitch_um : float
+        Pixel pitch on the sensor, micrometres.
+    cwl_nm : sequence of float
+        Central wavelength of each band at normal, collimated incidence, nm.
+    fwhm_nm : float or sequence of float
+        Band widths, nm (a scalar applies to all bands).
+    n_eff : float or sequence of float
+        Effective refractive index of each band's filter (> 1).
+    mosaic_shape : (int, int), mosaic only
+        Tile size in pixels (rows, columns).
+    band_offset : sequence of (int, int), mosaic only
+        Each band's (row, column) inside the tile.
+    """
+
+    name: str
+    layout: str
+    pixel_pitch_um: float
+    cwl_nm: tuple
+    fwhm_nm: tuple
+    n_eff: tuple
+    mosaic_shape: tuple | None = None
+    band_offset: tuple | None = None
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
+        pitch = float(self.pixel_pitch_um)
+        if not (np.isfinite(pitch) and pitch > 0):
+            raise ValueError(f"pixel_pitch_um must be finite and > 0, got {self.pixel_pitch_um!r}")
+        set_(self, "pixel_pitch_um", pitch)
+        cwl = np.atleast_1d(np.asarray(self.cwl_nm, dtype=float))
+        if cwl.ndim != 1 or cwl.size == 0:
+            raise ValueError("cwl_nm must list one central wavelength per band")
+        n = cwl.size
+        set_(self, "cwl_nm", _per_band("cwl_nm", cwl, n, minimum=0))
+        set_(self, "fwhm_nm", _per_band("fwhm_nm", self.fwhm_nm, n, minimum=0))
+        set_(self, "n_eff", _per_band("n_eff", self.n_eff, n, minimum=1))
+        if self.layout == "mosaic":
+            if self.mosaic_shape is None or self.band_offset is None:
+                raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")
+            shape = tuple(int(v) for v in self.mosaic_shape)
+            if len(shape) != 2 or min(shape) < 1:
+                raise ValueError(f"mosaic_shape must be [rows, cols] >= 1, got {shape}")
+            off = np.asarray(self.band_offset, dtype=int)
+            if off.shape != (n, 2):
+                raise ValueError(f"band_offset must list one [row, col] per band ({n}), got "
+                                 f"shape {off.shape}")
+            if np.any(off < 0) or np.any(off >= np.array(shape)):
+                raise ValueError(f"band_offset entries must lie inside the {shape} tile")
+            if len({tuple(o) for o in off}) != n:
+                raise ValueError("two bands share a band_offset")
+            set_(self, "mosaic_shape", shape)
+            set_(self, "band_offset", tuple(tuple(int(v) for v in o) for o in off))
+        elif self.mosaic_shape is not None or self.band_offset is not None:
+            raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
+
+    @property
+    def n_bands(self) -> int:
+        return len(self.cwl_nm)
+
+    @property
+    def pixel_pitch_mm(self) -> float:
+        return self.pixel_pitch_um * 1e-3
+
+    def to_dict(self) -> dict:
+        d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
+             "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm),
+             "n_eff": list(self.n_eff)}
+        if self.layout == "mosaic":
+            d["mosaic_shape"] = list(self.mosaic_shape)
+            d["band_offset"] = [list(o) for o in self.band_offset]
+        return d
+
+    @classmethod
+    def from_dict(cls, table: dict) -> Sensor:
+        unknown = set(table) - _KEYS
+        if unknown:
+            raise ValueError(f"unknown key(s) in [sensor]: {sorted(unknown)}; valid keys are "
+                             f"{sorted(_KEYS)}")
+        missing = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff"} - set(table)
+        if missing:
+            raise ValueError(f"[sensor] is missing required key(s) {sorted(missing)}")
+        return cls(**table)
+
+    @classmethod
+    def load(cls, path) -> Sensor:
+        """Read a sensor description (TOML with a ``[sensor]`` table)."""
+        path = Path(path)
+        try:
+            with path.open("rb") as fh:
+                doc = tomllib.load(fh)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"sensor description not found: {path}") from None
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"{path} is not valid TOML: {err}") from None
+        if "sensor" not in doc:
+            raise ValueError(f"{path} has no [sensor] table")
+        try:
+            return cls.from_dict(doc["sensor"])
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{path}: {err}") from None
+
+    def save(self, path, *, overwrite=False) -> Path:
+        """Write the description as TOML, atomically; never replaces a file unless asked."""
+        import tomli_w
+
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+        text = tomli_w.dumps({"sensor": self.to_dict()})
+        return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))

@@ -1,0 +1,193 @@
+"""Sensor descriptions, the cube model, mosaic extraction and flat-fielding (Eq. 29)."""
+
+import dask.array as da
+import numpy as np
+import pytest
+import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose, assert_array_equal
+
+from snapcorr.cube import Sensor, flatfield, make_cube, mosaic_to_cube
+from snapcorr.data import sensor_path
+
+# -- sensors ---------------------------------------------------------------------------------
+
+
+def test_bundled_sensors():
+    scan = Sensor.load(sensor_path("snapscan_vnir"))
+    assert scan.layout == "snapscan" and 140 <= scan.n_bands <= 160
+    assert scan.cwl_nm[0] == 470 and scan.cwl_nm[-1] == 900
+    for name, tile in (("mosaic_4x4_vis", (4, 4)), ("mosaic_5x5_nir", (5, 5))):
+        s = Sensor.load(sensor_path(name))
+        assert s.layout == "mosaic" and s.mosaic_shape == tile
+        assert s.n_bands == tile[0] * tile[1]
+    with pytest.raises(FileNotFoundError, match="bundled sensors"):
+        sensor_path("nope")
+
+
+def test_sensor_round_trip_and_scalars(tmp_path):
+    s = Sensor("t", "snapscan", 5.5, [500.0, 600.0, 700.0], 10.0, 1.7)
+    assert s.fwhm_nm == (10.0, 10.0, 10.0) and s.n_eff == (1.7, 1.7, 1.7)
+    path = s.save(tmp_path / "s.toml")
+    assert Sensor.load(path) == s
+    with pytest.raises(FileExistsError):
+        s.save(path)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (dict(layout="pushbroom"), "layout"),
+        (dict(pixel_pitch_um=0), "pixel_pitch_um"),
+        (dict(cwl_nm=[500.0, -1.0]), "cwl_nm"),
+        (dict(fwhm_nm=[10.0, 10.0, 10.0]), "fwhm_nm"),
+        (dict(n_eff=1.0), "n_eff"),
+        (dict(layout="mosaic"), "mosaic_shape"),
+        (dict(layout="mosaic", mosaic_shape=[2, 2], band_offset=[[0, 0], [2, 0]]), "inside"),
+        (dict(layout="mosaic", mosaic_shape=[2, 2], band_offset=[[0, 0], [0, 0]]), "share"),
+        (dict(layout="mosaic", mosaic_shape=[2, 2], band_offset=[[0, 0]]), "one"),
+        (dict(mosaic_shape=[2, 2]), "mosaic"),
+    ],
+)
+def test_bad_sensors(kwargs, message):
+    base = dict(name="t", layout="snapscan", pixel_pitch_um=5.5, cwl_nm=[500.0, 600.0],
+                fwhm_nm=10.0, n_eff=1.7)
+    with pytest.raises(ValueError, match=message):
+        Sensor(**(base | kwargs))
+
+
+def test_bad_sensor_files(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text('[sensor]\nname = "x"\nlayout = "snapscan"\npixel_pitch_um = 5.5\n'
+                 "cwl_nm = [500.0]\nfwhm_nm = 10.0\nn_eff = 1.7\ncolour = 3\n")
+    with pytest.raises(ValueError, match="unknown key"):
+        Sensor.load(p)
+    p.write_text('[sensor]\nname = "x"\n')
+    with pytest.raises(ValueError, match="missing"):
+        Sensor.load(p)
+
+
+# -- cube model ------------------------------------------------------------------------------
+
+
+def test_make_cube_and_errors():
+    cube = make_cube(np.zeros((2, 3, 4)), [500, 600, 700, 800], fwhm_nm=10, attrs={"f_number": 2})
+    assert cube.dims == ("y", "x", "band") and cube.wavelength.attrs["units"] == "nm"
+    assert_array_equal(cube.fwhm, 10.0) and cube.attrs["f_number"] == 2
+    with pytest.raises(ValueError, match="3 dimensions"):
+        make_cube(np.zeros((2, 3)), [500])
+    with pytest.raises(ValueError, match="4 bands but 3"):
+        make_cube(np.zeros((2, 3, 4)), [500, 600, 700])
+    with pytest.raises(ValueError, match="finite"):
+        make_cube(np.zeros((2, 3, 2)), [500, np.nan])
+
+
+# -- mosaics ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["mosaic_4x4_vis", "mosaic_5x5_nir"])
+def test_mosaic_extraction_against_a_loop(name):
+    s = Sensor.load(sensor_path(name))
+    tr, tc = s.mosaic_shape
+    raw = np.random.default_rng(1).integers(0, 4096, (3 * tr, 4 * tc)).astype(np.uint16)
+    cube = mosaic_to_cube(raw, s, origin_px=(100, 200))
+    assert cube.shape == (3, 4, s.n_bands) and cube.dtype == np.uint16
+    for y in range(3):
+        for x in range(4):
+            for b, (r, c) in enumerate(s.band_offset):
+                assert cube.values[y, x, b] == raw[y * tr + r, x * tc + c]
+                assert cube.sensor_row.values[y, b] == 100 + y * tr + r
+                assert cube.sensor_col.values[x, b] == 200 + x * tc + c
+    lazy = mosaic_to_cube(da.from_array(raw, chunks=(tr, 2 * tc)), s, origin_px=(100, 200))
+    assert isinstance(lazy.data, da.Array)
+    xr.testing.assert_identical(lazy.compute(), cube)
+
+
+def test_mosaic_errors():
+    s = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    with pytest.raises(ValueError, match="whole number of"):
+        mosaic_to_cube(np.zeros((9, 8)), s)
+    with pytest.raises(ValueError, match="not a mosaic"):
+        mosaic_to_cube(np.zeros((8, 8)), Sensor.load(sensor_path("snapscan_vnir")))
+
+
+# -- flat-fielding ---------------------------------------------------------------------------
+
+WL = np.linspace(470.0, 900.0, 5)
+
+
+def _cube(a):
+    return make_cube(a, WL, attrs={"f_number": 2.8})
+
+
+def test_eq29_against_numpy_and_frame_averaging():
+    rng = np.random.default_rng(2)
+    raw = rng.uniform(100, 3000, (6, 4, 5)).astype(np.uint16)
+    darks = [rng.uniform(40, 60, (6, 4, 5)) for _ in range(3)]
+    whites = [rng.uniform(3500, 3600, (6, 4, 5)) for _ in range(2)]
+    ds = flatfield(_cube(raw), [_cube(d) for d in darks], [_cube(w) for w in whites])
+    d, w = np.mean(darks, axis=0), np.mean(whites, axis=0)
+    assert_allclose(ds.reflectance.values, (raw - d) / (w - d), rtol=1e-12)
+    assert ds.reflectance.dtype == np.float64 and int(ds.n_masked) == 0
+    assert ds.attrs["dark_frames"] == 3 and ds.attrs["white_frames"] == 2
+    assert ds.attrs["f_number"] == 2.8 and "Eq. 29" in ds.attrs["method"]
+    assert_array_equal(ds.raw.values, raw)  # the raw data is kept, unchanged
+
+
+def test_line_scan_white_strip_is_broadcast():
+    rng = np.random.default_rng(3)
+    raw = rng.uniform(100, 3000, (8, 4, 5))
+    strip = rng.uniform(3500, 3600, (2, 4, 5))
+    ds = flatfield(_cube(raw), _cube(np.zeros((8, 4, 5))), _cube(strip))
+    assert_allclose(ds.reflectance.values, raw / strip.mean(axis=0), rtol=1e-12)
+
+
+def test_meaningless_pixels_are_masked_not_inf():
+    raw = np.full((2, 3, 5), 500.0)
+    dark = np.full((2, 3, 5), 50.0)
+    white = np.full((2, 3, 5), 3000.0)
+    white[0, 0, 0] = 50.0  # white == dark
+    white[0, 1, 1] = 40.0  # white < dark
+    raw[1, 2, 3] = np.nan
+    raw[1, 0, 4] = 4095.0  # saturated
+    ds = flatfield(_cube(raw), _cube(dark), _cube(white), saturation=4095)
+    bad = [(0, 0, 0), (0, 1, 1), (1, 2, 3), (1, 0, 4)]
+    assert int(ds.n_masked) == len(bad)
+    for idx in bad:
+        assert bool(ds.mask.values[idx]) and np.isnan(ds.reflectance.values[idx])
+    assert np.all(np.isfinite(ds.reflectance.values[~ds.mask.values]))
+    assert not np.any(np.isinf(ds.reflectance.values))
+
+
+def test_float_policy_and_shape_errors():
+    f32 = _cube(np.ones((2, 3, 5), np.float32))
+    assert flatfield(f32, f32 * 0, f32 * 2).reflectance.dtype == np.float32
+    with pytest.raises(ValueError, match="x and band must match"):
+        flatfield(_cube(np.ones((2, 3, 5))), _cube(np.zeros((2, 4, 5))), _cube(np.ones((2, 3, 5))))
+    with pytest.raises(ValueError, match="differ in shape"):
+        darks = [_cube(np.zeros((2, 3, 5))), _cube(np.zeros((1, 3, 5)))]
+        flatfield(_cube(np.ones((2, 3, 5))), darks, _cube(np.ones((2, 3, 5))))
+    with pytest.raises(TypeError, match="DataArray"):
+        flatfield(np.ones((2, 3, 5)), _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))))
+
+
+def test_numpy_and_dask_give_identical_results():
+    rng = np.random.default_rng(4)
+    raw = _cube(rng.uniform(0, 4095, (16, 12, 5)))
+    dark = _cube(rng.uniform(40, 60, (16, 12, 5)))
+    white = _cube(rng.uniform(20, 4095, (1, 12, 5)))  # some white < dark: masked
+    eager = flatfield(raw, dark, white, saturation=4000)
+    lazy = flatfield(raw.chunk({"y": 5, "x": 4}), dark.chunk({"y": 5}), white,
+                     saturation=4000)
+    assert isinstance(lazy.reflectance.data, da.Array)
+    xr.testing.assert_identical(lazy.compute().drop_attrs(), eager.drop_attrs())
+
+
+@settings(max_examples=50, deadline=None)
+@given(data=st.lists(st.floats(-1e6, 1e6), min_size=30, max_size=30))
+def test_unit_flat_and_zero_dark_leave_the_cube_unchanged(data):
+    cube = _cube(np.array(data).reshape(2, 3, 5))
+    ds = flatfield(cube, _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))))
+    assert_array_equal(ds.reflectance.values, cube.values)
+    assert int(ds.n_masked) == 0
