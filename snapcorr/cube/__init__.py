@@ -1,17 +1,21 @@
 """Cubes in and out: the data model, sensor layouts and flat-fielding."""
 
 from .flatfield import flatfield
+from .io import FORMATS, read_cube, write_cube
 from .model import DIMS, check_cube, make_cube
 from .mosaic import mosaic_to_cube, sensor_positions
 from .sensor import LAYOUTS, Sensor
 
 __all__ = [
     "DIMS",
+    "FORMATS",
     "LAYOUTS",
     "Sensor",
     "check_cube",
     "flatfield",
     "make_cube",
     "mosaic_to_cube",
+    "read_cube",
     "sensor_positions",
+    "write_cube",
 ]

@@ -1,0 +1,350 @@
+"""Reading and writing cubes, through the libraries that own each format.
+
+=============  =================================================  ===========================
+extension      format                                             library
+=============  =================================================  ===========================
+``.hdr``       ENVI header + data (``.raw``, ``.img`` or none);   Spectral Python
+               BSQ, BIL or BIP; ``wavelength`` and ``fwhm``
+``.tif(f)``    multi-channel TIFF, wavelengths in the channel     OpenImageIO
+               names and the image description
+``.exr``       OpenEXR in the spectral layout of Fichet et al.    OpenImageIO
+               2021 (``S0.<nm>nm`` emissive, ``T.<nm>nm``
+               reflective channels, ``spectralLayoutVersion``)
+``.nc``        netCDF 4                                           xarray (h5netcdf)
+``.zarr``      Zarr, chunked for larger-than-memory work          xarray (zarr)
+``.npy``       bare array; wavelengths must be passed             numpy
+=============  =================================================  ===========================
+
+Writers never replace an existing file (unless ``overwrite=True``) nor any input, and write
+atomically: to a temporary name in the target folder, then renamed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .._io import atomic_write
+from .model import check_cube, make_cube
+
+__all__ = ["FORMATS", "read_cube", "write_cube"]
+
+FORMATS = {".hdr": "envi", ".tif": "tiff", ".tiff": "tiff", ".exr": "exr", ".nc": "netcdf",
+           ".zarr": "zarr", ".npy": "npy"}
+_ENVI_DATA = (".raw", ".img", ".dat", ".bsq", ".bil", ".bip", "")
+_REFLECTIVE = ("reflectance", "transmittance")
+#: dtypes an OpenEXR float channel holds exactly (float32 has a 24-bit significand).
+_EXR_EXACT = tuple(np.dtype(t) for t in (np.uint8, np.int8, np.uint16, np.int16, np.float16,
+                                         np.float32))
+_CHANNEL = re.compile(r"^(S0|T)\.(\d+(?:,\d*)?)nm$")
+
+
+def _format(path):
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in (".raw", ".img") and path.with_suffix(".hdr").exists():
+        return "envi", path.with_suffix(".hdr")
+    if suffix not in FORMATS:
+        known = ", ".join(sorted(FORMATS))
+        raise ValueError(f"unknown cube format {path.suffix or '(none)'!r} for {path}; "
+                         f"snapcorr reads and writes {known}")
+    return FORMATS[suffix], path
+
+
+# -- reading ---------------------------------------------------------------------------------
+
+
+def read_cube(path, *, wavelength_nm=None, chunks=None):
+    """Read a cube from any supported format (see the module table).
+
+    Parameters
+    ----------
+    path : str or Path
+    wavelength_nm : array_like, optional
+        Band wavelengths for files that carry none (``.npy``, a plain TIFF); a file's own
+        wavelengths win, and a mismatch in length is an error.
+    chunks : dict, optional
+        Dask chunks (e.g. ``{"y": 512}``): the cube is read lazily.
+
+    Returns
+    -------
+    xarray.DataArray
+    """
+    fmt, path = _format(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no such file: {path}")
+    try:
+        cube = _READERS[fmt](path, wavelength_nm)
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as err:
+        if isinstance(err, ValueError) and str(err).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: cannot read it as {fmt}: {err}") from None
+    if chunks is not None:
+        cube = cube.chunk(chunks)
+    return cube
+
+
+def _wavelengths(path, found, given, n_bands):
+    wl = found if found is not None else given
+    if wl is None:
+        raise ValueError(f"{path} carries no wavelengths; pass wavelength_nm")
+    wl = np.asarray(wl, dtype=float)
+    if wl.shape != (n_bands,):
+        raise ValueError(f"{path} has {n_bands} bands but {wl.size} wavelengths")
+    return wl
+
+
+def _read_envi(path, given):
+    from spectral.io import envi
+
+    img = envi.open(str(path))
+    meta = img.metadata
+    rows, cols, bands = img.nrows, img.ncols, img.nbands
+    expected = img.offset + rows * cols * bands * np.dtype(img.dtype).itemsize
+    size = os.path.getsize(img.filename)
+    if size != expected:
+        raise ValueError(
+            f"{path}: the data file {Path(img.filename).name} has {size} bytes but the header "
+            f"({rows} x {cols} x {bands}, {np.dtype(img.dtype).name}) needs {expected}; it is "
+            "truncated or the header does not describe it"
+        )
+    data = np.asarray(img.open_memmap(interleave="bip", writable=False))
+    scale = 1e3 if str(meta.get("wavelength units", "nm")).lower().startswith("micro") else 1.0
+    wl = meta.get("wavelength")
+    wl = None if wl is None else np.asarray(wl, dtype=float) * scale
+    fw = meta.get("fwhm")
+    if fw is not None:
+        fw = np.asarray(fw, dtype=float) * scale
+        if fw.shape != (bands,):
+            raise ValueError(f"{path}: header lists {fw.size} fwhm values for {bands} bands")
+    return make_cube(np.array(data), _wavelengths(path, wl, given, bands), fwhm_nm=fw,
+                     attrs={"source": str(path), "envi_interleave": meta.get("interleave", "")})
+
+
+def _read_oiio(path, given):
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise ValueError(oiio.geterror() or "OpenImageIO cannot open it")
+    try:
+        spec = inp.spec()
+        data = inp.read_image(0, 0, 0, spec.nchannels, "unknown")
+        if data is None:
+            raise ValueError(inp.geterror() or "no pixels")
+        names = list(spec.channelnames)
+        attrs = {a.name: a.value for a in spec.extra_attribs}
+    finally:
+        inp.close()
+    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+    wl, keep, name = None, list(range(len(names))), None
+    parsed = [_CHANNEL.match(n) for n in names]
+    if any(parsed):
+        keep = [i for i, m in enumerate(parsed) if m]
+        wl = np.array([float(parsed[i].group(2).replace(",", ".")) for i in keep])
+        name = "reflectance" if parsed[keep[0]].group(1) == "T" else "radiance"
+        order = np.argsort(wl, kind="stable")  # EXR stores channels sorted by name
+        keep, wl = [keep[i] for i in order], wl[order]
+    meta = {}
+    desc = attrs.get("ImageDescription") or attrs.get("snapcorr")
+    if isinstance(desc, str) and desc.startswith("{"):
+        meta = json.loads(desc)
+    fw = meta.pop("fwhm_nm", None)
+    dtype = meta.pop("dtype", None)
+    if wl is None and meta.get("wavelength_nm") is not None:
+        wl = np.asarray(meta["wavelength_nm"], dtype=float)
+    cube_attrs = meta.pop("attrs", {})
+    data = data[..., keep]
+    if dtype is not None:
+        data = data.astype(dtype)
+    cube = make_cube(data, _wavelengths(path, wl, given, data.shape[2]), fwhm_nm=fw,
+                     attrs={"source": str(path), **cube_attrs},
+                     name=meta.pop("name", name) or "radiance")
+    return cube
+
+
+def _read_netcdf(path, given):
+    ds = xr.open_dataset(path, engine="h5netcdf")
+    return _from_dataset(ds, path)
+
+
+def _read_zarr(path, given):
+    ds = xr.open_zarr(path, consolidated=False)
+    return _from_dataset(ds, path)
+
+
+def _from_dataset(ds, path):
+    names = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x", "band")]
+    if not names:
+        raise ValueError(f"{path} holds no (y, x, band) variable")
+    preferred = [n for n in ("radiance", "reflectance", "transmittance") if n in names]
+    cube = ds[(preferred or names)[0]]
+    cube.attrs = {**ds.attrs, **cube.attrs}
+    return check_cube(cube)
+
+
+def _read_npy(path, given):
+    data = np.load(path, mmap_mode="r", allow_pickle=False)
+    if data.ndim != 3:
+        raise ValueError(f"{path} holds a {data.ndim}-D array; a cube is (y, x, band)")
+    return make_cube(np.array(data), _wavelengths(path, None, given, data.shape[2]),
+                     attrs={"source": str(path)})
+
+
+_READERS = {"envi": _read_envi, "tiff": _read_oiio, "exr": _read_oiio, "netcdf": _read_netcdf,
+            "zarr": _read_zarr, "npy": _read_npy}
+
+
+# -- writing ---------------------------------------------------------------------------------
+
+
+def write_cube(cube, path, *, overwrite=False, inputs=(), interleave="bsq"):
+    """Write a cube; the format follows the extension (see the module table).
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+    path : str or Path
+    overwrite : bool
+        Replace an existing file (never one of ``inputs``).
+    inputs : sequence of paths
+        Files the cube came from; writing over any of them is refused.
+    interleave : {"bsq", "bil", "bip"}
+        ENVI band interleave.
+    """
+    check_cube(cube)
+    fmt, path = _format(path)
+    path = Path(path)
+    for src in inputs:
+        if Path(src).resolve() == path.resolve():
+            raise ValueError(f"output {path} is also an input; choose another output path")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; choose another name or pass overwrite=True")
+    _WRITERS[fmt](cube, path, interleave=interleave)
+    return path
+
+
+def _cube_meta(cube):
+    attrs = {k: v for k, v in cube.attrs.items() if isinstance(v, (str, int, float, bool))}
+    meta = {"name": cube.name, "dtype": str(cube.dtype), "attrs": attrs,
+            "wavelength_nm": [float(v) for v in cube.wavelength.values]}
+    if "fwhm" in cube.coords:
+        meta["fwhm_nm"] = [float(v) for v in cube.fwhm.values]
+    return meta
+
+
+def _write_envi(cube, path, *, interleave):
+    from spectral.io import envi
+
+    if interleave not in ("bsq", "bil", "bip"):
+        raise ValueError(f"interleave must be bsq, bil or bip, got {interleave!r}")
+    meta = {"wavelength": [float(v) for v in cube.wavelength.values],
+            "wavelength units": "nm", "description": f"snapcorr cube {cube.name or ''}".strip()}
+    if "fwhm" in cube.coords:
+        meta["fwhm"] = [float(v) for v in cube.fwhm.values]
+    data = np.asarray(cube.values)
+    tmpdir = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}."))
+    try:
+        hdr = tmpdir / path.name
+        envi.save_image(str(hdr), data, dtype=data.dtype, interleave=interleave, ext=".raw",
+                        metadata=meta, force=True)
+        os.replace(hdr.with_suffix(".raw"), path.with_suffix(".raw"))
+        os.replace(hdr, path)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def _channel_name(prefix, wavelength):
+    return f"{prefix}.{float(wavelength)!r}nm".replace(".", ",").replace(",", ".", 1)
+
+
+def _write_oiio(cube, path, *, interleave):
+    import OpenImageIO as oiio
+
+    exr = path.suffix.lower() == ".exr"
+    data = np.ascontiguousarray(cube.values)
+    if exr:
+        if data.dtype not in _EXR_EXACT:
+            raise ValueError(
+                f"OpenEXR stores 16- and 32-bit floats, so a {data.dtype} cube would not come "
+                "back unchanged; convert it (cube.astype('float32')) or write .nc, .zarr or .tif"
+            )
+        prefix = "T" if cube.name in _REFLECTIVE else "S0"
+        names = [_channel_name(prefix, w) for w in cube.wavelength.values]
+        store = data.astype(np.float16 if data.dtype == np.float16 else np.float32)
+        typedesc = "half" if data.dtype == np.float16 else "float"
+    else:
+        names = [f"{float(w)!r}nm" for w in cube.wavelength.values]
+        store = data
+        typedesc = {np.dtype(np.uint8): "uint8", np.dtype(np.uint16): "uint16",
+                    np.dtype(np.int16): "int16", np.dtype(np.uint32): "uint32",
+                    np.dtype(np.int32): "int32", np.dtype(np.float16): "half",
+                    np.dtype(np.float32): "float", np.dtype(np.float64): "double"}.get(
+                        data.dtype)
+        if typedesc is None:
+            raise ValueError(f"TIFF cannot store {data.dtype} cubes")
+    ny, nx, nb = store.shape
+    spec = oiio.ImageSpec(nx, ny, nb, typedesc)
+    spec.channelnames = tuple(names)
+    spec.attribute("ImageDescription", json.dumps(_cube_meta(cube)))
+    if exr:
+        spec.attribute("spectralLayoutVersion", "1.0")
+        if prefix == "S0":
+            spec.attribute("emissiveUnits", "W.m^-2.sr^-1")
+        spec.attribute("compression", "zip")
+    else:
+        spec.attribute("compression", "zip")
+        spec.attribute("tiff:PlanarConfiguration", "contig")
+
+    def write(tmp):
+        out = oiio.ImageOutput.create(str(path))
+        if out is None or not out.open(str(tmp), spec):
+            raise ValueError(f"cannot write {path}: {oiio.geterror()}")
+        try:
+            if not out.write_image(store):
+                raise ValueError(f"cannot write {path}: {out.geterror()}")
+        finally:
+            out.close()
+
+    atomic_write(path, write)
+
+
+def _write_netcdf(cube, path, *, interleave):
+    ds = _to_dataset(cube)
+    atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
+
+
+def _write_zarr(cube, path, *, interleave):
+    ds = _to_dataset(cube)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zarr"))
+    try:
+        ds.to_zarr(tmp, mode="w", consolidated=False)
+        if path.exists():
+            shutil.rmtree(path)
+        os.replace(tmp, path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _to_dataset(cube):
+    name = cube.name or "radiance"
+    ds = cube.to_dataset(name=name)
+    ds.attrs = {k: v for k, v in cube.attrs.items()
+                if isinstance(v, (str, int, float, np.number))}
+    ds[name].attrs = {}
+    return ds
+
+
+def _write_npy(cube, path, *, interleave):
+    atomic_write(path, lambda tmp: np.save(tmp, np.asarray(cube.values), allow_pickle=False))
+
+
+_WRITERS = {"envi": _write_envi, "tiff": _write_oiio, "exr": _write_oiio,
+            "netcdf": _write_netcdf, "zarr": _write_zarr, "npy": _write_npy}
