@@ -19,6 +19,8 @@ EXAMPLES = textwrap.dedent(
     """
     examples:
       snapcorr demo                       run the optics on the bundled 16 mm lens
+      snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc
+                                          flat-field a cube (Goossens Eq. 29)
       snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
       snapcorr shift --f-number 1.4 --cra 0 10 20
                                           mean shift of 700 nm filters behind the bundled lens
@@ -41,6 +43,54 @@ def _cmd_demo(args):
     from .demo import run_demo
 
     run_demo(args.out)
+    return 0
+
+
+def _cmd_flatfield(args):
+    from .cube import Sensor, flatfield, read_cube
+    from .cube.io import write_dataset
+
+    inputs = [args.raw, *args.dark, *args.white]
+    if args.filter_white is not None:
+        inputs.append(args.filter_white)
+    out = Path(args.out)
+    for src in inputs:
+        if Path(src).resolve() == out.resolve():
+            raise ValueError(f"output {out} is also an input; choose another output path")
+    if out.exists() and not args.overwrite:
+        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+    if out.suffix.lower() not in (".nc", ".zarr"):
+        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
+    wl = Sensor.load(args.sensor).cwl_nm if args.sensor else None
+
+    def read(path):
+        return read_cube(path, wavelength_nm=wl)
+
+    raw = read(args.raw)
+    darks = [read(p) for p in args.dark]
+    whites = [read(p) for p in args.white]
+    for label, cubes in (("dark", darks), ("white", whites)):
+        for c, p in zip(cubes, args.dark if label == "dark" else args.white, strict=True):
+            if c.sizes["band"] != raw.sizes["band"] or c.sizes["x"] != raw.sizes["x"]:
+                raise ValueError(f"{p} is {c.shape[0]} x {c.shape[1]} x {c.shape[2]} but "
+                                 f"{args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
+                                 f"{raw.shape[2]}: x and band must match")
+    ds = flatfield(raw, darks, whites, saturation=args.saturation)
+    if args.filter_white:
+        tr = flatfield(read(args.filter_white), darks, whites, saturation=args.saturation,
+                       name="transmittance")
+        ds["transmittance"] = tr["transmittance"]
+        ds["filter_white_raw"] = tr["raw"]
+        ds["transmittance_mask"] = tr["mask"]
+    ds.attrs.update({"raw_file": str(args.raw), "dark_files": ", ".join(map(str, args.dark)),
+                     "white_files": ", ".join(map(str, args.white))})
+    if args.filter_white:
+        ds.attrs["filter_white_file"] = str(args.filter_white)
+    n_masked, total = int(ds["n_masked"]), int(ds["mask"].size)
+    write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {out}: reflectance of {args.raw} ({raw.shape[0]} x {raw.shape[1]} x "
+          f"{raw.shape[2]}), {len(darks)} dark and {len(whites)} white frame(s) averaged; "
+          f"{n_masked} of {total} values masked ({100 * n_masked / total:.2f} %)")
     return 0
 
 
@@ -97,6 +147,25 @@ def build_parser():
     )
     demo.set_defaults(func=_cmd_demo)
 
+    ff = command("flatfield", "flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)")
+    ff.add_argument("raw", type=Path, help="the cube to correct (.hdr, .tif, .exr, .nc, "
+                    ".zarr, .npy)")
+    ff.add_argument("--dark", type=Path, action="append", required=True,
+                    help="dark frame (repeat to average several)")
+    ff.add_argument("--white", type=Path, action="append", required=True,
+                    help="white reference (repeat to average several; a strip narrower than "
+                    "the cube is broadcast along the scan axis)")
+    ff.add_argument("--filter-white", type=Path, default=None,
+                    help="the white target seen through a filter: adds the filter's "
+                    "transmittance (Goossens Sec. 3.1) to the output")
+    ff.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    ff.add_argument("--sensor", type=Path, default=None,
+                    help="sensor description giving the wavelengths of files that have none")
+    ff.add_argument("--saturation", type=float, default=None,
+                    help="digital number at or above which a pixel is saturated")
+    ff.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    ff.set_defaults(func=_cmd_flatfield)
+
     shift = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     shift.add_argument(
         "--lens",
@@ -127,7 +196,8 @@ def main(argv=None):
             warnings.showwarning = _one_line_warning
             return args.func(args)
     except (ValueError, TypeError, OSError) as err:
-        print(f"snapcorr {args.command}: error: {err}", file=sys.stderr)
+        message = " ".join(str(err).split())  # libraries' messages may span lines
+        print(f"snapcorr {args.command}: error: {message}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("snapcorr: interrupted", file=sys.stderr)

@@ -34,7 +34,7 @@ import xarray as xr
 from .._io import atomic_write
 from .model import check_cube, make_cube
 
-__all__ = ["FORMATS", "read_cube", "write_cube"]
+__all__ = ["FORMATS", "read_cube", "write_cube", "write_dataset"]
 
 FORMATS = {".hdr": "envi", ".tif": "tiff", ".tiff": "tiff", ".exr": "exr", ".nc": "netcdf",
            ".zarr": "zarr", ".npy": "npy"}
@@ -250,6 +250,9 @@ def _write_envi(cube, path, *, interleave):
     if "fwhm" in cube.coords:
         meta["fwhm"] = [float(v) for v in cube.fwhm.values]
     data = np.asarray(cube.values)
+    if data.dtype == np.float16:
+        raise ValueError("ENVI has no 16-bit float type; convert the cube "
+                         "(cube.astype('float32')) or write .exr, .nc or .zarr")
     tmpdir = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}."))
     try:
         hdr = tmpdir / path.name
@@ -284,12 +287,12 @@ def _write_oiio(cube, path, *, interleave):
         names = [f"{float(w)!r}nm" for w in cube.wavelength.values]
         store = data
         typedesc = {np.dtype(np.uint8): "uint8", np.dtype(np.uint16): "uint16",
-                    np.dtype(np.int16): "int16", np.dtype(np.uint32): "uint32",
-                    np.dtype(np.int32): "int32", np.dtype(np.float16): "half",
+                    np.dtype(np.int16): "int16", np.dtype(np.float16): "half",
                     np.dtype(np.float32): "float", np.dtype(np.float64): "double"}.get(
                         data.dtype)
         if typedesc is None:
-            raise ValueError(f"TIFF cannot store {data.dtype} cubes")
+            raise ValueError(f"snapcorr writes TIFF cubes as 8/16-bit integers or 16/32/64-bit "
+                             f"floats, not {data.dtype}; convert it or write .nc or .zarr")
     ny, nx, nb = store.shape
     spec = oiio.ImageSpec(nx, ny, nb, typedesc)
     spec.channelnames = tuple(names)
@@ -348,3 +351,32 @@ def _write_npy(cube, path, *, interleave):
 
 _WRITERS = {"envi": _write_envi, "tiff": _write_oiio, "exr": _write_oiio,
             "netcdf": _write_netcdf, "zarr": _write_zarr, "npy": _write_npy}
+
+
+def write_dataset(ds, path, *, overwrite=False, inputs=()):
+    """Write a Dataset (a corrected cube with its mask, raw data and provenance) to ``.nc`` or
+    ``.zarr``, atomically, refusing to replace an input or an existing file."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".nc", ".zarr"):
+        raise ValueError(f"results are written as .nc or .zarr, got {path.suffix or '(none)'!r}")
+    for src in inputs:
+        if Path(src).resolve() == path.resolve():
+            raise ValueError(f"output {path} is also an input; choose another output path")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; choose another name or pass overwrite=True")
+    ds = ds.copy()
+    ds.attrs = {k: v for k, v in ds.attrs.items()
+                if isinstance(v, (str, int, float, np.number))}
+    if suffix == ".nc":
+        atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
+        return path
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zarr"))
+    try:
+        ds.to_zarr(tmp, mode="w", consolidated=False)
+        if path.exists():
+            shutil.rmtree(path)
+        os.replace(tmp, path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return path

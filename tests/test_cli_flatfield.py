@@ -1,0 +1,128 @@
+"""`snapcorr flatfield`: the result, and every foreseeable mistake as one line, no output."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+from numpy.testing import assert_allclose
+
+from snapcorr.cube import make_cube, write_cube
+
+WL = np.linspace(500.0, 800.0, 4)
+
+
+def run(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "snapcorr", "flatfield", *args],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+@pytest.fixture
+def files(tmp_path):
+    rng = np.random.default_rng(0)
+    scene = rng.integers(100, 3000, (6, 5, 4)).astype(np.uint16)
+    write_cube(make_cube(scene, WL), tmp_path / "scene.hdr")
+    write_cube(make_cube(np.full((6, 5, 4), 50, np.uint16), WL), tmp_path / "dark.hdr")
+    write_cube(make_cube(np.full((1, 5, 4), 3050, np.uint16), WL), tmp_path / "white.tif")
+    write_cube(make_cube(np.full((6, 5, 4), 1550, np.uint16), WL), tmp_path / "fw.nc")
+    return tmp_path, scene
+
+
+def test_flatfield_writes_result_mask_raw_and_provenance(files):
+    d, scene = files
+    res = run("scene.hdr", "--dark", "dark.hdr", "--dark", "dark.hdr", "--white", "white.tif",
+              "--filter-white", "fw.nc", "--out", "out.nc", cwd=d)
+    assert res.returncode == 0, res.stderr
+    assert "0 of 120 values masked" in res.stdout
+    ds = xr.open_dataset(d / "out.nc")
+    assert_allclose(ds.reflectance.values, (scene - 50.0) / 3000.0)
+    assert_allclose(ds.transmittance.values, 0.5)
+    assert (ds.raw.values == scene).all() and not ds.mask.values.any()
+    assert ds.attrs["raw_file"] == "scene.hdr" and ds.attrs["dark_frames"] == 2
+    assert "snapcorr_version" in ds.attrs and "created" in ds.attrs
+
+
+def _assert_clean_failure(res, d, message, before):
+    assert res.returncode != 0
+    assert "Traceback" not in res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], res.stderr
+    assert sorted(p.name for p in d.iterdir()) == before  # nothing written, nothing left
+
+
+def test_truncated_data_file(files):
+    d, _ = files
+    raw = d / "scene.raw"
+    raw.write_bytes(raw.read_bytes()[:-7])
+    before = sorted(p.name for p in d.iterdir())
+    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    _assert_clean_failure(res, d, "truncated", before)
+
+
+def test_header_band_count_differs_from_data(files):
+    d, _ = files
+    hdr = d / "scene.hdr"
+    hdr.write_text(hdr.read_text().replace("bands = 4", "bands = 3"))
+    before = sorted(p.name for p in d.iterdir())
+    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    _assert_clean_failure(res, d, "bytes", before)
+
+
+def test_wavelength_list_length_mismatch(files):
+    d, _ = files
+    hdr = d / "scene.hdr"
+    text = hdr.read_text()
+    start = text.index("wavelength = {")
+    hdr.write_text(text[:start] + "wavelength = {500, 600, 700}" +
+                   text[text.index("}", start) + 1:])
+    before = sorted(p.name for p in d.iterdir())
+    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    _assert_clean_failure(res, d, "4 bands but 3 wavelengths", before)
+
+
+def test_shape_mismatch_between_inputs(files):
+    d, _ = files
+    write_cube(make_cube(np.zeros((6, 4, 4), np.uint16), WL), d / "small_dark.hdr")
+    before = sorted(p.name for p in d.iterdir())
+    res = run("scene.hdr", "--dark", "small_dark.hdr", "--white", "white.tif", "--out",
+              "o.nc", cwd=d)
+    _assert_clean_failure(res, d, "x and band must match", before)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["scene.xyz", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc"],
+         "unknown cube format"),
+        (["scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.txt"],
+         ".nc or .zarr"),
+        (["scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "scene.hdr"],
+         "also an input"),
+        (["scene.hdr", "--dark", "missing.hdr", "--white", "white.tif", "--out", "o.nc"],
+         "no such file"),
+        (["junk.tif", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc"],
+         "cannot read"),
+    ],
+)
+def test_bad_arguments(files, args, message):
+    d, _ = files
+    (d / "junk.tif").write_bytes(b"this is no tiff")
+    (d / "scene.xyz").write_bytes(b"?")
+    before = sorted(p.name for p in d.iterdir())
+    _assert_clean_failure(run(*args, cwd=d), d, message, before)
+
+
+def test_unreadable_file(files):
+    import os
+
+    d, _ = files
+    if os.geteuid() == 0:
+        # root reads anything: simulate an unreadable file with a directory in its place
+        (d / "locked.nc").mkdir()
+    else:
+        (d / "locked.nc").write_bytes(b"x")
+        (d / "locked.nc").chmod(0)
+    before = sorted(p.name for p in d.iterdir())
+    res = run("locked.nc", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    _assert_clean_failure(res, d, "locked.nc", before)
