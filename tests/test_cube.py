@@ -168,6 +168,9 @@ def test_float_policy_and_shape_errors():
     with pytest.raises(ValueError, match="differ in shape"):
         darks = [_cube(np.zeros((2, 3, 5))), _cube(np.zeros((1, 3, 5)))]
         flatfield(_cube(np.ones((2, 3, 5))), darks, _cube(np.ones((2, 3, 5))))
+    other = make_cube(np.ones((2, 3, 5)), WL + 1.0)
+    with pytest.raises(ValueError, match="different wavelengths"):
+        flatfield(_cube(np.ones((2, 3, 5))), other, _cube(np.ones((2, 3, 5))))
     with pytest.raises(TypeError, match="DataArray"):
         flatfield(np.ones((2, 3, 5)), _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))))
 

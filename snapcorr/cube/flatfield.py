@@ -70,6 +70,9 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
             raise ValueError(
                 f"{label} has shape {ref.shape} but the cube {raw.shape}: x and band must match"
             )
+        if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
+            raise ValueError(f"{label} and the cube have different wavelengths; they must come "
+                             "from the same sensor and band set")
         ref = ref.astype(dtype)
         if ref.sizes["y"] != raw.sizes["y"]:
             ref = ref.mean("y")  # a line-scan strip: broadcast along the scan axis
