@@ -103,12 +103,15 @@ def test_shape_mismatch_between_inputs(files):
          "no such file"),
         (["junk.tif", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc"],
          "cannot read"),
+        (["notenvi.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc"],
+         "cannot read"),
     ],
 )
 def test_bad_arguments(files, args, message):
     d, _ = files
     (d / "junk.tif").write_bytes(b"this is no tiff")
     (d / "scene.xyz").write_bytes(b"?")
+    (d / "notenvi.hdr").write_text("this is no ENVI header\n")
     before = sorted(p.name for p in d.iterdir())
     _assert_clean_failure(run(*args, cwd=d), d, message, before)
 

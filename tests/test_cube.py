@@ -106,6 +106,8 @@ def test_mosaic_extraction_against_a_loop(name):
 
 def test_mosaic_errors():
     s = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    with pytest.raises(ValueError, match="tile boundary"):
+        mosaic_to_cube(np.zeros((8, 8)), s, origin_px=(1, 0))
     with pytest.raises(ValueError, match="whole number of"):
         mosaic_to_cube(np.zeros((9, 8)), s)
     with pytest.raises(ValueError, match="not a mosaic"):
@@ -158,6 +160,34 @@ def test_meaningless_pixels_are_masked_not_inf():
         assert bool(ds.mask.values[idx]) and np.isnan(ds.reflectance.values[idx])
     assert np.all(np.isfinite(ds.reflectance.values[~ds.mask.values]))
     assert not np.any(np.isinf(ds.reflectance.values))
+
+
+def test_infinite_saturated_and_missing_values_in_any_frame_are_masked():
+    raw = np.full((2, 3, 5), 500.0)
+    raw[0, 0, 0] = np.inf
+    w1, w2 = np.full((2, 3, 5), 3000.0), np.full((2, 3, 5), 3000.0)
+    w1[0, 1, 0] = np.inf
+    w1[0, 2, 0] = 4095.0  # saturated in one frame only: the mean (3547.5) hides it
+    w2[1, 0, 0] = np.nan  # missing in one frame only: a NaN-skipping mean would hide it
+    ds = flatfield(_cube(raw), _cube(np.zeros((2, 3, 5))), [_cube(w1), _cube(w2)],
+                   saturation=4095)
+    for idx in [(0, 0, 0), (0, 1, 0), (0, 2, 0), (1, 0, 0)]:
+        assert bool(ds.mask.values[idx]), idx
+    assert int(ds.n_masked) == 4
+    assert np.all(np.isfinite(ds.reflectance.values[~ds.mask.values]))
+    strip = np.full((3, 3, 5), 3000.0)
+    strip[1, 2, 4] = 4095.0  # one saturated row of a line-scan strip masks that column
+    ds = flatfield(_cube(np.full((6, 3, 5), 500.0)), _cube(np.zeros((6, 3, 5))),
+                   _cube(strip), saturation=4095)
+    assert ds.mask.values[:, 2, 4].all() and int(ds.n_masked) == 6
+
+
+def test_data_ignore_value_is_masked():
+    cube = _cube(np.full((2, 3, 5), 500.0))
+    cube.values[1, 1, 1] = -9999.0
+    cube.attrs["data_ignore_value"] = -9999.0
+    ds = flatfield(cube, _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5)) * 1000))
+    assert bool(ds.mask.values[1, 1, 1]) and int(ds.n_masked) == 1
 
 
 def test_float_policy_and_shape_errors():

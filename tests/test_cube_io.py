@@ -3,7 +3,6 @@ writers, and bad files refused with a clear error."""
 
 import numpy as np
 import pytest
-import xarray as xr
 from numpy.testing import assert_array_equal
 
 from snapcorr.cube import make_cube
@@ -90,12 +89,62 @@ def test_exr_follows_the_spectral_layout(tmp_path):
     assert spec.getattribute("emissiveUnits") == "W.m^-2.sr^-1"
 
 
-def test_chunked_reading_is_lazy_and_equal(tmp_path):
+@pytest.mark.parametrize("ext", [".hdr", ".npy", ".nc", ".zarr"])
+def test_chunked_reading_is_lazy_and_equal(tmp_path, ext):
+    import dask.array as da
+
     cube = _cube(np.float32)
-    write_cube(cube, tmp_path / "c.zarr")
-    lazy = read_cube(tmp_path / "c.zarr", chunks={"y": 2})
-    assert lazy.chunks is not None
-    xr.testing.assert_equal(lazy.compute(), cube)
+    write_cube(cube, tmp_path / f"c{ext}")
+    lazy = read_cube(tmp_path / f"c{ext}", chunks={} if ext == ".zarr" else {"y": 2},
+                     wavelength_nm=WL if ext == ".npy" else None)
+    assert isinstance(lazy.data, da.Array)  # not read into memory first
+    assert_array_equal(lazy.values, cube.values)
+
+
+def test_exr_keeps_band_order_and_widths(tmp_path):
+    cube = make_cube(np.arange(3 * 2 * 3, dtype=np.float32).reshape(3, 2, 3),
+                     [700.25, 500.5, 600.0], fwhm_nm=[7.0, 5.0, 6.0])
+    write_cube(cube, tmp_path / "u.exr")
+    back = read_cube(tmp_path / "u.exr")
+    assert_array_equal(back.wavelength.values, [700.25, 500.5, 600.0])
+    assert_array_equal(back.fwhm.values, [7.0, 5.0, 6.0])
+    assert_array_equal(back.values, cube.values)
+
+
+def test_envi_units_ignore_value_and_byte_order(tmp_path):
+    from spectral.io import envi
+
+    data = np.arange(2 * 3 * 2, dtype=">i2").reshape(2, 3, 2)
+    hdr = tmp_path / "be.hdr"
+    envi.save_image(str(hdr), data, dtype=">i2", byteorder="big", ext=".img",
+                    metadata={"wavelength": [0.5, 0.6], "wavelength units": "um",
+                              "data ignore value": 5})
+    cube = read_cube(hdr)
+    assert cube.dtype == np.int16 and cube.dtype.byteorder in ("=", "|")
+    assert_array_equal(cube.values, data.astype(np.int16))
+    assert_array_equal(cube.wavelength.values, [500.0, 600.0])
+    assert cube.attrs["data_ignore_value"] == 5.0
+    hdr.write_text(hdr.read_text().replace("wavelength units = um", "wavelength units = Index"))
+    with pytest.raises(ValueError, match="not a length"):
+        read_cube(hdr)
+
+
+def test_envi_writer_guards_its_data_file(tmp_path):
+    cube = _cube(np.uint16)
+    (tmp_path / "out.raw").write_text("precious")
+    with pytest.raises(FileExistsError, match=r"out\.raw"):
+        write_cube(cube, tmp_path / "out.hdr")
+    assert (tmp_path / "out.raw").read_text() == "precious"
+    write_cube(cube, tmp_path / "scene.hdr")
+    with pytest.raises(ValueError, match="also an input"):
+        write_cube(cube, tmp_path / "scene.hdr", overwrite=True, inputs=[tmp_path / "scene.raw"])
+
+
+def test_boolean_attributes_survive_netcdf(tmp_path):
+    cube = _cube(np.float32)
+    cube.attrs["calibrated"] = True
+    write_cube(cube, tmp_path / "b.nc")
+    assert read_cube(tmp_path / "b.nc").attrs["calibrated"] == 1
 
 
 def test_writers_protect_existing_files_and_inputs(tmp_path):
@@ -140,3 +189,10 @@ def test_bad_files_give_clear_errors(tmp_path):
     np.save(tmp_path / "flat.npy", np.zeros((3, 4)))
     with pytest.raises(ValueError, match="2-D"):
         read_cube(tmp_path / "flat.npy", wavelength_nm=[500])
+    (tmp_path / "bad.hdr").write_text("not an envi header\n")
+    with pytest.raises(ValueError, match="cannot read"):
+        read_cube(tmp_path / "bad.hdr")
+    hdr, raw = _envi(tmp_path)
+    raw.unlink()
+    with pytest.raises(ValueError, match="cannot read"):
+        read_cube(hdr)

@@ -81,12 +81,12 @@ def read_cube(path, *, wavelength_nm=None, chunks=None):
     if not path.exists():
         raise FileNotFoundError(f"no such file: {path}")
     try:
-        cube = _READERS[fmt](path, wavelength_nm)
-    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as err:
+        cube = _READERS[fmt](path, wavelength_nm, chunks)
+    except Exception as err:  # the libraries raise their own types; all mean a bad file
         if isinstance(err, ValueError) and str(err).startswith(str(path)):
             raise
-        raise ValueError(f"{path}: cannot read it as {fmt}: {err}") from None
-    if chunks is not None:
+        raise ValueError(f"{path}: cannot read it as {fmt}: {type(err).__name__}: {err}") from None
+    if chunks is not None and cube.chunks is None:
         cube = cube.chunk(chunks)
     return cube
 
@@ -101,7 +101,7 @@ def _wavelengths(path, found, given, n_bands):
     return wl
 
 
-def _read_envi(path, given):
+def _read_envi(path, given, chunks=None):
     from spectral.io import envi
 
     img = envi.open(str(path))
@@ -115,8 +115,13 @@ def _read_envi(path, given):
             f"({rows} x {cols} x {bands}, {np.dtype(img.dtype).name}) needs {expected}; it is "
             "truncated or the header does not describe it"
         )
-    data = np.asarray(img.open_memmap(interleave="bip", writable=False))
-    scale = 1e3 if str(meta.get("wavelength units", "nm")).lower().startswith("micro") else 1.0
+    data = img.open_memmap(interleave="bip", writable=False)
+    data = _lazy_or_loaded(data, chunks)
+    units = str(meta.get("wavelength units", "nanometers")).strip().lower()
+    scale = _UNITS_TO_NM.get(units)
+    if scale is None:
+        raise ValueError(f"{path}: wavelength units {meta['wavelength units']!r} are not a "
+                         f"length ({', '.join(sorted(_UNITS_TO_NM))}); pass wavelength_nm")
     wl = meta.get("wavelength")
     wl = None if wl is None else np.asarray(wl, dtype=float) * scale
     fw = meta.get("fwhm")
@@ -124,11 +129,31 @@ def _read_envi(path, given):
         fw = np.asarray(fw, dtype=float) * scale
         if fw.shape != (bands,):
             raise ValueError(f"{path}: header lists {fw.size} fwhm values for {bands} bands")
-    return make_cube(np.array(data), _wavelengths(path, wl, given, bands), fwhm_nm=fw,
-                     attrs={"source": str(path), "envi_interleave": meta.get("interleave", "")})
+    attrs = {"source": str(path), "envi_interleave": meta.get("interleave", "")}
+    if "data ignore value" in meta:
+        attrs["data_ignore_value"] = float(meta["data ignore value"])
+    return make_cube(data, _wavelengths(path, wl, given, bands), fwhm_nm=fw, attrs=attrs)
 
 
-def _read_oiio(path, given):
+#: ENVI ``wavelength units`` spellings and their factor to nanometres.
+_UNITS_TO_NM = {"nanometers": 1.0, "nanometer": 1.0, "nanometres": 1.0, "nm": 1.0,
+                "micrometers": 1e3, "micrometer": 1e3, "micrometres": 1e3, "microns": 1e3,
+                "micron": 1e3, "um": 1e3, "\u00b5m": 1e3, "millimeters": 1e6, "mm": 1e6}
+
+
+def _lazy_or_loaded(array, chunks):
+    """A dask array over a memory map when chunks are asked for, else a native-order copy."""
+    if array.dtype.byteorder not in ("=", "|"):
+        array = array.astype(array.dtype.newbyteorder("="))  # big-endian files
+    if chunks is None:
+        return np.array(array)
+    import dask.array as da
+
+    sizes = (chunks.get("y", -1), chunks.get("x", -1), chunks.get("band", -1))
+    return da.from_array(array, chunks=sizes)
+
+
+def _read_oiio(path, given, chunks=None):
     import OpenImageIO as oiio
 
     inp = oiio.ImageInput.open(str(path))
@@ -158,8 +183,15 @@ def _read_oiio(path, given):
         meta = json.loads(desc)
     fw = meta.pop("fwhm_nm", None)
     dtype = meta.pop("dtype", None)
-    if wl is None and meta.get("wavelength_nm") is not None:
-        wl = np.asarray(meta["wavelength_nm"], dtype=float)
+    written = meta.pop("wavelength_nm", None)
+    if written is not None and len(written) == len(keep):
+        written = np.asarray(written, dtype=float)
+        if wl is None:
+            wl = written
+        elif np.allclose(np.sort(written), wl):
+            # EXR keeps channels sorted by name: put the bands back in the written order.
+            order = np.argsort(np.argsort(written, kind="stable"), kind="stable")
+            keep, wl = [keep[i] for i in order], wl[order]
     cube_attrs = meta.pop("attrs", {})
     data = data[..., keep]
     if dtype is not None:
@@ -170,13 +202,13 @@ def _read_oiio(path, given):
     return cube
 
 
-def _read_netcdf(path, given):
-    ds = xr.open_dataset(path, engine="h5netcdf")
+def _read_netcdf(path, given, chunks=None):
+    ds = xr.open_dataset(path, engine="h5netcdf", chunks=chunks)
     return _from_dataset(ds, path)
 
 
-def _read_zarr(path, given):
-    ds = xr.open_zarr(path, consolidated=False)
+def _read_zarr(path, given, chunks=None):
+    ds = xr.open_zarr(path, consolidated=False, chunks=chunks)
     return _from_dataset(ds, path)
 
 
@@ -190,12 +222,12 @@ def _from_dataset(ds, path):
     return check_cube(cube)
 
 
-def _read_npy(path, given):
+def _read_npy(path, given, chunks=None):
     data = np.load(path, mmap_mode="r", allow_pickle=False)
     if data.ndim != 3:
         raise ValueError(f"{path} holds a {data.ndim}-D array; a cube is (y, x, band)")
-    return make_cube(np.array(data), _wavelengths(path, None, given, data.shape[2]),
-                     attrs={"source": str(path)})
+    return make_cube(_lazy_or_loaded(data, chunks),
+                     _wavelengths(path, None, given, data.shape[2]), attrs={"source": str(path)})
 
 
 _READERS = {"envi": _read_envi, "tiff": _read_oiio, "exr": _read_oiio, "netcdf": _read_netcdf,
@@ -222,11 +254,16 @@ def write_cube(cube, path, *, overwrite=False, inputs=(), interleave="bsq"):
     check_cube(cube)
     fmt, path = _format(path)
     path = Path(path)
-    for src in inputs:
-        if Path(src).resolve() == path.resolve():
-            raise ValueError(f"output {path} is also an input; choose another output path")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; choose another name or pass overwrite=True")
+    targets = [path, path.with_suffix(".raw")] if fmt == "envi" else [path]
+    sources = {Path(src).resolve() for src in inputs}
+    sources |= {p.with_suffix(e) for p in sources if p.suffix.lower() == ".hdr"
+                for e in _ENVI_DATA}
+    sources |= {p.with_suffix(".hdr") for p in sources}
+    for target in targets:
+        if target.resolve() in sources:
+            raise ValueError(f"output {target} is also an input; choose another output path")
+        if target.exists() and not overwrite:
+            raise FileExistsError(f"{target} exists; choose another name or pass overwrite=True")
     _WRITERS[fmt](cube, path, interleave=interleave)
     return path
 
@@ -339,10 +376,20 @@ def _write_zarr(cube, path, *, interleave):
 def _to_dataset(cube):
     name = cube.name or "radiance"
     ds = cube.to_dataset(name=name)
-    ds.attrs = {k: v for k, v in cube.attrs.items()
-                if isinstance(v, (str, int, float, np.number))}
+    ds.attrs = _portable_attrs(cube.attrs)
     ds[name].attrs = {}
     return ds
+
+
+def _portable_attrs(attrs):
+    """Attributes netCDF and zarr can store: numbers and strings (booleans become 0/1)."""
+    out = {}
+    for k, v in attrs.items():
+        if isinstance(v, (bool, np.bool_)):
+            out[k] = int(v)
+        elif isinstance(v, (str, int, float, np.number)):
+            out[k] = v
+    return out
 
 
 def _write_npy(cube, path, *, interleave):
@@ -366,8 +413,7 @@ def write_dataset(ds, path, *, overwrite=False, inputs=()):
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; choose another name or pass overwrite=True")
     ds = ds.copy()
-    ds.attrs = {k: v for k, v in ds.attrs.items()
-                if isinstance(v, (str, int, float, np.number))}
+    ds.attrs = _portable_attrs(ds.attrs)
     if suffix == ".nc":
         atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
         return path

@@ -41,6 +41,11 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
             f"{tr} x {tc} tiles; crop it, e.g. raw[:{raw.shape[0] - raw.shape[0] % tr}, "
             f":{raw.shape[1] - raw.shape[1] % tc}]"
         )
+    if origin_px[0] % tr or origin_px[1] % tc:
+        raise ValueError(
+            f"origin_px {tuple(origin_px)} is not on a {tr} x {tc} tile boundary, so the bands' "
+            "tile offsets would be misread; crop the frame to start at a tile"
+        )
     ny, nx = raw.shape[0] // tr, raw.shape[1] // tc
     tiles = raw.reshape(ny, tr, nx, tc)
     off = np.asarray(sensor.band_offset)
