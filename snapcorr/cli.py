@@ -63,8 +63,8 @@ def _cmd_flatfield(args):
         raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
     wl = Sensor.load(args.sensor).cwl_nm if args.sensor else None
 
-    def read(path):
-        return read_cube(path, wavelength_nm=wl)
+    def read(path):  # chunked: cubes larger than memory stream through dask
+        return read_cube(path, wavelength_nm=wl, chunks={"y": 512})
 
     raw = read(args.raw)
     darks = [read(p) for p in args.dark]

@@ -414,6 +414,15 @@ def write_dataset(ds, path, *, overwrite=False, inputs=()):
         raise FileExistsError(f"{path} exists; choose another name or pass overwrite=True")
     ds = ds.copy()
     ds.attrs = _portable_attrs(ds.attrs)
+    try:
+        return _write_dataset(ds, path, suffix)
+    except (OSError, ValueError):
+        raise
+    except Exception as err:  # the libraries' own error types: report them plainly
+        raise ValueError(f"cannot write {path}: {type(err).__name__}: {err}") from None
+
+
+def _write_dataset(ds, path, suffix):
     if suffix == ".nc":
         atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
         return path
