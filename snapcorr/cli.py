@@ -54,6 +54,7 @@ def _cmd_flatfield(args):
     if args.filter_white is not None:
         inputs.append(args.filter_white)
     out = Path(args.out)
+    # Checked again by write_dataset, but here before any (possibly long) reading.
     for src in inputs:
         if Path(src).resolve() == out.resolve():
             raise ValueError(f"output {out} is also an input; choose another output path")

@@ -357,20 +357,11 @@ def _write_oiio(cube, path, *, interleave):
 
 
 def _write_netcdf(cube, path, *, interleave):
-    ds = _to_dataset(cube)
-    atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
+    _write_dataset(_to_dataset(cube), path, ".nc")
 
 
 def _write_zarr(cube, path, *, interleave):
-    ds = _to_dataset(cube)
-    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zarr"))
-    try:
-        ds.to_zarr(tmp, mode="w", consolidated=False)
-        if path.exists():
-            shutil.rmtree(path)
-        os.replace(tmp, path)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    _write_dataset(_to_dataset(cube), path, ".zarr")
 
 
 def _to_dataset(cube):
