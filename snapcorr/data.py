@@ -21,21 +21,20 @@ def calibration_dir() -> Path:
     return path
 
 
-def lens_path(name: str = DEFAULT_LENS) -> Path:
-    """Path of a bundled lens profile by name (file stem), e.g. ``"edmund_optics_16mm"``."""
-    folder = calibration_dir() / "lenses"
+def _bundled(kind, name):
+    folder = calibration_dir() / kind
     path = folder / f"{name}.toml"
     if not path.exists():
         names = sorted(p.stem for p in folder.glob("*.toml"))
-        raise FileNotFoundError(f"no bundled lens {name!r}; bundled lenses: {names}")
+        raise FileNotFoundError(f"no bundled {kind[:-1]} {name!r}; bundled {kind}: {names}")
     return path
+
+
+def lens_path(name: str = DEFAULT_LENS) -> Path:
+    """Path of a bundled lens profile by name (file stem), e.g. ``"edmund_optics_16mm"``."""
+    return _bundled("lenses", name)
 
 
 def sensor_path(name: str) -> Path:
     """Path of a bundled sensor description by name (file stem), e.g. ``"snapscan_vnir"``."""
-    folder = calibration_dir() / "sensors"
-    path = folder / f"{name}.toml"
-    if not path.exists():
-        names = sorted(p.stem for p in folder.glob("*.toml"))
-        raise FileNotFoundError(f"no bundled sensor {name!r}; bundled sensors: {names}")
-    return path
+    return _bundled("sensors", name)

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import read_toml, write_toml
 
 __all__ = ["LAYOUTS", "Sensor"]
 
@@ -130,16 +129,7 @@ class Sensor:
     @classmethod
     def load(cls, path) -> Sensor:
         """Read a sensor description (TOML with a ``[sensor]`` table)."""
-        path = Path(path)
-        try:
-            with path.open("rb") as fh:
-                doc = tomllib.load(fh)
-        except FileNotFoundError:
-            raise FileNotFoundError(f"sensor description not found: {path}") from None
-        except tomllib.TOMLDecodeError as err:
-            raise ValueError(f"{path} is not valid TOML: {err}") from None
-        if "sensor" not in doc:
-            raise ValueError(f"{path} has no [sensor] table")
+        doc = read_toml(path, "sensor", "sensor description")
         try:
             return cls.from_dict(doc["sensor"])
         except (TypeError, ValueError) as err:
@@ -147,10 +137,4 @@ class Sensor:
 
     def save(self, path, *, overwrite=False) -> Path:
         """Write the description as TOML, atomically; never replaces a file unless asked."""
-        import tomli_w
-
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-        text = tomli_w.dumps({"sensor": self.to_dict()})
-        return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+        return write_toml(path, {"sensor": self.to_dict()}, overwrite=overwrite)

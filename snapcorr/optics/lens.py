@@ -10,13 +10,12 @@ References
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import read_toml, write_toml
 
 __all__ = ["Lens"]
 
@@ -173,16 +172,7 @@ class Lens:
     @classmethod
     def load(cls, path) -> Lens:
         """Read a lens profile (TOML with a ``[lens]`` table and optional ``[calibration]``)."""
-        path = Path(path)
-        try:
-            with path.open("rb") as fh:
-                doc = tomllib.load(fh)
-        except FileNotFoundError:
-            raise FileNotFoundError(f"lens profile not found: {path}") from None
-        except tomllib.TOMLDecodeError as err:
-            raise ValueError(f"{path} is not valid TOML: {err}") from None
-        if "lens" not in doc:
-            raise ValueError(f"{path} has no [lens] table")
+        doc = read_toml(path, "lens", "lens profile")
         try:
             return cls.from_dict(doc["lens"], calibration=doc.get("calibration"))
         except (TypeError, ValueError) as err:
@@ -193,14 +183,7 @@ class Lens:
 
         Refuses to replace an existing file unless ``overwrite=True``.
         """
-        import tomli_w
-
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
         doc = {"lens": self.to_dict()}
         if self.calibration:
             doc["calibration"] = self.calibration
-        text = tomli_w.dumps(doc)
-        atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
-        return path
+        return write_toml(path, doc, overwrite=overwrite)
