@@ -87,8 +87,12 @@ def _cmd_flatfield(args):
                      "white_files": ", ".join(map(str, args.white))})
     if args.filter_white:
         ds.attrs["filter_white_file"] = str(args.filter_white)
-    n_masked, total = int(ds["n_masked"]), int(ds["mask"].size)
-    write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+    from dask.diagnostics import ProgressBar
+
+    # A progress bar on stderr for work that takes over a second (the inputs stream by blocks).
+    with ProgressBar(minimum=1.0, out=sys.stderr):
+        n_masked, total = int(ds["n_masked"]), int(ds["mask"].size)
+        write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
     print(f"wrote {out}: reflectance of {args.raw} ({raw.shape[0]} x {raw.shape[1]} x "
           f"{raw.shape[2]}), {len(darks)} dark and {len(whites)} white frame(s) averaged; "
           f"{n_masked} of {total} values masked ({100 * n_masked / total:.2f} %)")
