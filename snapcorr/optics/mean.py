@@ -116,8 +116,7 @@ def _groups(n, f, min_count=1):
 def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     cwl, n, f, cra = (a.ravel() for a in np.broadcast_arrays(
         *(np.asarray(a, float) for a in (cwl_nm, n_eff, f_number, cra_deg))))
-    g19.check_n_eff(n)
-    out = np.empty(cwl.shape)
+    out = np.empty(cwl.shape)  # inputs were checked by mean_shift
     for sel in _groups(n, f):
         c = np.abs(cra[sel])
         table = ShiftTable.build(
@@ -132,9 +131,7 @@ def _table(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
 def _grid_method(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     cwl, n, f, cra = np.broadcast_arrays(*(np.asarray(a, float) for a in
                                            (cwl_nm, n_eff, f_number, cra_deg)))
-    g19.check_n_eff(n)
-    lens.working_f_number(f)
-    out = np.empty(cwl.shape)
+    out = np.empty(cwl.shape)  # inputs were checked by mean_shift
     flat_n, flat_out = n.ravel(), out.reshape(-1)
     for n_i in np.unique(flat_n):
         sel = flat_n == n_i
