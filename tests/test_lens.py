@@ -87,3 +87,24 @@ def test_bad_lens(kwargs):
 def test_bad_f_number(edmund):
     with pytest.raises(ValueError, match="f_number"):
         edmund.exit_pupil_radius_mm(0)
+
+
+def test_overlap_of_two_discs_is_eq33_and_relative_illumination_uses_it():
+    from snapcorr.optics.pupil import overlap_area_mm2, vignetted_area_mm2
+
+    rng = np.random.default_rng(0)
+    R, P = rng.uniform(0.5, 8, 20000), rng.uniform(0.5, 8, 20000)
+    dv = rng.uniform(-12, 12, 20000)
+    # includes disjoint, nested, touching-free and equal-radius pairs
+    np.testing.assert_allclose(overlap_area_mm2([R, P], [0.0, dv]), vignetted_area_mm2(R, P, dv),
+                               atol=1e-12)
+    assert overlap_area_mm2([1.0, 1.0], [0.0, 0.0]) == pytest.approx(np.pi)
+    assert overlap_area_mm2([1.0, 1.0], [0.0, 2.5]) == 0.0
+    lens = Lens("E", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    cra = np.linspace(0, 40, 81)
+    R14 = lens.exit_pupil_radius_mm(1.4)
+    direct = vignetted_area_mm2(R14, 7.4236, 16.991 * np.tan(np.deg2rad(cra))) / (np.pi * R14**2)
+    np.testing.assert_allclose(lens.relative_illumination(1.4, cra), direct, atol=1e-12)
+    assert np.all(Lens("ideal", 21.0).relative_illumination(2.0, cra) == 1.0)
+    with pytest.raises(ValueError, match="one centre per radius"):
+        overlap_area_mm2([1.0, 2.0], [0.0])

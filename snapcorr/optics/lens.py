@@ -135,6 +135,30 @@ class Lens:
         cra = np.abs(np.asarray(cra_deg, float))
         return (R > self.vignetting_radius_mm) | (cra > self.onset_cra_deg(f_number))
 
+    def relative_illumination(self, f_number, cra_deg):
+        """Fraction of the exit pupil left by the vignetting circle (optical vignetting only).
+
+        ``A / (pi R^2)`` with ``A`` the vignetted-pupil area, Eq. (33)-(35); 1 for a lens without
+        vignetting. Natural (cos^4) and pixel vignetting are not included.
+
+        Examples
+        --------
+        >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+        >>> lens.relative_illumination(1.4, [0.0, 10.0]).round(3)
+        array([1.   , 0.766])
+        """
+        from .pupil import overlap_area_mm2
+
+        R = self.exit_pupil_radius_mm(f_number)
+        t = np.tan(np.deg2rad(np.asarray(cra_deg, float)))
+        if not np.all(np.isfinite(t)):
+            raise ValueError("cra_deg must be finite and inside (-90, 90) degrees")
+        if not self.has_vignetting:
+            return np.ones(np.broadcast_shapes(np.shape(R), t.shape))[()]
+        area = overlap_area_mm2([R, self.vignetting_radius_mm],
+                                [0.0, self.vignetting_distance_mm * t])
+        return area / (np.pi * R * R)
+
     def cutoff_cra_deg(self, f_number):
         """Chief-ray angle beyond which the pupil is fully cut off: ``arctan((P + R) / |h|)``."""
         R = self.exit_pupil_radius_mm(f_number)

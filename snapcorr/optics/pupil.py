@@ -13,6 +13,8 @@ References
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 __all__ = [
@@ -24,6 +26,7 @@ __all__ = [
     "max_radius_mm",
     "min_radius_mm",
     "nu",
+    "overlap_area_mm2",
     "vignetted_area_mm2",
 ]
 
@@ -96,6 +99,64 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
         P * P * (alpha - np.sin(alpha) * np.cos(alpha))
         + R * R * (beta - np.sin(beta) * np.cos(beta)) * ~same
     )
+
+
+def overlap_area_mm2(radii_mm, centres_mm):
+    """Area common to several discs whose centres lie on one line.
+
+    The exit pupil, the projected vignetting circle (centre ``h tan(CRA)``) and a pixel's own
+    acceptance circle (centre ``x tan(CRA)``, pixel vignetting) all have their centres on the
+    radial line through the pixel, so their intersection is symmetric about that line and its
+    area is ``int 2 min_k c_k(u) du`` with ``c_k`` the half-chord of disc ``k`` at position
+    ``u``. Two half-chords are equal at one ``u`` only (``r_i^2 - (u - c_i)^2`` is linear in
+    ``u`` after subtracting), so between those points a single disc bounds the area, and each
+    piece integrates in closed form (a circular segment). Exact for any number of discs; with
+    two it equals Eq. (33) of Goossens et al. 2019.
+
+    Parameters
+    ----------
+    radii_mm, centres_mm : sequence of array_like
+        One radius (> 0) and one signed centre position per disc; arrays broadcast.
+
+    Returns
+    -------
+    ndarray
+        The common area, mm^2 (0 where the discs do not all overlap).
+
+    Examples
+    --------
+    >>> float(overlap_area_mm2([1.0, 1.0], [0.0, 0.0]))  # doctest: +ELLIPSIS
+    3.14159...
+    >>> float(overlap_area_mm2([1.0, 2.0, 5.0], [0.0, 3.5, 0.0]))
+    0.0
+    """
+    k = len(radii_mm)
+    if k < 1 or len(centres_mm) != k:
+        raise ValueError("need one centre per radius, for at least one disc")
+    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii_mm, *centres_mm)])
+    r, c = np.asarray(both[:k]), np.asarray(both[k:])
+    lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
+    points = [lo, hi]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(k):
+            for j in range(i + 1, k):
+                u = (r[i] ** 2 - r[j] ** 2 + c[j] ** 2 - c[i] ** 2) / (2.0 * (c[j] - c[i]))
+                points.append(np.clip(np.where(np.isfinite(u), u, lo), lo, hi))
+    pts = np.sort(np.asarray(points), axis=0)
+
+    def antiderivative(u, rk, ck):  # int 2 sqrt(r^2 - t^2) dt
+        t = np.clip((u - ck) / rk, -1.0, 1.0)
+        return rk * rk * (t * np.sqrt(1.0 - t * t) + np.arcsin(t))
+
+    area = np.zeros(lo.shape)
+    for a, b in itertools.pairwise(pts):
+        mid = 0.5 * (a + b)
+        chord2 = r * r - (mid - c) ** 2
+        best = np.argmin(chord2, axis=0)
+        rk = np.take_along_axis(r, best[None], 0)[0]
+        ck = np.take_along_axis(c, best[None], 0)[0]
+        area += np.where(b > a, antiderivative(b, rk, ck) - antiderivative(a, rk, ck), 0.0)
+    return np.where(hi > lo, area, 0.0)[()]
 
 
 def max_radius_eq44(d_mm, R_mm, dv_mm=None, P_mm=None):
