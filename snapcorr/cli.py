@@ -22,6 +22,11 @@ EXAMPLES = textwrap.dedent(
       snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc
                                           flat-field a cube (Goossens Eq. 29)
       snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
+      snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
+          --flat 4=f4.tif --flat 8=f8.tif --exit-pupil-mm 21 --pixel-pitch-um 5.5 \
+          --magnification 0.06 --pupil-magnification 1.3 --dark dark.tif \
+          --out my_lens.toml --plot my_lens.png
+                                          lens profile from integrating-sphere flats
       snapcorr shift --f-number 1.4 --cra 0 10 20
                                           mean shift of 700 nm filters behind the bundled lens
       snapcorr shift --lens my_lens.toml --f-number 2.8 --cra 15 --cwl-nm 850 --n-eff 1.9
@@ -99,6 +104,88 @@ def _cmd_flatfield(args):
     return 0
 
 
+def _flat_arg(value):
+    """``F_NUMBER=PATH`` (F_NUMBER may be written 2.8, f2.8 or f/2.8)."""
+    if "=" not in value:
+        raise argparse.ArgumentTypeError(f"expected F_NUMBER=PATH, got {value!r}")
+    f, path = value.split("=", 1)
+    f = f.strip().lower().removeprefix("f").removeprefix("/")
+    try:
+        fv = float(f)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number") from None
+    if not np.isfinite(fv) or fv <= 0:
+        raise argparse.ArgumentTypeError(f"{value!r}: the f-number must be > 0")
+    if not path:
+        raise argparse.ArgumentTypeError(f"{value!r}: no file after '='")
+    return fv, Path(path)
+
+
+def _center_arg(value):
+    try:
+        cx, cy = (float(v) for v in value.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected CX,CY in pixels, got {value!r}") from None
+    if not (np.isfinite(cx) and np.isfinite(cy)):
+        raise argparse.ArgumentTypeError(f"the centre must be finite, got {value!r}")
+    return cx, cy
+
+
+def _cmd_calibrate(args):
+    from .calibrate import calibrate_lens, read_flat
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".toml":
+        raise ValueError(f"--out {out}: a lens profile is a .toml file")
+    seen = {}
+    for f, path in args.flat:
+        if f in seen:
+            raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one flat per "
+                             "f-number")
+        seen[f] = path
+    inputs = [p for _, p in args.flat] + ([args.dark] if args.dark else [])
+    outputs = [out] + ([Path(args.plot)] if args.plot else [])
+    for o in outputs:
+        if any(Path(i).resolve() == o.resolve() for i in inputs):
+            raise ValueError(f"output {o} is also an input; choose another path")
+        if o.exists() and not args.overwrite:
+            raise ValueError(f"{o} exists; choose another path or pass --overwrite")
+    if args.plot and Path(args.plot).suffix.lower() != ".png":
+        raise ValueError(f"--plot {args.plot}: the figure is written as .png")
+    flats, bands, sat = {}, set(), None
+    for f, path in sorted(args.flat):
+        image, info = read_flat(path)
+        flats[f] = image
+        bands.add(info["bands"])
+        sat = info["saturation"] if sat is None else sat
+        print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
+              + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
+              file=sys.stderr)
+    dark = read_flat(args.dark)[0] if args.dark else None
+    saturation = args.saturation if args.saturation is not None else sat
+    res = calibrate_lens(
+        flats, exit_pupil_mm=args.exit_pupil_mm, pixel_pitch_um=args.pixel_pitch_um,
+        magnification=args.magnification, pupil_magnification=args.pupil_magnification,
+        dark=dark, center_px=args.center_px, saturation=saturation,
+        vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
+        name=args.name or out.stem, inputs={f: str(p) for f, p in args.flat})
+    lens = res.lens
+    cal = dict(lens.calibration)
+    cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
+                    else "single-band flats")
+    if args.dark:
+        cal["dark"] = str(args.dark)
+    lens = type(lens)(lens.name, lens.exit_pupil_mm, lens.vignetting_radius_mm,
+                      lens.vignetting_distance_mm, lens.magnification, lens.pupil_magnification,
+                      calibration=cal)
+    if args.plot:
+        res.save_plot(args.plot)
+    lens.save(out, overwrite=args.overwrite)
+    print(res.summary())
+    print(f"wrote {out}" + (f" and {args.plot}" if args.plot else ""))
+    return 0
+
+
 def _cmd_shift(args):
     from .optics import mean_shift, select_method
 
@@ -170,6 +257,39 @@ def build_parser():
                     help="digital number at or above which a pixel is saturated")
     ff.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     ff.set_defaults(func=_cmd_flatfield)
+
+    cal = command("calibrate", "lens profile (P, h) from flat fields at several f-numbers "
+                  "(Goossens Sec. 2.7, 3.2)")
+    cal.add_argument("--flat", type=_flat_arg, action="append", required=True,
+                     metavar="F_NUMBER=PATH",
+                     help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
+                     "several bands in a file are averaged); repeat for each f-number")
+    cal.add_argument("--exit-pupil-mm", type=float, required=True,
+                     help="distance x from the sensor to the exit pupil")
+    cal.add_argument("--pixel-pitch-um", type=float, required=True)
+    cal.add_argument("--magnification", type=float, default=0.0,
+                     help="linear magnification m (default 0: focused at infinity)")
+    cal.add_argument("--pupil-magnification", type=float, default=1.0,
+                     help="pupil magnification m_P (default 1)")
+    cal.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
+    cal.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                     help="optical centre in pixels (default: found from the flats)")
+    cal.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
+    cal.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                     help="draw the profiles, onsets and model (the paper's Fig. 8)")
+    from .calibrate import METHODS as CAL_METHODS
+
+    cal.add_argument("--method", default="auto", choices=list(CAL_METHODS),
+                     help="estimator of P and h (default: %(default)s: the joint fit unless "
+                     "its area model misfits)")
+    cal.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
+                     help="h, when known (needed with a single f-number)")
+    cal.add_argument("--saturation", type=float, default=None,
+                     help="value at or above which a pixel is saturated (default: the "
+                     "largest value of the file's integer type)")
+    cal.add_argument("--name", default=None, help="lens name (default: the output's stem)")
+    cal.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    cal.set_defaults(func=_cmd_calibrate)
 
     shift = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     shift.add_argument(

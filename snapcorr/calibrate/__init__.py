@@ -1,5 +1,31 @@
 """Lens characterisation from flat fields (Goossens et al. 2019, Sec. 2.7 and 3.2)."""
 
+from .flats import (
+    RadialProfile,
+    clean_flat,
+    cra_deg_map,
+    estimate_center,
+    radial_profile,
+    read_flat,
+)
+from .joint_fit import ModelFit
+from .lens_calibration import METHODS, LensCalibration, calibrate_lens
 from .onset_fit import OnsetFit, solve_vignetting_circle
+from .onsets import Onset, detect_onset
 
-__all__ = ["OnsetFit", "solve_vignetting_circle"]
+__all__ = [
+    "METHODS",
+    "LensCalibration",
+    "ModelFit",
+    "Onset",
+    "OnsetFit",
+    "RadialProfile",
+    "calibrate_lens",
+    "clean_flat",
+    "cra_deg_map",
+    "detect_onset",
+    "estimate_center",
+    "radial_profile",
+    "read_flat",
+    "solve_vignetting_circle",
+]

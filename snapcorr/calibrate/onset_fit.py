@@ -37,7 +37,7 @@ class OnsetFit:
     residuals_mm: np.ndarray
 
 
-def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm):
+def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_deg=None):
     """Solve Eq. (26), ``[1, -tan(CRA_i)] (P, h)^T = R_i``, for P and h.
 
     Parameters
@@ -46,6 +46,10 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm):
         Chief-ray angle where vignetting starts at each f-number, degrees.
     exit_pupil_radius_mm : array_like, shape (n,)
         Exit-pupil radius R_i at each f-number (Eq. 28, from the working f-number Eq. 27).
+    onset_stderr_deg : array_like, shape (n,), optional
+        Standard errors of the onsets. They are propagated through the least squares
+        (``dR_i = h sec^2(CRA_i) dCRA_i``), and the standard errors reported are the larger of
+        that and the residual-based ones, so two f-numbers still get an uncertainty.
 
     Returns
     -------
@@ -81,9 +85,18 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm):
     (P, h), *_ = np.linalg.lstsq(A, R, rcond=None)
     residuals = A @ np.array([P, h]) - R
     dof = t.size - 2
+    pinv = np.linalg.inv(A.T @ A)
     if dof > 0:
-        cov = np.linalg.inv(A.T @ A) * (residuals @ residuals) / dof
-        P_err, h_err = np.sqrt(np.diag(cov))
+        P_err, h_err = np.sqrt(np.diag(pinv * (residuals @ residuals) / dof))
     else:
         P_err = h_err = np.nan
+    if onset_stderr_deg is not None:
+        e = np.asarray(onset_stderr_deg, float).ravel()
+        if e.shape != t.shape:
+            raise ValueError("need one onset standard error per onset angle")
+        sig_R = abs(h) * (1.0 + t * t) * np.deg2rad(e)  # dR = h sec^2 dCRA
+        G = pinv @ A.T
+        prop = np.sqrt(np.diag(G @ np.diag(sig_R**2) @ G.T))
+        P_err = float(np.fmax(P_err, prop[0])) if dof > 0 else float(prop[0])
+        h_err = float(np.fmax(h_err, prop[1])) if dof > 0 else float(prop[1])
     return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals)

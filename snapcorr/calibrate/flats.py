@@ -1,0 +1,284 @@
+"""Flat fields in: reading, cleaning, the optical centre and radial profiles.
+
+The image work goes through the libraries that own it: OpenImageIO and Spectral Python read
+the files, OpenCV finds hot and dead pixels (median filter) and averages blocks, scikit-image
+traces iso-illumination contours and fits circles to them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "RadialProfile",
+    "clean_flat",
+    "cra_deg_map",
+    "estimate_center",
+    "radial_profile",
+    "read_flat",
+]
+
+#: Pixels further than this many robust standard deviations from their 5 x 5 median are
+#: treated as hot or dead.
+OUTLIER_SIGMA = 6.0
+
+
+def read_flat(path):
+    """Read a flat field as a 2-D float64 image; several bands are averaged.
+
+    ``.npy`` (2-D, or 3-D as (y, x, band)), TIFF and OpenEXR (OpenImageIO; an alpha channel is
+    ignored), ENVI ``.hdr`` (Spectral Python), ``.nc`` and ``.zarr`` cubes.
+
+    Returns
+    -------
+    image : ndarray, shape (ny, nx), float64
+    info : dict
+        ``bands`` (how many were averaged) and ``saturation`` (the largest value the file's
+        integer type holds, or None for floating-point data).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            data = np.load(path, mmap_mode="r", allow_pickle=False)
+        except ValueError as err:
+            raise ValueError(f"{path}: not a numpy array file ({err})") from None
+    elif suffix in (".tif", ".tiff", ".exr"):
+        data = _read_oiio(path)
+    elif suffix in (".hdr", ".raw", ".img"):
+        data = _read_envi(path)
+    elif suffix in (".nc", ".zarr"):
+        from ..cube.io import read_cube
+
+        data = np.asarray(read_cube(path).values)
+    else:
+        raise ValueError(f"{path}: unknown flat-field format {path.suffix or '(none)'!r}; "
+                         "use .npy, .tif, .exr, .hdr (ENVI), .nc or .zarr")
+    if data.ndim == 2:
+        data = data[:, :, None]
+    if data.ndim != 3 or min(data.shape) < 1:
+        raise ValueError(f"{path}: a flat field is a 2-D image (or y, x, band), "
+                         f"got shape {data.shape}")
+    sat = np.iinfo(data.dtype).max if np.issubdtype(data.dtype, np.integer) else None
+    image = data.mean(axis=2, dtype=np.float64) if data.shape[2] > 1 else \
+        np.asarray(data[:, :, 0], dtype=np.float64)
+    if sat is not None and data.shape[2] > 1:
+        # a pixel saturated in any band is saturated in the mean
+        image = np.where((np.asarray(data) >= sat).any(axis=2), np.inf, image)
+    return image, {"bands": int(data.shape[2]), "saturation": sat}
+
+
+def _read_envi(path):
+    from spectral.io import envi
+
+    hdr = path if path.suffix.lower() == ".hdr" else path.with_suffix(".hdr")
+    try:
+        img = envi.open(str(hdr))
+        expected = img.offset + img.nrows * img.ncols * img.nbands * np.dtype(img.dtype).itemsize
+        if Path(img.filename).stat().st_size != expected:
+            raise ValueError(f"the data file {Path(img.filename).name} does not match the "
+                             f"header ({img.nrows} x {img.ncols} x {img.nbands}, "
+                             f"{np.dtype(img.dtype).name}): truncated or wrong header")
+        data = img.open_memmap(interleave="bip", writable=False)
+    except Exception as err:  # Spectral Python raises its own types; all mean a bad file
+        raise ValueError(f"{path}: cannot read it as ENVI: {err}") from None
+    if data.dtype.byteorder not in ("=", "|"):
+        data = data.astype(data.dtype.newbyteorder("="))
+    return data
+
+
+def _read_oiio(path):
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise ValueError(f"{path}: {oiio.geterror() or 'OpenImageIO cannot open it'}")
+    try:
+        spec = inp.spec()
+        data = inp.read_image(0, 0, 0, spec.nchannels, "unknown")
+        if data is None:
+            raise ValueError(f"{path}: {inp.geterror() or 'no pixels'}")
+        names = list(spec.channelnames)
+    finally:
+        inp.close()
+    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+    keep = [i for i, n in enumerate(names) if n.upper() not in ("A", "ALPHA")] or [0]
+    return data[:, :, keep]
+
+
+def clean_flat(image, *, dark=None, saturation=None):
+    """Subtract the dark frame and mask saturated, non-finite, hot and dead pixels.
+
+    Hot and dead pixels are those further than ``OUTLIER_SIGMA`` robust standard deviations
+    from the 5 x 5 median of their neighbourhood (OpenCV ``medianBlur``); they are masked, not
+    replaced, so the noise of the pixels kept is untouched.
+
+    Returns
+    -------
+    image : ndarray, float32, dark subtracted (masked pixels hold 0)
+    valid : ndarray of bool
+    noise_var : ndarray, float32
+        Local noise variance of each pixel (a box average of the squared residual from the
+        median, corrected for the median's own noise), for weighting.
+    """
+    import cv2
+
+    img = np.asarray(image, dtype=np.float64)
+    valid = np.isfinite(img)
+    if saturation is not None:
+        valid &= img < saturation
+    if dark is not None:
+        img = img - dark
+    img = np.where(valid, img, 0.0).astype(np.float32)
+    med = cv2.medianBlur(img, 5)
+    resid = img - med
+    scale = np.abs(np.where(valid, resid, 0.0))
+    mad = float(np.median(scale[valid])) if valid.any() else 0.0
+    sigma = 1.4826 * mad if mad > 0 else float(np.std(resid[valid])) if valid.any() else 0.0
+    if sigma > 0:
+        valid &= np.abs(resid) <= OUTLIER_SIGMA * sigma
+    # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
+    bad = (~valid).astype(np.uint8)
+    valid &= cv2.dilate(bad, np.ones((3, 3), np.uint8)) == 0
+    img[~valid] = 0.0
+    r2 = np.where(valid, resid, 0.0).astype(np.float32) ** 2
+    n = cv2.blur(valid.astype(np.float32), (15, 15))
+    var = cv2.blur(r2, (15, 15)) / np.maximum(n, 1e-6)
+    # residual from a 5 x 5 median has variance sigma^2 (1 + pi / (2 * 25))
+    var /= 1.0 + np.pi / 50.0
+    return img, valid, var.astype(np.float32)
+
+
+def cra_deg_map(shape, center_px, pixel_pitch_um, exit_pupil_mm):
+    """Chief-ray angle (deg) of every pixel: ``tan CRA = d / x`` (Goossens 2019, Eq. 8).
+
+    Pixel (row i, column j) is centred at image coordinates (x=j, y=i).
+    """
+    ny, nx = shape
+    cx, cy = center_px
+    yy, xx = np.ogrid[:ny, :nx]
+    d = np.hypot(xx - cx, yy - cy) * (pixel_pitch_um * 1e-3)
+    return np.rad2deg(np.arctan(d / exit_pupil_mm))
+
+
+def estimate_center(images, valids=None, *, levels=12):
+    """Optical centre (cx, cy) in pixels from iso-illumination contours.
+
+    Around the optical axis vignetting is radially symmetric, so every iso-illumination
+    contour is a circle about the axis. Each image is smoothed (OpenCV Gaussian blur), contours
+    are traced at several levels (scikit-image ``find_contours``) and circles fitted to them
+    robustly (``CircleModel`` inside ``ransac``); the centre is the median of the circles'
+    centres, weighted by the arc each contour covers. Images are best given as ratios to a
+    reference flat, which cancels non-uniform sources.
+
+    Returns
+    -------
+    center : (float, float) or None
+        None when no image holds a usable contour (a flat without fall-off).
+    spread : float
+        Median absolute deviation of the circle centres, pixels.
+    """
+    import cv2
+    from skimage.measure import CircleModel, find_contours, ransac
+
+    centres, weights = [], []
+    for k, img in enumerate(images):
+        img = np.asarray(img, dtype=np.float32)
+        valid = np.ones(img.shape, bool) if valids is None else np.asarray(valids[k], bool)
+        sigma = max(1.0, min(img.shape) / 100.0)
+        w = cv2.GaussianBlur(valid.astype(np.float32), (0, 0), sigma)
+        s = cv2.GaussianBlur(np.where(valid, img, 0).astype(np.float32), (0, 0), sigma)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            smooth = np.where(w > 0.5, s / w, np.nan)
+        good = smooth[np.isfinite(smooth)]
+        if good.size < 100:
+            continue
+        lo, hi = np.percentile(good, [3, 97])
+        if not hi > lo * 1.02:
+            continue
+        for level in np.linspace(lo, hi, levels + 2)[1:-1]:
+            for contour in find_contours(smooth, level):
+                if len(contour) < 20:
+                    continue
+                pts = contour[:, ::-1]  # (x, y)
+                try:
+                    model, inliers = ransac(pts, CircleModel, min_samples=3,
+                                            residual_threshold=2.0, max_trials=50, rng=0)
+                except (ValueError, np.linalg.LinAlgError):
+                    continue
+                if model is None or inliers is None or inliers.sum() < 20:
+                    continue
+                (xc, yc), r = model.center, model.radius
+                ang = np.sort(np.arctan2(pts[inliers, 1] - yc, pts[inliers, 0] - xc))
+                span = 2 * np.pi - np.diff(np.append(ang, ang[0] + 2 * np.pi)).max()
+                if span < np.pi / 3 or not np.isfinite(r) or r > 20 * max(img.shape):
+                    continue
+                centres.append((xc, yc))
+                weights.append(span * inliers.sum())
+    if not centres:
+        return None, np.inf
+    c = np.asarray(centres)
+    w = np.asarray(weights)
+    center = tuple(float(_weighted_median(c[:, i], w)) for i in range(2))
+    spread = float(np.median(np.hypot(c[:, 0] - center[0], c[:, 1] - center[1])))
+    return center, spread
+
+
+def _weighted_median(values, weights):
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return values[order][np.searchsorted(cum, 0.5 * cum[-1])]
+
+
+@dataclass(frozen=True)
+class RadialProfile:
+    """A flat field (or ratio of two) averaged in rings of equal chief-ray angle.
+
+    Attributes
+    ----------
+    cra_deg : ndarray
+        Mean chief-ray angle of the pixels in each bin.
+    value, stderr : ndarray
+        Bin mean and its standard error (from the scatter of the pixels in the bin).
+    count : ndarray
+        Pixels in each bin (bins with fewer than 4 pixels are dropped).
+    """
+
+    cra_deg: np.ndarray
+    value: np.ndarray
+    stderr: np.ndarray
+    count: np.ndarray
+
+
+def radial_profile(image, valid, cra_deg, *, bin_deg=0.1, denominator=None):
+    """Average ``image`` (or ``image / denominator``) in CRA bins of width ``bin_deg``.
+
+    With a ``denominator`` the value is the ratio of the bin sums (so a source that varies
+    around the ring cancels exactly, as it multiplies both images alike) and the uncertainty
+    comes from the scatter of the pixel-by-pixel ratio.
+    """
+    valid = np.asarray(valid, bool)
+    if denominator is not None:
+        valid = valid & (denominator > 0)
+    idx = np.floor(cra_deg[valid] / bin_deg).astype(np.int64)
+    a = image[valid].astype(np.float64)
+    n = np.bincount(idx).astype(float)
+    keep = n >= 4
+    theta = np.bincount(idx, cra_deg[valid]) / np.maximum(n, 1)
+    if denominator is None:
+        s = np.bincount(idx, a)
+        mean = s / np.maximum(n, 1)
+        q = a
+    else:
+        b = denominator[valid].astype(np.float64)
+        mean = np.bincount(idx, a) / np.where(keep, np.bincount(idx, b), 1.0)
+        q = a / b
+    m1 = np.bincount(idx, q) / np.maximum(n, 1)
+    var = np.maximum(np.bincount(idx, q * q) / np.maximum(n, 1) - m1 * m1, 0.0)
+    stderr = np.sqrt(var * n / np.maximum(n - 1, 1) / np.maximum(n, 1))
+    return RadialProfile(theta[keep], mean[keep], stderr[keep], n[keep].astype(np.int64))

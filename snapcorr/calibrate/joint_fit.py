@@ -1,0 +1,228 @@
+"""Joint fit of the vignetting circle(s) and the optical centre to all flat fields at once.
+
+Dividing the flat at each f-number by the flat at the highest f-number cancels every effect
+that does not depend on the aperture: natural (cos^4) fall-off, the source's non-uniformity,
+the pixels' response. What remains is the ratio of the vignetted-pupil areas,
+
+    q_F(pixel) = s_F * A_F(CRA) / A_ref(CRA),
+
+with ``A`` the fraction of the exit pupil (radius ``R_F``, Eq. 28) left by the vignetting
+circle(s) (Goossens et al. 2019, Eq. 33; several circles via
+:func:`~snapcorr.optics.pupil.overlap_area_mm2`) and ``s_F`` the exposure ratio. The fit
+(scipy ``least_squares``) runs on block-averaged ratio images, weighted by their noise, with
+the ``s_F`` solved in closed form at each step. Three models are compared by the Bayesian
+information criterion: no vignetting circle (``s_F`` only), one circle (P, h, centre) and two
+circles (a second P, h: pixel vignetting is a circle with h = x).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..optics.pupil import overlap_area_mm2
+
+__all__ = ["BlockData", "ModelFit", "block_average", "fit_model"]
+
+MODELS = ("none", "one", "two")
+
+
+@dataclass
+class BlockData:
+    """Block-averaged ratio images ready for fitting (one row per f-number)."""
+
+    q: np.ndarray  # (n_f, n_blocks) ratio values
+    sigma: np.ndarray  # (n_f, n_blocks) standard deviations
+    xpix: np.ndarray  # (n_blocks,) block centres, full-resolution pixel coordinates
+    ypix: np.ndarray
+    R_mm: np.ndarray  # (n_f,) exit-pupil radii of the flats fitted
+    R_ref_mm: float | None  # reference exit-pupil radius (None: no reference, raw flats)
+    pitch_mm: float
+    x_mm: float
+    natural: bool = False  # model includes cos^4 (a single flat, no reference)
+
+
+@dataclass
+class ModelFit:
+    """Result of fitting one model."""
+
+    model: str
+    params: dict
+    stderr: dict
+    covariance: np.ndarray | None
+    names: tuple
+    chi2: float
+    n: int
+    k: int
+    scales: np.ndarray
+    success: bool
+    message: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def bic(self) -> float:
+        return self.chi2 + self.k * np.log(self.n)
+
+    @property
+    def reduced_chi2(self) -> float:
+        return self.chi2 / max(self.n - self.k, 1)
+
+
+def block_average(images, valids, variances, block):
+    """Masked block means of several images and the variance of each mean (numpy reshape)."""
+    ny, nx = images[0].shape
+    by, bx = ny // block, nx // block
+    out, var, cnt = [], [], []
+    for img, ok, v in zip(images, valids, variances, strict=True):
+        sl = (slice(0, by * block), slice(0, bx * block))
+        w = ok[sl].astype(np.float64).reshape(by, block, bx, block).sum(axis=(1, 3))
+        s = np.where(ok, img, 0.0)[sl].astype(np.float64).reshape(by, block, bx, block)
+        vv = np.where(ok, v, 0.0)[sl].astype(np.float64).reshape(by, block, bx, block)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.append(np.where(w > 0, s.sum(axis=(1, 3)) / w, np.nan))
+            var.append(np.where(w > 0, vv.sum(axis=(1, 3)) / w**2, np.nan))
+        cnt.append(w)
+    yy, xx = np.mgrid[:by, :bx]
+    c = (block - 1) / 2.0
+    return out, var, cnt, xx * block + c, yy * block + c
+
+
+def _area_fraction(R, circles, t):
+    """Fraction of the pupil (radius R) left by the circles [(P, h), ...] at tan(CRA) = t."""
+    if not circles:
+        return np.ones_like(t)
+    radii = [R] + [P for P, _ in circles]
+    centres = [0.0] + [h * t for _, h in circles]
+    return overlap_area_mm2(radii, centres) / (np.pi * R * R)
+
+
+def _circles(model, p):
+    if model == "none":
+        return []
+    if model == "one":
+        return [(p[0], p[1])]
+    return [(p[0], p[1]), (p[4], p[5])]
+
+
+def model_ratio(data: BlockData, model, p, tan_cra):
+    """Model ratio image(s) A_F / A_ref (times cos^4 for a single flat), shape (n_f, n)."""
+    circles = _circles(model, p)
+    tmax = float(np.max(tan_cra)) * 1.0001 + 1e-9
+    n_grid = 1024
+    grid = np.linspace(0.0, tmax, n_grid + 1)
+    # linear interpolation on the uniform grid (np.interp's search is slow on unsorted points)
+    pos = np.asarray(tan_cra) * (n_grid / tmax)
+    i = np.minimum(pos.astype(np.int64), n_grid - 1)
+    frac = pos - i
+    ref = None if data.R_ref_mm is None else _area_fraction(data.R_ref_mm, circles, grid)
+    m = np.empty((len(data.R_mm), np.size(tan_cra)))
+    for k, R in enumerate(data.R_mm):
+        a = _area_fraction(R, circles, grid)
+        if ref is not None:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                a = np.where(ref > 1e-9, a / np.where(ref > 1e-9, ref, 1.0), np.nan)
+        m[k] = a[i] + (a[i + 1] - a[i]) * frac
+    if data.natural:
+        m *= (1.0 + np.asarray(tan_cra) ** 2) ** -2  # cos^4
+    return m
+
+
+def _tan(data, cx, cy):
+    return np.hypot(data.xpix - cx, data.ypix - cy) * data.pitch_mm / data.x_mm
+
+
+def _residuals(data, model, p, center):
+    cx, cy = center if center is not None else (p[2], p[3])
+    m = model_ratio(data, model, p, _tan(data, cx, cy))
+    w = 1.0 / data.sigma**2
+    ok = np.isfinite(m)
+    num = np.sum(np.where(ok, w * data.q * m, 0.0), axis=1)
+    den = np.sum(np.where(ok, w * m * m, 0.0), axis=1)
+    s = num / np.where(den > 0, den, 1.0)
+    r = (data.q - s[:, None] * m) / data.sigma
+    # blocks the model cannot reach (reference fully cut off) count as a large misfit
+    return np.where(ok, r, 10.0).ravel(), s
+
+
+def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_nfev=60,
+              keep=2):
+    """Fit one model from several starting points; return the best :class:`ModelFit`.
+
+    Parameters
+    ----------
+    model : {"none", "one", "two"}
+    starts : list of sequences
+        Starting values: (P, h, cx, cy) for "one", plus (P2, h2) for "two".
+    center : (cx, cy), optional
+        Keep the optical centre fixed here instead of fitting it.
+    fixed_h : float, optional
+        Keep h fixed (a single f-number cannot tell P from h).
+    keep : int
+        The fit is run from the ``keep`` starting points with the lowest cost.
+    """
+    n = data.q.size
+    if model == "none":
+        r, s = _residuals(data, "none", (), center or (0.0, 0.0))
+        return ModelFit("none", {}, {}, None, (), float(r @ r), n, data.q.shape[0], s, True)
+    names = ["P_mm", "h_mm", "cx_px", "cy_px"] + (["P2_mm", "h2_mm"] if model == "two" else [])
+    free = [i for i, nm in enumerate(names)
+            if not (center is not None and nm in ("cx_px", "cy_px"))
+            and not (fixed_h is not None and nm == "h_mm")]
+    x = data.x_mm
+    lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf, 1e-3, 1e-3])[: len(names)]
+    hi_all = np.array([20 * x, 20 * x, np.inf, np.inf, 20 * x, 20 * x])[: len(names)]
+
+    def full(pf, base):
+        p = np.array(base, float)
+        p[free] = pf
+        return p
+
+    bases = []
+    for start in starts:
+        base = np.array(start, float)[: len(names)]
+        if center is not None:
+            base[2:4] = center
+        if fixed_h is not None:
+            base[1] = fixed_h
+        base[free] = np.clip(base[free], lo_all[free] * 1.0001, hi_all[free] * 0.9999)
+        r = _residuals(data, model, base, center)[0]
+        bases.append((float(r @ r), base))
+    bases.sort(key=lambda cb: cb[0])
+    best = None
+    for _, base in bases[:keep]:
+        p0 = base[free]
+
+        def fun(pf, base=base):
+            return _residuals(data, model, full(pf, base), center)[0]
+
+        try:
+            res = least_squares(fun, p0, bounds=(lo_all[free], hi_all[free]), x_scale="jac",
+                                max_nfev=max_nfev)
+        except ValueError as err:  # pragma: no cover - non-finite start
+            if best is None:
+                best = (None, str(err), base)
+            continue
+        if best is None or best[0] is None or res.cost < best[0].cost:
+            best = (res, res.message, base)
+    res, message, base = best
+    if res is None:
+        return ModelFit(model, {}, {}, None, tuple(names), np.inf, n, len(free), np.array([]),
+                        False, message)
+    p = full(res.x, base)
+    r, s = _residuals(data, model, p, center)
+    chi2 = float(r @ r)
+    k = len(free) + data.q.shape[0]
+    J = res.jac
+    cov_free = np.linalg.pinv(J.T @ J) * max(chi2 / max(n - k, 1), 1.0)
+    cov = np.full((len(names), len(names)), 0.0)
+    cov[np.ix_(free, free)] = cov_free
+    err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    singular = np.linalg.matrix_rank(J.T @ J) < len(free)
+    if singular:
+        err = np.where(np.isin(np.arange(len(names)), free), np.inf, err)
+    params = dict(zip(names, map(float, p), strict=True))
+    stderr = dict(zip(names, map(float, err), strict=True))
+    return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
+                    str(message))

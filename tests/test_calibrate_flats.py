@@ -1,0 +1,224 @@
+"""Lens characterisation from simulated flat fields (Goossens et al. 2019, Sec. 2.7, 3.2).
+
+The flats come from snapcorr.simulate, whose pupil areas are checked against brute-force
+counts in test_simulate.py. The flats here are 512 x 512 pixels of 22 um, which spans the same
+chief-ray angles as the 2048 x 2048 x 5.5 um sensor of the issue (up to 20.8 deg) with 16 times
+fewer pixels, so the statistical errors are about 4 times those of a full-size sensor.
+"""
+
+import numpy as np
+import pytest
+
+from snapcorr import Lens
+from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, radial_profile
+from snapcorr.calibrate.flats import clean_flat, cra_deg_map
+from snapcorr.simulate import LampPlaque, flat_field
+
+PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+H_GE_X = Lens("h >= x", 21.0, 9.5, 26.0, 0.0, 1.0)
+F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
+SHAPE, PITCH = (512, 512), 22.0
+CENTRE = (281.3, 236.8)  # off the image centre (255.5, 255.5)
+
+
+def _flats(lens, *, seed=0, fs=F_NUMBERS, electrons=1e4, **kw):
+    rng = np.random.default_rng(seed)
+    return {f: flat_field(lens, f, SHAPE, PITCH, center_px=CENTRE, signal_electrons=electrons,
+                          rng=rng, **kw) for f in fs}
+
+
+def _calibrate(flats, lens, **kw):
+    return calibrate_lens(flats, exit_pupil_mm=lens.exit_pupil_mm, pixel_pitch_um=PITCH,
+                          magnification=lens.magnification,
+                          pupil_magnification=lens.pupil_magnification, **kw)
+
+
+def _check(res, truth, *, rtol, onset_tol_deg=0.3, centre_tol_px=1.0):
+    lens = res.lens
+    assert lens.has_vignetting and res.model == "one"
+    assert abs(lens.vignetting_radius_mm / truth.vignetting_radius_mm - 1) < rtol
+    assert abs(lens.vignetting_distance_mm / truth.vignetting_distance_mm - 1) < rtol
+    fs = np.asarray(res.f_numbers)
+    true_on = truth.onset_cra_deg(fs)
+    inside = true_on < res.max_cra_deg
+    assert np.all(np.abs(res.model_onsets_deg()[inside] - true_on[inside]) < onset_tol_deg)
+    assert np.hypot(res.center_px[0] - CENTRE[0], res.center_px[1] - CENTRE[1]) < centre_tol_px
+
+
+@pytest.fixture(scope="module")
+def paper_sphere():
+    return _calibrate(_flats(PAPER), PAPER)
+
+
+def test_paper_lens_sphere_one_percent_noise(paper_sphere):
+    res = paper_sphere
+    _check(res, PAPER, rtol=0.01)
+    assert res.method == "joint" and res.center_source == "joint fit"
+    # the per-profile model detector is as good; the paper's discontinuity is within 0.5 deg
+    true_on = PAPER.onset_cra_deg(np.asarray(F_NUMBERS[:-1]))
+    for f, t in zip(F_NUMBERS[:-1], true_on, strict=True):
+        assert abs(res.onsets["model"][f].cra_deg - t) < 0.3
+        assert abs(res.onsets["ratio"][f].cra_deg - t) < 0.5
+    of = res.onset_fits["model"]
+    assert abs(of.P_mm / 7.4236 - 1) < 0.01 and abs(of.h_mm / 16.991 - 1) < 0.02
+    # uncertainties are honest: the truth is within 4 standard errors
+    one = res.fits["one"]
+    for k, t in (("P_mm", 7.4236), ("h_mm", 16.991)):
+        assert abs(one.params[k] - t) < 4 * one.stderr[k] + 1e-4
+    # the model without vignetting and the two-circle model both lose
+    assert res.fits["one"].bic < min(res.fits["none"].bic, res.fits["two"].bic)
+
+
+def test_profile_and_toml_round_trip(paper_sphere, tmp_path):
+    lens = paper_sphere.lens
+    cal = lens.calibration
+    for key in ("f_numbers", "onset_cra_deg", "center_px", "pixel_pitch_um", "method",
+                "model", "date", "snapcorr_version", "joint_fit", "onset_ratio",
+                "onset_model"):
+        assert key in cal, key
+    path = lens.save(tmp_path / "lens.toml")
+    back = Lens.load(path)
+    assert back == lens and back.calibration["center_px"] == list(paper_sphere.center_px)
+    assert "summary" not in cal and "P = " in paper_sphere.summary()
+
+
+def test_plot_draws_profiles_onsets_and_model(paper_sphere, tmp_path):
+    fig = paper_sphere.plot()
+    ax = fig.axes[1]
+    assert len(ax.lines) >= 4 and "ratio to f/8" in ax.get_ylabel()
+    paper_sphere.save_plot(tmp_path / "fig8.png")
+    assert (tmp_path / "fig8.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_h_ge_x_regime():
+    res = _calibrate(_flats(H_GE_X, seed=1), H_GE_X)
+    _check(res, H_GE_X, rtol=0.01)
+    assert res.lens.vignetting_distance_mm > res.lens.exit_pupil_mm
+
+
+def test_lamp_and_plaque_within_two_percent():
+    source = LampPlaque(brdf={(0, 1): -0.3, (1, 0): 0.2, "t": 0.5})
+    flats = _flats(PAPER, seed=2, source=source)
+    # the source is far from uniform: the f/8 flat alone is lopsided by several percent
+    f8 = flats[8.0]
+    nx = f8.shape[1]
+    left, right = f8[:, : nx // 8].mean(), f8[:, -nx // 8:].mean()
+    assert abs(left / right - 1) > 0.03
+    res = _calibrate(flats, PAPER)
+    _check(res, PAPER, rtol=0.02, centre_tol_px=2.0)
+
+
+def test_given_centre_is_kept():
+    res = _calibrate(_flats(PAPER, seed=3), PAPER, center_px=CENTRE)
+    assert res.center_px == CENTRE and res.center_source == "given"
+    _check(res, PAPER, rtol=0.01)
+
+
+def test_single_f_number_needs_h():
+    flats = _flats(PAPER, fs=(2.0,), seed=4)
+    with pytest.raises(ValueError, match=r"cannot tell .* P .* h"):
+        _calibrate(flats, PAPER)
+    res = _calibrate(flats, PAPER, vignetting_distance_mm=16.991)
+    assert abs(res.lens.vignetting_distance_mm - 16.991) < 1e-12
+    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+
+
+def test_no_onset_inside_the_field_chooses_the_ideal_aperture():
+    wide = Lens("wide", 21.0, 15.0, 17.0, 0.06, 1.3)  # first onset at 24.7 deg
+    assert wide.onset_cra_deg(1.4) > 22
+    res = _calibrate(_flats(wide, seed=5), wide)
+    assert res.model == "none" and not res.lens.has_vignetting
+    assert "no optical vignetting" in res.reason and f"{res.max_cra_deg:.1f}" in res.reason
+    assert not any(o.found for o in res.onsets["ratio"].values())
+    assert "ideal-aperture" in res.summary()
+
+
+def test_very_noisy_flats_report_large_uncertainty(paper_sphere):
+    # 30 % noise per pixel: the joint fit still finds the lens, with honest error bars;
+    # the onsets of the ratio profiles carry uncertainties of tenths of a degree or more.
+    res = _calibrate(_flats(PAPER, seed=6, electrons=11.0), PAPER)
+    one = res.fits["one"]
+    for k, t in (("P_mm", 7.4236), ("h_mm", 16.991)):
+        assert abs(one.params[k] - t) < 4 * one.stderr[k]
+    quiet = paper_sphere.fits["one"]
+    assert one.stderr["h_mm"] > 10 * quiet.stderr["h_mm"]
+    for det in ("ratio", "model"):
+        for f, o in res.onsets[det].items():
+            true = PAPER.onset_cra_deg(f)
+            assert not o.found or abs(o.cra_deg - true) < max(4 * o.stderr_deg, 0.5)
+            # the error bars grow with the noise
+            assert o.stderr_deg > 2 * paper_sphere.onsets[det][f].stderr_deg
+
+
+def test_saturated_and_dead_pixels():
+    rng = np.random.default_rng(7)
+    flats = _flats(PAPER, seed=7, dtype=np.uint16, saturation_dn=12000.0)
+    for img in flats.values():
+        idx = rng.integers(0, img.size, 500)
+        img.flat[idx[:250]] = 0  # dead
+        img.flat[idx[250:]] = 65535  # hot
+    # over-exposed f/1.4 centre: clipped at 9000 DN
+    flats[1.4] = np.minimum(flats[1.4], 9000).astype(np.uint16)
+    res = _calibrate(flats, PAPER, saturation=9000)
+    _check(res, PAPER, rtol=0.01)
+    img, ok, _ = clean_flat(flats[2.0].astype(float))
+    assert (~ok).sum() >= 400  # the dead and hot pixels (and their rims) are masked
+
+
+def test_flats_of_different_sizes_and_repeated_f_numbers():
+    a = np.ones((64, 64))
+    with pytest.raises(ValueError, match="differ in size"):
+        calibrate_lens({2.0: a, 4.0: np.ones((64, 60))}, exit_pupil_mm=21, pixel_pitch_um=5)
+    with pytest.raises(ValueError, match="given twice"):
+        calibrate_lens({2: a, "2.0": a}, exit_pupil_mm=21, pixel_pitch_um=5)
+    with pytest.raises(ValueError, match="dark frame"):
+        calibrate_lens({2.0: a, 4.0: a}, exit_pupil_mm=21, pixel_pitch_um=5,
+                       dark=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="method"):
+        calibrate_lens({2.0: a, 4.0: a}, exit_pupil_mm=21, pixel_pitch_um=5, method="x")
+
+
+def test_pixel_vignetting_needs_a_second_circle():
+    flats = _flats(PAPER, seed=8, pixel_acceptance_deg=22.0)
+    res = _calibrate(flats, PAPER)
+    assert res.model == "two"
+    assert "second_circle" in res.lens.calibration
+    second = res.lens.calibration["second_circle"]
+    # the pixel's acceptance circle sits on the pixel: h = x, radius x tan(22 deg)
+    assert abs(second["distance_mm"] / 21.0 - 1) < 0.05
+    assert abs(second["radius_mm"] / (21.0 * np.tan(np.deg2rad(22.0))) - 1) < 0.05
+    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.02
+
+
+# -- the pieces, each against something computed independently ------------------------------
+
+
+def test_detect_onset_on_an_exact_ratio_profile():
+    # the exact area ratio of the paper's lens at f/2 against f/8, no noise
+    theta = np.arange(0.05, 20.0, 0.1)
+    ratio = PAPER.relative_illumination(2.0, theta) / PAPER.relative_illumination(8.0, theta)
+    o = detect_onset(theta, ratio, np.full(theta.size, 1e-4))
+    assert o.found and abs(o.cra_deg - PAPER.onset_cra_deg(2.0)) < 0.3
+    flat = detect_onset(theta, np.ones_like(theta), np.full(theta.size, 1e-4))
+    assert not flat.found and np.isnan(flat.cra_deg)
+
+
+def test_centre_from_contours_of_a_shifted_fall_off():
+    ny, nx = 200, 300
+    yy, xx = np.mgrid[:ny, :nx]
+    img = 1.0 - 1e-5 * ((xx - 190.4) ** 2 + (yy - 80.7) ** 2)
+    (cx, cy), spread = estimate_center([img])
+    assert abs(cx - 190.4) < 0.2 and abs(cy - 80.7) < 0.2 and spread < 0.5
+
+
+def test_radial_profile_against_a_direct_average():
+    rng = np.random.default_rng(9)
+    img = rng.normal(100, 5, (120, 160))
+    ok = np.ones(img.shape, bool)
+    cra = cra_deg_map(img.shape, (70.0, 50.0), 10.0, 21.0)
+    prof = radial_profile(img, ok, cra, bin_deg=0.5)
+    sel = (cra >= 2.0) & (cra < 2.5)
+    k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))
+    assert prof.value[k] == pytest.approx(img[sel].mean(), rel=1e-12)
+    assert prof.stderr[k] == pytest.approx(img[sel].std(ddof=1) / np.sqrt(sel.sum()), rel=1e-9)
+    assert prof.count[k] == sel.sum()

@@ -1,0 +1,122 @@
+"""`snapcorr calibrate`: flats in any format to a lens profile; mistakes are one line."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from snapcorr import Lens
+from snapcorr.simulate import flat_field
+
+PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+SHAPE, PITCH = (256, 256), 44.0  # the angles of a 2048 x 2048, 5.5 um sensor
+CENTRE = (140.2, 118.9)
+OPTICS = ["--exit-pupil-mm", "21", "--pixel-pitch-um", str(PITCH), "--magnification", "0.06",
+          "--pupil-magnification", "1.3"]
+
+
+def run(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "snapcorr", "calibrate", *args],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+def _write_oiio(path, image):
+    import OpenImageIO as oiio
+
+    # (y, x, channel): OpenImageIO reads a 2-D array as transposed
+    img = np.ascontiguousarray(image.reshape(image.shape[0], image.shape[1], -1))
+    spec = oiio.ImageSpec(img.shape[1], img.shape[0], img.shape[2],
+                          "uint16" if img.dtype == np.uint16 else "float")
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    assert out.write_image(img)
+    out.close()
+
+
+@pytest.fixture(scope="module")
+def flats(tmp_path_factory):
+    d = tmp_path_factory.mktemp("flats")
+    rng = np.random.default_rng(0)
+    dark = 100.0
+    for f in (1.4, 2.0, 2.8, 4.0, 8.0):
+        img = flat_field(PAPER, f, SHAPE, PITCH, center_px=CENTRE, dark_dn=dark,
+                         signal_electrons=2e4, rng=rng, dtype=np.uint16)
+        if f == 1.4:
+            np.save(d / "f1.4.npy", img)
+        elif f == 2.0:
+            _write_oiio(d / "f2.tif", img)
+        elif f == 2.8:
+            _write_oiio(d / "f2.8.exr", img.astype(np.float32))
+        elif f == 4.0:  # three bands in one ENVI file: averaged
+            from spectral.io import envi
+
+            cube = np.stack([img, img, img], axis=2)
+            envi.save_image(str(d / "f4.hdr"), cube, dtype=np.uint16, ext=".raw")
+        else:
+            np.save(d / "f8.npy", img)
+    np.save(d / "dark.npy", np.full(SHAPE, dark, np.uint16))
+    return d
+
+
+FLATS = ["--flat", "1.4=f1.4.npy", "--flat", "f/2=f2.tif", "--flat", "2.8=f2.8.exr",
+         "--flat", "f4=f4.hdr", "--flat", "8=f8.npy"]
+
+
+def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
+    res = run(*FLATS, *OPTICS, "--dark", "dark.npy", "--out", "lens.toml", "--plot",
+              "lens.png", cwd=flats)
+    assert res.returncode == 0, res.stderr
+    assert "mean of 3 bands" in res.stderr and "wrote lens.toml and lens.png" in res.stdout
+    lens = Lens.load(flats / "lens.toml")
+    assert abs(lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    assert abs(lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    cal = lens.calibration
+    assert cal["pixel_pitch_um"] == PITCH and cal["dark"] == "dark.npy"
+    assert cal["bands"] == "mean of the bands in each file"
+    assert abs(cal["center_px"][0] - CENTRE[0]) < 1 and abs(cal["center_px"][1] - CENTRE[1]) < 1
+    assert cal["inputs"]["f/4"] == "f4.hdr" and cal["f_numbers"] == [1.4, 2.0, 2.8, 4.0, 8.0]
+    assert (flats / "lens.png").read_bytes()[:4] == b"\x89PNG"
+    # an existing output is kept unless --overwrite
+    again = run(*FLATS, *OPTICS, "--out", "lens.toml", cwd=flats)
+    assert again.returncode == 1 and "exists" in again.stderr
+    assert Lens.load(flats / "lens.toml") == lens
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--flat", "2=f1.4.npy", "--flat", "2.0=f8.npy"], "f/2 given twice"),
+    (["--flat", "1.4=f1.4.npy"], "cannot tell"),
+    (["--flat", "1.4=missing.npy", "--flat", "8=f8.npy"], "no such file"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=small.npy"], "differ in size"),
+    (["--flat", "1.4", "--flat", "8=f8.npy"], "F_NUMBER=PATH"),
+    (["--flat", "x=f1.4.npy", "--flat", "8=f8.npy"], "not an f-number"),
+    (["--flat", "-2=f1.4.npy", "--flat", "8=f8.npy"], "> 0"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--center-px", "3"], "CX,CY"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=notes.txt"], "unknown flat-field format"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--dark", "small.npy"], "dark frame"),
+])
+def test_mistakes_are_one_line_and_write_nothing(flats, args, message):
+    np.save(flats / "small.npy", np.ones((10, 12)))
+    (flats / "notes.txt").write_text("not an image")
+    res = run(*args, *OPTICS, "--out", "bad.toml", "--plot", "bad.png", cwd=flats)
+    assert res.returncode != 0
+    assert message in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr
+    assert not (flats / "bad.toml").exists() and not (flats / "bad.png").exists()
+
+
+def test_output_may_not_be_an_input_or_not_toml(flats):
+    res = run(*FLATS, *OPTICS, "--out", "f8.npy", cwd=flats)
+    assert res.returncode == 1 and ".toml" in res.stderr
+    res = run(*FLATS, *OPTICS, "--out", "x.toml", "--plot", "f8.npy", cwd=flats)
+    assert res.returncode == 1 and "also an input" in res.stderr
+    assert np.load(flats / "f8.npy").shape == SHAPE
+
+
+def test_help_shows_the_command_shape():
+    res = subprocess.run([sys.executable, "-m", "snapcorr", "calibrate", "--help"],
+                         capture_output=True, text=True, timeout=60)
+    for word in ("--flat F_NUMBER=PATH", "--exit-pupil-mm", "--pixel-pitch-um",
+                 "--magnification", "--pupil-magnification", "--dark", "--center-px CX,CY",
+                 "--out", "--plot PNG", "examples:"):
+        assert word in res.stdout, word
