@@ -90,7 +90,7 @@ def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
     (["--flat", "1.4=f1.4.npy", "--flat", "8=small.npy"], "differ in size"),
     (["--flat", "1.4", "--flat", "8=f8.npy"], "F_NUMBER=PATH"),
     (["--flat", "x=f1.4.npy", "--flat", "8=f8.npy"], "not an f-number"),
-    (["--flat", "-2=f1.4.npy", "--flat", "8=f8.npy"], "> 0"),
+    (["--flat", "0=f1.4.npy", "--flat", "8=f8.npy"], "> 0"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--center-px", "3"], "CX,CY"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=notes.txt"], "unknown flat-field format"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--dark", "small.npy"], "dark frame"),
