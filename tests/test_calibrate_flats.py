@@ -222,3 +222,20 @@ def test_radial_profile_against_a_direct_average():
     assert prof.value[k] == pytest.approx(img[sel].mean(), rel=1e-12)
     assert prof.stderr[k] == pytest.approx(img[sel].std(ddof=1) / np.sqrt(sel.sum()), rel=1e-9)
     assert prof.count[k] == sel.sum()
+
+
+def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
+    # A fall-off that changes with the aperture (Goossens 2019, Sec. 3.2: natural vignetting
+    # changing with aperture size, pupil aberrations) is not in the area model: the joint fit
+    # is biased by a few percent and says so by its chi-square, and auto falls back to the
+    # onsets of the ratio profiles, which only need to know where the fall-off starts.
+    flats = _flats(PAPER, seed=11)
+    t = np.tan(np.deg2rad(cra_deg_map(SHAPE, CENTRE, PITCH, 21.0)))
+    for f in flats:
+        flats[f] = flats[f] * (1 - 0.6 * t**2 / f)
+    res = _calibrate(flats, PAPER)
+    one = res.fits["one"]
+    assert one.reduced_chi2 > 2.0 and abs(one.params["h_mm"] / 16.991 - 1) > 0.02
+    assert res.method == "onset-ratio" and "misfits" in res.reason
+    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01

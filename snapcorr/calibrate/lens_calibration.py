@@ -43,7 +43,7 @@ __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
 METHODS = ("auto", "joint", "onset-ratio", "onset-model")
 #: Reduced chi-square above which the joint fit's area model is taken not to describe the
 #: flats (then ``auto`` uses the onset method).
-MISFIT_CHI2 = 4.0
+MISFIT_CHI2 = 1.5
 #: Largest side of the block-averaged images used by the joint fit.
 FIT_GRID = 160
 #: Width of the radial-profile bins, degrees of chief-ray angle.
