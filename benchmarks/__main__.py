@@ -7,7 +7,7 @@ import numpy as np
 
 from snapcorr import __version__
 
-from . import mean_shift
+from . import calibration, mean_shift
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
 parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
@@ -15,5 +15,8 @@ args = parser.parse_args()
 print(f"snapcorr {__version__}, numpy {np.__version__}, Python {platform.python_version()}, "
       f"{platform.machine()}")
 mean_shift.targets(mean_shift.run(quick=args.quick))
+print()
+calibration.full_size_time(quick=args.quick)
+calibration.noise_sweep(quick=args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

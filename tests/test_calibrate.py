@@ -38,3 +38,32 @@ def test_two_equations_solve_exactly_without_uncertainty():
 def test_bad_inputs(onsets, radii, message):
     with pytest.raises(ValueError, match=message):
         solve_vignetting_circle(onsets, radii)
+
+
+def test_shipped_edmund_profile_is_eq26_of_its_own_onsets():
+    from snapcorr.data import lens_path
+
+    lens = Lens.load(lens_path("edmund_optics_16mm"))
+    cal = lens.calibration
+    fit = solve_vignetting_circle(cal["onset_cra_deg"], cal["exit_pupil_radius_mm"])
+    assert abs(fit.P_mm - lens.vignetting_radius_mm) < 1e-3
+    assert abs(fit.h_mm - lens.vignetting_distance_mm) < 1e-3
+    assert_allclose(fit.residuals_mm, cal["residuals_mm"], atol=1e-4)
+    assert_allclose([fit.P_stderr_mm, fit.h_stderr_mm],
+                    [cal["P_stderr_mm"], cal["h_stderr_mm"]], rtol=5e-3)
+    assert cal["h_matlab_toolbox_mm"] == 16.911
+
+
+def test_onset_uncertainties_propagate_into_p_and_h():
+    lens = Lens("t", 21.0, 6.5, 23.0, 0.05, 1.2)
+    f = np.array([2.0, 4.0])
+    on = lens.onset_cra_deg(f)
+    exact = solve_vignetting_circle(on, lens.exit_pupil_radius_mm(f), [0.1, 0.1])
+    # two equations: no residual error, so the error comes from the onsets alone; compare
+    # with a Monte-Carlo of the same solve
+    rng = np.random.default_rng(0)
+    draws = np.array([
+        (lambda r: (r.P_mm, r.h_mm))(solve_vignetting_circle(
+            on + rng.normal(0, 0.1, 2), lens.exit_pupil_radius_mm(f)))
+        for _ in range(4000)])
+    assert_allclose([exact.P_stderr_mm, exact.h_stderr_mm], draws.std(axis=0), rtol=0.06)

@@ -239,3 +239,20 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     assert res.method == "onset-ratio" and "misfits" in res.reason
     assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
     assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+
+
+def test_block_average_against_numpy_reshape():
+    from snapcorr.calibrate.joint_fit import block_average
+
+    rng = np.random.default_rng(10)
+    a, v = rng.normal(5, 1, (100, 90)), rng.random((100, 90))
+    ok = rng.random((100, 90)) > 0.2
+    (mean,), (var,), (cnt,), xc, yc = block_average([a], [ok], [v], 7)
+    blocks = (14, 7, 12, 7)
+    n = ok[:98, :84].reshape(blocks).sum(axis=(1, 3))
+    np.testing.assert_allclose(cnt, n)
+    np.testing.assert_allclose(mean, np.where(ok, a, 0)[:98, :84].reshape(blocks).sum(
+        axis=(1, 3)) / n, rtol=1e-6)
+    np.testing.assert_allclose(var, np.where(ok, v, 0)[:98, :84].reshape(blocks).sum(
+        axis=(1, 3)) / n**2, rtol=1e-5)
+    assert xc[0, 1] == 10.0 and yc[1, 0] == 10.0  # centre of pixels 7..13

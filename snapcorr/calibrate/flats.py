@@ -265,20 +265,22 @@ def radial_profile(image, valid, cra_deg, *, bin_deg=0.1, denominator=None):
     valid = np.asarray(valid, bool)
     if denominator is not None:
         valid = valid & (denominator > 0)
-    idx = np.floor(cra_deg[valid] / bin_deg).astype(np.int64)
-    a = image[valid].astype(np.float64)
-    n = np.bincount(idx).astype(float)
+    idx = (np.asarray(cra_deg) * (1.0 / bin_deg)).astype(np.int32).ravel()
+    w = valid.ravel().astype(np.float64)
+    n = np.bincount(idx, w)
     keep = n >= 4
-    theta = np.bincount(idx, cra_deg[valid]) / np.maximum(n, 1)
+    nn = np.maximum(n, 1)
+    theta = np.bincount(idx, w * np.asarray(cra_deg).ravel()) / nn
+    a = np.where(valid, image, 0.0).ravel()
     if denominator is None:
-        s = np.bincount(idx, a)
-        mean = s / np.maximum(n, 1)
+        mean = np.bincount(idx, a) / nn
         q = a
     else:
-        b = denominator[valid].astype(np.float64)
+        b = np.where(valid, denominator, 0.0).ravel()
         mean = np.bincount(idx, a) / np.where(keep, np.bincount(idx, b), 1.0)
-        q = a / b
-    m1 = np.bincount(idx, q) / np.maximum(n, 1)
-    var = np.maximum(np.bincount(idx, q * q) / np.maximum(n, 1) - m1 * m1, 0.0)
-    stderr = np.sqrt(var * n / np.maximum(n - 1, 1) / np.maximum(n, 1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = np.where(w > 0, a / np.where(w > 0, b, 1.0), 0.0)
+    m1 = np.bincount(idx, q) / nn
+    var = np.maximum(np.bincount(idx, q * q) / nn - m1 * m1, 0.0)
+    stderr = np.sqrt(var * n / np.maximum(n - 1, 1) / nn)
     return RadialProfile(theta[keep], mean[keep], stderr[keep], n[keep].astype(np.int64))

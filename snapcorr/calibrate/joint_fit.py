@@ -71,18 +71,30 @@ class ModelFit:
 
 
 def block_average(images, valids, variances, block):
-    """Masked block means of several images and the variance of each mean (numpy reshape)."""
+    """Masked block means of several images and the variance of each mean.
+
+    Block sums come from OpenCV's area resampling (exact block means for an integer factor).
+    """
+    import cv2
+
     ny, nx = images[0].shape
     by, bx = ny // block, nx // block
+
+    def block_sum(a):
+        a = np.ascontiguousarray(a[: by * block, : bx * block], dtype=np.float32)
+        if block == 1:
+            return a.astype(np.float64)
+        mean = cv2.resize(a, (bx, by), interpolation=cv2.INTER_AREA)
+        return mean.astype(np.float64) * (block * block)
+
     out, var, cnt = [], [], []
     for img, ok, v in zip(images, valids, variances, strict=True):
-        sl = (slice(0, by * block), slice(0, bx * block))
-        w = ok[sl].astype(np.float64).reshape(by, block, bx, block).sum(axis=(1, 3))
-        s = np.where(ok, img, 0.0)[sl].astype(np.float64).reshape(by, block, bx, block)
-        vv = np.where(ok, v, 0.0)[sl].astype(np.float64).reshape(by, block, bx, block)
+        w = np.rint(block_sum(ok))
+        s = block_sum(np.where(ok, img, 0.0))
+        vv = block_sum(np.where(ok, v, 0.0))
         with np.errstate(invalid="ignore", divide="ignore"):
-            out.append(np.where(w > 0, s.sum(axis=(1, 3)) / w, np.nan))
-            var.append(np.where(w > 0, vv.sum(axis=(1, 3)) / w**2, np.nan))
+            out.append(np.where(w > 0, s / w, np.nan))
+            var.append(np.where(w > 0, vv / w**2, np.nan))
         cnt.append(w)
     yy, xx = np.mgrid[:by, :bx]
     c = (block - 1) / 2.0

@@ -48,6 +48,8 @@ MISFIT_CHI2 = 1.5
 FIT_GRID = 160
 #: Width of the radial-profile bins, degrees of chief-ray angle.
 BIN_DEG = 0.1
+#: Largest side of the images the radial profiles are taken from (larger flats are binned).
+PROFILE_SIZE = 1024
 
 
 @dataclass
@@ -376,10 +378,19 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             center = (c[0] * block + (block - 1) / 2.0, c[1] * block + (block - 1) / 2.0)
             center_source = "contours"
 
-    # radial profiles (full resolution)
-    cra = cra_deg_map(shape, center, pixel_pitch_um, x)
-    max_cra = float(cra.max())
-    profiles = {float(f): radial_profile(images[i], valids[i], cra, bin_deg=BIN_DEG)
+    # radial profiles, from pixels binned k x k on large sensors (k <= PROFILE_SIZE / side
+    # keeps a binned pixel well under a bin's 0.1 deg)
+    k = max(1, math.ceil(max(shape) / PROFILE_SIZE))
+    if k > 1:
+        pimgs, _, pcnt, _, _ = block_average(images, valids, variances, k)
+        pvalid = [c >= 0.5 * k * k for c in pcnt]
+        pimgs = [np.where(ok, im, 0.0) for im, ok in zip(pimgs, pvalid, strict=True)]
+        pcentre = ((center[0] - (k - 1) / 2.0) / k, (center[1] - (k - 1) / 2.0) / k)
+    else:
+        pimgs, pvalid, pcentre = images, valids, center
+    cra = cra_deg_map(pimgs[0].shape, pcentre, pixel_pitch_um * k, x)
+    max_cra = float(cra_deg_map(shape, center, pixel_pitch_um, x).max())
+    profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
                 for i, f in enumerate(fs)}
     ratio_profiles = {}
     onsets = {"ratio": {}, "model": {}}
@@ -391,8 +402,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             cos4 = np.cos(np.deg2rad(prof.cra_deg)) ** 4
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value / cos4, prof.stderr / cos4)
         else:
-            prof = radial_profile(images[i], valids[i] & valids[ref], cra, bin_deg=BIN_DEG,
-                                  denominator=np.where(valids[ref], images[ref], 0.0))
+            prof = radial_profile(pimgs[i], pvalid[i] & pvalid[ref], cra, bin_deg=BIN_DEG,
+                                  denominator=pimgs[ref])
             ratio_profiles[f] = prof
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
         onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,
@@ -521,7 +532,9 @@ def _primary(fit: ModelFit, R0):
 
 def _solve_onsets(onsets, base, h_given):
     """Eq. (26) over the onsets found (None with fewer than two, or one without h)."""
-    found = [(f, o) for f, o in onsets.items() if o.found]
+    # An onset at 0 means the circle cuts the pupil already on axis (P < R): that is an
+    # inequality, not an equation of Eq. (26).
+    found = [(f, o) for f, o in onsets.items() if o.found and o.cra_deg > 0]
     if h_given is not None and found:
         # h known: each onset gives P = R + h tan(onset); average them, weighted.
         t = np.tan(np.deg2rad([o.cra_deg for _, o in found]))
@@ -538,7 +551,7 @@ def _solve_onsets(onsets, base, h_given):
     if np.ptp(t) == 0:
         return None
     return solve_vignetting_circle(t, base.exit_pupil_radius_mm([f for f, _ in found]),
-                                   onset_stderr_deg=[o.stderr_deg for _, o in found])
+                                   onset_stderr_deg=[max(o.stderr_deg, 1e-3) for _, o in found])
 
 
 def _starts(onset_fits, R, x, center, max_cra, h_given):

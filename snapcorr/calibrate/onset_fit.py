@@ -47,9 +47,10 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_de
     exit_pupil_radius_mm : array_like, shape (n,)
         Exit-pupil radius R_i at each f-number (Eq. 28, from the working f-number Eq. 27).
     onset_stderr_deg : array_like, shape (n,), optional
-        Standard errors of the onsets. They are propagated through the least squares
-        (``dR_i = h sec^2(CRA_i) dCRA_i``), and the standard errors reported are the larger of
-        that and the residual-based ones, so two f-numbers still get an uncertainty.
+        Standard errors of the onsets. With them the equations are weighted by the error each
+        onset puts on its row (``dR_i = h sec^2(CRA_i) dCRA_i``; the paper's Moore-Penrose
+        solution is the equal-weight case), and the standard errors of P and h come from the
+        onsets' errors, scaled up by the reduced chi-square when the residuals exceed them.
 
     Returns
     -------
@@ -83,20 +84,24 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_de
                          "measure at f-numbers whose onsets differ")
     A = np.column_stack([np.ones_like(t), -t])
     (P, h), *_ = np.linalg.lstsq(A, R, rcond=None)
-    residuals = A @ np.array([P, h]) - R
     dof = t.size - 2
-    pinv = np.linalg.inv(A.T @ A)
-    if dof > 0:
-        P_err, h_err = np.sqrt(np.diag(pinv * (residuals @ residuals) / dof))
-    else:
-        P_err = h_err = np.nan
-    if onset_stderr_deg is not None:
-        e = np.asarray(onset_stderr_deg, float).ravel()
-        if e.shape != t.shape:
-            raise ValueError("need one onset standard error per onset angle")
-        sig_R = abs(h) * (1.0 + t * t) * np.deg2rad(e)  # dR = h sec^2 dCRA
-        G = pinv @ A.T
-        prop = np.sqrt(np.diag(G @ np.diag(sig_R**2) @ G.T))
-        P_err = float(np.fmax(P_err, prop[0])) if dof > 0 else float(prop[0])
-        h_err = float(np.fmax(h_err, prop[1])) if dof > 0 else float(prop[1])
+    if onset_stderr_deg is None:
+        residuals = A @ np.array([P, h]) - R
+        if dof > 0:
+            P_err, h_err = np.sqrt(np.diag(np.linalg.inv(A.T @ A) * (residuals @ residuals)
+                                           / dof))
+        else:
+            P_err = h_err = np.nan
+        return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals)
+    e = np.asarray(onset_stderr_deg, float).ravel()
+    if e.shape != t.shape or not np.all(e > 0):
+        raise ValueError("need one positive onset standard error per onset angle")
+    for _ in range(2):  # weights depend on h: start from the unweighted solution
+        sig_R = np.maximum(abs(h) * (1.0 + t * t) * np.deg2rad(e), 1e-12)  # dR = h sec^2 dCRA
+        Aw, Rw = A / sig_R[:, None], R / sig_R
+        (P, h), *_ = np.linalg.lstsq(Aw, Rw, rcond=None)
+    residuals = A @ np.array([P, h]) - R
+    cov = np.linalg.inv(Aw.T @ Aw)
+    chi2 = float(np.sum((residuals / sig_R) ** 2)) / dof if dof > 0 else 1.0
+    P_err, h_err = np.sqrt(np.diag(cov) * max(chi2, 1.0))
     return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals)

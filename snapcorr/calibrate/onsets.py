@@ -5,7 +5,7 @@ f-number and mark by eye where the ratio starts to fall. Here that point is a ch
 found by least squares: the ratio is flat up to the onset ``theta_0`` and then falls as
 ``a (1 - b (theta - theta_0)^p)``. Just after the onset the pupil loses a thin lens-shaped
 sliver whose area grows as the 3/2 power of its depth, so ``p`` starts near 1.5 and is left
-free in [1, 2.5]; the fit window is limited to a few degrees past the onset, where that shape
+free in [1, 2.5]; the fit window ends 2 degrees past the onset, where that shape
 holds. The fit (scipy ``least_squares``) gives the onset's standard error.
 """
 
@@ -19,7 +19,7 @@ from scipy.optimize import least_squares
 __all__ = ["Onset", "detect_onset"]
 
 #: Degrees past the onset used by the change-point fit.
-WINDOW_DEG = 5.0
+WINDOW_DEG = 2.0
 #: A fall counts as found when the change-point model lowers chi-square by this much (times
 #: the reduced chi-square, when above 1) against a constant: about 5 standard deviations.
 SIGNIFICANCE_CHI2 = 25.0
@@ -48,8 +48,8 @@ class Onset:
 
 
 def _hinge(params, theta):
-    a, b, t0, p = params
-    return a * (1.0 - b * np.maximum(theta - t0, 0.0) ** p)
+    a, b, t0, p, c = params
+    return a * (1.0 + c * theta**2) * (1.0 - b * np.maximum(theta - t0, 0.0) ** p)
 
 
 def detect_onset(cra_deg, value, stderr, *, window_deg=WINDOW_DEG):
@@ -82,43 +82,47 @@ def detect_onset(cra_deg, value, stderr, *, window_deg=WINDOW_DEG):
     tmax = float(theta.max())
     s = np.maximum(s, 1e-6 * np.abs(y).max())
 
-    # Scan over the whole profile: for each candidate onset and exponent the model is linear
-    # in a and a*b. Then refine in a window past the best candidate.
+    # Scan the whole profile: for each candidate onset and exponent the model (without the
+    # baseline's cross term) is linear in a, a*c and a*b. Then refine all five parameters in
+    # a window that ends ``window_deg`` past the best candidate.
+    th2 = theta**2
     best, best_sse = None, np.inf
     for pw in (1.0, 1.5, 2.0):
         for t0 in theta[: max(theta.size - 3, 1)]:
             xk = np.maximum(theta - t0, 0.0) ** pw
-            A = np.column_stack([np.ones_like(xk), -xk]) / s[:, None]
+            A = np.column_stack([np.ones_like(xk), th2, -xk]) / s[:, None]
             coef, *_ = np.linalg.lstsq(A, y / s, rcond=None)
             sse = float(np.sum((A @ coef - y / s) ** 2))
-            if sse < best_sse and coef[1] >= 0:
-                best_sse, best = sse, (coef[0], coef[1] / coef[0] if coef[0] else 0.0, t0, pw)
-    if best is None:  # only rising fits: nothing falls
+            if coef[2] > 0 and coef[0] > 0 and sse < best_sse:
+                best_sse = sse
+                best = (coef[0], coef[2] / coef[0], t0, pw, coef[1] / coef[0])
+    if best is None:  # no window shows a fall
         return Onset(float("nan"), float("inf"), False, tmax)
-    a0, b0, t00, pw0 = best
-    p0 = np.array([a0, max(b0, 1e-9), t00, pw0])
+    a0, b0, t00, pw0, c0 = best
     sel = theta <= t00 + window_deg
-    lo = [-np.inf, 0.0, 0.0, 1.0]
-    hi = [np.inf, np.inf, tmax, 2.5]
-    p0 = np.clip(p0, lo, hi)
+    lo = [-np.inf, 0.0, 0.0, 1.0, -np.inf]
+    hi = [np.inf, np.inf, tmax, 2.5, np.inf]
+    p0 = np.clip(np.array([a0, max(b0, 1e-9), t00, pw0, c0]), lo, hi)
 
     def resid(p, th, yy, ss):
         return (_hinge(p, th) - yy) / ss
 
     fit = least_squares(resid, p0, bounds=(lo, hi), args=(theta[sel], y[sel], s[sel]),
                         x_scale="jac")
-    _, b, t0, _ = fit.x
+    _, b, t0, _, _ = fit.x
     J = fit.jac
-    dof = max(sel.sum() - 4, 1)
+    dof = max(sel.sum() - 5, 1)
     chi2 = float(fit.fun @ fit.fun) / dof
     cov = np.linalg.pinv(J.T @ J) * max(chi2, 1.0)
     t0_err = float(np.sqrt(max(cov[2, 2], 0.0)))
-    # Significance of the fall: chi-square of the hinge against a constant in the window.
-    w = 1.0 / s[sel] ** 2
-    const = np.sum(w * y[sel]) / np.sum(w)
-    chi2_const = float(np.sum(w * (y[sel] - const) ** 2))
-    gain = chi2_const - float(fit.fun @ fit.fun)
-    found = bool(gain > SIGNIFICANCE_CHI2 * max(chi2, 1.0) and b > 0 and t0 < tmax - 0.2)
+    # Significance of the fall, over the whole profile: the scan's best hinge against the
+    # baseline alone (a short window cannot tell an onset near 0 from a curved baseline).
+    B = np.column_stack([np.ones_like(theta), th2]) / s[:, None]
+    coef, *_ = np.linalg.lstsq(B, y / s, rcond=None)
+    chi2_base = float(np.sum((B @ coef - y / s) ** 2))
+    scale = max(best_sse / max(theta.size - 5, 1), 1.0)
+    found = bool(chi2_base - best_sse > SIGNIFICANCE_CHI2 * scale and b > 0
+                 and t0 < tmax - 0.2)
     if not found:
         return Onset(float("nan"), float("inf"), False, tmax)
     return Onset(float(t0), t0_err if np.isfinite(t0_err) else float("inf"), True, tmax)
