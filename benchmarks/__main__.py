@@ -17,6 +17,6 @@ print(f"snapcorr {__version__}, numpy {np.__version__}, Python {platform.python_
 mean_shift.targets(mean_shift.run(quick=args.quick))
 print()
 calibration.full_size_time(quick=args.quick)
-calibration.noise_sweep(quick=args.quick)
+calibration.noise_sweep(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

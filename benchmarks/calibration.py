@@ -88,6 +88,7 @@ def _write(rows, *, quick):
 
     suffix = "_quick" if quick else ""
     csv_path = HERE / f"calibration_noise{suffix}.csv"
+    # (quick runs are smoke tests; python -m benchmarks --quick does not write them)
     with open(csv_path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()

@@ -14,3 +14,15 @@ def test_quick_benchmark_runs_and_reports_sane_numbers():
     assert all(r["error"] <= 1e-3 for r in exact)
     bench.targets(rows, echo=lines.append)
     assert any("target 1" in line for line in lines)
+
+
+def test_quick_calibration_benchmark_runs():
+    from benchmarks import calibration
+
+    lines = []
+    rows = calibration.noise_sweep(quick=True, echo=lines.append, write=False)
+    assert {r["estimator"] for r in rows} == set(calibration.ESTIMATORS)
+    joint = [r for r in rows if r["estimator"] == "joint"]
+    assert all(abs(r["P_error_pct"]) < 1 and abs(r["h_error_pct"]) < 1 for r in joint)
+    seconds, res = calibration.full_size_time(quick=True, echo=lines.append)
+    assert seconds > 0 and res.lens.has_vignetting and "flats" in lines[-1]

@@ -46,6 +46,7 @@ METHODS = ("auto", "joint", "onset-ratio", "onset-model")
 MISFIT_CHI2 = 1.5
 #: Largest side of the block-averaged images used by the joint fit.
 FIT_GRID = 160
+_CIRCLES = {"none": "no circle", "one": "one circle", "two": "two circles"}
 #: Width of the radial-profile bins, degrees of chief-ray angle.
 BIN_DEG = 0.1
 #: Largest side of the images the radial profiles are taken from (larger flats are binned).
@@ -135,11 +136,11 @@ class LensCalibration:
                 continue
             p, e = fit.params, fit.stderr
             txt = ", ".join(f"{k} = {p[k]:.4g} +- {e[k]:.2g}" for k in fit.names)
-            lines.append(f"joint fit, {name} circle(s): {txt}; BIC {fit.bic:.1f}, "
+            lines.append(f"joint fit, {_CIRCLES[name]}: {txt}; BIC {fit.bic:.1f}, "
                          f"reduced chi2 {fit.reduced_chi2:.2f}")
         lens = self.lens
         if lens.has_vignetting:
-            lines.append(f"chosen: {self.method}, {self.model} circle(s): "
+            lines.append(f"chosen: {self.method}, {_CIRCLES[self.model]}: "
                          f"P = {lens.vignetting_radius_mm:.4f} mm, "
                          f"h = {lens.vignetting_distance_mm:.3f} mm")
         else:
@@ -193,8 +194,8 @@ class LensCalibration:
                     ax1.axvline(model_on[j], color=c, lw=0.6, ls=":")
             ax1.set(xlabel="chief-ray angle (deg)",
                     ylabel=f"ratio to f/{self.reference_f_number:g}",
-                    title=f"ratio profiles: detected onsets (o), model ({self.method}, "
-                          f"{self.model}; black), model onsets (dotted)")
+                    title=f"o: onsets found; black: model ({self.method}, "
+                          f"{_CIRCLES[self.model]}); dotted: model onsets")
             ax1.legend(fontsize=8)
         return fig
 
@@ -455,8 +456,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
                       "starts is trusted: Eq. (26) over the onsets of the ratio profiles")
         else:
             used = "joint"
-            reason = (f"{model} vignetting circle(s): lowest BIC ({bic_txt}); the joint fit "
-                      f"uses every pixel (reduced chi2 {chosen.reduced_chi2:.2f})")
+            reason = (f"{_CIRCLES[model]}: lowest BIC ({bic_txt}); the joint fit uses every "
+                      f"pixel (reduced chi2 {chosen.reduced_chi2:.2f})")
     else:
         used = method
         reason = f"method {method!r} asked for (joint-fit BIC {bic_txt})"
@@ -534,7 +535,9 @@ def _solve_onsets(onsets, base, h_given):
     """Eq. (26) over the onsets found (None with fewer than two, or one without h)."""
     # An onset at 0 means the circle cuts the pupil already on axis (P < R): that is an
     # inequality, not an equation of Eq. (26).
-    found = [(f, o) for f, o in onsets.items() if o.found and o.cra_deg > 0]
+    # An onset without a finite error (at the start of the profile) cannot be weighted.
+    found = [(f, o) for f, o in onsets.items()
+             if o.found and o.cra_deg > 0 and np.isfinite(o.stderr_deg)]
     if h_given is not None and found:
         # h known: each onset gives P = R + h tan(onset); average them, weighted.
         t = np.tan(np.deg2rad([o.cra_deg for _, o in found]))

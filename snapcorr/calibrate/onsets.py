@@ -125,4 +125,8 @@ def detect_onset(cra_deg, value, stderr, *, window_deg=WINDOW_DEG):
                  and t0 < tmax - 0.2)
     if not found:
         return Onset(float("nan"), float("inf"), False, tmax)
+    if t0 <= theta[0] + 1e-6:
+        # at the start of the profile: the fall begins at or before the first bin, and the
+        # fit's bound hides how far before; no standard error can be given
+        return Onset(float(theta[0]), float("inf"), True, tmax)
     return Onset(float(t0), t0_err if np.isfinite(t0_err) else float("inf"), True, tmax)
