@@ -150,23 +150,24 @@ def _cmd_calibrate(args):
             raise ValueError(f"output {o} is also an input; choose another path")
         if o.exists() and not args.overwrite:
             raise ValueError(f"{o} exists; choose another path or pass --overwrite")
+        if not o.parent.is_dir():
+            raise ValueError(f"{o.parent} is not a folder; create it first")
     if args.plot and Path(args.plot).suffix.lower() != ".png":
         raise ValueError(f"--plot {args.plot}: the figure is written as .png")
-    flats, bands, sat = {}, set(), None
+    flats, bands, sat = {}, set(), {}
     for f, path in sorted(args.flat):
         image, info = read_flat(path)
         flats[f] = image
         bands.add(info["bands"])
-        sat = info["saturation"] if sat is None else sat
+        sat[f] = args.saturation if args.saturation is not None else info["saturation"]
         print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
               + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
               file=sys.stderr)
     dark = read_flat(args.dark)[0] if args.dark else None
-    saturation = args.saturation if args.saturation is not None else sat
     res = calibrate_lens(
         flats, exit_pupil_mm=args.exit_pupil_mm, pixel_pitch_um=args.pixel_pitch_um,
         magnification=args.magnification, pupil_magnification=args.pupil_magnification,
-        dark=dark, center_px=args.center_px, saturation=saturation,
+        dark=dark, center_px=args.center_px, saturation=sat,
         vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
         name=args.name or out.stem, inputs={f: str(p) for f, p in args.flat})
     lens = res.lens
@@ -178,9 +179,9 @@ def _cmd_calibrate(args):
     lens = type(lens)(lens.name, lens.exit_pupil_mm, lens.vignetting_radius_mm,
                       lens.vignetting_distance_mm, lens.magnification, lens.pupil_magnification,
                       calibration=cal)
+    lens.save(out, overwrite=args.overwrite)
     if args.plot:
         res.save_plot(args.plot)
-    lens.save(out, overwrite=args.overwrite)
     print(res.summary())
     print(f"wrote {out}" + (f" and {args.plot}" if args.plot else ""))
     return 0

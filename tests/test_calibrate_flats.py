@@ -58,7 +58,7 @@ def test_paper_lens_sphere_one_percent_noise(paper_sphere):
     true_on = PAPER.onset_cra_deg(np.asarray(F_NUMBERS[:-1]))
     for f, t in zip(F_NUMBERS[:-1], true_on, strict=True):
         assert abs(res.onsets["model"][f].cra_deg - t) < 0.3
-        assert abs(res.onsets["ratio"][f].cra_deg - t) < 0.5
+        assert abs(res.onsets["ratio"][f].cra_deg - t) < 0.3
     of = res.onset_fits["model"]
     assert abs(of.P_mm / 7.4236 - 1) < 0.01 and abs(of.h_mm / 16.991 - 1) < 0.02
     # uncertainties are honest: the truth is within 4 standard errors
@@ -145,9 +145,10 @@ def test_very_noisy_flats_report_large_uncertainty(paper_sphere):
     for det in ("ratio", "model"):
         for f, o in res.onsets[det].items():
             true = PAPER.onset_cra_deg(f)
-            assert not o.found or abs(o.cra_deg - true) < max(4 * o.stderr_deg, 0.5)
-            # the error bars grow with the noise
-            assert o.stderr_deg > 2 * paper_sphere.onsets[det][f].stderr_deg
+            if f >= 2.0:  # f/1.4's onset (0.86 deg) sits among the first few bins
+                assert o.found and abs(o.cra_deg - true) < 4 * o.stderr_deg
+                # the error bars grow with the noise
+                assert o.stderr_deg > 2 * paper_sphere.onsets[det][f].stderr_deg
 
 
 def test_saturated_and_dead_pixels():
@@ -256,3 +257,97 @@ def test_block_average_against_numpy_reshape():
     np.testing.assert_allclose(var, np.where(ok, v, 0)[:98, :84].reshape(blocks).sum(
         axis=(1, 3)) / n**2, rtol=1e-5)
     assert xc[0, 1] == 10.0 and yc[1, 0] == 10.0  # centre of pixels 7..13
+
+
+def test_reference_cut_off_inside_the_field():
+    # h >= x lens whose f/8 reference is fully cut off from 13.7 deg: past that the ratios are
+    # noise over noise and must not count.
+    lens = Lens("short tube", 21.0, 6.0, 30.0, 0.0, 1.0)
+    assert lens.cutoff_cra_deg(8.0) < 14
+    res = _calibrate(_flats(lens, seed=12), lens)
+    assert res.method == "joint" and res.fits["one"].reduced_chi2 < 1.5
+    assert abs(res.lens.vignetting_radius_mm / 6.0 - 1) < 0.01
+    assert abs(res.lens.vignetting_distance_mm / 30.0 - 1) < 0.01
+
+
+def test_optical_centre_outside_the_image():
+    rng = np.random.default_rng(13)
+    centre = (-60.0, 100.0)
+    flats = {f: flat_field(PAPER, f, (256, 256), 44.0, center_px=centre, rng=rng)
+             for f in F_NUMBERS}
+    res = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0.06,
+                         pupil_magnification=1.3)
+    assert res.model == "one" and res.method == "joint"
+    assert np.hypot(res.center_px[0] + 60, res.center_px[1] - 100) < 2
+    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+
+
+def test_noise_model_measures_read_and_shot_noise():
+    from snapcorr.calibrate import noise_model
+
+    for electrons, read in ((1e4, 0.0), (400.0, 10.0), (1e7, 0.0)):
+        img = flat_field(PAPER, 1.4, SHAPE, PITCH, signal_electrons=electrons,
+                         read_noise_electrons=read, rng=14)
+        a, b = noise_model(img, np.ones(img.shape, bool))
+        assert abs(b - 1.0) < 0.05  # shot noise: variance = signal (gain 1)
+        # read noise: the intercept, within what the shot noise lets a line tell
+        assert abs(a - read**2) < 0.05 * electrons + 0.3 * read**2
+
+
+def test_nan_in_the_dark_frame_masks_that_pixel():
+    flats = _flats(PAPER, seed=15)
+    dark = np.zeros(SHAPE)
+    dark[100, 200] = np.nan
+    img, ok, var = clean_flat(flats[2.0], dark=dark)
+    assert not ok[100, 200] and np.isfinite(var).all() and np.isfinite(img).all()
+    res = _calibrate(flats, PAPER, dark=dark)
+    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+
+
+def test_bad_library_inputs_are_value_errors():
+    flats = {2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}
+    kw = {"exit_pupil_mm": 21.0, "pixel_pitch_um": np.int64(88)}
+    for bad in ({"center_px": (3,)}, {"center_px": (np.nan, 1)},
+                {"vignetting_distance_mm": "x"}, {"exit_pupil_mm": -1}):
+        with pytest.raises(ValueError):
+            calibrate_lens(flats, **{**kw, **bad})
+    with pytest.raises(ValueError, match="real numbers"):
+        calibrate_lens({2.0: np.ones((64, 64), bool), 4.0: np.ones((64, 64))}, **kw)
+    with pytest.raises(ValueError, match="no signal"):
+        calibrate_lens({2.0: np.zeros((64, 64)), 4.0: np.zeros((64, 64))}, **kw)
+    with pytest.raises(ValueError, match="chief-ray angle"):
+        calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
+                       pixel_pitch_um=0.01)
+
+
+def test_ratio_profile_is_the_ratio_of_bin_sums_with_a_pixelwise_error():
+    rng = np.random.default_rng(16)
+    num, den = rng.normal(50, 2, (80, 90)), rng.normal(100, 3, (80, 90))
+    src = 1 + 0.3 * np.linspace(0, 1, 90)[None, :]  # a source that varies around the ring
+    ok = np.ones(num.shape, bool)
+    cra = cra_deg_map(num.shape, (40.0, 40.0), 20.0, 21.0)
+    prof = radial_profile(num * src, ok, cra, bin_deg=0.5, denominator=den * src)
+    sel = (cra >= 1.0) & (cra < 1.5)
+    k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))
+    assert prof.value[k] == pytest.approx((num * src)[sel].sum() / (den * src)[sel].sum())
+    q = num[sel] / den[sel]
+    assert prof.stderr[k] == pytest.approx(q.std(ddof=1) / np.sqrt(sel.sum()), rel=1e-9)
+
+
+@pytest.mark.slow
+def test_standard_errors_cover_the_truth_over_seeds():
+    # z = (estimate - truth) / stderr over seeds: no estimator may be confidently wrong
+    z = {"joint": [], "onset-model": [], "onset-ratio": []}
+    for seed in range(6):
+        res = _calibrate(_flats(PAPER, seed=100 + seed), PAPER)
+        one = res.fits["one"]
+        z["joint"] += [(one.params["P_mm"] - 7.4236) / one.stderr["P_mm"],
+                       (one.params["h_mm"] - 16.991) / one.stderr["h_mm"]]
+        for det in ("model", "ratio"):
+            of = res.onset_fits[det]
+            z[f"onset-{det}"] += [(of.P_mm - 7.4236) / of.P_stderr_mm,
+                                  (of.h_mm - 16.991) / of.h_stderr_mm]
+    for name, values in z.items():
+        assert np.max(np.abs(values)) < 4, (name, values)
+        assert np.sqrt(np.mean(np.square(values))) < 2.5, (name, values)

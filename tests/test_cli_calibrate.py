@@ -94,9 +94,11 @@ def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--center-px", "3"], "CX,CY"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=notes.txt"], "unknown flat-field format"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--dark", "small.npy"], "dark frame"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=empty.npy"], "not a numpy array file"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(flats, args, message):
     np.save(flats / "small.npy", np.ones((10, 12)))
+    (flats / "empty.npy").write_bytes(b"")
     (flats / "notes.txt").write_text("not an image")
     res = run(*args, *OPTICS, "--out", "bad.toml", "--plot", "bad.png", cwd=flats)
     assert res.returncode != 0
@@ -120,3 +122,28 @@ def test_help_shows_the_command_shape():
                  "--magnification", "--pupil-magnification", "--dark", "--center-px CX,CY",
                  "--out", "--plot PNG", "examples:"):
         assert word in res.stdout, word
+
+
+def test_missing_output_folder_is_refused_before_any_work(flats):
+    res = run(*FLATS, *OPTICS, "--out", "nowhere/x.toml", "--plot", "o.png", cwd=flats)
+    assert res.returncode == 1 and "not a folder" in res.stderr
+    assert "read f/" not in res.stderr and not (flats / "o.png").exists()
+
+
+def test_multipage_tiff_pages_are_averaged(flats):
+    import OpenImageIO as oiio
+
+    from snapcorr.calibrate import read_flat
+
+    path = flats / "pages.tif"
+    a = np.full((20, 30, 1), 100, np.uint16)
+    b = np.full((20, 30, 1), 300, np.uint16)
+    out = oiio.ImageOutput.create(str(path))
+    specs = [oiio.ImageSpec(30, 20, 1, "uint16")] * 2
+    assert out.open(str(path), specs)
+    assert out.write_image(a)
+    assert out.open(str(path), specs[1], "AppendSubimage")
+    assert out.write_image(b)
+    out.close()
+    image, info = read_flat(path)
+    assert info["bands"] == 2 and np.all(image == 200.0)

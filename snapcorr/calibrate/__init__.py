@@ -5,6 +5,7 @@ from .flats import (
     clean_flat,
     cra_deg_map,
     estimate_center,
+    noise_model,
     radial_profile,
     read_flat,
 )
@@ -25,6 +26,7 @@ __all__ = [
     "cra_deg_map",
     "detect_onset",
     "estimate_center",
+    "noise_model",
     "radial_profile",
     "read_flat",
     "solve_vignetting_circle",

@@ -7,6 +7,7 @@ traces iso-illumination contours and fits circles to them.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,7 @@ __all__ = [
     "clean_flat",
     "cra_deg_map",
     "estimate_center",
+    "noise_model",
     "radial_profile",
     "read_flat",
 ]
@@ -46,8 +48,9 @@ def read_flat(path):
     if suffix == ".npy":
         try:
             data = np.load(path, mmap_mode="r", allow_pickle=False)
-        except ValueError as err:
-            raise ValueError(f"{path}: not a numpy array file ({err})") from None
+        except Exception as err:  # numpy raises several types for a bad or empty file
+            raise ValueError(f"{path}: not a numpy array file ({type(err).__name__}: "
+                             f"{err})") from None
     elif suffix in (".tif", ".tiff", ".exr"):
         data = _read_oiio(path)
     elif suffix in (".hdr", ".raw", ".img"):
@@ -98,60 +101,110 @@ def _read_oiio(path):
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise ValueError(f"{path}: {oiio.geterror() or 'OpenImageIO cannot open it'}")
+    pages = []
     try:
-        spec = inp.spec()
-        data = inp.read_image(0, 0, 0, spec.nchannels, "unknown")
-        if data is None:
-            raise ValueError(f"{path}: {inp.geterror() or 'no pixels'}")
-        names = list(spec.channelnames)
+        sub = 0
+        while inp.seek_subimage(sub, 0):  # a multi-page TIFF: each page is a band
+            spec = inp.spec()
+            data = inp.read_image(sub, 0, 0, spec.nchannels, "unknown")
+            if data is None:
+                raise ValueError(f"{path}: {inp.geterror() or 'no pixels'}")
+            data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+            names = list(spec.channelnames)
+            keep = [i for i, n in enumerate(names) if n.upper() not in ("A", "ALPHA")] or [0]
+            pages.append(data[:, :, keep])
+            sub += 1
     finally:
         inp.close()
-    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-    keep = [i for i, n in enumerate(names) if n.upper() not in ("A", "ALPHA")] or [0]
-    return data[:, :, keep]
+    if len({p.shape[:2] for p in pages}) > 1:
+        raise ValueError(f"{path}: its pages differ in size; give one image per file")
+    return np.concatenate(pages, axis=2)
+
+
+def noise_model(image, valid):
+    """Noise variance as ``a + b * signal`` (read plus shot noise), measured in the image.
+
+    The residual of each pixel from the mean of its four neighbours (OpenCV ``filter2D``) has
+    variance ``1.25 sigma^2`` for independent noise and cancels any linear gradient, so steep
+    fall-offs do not leak into it. Its robust spread (median absolute deviation) in bins of
+    signal, fitted by a straight line, gives ``a`` and ``b``.
+
+    Returns
+    -------
+    a, b : float
+    """
+    import cv2
+
+    img = np.asarray(image, np.float32)
+    kernel = np.array([[0, -0.25, 0], [-0.25, 1, -0.25], [0, -0.25, 0]], np.float32)
+    resid = cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+    ok = cv2.erode(np.asarray(valid, np.uint8), cross, borderType=cv2.BORDER_CONSTANT,
+                   borderValue=0) > 0
+    signal = cv2.blur(img, (3, 3))[ok]
+    r = resid[ok]
+    if r.size < 200:
+        return 0.0, 0.0
+    edges = np.unique(np.quantile(signal, np.linspace(0, 1, 21)))
+    centers, variances, weights = [], [], []
+    for lo, hi in itertools.pairwise(edges):
+        sel = (signal >= lo) & (signal <= hi)
+        if sel.sum() < 50:
+            continue
+        rr = r[sel]
+        mad = np.median(np.abs(rr - np.median(rr)))
+        centers.append(float(np.median(signal[sel])))
+        variances.append((1.4826 * mad) ** 2 / 1.25)
+        weights.append(float(sel.sum()))
+    if len(centers) < 2:
+        return float(np.mean(variances)) if variances else 0.0, 0.0
+    b, a = np.polyfit(centers, variances, 1, w=np.sqrt(weights))
+    if b < 0:  # no shot-noise trend: a constant
+        a, b = float(np.average(variances, weights=weights)), 0.0
+    return max(float(a), 0.0), float(b)
 
 
 def clean_flat(image, *, dark=None, saturation=None):
     """Subtract the dark frame and mask saturated, non-finite, hot and dead pixels.
 
-    Hot and dead pixels are those further than ``OUTLIER_SIGMA`` robust standard deviations
-    from the 5 x 5 median of their neighbourhood (OpenCV ``medianBlur``); they are masked, not
-    replaced, so the noise of the pixels kept is untouched.
+    Hot and dead pixels are those further than ``OUTLIER_SIGMA`` standard deviations of the
+    local noise (:func:`noise_model` at the pixel's signal) from the 5 x 5 median of their
+    neighbourhood (OpenCV ``medianBlur``); they are masked, not replaced, so the noise of the
+    pixels kept is untouched. Dark areas (a reference cut off by vignetting, an image circle
+    smaller than the sensor) get their own, smaller noise, not the image's.
 
     Returns
     -------
     image : ndarray, float32, dark subtracted (masked pixels hold 0)
     valid : ndarray of bool
     noise_var : ndarray, float32
-        Local noise variance of each pixel (a box average of the squared residual from the
-        median, corrected for the median's own noise), for weighting.
+        Noise variance of each pixel from :func:`noise_model`, for weighting.
     """
     import cv2
 
-    img = np.asarray(image, dtype=np.float64)
+    img = np.asarray(image)
+    if img.dtype == bool or np.iscomplexobj(img):
+        raise ValueError(f"a flat field holds real numbers, got {img.dtype} values")
+    img = img.astype(np.float64)
     valid = np.isfinite(img)
     if saturation is not None:
         valid &= img < saturation
     if dark is not None:
-        img = img - dark
+        dark = np.asarray(dark, np.float64)
+        valid &= np.isfinite(dark)
+        img = img - np.where(np.isfinite(dark), dark, 0.0)
     img = np.where(valid, img, 0.0).astype(np.float32)
     med = cv2.medianBlur(img, 5)
-    resid = img - med
-    scale = np.abs(np.where(valid, resid, 0.0))
-    mad = float(np.median(scale[valid])) if valid.any() else 0.0
-    sigma = 1.4826 * mad if mad > 0 else float(np.std(resid[valid])) if valid.any() else 0.0
-    if sigma > 0:
-        valid &= np.abs(resid) <= OUTLIER_SIGMA * sigma
+    a, b = noise_model(img, valid)
+    peak = float(np.percentile(med[valid], 99)) if valid.any() else 0.0
+    floor = (1e-4 * abs(peak)) ** 2  # noise-free data: tolerate rounding and kinks
+    var = (a + b * np.maximum(med, 0.0) + floor).astype(np.float32)
+    valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)
     valid &= cv2.dilate(bad, np.ones((3, 3), np.uint8)) == 0
     img[~valid] = 0.0
-    r2 = np.where(valid, resid, 0.0).astype(np.float32) ** 2
-    n = cv2.blur(valid.astype(np.float32), (15, 15))
-    var = cv2.blur(r2, (15, 15)) / np.maximum(n, 1e-6)
-    # residual from a 5 x 5 median has variance sigma^2 (1 + pi / (2 * 25))
-    var /= 1.0 + np.pi / 50.0
-    return img, valid, var.astype(np.float32)
+    return img, valid, var
 
 
 def cra_deg_map(shape, center_px, pixel_pitch_um, exit_pupil_mm):

@@ -47,6 +47,9 @@ MISFIT_CHI2 = 1.5
 #: Largest side of the block-averaged images used by the joint fit.
 FIT_GRID = 160
 _CIRCLES = {"none": "no circle", "one": "one circle", "two": "two circles"}
+#: Pixels where the reference flat is below this fraction of its peak are not used (past its
+#: own cut-off a ratio is noise over noise).
+LIT_FRACTION = 0.05
 #: Width of the radial-profile bins, degrees of chief-ray angle.
 BIN_DEG = 0.1
 #: Largest side of the images the radial profiles are taken from (larger flats are binned).
@@ -292,8 +295,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     center_px : (cx, cy), optional
         Optical centre in pixels (pixel (row i, column j) is centred at x=j, y=i). Default:
         found from the flats and refined by the joint fit.
-    saturation : float, optional
-        Values at or above are saturated and ignored.
+    saturation : float or mapping, optional
+        Values at or above are saturated and ignored (one level, or f-number -> level).
     vignetting_distance_mm : float, optional
         h, if known. Required with a single f-number, whose flat cannot tell P from h.
     method : {"auto", "joint", "onset"}
@@ -308,15 +311,22 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    for label, v in (("exit_pupil_mm", exit_pupil_mm), ("pixel_pitch_um", pixel_pitch_um)):
-        if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{label} must be a finite number > 0, got {v!r}")
+    exit_pupil_mm = _positive("exit_pupil_mm", exit_pupil_mm)
+    pixel_pitch_um = _positive("pixel_pitch_um", pixel_pitch_um)
+    if vignetting_distance_mm is not None:
+        vignetting_distance_mm = _positive("vignetting_distance_mm", vignetting_distance_mm)
+    if center_px is not None:
+        try:
+            cx, cy = (float(v) for v in center_px)
+        except (TypeError, ValueError):
+            raise ValueError(f"center_px must be two numbers (cx, cy), got {center_px!r}") \
+                from None
+        if not (math.isfinite(cx) and math.isfinite(cy)):
+            raise ValueError(f"center_px must be finite, got {center_px!r}")
+        center_px = (cx, cy)
     items = _check_inputs(flats, dark)
     base = Lens(name, exit_pupil_mm, magnification=magnification,
                 pupil_magnification=pupil_magnification)
-    if vignetting_distance_mm is not None and not (
-            math.isfinite(vignetting_distance_mm) and vignetting_distance_mm > 0):
-        raise ValueError(f"vignetting_distance_mm must be > 0, got {vignetting_distance_mm!r}")
     if len(items) == 1 and vignetting_distance_mm is None:
         raise ValueError(
             f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
@@ -329,7 +339,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     R = base.exit_pupil_radius_mm(fs)
     notes = []
 
-    cleaned = [clean_flat(img, dark=dark, saturation=saturation) for _, img in items]
+    sat = saturation if isinstance(saturation, dict) else {f: saturation for f, _ in items}
+    cleaned = [clean_flat(img, dark=dark, saturation=sat.get(f)) for f, img in items]
     images = [c[0] for c in cleaned]
     valids = [c[1] for c in cleaned]
     variances = [c[2] for c in cleaned]
@@ -342,6 +353,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
                              "pixels (saturated, dead or non-finite); lower the exposure or "
                              "check the file")
+    for (f, _), img, ok in zip(items, images, valids, strict=True):
+        if not np.percentile(img[ok], 99) > 0:
+            raise ValueError(f"the flat at f/{f:g} has no signal above the dark frame")
     single = len(items) == 1
     ref = None if single else len(items) - 1
     block = max(1, math.ceil(max(shape) / FIT_GRID))
@@ -352,12 +366,18 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     if single:
         ratios, rvars, rok = bimgs, bvars, enough
     else:
+        # Only where the reference itself is lit: past its own cut-off (or outside the image
+        # circle) a ratio is noise over noise. The set is fixed here, not by the fit.
+        ref_peak = float(np.nanpercentile(np.where(enough[ref], bimgs[ref], np.nan), 99))
+        with np.errstate(invalid="ignore"):
+            lit = (bimgs[ref] > LIT_FRACTION * ref_peak) & (
+                bimgs[ref] > 5.0 * np.sqrt(bvars[ref]))
         ratios, rvars, rok = [], [], []
         for i in range(len(items) - 1):
             with np.errstate(invalid="ignore", divide="ignore"):
                 q = bimgs[i] / bimgs[ref]
                 v = q * q * (bvars[i] / bimgs[i] ** 2 + bvars[ref] / bimgs[ref] ** 2)
-            ok = enough[i] & enough[ref] & np.isfinite(q) & (bimgs[ref] > 0) & (v > 0)
+            ok = enough[i] & enough[ref] & np.isfinite(q) & lit & (v > 0)
             ratios.append(q)
             rvars.append(v)
             rok.append(ok)
@@ -393,6 +413,17 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     max_cra = float(cra_deg_map(shape, center, pixel_pitch_um, x).max())
     profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
                 for i, f in enumerate(fs)}
+    short = [f for f, p in profiles.items() if p.cra_deg.size < 8]
+    if short:
+        n_bins = profiles[short[0]].cra_deg.size
+        raise ValueError(
+            f"the flats span only {max_cra:.2f} deg of chief-ray angle ({n_bins} bins of "
+            f"{BIN_DEG} deg): too few to see a fall-off; check the pixel pitch and the "
+            "exit-pupil distance, and that the flats hold signal")
+    if single:
+        notes.append("one flat: nothing cancels the source's non-uniformity or other fall-off "
+                     "(cos^4 is divided out); use an integrating sphere, or flats at several "
+                     "f-numbers")
     ratio_profiles = {}
     onsets = {"ratio": {}, "model": {}}
     R_ref = None if single else float(R[ref])
@@ -403,8 +434,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             cos4 = np.cos(np.deg2rad(prof.cra_deg)) ** 4
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value / cos4, prof.stderr / cos4)
         else:
+            ref_img = np.where(pimgs[ref] > LIT_FRACTION * ref_peak, pimgs[ref], 0.0)
             prof = radial_profile(pimgs[i], pvalid[i] & pvalid[ref], cra, bin_deg=BIN_DEG,
-                                  denominator=pimgs[ref])
+                                  denominator=ref_img)
             ratio_profiles[f] = prof
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
         onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,
@@ -423,7 +455,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         xpix=bx[okall], ypix=by[okall], R_mm=R[fit_idx], R_ref_mm=R_ref, pitch_mm=pitch_mm,
         x_mm=x, natural=single)
     fix_center = center if (center_px is not None or single) else None
-    starts = _starts(onset_fits.values(), R, x, center, max_cra, vignetting_distance_mm)
+    # from the centre found and, should the contours have misled, from the image centre
+    centers = [center]
+    if fix_center is None:
+        centers.append(((shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0))
+    starts = _starts(onset_fits.values(), R, x, centers, max_cra, vignetting_distance_mm)
     fits = {"none": fit_model(data, "none", [], center=center)}
     fits["one"] = fit_model(data, "one", starts, center=fix_center,
                             fixed_h=vignetting_distance_mm)
@@ -433,8 +469,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         starts2 = [[p1["P_mm"], p1["h_mm"], p1["cx_px"], p1["cy_px"], R[0] + h2 * math.tan(
             math.radians(th)), h2] for h2 in (0.5 * x, x, 2 * x) for th in (4.0, 10.0)]
         fits["two"] = fit_model(data, "two", starts2, center=fix_center)
-    ok_fits = {k: v for k, v in fits.items() if v.success or k == "none"}
-    model = min(ok_fits, key=lambda k: ok_fits[k].bic)
+    for k, v in fits.items():
+        if not v.success:
+            notes.append(f"the joint fit with {_CIRCLES[k]} stopped before converging "
+                         f"({v.message})")
+    model = min(fits, key=lambda k: fits[k].bic)
     bic_txt = ", ".join(f"{k}: {v.bic:.1f}" for k, v in fits.items())
     chosen = fits[model]
     if model != "none" and fix_center is None:
@@ -443,19 +482,26 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
 
     second = None
     misfit = model != "none" and chosen.reduced_chi2 > MISFIT_CHI2
+    if model == "none" and fits["none"].reduced_chi2 > MISFIT_CHI2:
+        notes.append(f"no model describes these flats well (reduced chi2 without a circle "
+                     f"{fits['none'].reduced_chi2:.1f}); check the optical centre, the "
+                     "f-numbers and the files")
     if method == "auto":
         if model == "none":
             used = "joint"
             reason = (f"no optical vignetting inside the field up to {max_cra:.1f} deg: the "
                       f"model without a circle has the lowest BIC ({bic_txt}); the "
                       "ideal-aperture model suffices")
-        elif misfit and onset_fits["ratio"] is not None:
+        elif misfit and _sane(onset_fits["ratio"], x):
             used = "onset-ratio"
             reason = (f"the area model misfits the flats (reduced chi2 "
                       f"{chosen.reduced_chi2:.1f} > {MISFIT_CHI2}), so only where the fall-off "
                       "starts is trusted: Eq. (26) over the onsets of the ratio profiles")
         else:
             used = "joint"
+            if misfit:
+                notes.append(f"the joint fit misfits (reduced chi2 {chosen.reduced_chi2:.1f}) "
+                             "but the paper's onsets give no usable P and h to fall back to")
             reason = (f"{_CIRCLES[model]}: lowest BIC ({bic_txt}); the joint fit uses every "
                       f"pixel (reduced chi2 {chosen.reduced_chi2:.2f})")
     else:
@@ -475,7 +521,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             raise ValueError(f"the {used} method needs onsets at two or more f-numbers (found "
                              f"{n_found} inside the field, up to {max_cra:.1f} deg); use the "
                              "joint fit")
+        if not _sane(of, x):
+            raise ValueError(f"the {used} method gives P = {of.P_mm:.4g} mm, h = "
+                             f"{of.h_mm:.4g} mm, which is not a lens; use the joint fit")
         lens_P, lens_h = of.P_mm, of.h_mm
+        model = "one"
     lens = Lens(name, x, lens_P, lens_h, magnification, pupil_magnification)
     result = LensCalibration(
         lens=lens, method=used, model=model,
@@ -489,6 +539,22 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     result.lens = Lens(name, x, lens_P, lens_h, magnification, pupil_magnification,
                        calibration=calibration)
     return result
+
+
+def _positive(name, value):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+def _sane(of, x):
+    """An Eq. (26) solution that describes a lens: P, h > 0, finite, not absurdly large."""
+    return (of is not None and np.isfinite([of.P_mm, of.h_mm, of.P_stderr_mm]).all()
+            and 0 < of.P_mm < 20 * x and 0 < of.h_mm < 20 * x)
 
 
 def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False):
@@ -557,16 +623,16 @@ def _solve_onsets(onsets, base, h_given):
                                    onset_stderr_deg=[max(o.stderr_deg, 1e-3) for _, o in found])
 
 
-def _starts(onset_fits, R, x, center, max_cra, h_given):
-    cx, cy = center
+def _starts(onset_fits, R, x, centers, max_cra, h_given):
     starts = []
-    for of in onset_fits:
-        if of is not None and of.h_mm > 0 and of.P_mm > 0:
-            starts.append([of.P_mm, of.h_mm, cx, cy])
-    for hf in (0.5, 0.8, 1.2, 2.0):
-        h = h_given or hf * x
-        for th in (0.3 * max_cra, 0.7 * max_cra):
-            starts.append([R[0] + h * math.tan(math.radians(th)), h, cx, cy])
+    for cx, cy in centers:
+        for of in onset_fits:
+            if of is not None and of.h_mm > 0 and of.P_mm > 0:
+                starts.append([of.P_mm, of.h_mm, cx, cy])
+        for hf in (0.5, 0.8, 1.2, 2.0):
+            h = h_given or hf * x
+            for th in (0.3 * max_cra, 0.7 * max_cra):
+                starts.append([R[0] + h * math.tan(math.radians(th)), h, cx, cy])
     return starts
 
 
