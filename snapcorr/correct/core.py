@@ -1,0 +1,225 @@
+"""Per-pixel corrected central wavelengths of a cube (Goossens et al. 2019, Eq. 23).
+
+``wavelength_corrected(y, x, b) = cwl_b + mean_shift(cwl_b, n_eff_b, f, CRA(y, x, b))``.
+The mean shift is proportional to the central wavelength (the shift law scales every
+wavelength alike), so one curve of ``mean_shift / cwl`` over CRA per effective index serves
+every band: a :class:`~snapcorr.optics.ShiftTable` built to the requested tolerance for the
+exact models, Eq. (6) directly for the asymptotic one. The cube itself is not touched.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+from .. import __version__
+from ..cube.model import check_cube
+from ..optics import ShiftTable, mean_shift
+from ..optics import goossens2019 as g19
+from ..optics.lens import Lens
+from ..optics.mean import ASYMPTOTIC_SAFETY
+from .geometry import cube_cra_deg
+
+__all__ = ["METHODS", "choose_method", "correct_cube", "relative_shift"]
+
+#: Models of the filter shift, cheapest first; ``"auto"`` picks among them.
+METHODS = ("auto", "none", "asymptotic", "ideal", "vignetted")
+DEFAULT_TOLERANCE_NM = 0.01
+
+
+def _ideal_lens(lens):
+    return Lens(lens.name, lens.exit_pupil_mm, None, None, lens.magnification,
+                lens.pupil_magnification)
+
+
+def choose_method(lens, f_number, cra_max_deg, cwl_nm, n_eff, tolerance_nm):
+    """The cheapest model whose error is below ``tolerance_nm`` over CRA 0..``cra_max_deg``.
+
+    ``"none"`` when no band moves by more than the tolerance anywhere; ``"asymptotic"``
+    (Eq. 6) when no pixel is vignetted and its fourth-order error estimate (times a safety
+    factor) is below the tolerance at the largest CRA and wavelength; ``"ideal"`` when no
+    pixel is vignetted (before the onset the vignetted and ideal kernels are the same);
+    ``"vignetted"`` otherwise.
+
+    Returns
+    -------
+    method, reason : str
+    """
+    cwl = np.asarray(cwl_nm, float)
+    n = np.asarray(n_eff, float)
+    onset = float(np.min(lens.onset_cra_deg(f_number)))
+    vignetted = lens.has_vignetting and cra_max_deg > onset
+    # the largest shift over the field: at the largest wavelength, lowest index, largest CRA
+    # and on axis (the kernel mean is monotonic in neither alone near the onset)
+    worst = 0.0
+    for c in (0.0, cra_max_deg):
+        s = mean_shift(cwl, n, f_number, c, lens, method="vignetted" if vignetted else "ideal")
+        worst = max(worst, float(np.max(np.abs(s))))
+    if worst <= tolerance_nm:
+        return "none", (f"no band moves by more than {worst:.3g} nm <= tolerance "
+                        f"{tolerance_nm:g} nm at f/{f_number:g} up to CRA {cra_max_deg:.2f} deg")
+    if vignetted:
+        return "vignetted", (f"CRAs up to {cra_max_deg:.2f} deg pass the onset of optical "
+                             f"vignetting at f/{f_number:g} ({onset:.2f} deg)")
+    tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f_number)))
+    err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone,
+                                           math.tan(math.radians(cra_max_deg)))
+    err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
+    where = ("no vignetting circle" if not lens.has_vignetting else
+             f"every CRA (<= {cra_max_deg:.2f} deg) is below the onset ({onset:.2f} deg)")
+    if err <= tolerance_nm:
+        return "asymptotic", (f"{where}, and Eq. 6 is within {err:.2g} nm <= {tolerance_nm:g} nm")
+    return "ideal", f"{where}; Eq. 6 would be off by up to {err:.2g} nm"
+
+
+def relative_shift(method, lens, f_number, n_eff, cra_deg, *, tolerance_nm, cwl_max_nm):
+    """``mean_shift / cwl`` at ``cra_deg`` for one effective index, by ``method``."""
+    cra = np.asarray(cra_deg, float)
+    if method == "none":
+        return np.zeros(cra.shape)
+    if method == "asymptotic":
+        return mean_shift(1.0, n_eff, f_number, cra, lens, method="asymptotic")
+    use = lens if method == "vignetted" else _ideal_lens(lens)
+    table = ShiftTable.build(n_eff, f_number, use, cra_max_deg=max(float(cra.max()), 1e-6),
+                             tolerance_nm=tolerance_nm, cwl_max_nm=cwl_max_nm)
+    return np.interp(cra, table.cra_deg, table.relative_shift)
+
+
+def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
+                 tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False):
+    """Corrected central wavelength of every pixel and band; optionally the resampled cube.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        (y, x, band), numpy- or dask-backed; its bands must match the sensor's.
+    lens : Lens
+    sensor : Sensor
+    f_number : float
+    center_px : (cx, cy), optional
+        Optical centre in sensor pixels (default: from the lens calibration, else the centre
+        of the area the cube covers).
+    method : {"auto", "none", "asymptotic", "ideal", "vignetted"}
+    tolerance_nm : float
+        Largest error allowed in the corrected wavelengths (model choice and table
+        interpolation), nm.
+    resample : bool
+        Also interpolate each pixel's spectrum onto the nominal wavelengths (``resampled``),
+        NaN where that would need extrapolation.
+
+    Returns
+    -------
+    xarray.Dataset
+        The input cube unchanged (under its own name), ``wavelength_corrected(y, x, band)``
+        (float32, nm), ``cra(y, x[, band])`` (deg), ``resampled`` on request, and provenance
+        in attrs.
+    """
+    check_cube(cube)
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    try:
+        f = float(f_number)
+    except (TypeError, ValueError):
+        raise ValueError(f"f_number must be a number, got {f_number!r}") from None
+    if not (math.isfinite(f) and f > 0):
+        raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+    if not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
+        raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+    nb = cube.sizes["band"]
+    if nb != sensor.n_bands:
+        raise ValueError(f"the cube has {nb} bands, the sensor {sensor.name!r} "
+                         f"{sensor.n_bands}; use the sensor the cube was taken with")
+    cwl = np.asarray(sensor.cwl_nm, float)
+    nominal = np.asarray(cube["wavelength"].values, float)
+    if not np.allclose(nominal, cwl, rtol=0, atol=0.05):
+        raise ValueError(f"the cube's wavelengths differ from the sensor {sensor.name!r}'s "
+                         "(by up to "
+                         f"{np.max(np.abs(nominal - cwl)):.3g} nm); use the matching sensor")
+    n_eff = np.asarray(sensor.n_eff, float)
+    cra, center, center_source = cube_cra_deg(cube, lens, sensor, center_px)
+    cra_max = float(cra.max())
+    cutoff = float(lens.cutoff_cra_deg(f))
+    if cra_max >= cutoff:
+        raise ValueError(f"at f/{f:g} the lens's vignetting circle cuts off the whole pupil "
+                         f"from CRA {cutoff:.2f} deg, and this cube reaches {cra_max:.2f} deg: "
+                         "those pixels saw no light through the lens model; check the lens "
+                         "profile, f-number and optical centre")
+    if method == "auto":
+        used, reason = choose_method(lens, f, cra_max, cwl, n_eff, tolerance_nm)
+    else:
+        used, reason = method, "asked for"
+
+    # one relative-shift map per distinct effective index
+    groups, column = np.unique(n_eff, return_inverse=True)
+    per_band = cra.shape[2] > 1
+    scale = np.empty(cra.shape[:2] + ((nb,) if per_band else (groups.size,)))
+    if per_band:
+        for g, n in enumerate(groups):
+            bands = np.flatnonzero(column == g)
+            scale[:, :, bands] = 1.0 + relative_shift(
+                used, lens, f, n, cra[:, :, bands], tolerance_nm=tolerance_nm,
+                cwl_max_nm=float(cwl[bands].max()))
+        column = np.arange(nb)
+    else:
+        for g, n in enumerate(groups):
+            scale[:, :, g] = 1.0 + relative_shift(
+                used, lens, f, n, cra[:, :, 0], tolerance_nm=tolerance_nm,
+                cwl_max_nm=float(cwl[column == g].max()))
+
+    corrected = _corrected(cube, scale, column, cwl)
+    cra_da = (xr.DataArray(cra, dims=("y", "x", "band")) if per_band
+              else xr.DataArray(cra[:, :, 0], dims=("y", "x")))
+    cra_da.attrs = {"units": "deg", "long_name": "chief-ray angle"}
+    name = cube.name or "radiance"
+    ds = xr.Dataset({name: cube, "wavelength_corrected": corrected, "cra": cra_da})
+    if resample:
+        ds["resampled"] = _resampled(cube, scale, column, cwl)
+    ds.attrs.update({
+        "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
+        "lens": lens.name, "lens_P_mm": lens.vignetting_radius_mm or "none",
+        "lens_h_mm": lens.vignetting_distance_mm or "none",
+        "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
+        "method_requested": method, "tolerance_nm": float(tolerance_nm),
+        "optical_center_px": [float(center[0]), float(center[1])],
+        "optical_center_source": center_source, "cra_max_deg": cra_max,
+        "snapcorr_version": __version__,
+    })
+    return ds
+
+
+def _corrected(cube, scale, column, cwl):
+    """wavelength_corrected as a DataArray, lazy (dask) when the cube is."""
+    values = (cwl[None, None, :] * scale[:, :, column]).astype(np.float32)
+    da = xr.DataArray(values, dims=("y", "x", "band"),
+                      attrs={"units": "nm", "long_name": "corrected central wavelength"})
+    if cube.chunks is not None:
+        da = da.chunk({d: c for d, c in zip(cube.dims, cube.chunks, strict=True)})
+    return da
+
+
+def _resampled(cube, scale, column, cwl):
+    from .resample import resample_to_nominal
+
+    order = np.argsort(cwl, kind="stable")
+    inverse = np.argsort(order, kind="stable")
+    dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
+                                         np.int16) else np.float64
+
+    def block(data, sc):
+        out = resample_to_nominal(np.asarray(data, dtype)[..., order], sc, column[order],
+                                  cwl[order])
+        return out[..., inverse]
+
+    sc = xr.DataArray(scale, dims=("y", "x", "m"))
+    if cube.chunks is not None:
+        sc = sc.chunk({"y": cube.chunks[0], "x": cube.chunks[1], "m": -1})
+    out = xr.apply_ufunc(block, cube, sc, input_core_dims=[["band"], ["m"]],
+                         output_core_dims=[["band"]], dask="parallelized",
+                         output_dtypes=[dtype])
+    out = out.transpose("y", "x", "band")
+    out.attrs = {"long_name": "spectrum interpolated onto the nominal wavelengths",
+                 "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
+                         "range (extrapolation is not done)"}
+    return out

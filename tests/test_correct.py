@@ -1,0 +1,163 @@
+"""Per-pixel corrected wavelengths (Goossens 2019 Eq. 8, 23), checked from outside."""
+
+import numpy as np
+import pytest
+import xarray as xr
+from conftest import brute_force_mean
+
+from snapcorr import Lens
+from snapcorr.correct import CenterWarning, choose_method, correct_cube, cube_cra_deg
+from snapcorr.correct.resample import resample_to_nominal
+from snapcorr.cube import Sensor, make_cube, mosaic_to_cube
+from snapcorr.data import sensor_path
+
+PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+H_GE_X = Lens("long tube", 21.0, 6.5, 27.0, 0.06, 1.3)
+
+
+def _sensor(n=6, pitch=40.0, n_eff=1.7):
+    return Sensor("test", "snapscan", pitch, np.linspace(500, 900, n), 10.0, n_eff)
+
+
+def _cube(sensor, ny=40, nx=50, seed=0):
+    data = np.random.default_rng(seed).random((ny, nx, sensor.n_bands)).astype(np.float32)
+    return make_cube(data, sensor.cwl_nm)
+
+
+def test_cra_map_by_hand():
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    cra, centre, source = cube_cra_deg(cube, PAPER, s, center_px=(10.0, -5.0))
+    assert source == "given" and cra.shape == (40, 50, 1)
+    y, x = 33, 47
+    d_mm = np.hypot(x - 10.0, y + 5.0) * 0.040
+    assert cra[y, x, 0] == pytest.approx(np.degrees(np.arctan(d_mm / 21.0)), rel=1e-12)
+    # default: the centre of the area the cube covers
+    _, centre, source = cube_cra_deg(cube, PAPER, s)
+    assert centre == (24.5, 19.5) and source == "image centre"
+
+
+def test_centre_from_the_lens_calibration_only_for_the_same_pitch():
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    lens = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3,
+                calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 40.0})
+    assert cube_cra_deg(cube, lens, s)[1:] == ((3.0, 4.0), "lens calibration")
+    other = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3,
+                 calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
+    with pytest.warns(CenterWarning, match="pitch|um"):
+        assert cube_cra_deg(cube, other, s)[2] == "image centre"
+
+
+def test_mosaic_bands_get_their_own_positions():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    raw = np.arange(16 * 24, dtype=np.float32).reshape(16, 24)
+    cube = mosaic_to_cube(raw, sensor, origin_px=(40, 80))
+    cra = cube_cra_deg(cube, PAPER, sensor, center_px=(0.0, 0.0))[0]
+    assert cra.shape == (4, 6, sensor.n_bands)
+    b = 5
+    row = cube["sensor_row"].values[2, b]
+    col = cube["sensor_col"].values[3, b]
+    d = np.hypot(row, col) * sensor.pixel_pitch_um * 1e-3
+    assert cra[2, 3, b] == pytest.approx(np.degrees(np.arctan(d / 21.0)), rel=1e-12)
+
+
+@pytest.mark.parametrize("lens", [PAPER, H_GE_X], ids=["h<x", "h>=x"])
+def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
+    s = _sensor(n=4, pitch=80.0, n_eff=[1.7, 1.7, 2.0, 2.0])
+    cube = _cube(s, ny=60, nx=70)
+    f = 1.4
+    ds = correct_cube(cube, lens, s, f, center_px=(-10.0, 5.0), tolerance_nm=0.01)
+    assert ds.attrs["method"] == "vignetted"
+    R = float(lens.exit_pupil_radius_mm(f))
+    x = lens.exit_pupil_mm
+    rng = np.random.default_rng(1)
+    for _ in range(4):
+        yy, xx, b = rng.integers(0, 60), rng.integers(0, 70), rng.integers(0, 4)
+        t = np.hypot(xx + 10.0, yy - 5.0) * 0.080 / x
+        bf, _ = brute_force_mean(s.cwl_nm[b], s.n_eff[b], x, R, x * t,
+                                     lens.vignetting_radius_mm,
+                                     lens.vignetting_distance_mm * t, N=1200)
+        got = float(ds["wavelength_corrected"].values[yy, xx, b])
+        # tolerance + the brute-force grid's own error + float32 rounding of ~900 nm
+        assert abs(got - (s.cwl_nm[b] + bf)) < 0.01 + 0.01 + 1e-4, (yy, xx, b)
+
+
+def test_output_keeps_the_cube_and_records_provenance():
+    s = _sensor()
+    cube = _cube(s)
+    ds = correct_cube(cube, PAPER, s, 2.8)
+    xr.testing.assert_identical(ds[cube.name], cube)
+    for key in ("lens", "sensor", "f_number", "method", "method_reason", "tolerance_nm",
+                "snapcorr_version", "optical_center_px", "optical_center_source"):
+        assert key in ds.attrs
+    assert ds["wavelength_corrected"].dtype == np.float32
+    assert ds["wavelength_corrected"].attrs["units"] == "nm"
+
+
+def test_auto_picks_the_cheapest_model_that_meets_the_tolerance():
+    cwl, n = np.array([500.0, 900.0]), np.array([1.7, 1.7])
+    # below the onset at f/8 (19.95 deg): no vignetting model needed
+    m, why = choose_method(PAPER, 8.0, 10.0, cwl, n, 0.01)
+    assert m in ("asymptotic", "ideal") and "below the onset" in why
+    m, _ = choose_method(PAPER, 1.4, 10.0, cwl, n, 0.01)
+    assert m == "vignetted"
+    # a nearly collimated beam on axis: nothing moves by more than the tolerance
+    m, _ = choose_method(PAPER, 500.0, 0.01, cwl, n, 0.01)
+    assert m == "none"
+    # and the choice is right: its error against the exact model is within the tolerance
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    auto = correct_cube(cube, PAPER, s, 8.0, tolerance_nm=0.01)
+    exact = correct_cube(cube, PAPER, s, 8.0, method="vignetted", tolerance_nm=1e-4)
+    diff = np.abs(auto["wavelength_corrected"].values.astype(float)
+                  - exact["wavelength_corrected"].values.astype(float))
+    assert diff.max() < 0.01 + 1e-4
+
+
+def test_dask_cube_gives_identical_results():
+    s = _sensor()
+    cube = _cube(s)
+    a = correct_cube(cube, PAPER, s, 1.4, resample=True)
+    b = correct_cube(cube.chunk({"y": 16, "x": 20}), PAPER, s, 1.4, resample=True)
+    assert b["wavelength_corrected"].chunks is not None
+    xr.testing.assert_identical(a.compute(), b.compute())
+
+
+def test_resampling_against_numpy_interp_marks_extrapolation():
+    s = _sensor(n=12)
+    cube = _cube(s)
+    ds = correct_cube(cube, PAPER, s, 1.4, resample=True)
+    lam = ds["wavelength_corrected"].values
+    out = ds["resampled"].values
+    for yy, xx in ((0, 0), (20, 25), (39, 49)):
+        ref = np.interp(s.cwl_nm, lam[yy, xx].astype(float), cube.values[yy, xx],
+                        left=np.nan, right=np.nan)
+        np.testing.assert_allclose(out[yy, xx], ref, atol=1e-5, equal_nan=True)
+        assert np.isnan(out[yy, xx, -1])  # shifted to the blue: the reddest band is past
+    with pytest.raises(ValueError, match="increasing"):
+        resample_to_nominal(np.zeros((1, 1, 2)), np.ones((1, 1, 1)), [0, 0], [2.0, 1.0])
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"f_number": 0.0}, "f_number"),
+    ({"f_number": float("nan")}, "f_number"),
+    ({"method": "magic"}, "method"),
+    ({"tolerance_nm": 0.0}, "tolerance"),
+    ({"center_px": (1e5, 0.0)}, "cuts off the whole pupil"),
+])
+def test_bad_arguments_are_clear_errors(change, message):
+    s = _sensor()
+    kw = {"f_number": 2.0, **change}
+    f = kw.pop("f_number")
+    with pytest.raises(ValueError, match=message):
+        correct_cube(_cube(s), PAPER, s, f, **kw)
+
+
+def test_band_count_and_wavelengths_must_match_the_sensor():
+    s = _sensor(n=6)
+    with pytest.raises(ValueError, match="bands"):
+        correct_cube(_cube(_sensor(n=5)), PAPER, s, 2.0)
+    shifted = make_cube(_cube(s).values, np.asarray(s.cwl_nm) + 3.0)
+    with pytest.raises(ValueError, match="wavelengths differ"):
+        correct_cube(shifted, PAPER, s, 2.0)
