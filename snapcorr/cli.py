@@ -22,6 +22,9 @@ EXAMPLES = textwrap.dedent(
       snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc
                                           flat-field a cube (Goossens Eq. 29)
       snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 1.4 \
+          --out scene_corrected.nc --resample
+                                          per-pixel corrected wavelengths (Eq. 23)
       snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
           --flat 4=f4.tif --flat 8=f8.tif --exit-pupil-mm 21 --pixel-pitch-um 5.5 \
           --magnification 0.06 --pupil-magnification 1.3 --dark dark.tif \
@@ -101,6 +104,42 @@ def _cmd_flatfield(args):
     print(f"wrote {out}: reflectance of {args.raw} ({raw.shape[0]} x {raw.shape[1]} x "
           f"{raw.shape[2]}), {len(darks)} dark and {len(whites)} white frame(s) averaged; "
           f"{n_masked} of {total} values masked ({100 * n_masked / total:.2f} %)")
+    return 0
+
+
+def _cmd_correct(args):
+    from .correct import correct_cube
+    from .cube import Sensor, read_cube
+    from .cube.io import write_dataset
+    from .optics import Lens
+
+    out = Path(args.out)
+    inputs = [args.cube, args.lens, args.sensor]
+    for src in inputs:  # checked again by write_dataset, but before any reading
+        if Path(src).resolve() == out.resolve():
+            raise ValueError(f"output {out} is also an input; choose another output path")
+    if out.exists() and not args.overwrite:
+        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+    if out.suffix.lower() not in (".nc", ".zarr"):
+        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
+    lens = Lens.load(args.lens)
+    sensor = Sensor.load(args.sensor)
+    cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={"y": 512})
+    ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
+                      method=args.method, tolerance_nm=args.tolerance_nm,
+                      resample=args.resample)
+    ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
+                     "sensor_file": str(args.sensor)})
+    from dask.diagnostics import ProgressBar
+
+    with ProgressBar(minimum=1.0, out=sys.stderr):
+        write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
+          f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
+          f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre "
+          f"{tuple(round(c, 1) for c in ds.attrs['optical_center_px'])} px "
+          f"({ds.attrs['optical_center_source']})"
+          + ("; resampled onto the nominal wavelengths" if args.resample else ""))
     return 0
 
 
@@ -291,6 +330,27 @@ def build_parser():
     cal.add_argument("--name", default=None, help="lens name (default: the output's stem)")
     cal.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     cal.set_defaults(func=_cmd_calibrate)
+
+    cor = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
+    cor.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
+                     "ideally flat-fielded")
+    cor.add_argument("--lens", type=Path, required=True, help="lens profile (.toml)")
+    cor.add_argument("--sensor", type=Path, required=True, help="sensor description (.toml)")
+    cor.add_argument("--f-number", type=float, required=True)
+    cor.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    cor.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                     help="optical centre in sensor pixels (default: the lens profile's, "
+                     "else the image centre)")
+    from .correct import METHODS as COR_METHODS
+
+    cor.add_argument("--method", default="auto", choices=list(COR_METHODS),
+                     help="shift model (default: %(default)s, the cheapest meeting the "
+                     "tolerance)")
+    cor.add_argument("--tolerance-nm", type=float, default=0.01)
+    cor.add_argument("--resample", action="store_true",
+                     help="also interpolate each spectrum onto the nominal wavelengths")
+    cor.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    cor.set_defaults(func=_cmd_correct)
 
     shift = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     shift.add_argument(
