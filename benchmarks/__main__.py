@@ -7,7 +7,7 @@ import numpy as np
 
 from snapcorr import __version__
 
-from . import calibration, mean_shift
+from . import calibration, correct, mean_shift
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
 parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
@@ -18,5 +18,7 @@ mean_shift.targets(mean_shift.run(quick=args.quick))
 print()
 calibration.full_size_time(quick=args.quick)
 calibration.noise_sweep(quick=args.quick, write=not args.quick)
+print()
+correct.run(quick=args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

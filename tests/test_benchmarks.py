@@ -26,3 +26,12 @@ def test_quick_calibration_benchmark_runs():
     assert all(abs(r["P_error_pct"]) < 1 and abs(r["h_error_pct"]) < 1 for r in joint)
     seconds, res = calibration.full_size_time(quick=True, echo=lines.append)
     assert seconds > 0 and res.lens.has_vignetting and "flats" in lines[-1]
+
+
+def test_quick_correction_benchmark_runs():
+    from benchmarks import correct
+
+    lines = []
+    r = correct.run(quick=True, echo=lines.append)
+    assert r["copy_s"] > 0 and r["resample_s"] > 0 and r["shift_map_s"] > 0
+    assert np.isfinite(r["peak_ratio"]) and any("target 1.5 x" in line for line in lines)

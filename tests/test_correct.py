@@ -161,3 +161,15 @@ def test_band_count_and_wavelengths_must_match_the_sensor():
     shifted = make_cube(_cube(s).values, np.asarray(s.cwl_nm) + 3.0)
     with pytest.raises(ValueError, match="wavelengths differ"):
         correct_cube(shifted, PAPER, s, 2.0)
+
+
+def test_uniform_grid_fast_path_equals_the_general_pass():
+    rng = np.random.default_rng(3)
+    data = rng.random((7, 9, 20)).astype(np.float32)
+    cwl = np.linspace(450.0, 950.0, 20)
+    scale = 1.0 - 0.03 * rng.random((7, 9, 1))
+    fast = resample_to_nominal(data, scale, np.zeros(20, int), cwl)  # float32: fast path
+    general = resample_to_nominal(data.astype(np.float64), scale, np.zeros(20, int), cwl)
+    # the fast path works in float32: the fractional band index is good to ~1e-6 x nb
+    np.testing.assert_allclose(fast, general, atol=1e-5, equal_nan=True)
+    assert np.array_equal(np.isnan(fast), np.isnan(general))
