@@ -107,6 +107,10 @@ def _cmd_flatfield(args):
     return 0
 
 
+#: Target size of the blocks `snapcorr correct` streams a cube in.
+CHUNK_BYTES = 16 * 2**20
+
+
 def _cmd_correct(args):
     from .correct import correct_cube
     from .cube import Sensor, read_cube
@@ -124,16 +128,30 @@ def _cmd_correct(args):
         raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
     lens = Lens.load(args.lens)
     sensor = Sensor.load(args.sensor)
-    cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={"y": 512})
+    cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})  # lazily, as stored
+    # blocks of about CHUNK_BYTES whole rows: memory stays bounded whatever the cube's size
+    row_bytes = cube.sizes["x"] * cube.sizes["band"] * max(cube.dtype.itemsize, 4)
+    cube = cube.chunk({"y": max(1, CHUNK_BYTES // row_bytes), "x": -1, "band": -1})
     ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
                       method=args.method, tolerance_nm=args.tolerance_nm,
                       resample=args.resample)
     ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
-    from dask.diagnostics import ProgressBar
+    if args.scheduler:
+        from distributed import Client
 
-    with ProgressBar(minimum=1.0, out=sys.stderr):
-        write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+        try:
+            client = Client(args.scheduler, timeout="10s")
+        except OSError as err:
+            raise ValueError(f"cannot reach the dask scheduler at {args.scheduler}: {err}") \
+                from None
+        with client:  # progress: the cluster's dashboard
+            write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+    else:
+        from dask.diagnostics import ProgressBar
+
+        with ProgressBar(minimum=1.0, out=sys.stderr):
+            write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
     print(f"wrote {out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
           f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
           f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre "
@@ -349,6 +367,9 @@ def build_parser():
     cor.add_argument("--tolerance-nm", type=float, default=0.01)
     cor.add_argument("--resample", action="store_true",
                      help="also interpolate each spectrum onto the nominal wavelengths")
+    cor.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
+                     "(default: in-process threads)")
     cor.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     cor.set_defaults(func=_cmd_correct)
 

@@ -190,13 +190,24 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
 
 
 def _corrected(cube, scale, column, cwl):
-    """wavelength_corrected as a DataArray, lazy (dask) when the cube is."""
-    values = (cwl[None, None, :] * scale[:, :, column]).astype(np.float32)
-    da = xr.DataArray(values, dims=("y", "x", "band"),
-                      attrs={"units": "nm", "long_name": "corrected central wavelength"})
-    if cube.chunks is not None:
-        da = da.chunk({d: c for d, c in zip(cube.dims, cube.chunks, strict=True)})
-    return da
+    """wavelength_corrected as a DataArray; computed block by block when the cube is dask."""
+    attrs = {"units": "nm", "long_name": "corrected central wavelength"}
+    if cube.chunks is None:
+        values = (cwl[None, None, :] * scale[:, :, column]).astype(np.float32)
+        return xr.DataArray(values, dims=("y", "x", "band"), attrs=attrs)
+    import dask.array as da
+
+    ychunks, xchunks, bchunks = cube.chunks
+    sc = da.from_array(scale, chunks=(ychunks, xchunks, -1))
+    parts, lo = [], 0
+    for nb in bchunks:  # one lazy piece per band chunk of the cube
+        w, c = cwl[lo:lo + nb], column[lo:lo + nb]
+        parts.append(sc.map_blocks(
+            lambda s, w=w, c=c: (w[None, None, :] * s[:, :, c]).astype(np.float32),
+            chunks=(ychunks, xchunks, (nb,)), dtype=np.float32,
+            meta=np.empty((0, 0, 0), np.float32)))
+        lo += nb
+    return xr.DataArray(da.concatenate(parts, axis=2), dims=("y", "x", "band"), attrs=attrs)
 
 
 def _resampled(cube, scale, column, cwl):
@@ -214,6 +225,8 @@ def _resampled(cube, scale, column, cwl):
 
     sc = xr.DataArray(scale, dims=("y", "x", "m"))
     if cube.chunks is not None:
+        # a spectrum is resampled whole: one chunk along band (chunks stay bounded in y, x)
+        cube = cube.chunk({"band": -1})
         sc = sc.chunk({"y": cube.chunks[0], "x": cube.chunks[1], "m": -1})
     out = xr.apply_ufunc(block, cube, sc, input_core_dims=[["band"], ["m"]],
                          output_core_dims=[["band"]], dask="parallelized",

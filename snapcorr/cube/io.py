@@ -414,12 +414,24 @@ def write_dataset(ds, path, *, overwrite=False, inputs=()):
 
 
 def _write_dataset(ds, path, suffix):
+    # Dask-backed variables are written one at a time: computed together, a block read once
+    # for two variables (a cube and its resampled copy) stays in memory until both are done,
+    # which can hold the whole cube. Apart, each streams through in bounded memory.
+    lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
+    first = ds.drop_vars(lazy)
     if suffix == ".nc":
-        atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
+        def write(tmp):
+            first.to_netcdf(tmp, engine="h5netcdf")
+            for v in lazy:
+                ds[[v]].to_netcdf(tmp, mode="a", engine="h5netcdf")
+
+        atomic_write(path, write)
         return path
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zarr"))
     try:
-        ds.to_zarr(tmp, mode="w", consolidated=False)
+        first.to_zarr(tmp, mode="w", consolidated=False)
+        for v in lazy:
+            ds[[v]].to_zarr(tmp, mode="a", consolidated=False)
         if path.exists():
             shutil.rmtree(path)
         os.replace(tmp, path)
