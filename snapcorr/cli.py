@@ -18,7 +18,7 @@ from . import __version__
 EXAMPLES = textwrap.dedent(
     """
     examples:
-      snapcorr demo                       run the optics on the bundled 16 mm lens
+      snapcorr demo                       the paper's lens and experiment, simulated end to end
       snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc
                                           flat-field a cube (Goossens Eq. 29)
       snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
@@ -291,7 +291,8 @@ def build_parser():
         return sub.add_parser(name, help=help_, epilog=EXAMPLES,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
-    demo = command("demo", "run the main job on the bundled default lens and write figures")
+    demo = command("demo", "the main job on a bundled default: calibrate the paper's lens, "
+                   "correct a simulated cube, write figures")
     demo.add_argument(
         "--out", default="snapcorr-demo", type=Path, help="output folder (default: %(default)s)"
     )

@@ -1,12 +1,13 @@
 """The command line: help, version, the demo, and one-line errors instead of tracebacks."""
 
+import re
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from snapcorr import __version__
+from snapcorr import Lens, __version__
 from snapcorr.cli import main
 
 
@@ -33,6 +34,23 @@ def test_demo_writes_figure_table_and_summary(tmp_path, capsys):
     assert table.shape[1] == 6 and np.all(np.isfinite(table))
     text = (out / "summary.txt").read_text()
     assert "f/#" in text and "vignetted" in text
+    for name in ("calibration.png", "spectra.png", "maps.png"):
+        assert (out / name).read_bytes()[:4] == b"\x89PNG"
+    lens = Lens.load(out / "lens.toml")  # the profile calibrated from the simulated flats
+    assert abs(lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    assert abs(lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    # The paper's findings (Sec. 3.3-3.4), from the simulated experiment: at f/1.4 the
+    # uncorrected spectra differ little, the ideal-aperture model over-corrects (worse than
+    # none), the vignetting model aligns them best; at f/8 the two models agree.
+    rows = {float(m.group(1)): [float(v) for v in m.groups()[1:]] for m in re.finditer(
+        r"^\s+([\d.]+) r ([\d.]+), max ([\d.]+) r ([\d.]+), max ([\d.]+) "
+        r"r ([\d.]+), max ([\d.]+)$", text, re.M)}
+    assert set(rows) == {1.4, 2.0, 2.8, 4.0, 8.0}
+    r_unc, e_unc, r_ideal, e_ideal, r_vig, e_vig = rows[1.4]
+    assert e_ideal > e_unc > e_vig and r_vig > r_unc > r_ideal
+    assert e_vig < 0.5 * e_unc
+    assert rows[8.0][2:4] == rows[8.0][4:6]
+    assert all(row[5] < row[1] for row in rows.values())  # vignetted beats uncorrected
     assert not list(out.glob(".*"))  # no temporary files left behind
     assert "wrote" in capsys.readouterr().out
 
