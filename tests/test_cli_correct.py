@@ -52,10 +52,14 @@ def test_correct_writes_what_the_library_computes(files):
     (["--f-number", "2", "--lens", "badlens.toml"], "exit_pupil_mm"),
     (["--f-number", "2", "--sensor", "sensor6.toml"], "bands"),
     (["--f-number", "2", "--out", "out.txt"], ".nc or .zarr"),
+    (["--f-number", "2", "--sensor", "badsensor.toml"], "cwl_nm"),
+    (["--f-number", "2", "--center-px", "100000,0"], "cuts off the whole pupil"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, args, message):
     d, cube, _ = files
     (d / "badlens.toml").write_text('[lens]\nname = "x"\n')
+    (d / "badsensor.toml").write_text('[sensor]\nname = "x"\nlayout = "snapscan"\n'
+                                      'pixel_pitch_um = 5.5\n')
     Sensor("s6", "snapscan", 40.0, np.linspace(500, 900, 6), 10.0, 1.7).save(d / "sensor6.toml")
     base = {"--lens": "lens.toml", "--sensor": "sensor.toml", "--out": "new.nc"}
     for flag, value in zip(args[::2], args[1::2], strict=True):
