@@ -54,6 +54,22 @@ def _cmd_demo(args):
     return 0
 
 
+def _dataset_output(out, inputs, overwrite):
+    """The output path of a Dataset, checked before any (possibly long) reading.
+
+    ``write_dataset`` checks again when it writes.
+    """
+    out = Path(out)
+    for src in inputs:
+        if Path(src).resolve() == out.resolve():
+            raise ValueError(f"output {out} is also an input; choose another output path")
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+    if out.suffix.lower() not in (".nc", ".zarr"):
+        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
+    return out
+
+
 def _cmd_flatfield(args):
     from .cube import Sensor, flatfield, read_cube
     from .cube.io import write_dataset
@@ -61,15 +77,7 @@ def _cmd_flatfield(args):
     inputs = [args.raw, *args.dark, *args.white]
     if args.filter_white is not None:
         inputs.append(args.filter_white)
-    out = Path(args.out)
-    # Checked again by write_dataset, but here before any (possibly long) reading.
-    for src in inputs:
-        if Path(src).resolve() == out.resolve():
-            raise ValueError(f"output {out} is also an input; choose another output path")
-    if out.exists() and not args.overwrite:
-        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
-    if out.suffix.lower() not in (".nc", ".zarr"):
-        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
+    out = _dataset_output(args.out, inputs, args.overwrite)
     wl = Sensor.load(args.sensor).cwl_nm if args.sensor else None
 
     def read(path):  # chunked: cubes larger than memory stream through dask
@@ -117,15 +125,8 @@ def _cmd_correct(args):
     from .cube.io import write_dataset
     from .optics import Lens
 
-    out = Path(args.out)
     inputs = [args.cube, args.lens, args.sensor]
-    for src in inputs:  # checked again by write_dataset, but before any reading
-        if Path(src).resolve() == out.resolve():
-            raise ValueError(f"output {out} is also an input; choose another output path")
-    if out.exists() and not args.overwrite:
-        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
-    if out.suffix.lower() not in (".nc", ".zarr"):
-        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
+    out = _dataset_output(args.out, inputs, args.overwrite)
     lens = Lens.load(args.lens)
     sensor = Sensor.load(args.sensor)
     cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})  # lazily, as stored
