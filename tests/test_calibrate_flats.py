@@ -121,6 +121,11 @@ def test_single_f_number_needs_h():
     res = _calibrate(flats, PAPER, vignetting_distance_mm=16.991)
     assert abs(res.lens.vignetting_distance_mm - 16.991) < 1e-12
     assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    fig = res.plot()  # the profile without cos^4 against the model
+    assert len(fig.axes[1].lines) >= 2 and "relative illumination" in fig.axes[1].get_ylabel()
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
 
 
 def test_no_onset_inside_the_field_chooses_the_ideal_aperture():

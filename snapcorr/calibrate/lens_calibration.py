@@ -196,9 +196,26 @@ class LensCalibration:
                 if np.isfinite(model_on[j]):
                     ax1.axvline(model_on[j], color=c, lw=0.6, ls=":")
             ax1.set(xlabel="chief-ray angle (deg)",
-                    ylabel=f"ratio to f/{self.reference_f_number:g}",
-                    title=f"o: onsets found; black: model ({self.method}, "
-                          f"{_CIRCLES[self.model]}); dotted: model onsets")
+                    ylabel=f"ratio to f/{self.reference_f_number:g}")
+            ax1.set_title(f"o onsets found; black: {self.method} fit, {_CIRCLES[self.model]}; "
+                          "dotted: its onsets", fontsize=10)
+            ax1.legend(fontsize=8)
+        elif len(axes) > 1:  # one flat: the profile without cos^4 against the model
+            ax1 = axes[1]
+            f = float(self.f_numbers[0])
+            prof = self.profiles[f]
+            q = prof.value / np.cos(np.deg2rad(prof.cra_deg)) ** 4
+            norm = float(np.nanmax(q[: max(3, q.size // 20)]))
+            ax1.plot(prof.cra_deg, q / norm, ".", ms=2, label=f"f/{f:g} / cos^4")
+            theta = np.linspace(0, self.max_cra_deg, 400)
+            ax1.plot(theta, self.lens.relative_illumination(f, theta), "k-", lw=0.8,
+                     label="model")
+            o = self.onsets["ratio"].get(f)
+            if o is not None and o.found:
+                ax1.axvline(o.cra_deg, color="k", ls=":", lw=0.8)
+            ax1.set(xlabel="chief-ray angle (deg)", ylabel="relative illumination")
+            ax1.set_title(f"one flat, h given: {self.method} fit; dotted: onset found",
+                          fontsize=10)
             ax1.legend(fontsize=8)
         return fig
 
