@@ -7,7 +7,7 @@ import numpy as np
 
 from snapcorr import __version__
 
-from . import calibration, correct, mean_shift
+from . import calibration, correct, mean_shift, speed_accuracy
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
 parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
@@ -20,5 +20,7 @@ calibration.full_size_time(quick=args.quick)
 calibration.noise_sweep(quick=args.quick, write=not args.quick)
 print()
 correct.run(quick=args.quick)
+print()
+speed_accuracy.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

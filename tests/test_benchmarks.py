@@ -35,3 +35,16 @@ def test_quick_correction_benchmark_runs():
     r = correct.run(quick=True, echo=lines.append)
     assert r["copy_s"] > 0 and r["resample_s"] > 0 and r["shift_map_s"] > 0
     assert np.isfinite(r["peak_ratio"]) and any("target 1.5 x" in line for line in lines)
+
+
+def test_quick_speed_accuracy_chart_runs_and_the_default_meets_its_tolerance():
+    from benchmarks import speed_accuracy
+
+    rows = speed_accuracy.run(quick=True, echo=lambda *_: None, write=False)
+    assert {r["method"] for r in rows} >= {"contour quadrature", "lookup (ShiftGrid)",
+                                           "asymptotic (Eq. 6)", "Riemann sum (paper)",
+                                           "Rienstra transform", "mean_shift auto"}
+    for r in rows:
+        if r["default"]:
+            assert r["worst_error_nm"] <= 1e-3  # auto's stated tolerance, over the whole grid
+    assert any(r["pareto"] for r in rows)
