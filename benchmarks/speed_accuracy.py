@@ -74,12 +74,14 @@ def _measure(lname, lens, f, cra, n_slow, quick):
     gs = _geom(lens, fs, cs)
     rows = []
 
-    def add(method, setting, timed, m, default=False):
+    def add(method, setting, timed, m, default=False, setup=0.0):
         per_eval, values = timed
         err = np.abs(values - ref[:m])
         bad = int(np.sum(~np.isfinite(err)))
         rows.append({"lens": lname, "method": method, "setting": setting,
                      "seconds_per_eval": per_eval,
+                     # with a one-off set-up (building a lookup) shared by these n evaluations
+                     "seconds_per_eval_with_setup": per_eval + setup / n,
                      "worst_error_nm": float(np.max(err)) if bad == 0 else np.inf,
                      "non_finite": bad, "default": default})
 
@@ -90,7 +92,8 @@ def _measure(lname, lens, f, cra, n_slow, quick):
         except ValueError:  # a kernel narrower than the step: the sum sees no sample
             rows.append({"lens": lname, "method": "Riemann sum (paper)",
                          "setting": f"step {step} nm (fails on narrow kernels)",
-                         "seconds_per_eval": np.nan, "worst_error_nm": np.inf,
+                         "seconds_per_eval": np.nan, "seconds_per_eval_with_setup": np.nan,
+                         "worst_error_nm": np.inf,
                          "non_finite": n_slow, "default": False})
             continue
         add("Riemann sum (paper)", f"step {step} nm", timed, n_slow)
@@ -100,10 +103,12 @@ def _measure(lname, lens, f, cra, n_slow, quick):
     add("asymptotic (Eq. 6)", "-", _timed(
         lambda: mean_shift(CWL, NEFF, f, cra, lens, method="asymptotic"), n), n)
     for tol in (1e-1, 1e-2, 1e-3, 1e-4):
+        t0 = time.perf_counter()
         grid = ShiftGrid.build(NEFF, lens, f_range=(1.2, 16.0), cra_max_deg=30.0,
                                tolerance_nm=tol, cwl_max_nm=CWL)
+        build = time.perf_counter() - t0
         add("lookup (ShiftGrid)", f"tolerance {tol:g} nm, {grid.values.size} values",
-            _timed(lambda grid=grid: grid(CWL, f, cra), n), n)
+            _timed(lambda grid=grid: grid(CWL, f, cra), n), n, setup=build)
     for step in ((1.0,) if quick else (1.0, 0.5, 0.25)):
         add("Rienstra transform", f"step {step} deg",
             _timed(lambda step=step: _rienstra(lens, fs, cs, step), n_slow, 1), n_slow)
@@ -125,10 +130,9 @@ def run(*, quick=False, echo=print, write=True):
     for lname in LENSES:
         sel = [r for r in rows if r["lens"] == lname]
         best = np.inf
-        for r in sorted(sel, key=lambda r: (np.isnan(r["seconds_per_eval"]),
-                                            r["seconds_per_eval"])):
-            r["pareto"] = bool(np.isfinite(r["seconds_per_eval"])
-                               and r["worst_error_nm"] < best)
+        key = "seconds_per_eval_with_setup"  # the cost of answering these n pairs once
+        for r in sorted(sel, key=lambda r: (np.isnan(r[key]), r[key])):
+            r["pareto"] = bool(np.isfinite(r[key]) and r["worst_error_nm"] < best)
             best = min(best, r["worst_error_nm"])
     echo(f"{'lens':<20} {'method':<22} {'setting':<34} {'s/eval':>9} {'worst nm':>9} "
          f"{'non-finite':>10}  front")
@@ -156,22 +160,24 @@ def _write(rows):
                              sharey=True)
     for ax, lname in zip(axes, LENSES, strict=True):
         sel = [r for r in rows if r["lens"] == lname]
+        key = "seconds_per_eval_with_setup"
         for k, m in enumerate(methods):
-            pts = sorted((r for r in sel if r["method"] == m
-                          and np.isfinite(r["seconds_per_eval"])),
-                         key=lambda r: r["seconds_per_eval"])
-            ax.plot([r["seconds_per_eval"] for r in pts],
-                    [max(r["worst_error_nm"], 1e-13) for r in pts], "o-", color=f"C{k}",
-                    label=m, ms=5)
-        front = sorted((r for r in sel if r["pareto"]), key=lambda r: r["seconds_per_eval"])
-        ax.step([r["seconds_per_eval"] for r in front],
-                [max(r["worst_error_nm"], 1e-13) for r in front], "k--", where="post", lw=0.8,
-                label="Pareto front")
+            pts = sorted((r for r in sel if r["method"] == m and np.isfinite(r[key])),
+                         key=lambda r: r[key])
+            err = [max(r["worst_error_nm"], 1e-13) for r in pts]
+            ax.plot([r[key] for r in pts], err, "o-", color=f"C{k}", label=m, ms=5)
+            if any(r[key] != r["seconds_per_eval"] for r in pts):
+                ax.plot([r["seconds_per_eval"] for r in pts], err, "o", color=f"C{k}",
+                        mfc="none", ms=5, label=f"{m}, set-up excluded")
+        front = sorted((r for r in sel if r["pareto"]), key=lambda r: r[key])
+        ax.step([r[key] for r in front], [max(r["worst_error_nm"], 1e-13) for r in front],
+                "k--", where="post", lw=0.8, label="Pareto front")
         d = next(r for r in sel if r["default"])
-        ax.plot(d["seconds_per_eval"], max(d["worst_error_nm"], 1e-13), "*", ms=16,
+        ax.plot(d[key], max(d["worst_error_nm"], 1e-13), "*", ms=16,
                 mfc="none", mec="k", label="default (auto)")
         ax.axhline(0.01, color="grey", lw=0.6, ls=":")
-        ax.set(xscale="log", yscale="log", xlabel="time per evaluation (s, this machine)",
+        ax.set(xscale="log", yscale="log",
+               xlabel="time per evaluation, set-up included (s, this machine)",
                title=lname)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("worst error over f/1.2-f/16, CRA 0-30 deg (nm)")
