@@ -48,3 +48,15 @@ def test_quick_speed_accuracy_chart_runs_and_the_default_meets_its_tolerance():
         if r["default"]:
             assert r["worst_error_nm"] <= 1e-3  # auto's stated tolerance, over the whole grid
     assert any(r["pareto"] for r in rows)
+
+
+def test_auto_never_lands_where_a_method_fails():
+    # the stability maps over (f-number, CRA) and over (h/x, P/R): auto's error stays within
+    # its tolerance (0.001 nm) everywhere, while the cheap models fail over large regions
+    from benchmarks import stability
+
+    res = stability.maps(quick=True)
+    assert res[("worst", "auto")] <= 1e-3
+    assert res[("worst", "asymptotic")] > 1.0 and res[("worst", "ideal")] > 1.0
+    fails = res[("fc", "asymptotic")]
+    assert np.nansum(fails >= 3) > 0.2 * np.isfinite(fails).sum()  # > 1 nm over a fifth
