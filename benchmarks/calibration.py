@@ -127,3 +127,61 @@ def full_size_time(*, quick=False, echo=print):
          f"P {100 * (P / 7.4236 - 1):+.3f} %, h {100 * (h / 16.991 - 1):+.3f} % "
          f"({res.method}, {res.model} circle)")
     return seconds, res
+
+
+SUBSETS = ((1.4, 8.0), (1.4, 2.8, 8.0), (1.4, 2.0, 4.0, 8.0), F_NUMBERS)
+
+
+def fnumber_sweep(*, quick=False, echo=print, write=True):
+    """Error in P and h (percent) against the number of f-numbers used, 2 % noise."""
+    shape, pitch = ((256, 256), 44.0) if quick else ((512, 512), 22.0)
+    seeds = (0,) if quick else (0, 1, 2)
+    subsets = SUBSETS[-1:] if quick else SUBSETS
+    rows = []
+    echo(f"calibration against the number of f-numbers (2 % noise, {len(seeds)} seed(s)):")
+    for fs in subsets:
+        for seed in seeds:
+            flats = _flats(shape, pitch, 1.0 / 0.02**2, seed)
+            res = _calibrate({f: flats[f] for f in fs}, pitch)
+            est = _estimates(res)
+            cells = []
+            for e in ESTIMATORS:
+                P, h = est[e]
+                dP, dh = 100 * (P / 7.4236 - 1), 100 * (h / 16.991 - 1)
+                rows.append({"f_numbers": " ".join(f"{f:g}" for f in fs), "n": len(fs),
+                             "seed": seed, "estimator": e, "P_error_pct": dP,
+                             "h_error_pct": dh})
+                cells.append(f"{e}: P {dP:+.2f}% h {dh:+.2f}%")
+            echo(f"  f/{', f/'.join(f'{f:g}' for f in fs):<28} seed {seed}: "
+                 + "; ".join(cells))
+    if write:
+        _write_fnumbers(rows)
+    return rows
+
+
+def _write_fnumbers(rows):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(HERE / "calibration_fnumbers.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    for ax, key, name in ((axes[0], "P_error_pct", "P"), (axes[1], "h_error_pct", "h")):
+        for k, e in enumerate(ESTIMATORS):
+            sel = [r for r in rows if r["estimator"] == e and np.isfinite(r[key])]
+            n = np.array([r["n"] for r in sel], float)
+            err = np.abs([r[key] for r in sel])
+            ax.plot(n + 0.06 * (k - 1), err, "o", color=f"C{k}", alpha=0.7, label=e)
+        ax.axhline(1.0, color="k", lw=0.6, ls=":")
+        ax.set(yscale="log", xlabel="number of f-numbers (the highest is the reference)",
+               ylabel=f"|error in {name}| (%)", xticks=[2, 3, 4, 5],
+               title=f"{name}; missing points: no estimate (too few onsets)")
+        ax.legend(fontsize=8)
+    fig.suptitle("Calibration of the paper's 16 mm lens against the number of f-numbers "
+                 "(2 % noise, 3 seeds)")
+    fig.savefig(HERE / "calibration_fnumbers.png", dpi=110)
+    plt.close(fig)
