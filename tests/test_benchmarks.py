@@ -60,3 +60,11 @@ def test_auto_never_lands_where_a_method_fails():
     assert res[("worst", "asymptotic")] > 1.0 and res[("worst", "ideal")] > 1.0
     fails = res[("fc", "asymptotic")]
     assert np.nansum(fails >= 3) > 0.2 * np.isfinite(fails).sum()  # > 1 nm over a fifth
+
+
+def test_quick_fnumber_sweep_runs():
+    from benchmarks import calibration
+
+    rows = calibration.fnumber_sweep(quick=True, echo=lambda *_: None, write=False)
+    joint = [r for r in rows if r["estimator"] == "joint"]
+    assert joint and all(abs(r["P_error_pct"]) < 1 and abs(r["h_error_pct"]) < 1 for r in joint)
