@@ -11,7 +11,6 @@ data (``calibration_noise.csv``) are written next to this file.
 
 from __future__ import annotations
 
-import csv
 import time
 from pathlib import Path
 
@@ -20,6 +19,8 @@ import numpy as np
 from snapcorr import Lens
 from snapcorr.calibrate import calibrate_lens
 from snapcorr.simulate import flat_field
+
+from . import pyplot, write_csv
 
 PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
@@ -76,23 +77,13 @@ def noise_sweep(*, quick=False, echo=print, write=True):
                 cells.append(f"P {dP:+7.2f}% h {dh:+7.2f}%")
             echo(f"{100 * noise:>5.1f}% {seed:>4}  " + "  ".join(f"{c:>22}" for c in cells))
     if write:
-        _write(rows, quick=quick)
+        _write(rows)
     return rows
 
 
-def _write(rows, *, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    suffix = "_quick" if quick else ""
-    csv_path = HERE / f"calibration_noise{suffix}.csv"
-    # (quick runs are smoke tests; python -m benchmarks --quick does not write them)
-    with open(csv_path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+def _write(rows):
+    plt = pyplot()
+    write_csv(HERE / "calibration_noise.csv", rows)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     for ax, key, name in ((axes[0], "P_error_pct", "P"), (axes[1], "h_error_pct", "h")):
         for k, e in enumerate(ESTIMATORS):
@@ -110,7 +101,7 @@ def _write(rows, *, quick):
         ax.legend(fontsize=8)
     fig.suptitle("Calibration of the paper's 16 mm lens from simulated sphere flats "
                  "(f/1.4-f/8); dotted: the 1 % requirement")
-    fig.savefig(HERE / f"calibration_noise{suffix}.png", dpi=110)
+    fig.savefig(HERE / "calibration_noise.png", dpi=110)
     plt.close(fig)
 
 
@@ -160,15 +151,8 @@ def fnumber_sweep(*, quick=False, echo=print, write=True):
 
 
 def _write_fnumbers(rows):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    with open(HERE / "calibration_fnumbers.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    plt = pyplot()
+    write_csv(HERE / "calibration_fnumbers.csv", rows)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     for ax, key, name in ((axes[0], "P_error_pct", "P"), (axes[1], "h_error_pct", "h")):
         for k, e in enumerate(ESTIMATORS):

@@ -12,7 +12,6 @@ marked.
 
 from __future__ import annotations
 
-import csv
 import time
 import warnings
 from pathlib import Path
@@ -23,6 +22,8 @@ from snapcorr import Lens, mean_shift
 from snapcorr.optics import EffectiveIndexWarning, ShiftGrid
 from snapcorr.optics import goossens2019 as g19
 from snapcorr.optics import rienstra1998 as r98
+
+from . import pyplot, write_csv
 
 CWL, NEFF = 700.0, 1.7
 LENSES = {
@@ -146,15 +147,8 @@ def run(*, quick=False, echo=print, write=True):
 
 
 def _write(rows):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    with open(HERE / "speed_accuracy.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    plt = pyplot()
+    write_csv(HERE / "speed_accuracy.csv", rows)
     methods = sorted({r["method"] for r in rows})
     fig, axes = plt.subplots(1, len(LENSES), figsize=(13, 5), constrained_layout=True,
                              sharey=True)

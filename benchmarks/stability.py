@@ -18,6 +18,8 @@ from snapcorr import Lens, mean_shift
 from snapcorr.optics import EffectiveIndexWarning
 from snapcorr.optics import goossens2019 as g19
 
+from . import pyplot
+
 CWL, NEFF = 700.0, 1.7
 HERE = Path(__file__).parent
 PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
@@ -96,10 +98,6 @@ def run(*, quick=False, echo=print, write=True):
 
 
 def _write(res):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
     with open(HERE / "stability.csv", "w", newline="") as fh:
@@ -112,6 +110,7 @@ def _write(res):
                         c = res[(key, m)][i, j]
                         w.writerow([key, m, f"{u:.4g}", f"{v:.4g}",
                                     "" if np.isnan(c) else LABELS[int(c)]])
+    plt = pyplot()
     cmap = ListedColormap(["#1a9850", "#a6d96a", "#fdae61", "#d73027", "#000000"])
     norm = BoundaryNorm(np.arange(-0.5, 5.5), cmap.N)
     fig, axes = plt.subplots(2, len(METHODS), figsize=(4 * len(METHODS), 7.5),
