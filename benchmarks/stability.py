@@ -15,17 +15,74 @@ from pathlib import Path
 import numpy as np
 
 from snapcorr import Lens, mean_shift
-from snapcorr.optics import EffectiveIndexWarning
+from snapcorr.optics import EffectiveIndexWarning, ShiftGrid
 from snapcorr.optics import goossens2019 as g19
+from snapcorr.optics import rienstra1998 as r98
 
 from . import pyplot
 
 CWL, NEFF = 700.0, 1.7
 HERE = Path(__file__).parent
 PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
-METHODS = ("asymptotic", "ideal", "riemann", "auto")
 EDGES = (0.01, 0.1, 1.0)
 LABELS = ("< 0.01 nm", "0.01-0.1", "0.1-1", "> 1 nm", "no answer")
+
+
+def _geometry(lens, f, cra):
+    x = lens.exit_pupil_mm
+    t = np.tan(np.deg2rad(cra))
+    return (x, lens.exit_pupil_radius_mm(f), x * t, lens.vignetting_radius_mm,
+            (lens.vignetting_distance_mm or 0.0) * t)
+
+
+def _api(method, **kw):
+    return lambda lens, f, cra: mean_shift(CWL, NEFF, f, cra, lens, method=method, **kw)
+
+
+def _contour(nodes):
+    return lambda lens, f, cra: g19.mean_shift_contour(CWL, NEFF, *_geometry(lens, f, cra),
+                                                       nodes=nodes)
+
+
+def _riemann(step):
+    return lambda lens, f, cra: g19.mean_shift_riemann(CWL, NEFF, *_geometry(lens, f, cra),
+                                                       step_nm=step)
+
+
+def _grid(tolerance):
+    cache = {}
+
+    def fn(lens, f, cra):
+        if lens not in cache:  # built once per lens over the whole chart, as auto caches it
+            cache.clear()
+            cache[lens] = ShiftGrid.build(NEFF, lens, f_range=(1.2, 16.0), cra_max_deg=30.0,
+                                          tolerance_nm=tolerance, cwl_max_nm=CWL)
+        return cache[lens](CWL, f, cra)
+    return fn
+
+
+def _rienstra(step):
+    def fn(lens, f, cra):
+        theta, w = r98.ray_bundle_weights(float(lens.working_f_number(f)), float(cra),
+                                          step_deg=step, lens=lens)
+        with np.errstate(invalid="ignore", divide="ignore"):  # no ring inside: NaN
+            return CWL * (np.sum(w * r98.shift_factors(theta, NEFF)) / np.sum(w) - 1.0)
+    return fn
+
+
+# label -> (function of (lens, f-number, CRA), one setting of each method on the chart)
+METHODS = {
+    "asymptotic": _api("asymptotic"),
+    "ideal": _api("ideal"),
+    "riemann 0.01 nm": _riemann(0.01),
+    "riemann 0.1 nm": _riemann(0.1),
+    "rienstra 1 deg": _rienstra(1.0),
+    "contour 2 nodes": _contour(2),
+    "contour 4 nodes": _contour(4),
+    "grid 0.01 nm": _grid(0.01),
+    "table 0.01 nm": _api("table", tolerance_nm=0.01),
+    "auto": _api("auto"),
+}
 
 
 def _classify(err):
@@ -35,15 +92,12 @@ def _classify(err):
 
 
 def _errors(method, lens, f, cra):
-    x = lens.exit_pupil_mm
-    t = np.tan(np.deg2rad(cra))
-    ref = g19.mean_shift_contour(CWL, NEFF, x, lens.exit_pupil_radius_mm(f), x * t,
-                                 lens.vignetting_radius_mm,
-                                 (lens.vignetting_distance_mm or 0.0) * t, nodes=48)
+    ref = g19.mean_shift_contour(CWL, NEFF, *_geometry(lens, f, cra), nodes=48)
+    fn = METHODS[method]
     out = np.full(f.shape, np.nan)
     for i in np.ndindex(f.shape):  # per element: one failure must not hide the others
         try:
-            out[i] = mean_shift(CWL, NEFF, f[i], cra[i], lens, method=method)
+            out[i] = fn(lens, f[i], cra[i])
         except ValueError:
             pass
     return np.abs(out - ref)
@@ -90,7 +144,7 @@ def run(*, quick=False, echo=print, write=True):
             c = res[(key, m)]
             c = c[np.isfinite(c)]
             counts = [int(np.sum(c == i)) for i in range(len(LABELS))]
-            echo(f"{m:<11} {'f-number x CRA' if key == 'fc' else 'h/x x P/R':<15} "
+            echo(f"{m:<16} {'f-number x CRA' if key == 'fc' else 'h/x x P/R':<15} "
                  + "  ".join(f"{lab}: {n}" for lab, n in zip(LABELS, counts, strict=True)))
     if write:
         _write(res)
@@ -113,18 +167,20 @@ def _write(res):
     plt = pyplot()
     cmap = ListedColormap(["#1a9850", "#a6d96a", "#fdae61", "#d73027", "#000000"])
     norm = BoundaryNorm(np.arange(-0.5, 5.5), cmap.N)
-    fig, axes = plt.subplots(2, len(METHODS), figsize=(4 * len(METHODS), 7.5),
-                             constrained_layout=True)
-    for col, m in enumerate(METHODS):
-        for row, (key, a0, a1, l0, l1) in enumerate((
+    ncol = (len(METHODS) + 1) // 2
+    fig, axes = plt.subplots(4, ncol, figsize=(3.3 * ncol, 12.5), constrained_layout=True)
+    for k, m in enumerate(METHODS):
+        for block, (key, a0, a1, l0, l1) in enumerate((
                 ("fc", res["f"], res["cra"], "f-number", "CRA (deg)"),
                 ("hp", res["hx"], res["PR"], "h / x", "P / R"))):
-            ax = axes[row, col]
+            ax = axes[2 * block + k // ncol, k % ncol]
             im = ax.pcolormesh(a1, a0, res[(key, m)], cmap=cmap, norm=norm, shading="nearest")
-            ax.set(xlabel=l1, ylabel=l0, title=f"{m}" + ("" if row == 0 else
-                                                         " (f/2, CRA 15 deg)"))
+            ax.set(xlabel=l1, ylabel=l0, title=m + ("" if block == 0 else " (f/2, CRA 15)"))
             if key == "fc":
                 ax.set_yscale("log")
+    if len(METHODS) % 2:  # an odd number of methods leaves one panel of each map empty
+        axes[1, -1].set_visible(False)
+        axes[3, -1].set_visible(False)
     cb = fig.colorbar(im, ax=axes, ticks=range(5))
     cb.ax.set_yticklabels(LABELS)
     fig.suptitle("Error of each method against the exact mean (700 nm, n_eff 1.7); white: the "
