@@ -16,6 +16,7 @@ References
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,6 +109,24 @@ def _lorentz(lam, centre, fwhm):
     return 1.0 / (1.0 + ((lam - centre) / (0.5 * fwhm)) ** 2)
 
 
+def _multi_lorentzian_shape(lam, k):
+    return _lorentz(lam, 0.0, 16 * k) * _lorentz(lam, -4 * k, 6 * k) * _lorentz(lam, 4 * k, 6 * k)
+
+
+@functools.cache
+def _multi_lorentzian_unit():
+    """Scale ``k`` giving the product a FWHM of 1 nm, and the product's maximum."""
+
+    def width(k):
+        lam = np.linspace(-40 * k, 40 * k, 16001)
+        return fwhm_of(lam, _multi_lorentzian_shape(lam, k)) - 1.0
+
+    k = brentq(width, 0.01, 10.0, xtol=1e-13)
+    # The product is slightly double-humped: normalise by its true maximum.
+    lam = np.linspace(-8 * k, 8 * k, 160001)
+    return k, float(_multi_lorentzian_shape(lam, k).max())
+
+
 @dataclass(frozen=True)
 class MultiLorentzian:
     """Flittner & Slater's multi-Lorentzian: the product of three Lorentzians, cut at 5 %.
@@ -127,23 +146,11 @@ class MultiLorentzian:
     def __post_init__(self):
         if not (self.fwhm_nm > 0 and self.cwl_nm > 0):
             raise ValueError("cwl_nm and fwhm_nm must be > 0")
-
-        def shape(lam, k):
-            return (
-                _lorentz(lam, 0.0, 16 * k)
-                * _lorentz(lam, -4 * k, 6 * k)
-                * _lorentz(lam, 4 * k, 6 * k)
-            )
-
-        def width(k):
-            lam = np.linspace(-40 * k, 40 * k, 16001)
-            return fwhm_of(lam, shape(lam, k)) - self.fwhm_nm
-
-        k = brentq(width, 0.01 * self.fwhm_nm, 10 * self.fwhm_nm, xtol=1e-12)
-        object.__setattr__(self, "scale", k)
-        # The product is slightly double-humped: normalise by its true maximum.
-        lam = np.linspace(-8 * k, 8 * k, 160001)
-        object.__setattr__(self, "_norm", float(shape(lam, k).max()))
+        k1, norm = _multi_lorentzian_unit()
+        # every length of the shape scales with k, so k is proportional to the FWHM and the
+        # maximum does not depend on it
+        object.__setattr__(self, "scale", k1 * float(self.fwhm_nm))
+        object.__setattr__(self, "_norm", norm)
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
         centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
