@@ -1,0 +1,525 @@
+"""Radiometric error budget: how much a filter's shift changes the signal of a scene.
+
+A wavelength shift matters only as much as the scene's spectrum changes within the filter's
+band. Flittner & Slater (1991) define the signal change of a band whose passband moves from
+``lambda`` to ``lambda + dlambda`` as
+
+    ERROR(lambda, dlambda) = (P(lambda + dlambda) - P(lambda)) / P(lambda),
+
+where ``P`` integrates the filter profile times the source spectrum. Behind a lens a pixel's
+filter is not only moved but also smeared by the angular kernel (Goossens et al. 2019,
+Eq. 13 and Sec. 3.4): the pixel measures ``sum_k w_k P(cwl + mu_k)`` over the kernel's bins
+(:func:`~snapcorr.optics.response.kernel_bins`). A correction model places the filter at
+``cwl + mean_shift``; what it leaves is the *residual*
+
+    residual = P_pixel / P(cwl + mean_shift_model) - 1,
+
+which for ``"none"`` is the error of not correcting at all, and which even the exact mean
+(``"vignetted"``) leaves where the scene's spectrum is curved within the band (the kernel
+changes the filter's shape). :func:`scene_budget` tabulates it over band and chief-ray angle;
+:meth:`Budget.recommend` picks the cheapest model whose residual is below a radiometric
+tolerance, :meth:`Budget.radius_mm` gives Mishev & Bakalova's radius of the field inside which
+the effect stays below a tolerance, and :func:`tolerance_ranges` is Flittner & Slater's
+Table 1 analysis.
+
+References
+----------
+.. [1] D. E. Flittner, P. N. Slater, "Stability of narrow-band filter radiometers in the
+   solar-reflective range", Photogramm. Eng. Remote Sens. 57, 165 (1991).
+.. [2] D. N. Mishev, K. P. Bakalova, "Multispectral imagery and interference filter effects".
+.. [3] T. Goossens et al., "Vignetted-aperture correction for spectral cameras with integrated
+   thin-film Fabry-Perot filters", Appl. Opt. 58, 1789 (2019).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ._validation import check_curve, validate_method
+from .optics import Lens, mean_shift
+from .optics.profiles import MultiLorentzian, PiShaped
+from .optics.response import kernel_bins
+
+__all__ = [
+    "MODELS",
+    "PROFILES",
+    "Budget",
+    "Spectrum",
+    "band_signal",
+    "blackbody",
+    "cube_spectrum",
+    "parse_source",
+    "read_spectrum",
+    "relative_signal",
+    "scene_budget",
+    "shift_error",
+    "solar",
+    "tolerance_ranges",
+]
+
+#: Correction models in order of cost (as ``snapcorr.correct``): the budget picks the first
+#: whose residual is below the tolerance.
+MODELS = ("none", "asymptotic", "ideal", "vignetted")
+
+#: Filter-profile models for a band of given centre and FWHM.
+PROFILES = {
+    "multi_lorentzian": lambda cwl, fwhm, n_eff: MultiLorentzian(cwl, fwhm, n_eff),
+    "pi": lambda cwl, fwhm, n_eff: PiShaped(cwl, fwhm, n_eff),
+}
+
+#: Tungsten lamps are modelled as blackbodies at their colour temperature (CIE illuminant A,
+#: the incandescent lamp, is defined as Planck's law at 2856 K).
+_C2_NM_K = 1.438776877e7  # second radiation constant, nm K
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """A source spectrum sampled at increasing wavelengths (nm); any linear unit.
+
+    Between samples it is interpolated linearly; outside the sampled range it is undefined, and
+    asking for it raises ``ValueError``.
+    """
+
+    wavelength_nm: np.ndarray
+    values: np.ndarray
+    name: str = "spectrum"
+
+    def __post_init__(self):
+        w, v = check_curve(self.wavelength_nm, self.values)
+        if np.any(v < 0) or not np.any(v > 0):
+            raise ValueError(f"the spectrum {self.name!r} must be >= 0 and not all zero")
+        object.__setattr__(self, "wavelength_nm", w)
+        object.__setattr__(self, "values", v)
+
+    @property
+    def step_nm(self) -> float:
+        return float(np.median(np.diff(self.wavelength_nm)))
+
+    def __call__(self, wavelength_nm):
+        lam = np.asarray(wavelength_nm, float)
+        lo, hi = self.wavelength_nm[0], self.wavelength_nm[-1]
+        if lam.size and (lam.min() < lo - 1e-9 or lam.max() > hi + 1e-9):
+            raise ValueError(f"the spectrum {self.name!r} covers {lo:g}-{hi:g} nm; "
+                             f"{lam.min():.4g}-{lam.max():.4g} nm is needed")
+        return np.interp(lam, self.wavelength_nm, self.values)
+
+
+def solar(smoothing_nm=0.5, step_nm=0.1, range_nm=(300.0, 1100.0)) -> Spectrum:
+    """The Kurucz solar flux at 1 AU (``rms-solar``, shipped offline), as Flittner & Slater used
+    it: a sliding average over ``smoothing_nm`` sampled every ``step_nm``.
+
+    The model is the sun alone: it has the Fraunhofer lines but none of the Earth's oxygen or
+    water-vapour bands.
+    """
+    import solar as rms_solar  # the rms-solar package
+    from scipy.ndimage import uniform_filter1d
+
+    tab = rms_solar.flux_density("Kurucz", units="W/m^2/nm", xunits="nm")
+    grid = np.arange(range_nm[0], range_nm[1] + step_nm / 2, step_nm)
+    values = np.interp(grid, np.asarray(tab.x, float), np.asarray(tab.y, float))
+    width = max(1, round(smoothing_nm / step_nm))
+    if width > 1:
+        values = uniform_filter1d(values, width, mode="nearest")
+    return Spectrum(grid, values, f"sun (Kurucz, {smoothing_nm:g} nm sliding average)")
+
+
+def blackbody(temperature_k, wavelength_nm=None) -> Spectrum:
+    """Planck's law at ``temperature_k`` (relative spectral radiance); a tungsten lamp at its
+    colour temperature."""
+    t = float(temperature_k)
+    if not (math.isfinite(t) and t > 0):
+        raise ValueError(f"a temperature must be > 0 K, got {temperature_k!r}")
+    lam = np.arange(250.0, 2500.01, 0.5) if wavelength_nm is None else np.asarray(
+        wavelength_nm, float)
+    with np.errstate(over="ignore"):
+        v = 1.0 / (lam ** 5 * np.expm1(_C2_NM_K / (lam * t)))
+    return Spectrum(lam, v / v.max(), f"blackbody {t:g} K")
+
+
+def read_spectrum(path) -> Spectrum:
+    """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments,
+    comma, tab or space separated; a header row is skipped) or an ``.npy`` array of shape
+    (n, 2) or (2, n)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"no spectrum file {str(p)!r}")
+    if p.suffix == ".npy":
+        a = np.load(p)
+    else:
+        text = p.read_text()
+        delim = "," if "," in text else None
+        try:
+            a = np.genfromtxt(p, delimiter=delim, comments="#", invalid_raise=True)
+        except ValueError as exc:
+            raise ValueError(f"{p}: not a two-column table ({exc})") from None
+        if a.ndim == 2 and np.all(np.isnan(a[0])):
+            a = a[1:]  # a header row
+    a = np.asarray(a, float)
+    if a.ndim == 2 and a.shape[0] == 2 and a.shape[1] != 2:
+        a = a.T
+    if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 2:
+        raise ValueError(f"{p}: need two columns (wavelength nm, value), got shape {a.shape}")
+    order = np.argsort(a[:, 0])
+    try:
+        return Spectrum(a[order, 0], a[order, 1], p.name)
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}") from None
+
+
+def cube_spectrum(cube, y=None, x=None) -> Spectrum:
+    """The spectrum of one pixel of a cube (``y``, ``x``), or its mean over all pixels.
+
+    A cube samples the scene at its bands only: between band centres the spectrum is linear,
+    so structure narrower than the band spacing is not seen.
+    """
+    da = cube if y is None else cube.isel(y=y, x=x)
+    if y is None:
+        da = da.mean(("y", "x"), skipna=True)
+    v = np.asarray(da.values, float)
+    w = np.asarray(cube["wavelength"].values, float)
+    order = np.argsort(w)
+    ok = np.isfinite(v[order])
+    where = "mean" if y is None else f"pixel ({y}, {x})"
+    return Spectrum(w[order][ok], np.clip(v[order][ok], 0.0, None), f"cube {where}")
+
+
+def parse_source(text, cube=None) -> Spectrum:
+    """``"solar"``, ``"tungsten:TEMPERATURE_K"`` (or ``"blackbody:..."``), ``"cube"`` (the
+    mean spectrum of ``cube``) or the path of a spectrum file."""
+    t = str(text).strip()
+    kind, _, arg = t.partition(":")
+    if t == "solar":
+        return solar()
+    if kind in ("tungsten", "blackbody") and arg:
+        try:
+            temperature = float(arg)
+        except ValueError:
+            raise ValueError(f"{kind}: needs a temperature in K, e.g. {kind}:2856, "
+                             f"got {arg!r}") from None
+        return blackbody(temperature)
+    if t == "cube":
+        if cube is None:
+            raise ValueError("source 'cube' needs a cube")
+        return cube_spectrum(cube)
+    if Path(t).is_file():
+        return read_spectrum(t)
+    raise ValueError(f"unknown source {t!r}: use solar, tungsten:TEMPERATURE_K, cube or "
+                     "the path of a two-column spectrum file")
+
+
+def _filter_grid(profile, source):
+    """Offsets ``u`` from the profile's centre (nm), its samples and trapezoid weights."""
+    fwhm = float(profile.fwhm_nm)
+    h = min(source.step_nm / 2.0, fwhm / 100.0)
+    half = 6.0 * fwhm
+    u = np.arange(-half, half + h / 2, h)
+    t = np.asarray(profile(profile.cwl_nm + u), float)
+    nz = np.flatnonzero(t > 0)
+    if nz.size == 0:
+        raise ValueError("the filter profile is zero everywhere")
+    u, t = u[max(nz[0] - 1, 0):nz[-1] + 2], t[max(nz[0] - 1, 0):nz[-1] + 2]
+    w = np.full(u.size, h)
+    w[0] = w[-1] = h / 2
+    return u, t * w
+
+
+def relative_signal(source, profile, shifts_nm, *, chunk=2048):
+    """``P(cwl + shift) / P(cwl)`` of a filter ``profile`` (at normal incidence) moved by each
+    shift, for a ``source`` Spectrum: Flittner & Slater's P, as a ratio.
+
+    The integral runs in the filter's frame (fixed samples of the profile, the source
+    interpolated at the moved wavelengths), so a flat source gives exactly 1 for any shift.
+    """
+    s = np.asarray(shifts_nm, float)
+    if not np.all(np.isfinite(s)):
+        raise ValueError("shifts must be finite")
+    u, wt = _filter_grid(profile, source)
+    lam = profile.cwl_nm + u
+    flat = s.ravel()
+    out = np.empty(flat.size)
+    p0 = None
+    for lo in range(0, flat.size, chunk):
+        d = np.concatenate([[0.0], flat[lo:lo + chunk]])  # the reference in the same sum
+        v = source(lam[:, None] + d[None, :])
+        p = np.sum(wt[:, None] * v, axis=0)  # row by row: the same order for every column
+        p0 = p[0] if p0 is None else p0
+        if not p[0] > 0:
+            raise ValueError(f"the source {source.name!r} has no signal in the band at "
+                             f"{profile.cwl_nm:g} nm")
+        out[lo:lo + chunk] = p[1:] / p0
+    return out.reshape(s.shape)
+
+
+def band_signal(source, profile, aoi_deg=0.0, *, step_nm=None):
+    """``integral profile(lambda, aoi) * source(lambda) dlambda`` of a filter tilted by
+    ``aoi_deg`` in collimated light (Mishev & Bakalova's ``I(theta)``; their Pi-shaped filter
+    also widens and dims with the tilt). Trapezoid rule on a grid of ``step_nm`` (default: a
+    200th of the FWHM, at most half the source's sampling)."""
+    fwhm = float(profile.fwhm_nm)
+    h = min(source.step_nm / 2, fwhm / 200) if step_nm is None else float(step_nm)
+    out = []
+    for a in np.atleast_1d(np.asarray(aoi_deg, float)):
+        lo = profile.cwl_nm - 8 * fwhm / max(np.cos(np.deg2rad(2 * a)), 0.1) - 1.0
+        lam = np.arange(lo, profile.cwl_nm + 8 * fwhm + 1.0, h)
+        t = np.asarray(profile(lam, a), float)
+        nz = np.flatnonzero(t > 0)
+        lam = lam[max(nz[0] - 1, 0):nz[-1] + 2] if nz.size else lam[:2]
+        out.append(np.trapezoid(np.asarray(profile(lam, a), float) * source(lam), lam))
+    return np.asarray(out).reshape(np.shape(aoi_deg))
+
+
+def shift_error(source, profile, shift_nm):
+    """Flittner & Slater's ``ERROR(cwl, shift)`` as a fraction (x 100 for percent)."""
+    return relative_signal(source, profile, shift_nm) - 1.0
+
+
+def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_lorentzian",
+                     criteria=((1.0, 0.5), (5.0, 2.0)), search_nm=None, step_nm=0.1):
+    """Flittner & Slater's Table 1: for each band, the range of centre positions around the
+    nominal one where a shift of +-``shift`` nm changes the signal by less than ``limit_pct``.
+
+    Returns a list (one per band) of lists (one per criterion) of ``(lo, hi)`` in nm, or
+    ``None`` where the nominal centre itself fails ("NA" in their table).
+    """
+    validate_method(profile, PROFILES, "profile")
+    cwl = np.atleast_1d(np.asarray(cwl_nm, float))
+    fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape)
+    out = []
+    for c, fw in zip(cwl, fwhm, strict=True):
+        prof = PROFILES[profile](c, fw, n_eff)
+        u, _ = _filter_grid(prof, source)
+        search = 300.0 if search_nm is None else float(search_nm)
+        row = []
+        for shift, limit in criteria:
+            # centres c + j * step, j in [-kl, kh], kept where the moved filter stays inside
+            # the source's coverage
+            m = round(shift / step_nm)
+            room_lo = c + u[0] - source.wavelength_nm[0] - m * step_nm
+            room_hi = source.wavelength_nm[-1] - c - u[-1] - m * step_nm
+            kl = int(min(search, room_lo) // step_nm)
+            kh = int(min(search, room_hi) // step_nm)
+            if kl < 0 or kh < 0:
+                raise ValueError(f"the source {source.name!r} does not cover the band at "
+                                 f"{c:g} nm shifted by {shift:g} nm")
+            centres = np.arange(-kl, kh + 1) * step_nm
+            p = relative_signal(source, prof, np.arange(-kl - m, kh + m + 1) * step_nm)
+            base = p[m:m + centres.size]
+            ok = ((np.abs(p[2 * m:] / base - 1) < limit / 100)
+                  & (np.abs(p[:centres.size] / base - 1) < limit / 100))
+            if not ok[kl]:
+                row.append(None)
+                continue
+            bad_lo = np.flatnonzero(~ok[:kl])
+            bad_hi = np.flatnonzero(~ok[kl:])
+            lo = centres[bad_lo[-1] + 1] if bad_lo.size else centres[0]
+            hi = centres[kl + bad_hi[0] - 1] if bad_hi.size else centres[-1]
+            row.append((float(c + lo), float(c + hi)))
+        out.append(row)
+    return out
+
+
+@dataclass
+class Budget:
+    """The residual signal error of each correction model over band and chief-ray angle.
+
+    ``data`` is an :class:`xarray.Dataset` with ``residual(model, band, cra)`` (fraction),
+    ``mean_shift(model, band, cra)`` (nm), ``radius_mm(cra)`` and ``radius_px(cra)`` (image
+    radius of each CRA) and the set-up in attrs.
+    """
+
+    data: xr.Dataset
+    tolerance_pct: float = 0.5
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def models(self):
+        return tuple(str(m) for m in self.data["model"].values)
+
+    def worst_pct(self, model):
+        """Largest |residual| over bands and the field, percent."""
+        return float(np.abs(self.data["residual"].sel(model=model)).max()) * 100
+
+    def recommend(self, tolerance_pct=None):
+        """``(model, reason)``: the cheapest model whose residual stays below the tolerance
+        everywhere on the field; the best model when none does."""
+        tol = self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)
+        if not (math.isfinite(tol) and tol > 0):
+            raise ValueError(f"tolerance_pct must be > 0, got {tolerance_pct!r}")
+        worst = {m: self.worst_pct(m) for m in self.models}
+        src = self.data.attrs["source"]
+        for m in self.models:
+            if worst[m] <= tol:
+                cheaper = ", ".join(f"{c} {worst[c]:.2g} %" for c in self.models
+                                    if self.models.index(c) < self.models.index(m))
+                return m, (f"for {src}: {m} leaves at most {worst[m]:.2g} % <= {tol:g} %"
+                           + (f" (cheaper: {cheaper})" if cheaper else ""))
+        best = min(worst, key=worst.get)
+        return best, (f"for {src}: no model is within {tol:g} %; {best} leaves the least, "
+                      f"{worst[best]:.2g} % (the kernel also changes the filter's shape, "
+                      "which no shift of the wavelengths undoes)")
+
+    def radius_mm(self, tolerance_pct=None, model="none"):
+        """Mishev & Bakalova's radius: the image radius (mm) inside which ``model`` leaves no
+        band's signal off by more than the tolerance (all bands; the field's edge if it never
+        does)."""
+        tol = (self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)) / 100
+        err = np.abs(self.data["residual"].sel(model=model)).max("band").values
+        r = self.data["radius_mm"].values
+        over = np.flatnonzero(err > tol)
+        if over.size == 0:
+            return float(r[-1])
+        i = over[0]
+        if i == 0:
+            return 0.0
+        # linear between the last grid point inside and the first outside
+        f = (tol - err[i - 1]) / (err[i] - err[i - 1])
+        return float(r[i - 1] + f * (r[i] - r[i - 1]))
+
+    def pixel_residual(self, cra_deg, model="none"):
+        """Residual (fraction) of every pixel and band: the table interpolated at each
+        pixel's CRA; ``cra_deg`` of shape (y, x) or (y, x, band)."""
+        cra = np.asarray(cra_deg, float)
+        grid = self.data["cra"].values
+        if cra.size and (cra.min() < grid[0] - 1e-9 or cra.max() > grid[-1] + 1e-9):
+            raise ValueError(f"CRAs {cra.min():.3g}-{cra.max():.3g} deg leave the budget's "
+                             f"{grid[0]:.3g}-{grid[-1]:.3g} deg")
+        table = self.data["residual"].sel(model=model).values  # (band, cra)
+        nb = table.shape[0]
+        if cra.ndim == 2:
+            cra = np.broadcast_to(cra[:, :, None], (*cra.shape, nb))
+        out = np.empty(cra.shape)
+        for b in range(nb):
+            out[:, :, b] = np.interp(cra[:, :, b], grid, table[b])
+        return xr.DataArray(out, dims=("y", "x", "band"),
+                            attrs={"units": "1", "long_name": f"residual after {model}"})
+
+    def table(self, tolerance_pct=None):
+        """A plain-text table: per band, the worst residual of each model (percent)."""
+        d = self.data
+        head = f"{'band':>4} {'cwl nm':>8} " + " ".join(f"{m:>11}" for m in self.models)
+        lines = [head]
+        res = np.abs(d["residual"]).max("cra") * 100
+        for b in range(d.sizes["band"]):
+            lines.append(f"{b:>4} {float(d['wavelength'][b]):>8.2f} " + " ".join(
+                f"{float(res.sel(model=m)[b]):>10.3g}%" for m in self.models))
+        lines.append(f"{'all':>4} {'':>8} " + " ".join(
+            f"{self.worst_pct(m):>10.3g}%" for m in self.models))
+        return "\n".join(lines)
+
+    def plot(self, path=None, tolerance_pct=None):
+        """Worst residual against band and against image radius, for each model."""
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        tol = self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)
+        d = self.data
+        fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
+        for k, m in enumerate(self.models):
+            r = np.abs(d["residual"].sel(model=m)) * 100
+            a.semilogy(d["wavelength"], np.maximum(r.max("cra"), 1e-6), color=f"C{k}",
+                       label=m)
+            b.semilogy(d["radius_mm"], np.maximum(r.max("band"), 1e-6), color=f"C{k}",
+                       label=m)
+        for ax in (a, b):
+            ax.axhline(tol, color="k", ls=":", lw=0.8, label=f"tolerance {tol:g} %")
+            ax.set_ylabel("|signal error| (%)")
+            ax.grid(alpha=0.3)
+        rad = self.radius_mm(tol)
+        b.axvline(rad, color="C0", ls="--", lw=0.8,
+                  label=f"uncorrected within tolerance: r < {rad:.2f} mm")
+        a.set(xlabel="band centre (nm)", title="worst over the field")
+        b.set(xlabel="image radius (mm)", title="worst over the bands")
+        b.legend(fontsize=8)
+        fig.suptitle(f"Signal error from the filter shift: {d.attrs['source']}, "
+                     f"{d.attrs['lens']} at f/{d.attrs['f_number']:g}")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig
+
+
+def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="multi_lorentzian",
+                 n_cra=33, models=MODELS, tolerance_pct=0.5, kernel_step_nm=0.05,
+                 shift_step_nm=0.02):
+    """The residual of each correction model for every band of ``sensor`` over CRA
+    0..``cra_max_deg`` behind ``lens`` at ``f_number``, for the ``source`` spectrum.
+
+    Each band's filter is ``profile`` (``"multi_lorentzian"``, Flittner & Slater's; ``"pi"``,
+    Mishev & Bakalova's rectangle) of the sensor's FWHM. The pixel's signal is the full kernel
+    response (Goossens Eq. 13, :func:`~snapcorr.optics.response.kernel_bins`); each model's
+    residual is that signal over the signal of the filter placed at the model's mean shift,
+    minus 1.
+
+    Returns
+    -------
+    Budget
+    """
+    validate_method(profile, PROFILES, "profile")
+    for m in models:
+        validate_method(m, MODELS, "model")
+    f = float(f_number)
+    if not (math.isfinite(f) and f > 0):
+        raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+    cra_max = float(cra_max_deg)
+    cutoff = float(lens.cutoff_cra_deg(f))
+    if not (math.isfinite(cra_max) and 0 <= cra_max < cutoff):
+        raise ValueError(f"cra_max_deg must lie in [0, {cutoff:.2f}) deg (the lens's full "
+                         f"cut-off at f/{f:g}), got {cra_max_deg!r}")
+    cwl = np.asarray(sensor.cwl_nm, float)
+    fwhm = np.asarray(sensor.fwhm_nm, float)
+    n_eff = np.asarray(sensor.n_eff, float)
+    cra = np.linspace(0.0, cra_max, int(n_cra))
+    ref = float(cwl.max())
+    # The kernel in wavelength scales exactly with the filter's centre (Eq. 3): bins are built
+    # once per (n_eff, CRA) at the largest centre and scaled to each band.
+    bins = {}
+    for n in np.unique(n_eff):
+        bins[n] = [kernel_bins(ref, n, f, c, lens, step_nm=kernel_step_nm) for c in cra]
+    nb = cwl.size
+    residual = np.empty((len(models), nb, cra.size))
+    shifts = np.empty((len(models), nb, cra.size))
+    for b in range(nb):
+        prof = PROFILES[profile](cwl[b], fwhm[b], n_eff[b])
+        scale = cwl[b] / ref
+        per_model = {m: (np.zeros(cra.size) if m == "none" else
+                         np.asarray(mean_shift(cwl[b], n_eff[b], f, cra, lens, method=m),
+                                    float)) for m in models}
+        mus = [mu * scale for mu, _ in bins[n_eff[b]]]
+        # every shift this band needs: P on a fine grid of shifts, in one pass over the
+        # source, then interpolated (exactly 1 for a flat source)
+        allshift = np.concatenate(mus + list(per_model.values()))
+        d = shift_step_nm
+        grid = np.arange(np.floor(allshift.min() / d) - 1, np.ceil(allshift.max() / d) + 2) * d
+        r = np.interp(allshift, grid, relative_signal(source, prof, grid))
+        pos, pixel = 0, np.empty(cra.size)
+        for i, (_, w) in enumerate(bins[n_eff[b]]):
+            rk = r[pos:pos + w.size]
+            pixel[i] = np.sum(w * rk) / np.sum(w)  # exactly 1 where every rk is 1
+            pos += w.size
+        for k, m in enumerate(models):
+            rm = r[pos:pos + cra.size]
+            pos += cra.size
+            residual[k, b] = pixel / rm - 1.0
+            shifts[k, b] = per_model[m]
+    x = lens.exit_pupil_mm
+    radius = x * np.tan(np.deg2rad(cra))
+    ds = xr.Dataset(
+        {"residual": (("model", "band", "cra"), residual,
+                      {"units": "1", "long_name": "signal error left by the model"}),
+         "mean_shift": (("model", "band", "cra"), shifts, {"units": "nm"}),
+         "radius_mm": ("cra", radius, {"units": "mm", "long_name": "image radius"}),
+         "radius_px": ("cra", radius / sensor.pixel_pitch_mm, {"units": "px"})},
+        coords={"model": list(models), "cra": ("cra", cra, {"units": "deg"}),
+                "wavelength": ("band", cwl, {"units": "nm"})},
+        attrs={"source": source.name, "lens": lens.name, "f_number": f,
+               "sensor": sensor.name, "profile": profile, "kernel_step_nm": kernel_step_nm},
+    )
+    return Budget(ds, tolerance_pct=float(tolerance_pct))
