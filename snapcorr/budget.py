@@ -175,7 +175,8 @@ def cube_spectrum(cube, y=None, x=None) -> Spectrum:
     """The spectrum of one pixel of a cube (``y``, ``x``), or its mean over all pixels.
 
     A cube samples the scene at its bands only: between band centres the spectrum is linear,
-    so structure narrower than the band spacing is not seen.
+    so structure narrower than the band spacing is not seen; beyond the first and last band it
+    is held at their values (200 nm either side), for the filters' tails.
     """
     da = cube if y is None else cube.isel(y=y, x=x)
     if y is None:
@@ -185,7 +186,12 @@ def cube_spectrum(cube, y=None, x=None) -> Spectrum:
     order = np.argsort(w)
     ok = np.isfinite(v[order])
     where = "mean" if y is None else f"pixel ({y}, {x})"
-    return Spectrum(w[order][ok], np.clip(v[order][ok], 0.0, None), f"cube {where}")
+    w, v = w[order][ok], np.clip(v[order][ok], 0.0, None)
+    if w.size == 0:
+        raise ValueError(f"the cube's {where} spectrum has no finite value")
+    w = np.concatenate([[w[0] - 200.0], w, [w[-1] + 200.0]])
+    v = np.concatenate([[v[0]], v, [v[-1]]])
+    return Spectrum(w, v, f"cube {where}")
 
 
 def parse_source(text, cube=None) -> Spectrum:
@@ -279,12 +285,14 @@ def shift_error(source, profile, shift_nm):
 
 
 def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_lorentzian",
-                     criteria=((1.0, 0.5), (5.0, 2.0)), search_nm=None, step_nm=0.1):
+                     criteria=((1.0, 0.5), (5.0, 2.0)), search_nm=150.0, step_nm=0.1):
     """Flittner & Slater's Table 1: for each band, the range of centre positions around the
     nominal one where a shift of +-``shift`` nm changes the signal by less than ``limit_pct``.
 
-    Returns a list (one per band) of lists (one per criterion) of ``(lo, hi)`` in nm, or
-    ``None`` where the nominal centre itself fails ("NA" in their table).
+    Centres are tried every ``step_nm`` up to ``search_nm`` either side (and no further than
+    the source reaches). Returns a list (one per band) of lists (one per criterion) of
+    ``(lo, hi)`` in nm, or ``None`` where the nominal centre itself fails ("NA" in their
+    table).
     """
     validate_method(profile, PROFILES, "profile")
     cwl = np.atleast_1d(np.asarray(cwl_nm, float))
@@ -292,33 +300,38 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     out = []
     for c, fw in zip(cwl, fwhm, strict=True):
         prof = PROFILES[profile](c, fw, n_eff)
-        u, _ = _filter_grid(prof, source)
-        search = 300.0 if search_nm is None else float(search_nm)
+        u, wt = _filter_grid(prof, source)
+        h = u[1] - u[0]
+        sub = max(1, round(step_nm / h))  # centres every `sub` samples of the filter grid
+        m_max = max(round(shift / step_nm) for shift, _ in criteria) * sub
+        # centre offsets -kl..kh samples, plus room for the largest shift, inside the source
+        room_lo = (c + u[0] - source.wavelength_nm[0]) / h - m_max
+        room_hi = (source.wavelength_nm[-1] - c - u[-1]) / h - m_max
+        kl = int(min(search_nm / h, room_lo)) // sub * sub
+        kh = int(min(search_nm / h, room_hi)) // sub * sub
+        if kl < 0 or kh < 0:
+            raise ValueError(f"the source {source.name!r} does not cover the band at {c:g} nm "
+                             "and its shifts")
+        lam = c + u[0] + np.arange(-kl - m_max, kh + m_max + u.size) * h
+        # P at every centre offset on the grid: a correlation of the source with the filter
+        P = np.convolve(source(lam), wt[::-1], mode="valid")
         row = []
         for shift, limit in criteria:
-            # centres c + j * step, j in [-kl, kh], kept where the moved filter stays inside
-            # the source's coverage
-            m = round(shift / step_nm)
-            room_lo = c + u[0] - source.wavelength_nm[0] - m * step_nm
-            room_hi = source.wavelength_nm[-1] - c - u[-1] - m * step_nm
-            kl = int(min(search, room_lo) // step_nm)
-            kh = int(min(search, room_hi) // step_nm)
-            if kl < 0 or kh < 0:
-                raise ValueError(f"the source {source.name!r} does not cover the band at "
-                                 f"{c:g} nm shifted by {shift:g} nm")
-            centres = np.arange(-kl, kh + 1) * step_nm
-            p = relative_signal(source, prof, np.arange(-kl - m, kh + m + 1) * step_nm)
-            base = p[m:m + centres.size]
-            ok = ((np.abs(p[2 * m:] / base - 1) < limit / 100)
-                  & (np.abs(p[:centres.size] / base - 1) < limit / 100))
-            if not ok[kl]:
+            m = round(shift / step_nm) * sub
+            idx = m_max + kl + np.arange(-kl, kh + 1, sub)
+            base = P[idx]
+            ok = ((np.abs(P[idx + m] / base - 1) < limit / 100)
+                  & (np.abs(P[idx - m] / base - 1) < limit / 100))
+            k0 = kl // sub
+            if not ok[k0]:
                 row.append(None)
                 continue
-            bad_lo = np.flatnonzero(~ok[:kl])
-            bad_hi = np.flatnonzero(~ok[kl:])
-            lo = centres[bad_lo[-1] + 1] if bad_lo.size else centres[0]
-            hi = centres[kl + bad_hi[0] - 1] if bad_hi.size else centres[-1]
-            row.append((float(c + lo), float(c + hi)))
+            bad_lo = np.flatnonzero(~ok[:k0])
+            bad_hi = np.flatnonzero(~ok[k0:])
+            lo = bad_lo[-1] + 1 if bad_lo.size else 0
+            hi = k0 + bad_hi[0] - 1 if bad_hi.size else ok.size - 1
+            row.append((round(float(c + (lo - k0) * sub * h), 6),
+                        round(float(c + (hi - k0) * sub * h), 6)))
         out.append(row)
     return out
 
@@ -411,8 +424,9 @@ class Budget:
             f"{self.worst_pct(m):>10.3g}%" for m in self.models))
         return "\n".join(lines)
 
-    def plot(self, path=None, tolerance_pct=None):
-        """Worst residual against band and against image radius, for each model."""
+    def plot(self, path=None, tolerance_pct=None, *, inputs=()):
+        """Worst residual against band and against image radius, for each model; written
+        atomically to ``path`` (PNG) if given, never over one of ``inputs``."""
         import matplotlib
 
         if path is not None:
@@ -434,15 +448,21 @@ class Budget:
             ax.grid(alpha=0.3)
         rad = self.radius_mm(tol)
         b.axvline(rad, color="C0", ls="--", lw=0.8,
-                  label=f"uncorrected within tolerance: r < {rad:.2f} mm")
+                  label=(f"uncorrected within tolerance: r < {rad:.2f} mm" if rad > 0 else
+                         "uncorrected: over the tolerance even on axis"))
         a.set(xlabel="band centre (nm)", title="worst over the field")
         b.set(xlabel="image radius (mm)", title="worst over the bands")
         b.legend(fontsize=8)
         fig.suptitle(f"Signal error from the filter shift: {d.attrs['source']}, "
                      f"{d.attrs['lens']} at f/{d.attrs['f_number']:g}")
         if path is not None:
-            fig.savefig(path, dpi=110)
-            plt.close(fig)
+            from ._io import atomic_write
+
+            try:
+                atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
+                             inputs=[i for i in inputs if i is not None])
+            finally:
+                plt.close(fig)
         return fig
 
 

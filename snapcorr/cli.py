@@ -33,6 +33,12 @@ EXAMPLES = textwrap.dedent(
       snapcorr shift --f-number 1.4 --cra 0 10 20
                                           mean shift of 700 nm filters behind the bundled lens
       snapcorr shift --lens my_lens.toml --f-number 2.8 --cra 15 --cwl-nm 850 --n-eff 1.9
+      snapcorr budget --sensor snapscan_vnir --lens edmund_optics_16mm --f-number 1.4 \
+          --source solar --tolerance-pct 0.5 --plot budget.png
+                                          which bands and pixels need correcting, and how
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 4 \
+          --source cube --tolerance-pct 0.5 --out scene_corrected.nc
+                                          ... with the model the scene's own spectrum needs
     """
 )
 
@@ -45,6 +51,81 @@ def _lens(value):
     if path.suffix == ".toml" or path.exists():
         return Lens.load(path)
     return Lens.load(lens_path(value))
+
+
+def _sensor(value):
+    from .cube import Sensor
+    from .data import sensor_path
+
+    path = Path(value)
+    if path.suffix == ".toml" or path.exists():
+        return Sensor.load(path)
+    return Sensor.load(sensor_path(value))
+
+
+def _cmd_budget(args):
+    import math
+
+    from .budget import parse_source, scene_budget, tolerance_ranges
+    from .correct.geometry import cube_cra_deg
+
+    if not (math.isfinite(args.tolerance_pct) and args.tolerance_pct > 0):
+        raise ValueError(f"--tolerance-pct must be > 0, got {args.tolerance_pct:g}")
+    if args.plot is not None:
+        if args.plot.suffix.lower() != ".png":
+            raise ValueError(f"--plot must name a .png file, got {args.plot}")
+        if args.plot.exists() and not args.overwrite:
+            raise ValueError(f"{args.plot} exists; use --overwrite to replace it")
+    lens = _lens(args.lens)
+    sensor = _sensor(args.sensor)
+    cube = None
+    if args.cube is not None:
+        from .cube import read_cube
+
+        cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})
+    source = parse_source(args.source, cube)
+    if args.cra_max is not None:
+        cra_max, field = args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
+    elif cube is not None:
+        cra_max = float(cube_cra_deg(cube, lens, sensor)[0].max())
+        field = f"the cube's pixels, CRA up to {cra_max:.2f} deg"
+    elif sensor.field_radius_mm is not None:
+        cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
+        field = (f"the sensor's {sensor.size_px[0]} x {sensor.size_px[1]} px field, CRA up "
+                 f"to {cra_max:.2f} deg at its corners")
+    else:
+        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give --cra-max DEG or "
+                         "--cube CUBE for the field to cover")
+    b = scene_budget(sensor, lens, args.f_number, source, cra_max_deg=cra_max,
+                     profile=args.profile, tolerance_pct=args.tolerance_pct)
+    model, reason = b.recommend()
+    ranges = tolerance_ranges(source, sensor.cwl_nm, sensor.fwhm_nm, n_eff=sensor.n_eff[0],
+                              profile=args.profile)
+
+    def fmt(r):
+        return "NA" if r is None else f"{r[0]:.1f}-{r[1]:.1f}"
+
+    print(f"scene budget: {source.name}; {lens.name} at f/{args.f_number:g}; {sensor.name} "
+          f"({sensor.n_bands} bands, {args.profile} filters); {field}")
+    print("worst |signal error| over the field, percent, left by each model; last columns: "
+          "centre positions where +-1 nm stays < 0.5 % and +-5 nm < 2 % (Flittner & Slater)")
+    table = b.table().splitlines()
+    print(f"{table[0]}  {'+-1nm<0.5%':>13} {'+-5nm<2%':>13}")
+    for line, rr in zip(table[1:-1], ranges, strict=True):
+        print(f"{line}  {fmt(rr[0]):>13} {fmt(rr[1]):>13}")
+    print(table[-1])
+    radius = b.radius_mm()
+    if radius > 0:
+        print(f"uncorrected within {args.tolerance_pct:g} %: image radius < {radius:.2f} mm "
+              f"({radius / sensor.pixel_pitch_mm:.0f} px) (Mishev & Bakalova)")
+    else:
+        print(f"uncorrected, the signal is off by more than {args.tolerance_pct:g} % even on "
+              f"the axis (the cone of f/{args.f_number:g} alone shifts the bands)")
+    print(f"recommended: {model}: {reason}")
+    if args.plot is not None:
+        b.plot(args.plot, inputs=[args.sensor, args.lens, args.cube, args.source])
+        print(f"wrote {args.plot}")
+    return 0
 
 
 def _cmd_demo(args):
@@ -133,9 +214,12 @@ def _cmd_correct(args):
     # blocks of about CHUNK_BYTES whole rows: memory stays bounded whatever the cube's size
     row_bytes = cube.sizes["x"] * cube.sizes["band"] * max(cube.dtype.itemsize, 4)
     cube = cube.chunk({"y": max(1, CHUNK_BYTES // row_bytes), "x": -1, "band": -1})
+    if args.source is not None and args.method != "auto":
+        raise ValueError("--source chooses the model: use it with --method auto")
     ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
                       method=args.method, tolerance_nm=args.tolerance_nm,
-                      resample=args.resample)
+                      resample=args.resample, source=args.source,
+                      tolerance_pct=args.tolerance_pct)
     ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
@@ -367,6 +451,13 @@ def build_parser():
                      help="shift model (default: %(default)s, the cheapest meeting the "
                      "tolerance)")
     cor.add_argument("--tolerance-nm", type=float, default=0.01)
+    cor.add_argument("--source", default=None, metavar="SOURCE",
+                     help="the scene's spectrum: solar, tungsten:TEMPERATURE_K, cube (the "
+                     "cube's mean spectrum) or a two-column file; --method auto then takes "
+                     "the cheapest model whose signal error stays below --tolerance-pct")
+    cor.add_argument("--tolerance-pct", type=float, default=0.5,
+                     help="radiometric tolerance with --source, percent (default: "
+                     "%(default)s)")
     cor.add_argument("--resample", action="store_true",
                      help="also interpolate each spectrum onto the nominal wavelengths")
     cor.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -390,6 +481,30 @@ def build_parser():
     shift.add_argument("--method", default="auto", choices=list(METHODS))
     shift.add_argument("--tolerance-nm", type=float, default=0.001)
     shift.set_defaults(func=_cmd_shift)
+
+    bud = command("budget", "which bands and pixels a scene needs corrected, and with which "
+                  "model (signal error of the filter shift)")
+    bud.add_argument("--sensor", required=True,
+                     help="sensor description (.toml) or a bundled one (snapscan_vnir, ...)")
+    bud.add_argument("--lens", required=True,
+                     help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
+    bud.add_argument("--f-number", type=float, required=True)
+    bud.add_argument("--source", required=True, metavar="SOURCE",
+                     help="solar (Kurucz, 0.5 nm), tungsten:TEMPERATURE_K, cube (with "
+                     "--cube) or a two-column file (wavelength nm, value)")
+    bud.add_argument("--tolerance-pct", type=float, default=0.5,
+                     help="radiometric tolerance, percent (default: %(default)s)")
+    bud.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                     help="error against band and against image radius")
+    bud.add_argument("--cube", type=Path, default=None,
+                     help="a cube: its pixels set the field, and --source cube its spectrum")
+    bud.add_argument("--cra-max", type=float, default=None, metavar="DEG",
+                     help="the field to cover (default: the sensor's size_px, or the cube)")
+    bud.add_argument("--profile", default="multi_lorentzian",
+                     choices=["multi_lorentzian", "pi"],
+                     help="filter shape (default: Flittner & Slater's multi-Lorentzian)")
+    bud.add_argument("--overwrite", action="store_true", help="replace an existing --plot")
+    bud.set_defaults(func=_cmd_budget)
     return parser
 
 

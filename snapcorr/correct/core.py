@@ -88,7 +88,8 @@ def relative_shift(method, lens, f_number, n_eff, cra_deg, *, tolerance_nm, cwl_
 
 
 def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
-                 tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False):
+                 tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False, source=None,
+                 tolerance_pct=0.5):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
@@ -108,6 +109,14 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
     resample : bool
         Also interpolate each pixel's spectrum onto the nominal wavelengths (``resampled``),
         NaN where that would need extrapolation.
+    source : snapcorr.budget.Spectrum or str, optional
+        The scene's spectrum (or ``"solar"``, ``"tungsten:T"``, ``"cube"`` for the cube's own
+        mean spectrum, or a file; :func:`snapcorr.budget.parse_source`). With ``"auto"`` the
+        model is then the cheapest whose *signal* error for this scene stays below
+        ``tolerance_pct`` (:meth:`snapcorr.budget.Budget.recommend`) instead of the cheapest
+        whose wavelength error stays below ``tolerance_nm``.
+    tolerance_pct : float
+        Radiometric tolerance for ``source``, percent of the signal.
 
     Returns
     -------
@@ -146,7 +155,18 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
                          f"from CRA {cutoff:.2f} deg, and this cube reaches {cra_max:.2f} deg: "
                          "those pixels saw no light through the lens model; check the lens "
                          "profile, f-number and optical centre")
-    if method == "auto":
+    budget_attrs = {}
+    if method == "auto" and source is not None:
+        from ..budget import parse_source, scene_budget
+
+        spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
+        budget = scene_budget(sensor, lens, f, spectrum, cra_max_deg=cra_max,
+                              tolerance_pct=tolerance_pct)
+        used, reason = budget.recommend()
+        budget_attrs = {"budget_source": spectrum.name, "tolerance_pct": float(tolerance_pct),
+                        "budget_worst_pct": [budget.worst_pct(m) for m in budget.models],
+                        "budget_models": list(budget.models)}
+    elif method == "auto":
         used, reason = choose_method(lens, f, cra_max, cwl, n_eff, tolerance_nm)
     else:
         used, reason = method, "asked for"
@@ -184,7 +204,7 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
         "method_requested": method, "tolerance_nm": float(tolerance_nm),
         "optical_center_px": [float(center[0]), float(center[1])],
         "optical_center_source": center_source, "cra_max_deg": cra_max,
-        "snapcorr_version": __version__,
+        "snapcorr_version": __version__, **budget_attrs,
     })
     return ds
 

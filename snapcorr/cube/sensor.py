@@ -16,7 +16,7 @@ __all__ = ["LAYOUTS", "Sensor"]
 #: repeating tile.
 LAYOUTS = ("snapscan", "mosaic")
 _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosaic_shape",
-         "band_offset"}
+         "band_offset", "size_px"}
 
 
 def _per_band(name, value, n_bands, *, minimum=None, strict=True):
@@ -53,6 +53,9 @@ class Sensor:
         Tile size in pixels (rows, columns).
     band_offset : sequence of (int, int), mosaic only
         Each band's (row, column) inside the tile.
+    size_px : (int, int), optional
+        The image's full size in pixels (rows, columns), centred on the optical axis: the
+        field the scene budget (``snapcorr budget``) covers when no cube is given.
     """
 
     name: str
@@ -63,6 +66,7 @@ class Sensor:
     n_eff: tuple
     mosaic_shape: tuple | None = None
     band_offset: tuple | None = None
+    size_px: tuple | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -97,6 +101,21 @@ class Sensor:
             set_(self, "band_offset", tuple(tuple(int(v) for v in o) for o in off))
         elif self.mosaic_shape is not None or self.band_offset is not None:
             raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
+        if self.size_px is not None:
+            size = np.asarray(self.size_px)
+            if (size.shape != (2,) or not np.all(np.isfinite(size.astype(float)))
+                    or np.any(size < 1) or np.any(size != np.round(size))):
+                raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
+                                 f"{self.size_px!r}")
+            set_(self, "size_px", tuple(int(v) for v in size))
+
+    @property
+    def field_radius_mm(self) -> float | None:
+        """Distance from the image centre to its corner (mm), if ``size_px`` is known."""
+        if self.size_px is None:
+            return None
+        rows, cols = self.size_px
+        return 0.5 * float(np.hypot(rows, cols)) * self.pixel_pitch_mm
 
     @property
     def n_bands(self) -> int:
@@ -113,6 +132,8 @@ class Sensor:
         if self.layout == "mosaic":
             d["mosaic_shape"] = list(self.mosaic_shape)
             d["band_offset"] = [list(o) for o in self.band_offset]
+        if self.size_px is not None:
+            d["size_px"] = list(self.size_px)
         return d
 
     @classmethod

@@ -1,0 +1,118 @@
+"""`snapcorr budget` and `snapcorr correct --source`: the model a scene needs."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from snapcorr import Lens, budget
+from snapcorr.correct import correct_cube
+from snapcorr.cube import Sensor, make_cube, write_cube
+
+PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+
+
+def run(command, *args, cwd):
+    return subprocess.run([sys.executable, "-m", "snapcorr", command, *args],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+@pytest.fixture
+def files(tmp_path):
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
+    sensor.save(tmp_path / "sensor.toml")
+    Sensor("sized", "snapscan", 5.5, np.linspace(500, 900, 5), 10.0, 1.7,
+           size_px=(1024, 1024)).save(tmp_path / "sized.toml")
+    PAPER.save(tmp_path / "lens.toml")
+    lam = np.arange(300.0, 1100.0, 0.5)
+    np.savetxt(tmp_path / "flat.csv", np.c_[lam, np.ones_like(lam)], delimiter=",",
+               header="wavelength_nm,value")
+    data = np.random.default_rng(0).random((30, 40, 5)).astype(np.float32) + 0.5
+    write_cube(make_cube(data, sensor.cwl_nm, name="reflectance"), tmp_path / "cube.nc")
+    return tmp_path
+
+
+def test_budget_prints_the_table_and_the_library_recommendation(files):
+    res = run("budget", "--sensor", "sized.toml", "--lens", "lens.toml", "--f-number", "4",
+              "--source", "solar", "--tolerance-pct", "1", "--plot", "b.png", cwd=files)
+    assert res.returncode == 0, res.stderr
+    sensor = Sensor.load(files / "sized.toml")
+    cra_max = np.degrees(np.arctan(sensor.field_radius_mm / PAPER.exit_pupil_mm))
+    b = budget.scene_budget(sensor, PAPER, 4.0, budget.solar(), cra_max_deg=cra_max,
+                            tolerance_pct=1.0)
+    model, reason = b.recommend()
+    assert f"recommended: {model}: {reason}" in res.stdout
+    assert "1024 x 1024 px field" in res.stdout
+    (row,) = [line for line in res.stdout.splitlines() if line.lstrip().startswith("all")]
+    for m in budget.MODELS:
+        assert f"{b.worst_pct(m):.3g}%" in row
+    assert (files / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_budget_of_a_flat_source_recommends_no_correction(files):
+    res = run("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "1.4",
+              "--source", "flat.csv", "--cra-max", "15", cwd=files)
+    assert res.returncode == 0, res.stderr
+    assert "recommended: none" in res.stdout and "within 0.5 %: image radius" in res.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--source", "sun"], "unknown source"),
+    (["--source", "tungsten:warm"], "temperature"),
+    (["--source", "cube"], "needs a cube"),
+    (["--sensor", "sensor.toml"], "size_px"),
+    (["--cra-max", "80"], "cut-off"),
+    (["--tolerance-pct", "0"], "tolerance"),
+    (["--plot", "b.jpg"], ".png"),
+    (["--plot", "lens.toml"], ".png"),
+    (["--lens", "nolens.toml"], "nolens.toml"),
+    (["--f-number", "-1"], "f_number"),
+])
+def test_budget_mistakes_are_one_line(files, args, message, capsys, monkeypatch):
+    from snapcorr.cli import main
+
+    monkeypatch.chdir(files)  # in-process: the same main() as the console script, faster
+    base = {"--sensor": "sized.toml", "--lens": "lens.toml", "--f-number": "2",
+            "--source": "tungsten:2856"}
+    for flag, value in zip(args[::2], args[1::2], strict=True):
+        base[flag] = value
+    assert main(["budget", *[v for kv in base.items() for v in kv]]) == 1
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
+    assert not (files / "b.jpg").exists()
+
+
+def test_correct_with_a_source_uses_the_budget(files):
+    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "4", "--source", "flat.csv", "--out", "flat.nc", cwd=files)
+    assert res.returncode == 0, res.stderr
+    ds = xr.open_dataset(files / "flat.nc")
+    # a flat scene: no shift changes its signal, so no correction is needed
+    assert ds.attrs["method"] == "none" and ds.attrs["budget_source"] == "flat.csv"
+    assert ds.attrs["tolerance_pct"] == 0.5
+    np.testing.assert_array_equal(ds["wavelength_corrected"].values[..., 2],
+                                  np.float32(700.0))
+    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--source", "solar", "--tolerance-pct", "0.2",
+              "--out", "sun.nc", cwd=files)
+    assert res.returncode == 0, res.stderr
+    ds = xr.open_dataset(files / "sun.nc")
+    assert ds.attrs["method"] == "vignetted" and "sun" in ds.attrs["method_reason"]
+    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "4", "--source", "solar", "--method", "ideal", "--out", "x.nc",
+              cwd=files)
+    assert res.returncode != 0 and "--method auto" in res.stderr
+    assert not (files / "x.nc").exists()
+
+
+def test_correct_cube_with_the_cubes_own_spectrum():
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
+    lam = np.asarray(sensor.cwl_nm)
+    step = np.where(lam < 700, 1.0, 0.05).astype(np.float32)  # a red edge in the scene
+    cube = make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm)
+    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.5)
+    assert ds.attrs["budget_source"] == "cube mean" and ds.attrs["method"] != "none"
+    flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)
+    assert correct_cube(flat, PAPER, sensor, 1.4, source="cube").attrs["method"] == "none"
