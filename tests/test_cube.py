@@ -33,6 +33,11 @@ def test_sensor_round_trip_and_scalars(tmp_path):
     assert Sensor.load(path) == s
     with pytest.raises(FileExistsError):
         s.save(path)
+    sized = Sensor("t", "snapscan", 5.5, [500.0], 10.0, 1.7, size_px=[2048.0, 1088])
+    assert sized.size_px == (2048, 1088) and Sensor.load(sized.save(tmp_path / "z.toml")) == sized
+    # the corner of a 2048 x 1088 field of 5.5 um pixels: half the diagonal
+    assert sized.field_radius_mm == pytest.approx(0.5 * 5.5e-3 * (2048**2 + 1088**2) ** 0.5)
+    assert s.field_radius_mm is None
 
 
 @pytest.mark.parametrize(
@@ -48,6 +53,9 @@ def test_sensor_round_trip_and_scalars(tmp_path):
         (dict(layout="mosaic", mosaic_shape=[2, 2], band_offset=[[0, 0], [0, 0]]), "share"),
         (dict(layout="mosaic", mosaic_shape=[2, 2], band_offset=[[0, 0]]), "one"),
         (dict(mosaic_shape=[2, 2]), "mosaic"),
+        (dict(size_px=[0, 10]), "size_px"),
+        (dict(size_px=[10.5, 10]), "size_px"),
+        (dict(size_px=[10]), "size_px"),
     ],
 )
 def test_bad_sensors(kwargs, message):
