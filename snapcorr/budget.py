@@ -196,7 +196,8 @@ def cube_spectrum(cube, y=None, x=None) -> Spectrum:
 
 def parse_source(text, cube=None) -> Spectrum:
     """``"solar"``, ``"tungsten:TEMPERATURE_K"`` (or ``"blackbody:..."``), ``"cube"`` (the
-    mean spectrum of ``cube``) or the path of a spectrum file."""
+    mean spectrum of ``cube``), ``"cube:Y,X"`` (one of its pixels) or the path of a spectrum
+    file."""
     t = str(text).strip()
     kind, _, arg = t.partition(":")
     if t == "solar":
@@ -208,14 +209,23 @@ def parse_source(text, cube=None) -> Spectrum:
             raise ValueError(f"{kind}: needs a temperature in K, e.g. {kind}:2856, "
                              f"got {arg!r}") from None
         return blackbody(temperature)
-    if t == "cube":
+    if kind == "cube":
         if cube is None:
-            raise ValueError("source 'cube' needs a cube")
-        return cube_spectrum(cube)
+            raise ValueError(f"source {t!r} needs a cube")
+        if not arg:
+            return cube_spectrum(cube)
+        try:
+            y, x = (int(v) for v in arg.split(","))
+        except ValueError:
+            raise ValueError(f"cube:Y,X needs two pixel indices, got {arg!r}") from None
+        if not (0 <= y < cube.sizes["y"] and 0 <= x < cube.sizes["x"]):
+            raise ValueError(f"pixel ({y}, {x}) is outside the {cube.sizes['y']} x "
+                             f"{cube.sizes['x']} cube")
+        return cube_spectrum(cube, y, x)
     if Path(t).is_file():
         return read_spectrum(t)
-    raise ValueError(f"unknown source {t!r}: use solar, tungsten:TEMPERATURE_K, cube or "
-                     "the path of a two-column spectrum file")
+    raise ValueError(f"unknown source {t!r}: use solar, tungsten:TEMPERATURE_K, cube, "
+                     "cube:Y,X or the path of a two-column spectrum file")
 
 
 def _filter_grid(profile, source):

@@ -490,8 +490,9 @@ def build_parser():
                      help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
     bud.add_argument("--f-number", type=float, required=True)
     bud.add_argument("--source", required=True, metavar="SOURCE",
-                     help="solar (Kurucz, 0.5 nm), tungsten:TEMPERATURE_K, cube (with "
-                     "--cube) or a two-column file (wavelength nm, value)")
+                     help="solar (Kurucz, 0.5 nm), tungsten:TEMPERATURE_K, cube or cube:Y,X "
+                     "(with --cube: its mean spectrum or one pixel's) or a two-column file "
+                     "(wavelength nm, value)")
     bud.add_argument("--tolerance-pct", type=float, default=0.5,
                      help="radiometric tolerance, percent (default: %(default)s)")
     bud.add_argument("--plot", type=Path, default=None, metavar="PNG",

@@ -249,6 +249,21 @@ def test_sources_parse_and_bad_sources_are_refused(tmp_path):
                            MultiLorentzian(700.0, 10.0), 1.0)
 
 
+def test_cube_sources():
+    from snapcorr.cube import make_cube
+
+    data = np.ones((3, 4, 5), np.float32)
+    data[1, 2] = np.linspace(1.0, 2.0, 5)
+    cube = make_cube(data, [500.0, 550.0, 600.0, 650.0, 700.0])
+    px = budget.parse_source("cube:1,2", cube)
+    assert px(625.0) == pytest.approx(1.625) and px(300.0) == 1.0 and px(900.0) == 2.0
+    mean = budget.parse_source("cube", cube)
+    assert mean(500.0) == pytest.approx(1.0) and mean(700.0) == pytest.approx(1 + 1 / 12)
+    for bad, msg in (("cube:9,9", "outside"), ("cube:a", "two pixel indices")):
+        with pytest.raises(ValueError, match=msg):
+            budget.parse_source(bad, cube)
+
+
 def test_budget_arguments_are_checked(sun):
     sensor = Sensor("s", "snapscan", 5.5, [500.0], 10.0, 1.7)
     with pytest.raises(ValueError, match="cut-off"):
