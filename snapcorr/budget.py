@@ -48,6 +48,7 @@ from .optics.response import kernel_bins
 __all__ = [
     "MODELS",
     "PROFILES",
+    "SOLAR_MODELS",
     "Budget",
     "Spectrum",
     "band_signal",
@@ -109,13 +110,29 @@ class Spectrum:
         return np.interp(lam, self.wavelength_nm, self.values)
 
 
-def solar(smoothing_nm=0.5, step_nm=0.1, range_nm=(300.0, 1100.0)) -> Spectrum:
-    """The Kurucz solar flux at 1 AU (``rms-solar``, shipped offline), as Flittner & Slater used
-    it: a sliding average over ``smoothing_nm`` sampled every ``step_nm``.
+#: Solar spectra :func:`solar` offers, each shipped offline by a maintained package.
+SOLAR_MODELS = ("kurucz", "astm-g173")
 
-    The model is the sun alone: it has the Fraunhofer lines but none of the Earth's oxygen or
-    water-vapour bands.
+
+def solar(model="kurucz", smoothing_nm=0.5, step_nm=0.1, range_nm=(300.0, 1100.0)) -> Spectrum:
+    """The sun's spectrum.
+
+    ``"kurucz"``: the Kurucz solar flux at 1 AU (``rms-solar``), as Flittner & Slater used it:
+    a sliding average over ``smoothing_nm`` sampled every ``step_nm``. It is the sun alone,
+    with the Fraunhofer lines but none of the Earth's oxygen and water-vapour bands.
+    ``"astm-g173"``: the ASTM G173 global tilted irradiance at the ground (``pvlib``; 0.5 nm
+    below 400 nm, 1 nm above, no smoothing), with the O2 and H2O bands (1.42 cm of water)
+    but coarser lines.
     """
+    validate_method(model, SOLAR_MODELS, "solar model")
+    if model == "astm-g173":
+        from pvlib.spectrum import get_reference_spectra
+
+        df = get_reference_spectra(standard="ASTM G173-03")
+        w = np.asarray(df.index, float)
+        keep = (w >= range_nm[0] - 1) & (w <= range_nm[1] + 1)
+        return Spectrum(w[keep], np.asarray(df["global"], float)[keep],
+                        "sun at the ground (ASTM G173 global tilt)")
     import solar as rms_solar  # the rms-solar package
     from scipy.ndimage import uniform_filter1d
 
@@ -195,13 +212,13 @@ def cube_spectrum(cube, y=None, x=None) -> Spectrum:
 
 
 def parse_source(text, cube=None) -> Spectrum:
-    """``"solar"``, ``"tungsten:TEMPERATURE_K"`` (or ``"blackbody:..."``), ``"cube"`` (the
-    mean spectrum of ``cube``), ``"cube:Y,X"`` (one of its pixels) or the path of a spectrum
-    file."""
+    """``"solar"`` (or ``"solar:astm-g173"``, see :func:`solar`), ``"tungsten:TEMPERATURE_K"``
+    (or ``"blackbody:..."``), ``"cube"`` (the mean spectrum of ``cube``), ``"cube:Y,X"`` (one
+    of its pixels) or the path of a spectrum file."""
     t = str(text).strip()
     kind, _, arg = t.partition(":")
-    if t == "solar":
-        return solar()
+    if kind == "solar":
+        return solar(arg or "kurucz")
     if kind in ("tungsten", "blackbody") and arg:
         try:
             temperature = float(arg)
@@ -224,8 +241,9 @@ def parse_source(text, cube=None) -> Spectrum:
         return cube_spectrum(cube, y, x)
     if Path(t).is_file():
         return read_spectrum(t)
-    raise ValueError(f"unknown source {t!r}: use solar, tungsten:TEMPERATURE_K, cube, "
-                     "cube:Y,X or the path of a two-column spectrum file")
+    raise ValueError(f"unknown source {t!r}: use solar, solar:astm-g173, "
+                     "tungsten:TEMPERATURE_K, cube, cube:Y,X or the path of a two-column "
+                     "spectrum file")
 
 
 def _filter_grid(profile, source):

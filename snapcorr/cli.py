@@ -452,7 +452,8 @@ def build_parser():
                      "tolerance)")
     cor.add_argument("--tolerance-nm", type=float, default=0.01)
     cor.add_argument("--source", default=None, metavar="SOURCE",
-                     help="the scene's spectrum: solar, tungsten:TEMPERATURE_K, cube (the "
+                     help="the scene's spectrum: solar, solar:astm-g173, "
+                     "tungsten:TEMPERATURE_K, cube (the "
                      "cube's mean spectrum) or a two-column file; --method auto then takes "
                      "the cheapest model whose signal error stays below --tolerance-pct")
     cor.add_argument("--tolerance-pct", type=float, default=0.5,
@@ -490,7 +491,8 @@ def build_parser():
                      help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
     bud.add_argument("--f-number", type=float, required=True)
     bud.add_argument("--source", required=True, metavar="SOURCE",
-                     help="solar (Kurucz, 0.5 nm), tungsten:TEMPERATURE_K, cube or cube:Y,X "
+                     help="solar (Kurucz, 0.5 nm), solar:astm-g173 (at the ground, with O2 and "
+                     "H2O), tungsten:TEMPERATURE_K, cube or cube:Y,X "
                      "(with --cube: its mean spectrum or one pixel's) or a two-column file "
                      "(wavelength nm, value)")
     bud.add_argument("--tolerance-pct", type=float, default=0.5,

@@ -85,6 +85,28 @@ def test_flittner_slater_table_1_where_the_sun_explains_it(sun):
     assert r2_1[1] > 674 and r2_5[1] > 644
 
 
+@pytest.fixture(scope="module")
+def ground():
+    return budget.solar("astm-g173")
+
+
+def test_flittner_slater_table_1_near_the_earths_absorption_bands(ground):
+    # With the sun seen through the atmosphere (ASTM G173: 1 nm sampling, more water than
+    # their 0.5 g/cm^2) the upper ends set by O2 and H2O come back. Table 1:
+    # band 12 (565 nm, 10 nm) 521-584 and 529-582; band 15 (750, 10) 722-750 and NA;
+    # band 16 (865, 15) 819-886 and 852-883; band 2 (555, 20) +-5 nm 455-644.
+    (b12, b15, b16, b2) = budget.tolerance_ranges(ground, [565.0, 750.0, 865.0, 555.0],
+                                                  [10.0, 10.0, 15.0, 20.0])
+    assert b12[0] == pytest.approx((521, 584), abs=5.0)
+    assert b12[1] == pytest.approx((529, 582), abs=1.0)
+    assert b15[0][1] == pytest.approx(750, abs=1.0) and b15[1] is None
+    assert b16[1][0] == pytest.approx(852, abs=1.0) and b16[0][1] == pytest.approx(886, abs=4)
+    assert b2[1][1] == pytest.approx(644, abs=6.0)
+    # "a 10-nm filter at 687 nm used to view the oxygen band ... 0.8 percent for a 1-nm shift
+    # toward the blue" (here 1.2 %)
+    assert 0.5 < abs(_pct(ground, 687, 10, -1.0)) < 1.5
+
+
 def test_tolerance_ranges_contain_the_nominal_centre_and_respect_the_criterion(sun):
     (r1, r5), = budget.tolerance_ranges(sun, [565.0], [10.0])
     for (lo, hi), (shift, limit) in ((r1, (1.0, 0.5)), (r5, (5.0, 2.0))):
@@ -231,6 +253,7 @@ def test_blackbody_peaks_where_wien_says():
 
 def test_sources_parse_and_bad_sources_are_refused(tmp_path):
     assert budget.parse_source("tungsten:3000").name == "blackbody 3000 K"
+    assert "G173" in budget.parse_source("solar:astm-g173").name
     p = tmp_path / "s.csv"
     p.write_text("wavelength_nm,value\n400,1\n500,2\n600,3\n")
     s = budget.parse_source(str(p))
@@ -238,7 +261,8 @@ def test_sources_parse_and_bad_sources_are_refused(tmp_path):
     np.save(tmp_path / "s.npy", np.array([[400.0, 500.0, 600.0], [1.0, 2.0, 3.0]]))
     assert budget.read_spectrum(tmp_path / "s.npy")(450.0) == pytest.approx(1.5)
     for bad, msg in (("tungsten:hot", "temperature"), ("tungsten:-5", "> 0 K"),
-                     ("nothing.csv", "unknown source"), ("cube", "needs a cube")):
+                     ("nothing.csv", "unknown source"), ("cube", "needs a cube"),
+                     ("solar:moon", "solar model")):
         with pytest.raises(ValueError, match=msg):
             budget.parse_source(bad)
     (tmp_path / "bad.txt").write_text("1 2 3\n4 5 6\n7 8 9\n")
