@@ -209,12 +209,24 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
     return ds
 
 
+def _corrected_block(scale, cwl, column):
+    """``cwl * scale[..., column]`` (float64) rounded once to float32, without a gathered copy
+    of ``scale`` when every band shares one column (Snapscan, one n_eff)."""
+    out = np.empty((*scale.shape[:2], cwl.size), np.float32)
+    first = int(column[0]) if column.size else 0
+    same = bool(np.all(column == first))
+    for r in range(0, scale.shape[0], 64):  # row blocks keep the gathered part small
+        sc = scale[r:r + 64, :, first:first + 1] if same else scale[r:r + 64][:, :, column]
+        np.multiply(sc, cwl, out=out[r:r + 64], casting="unsafe")
+    return out
+
+
 def _corrected(cube, scale, column, cwl):
     """wavelength_corrected as a DataArray; computed block by block when the cube is dask."""
     attrs = {"units": "nm", "long_name": "corrected central wavelength"}
     if cube.chunks is None:
-        values = (cwl[None, None, :] * scale[:, :, column]).astype(np.float32)
-        return xr.DataArray(values, dims=("y", "x", "band"), attrs=attrs)
+        return xr.DataArray(_corrected_block(scale, cwl, column), dims=("y", "x", "band"),
+                            attrs=attrs)
     import dask.array as da
 
     ychunks, xchunks, bchunks = cube.chunks
@@ -223,7 +235,7 @@ def _corrected(cube, scale, column, cwl):
     for nb in bchunks:  # one lazy piece per band chunk of the cube
         w, c = cwl[lo:lo + nb], column[lo:lo + nb]
         parts.append(sc.map_blocks(
-            lambda s, w=w, c=c: (w[None, None, :] * s[:, :, c]).astype(np.float32),
+            lambda s, w=w, c=c: _corrected_block(s, w, c),
             chunks=(ychunks, xchunks, (nb,)), dtype=np.float32,
             meta=np.empty((0, 0, 0), np.float32)))
         lo += nb
@@ -238,9 +250,13 @@ def _resampled(cube, scale, column, cwl):
     dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
                                          np.int16) else np.float64
 
+    in_order = np.array_equal(order, np.arange(order.size))
+
     def block(data, sc):
-        out = resample_to_nominal(np.asarray(data, dtype)[..., order], sc, column[order],
-                                  cwl[order])
+        data = np.asarray(data, dtype)
+        if in_order:  # the usual case: no reordering copies of the cube
+            return resample_to_nominal(data, sc, column, cwl)
+        out = resample_to_nominal(data[..., order], sc, column[order], cwl[order])
         return out[..., inverse]
 
     sc = xr.DataArray(scale, dims=("y", "x", "m"))
