@@ -16,7 +16,7 @@ import numpy as np
 from . import __version__
 
 EXAMPLES = textwrap.dedent(
-    """
+    r"""
     examples:
       snapcorr demo                       the paper's lens and experiment, simulated end to end
       snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc

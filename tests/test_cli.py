@@ -21,9 +21,11 @@ def test_version_and_help():
     assert res.returncode == 0 and __version__ in res.stdout
     res = run("--help")
     assert res.returncode == 0 and "examples:" in res.stdout and "demo" in res.stdout
-    for sub in ("demo", "shift"):
+    for sub in ("demo", "shift", "flatfield", "calibrate", "correct", "budget"):
         res = run(sub, "--help")
         assert res.returncode == 0 and "examples:" in res.stdout
+    # continued example lines keep their backslash and line break, ready to paste
+    assert "--f-number 1.4 \\\n      --out scene_corrected.nc" in res.stdout
 
 
 def test_demo_writes_figure_table_and_summary(tmp_path, capsys):

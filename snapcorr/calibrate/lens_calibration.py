@@ -65,8 +65,8 @@ class LensCalibration:
     lens : Lens
         The profile (P and h of the chosen estimate; none if no vignetting was found).
     method, model : str
-        Estimator used (``"joint"`` or ``"onset"``) and vignetting model chosen
-        (``"none"``, ``"one"`` or ``"two"`` circles).
+        Estimator used (``"joint"``, ``"onset-ratio"`` or ``"onset-model"``) and vignetting
+        model chosen (``"none"``, ``"one"`` or ``"two"`` circles).
     reason : str
         Why, in a sentence.
     f_numbers : ndarray
@@ -316,7 +316,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         Values at or above are saturated and ignored (one level, or f-number -> level).
     vignetting_distance_mm : float, optional
         h, if known. Required with a single f-number, whose flat cannot tell P from h.
-    method : {"auto", "joint", "onset"}
+    method : {"auto", "joint", "onset-ratio", "onset-model"}
+        ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
+        the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from
+        the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, or the
+        paper's onsets when the joint fit's reduced chi-square exceeds ``MISFIT_CHI2``.
     name : str
         Lens name for the profile.
     inputs : mapping, optional
