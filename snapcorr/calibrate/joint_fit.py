@@ -225,17 +225,21 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     chi2 = float(r @ r)
     k = len(free) + data.q.shape[0]
     J = res.jac
-    JTJ = J.T @ J
-    cov_free = np.linalg.pinv(JTJ) * max(chi2 / max(n - k, 1), 1.0)
+    # Covariance from the SVD of the Jacobian in relative units (a change of each parameter by
+    # its own size), so that no parameter's scale decides what counts as constrained.
+    scale = np.maximum(np.abs(p[free]), 1e-3)
+    _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
+    strong = sv > 1e-9 * max(sv.max(), 1e-300)
+    inv = (vt[strong].T / sv[strong] ** 2) @ vt[strong]
+    cov_free = inv * np.outer(scale, scale) * max(chi2 / max(n - k, 1), 1.0)
     cov = np.full((len(names), len(names)), 0.0)
     cov[np.ix_(free, free)] = cov_free
     err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    # Parameters along directions the data do not constrain have no standard error.
-    d = np.sqrt(np.maximum(np.diag(JTJ), 1e-300))
-    w, v = np.linalg.eigh(JTJ / np.outer(d, d))
-    null = v[:, w < 1e-10 * max(w.max(), 1e-300)]
-    if null.size:
-        loose = np.abs(null).max(axis=1) > 0.1
+    # Parameters along directions the data do not (or hardly) constrain have no standard
+    # error: a second circle that cuts no ray in the field, say.
+    weak = vt[~strong]
+    if weak.size:
+        loose = np.abs(weak).max(axis=0) > 0.1
         err[np.asarray(free)[loose]] = np.inf
     # Evaluating the model at block centres instead of averaging it over each block biases
     # P and h by a few 1e-5 relative (measured): a floor keeps the errors honest.
