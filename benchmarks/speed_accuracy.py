@@ -86,8 +86,9 @@ def _convolution(lens, f, cra, step):
         w = g19.kernel(lam, CWL, NEFF, *geom)
         shifted = np.interp(_FILTER_NM[:, None] - lam[None, :], _FILTER_NM, _FILTER_T,
                             left=0.0, right=0.0)
-        r = shifted @ (w / np.sum(w))
-        out[i] = np.sum(_FILTER_NM * r) / np.sum(r) - c0
+        with np.errstate(invalid="ignore", divide="ignore"):  # no bin sees the kernel: NaN
+            r = shifted @ (w / np.sum(w))
+            out[i] = np.sum(_FILTER_NM * r) / np.sum(r) - c0
     return out
 
 
