@@ -33,6 +33,8 @@ References
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -246,47 +248,199 @@ def parse_source(text, cube=None) -> Spectrum:
                      "spectrum file")
 
 
-def _filter_grid(profile, source):
-    """Offsets ``u`` from the profile's centre (nm), its samples and trapezoid weights."""
-    fwhm = float(profile.fwhm_nm)
-    h = min(source.step_nm / 2.0, fwhm / 100.0)
-    half = 6.0 * fwhm
-    u = np.arange(-half, half + h / 2, h)
-    t = np.asarray(profile(profile.cwl_nm + u), float)
-    nz = np.flatnonzero(t > 0)
-    if nz.size == 0:
-        raise ValueError("the filter profile is zero everywhere")
-    u, t = u[max(nz[0] - 1, 0):nz[-1] + 2], t[max(nz[0] - 1, 0):nz[-1] + 2]
-    w = np.full(u.size, h)
-    w[0] = w[-1] = h / 2
-    return u, t * w
+@dataclass(frozen=True)
+class _FilterMoments:
+    """``C0(u) = int_-inf^u T`` and ``C1(u) = int_-inf^u u' T(u') du'`` of a profile in its own
+    frame (``u`` = wavelength - centre), tabulated finely over its support."""
+
+    u: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+
+    @classmethod
+    def of(cls, profile):
+        """The moments of ``profile`` (cached: in its own frame a profile depends on its shape
+        and width, not on its centre, so a sensor's equal bands share one table)."""
+        try:
+            return cls._of(dataclasses.replace(profile, cwl_nm=1000.0))
+        except (TypeError, ValueError):  # not a dataclass profile: no caching
+            return cls._of.__wrapped__(cls, profile)
+
+    @classmethod
+    @functools.lru_cache(maxsize=64)
+    def _of(cls, profile, fine=10):
+        fwhm = float(profile.fwhm_nm)
+        # integrated on a grid `fine` times finer than the table (a jump of the profile, its
+        # 5 % cut, is then off by < 1e-5 of P at the table's nodes), tabulated every fwhm/2000
+        h = fwhm / (2000.0 * fine)
+        u = np.arange(-8.0 * fwhm, 8.0 * fwhm + h / 2, h)
+        t = np.asarray(profile(profile.cwl_nm + u), float)
+        nz = np.flatnonzero(t > 0)
+        if nz.size == 0:
+            raise ValueError("the filter profile is zero everywhere")
+        a = max((nz[0] - 1) // fine * fine, 0)
+        b = min(-(-(nz[-1] + 2) // fine) * fine + 1, u.size)
+        u, t = u[a:b], t[a:b]
+        c0 = np.concatenate([[0.0], np.cumsum(0.5 * h * (t[1:] + t[:-1]))])
+        ut = u * t
+        c1 = np.concatenate([[0.0], np.cumsum(0.5 * h * (ut[1:] + ut[:-1]))])
+        return cls(u[::fine], c0[::fine], c1[::fine])
+
+    def at(self, u):
+        """``C0(u)``, ``C1(u)`` by linear interpolation on the uniform table (no search);
+        ``u`` must lie within the table."""
+        h = self.u[1] - self.u[0]
+        pos = (u - self.u[0]) / h
+        i = np.clip(pos.astype(np.int64), 0, self.u.size - 2)
+        f = pos - i
+        return (self.c0[i] + f * (self.c0[i + 1] - self.c0[i]),
+                self.c1[i] + f * (self.c1[i + 1] - self.c1[i]))
 
 
-def relative_signal(source, profile, shifts_nm, *, chunk=2048):
+def _lattice(source, max_knots=2_000_000):
+    """``(lambda0, delta, values)`` of the source on a uniform grid holding all its knots
+    (the same piecewise-linear function, exactly), or None if there is none small enough."""
+    lam = source.wavelength_nm
+    steps = np.diff(lam)
+    delta = float(steps.min())
+    ratio = steps / delta
+    if np.max(np.abs(ratio - np.round(ratio))) > 1e-6:
+        return None
+    n = round((lam[-1] - lam[0]) / delta) + 1
+    if n > max_knots:
+        return None
+    grid = lam[0] + np.arange(n) * delta
+    return float(lam[0]), delta, np.interp(grid, lam, source.values)
+
+
+def _signals_lattice(lattice, profile, moments, k_phase, q):
+    """``P`` at the shifts ``(k * q + p) * delta / q`` for a source on a uniform lattice, by
+    correlations: each filter position sees the same knot offsets, so the moments are looked
+    up once per phase ``p``. ``k_phase`` maps each phase to its (k_min, k_max).
+
+    Written by parts like ``_signals``: a flat source gives ``s * C0(end)`` for every shift,
+    exactly (its differences and slopes are exact zeros).
+    """
+    lam0, delta, s = lattice
+    d = delta / q
+    lo, hi = moments.u[0], moments.u[-1]
+    ds = np.diff(s)
+    g = ds / delta  # slope of segment n (knots n, n + 1)
+    out = {}
+    for p, (k0, k1) in k_phase.items():
+        base = profile.cwl_nm + p * d  # the filter's centre for k = 0
+        v0 = lam0 - base  # offset of knot 0 from it
+        m_lo = int(np.floor((lo - v0) / delta))
+        m_hi = int(np.ceil((hi - v0) / delta))
+        n_first, n_last = m_lo + k0, m_hi + k1  # knots needed over all k of this phase
+        if n_first < 0 or n_last > s.size - 1:
+            raise ValueError("the spectrum does not cover the band and its shifts")
+        m = np.arange(m_lo, m_hi + 1)
+        v = v0 + m * delta
+        C0, C1 = moments.at(np.clip(v, lo, hi))
+        nk = k1 - k0 + 1
+
+        def corr(x, first, w, k0=k0, k1=k1, nk=nk):
+            # sum_j x[first + k + j] w[j] for k = k0..k1
+            return np.correlate(x[first + k0:first + k1 + w.size], w, mode="valid")[:nk]
+
+        # segments m_lo..m_hi-1: n = m + k; interior knots m_lo+1..m_hi-1
+        inner = slice(1, m.size - 1)
+        gi = g  # g[n] for segment n
+        # a_m = s[m+k] - g[m+k] v_m;  P = a_{m_hi-1} C0_{m_hi} - a_{m_lo} C0_{m_lo}
+        #   - sum_{interior} C0_m (a_m - a_{m-1}) + sum_segments g[m+k] (C1_{m+1} - C1_m)
+        last = m_hi - 1
+        kk = np.arange(k0, k1 + 1)
+        a_last = s[last + kk] - gi[last + kk] * v[-2]
+        a_first = s[m_lo + kk] - gi[m_lo + kk] * v[0]
+        P = a_last * C0[-1] - a_first * C0[0]
+        if m.size > 2:
+            # a_m - a_{m-1} = ds[m+k-1] - g[m+k] v_m + g[m+k-1] v_{m-1}
+            P -= corr(ds, m_lo, C0[inner])
+            P += corr(gi, m_lo + 1, C0[inner] * v[inner])
+            P -= corr(gi, m_lo, C0[inner] * v[:-2])
+        P += corr(gi, m_lo, np.diff(C1))
+        out[p] = P
+    return out
+
+
+def _signals_on_grid(source, profile, moments, j0, j1, d):
+    """``P`` at the shifts ``j * d``, ``j = j0..j1``: by correlations where the source lies on
+    a lattice whose step is a whole number of ``d`` (fast), else as ``_signals``."""
+    js = np.arange(j0, j1 + 1)
+    lat = _lattice(source)
+    if lat is not None:
+        q = round(lat[1] / d)
+        if q >= 1 and math.isclose(q * d, lat[1], rel_tol=1e-9):
+            phases = {}
+            for p in range(q):
+                ks = (js[(js - p) % q == 0] - p) // q
+                if ks.size:
+                    phases[p] = (int(ks.min()), int(ks.max()))
+            got = _signals_lattice(lat, profile, moments, phases, q)
+            out = np.empty(js.size)
+            for p, (k0, _) in phases.items():
+                sel = (js - p) % q == 0
+                out[sel] = got[p][(js[sel] - p) // q - k0]
+            return out
+    return _signals(source, profile, js * d, moments)
+
+
+def _signals(source, profile, shifts, moments=None, chunk=256):
+    """``P(cwl + shift) = int T(lambda - cwl - shift) S(lambda) dlambda`` for each shift,
+    exact for the piecewise-linear source (each source segment against the profile's
+    tabulated moments), so sharp edges in the source cost nothing extra.
+
+    Summed by parts, ``P = sum_j C0(u_j) (a_{j-1} - a_j) + ...`` with ``a_j`` the segment's
+    value at ``u = 0``: a flat source gives the same ``P`` for every shift, bit for bit.
+    """
+    m = _FilterMoments.of(profile) if moments is None else moments
+    lo, hi = m.u[0], m.u[-1]
+    lam, val = source.wavelength_nm, source.values
+    shifts = np.asarray(shifts, float)
+    out = np.empty(shifts.size)
+    order = np.argsort(shifts, kind="stable")
+    srt = shifts[order]
+    for start in range(0, srt.size, chunk):
+        d = srt[start:start + chunk]
+        c = profile.cwl_nm + d  # the filter's centres
+        need_lo, need_hi = c[0] + lo, c[-1] + hi
+        if need_lo < lam[0] - 1e-9 or need_hi > lam[-1] + 1e-9:
+            raise ValueError(f"the spectrum {source.name!r} covers {lam[0]:g}-{lam[-1]:g} nm; "
+                             f"{need_lo:.4g}-{need_hi:.4g} nm is needed")
+        i0 = max(int(np.searchsorted(lam, need_lo, "right")) - 1, 0)
+        i1 = min(int(np.searchsorted(lam, need_hi, "left")) + 1, lam.size)
+        kl, kv = lam[i0:i1], val[i0:i1]  # knots spanning every window of this chunk
+        g = np.diff(kv) / np.diff(kl)  # segment slopes
+        uk = kl[:, None] - c[None, :]  # knots in each filter's frame
+        a = kv[:-1, None] - g[:, None] * uk[:-1]  # segment value at u = 0
+        uc = np.clip(uk, lo, hi)
+        C0, C1 = m.at(uc)
+        # sum_j a_j (C0_{j+1} - C0_j) by parts, + sum_j g_j (C1_{j+1} - C1_j)
+        p = a[-1] * C0[-1] - a[0] * C0[0]
+        if a.shape[0] > 1:
+            p -= np.sum(C0[1:-1] * (a[1:] - a[:-1]), axis=0)
+        p += np.sum(g[:, None] * (C1[1:] - C1[:-1]), axis=0)
+        out[order[start:start + chunk]] = p
+    return out.reshape(shifts.shape)
+
+
+def relative_signal(source, profile, shifts_nm):
     """``P(cwl + shift) / P(cwl)`` of a filter ``profile`` (at normal incidence) moved by each
     shift, for a ``source`` Spectrum: Flittner & Slater's P, as a ratio.
 
-    The integral runs in the filter's frame (fixed samples of the profile, the source
-    interpolated at the moved wavelengths), so a flat source gives exactly 1 for any shift.
+    The integral is exact for the piecewise-linear source (see ``_signals``); a flat source
+    gives exactly 1 for any shift.
     """
     s = np.asarray(shifts_nm, float)
     if not np.all(np.isfinite(s)):
         raise ValueError("shifts must be finite")
-    u, wt = _filter_grid(profile, source)
-    lam = profile.cwl_nm + u
-    flat = s.ravel()
-    out = np.empty(flat.size)
-    p0 = None
-    for lo in range(0, flat.size, chunk):
-        d = np.concatenate([[0.0], flat[lo:lo + chunk]])  # the reference in the same sum
-        v = source(lam[:, None] + d[None, :])
-        p = np.sum(wt[:, None] * v, axis=0)  # row by row: the same order for every column
-        p0 = p[0] if p0 is None else p0
-        if not p[0] > 0:
-            raise ValueError(f"the source {source.name!r} has no signal in the band at "
-                             f"{profile.cwl_nm:g} nm")
-        out[lo:lo + chunk] = p[1:] / p0
-    return out.reshape(s.shape)
+    m = _FilterMoments.of(profile)
+    p = _signals(source, profile, np.concatenate([[0.0], s.ravel()]), m)
+    if not p[0] > 0:
+        raise ValueError(f"the source {source.name!r} has no signal in the band at "
+                         f"{profile.cwl_nm:g} nm")
+    return (p[1:] / p[0]).reshape(s.shape)
 
 
 def band_signal(source, profile, aoi_deg=0.0, *, step_nm=None):
@@ -317,49 +471,51 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     """Flittner & Slater's Table 1: for each band, the range of centre positions around the
     nominal one where a shift of +-``shift`` nm changes the signal by less than ``limit_pct``.
 
-    Centres are tried every ``step_nm`` up to ``search_nm`` either side (and no further than
-    the source reaches). Returns a list (one per band) of lists (one per criterion) of
-    ``(lo, hi)`` in nm, or ``None`` where the nominal centre itself fails ("NA" in their
-    table).
+    Centres are tried every ``step_nm`` (the shifts must be multiples of it) up to
+    ``search_nm`` either side, and no further than the source reaches. Returns a list (one per
+    band) of lists (one per criterion) of ``(lo, hi)`` in nm, or ``None`` where the nominal
+    centre itself fails ("NA" in their table). A range that reaches the end of the search
+    ends there.
     """
     validate_method(profile, PROFILES, "profile")
     cwl = np.atleast_1d(np.asarray(cwl_nm, float))
     fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape)
+    ms = []
+    for shift, _ in criteria:
+        m = round(shift / step_nm)
+        if m < 1 or not math.isclose(m * step_nm, shift, rel_tol=1e-9):
+            raise ValueError(f"a shift of {shift:g} nm is not a multiple of step_nm "
+                             f"({step_nm:g} nm)")
+        ms.append(m)
+    m_max = max(ms)
     out = []
     for c, fw in zip(cwl, fwhm, strict=True):
         prof = PROFILES[profile](c, fw, n_eff)
-        u, wt = _filter_grid(prof, source)
-        h = u[1] - u[0]
-        sub = max(1, round(step_nm / h))  # centres every `sub` samples of the filter grid
-        m_max = max(round(shift / step_nm) for shift, _ in criteria) * sub
-        # centre offsets -kl..kh samples, plus room for the largest shift, inside the source
-        room_lo = (c + u[0] - source.wavelength_nm[0]) / h - m_max
-        room_hi = (source.wavelength_nm[-1] - c - u[-1]) / h - m_max
-        kl = int(min(search_nm / h, room_lo)) // sub * sub
-        kh = int(min(search_nm / h, room_hi)) // sub * sub
+        mom = _FilterMoments.of(prof)
+        # centre offsets -kl..kh steps, with room for the largest shift inside the source
+        room_lo = (c + mom.u[0] - source.wavelength_nm[0]) / step_nm - m_max
+        room_hi = (source.wavelength_nm[-1] - c - mom.u[-1]) / step_nm - m_max
+        kl = math.floor(min(search_nm / step_nm, room_lo) + 1e-9)
+        kh = math.floor(min(search_nm / step_nm, room_hi) + 1e-9)
         if kl < 0 or kh < 0:
             raise ValueError(f"the source {source.name!r} does not cover the band at {c:g} nm "
                              "and its shifts")
-        lam = c + u[0] + np.arange(-kl - m_max, kh + m_max + u.size) * h
-        # P at every centre offset on the grid: a correlation of the source with the filter
-        P = np.convolve(source(lam), wt[::-1], mode="valid")
+        P = _signals_on_grid(source, prof, mom, -kl - m_max, kh + m_max, step_nm)
+        idx = m_max + np.arange(kl + kh + 1)  # P[idx] at centre offsets -kl..kh
         row = []
-        for shift, limit in criteria:
-            m = round(shift / step_nm) * sub
-            idx = m_max + kl + np.arange(-kl, kh + 1, sub)
+        for m, (_, limit) in zip(ms, criteria, strict=True):
             base = P[idx]
             ok = ((np.abs(P[idx + m] / base - 1) < limit / 100)
                   & (np.abs(P[idx - m] / base - 1) < limit / 100))
-            k0 = kl // sub
-            if not ok[k0]:
+            if not ok[kl]:
                 row.append(None)
                 continue
-            bad_lo = np.flatnonzero(~ok[:k0])
-            bad_hi = np.flatnonzero(~ok[k0:])
+            bad_lo = np.flatnonzero(~ok[:kl])
+            bad_hi = np.flatnonzero(~ok[kl:])
             lo = bad_lo[-1] + 1 if bad_lo.size else 0
-            hi = k0 + bad_hi[0] - 1 if bad_hi.size else ok.size - 1
-            row.append((round(float(c + (lo - k0) * sub * h), 6),
-                        round(float(c + (hi - k0) * sub * h), 6)))
+            hi = kl + bad_hi[0] - 1 if bad_hi.size else ok.size - 1
+            row.append((round(float(c + (lo - kl) * step_nm), 6),
+                        round(float(c + (hi - kl) * step_nm), 6)))
         out.append(row)
     return out
 
@@ -544,9 +700,18 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
         # every shift this band needs: P on a fine grid of shifts, in one pass over the
         # source, then interpolated (exactly 1 for a flat source)
         allshift = np.concatenate(mus + list(per_model.values()))
-        d = shift_step_nm
-        grid = np.arange(np.floor(allshift.min() / d) - 1, np.ceil(allshift.max() / d) + 2) * d
-        r = np.interp(allshift, grid, relative_signal(source, prof, grid))
+        lat = _lattice(source)
+        d = shift_step_nm if lat is None else lat[1] / math.ceil(lat[1] / shift_step_nm - 1e-9)
+        j0 = int(np.floor(allshift.min() / d)) - 1
+        j1 = int(np.ceil(allshift.max() / d)) + 1
+        grid = np.arange(j0, j1 + 1) * d
+        mom = _FilterMoments.of(prof)
+        p = _signals_on_grid(source, prof, mom, j0, j1, d)
+        p0 = _signals(source, prof, np.zeros(1), mom)[0]
+        if not p0 > 0:
+            raise ValueError(f"the source {source.name!r} has no signal in the band at "
+                             f"{cwl[b]:g} nm")
+        r = np.interp(allshift, grid, p / p0)
         pos, pixel = 0, np.empty(cra.size)
         for i, (_, w) in enumerate(bins[n_eff[b]]):
             rk = r[pos:pos + w.size]
