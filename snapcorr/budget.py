@@ -36,13 +36,14 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from ._validation import check_curve, validate_method
+from ._validation import validate_method
 from .optics import Lens, mean_shift
 from .optics.profiles import MultiLorentzian, PiShaped
 from .optics.response import kernel_bins
@@ -93,7 +94,16 @@ class Spectrum:
     name: str = "spectrum"
 
     def __post_init__(self):
-        w, v = check_curve(self.wavelength_nm, self.values)
+        w = np.asarray(self.wavelength_nm, float)
+        v = np.asarray(self.values, float)
+        if w.ndim != 1 or w.shape != v.shape or w.size < 2:
+            raise ValueError(f"the spectrum {self.name!r} needs wavelengths and values of "
+                             f"equal length (>= 2), got shapes {w.shape} and {v.shape}")
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(v))):
+            raise ValueError(f"the spectrum {self.name!r} holds NaN or infinite values")
+        if np.any(np.diff(w) <= 0):
+            raise ValueError(f"the spectrum {self.name!r} needs strictly increasing "
+                             "wavelengths (no repeats)")
         if np.any(v < 0) or not np.any(v > 0):
             raise ValueError(f"the spectrum {self.name!r} must be >= 0 and not all zero")
         object.__setattr__(self, "wavelength_nm", w)
@@ -157,27 +167,38 @@ def blackbody(temperature_k, wavelength_nm=None) -> Spectrum:
         wavelength_nm, float)
     with np.errstate(over="ignore"):
         v = 1.0 / (lam ** 5 * np.expm1(_C2_NM_K / (lam * t)))
+    if not v.max() > 0:
+        raise ValueError(f"a blackbody at {t:g} K emits nothing measurable at "
+                         f"{lam[0]:g}-{lam[-1]:g} nm")
     return Spectrum(lam, v / v.max(), f"blackbody {t:g} K")
 
 
 def read_spectrum(path) -> Spectrum:
-    """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments,
-    comma, tab or space separated; a header row is skipped) or an ``.npy`` array of shape
-    (n, 2) or (2, n)."""
+    """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments;
+    comma, semicolon, tab or space separated; header lines before the numbers are skipped) or
+    an ``.npy`` array of shape (n, 2) or (2, n)."""
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"no spectrum file {str(p)!r}")
     if p.suffix == ".npy":
         a = np.load(p)
     else:
-        text = p.read_text()
-        delim = "," if "," in text else None
-        try:
-            a = np.genfromtxt(p, delimiter=delim, comments="#", invalid_raise=True)
-        except ValueError as exc:
-            raise ValueError(f"{p}: not a two-column table ({exc})") from None
-        if a.ndim == 2 and np.all(np.isnan(a[0])):
-            a = a[1:]  # a header row
+        rows = []
+        for k, line in enumerate(p.read_text().splitlines(), 1):
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            fields = [f for f in re.split(r"[,;\s]+", line) if f]
+            try:
+                rows.append([float(f) for f in fields])
+            except ValueError:
+                if rows:  # text after the data began
+                    raise ValueError(f"{p}, line {k}: not numbers: {line[:60]!r}") from None
+                continue  # a header line
+        if not rows or any(len(r) != len(rows[0]) for r in rows):
+            raise ValueError(f"{p}: need two columns of numbers (wavelength nm, value), one "
+                             "row per line")
+        a = np.array(rows)
     a = np.asarray(a, float)
     if a.ndim == 2 and a.shape[0] == 2 and a.shape[1] != 2:
         a = a.T
@@ -243,6 +264,8 @@ def parse_source(text, cube=None) -> Spectrum:
         return cube_spectrum(cube, y, x)
     if Path(t).is_file():
         return read_spectrum(t)
+    if Path(t).suffix or "/" in t or "\\" in t:
+        raise ValueError(f"no spectrum file {t!r}")
     raise ValueError(f"unknown source {t!r}: use solar, solar:astm-g173, "
                      "tungsten:TEMPERATURE_K, cube, cube:Y,X or the path of a two-column "
                      "spectrum file")
@@ -268,11 +291,12 @@ class _FilterMoments:
 
     @classmethod
     @functools.lru_cache(maxsize=64)
-    def _of(cls, profile, fine=10):
+    def _of(cls, profile, fine=8):
         fwhm = float(profile.fwhm_nm)
-        # integrated on a grid `fine` times finer than the table (a jump of the profile, its
-        # 5 % cut, is then off by < 1e-5 of P at the table's nodes), tabulated every fwhm/2000
-        h = fwhm / (2000.0 * fine)
+        # integrated on a grid `fine` times finer than the table, which has fwhm/5000 steps:
+        # linear between its nodes, a jump of the profile (the multi-Lorentzian's 5 % cut, a
+        # Pi band's edges) costs at most ~1e-5 (5e-5 for a Pi band) of P
+        h = fwhm / (5000.0 * fine)
         u = np.arange(-8.0 * fwhm, 8.0 * fwhm + h / 2, h)
         t = np.asarray(profile(profile.cwl_nm + u), float)
         nz = np.flatnonzero(t > 0)
@@ -287,14 +311,19 @@ class _FilterMoments:
         return cls(u[::fine], c0[::fine], c1[::fine])
 
     def at(self, u):
-        """``C0(u)``, ``C1(u)`` by linear interpolation on the uniform table (no search);
-        ``u`` must lie within the table."""
+        """``C0(u)``, ``C1(u)`` on the uniform table (no search); ``u`` within the table.
+
+        ``C0`` is linear between nodes and ``C1`` follows from ``dC1 = u dC0``, so both are
+        exact where the profile is constant across a cell: a sharp edge in the source then
+        costs nothing extra.
+        """
         h = self.u[1] - self.u[0]
         pos = (u - self.u[0]) / h
         i = np.clip(pos.astype(np.int64), 0, self.u.size - 2)
         f = pos - i
-        return (self.c0[i] + f * (self.c0[i + 1] - self.c0[i]),
-                self.c1[i] + f * (self.c1[i + 1] - self.c1[i]))
+        c0 = self.c0[i] + f * (self.c0[i + 1] - self.c0[i])
+        c1 = self.c1[i] + 0.5 * (self.u[i] + u) * (c0 - self.c0[i])
+        return c0, c1
 
 
 def _lattice(source, max_knots=2_000_000):
@@ -371,7 +400,13 @@ def _signals_on_grid(source, profile, moments, j0, j1, d):
     lat = _lattice(source)
     if lat is not None:
         q = round(lat[1] / d)
-        if q >= 1 and math.isclose(q * d, lat[1], rel_tol=1e-9):
+        if q > 16 and (lat[2].size - 1) * q < 2_000_000:
+            # a coarse lattice: refine it to the shifts' step (the same function, exactly)
+            lam0, delta, vals = lat
+            n = (vals.size - 1) * q + 1
+            fine = lam0 + np.arange(n) * d
+            lat, q = (lam0, d, np.interp(fine, lam0 + np.arange(vals.size) * delta, vals)), 1
+        if 1 <= q <= 16 and math.isclose(q * d, lat[1], rel_tol=1e-9):
             phases = {}
             for p in range(q):
                 ks = (js[(js - p) % q == 0] - p) // q
@@ -520,6 +555,16 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     return out
 
 
+def _check_tolerance(tolerance_pct):
+    try:
+        tol = float(tolerance_pct)
+    except (TypeError, ValueError):
+        raise ValueError(f"tolerance_pct must be a number, got {tolerance_pct!r}") from None
+    if not (math.isfinite(tol) and tol > 0):
+        raise ValueError(f"tolerance_pct must be > 0, got {tol:g}")
+    return tol
+
+
 @dataclass
 class Budget:
     """The residual signal error of each correction model over band and chief-ray angle.
@@ -531,7 +576,12 @@ class Budget:
 
     data: xr.Dataset
     tolerance_pct: float = 0.5
-    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        self.tolerance_pct = _check_tolerance(self.tolerance_pct)
+
+    def _tol(self, tolerance_pct):
+        return self.tolerance_pct if tolerance_pct is None else _check_tolerance(tolerance_pct)
 
     @property
     def models(self):
@@ -544,9 +594,7 @@ class Budget:
     def recommend(self, tolerance_pct=None):
         """``(model, reason)``: the cheapest model whose residual stays below the tolerance
         everywhere on the field; the best model when none does."""
-        tol = self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)
-        if not (math.isfinite(tol) and tol > 0):
-            raise ValueError(f"tolerance_pct must be > 0, got {tolerance_pct!r}")
+        tol = self._tol(tolerance_pct)
         worst = {m: self.worst_pct(m) for m in self.models}
         src = self.data.attrs["source"]
         for m in self.models:
@@ -560,16 +608,26 @@ class Budget:
                       f"{worst[best]:.2g} % (the kernel also changes the filter's shape, "
                       "which no shift of the wavelengths undoes)")
 
-    def radius_mm(self, tolerance_pct=None, model="none"):
+    def radius_mm(self, tolerance_pct=None, model="none", *, relative_to="nominal"):
         """Mishev & Bakalova's radius: the image radius (mm) inside which ``model`` leaves no
-        band's signal off by more than the tolerance (all bands; the field's edge if it never
-        does)."""
-        tol = (self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)) / 100
-        err = np.abs(self.data["residual"].sel(model=model)).max("band").values
+        band's signal off by more than the tolerance.
+
+        ``relative_to="nominal"`` compares each pixel with the filter at its nominal place
+        (the error of the model); ``"centre"`` with the pixel on the optical axis, as Mishev
+        & Bakalova normalise their frames (what a flat field taken on axis would not
+        remove). Returns ``inf`` when the tolerance holds over the whole field of the budget,
+        0 when it fails on the axis already.
+        """
+        validate_method(relative_to, ("nominal", "centre"), "relative_to")
+        tol = self._tol(tolerance_pct) / 100
+        res = self.data["residual"].sel(model=model).values  # (band, cra)
+        if relative_to == "centre":
+            res = (1.0 + res) / (1.0 + res[:, :1]) - 1.0
+        err = np.abs(res).max(axis=0)
         r = self.data["radius_mm"].values
         over = np.flatnonzero(err > tol)
         if over.size == 0:
-            return float(r[-1])
+            return math.inf
         i = over[0]
         if i == 0:
             return 0.0
@@ -587,8 +645,13 @@ class Budget:
                              f"{grid[0]:.3g}-{grid[-1]:.3g} deg")
         table = self.data["residual"].sel(model=model).values  # (band, cra)
         nb = table.shape[0]
+        if cra.ndim == 3 and cra.shape[2] == 1:  # one position per pixel (Snapscan)
+            cra = cra[:, :, 0]
         if cra.ndim == 2:
             cra = np.broadcast_to(cra[:, :, None], (*cra.shape, nb))
+        if cra.ndim != 3 or cra.shape[2] != nb:
+            raise ValueError(f"cra_deg must have shape (y, x), (y, x, 1) or (y, x, {nb}), "
+                             f"got {cra.shape}")
         out = np.empty(cra.shape)
         for b in range(nb):
             out[:, :, b] = np.interp(cra[:, :, b], grid, table[b])
@@ -608,18 +671,27 @@ class Budget:
             f"{self.worst_pct(m):>10.3g}%" for m in self.models))
         return "\n".join(lines)
 
-    def plot(self, path=None, tolerance_pct=None, *, inputs=()):
-        """Worst residual against band and against image radius, for each model; written
-        atomically to ``path`` (PNG) if given, never over one of ``inputs``."""
-        import matplotlib
+    def plot(self, path=None, tolerance_pct=None, *, overwrite=False, inputs=()):
+        """Worst residual against band and against image radius, for each model.
 
-        if path is not None:
-            matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        Without ``path`` the figure is made with pyplot (shown inline in a notebook). With
+        ``path`` it is written atomically as PNG without touching pyplot's state; an existing
+        file is replaced only with ``overwrite``, and never one of ``inputs``.
+        """
+        tol = self._tol(tolerance_pct)
+        path = None if path is None else Path(path)
+        if path is not None and path.exists() and not overwrite:
+            raise ValueError(f"{path} exists; use overwrite=True (--overwrite) to replace it")
+        if path is None:
+            import matplotlib.pyplot as plt
 
-        tol = self.tolerance_pct if tolerance_pct is None else float(tolerance_pct)
+            fig = plt.figure(figsize=(12, 4.5), layout="constrained")
+        else:
+            from matplotlib.figure import Figure
+
+            fig = Figure(figsize=(12, 4.5), layout="constrained")
+        a, b = fig.subplots(1, 2)
         d = self.data
-        fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
         for k, m in enumerate(self.models):
             r = np.abs(d["residual"].sel(model=m)) * 100
             a.semilogy(d["wavelength"], np.maximum(r.max("cra"), 1e-6), color=f"C{k}",
@@ -631,9 +703,14 @@ class Budget:
             ax.set_ylabel("|signal error| (%)")
             ax.grid(alpha=0.3)
         rad = self.radius_mm(tol)
-        b.axvline(rad, color="C0", ls="--", lw=0.8,
-                  label=(f"uncorrected within tolerance: r < {rad:.2f} mm" if rad > 0 else
-                         "uncorrected: over the tolerance even on axis"))
+        if math.isinf(rad):
+            label = "uncorrected within tolerance over the whole field"
+        elif rad > 0:
+            label = f"uncorrected within tolerance: r < {rad:.2f} mm"
+        else:
+            label = "uncorrected: over the tolerance even on axis"
+        b.axvline(min(rad, float(d["radius_mm"][-1])), color="C0", ls="--", lw=0.8,
+                  label=label)
         a.set(xlabel="band centre (nm)", title="worst over the field")
         b.set(xlabel="image radius (mm)", title="worst over the bands")
         b.legend(fontsize=8)
@@ -642,11 +719,8 @@ class Budget:
         if path is not None:
             from ._io import atomic_write
 
-            try:
-                atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
-                             inputs=[i for i in inputs if i is not None])
-            finally:
-                plt.close(fig)
+            atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
+                         inputs=[i for i in inputs if i is not None])
         return fig
 
 
@@ -657,8 +731,10 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     0..``cra_max_deg`` behind ``lens`` at ``f_number``, for the ``source`` spectrum.
 
     Each band's filter is ``profile`` (``"multi_lorentzian"``, Flittner & Slater's; ``"pi"``,
-    Mishev & Bakalova's rectangle) of the sensor's FWHM. The pixel's signal is the full kernel
-    response (Goossens Eq. 13, :func:`~snapcorr.optics.response.kernel_bins`); each model's
+    Mishev & Bakalova's rectangle) of the sensor's FWHM, moved and smeared by the kernel (the
+    widening and dimming Mishev & Bakalova add for a tilted filter is :func:`band_signal`'s).
+    The pixel's signal is the full kernel response (Goossens Eq. 13,
+    :func:`~snapcorr.optics.response.kernel_bins`); each model's
     residual is that signal over the signal of the filter placed at the model's mean shift,
     minus 1.
 
@@ -669,6 +745,10 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     validate_method(profile, PROFILES, "profile")
     for m in models:
         validate_method(m, MODELS, "model")
+    models = tuple(m for m in MODELS if m in models)  # in order of cost, for recommend()
+    tolerance_pct = _check_tolerance(tolerance_pct)
+    if int(n_cra) < 2:
+        raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
     f = float(f_number)
     if not (math.isfinite(f) and f > 0):
         raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")

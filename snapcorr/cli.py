@@ -83,6 +83,13 @@ def _cmd_budget(args):
         from .cube import read_cube
 
         cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})
+    if cube is not None and cube.sizes["band"] != sensor.n_bands:
+        raise ValueError(f"the cube has {cube.sizes['band']} bands, the sensor {sensor.name!r} "
+                         f"{sensor.n_bands}; use the sensor the cube was taken with")
+    if cube is not None and not np.allclose(cube["wavelength"].values, sensor.cwl_nm,
+                                            rtol=0, atol=0.05):
+        raise ValueError(f"the cube's wavelengths differ from the sensor {sensor.name!r}'s; "
+                         "use the matching sensor")
     source = parse_source(args.source, cube)
     if args.cra_max is not None:
         cra_max, field = args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
@@ -99,10 +106,16 @@ def _cmd_budget(args):
     b = scene_budget(sensor, lens, args.f_number, source, cra_max_deg=cra_max,
                      profile=args.profile, tolerance_pct=args.tolerance_pct)
     model, reason = b.recommend()
-    ranges = tolerance_ranges(source, sensor.cwl_nm, sensor.fwhm_nm, n_eff=sensor.n_eff[0],
-                              profile=args.profile)
+    ranges = []
+    for c, w, n in zip(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, strict=True):
+        try:
+            ranges += tolerance_ranges(source, [c], [w], n_eff=n, profile=args.profile)
+        except ValueError:  # the source ends within a shift of 5 nm of this band
+            ranges.append(["n/a", "n/a"])
 
     def fmt(r):
+        if isinstance(r, str):
+            return r
         return "NA" if r is None else f"{r[0]:.1f}-{r[1]:.1f}"
 
     print(f"scene budget: {source.name}; {lens.name} at f/{args.f_number:g}; {sensor.name} "
@@ -115,7 +128,10 @@ def _cmd_budget(args):
         print(f"{line}  {fmt(rr[0]):>13} {fmt(rr[1]):>13}")
     print(table[-1])
     radius = b.radius_mm()
-    if radius > 0:
+    if math.isinf(radius):
+        print(f"uncorrected within {args.tolerance_pct:g} % over the whole field "
+              "(Mishev & Bakalova's radius is beyond it)")
+    elif radius > 0:
         print(f"uncorrected within {args.tolerance_pct:g} %: image radius < {radius:.2f} mm "
               f"({radius / sensor.pixel_pitch_mm:.0f} px) (Mishev & Bakalova)")
     else:
@@ -123,7 +139,8 @@ def _cmd_budget(args):
               f"the axis (the cone of f/{args.f_number:g} alone shifts the bands)")
     print(f"recommended: {model}: {reason}")
     if args.plot is not None:
-        b.plot(args.plot, inputs=[args.sensor, args.lens, args.cube, args.source])
+        b.plot(args.plot, overwrite=args.overwrite,
+               inputs=[args.sensor, args.lens, args.cube, args.source])
         print(f"wrote {args.plot}")
     return 0
 
@@ -216,10 +233,12 @@ def _cmd_correct(args):
     cube = cube.chunk({"y": max(1, CHUNK_BYTES // row_bytes), "x": -1, "band": -1})
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
+    if args.tolerance_pct is not None and args.source is None:
+        raise ValueError("--tolerance-pct applies to the scene budget: give --source too")
     ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
                       method=args.method, tolerance_nm=args.tolerance_nm,
                       resample=args.resample, source=args.source,
-                      tolerance_pct=args.tolerance_pct)
+                      tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct)
     ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
@@ -456,9 +475,8 @@ def build_parser():
                      "tungsten:TEMPERATURE_K, cube (the "
                      "cube's mean spectrum) or a two-column file; --method auto then takes "
                      "the cheapest model whose signal error stays below --tolerance-pct")
-    cor.add_argument("--tolerance-pct", type=float, default=0.5,
-                     help="radiometric tolerance with --source, percent (default: "
-                     "%(default)s)")
+    cor.add_argument("--tolerance-pct", type=float, default=None,
+                     help="radiometric tolerance with --source, percent (default: 0.5)")
     cor.add_argument("--resample", action="store_true",
                      help="also interpolate each spectrum onto the nominal wavelengths")
     cor.add_argument("--scheduler", default=None, metavar="ADDRESS",

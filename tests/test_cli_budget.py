@@ -51,11 +51,21 @@ def test_budget_prints_the_table_and_the_library_recommendation(files):
     assert (files / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_budget_table_says_na_where_the_source_ends_near_a_band(files):
+    lam = np.arange(400.0, 910.6, 0.5)  # reaches the 900 nm band, not its 5 nm shifts
+    np.savetxt(files / "short.csv", np.c_[lam, 1 + 0.001 * lam], delimiter=",")
+    res = run("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "4",
+              "--source", "short.csv", "--cra-max", "10", cwd=files)
+    assert res.returncode == 0, res.stderr
+    (row,) = [line for line in res.stdout.splitlines() if line.startswith("   4 ")]
+    assert "n/a" in row
+
+
 def test_budget_of_a_flat_source_recommends_no_correction(files):
     res = run("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "1.4",
               "--source", "flat.csv", "--cra-max", "15", cwd=files)
     assert res.returncode == 0, res.stderr
-    assert "recommended: none" in res.stdout and "within 0.5 %: image radius" in res.stdout
+    assert "recommended: none" in res.stdout and "over the whole field" in res.stdout
 
 
 @pytest.mark.parametrize("args, message", [
@@ -67,6 +77,9 @@ def test_budget_of_a_flat_source_recommends_no_correction(files):
     (["--tolerance-pct", "0"], "tolerance"),
     (["--plot", "b.jpg"], ".png"),
     (["--plot", "lens.toml"], ".png"),
+    (["--plot", "old.png"], "exists"),
+    (["--cube", "cube.nc"], "bands"),
+    (["--source", "missing.csv"], "no spectrum file"),
     (["--lens", "nolens.toml"], "nolens.toml"),
     (["--f-number", "-1"], "f_number"),
 ])
@@ -74,14 +87,19 @@ def test_budget_mistakes_are_one_line(files, args, message, capsys, monkeypatch)
     from snapcorr.cli import main
 
     monkeypatch.chdir(files)  # in-process: the same main() as the console script, faster
+    (files / "old.png").write_bytes(b"keep")
+    Sensor("s7", "snapscan", 40.0, np.linspace(500, 900, 7), 10.0, 1.7,
+           size_px=(100, 100)).save(files / "s7.toml")
     base = {"--sensor": "sized.toml", "--lens": "lens.toml", "--f-number": "2",
             "--source": "tungsten:2856"}
+    if "--cube" in args:
+        base["--sensor"] = "s7.toml"  # 7 bands against the cube's 5
     for flag, value in zip(args[::2], args[1::2], strict=True):
         base[flag] = value
     assert main(["budget", *[v for kv in base.items() for v in kv]]) == 1
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1, err
-    assert not (files / "b.jpg").exists()
+    assert not (files / "b.jpg").exists() and (files / "old.png").read_bytes() == b"keep"
 
 
 def test_correct_with_a_source_uses_the_budget(files):
@@ -104,6 +122,9 @@ def test_correct_with_a_source_uses_the_budget(files):
               "--f-number", "4", "--source", "solar", "--method", "ideal", "--out", "x.nc",
               cwd=files)
     assert res.returncode != 0 and "--method auto" in res.stderr
+    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "4", "--tolerance-pct", "1", "--out", "x.nc", cwd=files)
+    assert res.returncode != 0 and "give --source" in res.stderr
     assert not (files / "x.nc").exists()
 
 
@@ -113,6 +134,13 @@ def test_correct_cube_with_the_cubes_own_spectrum():
     step = np.where(lam < 700, 1.0, 0.05).astype(np.float32)  # a red edge in the scene
     cube = make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm)
     ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.5)
-    assert ds.attrs["budget_source"] == "cube mean" and ds.attrs["method"] != "none"
+    # the edge inside the 700 nm band (200 % uncorrected): no model brings it within 0.5 %,
+    # and the one that leaves the least is taken
+    worst = dict(zip(ds.attrs["budget_models"], ds.attrs["budget_worst_pct"], strict=True))
+    assert ds.attrs["budget_source"] == "cube mean" and worst["none"] > 100
+    assert ds.attrs["method"] == min(worst, key=worst.get) != "none"
+    assert "no model is within" in ds.attrs["method_reason"]
+    with pytest.raises(ValueError, match="method='auto'"):
+        correct_cube(cube, PAPER, sensor, 1.4, source="cube", method="ideal")
     flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)
     assert correct_cube(flat, PAPER, sensor, 1.4, source="cube").attrs["method"] == "none"

@@ -136,6 +136,13 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
         raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
     if not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
         raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+    if source is not None:
+        if method != "auto":
+            raise ValueError(f"a source chooses the model: use it with method='auto', not "
+                             f"{method!r}")
+        if not (isinstance(tolerance_pct, (int, float)) and math.isfinite(tolerance_pct)
+                and tolerance_pct > 0):
+            raise ValueError(f"tolerance_pct must be > 0, got {tolerance_pct!r}")
     nb = cube.sizes["band"]
     if nb != sensor.n_bands:
         raise ValueError(f"the cube has {nb} bands, the sensor {sensor.name!r} "
