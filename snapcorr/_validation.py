@@ -2,9 +2,22 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["check_curve", "validate_method"]
+__all__ = ["check_curve", "check_positive", "validate_method"]
+
+
+def check_positive(name, value):
+    """``value`` as a float, raising a clear ``ValueError`` unless it is a finite number > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
 
 
 def validate_method(method, methods, what="method"):

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ._validation import validate_method
+from ._validation import check_positive, validate_method
 from .optics import Lens, mean_shift
 from .optics.profiles import MultiLorentzian, PiShaped
 from .optics.response import kernel_bins
@@ -555,16 +555,6 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     return out
 
 
-def _check_tolerance(tolerance_pct):
-    try:
-        tol = float(tolerance_pct)
-    except (TypeError, ValueError):
-        raise ValueError(f"tolerance_pct must be a number, got {tolerance_pct!r}") from None
-    if not (math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tolerance_pct must be > 0, got {tol:g}")
-    return tol
-
-
 @dataclass
 class Budget:
     """The residual signal error of each correction model over band and chief-ray angle.
@@ -578,10 +568,12 @@ class Budget:
     tolerance_pct: float = 0.5
 
     def __post_init__(self):
-        self.tolerance_pct = _check_tolerance(self.tolerance_pct)
+        self.tolerance_pct = check_positive("tolerance_pct", self.tolerance_pct)
 
     def _tol(self, tolerance_pct):
-        return self.tolerance_pct if tolerance_pct is None else _check_tolerance(tolerance_pct)
+        if tolerance_pct is None:
+            return self.tolerance_pct
+        return check_positive("tolerance_pct", tolerance_pct)
 
     @property
     def models(self):
@@ -746,12 +738,10 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     for m in models:
         validate_method(m, MODELS, "model")
     models = tuple(m for m in MODELS if m in models)  # in order of cost, for recommend()
-    tolerance_pct = _check_tolerance(tolerance_pct)
+    tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
-    f = float(f_number)
-    if not (math.isfinite(f) and f > 0):
-        raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+    f = check_positive("f_number", f_number)
     cra_max = float(cra_max_deg)
     cutoff = float(lens.cutoff_cra_deg(f))
     if not (math.isfinite(cra_max) and 0 <= cra_max < cutoff):

@@ -345,10 +345,10 @@ def test_budget_arguments_are_checked(sun):
         budget.scene_budget(sensor, PAPER, 1.4, sun, cra_max_deg=5.0, profile="box")
     with pytest.raises(ValueError, match="n_cra"):
         budget.scene_budget(sensor, PAPER, 1.4, sun, cra_max_deg=5.0, n_cra=1)
-    with pytest.raises(ValueError, match="tolerance_pct must be > 0, got -1"):
+    with pytest.raises(ValueError, match="tolerance_pct must be a finite number > 0, got -1"):
         budget.scene_budget(sensor, PAPER, 1.4, sun, cra_max_deg=5.0, tolerance_pct=-1)
     b = budget.scene_budget(sensor, PAPER, 1.4, sun, cra_max_deg=5.0, n_cra=3)
-    with pytest.raises(ValueError, match="tolerance_pct must be > 0, got -1"):
+    with pytest.raises(ValueError, match="tolerance_pct must be a finite number > 0, got -1"):
         b.recommend(-1)
 
 

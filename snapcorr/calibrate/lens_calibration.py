@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import __version__
+from .._validation import check_positive
 from ..optics.lens import Lens
 from .flats import (
     clean_flat,
@@ -332,10 +333,10 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    exit_pupil_mm = _positive("exit_pupil_mm", exit_pupil_mm)
-    pixel_pitch_um = _positive("pixel_pitch_um", pixel_pitch_um)
+    exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
+    pixel_pitch_um = check_positive("pixel_pitch_um", pixel_pitch_um)
     if vignetting_distance_mm is not None:
-        vignetting_distance_mm = _positive("vignetting_distance_mm", vignetting_distance_mm)
+        vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
     if center_px is not None:
         try:
             cx, cy = (float(v) for v in center_px)
@@ -560,16 +561,6 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     result.lens = Lens(name, x, lens_P, lens_h, magnification, pupil_magnification,
                        calibration=calibration)
     return result
-
-
-def _positive(name, value):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
 
 
 def _sane(of, x):

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from .. import __version__
+from .._validation import check_positive
 from ..cube.model import check_cube
 from ..optics import ShiftTable, mean_shift
 from ..optics import goossens2019 as g19
@@ -128,21 +129,13 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
     check_cube(cube)
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    try:
-        f = float(f_number)
-    except (TypeError, ValueError):
-        raise ValueError(f"f_number must be a number, got {f_number!r}") from None
-    if not (math.isfinite(f) and f > 0):
-        raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
-    if not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
-        raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+    f = check_positive("f_number", f_number)
+    check_positive("tolerance_nm", tolerance_nm)
     if source is not None:
         if method != "auto":
             raise ValueError(f"a source chooses the model: use it with method='auto', not "
                              f"{method!r}")
-        if not (isinstance(tolerance_pct, (int, float)) and math.isfinite(tolerance_pct)
-                and tolerance_pct > 0):
-            raise ValueError(f"tolerance_pct must be > 0, got {tolerance_pct!r}")
+        check_positive("tolerance_pct", tolerance_pct)
     nb = cube.sizes["band"]
     if nb != sensor.n_bands:
         raise ValueError(f"the cube has {nb} bands, the sensor {sensor.name!r} "
