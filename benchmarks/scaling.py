@@ -13,7 +13,7 @@ uniform random values. The pixel pitch scales with 1/n, so every size spans the 
    (1 means linear). Peak memory is the process's resident-set peak (``ru_maxrss``), minus the
    resident set just before the cube is made, over the cube's bytes; it includes the input.
 2. **Dask blocks.** The same correction on a dask-backed cube in blocks of whole rows of
-   about ``snapcorr.cli.CHUNK_BYTES``, as ``snapcorr correct`` streams it. It is run twice:
+   about ``snapcorr.cube.io.BLOCK_BYTES``, as ``snapcorr correct`` streams it. It is run twice:
    from a numpy cube in memory, computing the corrected wavelengths and the resampled cube, and
    from a zarr file to a zarr file with snapcorr's own reader and writer (the larger-than-memory
    case: the input, the corrected wavelengths, the chief-ray angles and the resampled cube are
@@ -45,10 +45,9 @@ from pathlib import Path
 import numpy as np
 
 from snapcorr import Lens
-from snapcorr.cli import CHUNK_BYTES
 from snapcorr.correct import correct_cube
-from snapcorr.cube import Sensor, make_cube, read_cube, write_cube
-from snapcorr.cube.io import write_dataset
+from snapcorr.cube import Sensor, make_cube, read_cube, row_blocks, write_cube
+from snapcorr.cube.io import BLOCK_BYTES, write_dataset
 
 from . import pyplot, write_csv
 
@@ -71,19 +70,17 @@ def sensor(n):
 
 def block_rows(n):
     """Rows per block of an n x n x 150 float32 cube, as ``snapcorr correct`` chunks it."""
-    return max(1, CHUNK_BYTES // (n * N_BANDS * 4))
+    return max(1, BLOCK_BYTES // (n * N_BANDS * 4))
 
 
 def correct_file(src, dst, n):
     """``snapcorr correct SRC --resample --out DST`` at f/1.4, without the command line.
 
-    Read lazily as stored, blocks of about ``CHUNK_BYTES`` whole rows, written by
+    Read lazily as stored, blocks of about ``BLOCK_BYTES`` whole rows (``row_blocks``), written by
     ``write_dataset`` (on the active dask scheduler, a cluster's when a client is open).
     """
     sens = sensor(n)
-    cube = read_cube(src, wavelength_nm=sens.cwl_nm, chunks={})
-    row_bytes = cube.sizes["x"] * cube.sizes["band"] * max(cube.dtype.itemsize, 4)
-    cube = cube.chunk({"y": max(1, CHUNK_BYTES // row_bytes), "x": -1, "band": -1})
+    cube = row_blocks(read_cube(src, wavelength_nm=sens.cwl_nm, chunks={}))
     ds = correct_cube(cube, LENS, sens, F_NUMBER, resample=True)
     return write_dataset(ds, dst)
 
@@ -257,7 +254,7 @@ def dask_blocks(memory_rows, *, quick=False, echo=print):
                              s_per_gib=r["seconds"] / gib, gib_per_s=gib / r["seconds"],
                              peak_x_cube=r["peak_bytes"] / r["cube_bytes"],
                              peak_mib=r["peak_bytes"] / 2**20))
-    echo(f"dask blocks of {CHUNK_BYTES / 2**20:.0f} MiB (whole rows), default threaded "
+    echo(f"dask blocks of {BLOCK_BYTES / 2**20:.0f} MiB (whole rows), default threaded "
          "scheduler, against the in-memory correction at the same size:")
     echo(f"{'n':>6} {'run':<20} {'s':>8} {'x in memory':>12} {'x copy':>7} {'s/GiB':>7} "
          f"{'peak x cube':>12} {'peak MiB':>9}")

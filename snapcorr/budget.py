@@ -44,6 +44,7 @@ import numpy as np
 import xarray as xr
 
 from ._validation import check_positive, validate_method
+from .correct.core import METHODS as CORRECT_METHODS
 from .optics import Lens, mean_shift
 from .optics.profiles import MultiLorentzian, PiShaped
 from .optics.response import kernel_bins
@@ -66,15 +67,12 @@ __all__ = [
     "tolerance_ranges",
 ]
 
-#: Correction models in order of cost (as ``snapcorr.correct``): the budget picks the first
-#: whose residual is below the tolerance.
-MODELS = ("none", "asymptotic", "ideal", "vignetted")
+#: Correction models in order of cost (``snapcorr.correct``'s, without ``"auto"``): the
+#: budget picks the first whose residual is below the tolerance.
+MODELS = tuple(m for m in CORRECT_METHODS if m != "auto")
 
 #: Filter-profile models for a band of given centre and FWHM.
-PROFILES = {
-    "multi_lorentzian": lambda cwl, fwhm, n_eff: MultiLorentzian(cwl, fwhm, n_eff),
-    "pi": lambda cwl, fwhm, n_eff: PiShaped(cwl, fwhm, n_eff),
-}
+PROFILES = {"multi_lorentzian": MultiLorentzian, "pi": PiShaped}
 
 #: Tungsten lamps are modelled as blackbodies at their colour temperature (CIE illuminant A,
 #: the incandescent lamp, is defined as Planck's law at 2856 K).
@@ -375,29 +373,29 @@ def _signals_lattice(lattice, profile, moments, k_phase, q):
 
         # segments m_lo..m_hi-1: n = m + k; interior knots m_lo+1..m_hi-1
         inner = slice(1, m.size - 1)
-        gi = g  # g[n] for segment n
         # a_m = s[m+k] - g[m+k] v_m;  P = a_{m_hi-1} C0_{m_hi} - a_{m_lo} C0_{m_lo}
         #   - sum_{interior} C0_m (a_m - a_{m-1}) + sum_segments g[m+k] (C1_{m+1} - C1_m)
         last = m_hi - 1
         kk = np.arange(k0, k1 + 1)
-        a_last = s[last + kk] - gi[last + kk] * v[-2]
-        a_first = s[m_lo + kk] - gi[m_lo + kk] * v[0]
+        a_last = s[last + kk] - g[last + kk] * v[-2]
+        a_first = s[m_lo + kk] - g[m_lo + kk] * v[0]
         P = a_last * C0[-1] - a_first * C0[0]
         if m.size > 2:
             # a_m - a_{m-1} = ds[m+k-1] - g[m+k] v_m + g[m+k-1] v_{m-1}
             P -= corr(ds, m_lo, C0[inner])
-            P += corr(gi, m_lo + 1, C0[inner] * v[inner])
-            P -= corr(gi, m_lo, C0[inner] * v[:-2])
-        P += corr(gi, m_lo, np.diff(C1))
+            P += corr(g, m_lo + 1, C0[inner] * v[inner])
+            P -= corr(g, m_lo, C0[inner] * v[:-2])
+        P += corr(g, m_lo, np.diff(C1))
         out[p] = P
     return out
 
 
-def _signals_on_grid(source, profile, moments, j0, j1, d):
+def _signals_on_grid(source, profile, moments, j0, j1, d, lattice=False):
     """``P`` at the shifts ``j * d``, ``j = j0..j1``: by correlations where the source lies on
-    a lattice whose step is a whole number of ``d`` (fast), else as ``_signals``."""
+    a lattice whose step is a whole number of ``d`` (fast), else as ``_signals``.
+    ``lattice``: ``_lattice(source)`` if already known."""
     js = np.arange(j0, j1 + 1)
-    lat = _lattice(source)
+    lat = _lattice(source) if lattice is False else lattice
     if lat is not None:
         q = round(lat[1] / d)
         if q > 16 and (lat[2].size - 1) * q < 2_000_000:
@@ -589,10 +587,9 @@ class Budget:
         tol = self._tol(tolerance_pct)
         worst = {m: self.worst_pct(m) for m in self.models}
         src = self.data.attrs["source"]
-        for m in self.models:
+        for i, m in enumerate(self.models):
             if worst[m] <= tol:
-                cheaper = ", ".join(f"{c} {worst[c]:.2g} %" for c in self.models
-                                    if self.models.index(c) < self.models.index(m))
+                cheaper = ", ".join(f"{c} {worst[c]:.2g} %" for c in self.models[:i])
                 return m, (f"for {src}: {m} leaves at most {worst[m]:.2g} % <= {tol:g} %"
                            + (f" (cheaper: {cheaper})" if cheaper else ""))
         best = min(worst, key=worst.get)
@@ -650,7 +647,7 @@ class Budget:
         return xr.DataArray(out, dims=("y", "x", "band"),
                             attrs={"units": "1", "long_name": f"residual after {model}"})
 
-    def table(self, tolerance_pct=None):
+    def table(self):
         """A plain-text table: per band, the worst residual of each model (percent)."""
         d = self.data
         head = f"{'band':>4} {'cwl nm':>8} " + " ".join(f"{m:>11}" for m in self.models)
@@ -737,7 +734,8 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     validate_method(profile, PROFILES, "profile")
     for m in models:
         validate_method(m, MODELS, "model")
-    models = tuple(m for m in MODELS if m in models)  # in order of cost, for recommend()
+    # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
+    models = tuple(m for m in MODELS if m in models or m == "none")
     tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
@@ -754,30 +752,32 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     ref = float(cwl.max())
     # The kernel in wavelength scales exactly with the filter's centre (Eq. 3): bins are built
     # once per (n_eff, CRA) at the largest centre and scaled to each band.
-    bins = {}
+    # Likewise each model's mean shift (one curve over CRA per n_eff, scaled to each band) and
+    # the kernel's bins (once per n_eff and CRA, at the largest centre).
+    bins, per_model = {}, {}
     for n in np.unique(n_eff):
         bins[n] = [kernel_bins(ref, n, f, c, lens, step_nm=kernel_step_nm) for c in cra]
+        per_model[n] = {m: (np.zeros(cra.size) if m == "none" else np.asarray(
+            mean_shift(ref, n, f, cra, lens, method=m), float)) for m in models}
+    lat = _lattice(source)
+    d = shift_step_nm if lat is None else lat[1] / math.ceil(lat[1] / shift_step_nm - 1e-9)
     nb = cwl.size
     residual = np.empty((len(models), nb, cra.size))
     shifts = np.empty((len(models), nb, cra.size))
     for b in range(nb):
         prof = PROFILES[profile](cwl[b], fwhm[b], n_eff[b])
         scale = cwl[b] / ref
-        per_model = {m: (np.zeros(cra.size) if m == "none" else
-                         np.asarray(mean_shift(cwl[b], n_eff[b], f, cra, lens, method=m),
-                                    float)) for m in models}
         mus = [mu * scale for mu, _ in bins[n_eff[b]]]
-        # every shift this band needs: P on a fine grid of shifts, in one pass over the
-        # source, then interpolated (exactly 1 for a flat source)
-        allshift = np.concatenate(mus + list(per_model.values()))
-        lat = _lattice(source)
-        d = shift_step_nm if lat is None else lat[1] / math.ceil(lat[1] / shift_step_nm - 1e-9)
+        means = [per_model[n_eff[b]][m] * scale for m in models]
+        # every shift this band needs: P on a fine grid of shifts (0 among them, as "none"
+        # asks for it), in one pass over the source, then interpolated (exactly 1 for a flat
+        # source)
+        allshift = np.concatenate(mus + means)
         j0 = int(np.floor(allshift.min() / d)) - 1
         j1 = int(np.ceil(allshift.max() / d)) + 1
         grid = np.arange(j0, j1 + 1) * d
-        mom = _FilterMoments.of(prof)
-        p = _signals_on_grid(source, prof, mom, j0, j1, d)
-        p0 = _signals(source, prof, np.zeros(1), mom)[0]
+        p = _signals_on_grid(source, prof, _FilterMoments.of(prof), j0, j1, d, lattice=lat)
+        p0 = p[-j0]  # the shift 0
         if not p0 > 0:
             raise ValueError(f"the source {source.name!r} has no signal in the band at "
                              f"{cwl[b]:g} nm")
@@ -787,11 +787,11 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
             rk = r[pos:pos + w.size]
             pixel[i] = np.sum(w * rk) / np.sum(w)  # exactly 1 where every rk is 1
             pos += w.size
-        for k, m in enumerate(models):
+        for k in range(len(models)):
             rm = r[pos:pos + cra.size]
             pos += cra.size
             residual[k, b] = pixel / rm - 1.0
-            shifts[k, b] = per_model[m]
+            shifts[k, b] = means[k]
     x = lens.exit_pupil_mm
     radius = x * np.tan(np.deg2rad(cra))
     ds = xr.Dataset(
@@ -805,4 +805,4 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
         attrs={"source": source.name, "lens": lens.name, "f_number": f,
                "sensor": sensor.name, "profile": profile, "kernel_step_nm": kernel_step_nm},
     )
-    return Budget(ds, tolerance_pct=float(tolerance_pct))
+    return Budget(ds, tolerance_pct=tolerance_pct)

@@ -43,24 +43,26 @@ EXAMPLES = textwrap.dedent(
 )
 
 
+def _bundled_or_file(value, load, bundled_path):
+    """A profile from a .toml path, or a bundled one by name (``edmund_optics_16mm``)."""
+    path = Path(value)
+    if path.suffix == ".toml" or path.exists():
+        return load(path)
+    return load(bundled_path(value))
+
+
 def _lens(value):
     from .data import lens_path
     from .optics import Lens
 
-    path = Path(value)
-    if path.suffix == ".toml" or path.exists():
-        return Lens.load(path)
-    return Lens.load(lens_path(value))
+    return _bundled_or_file(value, Lens.load, lens_path)
 
 
 def _sensor(value):
     from .cube import Sensor
     from .data import sensor_path
 
-    path = Path(value)
-    if path.suffix == ".toml" or path.exists():
-        return Sensor.load(path)
-    return Sensor.load(sensor_path(value))
+    return _bundled_or_file(value, Sensor.load, sensor_path)
 
 
 def _cmd_budget(args):
@@ -69,8 +71,6 @@ def _cmd_budget(args):
     from .budget import parse_source, scene_budget, tolerance_ranges
     from .correct.geometry import cube_cra_deg
 
-    if not (math.isfinite(args.tolerance_pct) and args.tolerance_pct > 0):
-        raise ValueError(f"--tolerance-pct must be > 0, got {args.tolerance_pct:g}")
     if args.plot is not None:
         if args.plot.suffix.lower() != ".png":
             raise ValueError(f"--plot must name a .png file, got {args.plot}")
@@ -94,7 +94,7 @@ def _cmd_budget(args):
     if args.cra_max is not None:
         cra_max, field = args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
     elif cube is not None:
-        cra_max = float(cube_cra_deg(cube, lens, sensor)[0].max())
+        cra_max = float(cube_cra_deg(cube, lens, sensor, args.center_px)[0].max())
         field = f"the cube's pixels, CRA up to {cra_max:.2f} deg"
     elif sensor.field_radius_mm is not None:
         cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
@@ -169,14 +169,14 @@ def _dataset_output(out, inputs, overwrite):
 
 
 def _cmd_flatfield(args):
-    from .cube import Sensor, flatfield, read_cube
+    from .cube import flatfield, read_cube
     from .cube.io import write_dataset
 
     inputs = [args.raw, *args.dark, *args.white]
     if args.filter_white is not None:
         inputs.append(args.filter_white)
     out = _dataset_output(args.out, inputs, args.overwrite)
-    wl = Sensor.load(args.sensor).cwl_nm if args.sensor else None
+    wl = _sensor(args.sensor).cwl_nm if args.sensor else None
 
     def read(path):  # chunked: cubes larger than memory stream through dask
         return read_cube(path, wavelength_nm=wl, chunks={"y": 512})
@@ -213,24 +213,19 @@ def _cmd_flatfield(args):
     return 0
 
 
-#: Target size of the blocks `snapcorr correct` streams a cube in.
-CHUNK_BYTES = 16 * 2**20
 
 
 def _cmd_correct(args):
     from .correct import correct_cube
-    from .cube import Sensor, read_cube
+    from .cube import read_cube, row_blocks
     from .cube.io import write_dataset
-    from .optics import Lens
 
     inputs = [args.cube, args.lens, args.sensor]
     out = _dataset_output(args.out, inputs, args.overwrite)
-    lens = Lens.load(args.lens)
-    sensor = Sensor.load(args.sensor)
-    cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})  # lazily, as stored
-    # blocks of about CHUNK_BYTES whole rows: memory stays bounded whatever the cube's size
-    row_bytes = cube.sizes["x"] * cube.sizes["band"] * max(cube.dtype.itemsize, 4)
-    cube = cube.chunk({"y": max(1, CHUNK_BYTES // row_bytes), "x": -1, "band": -1})
+    lens = _lens(args.lens)
+    sensor = _sensor(args.sensor)
+    # lazily, as stored, then in blocks of whole rows: memory stays bounded at any size
+    cube = row_blocks(read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={}))
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
@@ -519,6 +514,9 @@ def build_parser():
                      help="error against band and against image radius")
     bud.add_argument("--cube", type=Path, default=None,
                      help="a cube: its pixels set the field, and --source cube its spectrum")
+    bud.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                     help="optical centre in the cube's sensor pixels, for --cube (default: "
+                     "from the lens calibration, else the centre of the cube)")
     bud.add_argument("--cra-max", type=float, default=None, metavar="DEG",
                      help="the field to cover (default: the sensor's size_px, or the cube)")
     bud.add_argument("--profile", default="multi_lorentzian",

@@ -43,7 +43,6 @@ def test_quick_scaling_benchmark_runs_and_reports_sane_figures(tmp_path):
     for r in batch.values():
         assert r["cubes"] == scaling.QUICK_BATCH[0]
         assert _finite_positive(r["seconds"], r["cubes_per_s"], r["gib_per_s"], r["speedup"])
-    assert batch[1]["speedup"] == 1.0
     assert any("LocalCluster, 2 workers" in line for line in lines)
     assert any("log-log slope" in line for line in lines)
 

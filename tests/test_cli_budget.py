@@ -128,6 +128,20 @@ def test_correct_with_a_source_uses_the_budget(files):
     assert not (files / "x.nc").exists()
 
 
+def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path):
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
+    sensor.save(tmp_path / "s21.toml")
+    step = np.where(np.asarray(sensor.cwl_nm) < 700, 1.0, 0.05).astype(np.float32)
+    write_cube(make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm),
+               tmp_path / "edge.nc")  # tmp_path is the folder of `files` (lens.toml)
+    res = run("correct", "edge.nc", "--lens", "lens.toml", "--sensor", "s21.toml",
+              "--f-number", "1.4", "--source", "cube", "--out", "out.zarr", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    ds = xr.open_zarr(tmp_path / "out.zarr", consolidated=False)
+    assert ds.attrs["budget_source"] == "cube mean" and ds.attrs["method"] != "none"
+    assert "no model is within" in ds.attrs["method_reason"]
+
+
 def test_correct_cube_with_the_cubes_own_spectrum():
     sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
     lam = np.asarray(sensor.cwl_nm)

@@ -34,7 +34,7 @@ import xarray as xr
 from .._io import atomic_write
 from .model import check_cube, make_cube
 
-__all__ = ["FORMATS", "read_cube", "write_cube", "write_dataset"]
+__all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "row_blocks", "write_cube", "write_dataset"]
 
 FORMATS = {".hdr": "envi", ".tif": "tiff", ".tiff": "tiff", ".exr": "exr", ".nc": "netcdf",
            ".zarr": "zarr", ".npy": "npy"}
@@ -44,6 +44,17 @@ _REFLECTIVE = ("reflectance", "transmittance")
 _EXR_EXACT = tuple(np.dtype(t) for t in (np.uint8, np.int8, np.uint16, np.int16, np.float16,
                                          np.float32))
 _CHANNEL = re.compile(r"^(S0|T)\.(\d+(?:,\d*)?)nm$")
+
+
+#: Target size of the blocks a cube is streamed in (``snapcorr correct``, ``flatfield``).
+BLOCK_BYTES = 16 * 2**20
+
+
+def row_blocks(cube, target_bytes=BLOCK_BYTES):
+    """``cube`` in dask blocks of whole rows (every x and band) of about ``target_bytes``:
+    memory stays bounded whatever the cube's size, and each spectrum stays in one block."""
+    row_bytes = cube.sizes["x"] * cube.sizes["band"] * max(cube.dtype.itemsize, 4)
+    return cube.chunk({"y": max(1, target_bytes // row_bytes), "x": -1, "band": -1})
 
 
 def _format(path):
