@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-__all__ = ["check_curve", "check_positive", "validate_method"]
+__all__ = ["WAVELENGTH_NM_RANGE", "check_curve", "check_positive", "check_wavelengths_nm",
+           "validate_method"]
 
 
 def check_positive(name, value):
@@ -38,3 +39,39 @@ def check_curve(wavelength_nm, transmission):
         raise ValueError("a transmission curve needs finite 1-D wavelength and transmission "
                          "arrays of equal length (>= 2), wavelengths strictly increasing")
     return w, t
+
+
+#: Bounds of a plausible wavelength in nanometres. Values below look like micrometres (0.4-2.5)
+#: or metres; values above like Angstroms or wavenumbers. Thermal-infrared filters (8-14 um)
+#: stay inside.
+WAVELENGTH_NM_RANGE = (100.0, 1e5)
+
+
+def check_wavelengths_nm(name, values, *, where=""):
+    """``values`` as a float array of wavelengths in nm, or a ``ValueError`` that says why not.
+
+    Refuses non-finite values, values outside :data:`WAVELENGTH_NM_RANGE` (micrometres or
+    metres written as nanometres: convert them, or declare the units where the format can)
+    and repeated values (two bands at one wavelength cannot be told apart).
+    """
+    prefix = f"{where}: " if where else ""
+    try:
+        w = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{prefix}{name} must be numbers (nm), got {values!r}") from None
+    if w.dtype == bool or np.asarray(values).dtype == bool:
+        raise ValueError(f"{prefix}{name} must be numbers (nm), got booleans")
+    if not np.all(np.isfinite(w)):
+        raise ValueError(f"{prefix}{name} must be finite, got {w.ravel()[:5].tolist()}...")
+    lo, hi = WAVELENGTH_NM_RANGE
+    if w.size and (w.min() < lo or w.max() > hi):
+        bad = w[(w < lo) | (w > hi)].ravel()[0]
+        hint = (" (they look like micrometres: multiply by 1000, or declare the units, e.g. "
+                "ENVI 'wavelength units = micrometers')" if 0.1 <= bad < lo else "")
+        raise ValueError(f"{prefix}{name} must be in nanometres, {lo:g}-{hi:g}; got "
+                         f"{bad:g}{hint}")
+    if w.ndim == 1 and np.unique(w).size != w.size:
+        values_, counts = np.unique(w, return_counts=True)
+        raise ValueError(f"{prefix}{name} repeats {values_[counts > 1][:3].tolist()} nm; every "
+                         "band needs its own wavelength")
+    return w
