@@ -6,12 +6,14 @@ import math
 
 import numpy as np
 
-__all__ = ["WAVELENGTH_NM_RANGE", "check_curve", "check_positive", "check_wavelengths_nm",
-           "validate_method"]
+__all__ = ["WAVELENGTH_NM_RANGE", "check_curve", "check_integers", "check_numbers",
+           "check_positive", "check_wavelengths_nm", "validate_method"]
 
 
 def check_positive(name, value):
     """``value`` as a float, raising a clear ``ValueError`` unless it is a finite number > 0."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a number, got a boolean ({value!r})")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -75,3 +77,34 @@ def check_wavelengths_nm(name, values, *, where=""):
         raise ValueError(f"{prefix}{name} repeats {values_[counts > 1][:3].tolist()} nm; every "
                          "band needs its own wavelength")
     return w
+
+
+def _has_bool(value):
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(_has_bool(v) for v in value)
+    if isinstance(value, np.ndarray):
+        return value.dtype == bool
+    return False
+
+
+def check_numbers(name, value):
+    """Refuse booleans where numbers are expected (TOML's ``true`` is not 1 mm); return
+    ``value`` unchanged. Works on scalars and nested lists."""
+    if _has_bool(value):
+        raise ValueError(f"{name} must be a number, got a boolean ({value!r})")
+    return value
+
+
+def check_integers(name, value):
+    """``value`` (a number or nested list) as an int array, refusing booleans and numbers
+    that are not whole (``4.7`` is not silently 4)."""
+    check_numbers(name, value)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be whole numbers, got {value!r}") from None
+    if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
+        raise ValueError(f"{name} must be whole numbers, got {value!r}")
+    return arr.astype(np.int64)

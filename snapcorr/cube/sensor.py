@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .._io import read_toml, write_toml
+from .._validation import check_integers, check_numbers, check_positive, check_wavelengths_nm
 
 __all__ = ["LAYOUTS", "Sensor"]
 
@@ -20,7 +21,11 @@ _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosa
 
 
 def _per_band(name, value, n_bands, *, minimum=None, strict=True):
-    arr = np.asarray(value, dtype=float)
+    check_numbers(name, value)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers, got {value!r}") from None
     if arr.ndim == 0:
         arr = np.full(n_bands, float(arr))
     if arr.shape != (n_bands,):
@@ -72,11 +77,10 @@ class Sensor:
         set_ = object.__setattr__
         if self.layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
-        pitch = float(self.pixel_pitch_um)
-        if not (np.isfinite(pitch) and pitch > 0):
-            raise ValueError(f"pixel_pitch_um must be finite and > 0, got {self.pixel_pitch_um!r}")
-        set_(self, "pixel_pitch_um", pitch)
-        cwl = np.atleast_1d(np.asarray(self.cwl_nm, dtype=float))
+        set_(self, "name", str(self.name))
+        set_(self, "pixel_pitch_um", check_positive("pixel_pitch_um", self.pixel_pitch_um))
+        check_numbers("cwl_nm", self.cwl_nm)
+        cwl = np.atleast_1d(check_wavelengths_nm("cwl_nm", self.cwl_nm))
         if cwl.ndim != 1 or cwl.size == 0:
             raise ValueError("cwl_nm must list one central wavelength per band")
         n = cwl.size
@@ -86,10 +90,10 @@ class Sensor:
         if self.layout == "mosaic":
             if self.mosaic_shape is None or self.band_offset is None:
                 raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")
-            shape = tuple(int(v) for v in self.mosaic_shape)
+            shape = tuple(int(v) for v in check_integers("mosaic_shape", self.mosaic_shape).ravel())
             if len(shape) != 2 or min(shape) < 1:
                 raise ValueError(f"mosaic_shape must be [rows, cols] >= 1, got {shape}")
-            off = np.asarray(self.band_offset, dtype=int)
+            off = check_integers("band_offset", self.band_offset)
             if off.shape != (n, 2):
                 raise ValueError(f"band_offset must list one [row, col] per band ({n}), got "
                                  f"shape {off.shape}")
@@ -102,9 +106,8 @@ class Sensor:
         elif self.mosaic_shape is not None or self.band_offset is not None:
             raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
         if self.size_px is not None:
-            size = np.asarray(self.size_px)
-            if (size.shape != (2,) or not np.all(np.isfinite(size.astype(float)))
-                    or np.any(size < 1) or np.any(size != np.round(size))):
+            size = check_integers("size_px", self.size_px)
+            if size.shape != (2,) or np.any(size < 1):
                 raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
                                  f"{self.size_px!r}")
             set_(self, "size_px", tuple(int(v) for v in size))

@@ -21,6 +21,8 @@ __all__ = ["Lens"]
 
 
 def _finite(name, value, *, positive=False):
+    if isinstance(value, (bool, np.bool_)):  # TOML's `true` is not 1 mm
+        raise TypeError(f"{name} must be a number, got a boolean ({value!r})")
     try:
         v = float(value)
     except (TypeError, ValueError):
