@@ -136,7 +136,8 @@ def test_eq29_against_numpy_and_frame_averaging():
     raw = rng.uniform(100, 3000, (6, 4, 5)).astype(np.uint16)
     darks = [rng.uniform(40, 60, (6, 4, 5)) for _ in range(3)]
     whites = [rng.uniform(3500, 3600, (6, 4, 5)) for _ in range(2)]
-    ds = flatfield(_cube(raw), [_cube(d) for d in darks], [_cube(w) for w in whites])
+    ds = flatfield(_cube(raw), [_cube(d) for d in darks], [_cube(w) for w in whites],
+                   dtype="float64")
     d, w = np.mean(darks, axis=0), np.mean(whites, axis=0)
     assert_allclose(ds.reflectance.values, (raw - d) / (w - d), rtol=1e-12)
     assert ds.reflectance.dtype == np.float64 and int(ds.n_masked) == 0
@@ -149,8 +150,10 @@ def test_line_scan_white_strip_is_broadcast():
     rng = np.random.default_rng(3)
     raw = rng.uniform(100, 3000, (8, 4, 5))
     strip = rng.uniform(3500, 3600, (2, 4, 5))
-    ds = flatfield(_cube(raw), _cube(np.zeros((8, 4, 5))), _cube(strip))
+    ds = flatfield(_cube(raw), _cube(np.zeros((8, 4, 5))), _cube(strip), dtype="float64")
     assert_allclose(ds.reflectance.values, raw / strip.mean(axis=0), rtol=1e-12)
+    with pytest.raises(ValueError, match="more rows|has 9 rows"):  # larger: not a strip
+        flatfield(_cube(raw), _cube(np.zeros((9, 4, 5))), _cube(strip))
 
 
 def test_meaningless_pixels_are_masked_not_inf():
@@ -229,6 +232,61 @@ def test_numpy_and_dask_give_identical_results():
 @given(data=st.lists(st.floats(-1e6, 1e6), min_size=30, max_size=30))
 def test_unit_flat_and_zero_dark_leave_the_cube_unchanged(data):
     cube = _cube(np.array(data).reshape(2, 3, 5))
-    ds = flatfield(cube, _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))))
+    ds = flatfield(cube, _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))), dtype="float64")
     assert_array_equal(ds.reflectance.values, cube.values)
     assert int(ds.n_masked) == 0
+
+
+def test_float32_by_default_and_float64_on_request():
+    rng = np.random.default_rng(5)
+    raw = rng.uniform(100, 3000, (4, 3, 5)).astype(np.uint16)
+    d, w = np.full((4, 3, 5), 50.0), np.full((4, 3, 5), 3500.0)
+    f32 = flatfield(_cube(raw), _cube(d), _cube(w))
+    f64 = flatfield(_cube(raw), _cube(d), _cube(w), dtype="float64")
+    assert f32.reflectance.dtype == np.float32 and f64.reflectance.dtype == np.float64
+    assert_allclose(f32.reflectance.values, (raw - 50.0) / 3450.0, rtol=1e-6)
+    with pytest.raises(ValueError, match="float32 or float64"):
+        flatfield(_cube(raw), _cube(d), _cube(w), dtype="int16")
+
+
+@pytest.mark.parametrize("bad", [np.nan, -1.0, 0.0, np.inf])
+def test_saturation_must_be_a_positive_number(bad):
+    with pytest.raises(ValueError, match="saturation"):
+        flatfield(_cube(np.ones((2, 3, 5))), _cube(np.zeros((2, 3, 5))),
+                  _cube(np.full((2, 3, 5), 2.0)), saturation=bad)
+
+
+def test_everything_masked_is_refused_and_mostly_masked_warns():
+    from snapcorr.cube.flatfield import MaskedWarning, check_masked
+
+    raw, dark = _cube(np.full((2, 3, 5), 500.0)), _cube(np.full((2, 3, 5), 100.0))
+    with pytest.raises(ValueError, match="every value .* is masked"):
+        flatfield(raw, dark, _cube(np.full((2, 3, 5), 100.0)))  # white == dark everywhere
+    with pytest.raises(ValueError, match="every value .* is masked"):
+        flatfield(_cube(np.full((2, 3, 5), np.nan)), dark, _cube(np.full((2, 3, 5), 900.0)))
+    white = np.full((2, 3, 5), 900.0)
+    white[:, :, :3] = 50.0  # 3 of 5 bands below the dark: 60 % masked
+    with pytest.warns(MaskedWarning, match="60.0 % of the values are masked"):
+        flatfield(raw, dark, _cube(white))
+    lazy = flatfield(raw.chunk({"y": 1}), dark, _cube(np.full((2, 3, 5), 100.0)))  # not yet
+    with pytest.raises(ValueError, match="every value"):
+        check_masked(lazy)
+    assert check_masked(flatfield(raw.chunk({"y": 1}), dark, _cube(np.full((2, 3, 5), 9e2)))) \
+        == (0, 30)
+
+
+@pytest.mark.parametrize("dtype", [np.complex64, bool])
+def test_complex_and_boolean_cubes_are_not_digital_numbers(dtype):
+    good = _cube(np.ones((2, 3, 5)))
+    bad = xr.DataArray(np.ones((2, 3, 5), dtype), dims=("y", "x", "band"),
+                       coords={"wavelength": ("band", WL)})
+    with pytest.raises((TypeError, ValueError), match="complex|bool"):
+        flatfield(bad, good * 0, good * 2)
+
+
+def test_outputs_carry_cf_units_and_long_names():
+    ds = flatfield(_cube(np.full((2, 3, 5), 500.0)), _cube(np.zeros((2, 3, 5))),
+                   _cube(np.full((2, 3, 5), 900.0)))
+    for v in ("reflectance", "mask"):
+        assert ds[v].attrs["units"] == "1" and ds[v].attrs["long_name"]
+    assert ds["raw"].attrs["long_name"]

@@ -3,14 +3,64 @@
 from __future__ import annotations
 
 import datetime as _dt
+import warnings
 
 import numpy as np
 import xarray as xr
 
 from .. import __version__
+from .._validation import check_positive
 from .model import check_cube
 
-__all__ = ["flatfield"]
+__all__ = ["MASKED_WARN_FRACTION", "MaskedWarning", "cf_attrs", "check_masked", "flatfield"]
+
+#: Share of masked values above which :func:`check_masked` warns.
+MASKED_WARN_FRACTION = 0.5
+_DTYPES = {"float32": np.float32, "float64": np.float64}
+
+
+class MaskedWarning(UserWarning):
+    """More than :data:`MASKED_WARN_FRACTION` of a flat-fielded cube is masked."""
+
+
+def cf_attrs(name):
+    """CF ``units`` and ``long_name`` of the variables snapcorr writes (``{"long_name": name}``
+    for others)."""
+    return {"reflectance": {"units": "1", "long_name": "reflectance"},
+            "transmittance": {"units": "1", "long_name": "transmittance"},
+            "mask": {"units": "1", "long_name": "value not meaningful (white <= dark, "
+                     "saturated, or not finite in an input)"},
+            "raw": {"long_name": "raw cube as read, unchanged"}}.get(name, {"long_name": name})
+
+
+def check_masked(ds, *, warn_fraction=MASKED_WARN_FRACTION):
+    """Count the masked values of a :func:`flatfield` result; refuse when all are masked.
+
+    Computes ``n_masked`` (one pass over lazy inputs). Warns (:class:`MaskedWarning`) when more
+    than ``warn_fraction`` of the values are masked.
+
+    Returns
+    -------
+    n_masked, total : int
+
+    Raises
+    ------
+    ValueError
+        Every value is masked: nothing in the result would mean anything.
+    """
+    n, total = int(ds["n_masked"]), int(ds["mask"].size)
+    sat = ds.attrs.get("saturation")
+    causes = ("likely the white reference is nowhere above the dark, the cube holds no "
+              "finite value" + (f", or the values reach the saturation level {sat:g}"
+                                if sat is not None else "")
+              + "; check the dark and white files" + (" and --saturation" if sat else ""))
+    if n == total:
+        raise ValueError(f"every value of the {' x '.join(map(str, ds['mask'].shape))} cube is "
+                         f"masked: {causes}")
+    if n > warn_fraction * total:
+        warnings.warn(f"{100 * n / total:.1f} % of the values are masked (more than "
+                      f"{100 * warn_fraction:g} %): {causes}", MaskedWarning, stacklevel=2)
+    return n, total
 
 
 def _frames(frames, what):
@@ -26,12 +76,7 @@ def _frames(frames, what):
     return frames
 
 
-def _float_dtype(*arrays):
-    low = all(np.dtype(a.dtype) in (np.float16, np.float32) for a in arrays)
-    return np.float32 if low else np.float64
-
-
-def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
+def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32"):
     """Flat-field a cube: ``(raw - dark) / (white - dark)`` (Goossens 2019 Eq. 29).
 
     Parameters
@@ -41,12 +86,15 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
     dark, white : xarray.DataArray or sequence of them
         Dark and white references; several frames are averaged. A white (or dark) reference
         with fewer rows than ``raw`` -- a line-scan strip -- is averaged over its rows and
-        broadcast along ``y``, the scan axis.
+        broadcast along ``y``, the scan axis; one with more rows is refused.
     saturation : float, optional
-        Digital number at or above which ``raw`` or any white frame is saturated.
+        Digital number at or above which ``raw`` or any white frame is saturated (> 0).
     name : str
         Name of the result (``"reflectance"``; ``"transmittance"`` for a filter in front of a
         white target, as in Goossens Sec. 3.1).
+    dtype : {"float32", "float64"}
+        Type of the result (float32 by default: half the memory and files of float64, and
+        7 significant digits, far below any sensor's noise).
 
     Returns
     -------
@@ -54,12 +102,21 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
         ``name`` (NaN where masked), ``mask`` (True where the result is not meaningful: white
         <= dark, saturated, a NaN or infinite value in any input frame, or the cube's ENVI
         ``data ignore value``), ``n_masked`` and the input ``raw`` kept as it
-        was; attrs record the method, the number of frames averaged, the date and the version.
-        float16/32 inputs give a float32 result, others float64.
+        was; CF ``units`` and ``long_name`` on each; attrs record the method, the number of
+        frames averaged, the date and the version. For numpy inputs the mask is checked at
+        once (:func:`check_masked`); for lazy ones call it before writing.
     """
     raw = check_cube(raw)
     darks, whites = _frames(dark, "dark"), _frames(white, "white")
-    dtype = _float_dtype(raw, darks[0], whites[0])
+    if str(np.dtype(dtype)) not in _DTYPES:
+        raise ValueError(f"dtype must be float32 or float64, got {dtype!r}")
+    dtype = _DTYPES[str(np.dtype(dtype))]
+    for what, kind in (("raw", raw.dtype), ("dark", darks[0].dtype), ("white", whites[0].dtype)):
+        if not (np.issubdtype(kind, np.integer) or np.issubdtype(kind, np.floating)):
+            raise TypeError(f"the {what} cube is {kind}; flat-fielding needs integer or real "
+                            "digital numbers")
+    if saturation is not None:
+        saturation = check_positive("saturation", saturation)
     refs, flags = [], []
     for label, frames in (("dark", darks), ("white", whites)):
         ref = frames[0]
@@ -78,6 +135,11 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
         if saturation is not None and label == "white":
             bad = bad | (stack >= saturation)
         ref, bad = stack.mean("frame", skipna=False), bad.any("frame")
+        if ref.sizes["y"] > raw.sizes["y"]:
+            raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
+                             f"{raw.sizes['y']}: a reference is a frame of the cube's size or "
+                             "a strip of fewer rows (line scan), never larger; crop it to the "
+                             "cube's area")
         if ref.sizes["y"] != raw.sizes["y"]:  # a line-scan strip: broadcast along the scan axis
             ref, bad = ref.mean("y", skipna=False), bad.any("y")
         refs.append(ref)
@@ -104,7 +166,13 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance"):
     }
     if saturation is not None:
         attrs["saturation"] = float(saturation)
-    return xr.Dataset(
-        {name: out, "mask": mask, "raw": raw, "n_masked": mask.sum()},
-        attrs={**raw.attrs, **attrs},
-    )
+    out.attrs = cf_attrs(name)
+    mask.attrs = cf_attrs("mask")
+    kept = raw.copy(deep=False)
+    kept.attrs = {**cf_attrs("raw"), **raw.attrs}
+    n_masked = mask.sum().assign_attrs(long_name="number of masked values")
+    ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
+                    attrs={**raw.attrs, **attrs})
+    if ds[name].chunks is None:
+        check_masked(ds)
+    return ds
