@@ -139,7 +139,7 @@ print(ds)
 # %%
 band = int(np.argmin(np.abs(cwl - 700.0)))
 fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.4), constrained_layout=True)
-fig.colorbar(a1.imshow(ds["cra"], cmap="viridis"), ax=a1, label="deg")
+fig.colorbar(a1.imshow(ds["cra_deg"], cmap="viridis"), ax=a1, label="deg")
 a1.set_title("chief-ray angle")
 fig.colorbar(a2.imshow(ds["wavelength_corrected"][..., band], cmap="magma"), ax=a2,
              label="nm")

@@ -124,8 +124,9 @@ def run(out, *, echo=print, seed=2019):
 
     # 2. the cube: 8 x 8 binned Snapscan pixels (44 um), the same sensor area
     base = Sensor.load(sensor_path("snapscan_vnir"))
-    sensor = dataclasses.replace(base, name=base.name + " (8 x 8 binned)", pixel_pitch_um=44.0)
     shape = (160, 256)
+    sensor = dataclasses.replace(base, name=base.name + " (8 x 8 binned)", pixel_pitch_um=44.0,
+                                 size_px=shape)
     # flat-field pixel -> cube pixel: the same point of the sensor
     centre = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in cal.center_px)
     true_centre = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in flat_centre)
@@ -202,7 +203,7 @@ def run(out, *, echo=print, seed=2019):
     vig = results[1.4]["vignetted"]
     band = int(np.argmin(np.abs(cwl - 700.0)))
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
-    im = a1.imshow(vig["cra"].values, cmap="viridis")
+    im = a1.imshow(vig["cra_deg"].values, cmap="viridis")
     fig.colorbar(im, ax=a1, label="deg")
     a1.set_title("chief-ray angle")
     im = a2.imshow(vig["wavelength_corrected"].values[..., band] - cwl[band], cmap="magma")

@@ -102,7 +102,7 @@ def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster):
     assert r1.returncode == 0 and r2.returncode == 0, r1.stderr + r2.stderr
     one = xr.open_dataset(d / "local.nc")
     two = xr.open_zarr(d / "cluster.zarr", consolidated=False)
-    for name in ("reflectance", "wavelength_corrected", "resampled", "cra"):
+    for name in ("reflectance", "wavelength_corrected", "resampled", "cra_deg"):
         np.testing.assert_array_equal(one[name].values, two[name].values)
 
 

@@ -1,12 +1,13 @@
 """Per-pixel corrected wavelengths (Goossens 2019 Eq. 8, 23), checked from outside."""
 
+import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
 from conftest import brute_force_mean
 
 from snapcorr import Lens, mean_shift
-from snapcorr.correct import CenterWarning, choose_method, correct_cube, cube_cra_deg
+from snapcorr.correct import PlacementError, choose_method, correct_cube, cube_cra_deg
 from snapcorr.correct.resample import resample_to_nominal
 from snapcorr.cube import Sensor, make_cube, mosaic_to_cube
 from snapcorr.data import sensor_path
@@ -45,8 +46,9 @@ def test_centre_from_the_lens_calibration_only_for_the_same_pitch():
     assert cube_cra_deg(cube, lens, s)[1:] == ((3.0, 4.0), "lens calibration")
     other = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3,
                  calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
-    with pytest.warns(CenterWarning, match="pitch|um"):
-        assert cube_cra_deg(cube, other, s)[2] == "image centre"
+    # another pitch and no image size to match the areas: refused, never the image centre
+    with pytest.raises(PlacementError, match="--center-px"):
+        cube_cra_deg(cube, other, s)
 
 
 def test_mosaic_bands_get_their_own_positions():
@@ -79,7 +81,7 @@ def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
                                      lens.vignetting_radius_mm,
                                      lens.vignetting_distance_mm * t, N=1200)
         got = float(ds["wavelength_corrected"].values[yy, xx, b])
-        cra = float(ds["cra"].values[yy, xx])
+        cra = float(ds["cra_deg"].values[yy, xx])
         exact = s.cwl_nm[b] + float(mean_shift(s.cwl_nm[b], s.n_eff[b], f, cra, lens,
                                                method="vignetted"))
         assert abs(got - exact) < 0.01 + 1e-4  # the tolerance asked for + float32
@@ -91,7 +93,18 @@ def test_output_keeps_the_cube_and_records_provenance():
     s = _sensor()
     cube = _cube(s)
     ds = correct_cube(cube, PAPER, s, 2.8)
-    xr.testing.assert_identical(ds[cube.name], cube)
+    kept = ds[cube.name].drop_vars("wavelength_corrected")
+    xr.testing.assert_equal(kept, cube)  # values and coordinates unchanged
+    assert kept.attrs == {**cube.attrs, "long_name": "radiance"}  # CF name added, nothing lost
+    assert cube.attrs == {} and "wavelength_corrected" not in cube.coords  # input untouched
+    # the corrected wavelengths: a lazy coordinate over a per-pixel scale, not a second cube
+    assert "wavelength_corrected" in ds.coords
+    assert isinstance(ds["wavelength_corrected"].data, da.Array)
+    assert ds["wavelength_scale"].shape == (40, 50, 1)
+    assert ds["wavelength_scale"].nbytes < cube.nbytes / 2
+    np.testing.assert_array_equal(
+        ds["wavelength_corrected"].values,
+        (np.asarray(s.cwl_nm) * ds["wavelength_scale"].values).astype(np.float32))
     for key in ("lens", "sensor", "f_number", "method", "method_reason", "tolerance_nm",
                 "snapcorr_version", "optical_center_px", "optical_center_source"):
         assert key in ds.attrs
@@ -177,3 +190,70 @@ def test_uniform_grid_fast_path_equals_the_general_pass():
     # the fast path works in float32: the fractional band index is good to ~1e-6 x nb
     np.testing.assert_allclose(fast, general, atol=1e-5, equal_nan=True)
     assert np.array_equal(np.isnan(fast), np.isnan(general))
+
+
+# -- where the cube sits: crops, mosaics without positions, centres on another pixel grid ----
+
+FULL = Sensor("full", "snapscan", 5.5, np.linspace(500, 900, 3), 10.0, 1.7, size_px=(2048, 2048))
+
+
+def _by_hand(rows, cols, cx, cy, pitch_mm=5.5e-3, x_mm=21.0):
+    d = np.hypot(np.subtract.outer(rows, np.zeros_like(cols)) - cy,
+                 np.subtract.outer(np.zeros_like(rows), -np.asarray(cols, float)) - cx)
+    return np.degrees(np.arctan(d * pitch_mm / x_mm))
+
+
+def test_a_crop_of_unknown_place_is_refused_and_placed_by_its_origin():
+    crop = _cube(FULL, ny=256, nx=256)
+    with pytest.raises(PlacementError, match="--sensor-origin-px"):
+        correct_cube(crop, PAPER, FULL, 2.8)
+    cra, centre, source = cube_cra_deg(crop, PAPER, FULL, sensor_origin_px=(1500, 100))
+    assert source == "sensor centre" and centre == (1023.5, 1023.5)
+    expected = _by_hand(1500 + np.arange(256.0), 100 + np.arange(256.0), 1023.5, 1023.5)
+    np.testing.assert_allclose(cra[:, :, 0], expected, rtol=1e-12)
+    # the full frame needs no origin; the crop's angles are the full frame's at that place
+    full = cube_cra_deg(_cube(FULL, ny=2048, nx=2048), PAPER, FULL)[0]
+    np.testing.assert_allclose(cra[:, :, 0], full[1500:1756, 100:356, 0], rtol=1e-12)
+    ds = correct_cube(crop, PAPER, FULL, 2.8, sensor_origin_px=(1500, 100))
+    assert float(ds["cra_deg"].max()) == pytest.approx(expected.max(), rel=1e-12)
+
+
+def test_an_origin_that_contradicts_the_cube_is_refused():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    cube = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
+    cube_cra_deg(cube, PAPER, sensor, sensor_origin_px=(40, 80))  # agrees: fine
+    with pytest.raises(PlacementError, match="first pixel"):
+        cube_cra_deg(cube, PAPER, sensor, sensor_origin_px=(0, 0))
+
+
+def test_a_mosaic_cube_without_positions_is_refused_not_put_at_one_place():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    bare = make_cube(np.zeros((4, 6, 16), np.float32), sensor.cwl_nm)
+    with pytest.raises(PlacementError, match="no sensor positions"):
+        correct_cube(bare, PAPER, sensor, 1.4)
+    # with the tile origin stated, the bands get the tile layout's positions
+    placed = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
+    np.testing.assert_array_equal(
+        cube_cra_deg(bare, PAPER, sensor, sensor_origin_px=(40, 80))[0],
+        cube_cra_deg(placed, PAPER, sensor)[0])
+
+
+def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres():
+    cal = {"center_px": [1047.3, 998.6], "pixel_pitch_um": 5.5, "image_size_px": [2048, 2048]}
+    lens = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3, calibration=cal)
+    binned = Sensor("binned", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
+    cra, (cx, cy), source = cube_cra_deg(_cube(binned, ny=1024, nx=1024), lens, binned)
+    # pixel i spans [i, i + 1) pitches: the centre 1047.3 px of 5.5 um is at 5.76290 mm,
+    # which is 523.9 px of 11 um counted the same way (523.9 + 0.5 = 5.7629 / 0.011)
+    assert (cx, cy) == pytest.approx((5.7629 / 0.011 - 0.5, 5.49505 / 0.011 - 0.5), abs=1e-9)
+    assert "converted" in source
+    # the same sensor point keeps its angle: binned pixel (300, 700) covers full pixels
+    # 600-601 x 1400-1401, whose centre is at 600.5 x 1400.5 full pixels
+    full = _by_hand(np.array([600.5]), np.array([1400.5]), 1047.3, 998.6)[0, 0]
+    assert cra[300, 700, 0] == pytest.approx(full, rel=1e-12)
+    # a sensor of another physical size: the areas cannot be matched
+    other = Sensor("other", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1000, 1024))
+    with pytest.raises(PlacementError, match="--sensor-origin-px"):  # first: where is it?
+        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other)
+    with pytest.raises(PlacementError, match="--center-px"):
+        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other, sensor_origin_px=(0, 0))

@@ -16,6 +16,8 @@ import xarray as xr
 
 from .. import __version__
 from .._validation import check_positive
+from ..cube.derived import corrected_wavelength
+from ..cube.flatfield import cf_attrs
 from ..cube.model import check_cube
 from ..optics import ShiftTable, mean_shift
 from ..optics import goossens2019 as g19
@@ -88,9 +90,9 @@ def relative_shift(method, lens, f_number, n_eff, cra_deg, *, tolerance_nm, cwl_
     return np.interp(cra, table.cra_deg, table.relative_shift)
 
 
-def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
-                 tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False, source=None,
-                 tolerance_pct=0.5):
+def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_px=None,
+                 method="auto", tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False, source=None,
+                 tolerance_pct=0.5, mask=None):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
@@ -101,8 +103,13 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
     sensor : Sensor
     f_number : float
     center_px : (cx, cy), optional
-        Optical centre in sensor pixels (default: from the lens calibration, else the centre
-        of the area the cube covers).
+        Optical centre in sensor pixels (default: from the lens calibration, converted through
+        millimetres when its pixel pitch differs, else the sensor's centre, else the centre of
+        the area the cube covers; :func:`~snapcorr.correct.optical_center`).
+    sensor_origin_px : (row, col), optional
+        Sensor row and column of the cube's first pixel, for a crop that does not carry its
+        positions (``sensor_row``/``sensor_col``); :func:`~snapcorr.correct.cube_positions`
+        refuses a crop of unknown place and a mosaic cube without positions.
     method : {"auto", "none", "asymptotic", "ideal", "vignetted"}
     tolerance_nm : float
         Largest error allowed in the corrected wavelengths (model choice and table
@@ -118,13 +125,19 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
         whose wavelength error stays below ``tolerance_nm``.
     tolerance_pct : float
         Radiometric tolerance for ``source``, percent of the signal.
+    mask : xarray.DataArray, optional
+        The flat-field mask (True where a value is not meaningful), kept in the output.
 
     Returns
     -------
     xarray.Dataset
-        The input cube unchanged (under its own name), ``wavelength_corrected(y, x, band)``
-        (float32, nm), ``cra(y, x[, band])`` (deg), ``resampled`` on request, and provenance
-        in attrs.
+        The input cube's values unchanged (under its own name); ``wavelength_scale(y, x,
+        scale)`` and ``scale_index(band)``, the compact form of the corrected wavelengths, and
+        the coordinate ``wavelength_corrected(y, x, band)`` (float32, nm) computed from them
+        lazily, block by block (``wavelength * wavelength_scale[..., scale_index]``, see
+        :mod:`snapcorr.cube.derived`): for a Snapscan it is one factor per pixel and effective
+        index, so it never doubles the memory or the file; ``cra_deg(y, x[, band])``;
+        ``resampled`` on request; ``mask`` when given; provenance in attrs.
     """
     check_cube(cube)
     if method not in METHODS:
@@ -147,7 +160,8 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
                          "(by up to "
                          f"{np.max(np.abs(nominal - cwl)):.3g} nm); use the matching sensor")
     n_eff = np.asarray(sensor.n_eff, float)
-    cra, center, center_source = cube_cra_deg(cube, lens, sensor, center_px)
+    cra, center, center_source = cube_cra_deg(cube, lens, sensor, center_px,
+                                              sensor_origin_px=sensor_origin_px)
     cra_max = float(cra.max())
     cutoff = float(lens.cutoff_cra_deg(f))
     if cra_max >= cutoff:
@@ -188,16 +202,38 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
                 used, lens, f, n, cra[:, :, 0], tolerance_nm=tolerance_nm,
                 cwl_max_nm=float(cwl[column == g].max()))
 
-    corrected = _corrected(cube, scale, column, cwl)
-    cra_da = (xr.DataArray(cra, dims=("y", "x", "band")) if per_band
-              else xr.DataArray(cra[:, :, 0], dims=("y", "x")))
-    cra_da.attrs = {"units": "deg", "long_name": "chief-ray angle"}
     name = cube.name or "radiance"
-    ds = xr.Dataset({name: cube, "wavelength_corrected": corrected, "cra": cra_da})
+    data = cube.copy(deep=False)
+    data.attrs = {**cf_attrs(name), **cube.attrs}
+    cra_dims = ("y", "x", "band") if per_band else ("y", "x")
+    ds = xr.Dataset({
+        name: data,
+        "cra_deg": (cra_dims, cra if per_band else cra[:, :, 0],
+                    {"units": "degree", "long_name": "chief-ray angle"}),
+        "wavelength_scale": (("y", "x", "scale"), scale, {
+            "units": "1", "long_name": "corrected / nominal central wavelength",
+            "comment": "wavelength_corrected = wavelength * wavelength_scale[y, x, "
+                       "scale_index[band]] (Goossens et al. 2019, Eq. 23)"}),
+        "scale_index": ("band", column.astype(np.int32),
+                        {"long_name": "index into wavelength_scale's scale dimension"}),
+    })
+    ds["wavelength"].attrs = {"units": "nm", "long_name": "nominal central wavelength",
+                              **ds["wavelength"].attrs}
+    chunks = cube.chunks if cube.chunks is not None else None
+    ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=chunks))
+    if mask is not None:
+        if tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape:
+            raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
+        ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
+        ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
     if resample:
         ds["resampled"] = _resampled(cube, scale, column, cwl)
+        ds["resampled"].attrs.update(
+            {"units": data.attrs.get("units", "1"),
+             "long_name": f"{data.attrs.get('long_name', name)} on the nominal wavelengths"})
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
+        "Conventions": "CF-1.10",
         "lens": lens.name, "lens_P_mm": lens.vignetting_radius_mm or "none",
         "lens_h_mm": lens.vignetting_distance_mm or "none",
         "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
@@ -207,39 +243,6 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, method="auto",
         "snapcorr_version": __version__, **budget_attrs,
     })
     return ds
-
-
-def _corrected_block(scale, cwl, column):
-    """``cwl * scale[..., column]`` (float64) rounded once to float32, without a gathered copy
-    of ``scale`` when every band shares one column (Snapscan, one n_eff)."""
-    out = np.empty((*scale.shape[:2], cwl.size), np.float32)
-    first = int(column[0]) if column.size else 0
-    same = bool(np.all(column == first))
-    for r in range(0, scale.shape[0], 64):  # row blocks keep the gathered part small
-        sc = scale[r:r + 64, :, first:first + 1] if same else scale[r:r + 64][:, :, column]
-        np.multiply(sc, cwl, out=out[r:r + 64], casting="unsafe")
-    return out
-
-
-def _corrected(cube, scale, column, cwl):
-    """wavelength_corrected as a DataArray; computed block by block when the cube is dask."""
-    attrs = {"units": "nm", "long_name": "corrected central wavelength"}
-    if cube.chunks is None:
-        return xr.DataArray(_corrected_block(scale, cwl, column), dims=("y", "x", "band"),
-                            attrs=attrs)
-    import dask.array as da
-
-    ychunks, xchunks, bchunks = cube.chunks
-    sc = da.from_array(scale, chunks=(ychunks, xchunks, -1))
-    parts, lo = [], 0
-    for nb in bchunks:  # one lazy piece per band chunk of the cube
-        w, c = cwl[lo:lo + nb], column[lo:lo + nb]
-        parts.append(sc.map_blocks(
-            lambda s, w=w, c=c: _corrected_block(s, w, c),
-            chunks=(ychunks, xchunks, (nb,)), dtype=np.float32,
-            meta=np.empty((0, 0, 0), np.float32)))
-        lo += nb
-    return xr.DataArray(da.concatenate(parts, axis=2), dims=("y", "x", "band"), attrs=attrs)
 
 
 def _resampled(cube, scale, column, cwl):

@@ -5,63 +5,178 @@ A cube pixel ``(y, x)`` of band ``b`` was exposed at sensor row ``sensor_row(y, 
 a Snapscan cube has every band at the same position). Its distance from the optical centre on
 the sensor, times the pixel pitch, gives the chief-ray angle ``tan CRA = d / x`` (Goossens et
 al. 2019, Eq. 8).
+
+Nothing is assumed that would silently move a pixel: a crop must say where it sits (its
+positions, or ``sensor_origin_px``), a mosaic cube must carry its bands' positions, and an
+optical centre measured on another pixel grid is carried over through millimetres or refused.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-__all__ = ["CenterWarning", "cube_cra_deg", "optical_center"]
+from ..cube.mosaic import sensor_positions
+
+__all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
+
+#: Physical sizes (mm) closer than this fraction of a pixel count as the same image area.
+_SAME_AREA_PX = 1.0
 
 
-class CenterWarning(UserWarning):
-    """The lens profile's optical centre could not be used for this cube."""
+class PlacementError(ValueError):
+    """Where the cube or the optical axis sits on the sensor is not known well enough."""
 
 
-def _positions(cube):
-    """Sensor rows (ny, nb or 1) and columns (nx, nb or 1) of the cube's pixels."""
-    ny, nx = cube.sizes["y"], cube.sizes["x"]
-    if "sensor_row" in cube.coords and "sensor_col" in cube.coords:
+def _parse_pair(name, value):
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be two numbers, got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return a, b
+
+
+def _full_frames(lens, sensor):
+    """The full image sizes (rows, cols) in this sensor's pixels that are known, and whence."""
+    frames = []
+    if sensor.size_px is not None:
+        frames.append((tuple(sensor.size_px), f"the sensor {sensor.name!r} (size_px)"))
+    cal = getattr(lens, "calibration", {}) or {}
+    size, pitch = cal.get("image_size_px"), cal.get("pixel_pitch_um")
+    if size is not None and pitch is not None:
+        k = float(pitch) / sensor.pixel_pitch_um  # calibration pixels -> this sensor's
+        w, h = (float(v) for v in size)  # recorded as [width, height]
+        frames.append(((h * k, w * k), f"the lens calibration's image ({int(w)} x {int(h)} px "
+                       f"of {float(pitch):g} um)"))
+    return frames
+
+
+def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
+    """Sensor rows ``(ny, nb or 1)`` and columns ``(nx, nb or 1)`` of the cube's pixels.
+
+    From the cube's ``sensor_row`` / ``sensor_col`` coordinates; else from
+    ``sensor_origin_px`` (row, column of the cube's first pixel; for a mosaic sensor, of the
+    tile holding it) and the sensor's layout; else, for a Snapscan cube as large as the full
+    image known from the sensor's ``size_px`` or the lens calibration, from (0, 0).
+
+    Raises
+    ------
+    PlacementError
+        A mosaic cube without positions (its bands sit at different places in each tile), a
+        cube smaller than the known full image without an origin (a crop placed at the
+        corner would get the wrong angles), or an origin that contradicts the cube's own
+        positions.
+    """
+    ny, nx, nb = cube.sizes["y"], cube.sizes["x"], cube.sizes["band"]
+    have = "sensor_row" in cube.coords and "sensor_col" in cube.coords
+    if have:
         rows = np.asarray(cube["sensor_row"].transpose("y", "band").values, float)
         cols = np.asarray(cube["sensor_col"].transpose("x", "band").values, float)
-        if np.all(rows == rows[:, :1]) and np.all(cols == cols[:, :1]):
-            rows, cols = rows[:, :1], cols[:, :1]  # every band at the same position
-        return rows, cols
-    r0, c0 = cube.attrs.get("sensor_origin_px", (0, 0))
-    return (float(r0) + np.arange(ny, dtype=float))[:, None], \
-        (float(c0) + np.arange(nx, dtype=float))[:, None]
+        if sensor_origin_px is not None:
+            r0, c0 = _parse_pair("sensor_origin_px", sensor_origin_px)
+            if sensor.layout == "mosaic":
+                r0, c0 = r0 + sensor.band_offset[0][0], c0 + sensor.band_offset[0][1]
+            if (r0, c0) != (rows[0, 0], cols[0, 0]):
+                raise PlacementError(
+                    f"the cube records its first pixel at sensor row {rows[0, 0]:g}, column "
+                    f"{cols[0, 0]:g}, but the origin given is ({r0:g}, {c0:g}); leave out "
+                    "--sensor-origin-px (sensor_origin_px) or fix it")
+    elif sensor_origin_px is not None:
+        r0, c0 = _parse_pair("sensor_origin_px", sensor_origin_px)
+        if r0 != round(r0) or c0 != round(c0):
+            raise ValueError(f"sensor_origin_px must be whole pixels, got {sensor_origin_px!r}")
+        rows, cols = (a.astype(float) for a in
+                      sensor_positions(sensor, ny, nx, (int(r0), int(c0))))
+    elif sensor.layout == "mosaic" and nb > 1:
+        raise PlacementError(
+            f"the cube carries no sensor positions, and the bands of the mosaic sensor "
+            f"{sensor.name!r} sit at different places in each {sensor.mosaic_shape[0]} x "
+            f"{sensor.mosaic_shape[1]} tile: give the raw 2-D frame (it is split with the "
+            "sensor's band offsets), a cube made by mosaic_to_cube (or written by snapcorr), or "
+            "--sensor-origin-px ROW,COL if cube pixel (y, x) is the tile whose top-left sensor "
+            "pixel is (ROW + y * tile rows, COL + x * tile columns)")
+    else:
+        for (fr, fc), what in _full_frames(lens, sensor):
+            if abs(fr - ny) > _SAME_AREA_PX or abs(fc - nx) > _SAME_AREA_PX:
+                raise PlacementError(
+                    f"the cube is {ny} x {nx} px but {what} is {fr:g} x {fc:g} px, and the "
+                    "cube does not say where it sits: give --sensor-origin-px ROW,COL "
+                    "(sensor_origin_px), the sensor row and column of its first pixel")
+        rows, cols = (a.astype(float) for a in sensor_positions(sensor, ny, nx, (0, 0)))
+    if np.all(rows == rows[:, :1]) and np.all(cols == cols[:, :1]):
+        rows, cols = rows[:, :1], cols[:, :1]  # every band at the same position
+    return rows, cols
 
 
-def optical_center(cube, lens, sensor, center_px=None):
+def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
     """The optical centre in sensor pixels (column, row), and where it came from.
 
-    Given explicitly; else the lens profile's ``[calibration] center_px`` when it was measured
-    with this sensor's pixel pitch; else the centre of the sensor area the cube covers.
+    Given explicitly; else the lens profile's ``[calibration] center_px``, converted through
+    millimetres when the calibration's pixel pitch differs from the sensor's (binned pixels,
+    another pixel grid over the same image area); else the centre of the sensor (``size_px``);
+    else the centre of the area the cube covers.
+
+    Raises
+    ------
+    PlacementError
+        The calibration's centre was measured on another pixel grid and the two image areas
+        cannot be matched (no ``image_size_px`` in the profile, no ``size_px`` for the sensor, or
+        different physical sizes): pass ``center_px`` (``--center-px``).
     """
     if center_px is not None:
-        cx, cy = (float(v) for v in center_px)
-        if not (math.isfinite(cx) and math.isfinite(cy)):
-            raise ValueError(f"center_px must be finite, got {center_px!r}")
-        return (cx, cy), "given"
+        return _parse_pair("center_px", center_px), "given"
     cal = getattr(lens, "calibration", {}) or {}
     if "center_px" in cal and cal.get("pixel_pitch_um") is not None:
-        if abs(float(cal["pixel_pitch_um"]) - sensor.pixel_pitch_um) < 1e-9:
-            cx, cy = (float(v) for v in cal["center_px"])
+        cx, cy = _parse_pair("the lens calibration's center_px", cal["center_px"])
+        p_cal, p = float(cal["pixel_pitch_um"]), sensor.pixel_pitch_um
+        if abs(p_cal - p) < 1e-9 * p:
             return (cx, cy), "lens calibration"
-        warnings.warn(
-            f"the lens profile's optical centre was measured with {cal['pixel_pitch_um']} um "
-            f"pixels, this sensor has {sensor.pixel_pitch_um} um: the image centre is used; "
-            "pass center_px to override", CenterWarning, stacklevel=3)
-    rows, cols = _positions(cube)
+        size = cal.get("image_size_px")
+        why = None
+        if size is None:
+            why = "the profile does not record the calibration image's size"
+        elif sensor.size_px is None:
+            why = f"the sensor {sensor.name!r} has no size_px"
+        else:
+            w_mm, h_mm = (float(v) * p_cal * 1e-3 for v in size)
+            rows, cols = sensor.size_px
+            if (abs(cols * p * 1e-3 - w_mm) > _SAME_AREA_PX * p * 1e-3
+                    or abs(rows * p * 1e-3 - h_mm) > _SAME_AREA_PX * p * 1e-3):
+                why = (f"its image ({w_mm:.3f} x {h_mm:.3f} mm) and the sensor's "
+                       f"({cols * p * 1e-3:.3f} x {rows * p * 1e-3:.3f} mm) differ")
+        if why is not None:
+            raise PlacementError(
+                f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
+                f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
+                "give --center-px CX,CY (center_px) in this sensor's pixels")
+        # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
+        k = p_cal / p
+        return ((cx + 0.5) * k - 0.5, (cy + 0.5) * k - 0.5), \
+            f"lens calibration ({p_cal:g} um pixels, converted through mm)"
+    if sensor.size_px is not None:
+        rows, cols = sensor.size_px
+        return ((cols - 1) / 2.0, (rows - 1) / 2.0), "sensor centre"
+    rows, cols = positions if positions is not None else cube_positions(cube, sensor, lens)
     return ((float(cols.min()) + float(cols.max())) / 2.0,
             (float(rows.min()) + float(rows.max())) / 2.0), "image centre"
 
 
-def cube_cra_deg(cube, lens, sensor, center_px=None):
+def cube_cra_deg(cube, lens, sensor, center_px=None, *, sensor_origin_px=None):
     """Chief-ray angle of every pixel (and band, for mosaics), degrees.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+    lens : Lens
+    sensor : Sensor
+    center_px : (cx, cy), optional
+        Optical centre in sensor pixels (column, row); see :func:`optical_center`.
+    sensor_origin_px : (row, col), optional
+        Sensor position of the cube's first pixel, for cubes that do not carry their
+        positions; see :func:`cube_positions`.
 
     Returns
     -------
@@ -70,8 +185,8 @@ def cube_cra_deg(cube, lens, sensor, center_px=None):
     center : (float, float)
     center_source : str
     """
-    (cx, cy), source = optical_center(cube, lens, sensor, center_px)
-    rows, cols = _positions(cube)
+    rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
+    (cx, cy), source = optical_center(cube, lens, sensor, center_px, positions=(rows, cols))
     pitch_mm = sensor.pixel_pitch_um * 1e-3
     dy = (rows - cy)[:, None, :] * pitch_mm  # (ny, 1, nb)
     dx = (cols - cx)[None, :, :] * pitch_mm  # (1, nx, nb)
