@@ -22,7 +22,6 @@ from . import __version__
 from ._io import atomic_write
 from .data import lens_path
 from .optics import Lens, mean_shift
-from .optics.pupil import vignetted_area_mm2
 
 __all__ = ["run_demo"]
 
@@ -32,20 +31,43 @@ CWL_NM, N_EFF = 700.0, 1.7
 MODELS = ("asymptotic", "ideal", "vignetted")
 
 
-def _relative_illumination(lens, f, cra):
-    R = lens.exit_pupil_radius_mm(f)
-    dv = lens.vignetting_distance_mm * np.tan(np.deg2rad(cra))
-    return vignetted_area_mm2(R, lens.vignetting_radius_mm, dv) / (np.pi * R**2)
+#: Written into a demo's folder: a later run may replace what is in such a folder.
+MARKER = ".snapcorr-demo"
 
 
-def run_demo(out_dir, *, lens: Lens | None = None, echo=print):
-    """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``."""
+def check_out_dir(out_dir, *, overwrite=False):
+    """The demo's output folder, refused if it holds files the demo did not make.
+
+    A folder that does not exist yet, is empty, or holds a previous demo's output (the
+    :data:`MARKER` file) is fine; any other folder only with ``overwrite=True``, since the demo
+    writes files with common names (``lens.toml``, ``summary.txt``) into it.
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} is not a folder; choose another --out")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists() and not overwrite:
+        names = sorted(p.name for p in out.iterdir())
+        raise FileExistsError(
+            f"{out} holds files snapcorr demo did not make ({', '.join(names[:4])}"
+            f"{', ...' if len(names) > 4 else ''}); choose an empty or new folder with --out, "
+            "or pass --overwrite to write over files of the same names")
+    return out
+
+
+def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
+    """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``.
+
+    Refuses a folder holding files the demo did not make unless ``overwrite``
+    (:func:`check_out_dir`).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
+    out = check_out_dir(out_dir, overwrite=overwrite)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).write_text(f"written by snapcorr {__version__} demo\n", encoding="utf-8")
     lens = lens or Lens.load(lens_path())
     cra = np.linspace(0.0, 20.0, 201)
     rows, lines = [], []
@@ -62,7 +84,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print):
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(F_NUMBERS)))
     for f, colour in zip(F_NUMBERS, colours, strict=True):
         curves = {m: mean_shift(CWL_NM, N_EFF, f, cra, lens, method=m) for m in MODELS}
-        rel = _relative_illumination(lens, f, cra)
+        rel = lens.relative_illumination(f, cra)
         for i, c in enumerate(cra):
             rows.append((f, c, *(curves[m][i] for m in MODELS), rel[i]))
         onset = float(lens.onset_cra_deg(f))
