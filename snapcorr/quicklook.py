@@ -1,0 +1,481 @@
+"""Quick-look figures of a flat-fielded cube and of a wavelength correction, as PNG.
+
+:func:`plot_flatfield` shows a result of :func:`snapcorr.cube.flatfield`: one band, the
+masked fraction of every band and a few pixels' spectra. :func:`plot_correction` shows a
+result of :func:`snapcorr.correct.correct_cube`: one band of the cube, the chief-ray angle,
+the shift of the band that moves most and three pixels' spectra at their nominal and
+corrected wavelengths.
+
+Both read only what they draw: images are subsampled with a stride to at most
+:data:`MAX_PX` pixels a side and selected before they are loaded, so a dask-backed cube
+larger than memory is read piece by piece. Both draw on a :class:`matplotlib.figure.Figure`
+without pyplot (no global state) and write the PNG atomically.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ._io import atomic_write
+
+__all__ = ["MAX_PX", "plot_correction", "plot_flatfield"]
+
+#: Largest number of pixels drawn along either side of an image.
+MAX_PX = 1024
+#: Colour of masked (or non-finite) pixels in the images.
+MASKED_COLOUR = "#ff00ff"
+_DPI = 110
+
+
+# --------------------------------------------------------------------------- helpers
+
+def _check_path(path, overwrite):
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"quick looks are written as PNG only: {path} should end in .png, "
+                         f"not {path.suffix or 'nothing'!r}")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+    return path
+
+
+def _save(fig, path):
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=_DPI))
+
+
+def _stride(ny, nx):
+    return max(1, math.ceil(max(ny, nx) / MAX_PX))
+
+
+def _load(*arrays):
+    """The values of DataArrays as numpy arrays, the dask-backed ones in one pass."""
+    out = [None] * len(arrays)
+    lazy = [i for i, a in enumerate(arrays) if a.chunks is not None]
+    if lazy:
+        import dask
+
+        for i, v in zip(lazy, dask.compute(*[arrays[i].data for i in lazy]), strict=True):
+            out[i] = np.asarray(v)
+    for i, a in enumerate(arrays):
+        if out[i] is None:
+            out[i] = np.asarray(a.values)
+    return out
+
+
+def _image(da, stride, band=None):
+    """A lazy (y, x) view of ``da`` (one band of it), every ``stride``-th pixel."""
+    sl = slice(None, None, stride)
+    sel = {"y": sl, "x": sl}
+    if "band" in da.dims:
+        sel["band"] = 0 if band is None else band
+    return da.isel(sel).transpose("y", "x")
+
+
+def _points(da, ys, xs):
+    """A lazy (pixel, band) selection of the spectra at the pixels ``(ys[i], xs[i])``."""
+    sel = da.isel(y=xr.DataArray(np.asarray(ys, int), dims="pixel"),
+                  x=xr.DataArray(np.asarray(xs, int), dims="pixel"))
+    return sel.transpose("pixel", ...)
+
+
+def _finite(a):
+    a = np.asarray(a, float)
+    return a[np.isfinite(a)]
+
+
+def _limits(values, robust):
+    """Colour limits of the finite ``values`` (1-99 percentiles if ``robust``), or None."""
+    v = _finite(values)
+    if v.size == 0:
+        return None
+    lo, hi = (np.percentile(v, [1.0, 99.0]) if robust else (v.min(), v.max()))
+    lo, hi = float(lo), float(hi)
+    if not hi > lo:  # a constant image: open the range so the colour bar reads
+        pad = abs(lo) * 0.05 or 1.0
+        lo, hi = lo - pad, hi + pad
+    return lo, hi
+
+
+def _label(da, fallback):
+    name = da.attrs.get("long_name") or da.name or fallback
+    units = da.attrs.get("units")
+    if units in (None, "", "1", "dimensionless"):  # a ratio: no unit to show
+        return str(name)
+    return f"{name} ({units})"
+
+
+def _num(value, fmt="g"):
+    try:
+        return format(float(value), fmt)
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def _middle_band(wl):
+    if wl.size == 0 or not np.all(np.isfinite(wl)):
+        return wl.size // 2
+    return int(np.argmin(np.abs(wl - 0.5 * (wl.min() + wl.max()))))
+
+
+def _wavelengths(ds, nb):
+    if "wavelength" in ds.coords or "wavelength" in ds:
+        return np.asarray(ds["wavelength"].values, float)
+    return np.arange(nb, dtype=float)
+
+
+def _show(fig, ax, img, stride, *, bad=None, robust=True, cmap="viridis", cbar_label="",
+          title="", empty="no finite values", bad_label="not finite"):
+    """Draw a subsampled image in the original pixel coordinates, with a colour bar."""
+    img = np.asarray(img, float)
+    hidden = ~np.isfinite(img) if bad is None else (bad | ~np.isfinite(img))
+    lim = _limits(img[~hidden], robust)
+    h, w = img.shape
+    extent = (-0.5 * stride, (w - 0.5) * stride, (h - 0.5) * stride, -0.5 * stride)
+    ratio = max(h, w) / max(1, min(h, w))
+    import matplotlib
+
+    cm = matplotlib.colormaps[cmap].with_extremes(bad=MASKED_COLOUR)
+    im = ax.imshow(np.ma.masked_array(img, hidden), cmap=cm, extent=extent,
+                   interpolation="nearest", aspect="equal" if ratio <= 4 else "auto",
+                   vmin=lim[0] if lim else 0.0, vmax=lim[1] if lim else 1.0)
+    fig.colorbar(im, ax=ax, label=cbar_label, shrink=0.9)
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px)")
+    ax.set_title(title + (f"\none pixel in {stride} along x and y shown" if stride > 1
+                          else ""), fontsize=10)
+    if lim is None:
+        _note(ax, empty)
+    if hidden.any() and bad_label:
+        from matplotlib.patches import Patch
+
+        ax.legend(handles=[Patch(color=MASKED_COLOUR, label=bad_label)], loc="upper right",
+                  fontsize=8, framealpha=0.85)
+    return hidden
+
+
+def _note(ax, text):
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=10,
+            bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "0.5"})
+
+
+def _figure(figsize):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, layout="constrained")
+
+
+def _nearest(valid, targets):
+    """For each target (row, col) on the grid, the nearest ``valid`` grid point, deduplicated."""
+    rows, cols = np.nonzero(valid)
+    picked = []
+    for r, c in targets:
+        if rows.size:
+            k = int(np.argmin((rows - r) ** 2 + (cols - c) ** 2))
+            r, c = int(rows[k]), int(cols[k])
+        if (r, c) not in picked:
+            picked.append((r, c))
+    return picked
+
+
+# --------------------------------------------------------------------------- flat field
+
+def _result_name(ds):
+    for name in ("reflectance", "transmittance"):
+        if name in ds.data_vars:
+            return name
+    others = [n for n, v in ds.data_vars.items()
+              if set(v.dims) == {"y", "x", "band"} and n not in ("mask", "raw")]
+    if not others:
+        raise ValueError("not a flat-field result: no 'reflectance' or 'transmittance' "
+                         "variable with dims (y, x, band); see snapcorr.cube.flatfield")
+    return others[0]
+
+
+def plot_flatfield(ds, path, *, overwrite=False, title=None):
+    """Quick look of a flat-fielded cube, written as PNG.
+
+    Three panels: the band nearest the middle wavelength (colour limits from the 1st and
+    99th percentiles of its finite values, masked pixels in magenta), the percentage of
+    masked values in every band, and the spectra of up to five pixels (the centre and four
+    points near the corners, each moved to the nearest pixel with unmasked values) with
+    their ``(y, x)`` in the legend.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`snapcorr.cube.flatfield`: ``reflectance`` or ``transmittance``
+        ``(y, x, band)``, ``mask`` ``(y, x, band)`` and ``wavelength(band)`` in nm; numpy-
+        or dask-backed. Only the pixels drawn are read (images at most :data:`MAX_PX`
+        pixels a side, every ``stride``-th pixel).
+    path : str or os.PathLike
+        The PNG to write (the suffix must be ``.png``).
+    overwrite : bool, optional
+        Replace an existing file (default: refuse).
+    title : str, optional
+        The figure's title (default: the variable's name and the cube's size).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If ``path`` does not end in ``.png``, or ``ds`` holds no flat-field result.
+    FileExistsError
+        If ``path`` exists and ``overwrite`` is false; nothing is written.
+    """
+    path = _check_path(path, overwrite)
+    name = _result_name(ds)
+    result = ds[name].transpose("y", "x", "band")
+    ny, nx, nb = (result.sizes[d] for d in ("y", "x", "band"))
+    mask = (ds["mask"].transpose("y", "x", "band") if "mask" in ds
+            else ~np.isfinite(result))
+    wl = _wavelengths(ds, nb)
+    order = np.argsort(wl, kind="stable")
+    b = _middle_band(wl)
+    s = _stride(ny, nx)
+    msub = mask.isel(y=slice(None, None, s), x=slice(None, None, s))
+    img, mimg, n_masked_band, n_masked_px = _load(
+        _image(result, s, b), _image(mask, s, b), msub.sum(("y", "x")), msub.sum("band"))
+    n_sample = msub.sizes["y"] * msub.sizes["x"]
+    frac = 100.0 * n_masked_band.astype(float) / max(1, n_sample)
+    all_masked = bool(n_sample * nb == 0 or np.all(n_masked_band == n_sample))
+
+    fig = _figure((15.5, 4.8))
+    a_img, a_frac, a_spec = fig.subplots(1, 3, width_ratios=[1.15, 0.85, 1.0])
+
+    # 1. the middle band
+    bad = np.asarray(mimg, bool)
+    empty = ("every value is masked" if all_masked
+             else f"every value of band {b} is masked")
+    _show(fig, a_img, img, s, bad=bad, cbar_label=_label(result, name),
+          title=f"{name}, band {b} ({_num(wl[b], '.1f')} nm): "
+                f"{100.0 * bad.mean() if bad.size else 0.0:.1f} % masked",
+          empty=empty, bad_label="masked")
+
+    # 2. the masked fraction per band
+    a_frac.plot(wl[order], frac[order], "o-", ms=3, lw=1, color="C3")
+    top = float(frac.max()) if frac.size else 0.0
+    top = 100.0 if top > 20.0 else max(1.0, 1.25 * top)  # small fractions stay readable
+    a_frac.set_ylim(-0.03 * top, 1.03 * top)
+    a_frac.set_xlabel("wavelength (nm)")
+    a_frac.set_ylabel("masked values (%)")
+    total = 100.0 * float(n_masked_band.sum()) / max(1, n_sample * nb)
+    a_frac.set_title(f"masked values per band ({total:.1f} % of all)"
+                     + (f"\nfrom one pixel in {s} along x and y" if s > 1 else ""),
+                     fontsize=10)
+    a_frac.grid(alpha=0.3)
+
+    # 3. spectra of a few pixels: centre and near the corners, moved to unmasked ones
+    h, w = n_masked_px.shape
+    targets = [((h - 1) / 2, (w - 1) / 2)]
+    for fy in (0.1, 0.9):
+        for fx in (0.1, 0.9):
+            targets.append((fy * (h - 1), fx * (w - 1)))
+    valid = n_masked_px < nb
+    picked = _nearest(valid, [(round(r), round(c)) for r, c in targets])
+    ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
+    (spectra,) = _load(_points(result, ys, xs))
+    shown = 0
+    for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        spec = np.asarray(spectra[k], float)[order]
+        if not np.any(np.isfinite(spec)):
+            continue
+        label = ("centre " if k == 0 else "") + f"(y, x) = ({y}, {x})"
+        a_spec.plot(wl[order], spec, "o-", ms=3, lw=1.2, color=f"C{k}", label=label)
+        a_img.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
+        shown += 1
+    if shown:
+        a_spec.legend(fontsize=8)
+    else:
+        _note(a_spec, "every value is masked:\nno spectrum to show" if all_masked
+              else "these pixels are masked\nin every band")
+    a_spec.set_xlabel("wavelength (nm)")
+    a_spec.set_ylabel(_label(result, name))
+    a_spec.set_title("spectra of a few pixels (gaps: masked)", fontsize=10)
+    a_spec.grid(alpha=0.3)
+
+    fig.suptitle(title or f"Flat-field quick look: {name}, {ny} x {nx} px, {nb} bands",
+                 fontsize=12)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- correction
+
+#: Names the chief-ray angle map goes by, in order of preference.
+_CRA_NAMES = ("cra", "cra_deg")
+_NOT_CUBE = {"wavelength_corrected", "resampled", "wavelength_scale", "mask", *_CRA_NAMES}
+
+
+def _cube_name(ds):
+    for n, v in ds.data_vars.items():
+        if set(v.dims) == {"y", "x", "band"} and n not in _NOT_CUBE:
+            return n
+    raise ValueError("not a correction result: no input cube (a (y, x, band) variable other "
+                     "than wavelength_corrected and resampled); see "
+                     "snapcorr.correct.correct_cube")
+
+
+def _subtitle(attrs):
+    parts = []
+    if "lens" in attrs:
+        parts.append(f"lens {attrs['lens']}")
+    if "f_number" in attrs:
+        parts.append(f"f/{_num(attrs['f_number'])}")
+    if "method" in attrs:
+        parts.append(f"method {attrs['method']}")
+    if "sensor" in attrs:
+        parts.append(f"sensor {attrs['sensor']}")
+    return ", ".join(parts)
+
+
+def plot_correction(ds, path, *, overwrite=False, title=None):
+    """Quick look of a wavelength correction, written as PNG.
+
+    Four panels: the band of the input cube nearest the middle wavelength (colour limits from
+    the 1st and 99th percentiles of its finite values); the chief-ray angle (deg; the first
+    band's when it differs per band); the shift ``wavelength_corrected - wavelength`` (nm) of
+    the band that moves most; and the spectra of three pixels chosen by their chief-ray angle
+    (on axis, mid-field, edge) against the nominal wavelengths (dashed) and against their
+    corrected wavelengths (solid), with the ``resampled`` spectra (dotted) when present.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`snapcorr.correct.correct_cube`: the input cube ``(y, x, band)``,
+        ``wavelength_corrected(y, x, band)`` (a variable or a coordinate, nm), the chief-ray
+        angle ``cra`` (or ``cra_deg``) ``(y, x)`` or ``(y, x, band)`` in degrees, optionally
+        ``resampled``; numpy- or dask-backed. Only
+        what is drawn is read: one band of the cube and of the corrected wavelengths (every
+        ``stride``-th pixel, at most :data:`MAX_PX` a side) and three pixels' spectra.
+        ``lens``, ``f_number`` and ``method`` in its attrs go into the title.
+    path : str or os.PathLike
+        The PNG to write (the suffix must be ``.png``).
+    overwrite : bool, optional
+        Replace an existing file (default: refuse).
+    title : str, optional
+        The figure's first title line (default: "Wavelength correction of" the cube's name);
+        the lens, f-number and method follow on a second line.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If ``path`` does not end in ``.png``, or ``ds`` lacks the cube, ``cra`` or
+        ``wavelength_corrected``.
+    FileExistsError
+        If ``path`` exists and ``overwrite`` is false; nothing is written.
+    """
+    path = _check_path(path, overwrite)
+    cra_name = next((n for n in _CRA_NAMES if n in ds.variables), None)
+    for need, have in (("wavelength_corrected", "wavelength_corrected" in ds.variables),
+                       ("cra", cra_name is not None)):
+        if not have:
+            raise ValueError(f"not a correction result: no {need!r}; see "
+                             "snapcorr.correct.correct_cube")
+    name = _cube_name(ds)
+    cube = ds[name].transpose("y", "x", "band")
+    corrected = ds["wavelength_corrected"].transpose("y", "x", "band")
+    cra = ds[cra_name]
+    ny, nx, nb = (cube.sizes[d] for d in ("y", "x", "band"))
+    wl = _wavelengths(ds, nb)
+    order = np.argsort(wl, kind="stable")
+    b = _middle_band(wl)
+    s = _stride(ny, nx)
+    img, cra_img = _load(_image(cube, s, b), _image(cra, s, 0))
+    cra_img = np.asarray(cra_img, float)
+
+    # three pixels by chief-ray angle: smallest, halfway, largest (among finite ones)
+    valid = np.isfinite(cra_img) & np.isfinite(np.asarray(img, float))
+    if not valid.any():
+        valid = np.isfinite(cra_img)
+    picked, roles = [], []
+    if valid.any():
+        rows, cols = np.nonzero(valid)
+        angles = cra_img[rows, cols]
+        lo, hi = float(angles.min()), float(angles.max())
+        for role, k in (("on axis", int(np.argmin(angles))),
+                        ("mid-field", int(np.argmin(np.abs(angles - 0.5 * (lo + hi))))),
+                        ("edge", int(np.argmax(angles)))):
+            rc = (int(rows[k]), int(cols[k]))
+            if rc not in picked:
+                picked.append(rc)
+                roles.append(role)
+    ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
+    lazy = [_points(cube, ys, xs), _points(corrected, ys, xs)]
+    has_resampled = "resampled" in ds.variables
+    if has_resampled:
+        lazy.append(_points(ds["resampled"].transpose("y", "x", "band"), ys, xs))
+    spectra = [np.asarray(v, float) for v in _load(*lazy)] if picked else []
+
+    # the band that moves most, from the pixels read (the shift grows with the CRA)
+    b_shift = b
+    if picked:
+        moved = np.abs(spectra[1] - wl[None, :])
+        if np.isfinite(moved).any():
+            b_shift = int(np.nanargmax(np.where(np.isfinite(moved), moved, -1.0).max(axis=0)))
+    (shift_img,) = _load(_image(corrected, s, b_shift))
+    shift_img = np.asarray(shift_img, float) - wl[b_shift]
+
+    fig = _figure((13, 9.5))
+    (a_cube, a_cra), (a_shift, a_spec) = fig.subplots(2, 2)
+    _show(fig, a_cube, img, s, cbar_label=_label(cube, name),
+          title=f"{name}, band {b} ({_num(wl[b], '.1f')} nm)")
+    cra_title = "chief-ray angle" + (" (first band)" if "band" in cra.dims else "")
+    _show(fig, a_cra, cra_img, s, robust=False, cmap="cividis", cbar_label="CRA (deg)",
+          title=cra_title, bad_label=None)
+    _show(fig, a_shift, shift_img, s, robust=False, cmap="magma",
+          cbar_label="shift (nm)", bad_label=None,
+          title=f"shift of band {b_shift} ({_num(wl[b_shift], '.1f')} nm): "
+                "corrected - nominal")
+    for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
+
+    from matplotlib.lines import Line2D
+
+    handles = []
+    for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        values = spectra[0][k]
+        if not np.any(np.isfinite(values)):
+            continue
+        c = f"C{k}"
+        lam = spectra[1][k]
+        a_spec.plot(wl[order], values[order], "--", color=c, lw=1, marker=".", ms=4)
+        o = np.argsort(np.where(np.isfinite(lam), lam, np.inf), kind="stable")
+        a_spec.plot(lam[o], values[o], "-", color=c, lw=1.4, marker="o", ms=3)
+        if has_resampled:
+            a_spec.plot(wl[order], spectra[2][k][order], ":", color=c, lw=1.4, marker="x",
+                        ms=4)
+        handles.append(Line2D([], [], color=c, lw=2,
+                              label=f"{roles[k]}: (y, x) = ({y}, {x}), "
+                                    f"CRA {cra_img[picked[k]]:.2f} deg"))
+    if handles:
+        styles = [Line2D([], [], color="0.3", ls="--", label="at nominal wavelengths"),
+                  Line2D([], [], color="0.3", ls="-", label="at corrected wavelengths")]
+        if has_resampled:
+            styles.append(Line2D([], [], color="0.3", ls=":", marker="x",
+                                 label="resampled onto nominal"))
+        # below the panel, so it never hides a spectrum
+        a_spec.legend(handles=handles + styles, fontsize=8, ncols=2, loc="upper center",
+                      bbox_to_anchor=(0.5, -0.12))
+    else:
+        _note(a_spec, "no finite values at these pixels:\nno spectrum to show")
+    a_spec.set_xlabel("wavelength (nm)")
+    a_spec.set_ylabel(_label(cube, name))
+    a_spec.set_title("spectra by chief-ray angle", fontsize=10)
+    a_spec.grid(alpha=0.3)
+
+    head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
+    sub = _subtitle(ds.attrs)
+    fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
+    return _save(fig, path)

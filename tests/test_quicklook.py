@@ -1,0 +1,230 @@
+"""Quick-look figures: PNGs written atomically, readable, and drawn from what they read."""
+
+import dask
+import numpy as np
+import pytest
+from dask.callbacks import Callback
+from matplotlib.image import imread
+
+import snapcorr
+from snapcorr import quicklook
+from snapcorr.correct import correct_cube
+from snapcorr.cube import Sensor, flatfield, make_cube
+from snapcorr.quicklook import plot_correction, plot_flatfield
+
+LENS = snapcorr.Lens("Edmund", 21.0, 7.4236, 16.991, 0.06, 1.3)
+SENSOR = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
+NY, NX, NB = 24, 32, 5
+
+
+def _scene(ny=NY, nx=NX, nb=NB):
+    """A bright disc on a dim background, brighter towards the red, with a little noise."""
+    yy, xx = np.mgrid[:ny, :nx]
+    disc = 200 + 600 * np.exp(-((yy - ny / 2) ** 2 + (xx - nx / 2) ** 2) / (0.1 * ny * nx))
+    noise = np.random.default_rng(1).normal(0, 5, (ny, nx, nb))
+    return (disc[..., None] * np.linspace(0.6, 1.2, nb) + noise).astype(np.float32)
+
+
+def _flat(raw, *, white=1200.0, saturation=4095.0):
+    nb = raw.shape[2]
+    wl = np.linspace(500, 900, nb)
+    cube = make_cube(raw, wl)
+    dark = make_cube(np.full((1, raw.shape[1], nb), 10.0, np.float32), wl)
+    bright = make_cube(np.full((1, raw.shape[1], nb), white, np.float32), wl)
+    return flatfield(cube, dark, bright, saturation=saturation)
+
+
+@pytest.fixture(scope="module")
+def flat():
+    raw = _scene()
+    raw[2:5, 3:9] = 4095.0  # saturated: masked in every band
+    return _flat(raw)
+
+
+@pytest.fixture(scope="module")
+def corrected():
+    return correct_cube(make_cube(_scene(), SENSOR.cwl_nm), LENS, SENSOR, 1.4, resample=True)
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the functions draw, kept as well as written."""
+    kept, save = [], quicklook._save
+
+    def keep(fig, path):
+        kept.append(fig)
+        return save(fig, path)
+
+    monkeypatch.setattr(quicklook, "_save", keep)
+    return kept
+
+
+def _texts(fig):
+    """Every piece of text in a figure: titles, labels, legends, notes."""
+    out = [fig._suptitle.get_text() if fig._suptitle else ""]
+    for ax in fig.axes:
+        out += [ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+        out += [t.get_text() for t in ax.texts]
+        for leg in [ax.get_legend(), *[a for a in ax.artists if hasattr(a, "get_texts")]]:
+            if leg is not None:
+                out += [t.get_text() for t in leg.get_texts()]
+    return "\n".join(out)
+
+
+def _check_png(path, size):
+    img = imread(path)
+    assert img.shape[:2] == (round(size[1] * 110), round(size[0] * 110))
+    rgb = (img[..., :3] * 255).astype(np.uint32)
+    colours = np.unique(rgb[..., 0] << 16 | rgb[..., 1] << 8 | rgb[..., 2])
+    assert colours.size > 50  # images, colour bars and lines: not a blank page
+    return img
+
+
+def test_flatfield_quicklook(flat, figures, tmp_path):
+    out = plot_flatfield(flat, tmp_path / "ff.png")
+    assert out == tmp_path / "ff.png"
+    _check_png(out, (15.5, 4.8))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ff.png"]  # no temporary left
+    text = _texts(figures[0])
+    for want in ("x (px)", "y (px)", "reflectance", "band 2 (700.0 nm)", "masked values (%)",
+                 "centre (y, x) = (12, 16)", "masked"):
+        assert want in text
+    img_ax = figures[0].axes[0]
+    assert img_ax.images[0].get_array().shape == (NY, NX)
+    assert np.ma.getmaskarray(img_ax.images[0].get_array())[2:5, 3:9].all()  # masked shown
+    # the spectra avoid the masked corner: no legend entry inside the saturated block
+    legend = [t.get_text() for t in figures[0].axes[2].get_legend().get_texts()]
+    assert len(legend) == 5
+    for entry in legend:
+        y, x = (int(v) for v in entry.split("= (")[1].rstrip(")").split(", "))
+        assert not (2 <= y < 5 and 3 <= x < 9)
+
+
+def test_correction_quicklook(corrected, figures, tmp_path):
+    out = plot_correction(corrected, tmp_path / "corr.png", title="Test scene")
+    _check_png(out, (13, 9.5))
+    fig = figures[0]
+    text = _texts(fig)
+    for want in ("Test scene", "lens Edmund", "f/1.4", f"method {corrected.attrs['method']}",
+                 "CRA (deg)", "shift (nm)", "x (px)", "y (px)", "on axis", "mid-field",
+                 "edge", "at nominal wavelengths", "at corrected wavelengths",
+                 "resampled onto nominal"):
+        assert want in text, want
+    # the shift shown is that of the band moving most, as the full array has it
+    shift = np.abs(corrected["wavelength_corrected"].values - SENSOR.cwl_nm)
+    b = int(np.argmax(shift.max(axis=(0, 1))))
+    assert f"shift of band {b} " in text
+    shown = fig.axes[2].images[0].get_array()
+    np.testing.assert_allclose(
+        shown, corrected["wavelength_corrected"].values[:, :, b] - SENSOR.cwl_nm[b],
+        rtol=0, atol=1e-4)
+    # three pixels by CRA: the smallest and largest angles of the field
+    cra = next(corrected[n] for n in ("cra", "cra_deg") if n in corrected.variables).values
+    assert f"CRA {cra.min():.2f} deg" in text and f"CRA {cra.max():.2f} deg" in text
+
+
+@pytest.mark.parametrize("plot", [plot_flatfield, plot_correction])
+def test_refusals(plot, flat, corrected, tmp_path):
+    ds = flat if plot is plot_flatfield else corrected
+    for name in ("out.jpg", "out.PDF", "out"):
+        with pytest.raises(ValueError, match="PNG only"):
+            plot(ds, tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+    target = tmp_path / "out.png"
+    target.write_bytes(b"keep me")
+    with pytest.raises(FileExistsError, match="overwrite"):
+        plot(ds, target)
+    assert target.read_bytes() == b"keep me"
+    assert plot(ds, target, overwrite=True) == target
+    assert imread(target).ndim == 3
+    assert [p.name for p in tmp_path.iterdir()] == ["out.png"]
+
+
+def test_wrong_dataset_refused(flat, corrected, tmp_path):
+    with pytest.raises(ValueError, match="flat-field"):
+        plot_flatfield(corrected.drop_vars(["radiance", "resampled"]), tmp_path / "a.png")
+    with pytest.raises(ValueError, match="correction result"):
+        plot_correction(flat, tmp_path / "b.png")
+    assert list(tmp_path.iterdir()) == []
+
+
+class _Largest(Callback):
+    """The largest result of any dask task computed while active."""
+
+    def __init__(self):
+        super().__init__()
+        self.nbytes = 0
+
+    def _posttask(self, key, result, dsk, state, worker_id):
+        self.nbytes = max(self.nbytes, int(getattr(result, "nbytes", 0)))
+
+
+def test_dask_inputs_read_by_parts(corrected, tmp_path):
+    """Lazy inputs stay lazy, and no task holds more than one band image (float64)."""
+    one_band = NY * NX * 8
+    raw = make_cube(_scene(), np.linspace(500, 900, NB)).chunk({"y": 8, "band": 1})
+    dark = make_cube(np.full((1, NX, NB), 10.0, np.float32), raw.wavelength.values)
+    white = make_cube(np.full((1, NX, NB), 1200.0, np.float32), raw.wavelength.values)
+    lazy_flat = flatfield(raw, dark, white, saturation=4095.0)
+    assert lazy_flat["reflectance"].chunks is not None
+    # from values in memory, so that every chunk of the input is small
+    lazy_corr = corrected.compute().chunk({"y": 8, "band": 1})
+    assert lazy_corr["wavelength_corrected"].chunks is not None
+    with dask.config.set(scheduler="sync"), _Largest() as seen:
+        plot_flatfield(lazy_flat, tmp_path / "ff.png")
+        plot_correction(lazy_corr, tmp_path / "corr.png")
+    assert 0 < seen.nbytes <= one_band
+    assert lazy_flat["reflectance"].chunks is not None
+    assert lazy_corr["wavelength_corrected"].chunks is not None
+    _check_png(tmp_path / "ff.png", (15.5, 4.8))
+    _check_png(tmp_path / "corr.png", (13, 9.5))
+
+
+def test_large_images_drawn_with_a_stride(figures, tmp_path):
+    raw = _scene(2100, 6, 2)
+    plot_flatfield(_flat(raw), tmp_path / "tall.png")
+    image = figures[0].axes[0].images[0]
+    assert image.get_array().shape == (700, 2)  # one pixel in 3: at most 1024 a side
+    left, right, bottom, top = image.get_extent()
+    assert left == -1.5 and right == pytest.approx(4.5)
+    assert bottom == pytest.approx(2098.5) and top == -1.5  # still in the cube's pixels
+    assert "one pixel in 3" in _texts(figures[0])
+
+
+def test_tiny_cubes(figures, tmp_path):
+    raw = np.array([[[100.0, 300.0]]], np.float32)
+    plot_flatfield(_flat(raw), tmp_path / "ff.png")
+    sensor = Sensor("two", "snapscan", 40.0, [500.0, 900.0], 10.0, 1.7)
+    ds = correct_cube(make_cube(raw, sensor.cwl_nm), LENS, sensor, 2.8)
+    ds.attrs = {}  # and without provenance: a plain title
+    plot_correction(ds, tmp_path / "corr.png")
+    assert "(y, x) = (0, 0)" in _texts(figures[0])
+    text = _texts(figures[1])
+    assert "on axis: (y, x) = (0, 0)" in text
+    assert "Wavelength correction of radiance, 1 x 1 px, 2 bands" in text
+    assert "lens" not in text and "resampled" not in text
+    for name in ("ff.png", "corr.png"):
+        assert imread(tmp_path / name).ndim == 3
+
+
+def test_all_masked_and_all_nan_bands(figures, tmp_path):
+    raw = _scene()
+    flat = _flat(raw)  # then every value masked (flatfield itself refuses such a result)
+    everything = flat.assign(reflectance=flat["reflectance"] * np.nan,
+                             mask=flat["mask"] | True)
+    plot_flatfield(everything, tmp_path / "all.png")
+    text = _texts(figures[0])
+    assert "every value is masked" in text and "no spectrum to show" in text
+
+    raw[:, :, 2] = np.nan  # the middle band, the one drawn, is NaN everywhere
+    plot_flatfield(_flat(raw), tmp_path / "band.png")
+    text = _texts(figures[1])
+    assert "every value of band 2 is masked" in text
+    assert len(figures[1].axes[2].get_legend().get_texts()) == 5  # other bands still shown
+
+    cube = make_cube(np.full((NY, NX, NB), np.nan, np.float32), SENSOR.cwl_nm)
+    plot_correction(correct_cube(cube, LENS, SENSOR, 1.4), tmp_path / "nan.png")
+    text = _texts(figures[2])
+    assert "no finite values" in text and "no spectrum to show" in text
+    for name in ("all.png", "band.png", "nan.png"):
+        assert imread(tmp_path / name).ndim == 3
