@@ -1,10 +1,13 @@
-"""Where the bundled calibration data (lens profiles, sensors) lives."""
+"""Bundled calibration data (lens profiles, sensors) and small simulated example frames."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
-__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "sensor_path"]
+import numpy as np
+
+__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "mosaic_frames", "sensor_path"]
 
 #: The lens of Goossens et al. 2019, used by ``snapcorr demo``.
 DEFAULT_LENS = "edmund_optics_16mm"
@@ -21,20 +24,93 @@ def calibration_dir() -> Path:
     return path
 
 
-def _bundled(kind, name):
+def _bundled(kind, what, name):
+    """``calibration/<kind>/<name>.toml``; ``name`` is a bare name (a path gives its stem)."""
+    if isinstance(name, os.PathLike):
+        name = Path(name).stem
+    name = str(name)
+    if name.endswith(".toml"):
+        name = name[: -len(".toml")]
     folder = calibration_dir() / kind
     path = folder / f"{name}.toml"
-    if not path.exists():
+    bare = name and Path(name).name == name and name not in (".", "..")
+    if not (bare and path.is_file()):
         names = sorted(p.stem for p in folder.glob("*.toml"))
-        raise FileNotFoundError(f"no bundled {kind[:-1]} {name!r}; bundled {kind}: {names}")
+        raise FileNotFoundError(f"no bundled {what} named {name!r}; bundled {kind}: {names}")
     return path
 
 
 def lens_path(name: str = DEFAULT_LENS) -> Path:
-    """Path of a bundled lens profile by name (file stem), e.g. ``"edmund_optics_16mm"``."""
-    return _bundled("lenses", name)
+    """Path of a bundled lens profile by name (file stem), e.g. ``"edmund_optics_16mm"``.
+
+    >>> lens_path().name
+    'edmund_optics_16mm.toml'
+    """
+    return _bundled("lenses", "lens", name)
 
 
 def sensor_path(name: str) -> Path:
-    """Path of a bundled sensor description by name (file stem), e.g. ``"snapscan_vnir"``."""
-    return _bundled("sensors", name)
+    """Path of a bundled sensor description by name (file stem), e.g. ``"snapscan_vnir"``.
+
+    >>> sensor_path("mosaic_4x4_vis").name
+    'mosaic_4x4_vis.toml'
+    """
+    return _bundled("sensors", "sensor", name)
+
+
+def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
+                  f_number: float = 2.8, seed=0):
+    """Simulated raw frames of a bundled mosaic sensor: a scene, a dark and a white frame.
+
+    Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), as the camera would
+    give them: the white frame is an integrating sphere seen through the bundled lens at
+    ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_field`) times
+    each band's sensitivity; the scene is a uniform target whose reflectance peaks at 550 nm,
+    under the same light; both carry shot noise and a dark offset of 64 DN, which the dark
+    frame holds alone.
+
+    Parameters
+    ----------
+    sensor : str
+        A bundled ``layout = "mosaic"`` sensor (``"mosaic_4x4_vis"``, ``"mosaic_5x5_nir"``).
+    lens : str
+        A bundled lens.
+    f_number : float
+    seed : int or numpy.random.Generator
+        Random source of the noise.
+
+    Returns
+    -------
+    raw, dark, white : ndarray, shape ``sensor.size_px``, uint16
+
+    >>> raw, dark, white = mosaic_frames()
+    >>> raw.shape, raw.dtype.name, int(dark.max()) < int(raw.min()) < int(white.max()) < 4096
+    ((1088, 2048), 'uint16', True)
+    """
+    from .cube import Sensor
+    from .optics import Lens
+    from .simulate import flat_field
+
+    sens = Sensor.load(sensor_path(sensor))
+    if sens.layout != "mosaic":
+        raise ValueError(f"sensor {sensor!r} is not a mosaic (layout {sens.layout!r})")
+    rng = np.random.default_rng(seed)
+    shape = tuple(sens.size_px)
+    cwl = np.asarray(sens.cwl_nm, float)
+    centre = 0.5 * (cwl.min() + cwl.max())
+    sensitivity = 0.75 + 0.25 * np.cos(np.pi * (cwl - centre) / (np.ptp(cwl) + 1e-9))
+    reflectance = 0.15 + 0.6 * np.exp(-0.5 * ((cwl - 550.0) / 30.0) ** 2)
+    tr, tc = sens.mosaic_shape
+    gain, refl = np.empty(shape), np.empty(shape)
+    for b, (r, c) in enumerate(np.asarray(sens.band_offset)):
+        gain[r::tr, c::tc] = sensitivity[b]
+        refl[r::tr, c::tc] = reflectance[b]
+    light = flat_field(Lens.load(lens_path(lens)), f_number, shape, sens.pixel_pitch_um,
+                       noise=False, dtype=np.float64, signal_electrons=3500.0) * gain
+    dark_dn, full_scale = 64.0, 4095
+
+    def frame(electrons):
+        dn = rng.poisson(electrons) + rng.normal(dark_dn, 2.0, shape)
+        return np.clip(np.rint(dn), 0, full_scale).astype(np.uint16)
+
+    return frame(light * refl), frame(np.zeros(shape)), frame(light)

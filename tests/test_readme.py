@@ -1,0 +1,103 @@
+"""The README's examples run as written, and its command lines only use options that exist."""
+
+import argparse
+import fnmatch
+import re
+import shlex
+from pathlib import Path
+
+import matplotlib
+import pytest
+
+from snapcorr.cli import build_parser
+from snapcorr.data import lens_path, sensor_path
+
+matplotlib.use("Agg")
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.M | re.S)
+
+
+def blocks(language):
+    return [body for lang, body in FENCE.findall(README.read_text()) if lang == language]
+
+
+def command_lines(text):
+    """Lines of a shell block with backslash continuations joined."""
+    return re.sub(r"\\\n\s*", " ", text).splitlines()
+
+
+def snapcorr_commands():
+    """Every ``snapcorr ...`` command in the README's bash blocks (``&&`` chains split)."""
+    found = []
+    for block in blocks("bash"):
+        for line in command_lines(block):
+            for part in line.split("&&"):
+                words = shlex.split(part, comments=True)
+                if words[:1] == ["snapcorr"] and words[1:] != ["--help"]:
+                    found.append(words[1:])
+    return found
+
+
+def test_python_blocks_run_in_order_from_any_folder(tmp_path, monkeypatch):
+    """Each block in turn, in one namespace, in an empty folder (not the repository)."""
+    import matplotlib.pyplot as plt
+
+    code = blocks("python")
+    assert len(code) >= 4, "the README's python examples went missing"
+    monkeypatch.chdir(tmp_path)
+    namespace = {"__name__": "__readme__"}
+    try:
+        for i, block in enumerate(code, 1):
+            exec(compile(block, f"README.md python block {i}", "exec"), namespace)
+    finally:
+        plt.close("all")
+    patterns = [line.strip().rstrip("/") for line in
+                (README.parent / ".gitignore").read_text().splitlines()]
+    stray = [p.name for p in tmp_path.iterdir()
+             if not any(fnmatch.fnmatch(p.name, pat) for pat in patterns if pat)]
+    assert not stray, f"the README's examples write files .gitignore does not list: {stray}"
+
+
+def test_readme_command_lines_parse():
+    commands = snapcorr_commands()
+    assert {c[0] for c in commands} >= {"demo", "budget", "calibrate"}
+    parser = build_parser()
+    for words in commands:
+        try:
+            parser.parse_args(words)
+        except SystemExit:
+            pytest.fail(f"the README shows a command the CLI refuses: snapcorr {shlex.join(words)}")
+
+
+def test_command_line_synopsis_names_real_options():
+    """Every --option in the "Command line" synopsis belongs to its subcommand."""
+    section = README.read_text().split("## Command line", 1)[1]
+    synopsis = FENCE.search(section).group(2)
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    known, command = {}, None
+    for line in synopsis.splitlines():
+        words = line.split()
+        if words[:1] == ["snapcorr"] and len(words) > 1 and not words[1].startswith("-"):
+            command = words[1]
+            assert command in sub.choices, f"no subcommand {command!r}"
+        if command is None:
+            continue
+        options = known.setdefault(command, set(sub.choices[command]._option_string_actions))
+        for option in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", line):
+            assert option in options, f"snapcorr {command} has no {option}"
+    assert set(known) == set(sub.choices), "the synopsis misses a subcommand"
+
+
+@pytest.mark.parametrize("find, kind, name, bundled", [
+    (lens_path, "lens", "no_such_lens", "['edmund_optics_16mm']"),
+    (sensor_path, "sensor", "no_such_sensor", "'snapscan_vnir'"),
+])
+def test_unknown_bundled_name_lists_the_bundled_ones(find, kind, name, bundled):
+    for given in (name, Path(f"somewhere/{name}.toml")):
+        with pytest.raises(FileNotFoundError) as err:
+            find(given)
+        message = str(err.value)
+        assert message.startswith(f"no bundled {kind} named '{name}'; bundled ")
+        assert bundled in message and "Path(" not in message
