@@ -1,49 +1,393 @@
-"""Atomic output: write next to the target, then rename, so a crash never leaves half a file."""
+"""Safe files: inputs checked before they are opened, outputs written atomically.
+
+Reading
+    :func:`check_input` refuses, before anything opens it, a path that is missing, a loop of
+    symbolic links, a FIFO, socket or device (reading a FIFO would wait forever), or a folder
+    where a file is expected (and a file where a folder, a Zarr store, is expected).
+
+Writing
+    Every output is written under a hidden temporary name next to its target (``.name.XXXX``)
+    and moved in only when complete, so a crash never leaves half a file. A target that
+    already exists is replaced without a moment where neither the old nor the new one is
+    whole: a single file by an atomic rename; a folder, or a group of files that belong
+    together (an ENVI header and its data), by moving the old ones aside, moving the new ones
+    in and only then deleting the old ones (a failure puts the old ones back).
+    :func:`refuse_inputs` refuses a target that is, contains or lies inside an input.
+
+Interruptions
+    Temporary paths are kept in a registry while they exist. Inside :func:`cleanup_on_signals`
+    SIGTERM and SIGHUP interrupt the main thread as Ctrl-C does (``KeyboardInterrupt``), so
+    ``finally`` blocks run, and on leaving it every temporary still registered is removed.
+"""
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import errno
 import os
+import shutil
+import signal
+import stat
 import tempfile
+import threading
+import time
 import tomllib
 from pathlib import Path
 
-__all__ = ["atomic_write", "read_toml", "write_toml"]
+__all__ = [
+    "atomic_write",
+    "atomic_write_dir",
+    "atomic_write_files",
+    "check_input",
+    "cleanup_on_signals",
+    "file_kind",
+    "read_toml",
+    "refuse_inputs",
+    "remove_path",
+    "temporary_paths",
+    "write_toml",
+]
+
+
+# -- inputs ----------------------------------------------------------------------------------
+
+
+def file_kind(mode):
+    """What a ``st_mode`` describes, in words ("a regular file", "a FIFO (named pipe)", ...)."""
+    for test, name in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"),
+                       (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISLNK, "a symbolic link")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_input(path, *, directory=False, what="file"):
+    """``path`` as a ``Path`` if it names an existing regular file (a folder when
+    ``directory``); otherwise an error that says what was found, raised before anything opens
+    the path.
+
+    Parameters
+    ----------
+    path : str or Path
+    directory : bool
+        The input is a folder (a Zarr store) rather than a file.
+    what : str
+        What the path should hold, for the messages ("cube", "flat field", ...).
+
+    Raises
+    ------
+    FileNotFoundError
+        Nothing at ``path`` (or a symbolic link to nothing).
+    ValueError
+        A loop of symbolic links, a FIFO, socket or device, a folder where a file is expected
+        or a file where a folder is expected, or a path that cannot be examined.
+    """
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise ValueError(f"{path}: a loop of symbolic links; point the link at the {what} "
+                             "itself") from None
+        if err.errno in (errno.ENOENT, errno.ENOTDIR):
+            if os.path.islink(path):
+                raise FileNotFoundError(f"no such file: {path} (a symbolic link to "
+                                        f"{os.readlink(path)}, which does not exist)") from None
+            raise FileNotFoundError(f"no such file: {path}") from None
+        raise ValueError(f"{path}: cannot examine it: {err.strerror}") from None
+    mode = st.st_mode
+    if directory:
+        if not stat.S_ISDIR(mode):
+            raise ValueError(f"{path} is {file_kind(mode)}, but a {path.suffix or what} store "
+                             "is a folder; give the store's folder")
+        return path
+    if stat.S_ISDIR(mode):
+        raise ValueError(f"{path} is a folder, but a {what} in this format is a single file "
+                         "(only a .zarr store is a folder); give the file")
+    if not stat.S_ISREG(mode):
+        raise ValueError(f"{path} is {file_kind(mode)}, not a regular file; snapcorr reads "
+                         f"a {what} only from a regular file (copy the data into one first)")
+    return path
+
+
+# -- outputs and inputs ----------------------------------------------------------------------
+
+
+def _resolved(path):
+    try:
+        return Path(path).resolve()
+    except (OSError, RuntimeError):  # a symbolic link loop: compare the path as written
+        return Path(os.path.abspath(path))
+
+
+def refuse_inputs(targets, inputs):
+    """Raise ``ValueError`` if any of ``targets`` is, contains or lies inside any of
+    ``inputs`` (symbolic links resolved): writing it would destroy an input."""
+    sources = [(Path(src), _resolved(src)) for src in inputs]
+    for target in targets:
+        t = _resolved(target)
+        for src, s in sources:
+            if t == s:
+                raise ValueError(f"output {target} is also an input ({src}); choose another "
+                                 "output path")
+            if s.is_relative_to(t):
+                raise ValueError(f"output {target} contains the input {src}; choose another "
+                                 "output path")
+            if t.is_relative_to(s):
+                raise ValueError(f"output {target} lies inside the input {src}; choose another "
+                                 "output path")
+
+
+# -- the registry of temporary paths ---------------------------------------------------------
+
+_LOCK = threading.RLock()
+#: Temporary paths that exist now (str -> None, in creation order).
+_TEMPORARY: dict[str, None] = {}
+#: Temporary paths removed after a failure: a worker thread still finishing (dask, zarr) may
+#: create them again, so they are checked once more when the interpreter exits.
+_REMOVED: dict[str, None] = {}
+
+
+def temporary_paths():
+    """The temporary paths registered now (a list of ``Path``)."""
+    with _LOCK:
+        return [Path(p) for p in _TEMPORARY]
+
+
+def _register(path):
+    with _LOCK:
+        _TEMPORARY[str(path)] = None
+
+
+def _unregister(path):
+    with _LOCK:
+        _TEMPORARY.pop(str(path), None)
+
+
+def remove_path(path, *, timeout_s=10.0, settle_s=0.2):
+    """Remove a temporary file or folder and unregister it.
+
+    Retries for up to ``timeout_s`` while the removal fails or the path comes back within
+    ``settle_s`` (a thread still writing into an interrupted output may create it again).
+    Returns True when the path is gone.
+    """
+    path = str(path)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path)
+            else:
+                os.unlink(path)
+        except FileNotFoundError:
+            pass
+        except OSError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.02)
+            continue
+        time.sleep(settle_s if settle_s and time.monotonic() < deadline else 0)
+        if not os.path.lexists(path) or time.monotonic() > deadline:
+            break
+    gone = not os.path.lexists(path)
+    with _LOCK:
+        if settle_s:  # removed after a failure: look again at exit
+            _REMOVED[path] = None
+        if gone:
+            _TEMPORARY.pop(path, None)
+    return gone
+
+
+@atexit.register
+def _remove_left_over():
+    with _LOCK:
+        paths = list(_TEMPORARY) + list(_REMOVED)
+    for p in paths:
+        if os.path.lexists(p):
+            remove_path(p, timeout_s=2.0, settle_s=0)
+
+
+def _make_temporary(target, *, directory=False):
+    """A new hidden temporary file or folder next to ``target``, registered."""
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    prefix, suffix = f".{target.stem}.", target.suffix
+    with _LOCK:  # registered before a signal can come between creating and registering
+        if directory:
+            tmp = tempfile.mkdtemp(dir=target.parent, prefix=prefix, suffix=suffix)
+        else:
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=prefix, suffix=suffix)
+            os.close(fd)
+        _register(tmp)
+    return Path(tmp)
+
+
+def _usual_permissions(path, directory=False):
+    """mkstemp and mkdtemp create private paths; give the permissions a new file would get."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, (0o777 if directory else 0o666) & ~umask)
+
+
+def _replace(moves):
+    """Move each ``(new, target)`` into place.
+
+    A single file replaces its target by one atomic rename. Otherwise existing targets are
+    moved aside first and deleted only once every new path is in place; on any failure
+    (an interruption too) the new paths are taken out and the old ones put back.
+    """
+    moves = [(Path(new), Path(target)) for new, target in moves]
+    if len(moves) == 1 and not moves[0][0].is_dir() and not moves[0][1].is_dir():
+        new, target = moves[0]
+        os.replace(new, target)
+        _unregister(new)
+        return
+    asides, placed = [], []
+    try:
+        for new, target in moves:
+            if os.path.lexists(target):
+                aside = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old."))
+                os.rename(target, aside / target.name)
+                asides.append((aside, target))
+            os.rename(new, target)
+            _unregister(new)
+            placed.append(target)
+    except BaseException:
+        for target in placed:  # the new ones out, the old ones back
+            remove_path(target, settle_s=0)
+        for aside, target in asides:
+            os.rename(aside / target.name, target)
+            os.rmdir(aside)
+        raise
+    for aside, _ in asides:
+        shutil.rmtree(aside, ignore_errors=True)
 
 
 def atomic_write(path, write, *, inputs=()):
     """Call ``write(tmp_path)`` and move the result to ``path`` atomically.
 
-    Refuses to write over any of ``inputs`` (outputs never replace an input file).
+    The temporary file is hidden, next to ``path``, registered while it exists (see
+    :func:`cleanup_on_signals`) and removed if ``write`` fails or is interrupted. Refuses to
+    write over, into or around any of ``inputs`` (outputs never replace an input file).
     """
     path = Path(path)
-    for src in inputs:
-        if Path(src).exists() and path.exists() and path.resolve() == Path(src).resolve():
-            raise ValueError(f"output {path} is also an input; choose another output path")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
+    refuse_inputs([path], inputs)
+    tmp = _make_temporary(path)
     try:
-        write(Path(tmp))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
-        os.replace(tmp, path)
+        write(tmp)
+        _usual_permissions(tmp)
+        _replace([(tmp, path)])
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        remove_path(tmp)
         raise
     return path
+
+
+def atomic_write_dir(path, write):
+    """Call ``write(tmp_folder)`` and move the folder to ``path`` (replacing an existing
+    folder safely); the temporary folder is removed if ``write`` fails or is interrupted."""
+    path = Path(path)
+    tmp = _make_temporary(path, directory=True)
+    try:
+        write(tmp)
+        _usual_permissions(tmp, directory=True)
+        _replace([(tmp, path)])
+    except BaseException:
+        remove_path(tmp)
+        raise
+    return path
+
+
+def atomic_write_files(paths, write):
+    """Write files that belong together (a header and its data) and move them in together.
+
+    ``write(folder)`` must create every name of ``paths`` (all in one folder) inside
+    ``folder``, a hidden temporary folder next to them; they are then moved into place
+    together (see :func:`_replace`), and the temporary folder is removed in every case.
+    """
+    paths = [Path(p) for p in paths]
+    if len({p.parent for p in paths}) != 1:
+        raise ValueError("files written together must share a folder")
+    tmp = _make_temporary(paths[0], directory=True)
+    try:
+        write(tmp)
+        for p in paths:
+            if not (tmp / p.name).is_file():
+                raise ValueError(f"the writer did not produce {p.name}")
+        _replace([(tmp / p.name, p) for p in paths])
+    finally:
+        remove_path(tmp, settle_s=0)
+    return paths
+
+
+# -- signals ---------------------------------------------------------------------------------
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(f"{signal.Signals(signum).name} received")
+
+
+@contextlib.contextmanager
+def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
+    """Clean up temporary files however a command ends.
+
+    Inside the block, ``signals`` (by default SIGTERM and SIGHUP; Ctrl-C, SIGINT, already
+    does this) raise ``KeyboardInterrupt`` in the main thread, so ``finally`` blocks run and
+    atomic writes remove their temporary files. On leaving, normally or by any exception,
+    every temporary path registered since entering and still present is removed (files
+    unlinked, folders deleted) with those signals and SIGINT ignored, and the previous
+    handlers are restored. Outside the main thread the handlers are left alone and only the
+    cleanup is done.
+
+    Examples
+    --------
+    >>> from snapcorr._io import cleanup_on_signals
+    >>> with cleanup_on_signals():
+    ...     pass
+    """
+    before = set(map(str, temporary_paths()))
+    numbers = [getattr(signal, s) for s in signals if hasattr(signal, s)]
+    main = threading.current_thread() is threading.main_thread()
+    previous = {}
+    if main:
+        for s in numbers:
+            previous[s] = signal.signal(s, _interrupt)
+    try:
+        yield
+    finally:
+        if main:
+            for s in {*numbers, signal.SIGINT}:
+                previous.setdefault(s, signal.getsignal(s))
+                signal.signal(s, signal.SIG_IGN)
+        try:
+            for path in temporary_paths():
+                if str(path) not in before:
+                    remove_path(path)
+        finally:
+            if main:
+                for s, handler in previous.items():
+                    signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+
+
+# -- TOML ------------------------------------------------------------------------------------
 
 
 def read_toml(path, table, what):
     """The parsed TOML document at ``path``, which must hold ``[table]``; clear errors."""
     path = Path(path)
     try:
+        check_input(path, what=what)
         with path.open("rb") as fh:
             doc = tomllib.load(fh)
     except FileNotFoundError:
         raise FileNotFoundError(f"{what} not found: {path}") from None
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{path} is not valid TOML: {err}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path} is not valid TOML: not UTF-8 text") from None
     if table not in doc:
         raise ValueError(f"{path} has no [{table}] table")
     return doc

@@ -30,94 +30,33 @@ OUTLIER_SIGMA = 6.0
 def read_flat(path):
     """Read a flat field as a 2-D float64 image; several bands are averaged.
 
-    ``.npy`` (2-D, or 3-D as (y, x, band)), TIFF and OpenEXR (OpenImageIO; an alpha channel is
-    ignored), ENVI ``.hdr`` (Spectral Python), ``.nc`` and ``.zarr`` cubes.
+    Read by the cube readers (:mod:`snapcorr.cube.io`): ``.npy`` (2-D, or 3-D as
+    (y, x, band)), TIFF (one multi-channel page, or one single-channel page per band) and
+    OpenEXR (OpenImageIO; an alpha channel is ignored), ENVI ``.hdr`` (Spectral Python),
+    ``.nc`` and ``.zarr`` cubes. The path is examined first: a FIFO, device, folder or link
+    loop is refused before it is opened.
 
     Returns
     -------
     image : ndarray, shape (ny, nx), float64
+        A pixel saturated in any band is ``inf`` in the mean.
     info : dict
         ``bands`` (how many were averaged) and ``saturation`` (the largest value the file's
         integer type holds, or None for floating-point data).
     """
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix == ".npy":
-        try:
-            data = np.load(path, mmap_mode="r", allow_pickle=False)
-        except Exception as err:  # numpy raises several types for a bad or empty file
-            raise ValueError(f"{path}: not a numpy array file ({type(err).__name__}: "
-                             f"{err})") from None
-    elif suffix in (".tif", ".tiff", ".exr"):
-        data = _read_oiio(path)
-    elif suffix in (".hdr", ".raw", ".img"):
-        data = _read_envi(path)
-    elif suffix in (".nc", ".zarr"):
-        from ..cube.io import read_cube
+    from ..cube.io import _read_file
 
-        data = np.asarray(read_cube(path).values)
-    else:
-        raise ValueError(f"{path}: unknown flat-field format {path.suffix or '(none)'!r}; "
-                         "use .npy, .tif, .exr, .hdr (ENVI), .nc or .zarr")
-    if data.ndim == 2:
-        data = data[:, :, None]
-    if data.ndim != 3 or min(data.shape) < 1:
-        raise ValueError(f"{path}: a flat field is a 2-D image (or y, x, band), "
-                         f"got shape {data.shape}")
+    found = _read_file(Path(path), what="flat field", drop_alpha=True)
+    data = found.data
+    if not isinstance(data, np.ndarray):  # a netCDF or Zarr variable
+        data = np.asarray(data.values)
     sat = np.iinfo(data.dtype).max if np.issubdtype(data.dtype, np.integer) else None
     image = data.mean(axis=2, dtype=np.float64) if data.shape[2] > 1 else \
         np.asarray(data[:, :, 0], dtype=np.float64)
     if sat is not None and data.shape[2] > 1:
         # a pixel saturated in any band is saturated in the mean
-        image = np.where((np.asarray(data) >= sat).any(axis=2), np.inf, image)
+        image = np.where((data >= sat).any(axis=2), np.inf, image)
     return image, {"bands": int(data.shape[2]), "saturation": sat}
-
-
-def _read_envi(path):
-    from spectral.io import envi
-
-    hdr = path if path.suffix.lower() == ".hdr" else path.with_suffix(".hdr")
-    try:
-        img = envi.open(str(hdr))
-        expected = img.offset + img.nrows * img.ncols * img.nbands * np.dtype(img.dtype).itemsize
-        if Path(img.filename).stat().st_size != expected:
-            raise ValueError(f"the data file {Path(img.filename).name} does not match the "
-                             f"header ({img.nrows} x {img.ncols} x {img.nbands}, "
-                             f"{np.dtype(img.dtype).name}): truncated or wrong header")
-        data = img.open_memmap(interleave="bip", writable=False)
-    except Exception as err:  # Spectral Python raises its own types; all mean a bad file
-        raise ValueError(f"{path}: cannot read it as ENVI: {err}") from None
-    if data.dtype.byteorder not in ("=", "|"):
-        data = data.astype(data.dtype.newbyteorder("="))
-    return data
-
-
-def _read_oiio(path):
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise ValueError(f"{path}: {oiio.geterror() or 'OpenImageIO cannot open it'}")
-    pages = []
-    try:
-        sub = 0
-        while inp.seek_subimage(sub, 0):  # a multi-page TIFF: each page is a band
-            spec = inp.spec()
-            data = inp.read_image(sub, 0, 0, spec.nchannels, "unknown")
-            if data is None:
-                raise ValueError(f"{path}: {inp.geterror() or 'no pixels'}")
-            data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-            names = list(spec.channelnames)
-            keep = [i for i, n in enumerate(names) if n.upper() not in ("A", "ALPHA")] or [0]
-            pages.append(data[:, :, keep])
-            sub += 1
-    finally:
-        inp.close()
-    if len({p.shape[:2] for p in pages}) > 1:
-        raise ValueError(f"{path}: its pages differ in size; give one image per file")
-    return np.concatenate(pages, axis=2)
 
 
 def noise_model(image, valid):

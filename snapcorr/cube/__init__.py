@@ -1,7 +1,15 @@
 """Cubes in and out: the data model, sensor layouts and flat-fielding."""
 
 from .flatfield import flatfield
-from .io import FORMATS, read_cube, row_blocks, write_cube, write_dataset
+from .io import (
+    FORMATS,
+    read_cube,
+    read_dataset,
+    read_frame,
+    row_blocks,
+    write_cube,
+    write_dataset,
+)
 from .model import DIMS, check_cube, make_cube
 from .mosaic import mosaic_to_cube, sensor_positions
 from .sensor import LAYOUTS, Sensor
@@ -16,6 +24,8 @@ __all__ = [
     "make_cube",
     "mosaic_to_cube",
     "read_cube",
+    "read_dataset",
+    "read_frame",
     "row_blocks",
     "sensor_positions",
     "write_cube",
