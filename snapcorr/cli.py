@@ -1,11 +1,13 @@
 """Command-line interface: a thin shell around the library.
 
-Every expected failure becomes one line on stderr and a non-zero exit status.
+Every expected failure becomes one line on stderr and a non-zero exit status; inputs are never
+written over, outputs appear whole or not at all (also on Ctrl-C and SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import textwrap
 import warnings
@@ -15,32 +17,65 @@ import numpy as np
 
 from . import __version__
 
-EXAMPLES = textwrap.dedent(
-    r"""
-    examples:
+#: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
+EXAMPLES = {
+    "demo": r"""
       snapcorr demo                       the paper's lens and experiment, simulated end to end
+      snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
+    """,
+    "flatfield": r"""
       snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --out scene_ff.nc
                                           flat-field a cube (Goossens Eq. 29)
-      snapcorr demo --out /tmp/demo       ... writing the figures elsewhere
-      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 1.4 \
-          --out scene_corrected.nc --resample
+      snapcorr flatfield frame.npy --dark dark.npy --white white.npy \
+          --sensor mosaic_4x4_vis --out scene_ff.zarr --plot scene_ff.png
+                                          ... a raw mosaic frame, split into its 16 bands
+      snapcorr flatfield crop.hdr --dark dark.hdr --white white.hdr --sensor snapscan_vnir \
+          --sensor-origin-px 512,768 --out crop_ff.nc
+                                          ... a crop whose first pixel is sensor row 512, col 768
+    """,
+    "correct": r"""
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 1.4 \
+          --out scene_corrected.nc --resample --plot scene_corrected.png
                                           per-pixel corrected wavelengths (Eq. 23)
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 4 \
+          --source cube --tolerance-pct 0.5 --out scene_corrected.nc
+                                          ... with the model the scene's own spectrum needs
+    """,
+    "calibrate": r"""
       snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
           --flat 4=f4.tif --flat 8=f8.tif --exit-pupil-mm 21 --pixel-pitch-um 5.5 \
           --magnification 0.06 --pupil-magnification 1.3 --dark dark.tif \
           --out my_lens.toml --plot my_lens.png
                                           lens profile from integrating-sphere flats
+    """,
+    "shift": r"""
       snapcorr shift --f-number 1.4 --cra 0 10 20
                                           mean shift of 700 nm filters behind the bundled lens
       snapcorr shift --lens my_lens.toml --f-number 2.8 --cra 15 --cwl-nm 850 --n-eff 1.9
+    """,
+    "budget": r"""
       snapcorr budget --sensor snapscan_vnir --lens edmund_optics_16mm --f-number 1.4 \
           --source solar --tolerance-pct 0.5 --plot budget.png
                                           which bands and pixels need correcting, and how
-      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 4 \
-          --source cube --tolerance-pct 0.5 --out scene_corrected.nc
-                                          ... with the model the scene's own spectrum needs
-    """
-)
+      snapcorr budget --sensor sensor.toml --lens my_lens.toml --f-number 2.8 \
+          --source cube --cube scene_ff.nc
+                                          ... for a scene's own spectrum
+    """,
+}
+
+#: Library parameter names as the command line spells them, for error messages.
+_CLI_TERMS = {
+    "pass wavelength_nm": "give --sensor SENSOR.toml (its cwl_nm are the wavelengths)",
+    "overwrite=True": "--overwrite",
+}
+
+
+def _examples(*commands):
+    text = "".join(textwrap.dedent(EXAMPLES[c]).strip("\n") + "\n" for c in commands)
+    return "examples:\n" + textwrap.indent(text, "  ")
+
+
+# -- shared pieces -----------------------------------------------------------------------------
 
 
 def _bundled_or_file(value, load, bundled_path):
@@ -48,7 +83,7 @@ def _bundled_or_file(value, load, bundled_path):
     path = Path(value)
     if path.suffix == ".toml" or path.exists():
         return load(path)
-    return load(bundled_path(value))
+    return load(bundled_path(str(value)))
 
 
 def _lens(value):
@@ -65,174 +100,242 @@ def _sensor(value):
     return _bundled_or_file(value, Sensor.load, sensor_path)
 
 
-def _cmd_budget(args):
-    import math
-
-    from .budget import parse_source, scene_budget, tolerance_ranges
-    from .correct.geometry import cube_cra_deg
-
-    if args.plot is not None:
-        if args.plot.suffix.lower() != ".png":
-            raise ValueError(f"--plot must name a .png file, got {args.plot}")
-        if args.plot.exists() and not args.overwrite:
-            raise ValueError(f"{args.plot} exists; use --overwrite to replace it")
-    lens = _lens(args.lens)
-    sensor = _sensor(args.sensor)
-    cube = None
-    if args.cube is not None:
-        from .cube import read_cube
-
-        cube = read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={})
-    if cube is not None and cube.sizes["band"] != sensor.n_bands:
-        raise ValueError(f"the cube has {cube.sizes['band']} bands, the sensor {sensor.name!r} "
-                         f"{sensor.n_bands}; use the sensor the cube was taken with")
-    if cube is not None and not np.allclose(cube["wavelength"].values, sensor.cwl_nm,
-                                            rtol=0, atol=0.05):
-        raise ValueError(f"the cube's wavelengths differ from the sensor {sensor.name!r}'s; "
-                         "use the matching sensor")
-    source = parse_source(args.source, cube)
-    if args.cra_max is not None:
-        cra_max, field = args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
-    elif cube is not None:
-        cra_max = float(cube_cra_deg(cube, lens, sensor, args.center_px)[0].max())
-        field = f"the cube's pixels, CRA up to {cra_max:.2f} deg"
-    elif sensor.field_radius_mm is not None:
-        cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
-        field = (f"the sensor's {sensor.size_px[0]} x {sensor.size_px[1]} px field, CRA up "
-                 f"to {cra_max:.2f} deg at its corners")
-    else:
-        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give --cra-max DEG or "
-                         "--cube CUBE for the field to cover")
-    b = scene_budget(sensor, lens, args.f_number, source, cra_max_deg=cra_max,
-                     profile=args.profile, tolerance_pct=args.tolerance_pct)
-    model, reason = b.recommend()
-    ranges = []
-    for c, w, n in zip(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, strict=True):
+def _pair_arg(what, names, *, integer=False):
+    def parse(value):
         try:
-            ranges += tolerance_ranges(source, [c], [w], n_eff=n, profile=args.profile)
-        except ValueError:  # the source ends within a shift of 5 nm of this band
-            ranges.append(["n/a", "n/a"])
+            a, b = (float(v) for v in value.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {names} in pixels, got {value!r}") \
+                from None
+        if not (math.isfinite(a) and math.isfinite(b)):
+            raise argparse.ArgumentTypeError(f"the {what} must be finite, got {value!r}")
+        if integer:
+            if a != round(a) or b != round(b) or a < 0 or b < 0:
+                raise argparse.ArgumentTypeError(f"the {what} is whole pixels >= 0, got "
+                                                 f"{value!r}")
+            return int(a), int(b)
+        return a, b
+    return parse
 
-    def fmt(r):
-        if isinstance(r, str):
-            return r
-        return "NA" if r is None else f"{r[0]:.1f}-{r[1]:.1f}"
 
-    print(f"scene budget: {source.name}; {lens.name} at f/{args.f_number:g}; {sensor.name} "
-          f"({sensor.n_bands} bands, {args.profile} filters); {field}")
-    print("worst |signal error| over the field, percent, left by each model; last columns: "
-          "centre positions where +-1 nm stays < 0.5 % and +-5 nm < 2 % (Flittner & Slater)")
-    table = b.table().splitlines()
-    print(f"{table[0]}  {'+-1nm<0.5%':>13} {'+-5nm<2%':>13}")
-    for line, rr in zip(table[1:-1], ranges, strict=True):
-        print(f"{line}  {fmt(rr[0]):>13} {fmt(rr[1]):>13}")
-    print(table[-1])
-    radius = b.radius_mm()
-    if math.isinf(radius):
-        print(f"uncorrected within {args.tolerance_pct:g} % over the whole field "
-              "(Mishev & Bakalova's radius is beyond it)")
-    elif radius > 0:
-        print(f"uncorrected within {args.tolerance_pct:g} %: image radius < {radius:.2f} mm "
-              f"({radius / sensor.pixel_pitch_mm:.0f} px) (Mishev & Bakalova)")
-    else:
-        print(f"uncorrected, the signal is off by more than {args.tolerance_pct:g} % even on "
-              f"the axis (the cone of f/{args.f_number:g} alone shifts the bands)")
-    print(f"recommended: {model}: {reason}")
-    if args.plot is not None:
-        b.plot(args.plot, overwrite=args.overwrite,
-               inputs=[args.sensor, args.lens, args.cube, args.source])
-        print(f"wrote {args.plot}")
-    return 0
+_center_arg = _pair_arg("centre", "CX,CY")
+_origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
+
+
+def _positive(value):
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {value!r}")
+    return v
+
+
+def _check_outputs(outputs, inputs, overwrite, suffixes):
+    """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
+    (without ``--overwrite``), have the wrong suffix or no folder to go in."""
+    srcs = [Path(i).resolve() for i in inputs if i is not None]
+    for out, allowed in zip(outputs, suffixes, strict=True):
+        if out is None:
+            continue
+        out = Path(out)
+        res = out.resolve()
+        for src in srcs:
+            if res == src:
+                raise ValueError(f"output {out} is also an input; choose another output path")
+            if src.is_relative_to(res) or res.is_relative_to(src):
+                raise ValueError(f"output {out} holds or lies in the input {src}; choose "
+                                 "another output path")
+        if out.suffix.lower() not in allowed:
+            raise ValueError(f"{out}: the output must end in {' or '.join(allowed)}")
+        if out.exists() and not overwrite:
+            raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+        if not res.parent.is_dir():
+            raise ValueError(f"{out.parent} is not a folder; create it first")
+
+
+class _StageBar:
+    """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage."""
+
+    def __init__(self, desc):
+        self.desc = desc
+
+    def __enter__(self):
+        from dask.callbacks import Callback
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr, delay=1.0,
+                        leave=False, dynamic_ncols=True)
+        bar = self.bar
+
+        class _Count(Callback):
+            def _start_state(self, dsk, state):
+                bar.total += len(state["ready"]) + len(state["waiting"])
+                bar.refresh()
+
+            def _posttask(self, key, result, dsk, state, worker_id):
+                bar.update(1)
+
+        self.callback = _Count()
+        self.callback.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        self.callback.__exit__(*exc)
+        self.bar.close()
+
+
+def _read(path, sensor=None, origin=None, role="cube"):
+    """A cube (or a raw mosaic frame split into bands) from any format, in row blocks.
+
+    Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
+    memory-mapped, never copied whole).
+    """
+    from .cube import mosaic_to_cube, read_cube, read_frame, row_blocks
+
+    wl = sensor.cwl_nm if sensor is not None else None
+    frame_error = None
+    if sensor is not None and sensor.layout == "mosaic":
+        try:
+            frame = read_frame(path, chunks={})
+        except ValueError as err:  # not a single-band frame: read it as a cube below
+            frame_error = err
+        else:
+            frame = _row_blocks_2d(frame, sensor)
+            if origin is None:
+                _check_full_frame(frame.shape, sensor, path)
+            return mosaic_to_cube(frame.data, sensor, origin_px=origin or (0, 0),
+                                  attrs={**frame.attrs, "source": str(path)})
+    try:
+        cube = read_cube(path, wavelength_nm=wl, chunks={})
+    except ValueError as err:
+        if frame_error is not None and "2-D" in str(err):
+            raise frame_error from None
+        raise
+    cube = read_cube(path, wavelength_nm=wl, chunks=dict(row_blocks(cube).chunksizes))
+    if origin is not None and "sensor_row" not in cube.coords:
+        from .cube import sensor_positions
+
+        rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
+        cube = cube.assign_coords(sensor_row=(("y", "band"), rows),
+                                  sensor_col=(("x", "band"), cols))
+    return cube
+
+
+def _row_blocks_2d(frame, sensor):
+    """A 2-D frame in blocks of whole tile rows of about 16 MiB."""
+    from .cube.io import BLOCK_BYTES
+
+    tr = sensor.mosaic_shape[0]
+    rows = max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
+    return frame.chunk({"y": rows, "x": -1})
+
+
+def _check_full_frame(shape, sensor, path):
+    from .correct import PlacementError
+
+    if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
+        raise PlacementError(
+            f"{path} is a {shape[0]} x {shape[1]} frame but the sensor {sensor.name!r} is "
+            f"{sensor.size_px[0]} x {sensor.size_px[1]} px: give --sensor-origin-px ROW,COL, "
+            "the sensor row and column of the frame's first pixel")
+
+
+# -- subcommands -------------------------------------------------------------------------------
 
 
 def _cmd_demo(args):
     from .demo import run_demo
 
-    run_demo(args.out)
+    run_demo(args.out, overwrite=args.overwrite)
     return 0
-
-
-def _dataset_output(out, inputs, overwrite):
-    """The output path of a Dataset, checked before any (possibly long) reading.
-
-    ``write_dataset`` checks again when it writes.
-    """
-    out = Path(out)
-    for src in inputs:
-        if Path(src).resolve() == out.resolve():
-            raise ValueError(f"output {out} is also an input; choose another output path")
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
-    if out.suffix.lower() not in (".nc", ".zarr"):
-        raise ValueError(f"--out must end in .nc or .zarr, got {out.name}")
-    return out
 
 
 def _cmd_flatfield(args):
-    from .cube import flatfield, read_cube
-    from .cube.io import write_dataset
+    from .cube import flatfield, write_dataset
+    from .cube.flatfield import check_masked
 
-    inputs = [args.raw, *args.dark, *args.white]
-    if args.filter_white is not None:
-        inputs.append(args.filter_white)
-    out = _dataset_output(args.out, inputs, args.overwrite)
-    wl = _sensor(args.sensor).cwl_nm if args.sensor else None
+    inputs = [args.raw, *args.dark, *args.white, args.filter_white]
+    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
+    sensor = _sensor(args.sensor) if args.sensor else None
+    if args.sensor_origin_px is not None and sensor is None:
+        raise ValueError("--sensor-origin-px needs --sensor (the layout places the pixels)")
 
-    def read(path):  # chunked: cubes larger than memory stream through dask
-        return read_cube(path, wavelength_nm=wl, chunks={"y": 512})
+    def read(path, role):
+        return _read(path, sensor, args.sensor_origin_px, role)
 
-    raw = read(args.raw)
-    darks = [read(p) for p in args.dark]
-    whites = [read(p) for p in args.white]
-    for label, cubes in (("dark", darks), ("white", whites)):
-        for c, p in zip(cubes, args.dark if label == "dark" else args.white, strict=True):
+    raw = read(args.raw, "cube")
+    darks = [read(p, "dark") for p in args.dark]
+    whites = [read(p, "white") for p in args.white]
+    for label, cubes, paths in (("--dark", darks, args.dark), ("--white", whites, args.white)):
+        for c, p in zip(cubes, paths, strict=True):
             if c.sizes["band"] != raw.sizes["band"] or c.sizes["x"] != raw.sizes["x"]:
-                raise ValueError(f"{p} is {c.shape[0]} x {c.shape[1]} x {c.shape[2]} but "
-                                 f"{args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
+                raise ValueError(f"{label} {p} is {c.shape[0]} x {c.shape[1]} x {c.shape[2]} "
+                                 f"but {args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
                                  f"{raw.shape[2]}: x and band must match")
-    ds = flatfield(raw, darks, whites, saturation=args.saturation)
+    ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
     if args.filter_white:
-        tr = flatfield(read(args.filter_white), darks, whites, saturation=args.saturation,
-                       name="transmittance")
+        tr = flatfield(read(args.filter_white, "filter white"), darks, whites,
+                       saturation=args.saturation, name="transmittance", dtype=args.dtype)
         ds["transmittance"] = tr["transmittance"]
         ds["filter_white_raw"] = tr["raw"]
-        ds["transmittance_mask"] = tr["mask"]
-    ds.attrs.update({"raw_file": str(args.raw), "dark_files": ", ".join(map(str, args.dark)),
-                     "white_files": ", ".join(map(str, args.white))})
-    if args.filter_white:
+        ds["transmittance_mask"] = tr["mask"].assign_attrs(
+            long_name="transmittance value not meaningful")
         ds.attrs["filter_white_file"] = str(args.filter_white)
-    from dask.diagnostics import ProgressBar
+    ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
+                     "white_files": [str(p) for p in args.white]})
+    with _StageBar("flat-fielding (checking the mask)"):
+        n_masked, total = check_masked(ds)
+    with _StageBar(f"writing {args.out.name}"):
+        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {args.out}: {ds.attrs.get('name', 'reflectance')} of {args.raw} "
+          f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, {ds['reflectance'].dtype}), "
+          f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
+          f"values masked ({100 * n_masked / total:.2f} %)")
+    if args.plot:
+        from .quicklook import plot_flatfield
 
-    # A progress bar on stderr for work that takes over a second (the inputs stream by blocks).
-    with ProgressBar(minimum=1.0, out=sys.stderr):
-        n_masked, total = int(ds["n_masked"]), int(ds["mask"].size)
-        write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
-    print(f"wrote {out}: reflectance of {args.raw} ({raw.shape[0]} x {raw.shape[1]} x "
-          f"{raw.shape[2]}), {len(darks)} dark and {len(whites)} white frame(s) averaged; "
-          f"{n_masked} of {total} values masked ({100 * n_masked / total:.2f} %)")
+        plot_flatfield(ds, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
     return 0
 
 
+def _correct_input(args, sensor):
+    """The cube to correct and, from a flat-field result, its mask."""
+    from .cube import read_dataset
+
+    cube = _read(args.cube, sensor, args.sensor_origin_px)
+    mask = None
+    if args.cube.suffix.lower() in (".nc", ".zarr"):
+        src = read_dataset(args.cube, chunks={"y": cube.chunksizes["y"][0], "x": -1,
+                                              "band": -1})
+        if "mask" in src and tuple(src["mask"].dims) == ("y", "x", "band"):
+            mask = src["mask"]
+    return cube, mask
 
 
 def _cmd_correct(args):
     from .correct import correct_cube
-    from .cube import read_cube, row_blocks
-    from .cube.io import write_dataset
+    from .cube import write_dataset
 
     inputs = [args.cube, args.lens, args.sensor]
-    out = _dataset_output(args.out, inputs, args.overwrite)
-    lens = _lens(args.lens)
-    sensor = _sensor(args.sensor)
-    # lazily, as stored, then in blocks of whole rows: memory stays bounded at any size
-    cube = row_blocks(read_cube(args.cube, wavelength_nm=sensor.cwl_nm, chunks={}))
+    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
         raise ValueError("--tolerance-pct applies to the scene budget: give --source too")
+    lens = _lens(args.lens)
+    sensor = _sensor(args.sensor)
+    cube, mask = _correct_input(args, sensor)
+    if cube.sizes["band"] != sensor.n_bands:
+        raise ValueError(f"{args.cube} has {cube.sizes['band']} bands but --sensor "
+                         f"{args.sensor} has {sensor.n_bands}; give the sensor the cube was "
+                         "taken with")
     ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
+                      sensor_origin_px=args.sensor_origin_px,
                       method=args.method, tolerance_nm=args.tolerance_nm,
-                      resample=args.resample, source=args.source,
+                      resample=args.resample, source=args.source, mask=mask,
                       tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct)
     ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
@@ -245,18 +348,21 @@ def _cmd_correct(args):
             raise ValueError(f"cannot reach the dask scheduler at {args.scheduler}: {err}") \
                 from None
         with client:  # progress: the cluster's dashboard
-            write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
+            write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
     else:
-        from dask.diagnostics import ProgressBar
-
-        with ProgressBar(minimum=1.0, out=sys.stderr):
-            write_dataset(ds, out, overwrite=args.overwrite, inputs=inputs)
-    print(f"wrote {out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
+        with _StageBar(f"correcting, writing {args.out.name}"):
+            write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {args.out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
           f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
           f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre "
           f"{tuple(round(c, 1) for c in ds.attrs['optical_center_px'])} px "
           f"({ds.attrs['optical_center_source']})"
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
+    if args.plot:
+        from .quicklook import plot_correction
+
+        plot_correction(ds, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
     return 0
 
 
@@ -277,39 +383,19 @@ def _flat_arg(value):
     return fv, Path(path)
 
 
-def _center_arg(value):
-    try:
-        cx, cy = (float(v) for v in value.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected CX,CY in pixels, got {value!r}") from None
-    if not (np.isfinite(cx) and np.isfinite(cy)):
-        raise argparse.ArgumentTypeError(f"the centre must be finite, got {value!r}")
-    return cx, cy
-
-
 def _cmd_calibrate(args):
+    import dataclasses
+
     from .calibrate import calibrate_lens, read_flat
 
-    out = Path(args.out)
-    if out.suffix.lower() != ".toml":
-        raise ValueError(f"--out {out}: a lens profile is a .toml file")
     seen = {}
     for f, path in args.flat:
         if f in seen:
             raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one flat per "
                              "f-number")
         seen[f] = path
-    inputs = [p for _, p in args.flat] + ([args.dark] if args.dark else [])
-    outputs = [out] + ([Path(args.plot)] if args.plot else [])
-    for o in outputs:
-        if any(Path(i).resolve() == o.resolve() for i in inputs):
-            raise ValueError(f"output {o} is also an input; choose another path")
-        if o.exists() and not args.overwrite:
-            raise ValueError(f"{o} exists; choose another path or pass --overwrite")
-        if not o.parent.is_dir():
-            raise ValueError(f"{o.parent} is not a folder; create it first")
-    if args.plot and Path(args.plot).suffix.lower() != ".png":
-        raise ValueError(f"--plot {args.plot}: the figure is written as .png")
+    inputs = [p for _, p in args.flat] + [args.dark]
+    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     flats, bands, sat = {}, set(), {}
     for f, path in sorted(args.flat):
         image, info = read_flat(path)
@@ -325,47 +411,41 @@ def _cmd_calibrate(args):
         magnification=args.magnification, pupil_magnification=args.pupil_magnification,
         dark=dark, center_px=args.center_px, saturation=sat,
         vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
-        name=args.name or out.stem, inputs={f: str(p) for f, p in args.flat})
-    lens = res.lens
-    cal = dict(lens.calibration)
+        name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat})
+    cal = dict(res.lens.calibration)
     cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
                     else "single-band flats")
     if args.dark:
         cal["dark"] = str(args.dark)
-    lens = type(lens)(lens.name, lens.exit_pupil_mm, lens.vignetting_radius_mm,
-                      lens.vignetting_distance_mm, lens.magnification, lens.pupil_magnification,
-                      calibration=cal)
-    lens.save(out, overwrite=args.overwrite)
+    lens = dataclasses.replace(res.lens, calibration=cal)
+    lens.save(args.out, overwrite=args.overwrite)
     if args.plot:
         res.save_plot(args.plot)
     print(res.summary())
-    print(f"wrote {out}" + (f" and {args.plot}" if args.plot else ""))
+    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
 
 
 def _cmd_shift(args):
+    from ._validation import check_wavelengths_nm
     from .optics import mean_shift, select_method
 
     lens = _lens(args.lens)
+    check_wavelengths_nm("--cwl-nm", [args.cwl_nm])
+    if not args.n_eff > 1:
+        raise ValueError(f"--n-eff must be > 1 (a filter's effective index), got {args.n_eff:g}")
     cra = np.asarray(args.cra, float)
-    shift = mean_shift(
-        args.cwl_nm,
-        args.n_eff,
-        args.f_number,
-        cra,
-        lens,
-        method=args.method,
-        tolerance_nm=args.tolerance_nm,
-    )
+    cutoff = float(lens.cutoff_cra_deg(args.f_number))
+    past = np.abs(cra) >= cutoff
+    if np.any(past):
+        raise ValueError(f"CRA {float(np.abs(cra[past]).max()):g} deg is past the full cut-off "
+                         f"at {cutoff:.2f} deg for f/{args.f_number:g} (the lens's vignetting "
+                         "circle leaves no light); give smaller --cra values")
+    shift = mean_shift(args.cwl_nm, args.n_eff, args.f_number, cra, lens, method=args.method,
+                       tolerance_nm=args.tolerance_nm)
     if args.method == "auto":
-        used = select_method(
-            args.n_eff,
-            args.f_number,
-            cra,
-            lens,
-            cwl_nm=args.cwl_nm,
-            tolerance_nm=args.tolerance_nm,
-        )
+        used = select_method(args.n_eff, args.f_number, cra, lens, cwl_nm=args.cwl_nm,
+                             tolerance_nm=args.tolerance_nm)
     else:
         used = np.full(cra.shape, args.method)
     print(f"# {lens.name}, f/{args.f_number:g}, cwl {args.cwl_nm:g} nm, n_eff {args.n_eff:g}")
@@ -375,180 +455,334 @@ def _cmd_shift(args):
     return 0
 
 
+def _budget_field(args, lens, sensor, cube):
+    """The largest CRA the budget covers, and a phrase saying where it comes from."""
+    from .correct.geometry import cube_cra_deg
+
+    if args.cra_max is not None:
+        return args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
+    if cube is not None:
+        cra_max = float(cube_cra_deg(cube, lens, sensor, args.center_px)[0].max())
+        return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
+    if sensor.field_radius_mm is not None:
+        cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
+        return cra_max, (f"the sensor's {sensor.size_px[0]} x {sensor.size_px[1]} px field, "
+                         f"CRA up to {cra_max:.2f} deg at its corners")
+    raise ValueError(f"the sensor {sensor.name!r} has no size_px: give --cra-max DEG or "
+                     "--cube CUBE for the field to cover")
+
+
+def _cmd_budget(args):
+    from .budget import parse_source, scene_budget, tolerance_ranges
+
+    _check_outputs([args.plot], [args.cube, args.sensor, args.lens], args.overwrite,
+                   [(".png",)])
+    if args.source.split(":")[0].strip().lower() == "cube" and args.cube is None:
+        raise ValueError(f"--source {args.source} is the spectrum of a cube: give --cube CUBE")
+    lens = _lens(args.lens)
+    sensor = _sensor(args.sensor)
+    cube = None
+    if args.cube is not None:
+        cube = _read(args.cube, sensor)
+        if cube.sizes["band"] != sensor.n_bands:
+            raise ValueError(f"--cube {args.cube} has {cube.sizes['band']} bands, --sensor "
+                             f"{sensor.name!r} {sensor.n_bands}; give the sensor the cube was "
+                             "taken with")
+        if not np.allclose(cube["wavelength"].values, sensor.cwl_nm, rtol=0, atol=0.05):
+            raise ValueError(f"--cube {args.cube}'s wavelengths differ from --sensor "
+                             f"{sensor.name!r}'s; give the matching sensor")
+    source = parse_source(args.source, cube)
+    cra_max, field = _budget_field(args, lens, sensor, cube)
+    b = scene_budget(sensor, lens, args.f_number, source, cra_max_deg=cra_max,
+                     profile=args.profile, tolerance_pct=args.tolerance_pct)
+    ranges = []
+    for c, w, n in zip(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, strict=True):
+        try:
+            ranges += tolerance_ranges(source, [c], [w], n_eff=n, profile=args.profile)
+        except ValueError:  # the source ends within a shift of 5 nm of this band
+            ranges.append(["n/a", "n/a"])
+    _print_budget(args, b, sensor, lens, source, field, ranges)
+    if args.plot is not None:
+        b.plot(args.plot, overwrite=args.overwrite,
+               inputs=[args.sensor, args.lens, args.cube, args.source])
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def _print_budget(args, b, sensor, lens, source, field, ranges):
+    def fmt(r):
+        if isinstance(r, str):
+            return r
+        return "NA" if r is None else f"{r[0]:.1f}-{r[1]:.1f}"
+
+    model, reason = b.recommend()
+    print(f"scene budget: {source.name}; {lens.name} at f/{args.f_number:g}; {sensor.name} "
+          f"({sensor.n_bands} bands, {args.profile} filters); {field}")
+    print("worst |signal error| over the field, percent, left by each model; last columns: "
+          "centre positions where +-1 nm stays < 0.5 % and +-5 nm < 2 % (Flittner & Slater)")
+    table = b.table().splitlines()
+    print(f"{table[0]}  {'+-1nm<0.5%':>13} {'+-5nm<2%':>13}")
+    for line, rr in zip(table[1:-1], ranges, strict=True):
+        print(f"{line}  {fmt(rr[0]):>13} {fmt(rr[1]):>13}")
+    print(table[-1])
+    radius = b.radius_mm()
+    if math.isinf(radius):
+        print(f"uncorrected within {args.tolerance_pct:g} % over the whole field "
+              "(Mishev & Bakalova's radius is beyond it)")
+    elif radius > 0:
+        print(f"uncorrected within {args.tolerance_pct:g} %: image radius < {radius:.2f} mm "
+              f"({radius / sensor.pixel_pitch_mm:.0f} px) (Mishev & Bakalova)")
+    else:
+        print(f"uncorrected, the signal is off by more than {args.tolerance_pct:g} % even on "
+              f"the axis (the cone of f/{args.f_number:g} alone shifts the bands)")
+    print(f"recommended: {model}: {reason}")
+
+
+# -- the parser --------------------------------------------------------------------------------
+
+SENSOR_HELP = "sensor description (.toml) or a bundled one (snapscan_vnir, mosaic_4x4_vis, ...)"
+ORIGIN_HELP = ("sensor row and column of the cube's first pixel (of its tile, for a mosaic), "
+               "for a crop that does not record where it sits")
+
+
+def _add_demo(command):
+    p = command("demo", "the main job on a bundled default: calibrate the paper's lens, "
+                "correct a simulated cube, write figures")
+    p.add_argument("--out", default="snapcorr-demo", type=Path,
+                   help="output folder (default: %(default)s); a folder holding other files "
+                   "is refused")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into a folder holding other files, replacing those of the "
+                   "same names")
+    p.set_defaults(func=_cmd_demo)
+
+
+def _add_flatfield(command):
+    p = command("flatfield", "flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)")
+    p.add_argument("raw", type=Path, help="the cube to correct (.hdr, .tif (one band per page "
+                   "or channel), .exr, .nc, .zarr, .npy), or a raw 2-D mosaic frame with a "
+                   "mosaic --sensor")
+    p.add_argument("--dark", type=Path, action="append", required=True,
+                   help="dark frame (repeat to average several)")
+    p.add_argument("--white", type=Path, action="append", required=True,
+                   help="white reference (repeat to average several; a strip of fewer rows "
+                   "than the cube is broadcast along the scan axis)")
+    p.add_argument("--filter-white", type=Path, default=None,
+                   help="the white target seen through a filter: adds the filter's "
+                   "transmittance (Goossens Sec. 3.1) to the output")
+    p.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    p.add_argument("--sensor", default=None,
+                   help=SENSOR_HELP + ": the wavelengths of files that have none, and the "
+                   "band layout of raw mosaic frames")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help=ORIGIN_HELP + " (needs --sensor)")
+    p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
+                   help="digital number at or above which a pixel is saturated")
+    p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
+                   help="type of the result (default: %(default)s)")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="quick look: a band image, the mask and a few pixels' spectra")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out (or --plot) that snapcorr wrote; never an "
+                   "input")
+    p.set_defaults(func=_cmd_flatfield)
+
+
+def _add_calibrate(command):
+    from .calibrate import METHODS as CAL_METHODS
+
+    p = command("calibrate", "lens profile (P, h) from flat fields at several f-numbers "
+                "(Goossens Sec. 2.7, 3.2)")
+    p.add_argument("--flat", type=_flat_arg, action="append", required=True,
+                   metavar="F_NUMBER=PATH",
+                   help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
+                   "several bands or TIFF pages in a file are averaged); repeat for each "
+                   "f-number")
+    p.add_argument("--exit-pupil-mm", type=_positive, required=True, metavar="X",
+                   help="distance x from the sensor to the exit pupil, mm")
+    p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
+                   help="pixel pitch of the flats, micrometres")
+    p.add_argument("--magnification", type=float, default=0.0,
+                   help="linear magnification m (default 0: focused at infinity)")
+    p.add_argument("--pupil-magnification", type=_positive, default=1.0,
+                   help="pupil magnification m_P (default 1)")
+    p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
+    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                   help="optical centre in pixels (default: found from the flats)")
+    p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="draw the profiles, onsets and model (the paper's Fig. 8)")
+    p.add_argument("--method", default="auto", choices=list(CAL_METHODS),
+                   help="estimator of P and h (default: %(default)s: the joint fit unless "
+                   "its area model misfits)")
+    p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
+                   help="h, when known (needed with a single f-number)")
+    p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
+                   help="value at or above which a pixel is saturated (default: the "
+                   "largest value of the file's integer type)")
+    p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    p.set_defaults(func=_cmd_calibrate)
+
+
+def _add_correct(command):
+    from .correct import METHODS as COR_METHODS
+
+    p = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
+    p.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
+                   "ideally flat-fielded; or a 2-D mosaic frame with a mosaic --sensor")
+    p.add_argument("--lens", required=True,
+                   help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
+    p.add_argument("--sensor", required=True, help=SENSOR_HELP)
+    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+                   help="the f-number the cube was taken at")
+    p.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                   help="optical centre in sensor pixels (default: the lens profile's, "
+                   "converted to this pixel pitch, else the sensor's centre)")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help=ORIGIN_HELP)
+    p.add_argument("--method", default="auto", choices=list(COR_METHODS),
+                   help="shift model (default: %(default)s, the cheapest meeting the "
+                   "tolerance)")
+    p.add_argument("--tolerance-nm", type=_positive, default=0.01, metavar="NM",
+                   help="largest wavelength error allowed, nm (default: %(default)s)")
+    p.add_argument("--source", default=None, metavar="SOURCE",
+                   help="the scene's spectrum: solar, solar:astm-g173, "
+                   "tungsten:TEMPERATURE_K, cube (the cube's mean spectrum) or a two-column "
+                   "file; --method auto then takes the cheapest model whose signal error "
+                   "stays below --tolerance-pct")
+    p.add_argument("--tolerance-pct", type=_positive, default=None, metavar="PCT",
+                   help="radiometric tolerance with --source, percent (default: 0.5)")
+    p.add_argument("--resample", action="store_true",
+                   help="also interpolate each spectrum onto the nominal wavelengths")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="quick look: a band image, the CRA and shift maps, a few pixels' "
+                   "spectra at nominal and corrected wavelengths")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
+                   "(default: in-process threads)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out (or --plot) that snapcorr wrote; never an "
+                   "input")
+    p.set_defaults(func=_cmd_correct)
+
+
+def _add_shift(command):
+    from .optics import METHODS
+
+    p = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
+    p.add_argument("--lens", default="edmund_optics_16mm",
+                   help="lens profile (.toml) or a bundled lens name (default: %(default)s)")
+    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+                   help="f-number of the lens")
+    p.add_argument("--cra", type=float, nargs="+", required=True, metavar="DEG",
+                   help="chief-ray angles, degrees (one or more)")
+    p.add_argument("--cwl-nm", type=float, default=700.0, metavar="NM",
+                   help="the filter's central wavelength at normal incidence, nm (default: "
+                   "%(default)s)")
+    p.add_argument("--n-eff", type=float, default=1.7,
+                   help="the filter's effective refractive index (default: %(default)s)")
+    p.add_argument("--method", default="auto", choices=list(METHODS),
+                   help="how to compute the mean shift (default: %(default)s, the cheapest "
+                   "within --tolerance-nm)")
+    p.add_argument("--tolerance-nm", type=_positive, default=0.001, metavar="NM",
+                   help="largest error allowed with --method auto, nm (default: %(default)s)")
+    p.set_defaults(func=_cmd_shift)
+
+
+def _add_budget(command):
+    p = command("budget", "which bands and pixels a scene needs corrected, and with which "
+                "model (signal error of the filter shift)")
+    p.add_argument("--sensor", required=True, help=SENSOR_HELP)
+    p.add_argument("--lens", required=True,
+                   help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
+    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+                   help="f-number of the lens")
+    p.add_argument("--source", required=True, metavar="SOURCE",
+                   help="solar (Kurucz, 0.5 nm), solar:astm-g173 (at the ground, with O2 and "
+                   "H2O), tungsten:TEMPERATURE_K, cube or cube:Y,X (with --cube: its mean "
+                   "spectrum or one pixel's) or a two-column file (wavelength nm, value)")
+    p.add_argument("--tolerance-pct", type=_positive, default=0.5, metavar="PCT",
+                   help="radiometric tolerance, percent (default: %(default)s)")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="error against band and against image radius")
+    p.add_argument("--cube", type=Path, default=None,
+                   help="a cube: its pixels set the field, and --source cube its spectrum")
+    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                   help="optical centre in the cube's sensor pixels, for --cube (default: "
+                   "from the lens calibration, else the sensor's centre)")
+    p.add_argument("--cra-max", type=_positive, default=None, metavar="DEG",
+                   help="the field to cover (default: the sensor's size_px, or the cube)")
+    p.add_argument("--profile", default="multi_lorentzian", choices=["multi_lorentzian", "pi"],
+                   help="filter shape (default: Flittner & Slater's multi-Lorentzian)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --plot")
+    p.set_defaults(func=_cmd_budget)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as one line, like every other error, with where to read more."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="snapcorr",
         description="Wavelength correction for spectral cameras with thin-film "
         "Fabry-Perot filters (Goossens et al. 2019).",
-        epilog=EXAMPLES,
+        epilog=_examples(*EXAMPLES),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def command(name, help_):
-        return sub.add_parser(name, help=help_, epilog=EXAMPLES,
+        return sub.add_parser(name, help=help_, description=help_, epilog=_examples(name),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
-    demo = command("demo", "the main job on a bundled default: calibrate the paper's lens, "
-                   "correct a simulated cube, write figures")
-    demo.add_argument(
-        "--out", default="snapcorr-demo", type=Path, help="output folder (default: %(default)s)"
-    )
-    demo.set_defaults(func=_cmd_demo)
-
-    ff = command("flatfield", "flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)")
-    ff.add_argument("raw", type=Path, help="the cube to correct (.hdr, .tif, .exr, .nc, "
-                    ".zarr, .npy)")
-    ff.add_argument("--dark", type=Path, action="append", required=True,
-                    help="dark frame (repeat to average several)")
-    ff.add_argument("--white", type=Path, action="append", required=True,
-                    help="white reference (repeat to average several; a strip narrower than "
-                    "the cube is broadcast along the scan axis)")
-    ff.add_argument("--filter-white", type=Path, default=None,
-                    help="the white target seen through a filter: adds the filter's "
-                    "transmittance (Goossens Sec. 3.1) to the output")
-    ff.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
-    ff.add_argument("--sensor", type=Path, default=None,
-                    help="sensor description giving the wavelengths of files that have none")
-    ff.add_argument("--saturation", type=float, default=None,
-                    help="digital number at or above which a pixel is saturated")
-    ff.add_argument("--overwrite", action="store_true", help="replace an existing --out")
-    ff.set_defaults(func=_cmd_flatfield)
-
-    cal = command("calibrate", "lens profile (P, h) from flat fields at several f-numbers "
-                  "(Goossens Sec. 2.7, 3.2)")
-    cal.add_argument("--flat", type=_flat_arg, action="append", required=True,
-                     metavar="F_NUMBER=PATH",
-                     help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
-                     "several bands in a file are averaged); repeat for each f-number")
-    cal.add_argument("--exit-pupil-mm", type=float, required=True,
-                     help="distance x from the sensor to the exit pupil")
-    cal.add_argument("--pixel-pitch-um", type=float, required=True)
-    cal.add_argument("--magnification", type=float, default=0.0,
-                     help="linear magnification m (default 0: focused at infinity)")
-    cal.add_argument("--pupil-magnification", type=float, default=1.0,
-                     help="pupil magnification m_P (default 1)")
-    cal.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
-    cal.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                     help="optical centre in pixels (default: found from the flats)")
-    cal.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
-    cal.add_argument("--plot", type=Path, default=None, metavar="PNG",
-                     help="draw the profiles, onsets and model (the paper's Fig. 8)")
-    from .calibrate import METHODS as CAL_METHODS
-
-    cal.add_argument("--method", default="auto", choices=list(CAL_METHODS),
-                     help="estimator of P and h (default: %(default)s: the joint fit unless "
-                     "its area model misfits)")
-    cal.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
-                     help="h, when known (needed with a single f-number)")
-    cal.add_argument("--saturation", type=float, default=None,
-                     help="value at or above which a pixel is saturated (default: the "
-                     "largest value of the file's integer type)")
-    cal.add_argument("--name", default=None, help="lens name (default: the output's stem)")
-    cal.add_argument("--overwrite", action="store_true", help="replace existing outputs")
-    cal.set_defaults(func=_cmd_calibrate)
-
-    cor = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
-    cor.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
-                     "ideally flat-fielded")
-    cor.add_argument("--lens", type=Path, required=True, help="lens profile (.toml)")
-    cor.add_argument("--sensor", type=Path, required=True, help="sensor description (.toml)")
-    cor.add_argument("--f-number", type=float, required=True)
-    cor.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
-    cor.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                     help="optical centre in sensor pixels (default: the lens profile's, "
-                     "else the image centre)")
-    from .correct import METHODS as COR_METHODS
-
-    cor.add_argument("--method", default="auto", choices=list(COR_METHODS),
-                     help="shift model (default: %(default)s, the cheapest meeting the "
-                     "tolerance)")
-    cor.add_argument("--tolerance-nm", type=float, default=0.01)
-    cor.add_argument("--source", default=None, metavar="SOURCE",
-                     help="the scene's spectrum: solar, solar:astm-g173, "
-                     "tungsten:TEMPERATURE_K, cube (the "
-                     "cube's mean spectrum) or a two-column file; --method auto then takes "
-                     "the cheapest model whose signal error stays below --tolerance-pct")
-    cor.add_argument("--tolerance-pct", type=float, default=None,
-                     help="radiometric tolerance with --source, percent (default: 0.5)")
-    cor.add_argument("--resample", action="store_true",
-                     help="also interpolate each spectrum onto the nominal wavelengths")
-    cor.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                     help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
-                     "(default: in-process threads)")
-    cor.add_argument("--overwrite", action="store_true", help="replace an existing --out")
-    cor.set_defaults(func=_cmd_correct)
-
-    shift = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
-    shift.add_argument(
-        "--lens",
-        default="edmund_optics_16mm",
-        help="lens profile (.toml) or a bundled lens name (default: %(default)s)",
-    )
-    shift.add_argument("--f-number", type=float, required=True)
-    shift.add_argument("--cra", type=float, nargs="+", required=True, metavar="DEG")
-    shift.add_argument("--cwl-nm", type=float, default=700.0)
-    shift.add_argument("--n-eff", type=float, default=1.7)
-    from .optics import METHODS
-
-    shift.add_argument("--method", default="auto", choices=list(METHODS))
-    shift.add_argument("--tolerance-nm", type=float, default=0.001)
-    shift.set_defaults(func=_cmd_shift)
-
-    bud = command("budget", "which bands and pixels a scene needs corrected, and with which "
-                  "model (signal error of the filter shift)")
-    bud.add_argument("--sensor", required=True,
-                     help="sensor description (.toml) or a bundled one (snapscan_vnir, ...)")
-    bud.add_argument("--lens", required=True,
-                     help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
-    bud.add_argument("--f-number", type=float, required=True)
-    bud.add_argument("--source", required=True, metavar="SOURCE",
-                     help="solar (Kurucz, 0.5 nm), solar:astm-g173 (at the ground, with O2 and "
-                     "H2O), tungsten:TEMPERATURE_K, cube or cube:Y,X "
-                     "(with --cube: its mean spectrum or one pixel's) or a two-column file "
-                     "(wavelength nm, value)")
-    bud.add_argument("--tolerance-pct", type=float, default=0.5,
-                     help="radiometric tolerance, percent (default: %(default)s)")
-    bud.add_argument("--plot", type=Path, default=None, metavar="PNG",
-                     help="error against band and against image radius")
-    bud.add_argument("--cube", type=Path, default=None,
-                     help="a cube: its pixels set the field, and --source cube its spectrum")
-    bud.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                     help="optical centre in the cube's sensor pixels, for --cube (default: "
-                     "from the lens calibration, else the centre of the cube)")
-    bud.add_argument("--cra-max", type=float, default=None, metavar="DEG",
-                     help="the field to cover (default: the sensor's size_px, or the cube)")
-    bud.add_argument("--profile", default="multi_lorentzian",
-                     choices=["multi_lorentzian", "pi"],
-                     help="filter shape (default: Flittner & Slater's multi-Lorentzian)")
-    bud.add_argument("--overwrite", action="store_true", help="replace an existing --plot")
-    bud.set_defaults(func=_cmd_budget)
+    for add in (_add_demo, _add_flatfield, _add_calibrate, _add_correct, _add_shift,
+                _add_budget):
+        add(command)
     return parser
 
 
+def _message(err):
+    """The exception as one line, in command-line terms."""
+    message = " ".join(str(err).split())  # libraries' messages may span lines
+    for term, cli in _CLI_TERMS.items():
+        message = message.replace(term, cli)
+    return message
+
+
 def main(argv=None):
+    from ._io import cleanup_on_signals
+
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:  # usage errors and --help: argparse has printed them
+        return exit_.code
     if not getattr(args, "command", None):
         parser.print_help()
         return 0
     try:
-        with warnings.catch_warnings():
+        with cleanup_on_signals(), warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = _one_line_warning
             return args.func(args)
-    except (ValueError, TypeError, OSError) as err:
-        message = " ".join(str(err).split())  # libraries' messages may span lines
-        print(f"snapcorr {args.command}: error: {message}", file=sys.stderr)
+    except (ValueError, TypeError, OSError, KeyError) as err:
+        print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("snapcorr: interrupted", file=sys.stderr)
+        print(f"snapcorr {args.command}: interrupted; unfinished outputs were removed",
+              file=sys.stderr)
         return 130
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"snapcorr: warning: {message}", file=sys.stderr)
+    print(f"snapcorr: warning: {_message(message)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

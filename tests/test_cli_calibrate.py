@@ -109,6 +109,8 @@ def test_mistakes_are_one_line_and_write_nothing(flats, args, message):
 
 def test_output_may_not_be_an_input_or_not_toml(flats):
     res = run(*FLATS, *OPTICS, "--out", "f8.npy", cwd=flats)
+    assert res.returncode == 1 and "also an input" in res.stderr
+    res = run(*FLATS, *OPTICS, "--out", "x.npy", cwd=flats)
     assert res.returncode == 1 and ".toml" in res.stderr
     res = run(*FLATS, *OPTICS, "--out", "x.toml", "--plot", "f8.npy", cwd=flats)
     assert res.returncode == 1 and "also an input" in res.stderr
