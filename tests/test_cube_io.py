@@ -1,12 +1,18 @@
 """Cube files: round trips in every format and dtype, files written by the libraries' own
 writers, and bad files refused with a clear error."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
-from numpy.testing import assert_array_equal
+import xarray as xr
+from numpy.testing import assert_allclose, assert_array_equal
 
-from snapcorr.cube import make_cube
+from snapcorr.cube import make_cube, read_frame
 from snapcorr.cube.io import read_cube, write_cube
+
+REPO = Path(__file__).resolve().parents[1]
 
 WL = np.array([470.5, 500.0, 650.25, 900.0])
 DTYPES = [np.uint8, np.uint16, np.int16, np.int32, np.uint32, np.float16, np.float32,
@@ -196,3 +202,347 @@ def test_bad_files_give_clear_errors(tmp_path):
     raw.unlink()
     with pytest.raises(ValueError, match="cannot read"):
         read_cube(hdr)
+
+
+# -- sensor positions survive every format ---------------------------------------------------
+
+FORMATS_ALL = [".hdr", ".tif", ".exr", ".nc", ".zarr", ".npy"]
+
+
+def _mosaic_cube():
+    from snapcorr.cube import Sensor, mosaic_to_cube
+
+    sensor = Sensor.load(REPO / "calibration" / "sensors" / "mosaic_4x4_vis.toml")
+    frame = np.random.default_rng(3).integers(0, 4096, (32, 48)).astype(np.uint16)
+    return mosaic_to_cube(frame, sensor, origin_px=(8, 12))
+
+
+def _snapscan_crop():
+    """A crop of a Snapscan cube: every band of a pixel at one sensor position."""
+    cube = _cube(np.float32)
+    ny, nx, nb = cube.shape
+    rows = np.repeat((100 + np.arange(ny))[:, None], nb, axis=1)
+    cols = np.repeat((40 + np.arange(nx))[:, None], nb, axis=1)
+    return cube.assign_coords(sensor_row=(("y", "band"), rows), sensor_col=(("x", "band"), cols))
+
+
+def _irregular():
+    cube = _cube(np.float32)
+    rng = np.random.default_rng(5)
+    return cube.assign_coords(sensor_row=(("y", "band"), rng.integers(0, 2048, (5, 4))),
+                              sensor_col=(("x", "band"), rng.integers(0, 2048, (7, 4))))
+
+
+@pytest.mark.parametrize("ext", FORMATS_ALL)
+@pytest.mark.parametrize("make", [_mosaic_cube, _snapscan_crop, _irregular],
+                         ids=["mosaic", "snapscan-crop", "irregular"])
+def test_sensor_positions_round_trip_exactly(tmp_path, ext, make):
+    cube = make()
+    path = write_cube(cube, tmp_path / f"c{ext}")
+    back = read_cube(path)  # no wavelength_nm: every file snapcorr writes carries them
+    for name in ("sensor_row", "sensor_col"):
+        xr.testing.assert_identical(back[name], cube[name])
+        assert back[name].dtype == np.int64
+    assert_array_equal(back.values, cube.values)
+    assert_array_equal(back.wavelength.values, cube.wavelength.values)
+    assert back.name == cube.name
+
+
+def test_envi_header_stores_positions_compactly_when_they_are_regular(tmp_path):
+    write_cube(_mosaic_cube(), tmp_path / "m.hdr")
+    text = (tmp_path / "m.hdr").read_text()
+    assert "snapcorr sensor row step = 4" in text and "snapcorr sensor col step = 4" in text
+    assert "snapcorr sensor row offset = { 8 , 8 , 8 , 8 , 9" in text
+    write_cube(_irregular(), tmp_path / "i.hdr")
+    text = (tmp_path / "i.hdr").read_text()
+    assert "snapcorr sensor row = {" in text and "sensor row offset" not in text
+
+
+def test_npy_sidecar_carries_the_metadata_and_a_bare_npy_needs_wavelengths(tmp_path):
+    cube = _mosaic_cube()
+    cube.attrs.update({"f_number": 2.8, "calibrated": True})
+    write_cube(cube, tmp_path / "c.npy")
+    meta = json.loads((tmp_path / "c.npy.json").read_text())
+    assert meta["written_by"].startswith("snapcorr") and meta["shape"] == list(cube.shape)
+    back = read_cube(tmp_path / "c.npy")
+    assert back.attrs["f_number"] == 2.8 and back.attrs["calibrated"] is True
+    assert_array_equal(back.fwhm.values, cube.fwhm.values)
+    np.save(tmp_path / "bare.npy", cube.values)  # a user's own array, no sidecar
+    with pytest.raises(ValueError, match="pass wavelength_nm"):
+        read_cube(tmp_path / "bare.npy")
+    assert read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values).shape == \
+        cube.shape
+    (tmp_path / "bare.npy.json").write_text('{"shape": [3, 4, 5]}')
+    with pytest.raises(ValueError, match="do not belong together"):
+        read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values)
+
+
+# -- units -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("units, scale", [
+    ("Nanometers", 1), ("nm", 1), ("Micrometers", 1e-3), ("micrometres", 1e-3),
+    ("microns", 1e-3), ("um", 1e-3), ("\u00b5m", 1e-3), ("millimeters", 1e-6), ("mm", 1e-6),
+    ("meters", 1e-9), ("metres", 1e-9), ("m", 1e-9), ("Unknown", 1), (None, 1)])
+def test_envi_wavelength_units_are_converted_to_nm(tmp_path, units, scale):
+    from spectral.io import envi
+
+    meta = {"wavelength": [500 * scale, 600 * scale], "fwhm": [10 * scale, 12 * scale]}
+    if units is not None:
+        meta["wavelength units"] = units
+    envi.save_image(str(tmp_path / "u.hdr"), np.ones((2, 3, 2), np.float32), ext=".raw",
+                    metadata=meta)
+    cube = read_cube(tmp_path / "u.hdr")
+    assert_allclose(cube.wavelength.values, [500.0, 600.0], rtol=0, atol=1e-9)
+    assert_allclose(cube.fwhm.values, [10.0, 12.0], rtol=0, atol=1e-9)
+    assert cube.wavelength.attrs["units"] == "nm" and cube.fwhm.attrs["units"] == "nm"
+
+
+def test_micrometres_without_units_are_refused_not_labelled_nm(tmp_path):
+    from spectral.io import envi
+
+    envi.save_image(str(tmp_path / "u.hdr"), np.ones((2, 3, 2), np.float32), ext=".raw",
+                    metadata={"wavelength": [0.5, 0.6]})
+    with pytest.raises(ValueError, match=r"micrometres.*wavelength units") as err:
+        read_cube(tmp_path / "u.hdr")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+@pytest.mark.parametrize("units, scale", [("um", 1e-3), ("micrometers", 1e-3), ("nm", 1),
+                                          ("m", 1e-9), (None, 1)])
+def test_netcdf_and_zarr_wavelength_units_are_converted(tmp_path, ext, units, scale):
+    attrs = {} if units is None else {"units": units}
+    ds = xr.Dataset({"radiance": (("y", "x", "band"), np.ones((2, 3, 2), np.float32))},
+                    coords={"wavelength": ("band", [500 * scale, 600 * scale], attrs),
+                            "fwhm": ("band", [10 * scale, 12 * scale], attrs)})
+    path = tmp_path / f"u{ext}"
+    ds.to_netcdf(path, engine="h5netcdf") if ext == ".nc" else ds.to_zarr(path, consolidated=False)
+    cube = read_cube(path)
+    assert_allclose(cube.wavelength.values, [500.0, 600.0], rtol=0, atol=1e-9)
+    assert_allclose(cube.fwhm.values, [10.0, 12.0], rtol=0, atol=1e-9)
+    assert cube.wavelength.attrs["units"] == "nm" and cube.fwhm.attrs["units"] == "nm"
+
+
+@pytest.mark.parametrize("ext", [".hdr", ".nc"])
+def test_unknown_units_are_refused(tmp_path, ext):
+    if ext == ".hdr":
+        from spectral.io import envi
+
+        envi.save_image(str(tmp_path / "u.hdr"), np.ones((2, 3, 2), np.float32), ext=".raw",
+                        metadata={"wavelength": [500, 600], "wavelength units": "furlongs"})
+    else:
+        xr.Dataset({"radiance": (("y", "x", "band"), np.ones((2, 3, 2), np.float32))},
+                   coords={"wavelength": ("band", [500.0, 600.0], {"units": "furlongs"})}
+                   ).to_netcdf(tmp_path / "u.nc", engine="h5netcdf")
+    with pytest.raises(ValueError, match="'furlongs' are not a length"):
+        read_cube(tmp_path / f"u{ext}")
+    # wavelengths given by the caller stand in for ones in no length unit
+    cube = read_cube(tmp_path / f"u{ext}", wavelength_nm=[510.0, 610.0])
+    assert_array_equal(cube.wavelength.values, [510.0, 610.0])
+
+
+# -- one reader for cubes, flats and frames --------------------------------------------------
+
+
+def _pages(path, pages, nchannels=1):
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(str(path))
+    specs = []
+    for p in pages:
+        spec = oiio.ImageSpec(p.shape[1], p.shape[0], nchannels, "uint16")
+        specs.append(spec)
+    assert out.open(str(path), specs)
+    for i, p in enumerate(pages):
+        if i:
+            assert out.open(str(path), specs[i], "AppendSubimage")
+        assert out.write_image(np.ascontiguousarray(p.reshape(p.shape[0], p.shape[1], -1)))
+    out.close()
+
+
+def test_multipage_tiff_is_one_band_per_page_for_cubes_and_flats(tmp_path):
+    from snapcorr.calibrate import read_flat
+
+    rng = np.random.default_rng(4)
+    pages = [rng.integers(0, 4000, (6, 9)).astype(np.uint16) for _ in range(3)]
+    _pages(tmp_path / "p.tif", pages)
+    cube = read_cube(tmp_path / "p.tif", wavelength_nm=[500, 600, 700])
+    assert_array_equal(cube.values, np.stack(pages, axis=2))
+    image, info = read_flat(tmp_path / "p.tif")
+    assert info == {"bands": 3, "saturation": 65535}
+    assert_allclose(image, np.mean(np.stack(pages, axis=2), axis=2, dtype=np.float64))
+    with pytest.raises(ValueError, match="holds 3 bands"):
+        read_frame(tmp_path / "p.tif")
+    _pages(tmp_path / "sizes.tif", [pages[0], pages[1][:5]])
+    with pytest.raises(ValueError, match=r"every page .* must match"):
+        read_cube(tmp_path / "sizes.tif", wavelength_nm=[500, 600])
+    _pages(tmp_path / "rgb.tif", [np.ones((4, 5, 3), np.uint16)] * 2, nchannels=3)
+    with pytest.raises(ValueError, match="page 1 has 3 channels"):
+        read_flat(tmp_path / "rgb.tif")
+
+
+def test_flats_read_every_cube_format(tmp_path):
+    from snapcorr.calibrate import read_flat
+
+    cube = _cube(np.uint16)
+    for ext in FORMATS_ALL:
+        write_cube(cube, tmp_path / f"f{ext}")
+        image, info = read_flat(tmp_path / f"f{ext}")
+        assert info == {"bands": 4, "saturation": 65535}, ext
+        assert_allclose(image, cube.values.mean(axis=2, dtype=np.float64))
+
+
+def _frame_files(tmp_path, frame):
+    import OpenImageIO as oiio
+    from spectral.io import envi
+
+    np.save(tmp_path / "f2.npy", frame)
+    np.save(tmp_path / "f3.npy", frame[:, :, None])
+    for ext, typedesc, data in ((".tif", "uint16", frame), (".exr", "float",
+                                                            frame.astype(np.float32))):
+        out = oiio.ImageOutput.create(str(tmp_path / f"f{ext}"))
+        assert out.open(str(tmp_path / f"f{ext}"), oiio.ImageSpec(frame.shape[1],
+                                                                 frame.shape[0], 1, typedesc))
+        assert out.write_image(np.ascontiguousarray(data[:, :, None]))
+        out.close()
+    envi.save_image(str(tmp_path / "f.hdr"), frame, dtype=np.uint16, ext=".raw",
+                    byteorder="big")
+    ds = xr.Dataset({"raw": (("y", "x", "band"), frame[:, :, None])})
+    ds.to_netcdf(tmp_path / "f.nc", engine="h5netcdf")
+    ds.to_zarr(tmp_path / "f.zarr", consolidated=False)
+    return ["f2.npy", "f3.npy", "f.tif", "f.exr", "f.hdr", "f.nc", "f.zarr"]
+
+
+@pytest.mark.parametrize("chunks", [None, {"y": 4}])
+def test_read_frame_from_every_format(tmp_path, chunks):
+    import dask.array as da
+
+    frame = np.random.default_rng(8).integers(0, 4096, (10, 7)).astype(np.uint16)
+    for name in _frame_files(tmp_path, frame):
+        got = read_frame(tmp_path / name, chunks=chunks)
+        assert got.dims == ("y", "x") and got.name == "frame", name
+        assert isinstance(got.data, da.Array) == (chunks is not None), name
+        assert_array_equal(got.values, frame)
+    write_cube(_cube(np.uint16), tmp_path / "cube.hdr")
+    with pytest.raises(ValueError, match="holds 4 bands; a frame is one 2-D image"):
+        read_frame(tmp_path / "cube.hdr")
+
+
+def _traced_peak(read):
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        result = read()
+        return result, tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("ext", [".hdr", ".npy"])
+def test_chunked_envi_and_npy_stay_memory_mapped(tmp_path, ext):
+    data = np.random.default_rng(9).random((512, 256, 32), dtype=np.float32)  # 16 MiB
+    wl = np.linspace(400, 900, 32)
+    write_cube(make_cube(data, wl), tmp_path / f"big{ext}")
+    names = [f"big{ext}"]
+    if ext == ".hdr":  # big-endian too: swapped block by block, never copied whole
+        from spectral.io import envi
+
+        envi.save_image(str(tmp_path / "be.hdr"), data, dtype=">f4", byteorder="big",
+                        ext=".raw", metadata={"wavelength": wl})
+        names.append("be.hdr")
+    for name in names:
+        block, peak = _traced_peak(lambda name=name: read_cube(tmp_path / name,
+                                                               chunks={"y": 32})[:32].values)
+        assert peak < 6 * 2**20, f"{name}: {peak / 2**20:.1f} MiB traced for a 16 MiB file"
+        assert_array_equal(block, data[:32])
+    frame = data[:, :, 0].copy()
+    write_cube(make_cube(np.stack([frame] * 32, axis=2), wl), tmp_path / "wide.hdr")
+    np.save(tmp_path / "frame.npy", np.tile(frame, (8, 4)))  # 16 MiB
+    block, peak = _traced_peak(lambda: read_frame(tmp_path / "frame.npy",
+                                                  chunks={"y": 32})[:32].values)
+    assert peak < 6 * 2**20 and block.shape == (32, 1024)
+
+
+# -- attributes of a whole result ------------------------------------------------------------
+
+EVERY_KIND = {"text": "a string", "empty": "", "unicode": "\u00b5m \u00e9t\u00e9",
+              "looks_encoded": "json:not really", "int": 7, "big_int": 2**70,
+              "negative": -3, "float": 2.8, "nan": float("nan"), "true": True,
+              "false": False, "none": None, "floats": [1.5, 2.5], "ints": [1, 2, 3],
+              "one": [4.0], "empty_list": [], "mixed": [1, 2.5], "tuple": (3, 4),
+              "words": ["a", "b"], "dict": {"a": 1, "b": [1, 2], "c": {"d": None}},
+              "array": np.array([1.0, 2.0, 3.0]), "np_int": np.int32(5),
+              "np_float": np.float32(0.25), "np_bool": np.bool_(True)}
+
+
+def _dataset_with_every_attribute():
+    from snapcorr.cube.derived import corrected_wavelength
+
+    rng = np.random.default_rng(2)
+    ds = xr.Dataset(
+        {"radiance": (("y", "x", "band"), rng.random((4, 5, 3), dtype=np.float32),
+                      {**EVERY_KIND, "units": "W m-2 sr-1 nm-1"}),
+         "wavelength_scale": (("y", "x", "scale"), 1 + rng.random((4, 5, 1)) / 100),
+         "scale_index": ("band", np.zeros(3, np.int64))},
+        coords={"wavelength": ("band", [500.0, 600.0, 700.0], {"units": "nm", **EVERY_KIND}),
+                "sensor_row": (("y", "band"), np.repeat(np.arange(4)[:, None], 3, axis=1))},
+        attrs=dict(EVERY_KIND))
+    return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds))
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_every_attribute_round_trips_through_write_and_read_dataset(tmp_path, ext):
+    import copy
+
+    from snapcorr.cube import read_dataset, write_dataset
+
+    ds = _dataset_with_every_attribute()
+    before = copy.deepcopy({n: dict(v.attrs) for n, v in ds.variables.items()})
+    write_dataset(ds, tmp_path / f"r{ext}")
+    assert {n: v.attrs for n, v in ds.variables.items()}.keys() == before.keys()  # unchanged
+    assert "wavelength_corrected" in ds.coords and "written_by" not in ds.attrs
+    back = read_dataset(tmp_path / f"r{ext}")
+    xr.testing.assert_identical(back, ds)
+    for attrs in (back.attrs, back["radiance"].attrs, back["wavelength"].attrs):
+        assert attrs["true"] is True and attrs["false"] is False and attrs["none"] is None
+        assert attrs["dict"] == EVERY_KIND["dict"] and attrs["words"] == ["a", "b"]
+        assert attrs["one"] == [4.0] and attrs["empty_list"] == [] and attrs["mixed"] == [1, 2.5]
+        assert attrs["big_int"] == 2**70 and attrs["looks_encoded"] == "json:not really"
+        assert attrs["tuple"] == [3, 4] and np.isnan(attrs["nan"])
+    raw = xr.open_dataset(tmp_path / f"r{ext}", engine="zarr" if ext == ".zarr" else None)
+    assert "wavelength_corrected" not in raw.variables  # rebuilt, not stored
+    assert raw.attrs["derived_variables"] == 'json:["wavelength_corrected"]'
+    assert raw.attrs["written_by"].startswith("snapcorr")
+    raw.close()
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_an_attribute_that_cannot_be_stored_is_refused_before_writing(tmp_path, ext):
+    import datetime
+
+    from snapcorr.cube import write_dataset
+
+    ds = xr.Dataset({"a": ("y", np.arange(3.0))})
+    ds["a"].attrs["taken"] = datetime.datetime(2024, 5, 1)
+    with pytest.raises(TypeError, match="variable 'a': attribute 'taken' is a datetime"):
+        write_dataset(ds, tmp_path / f"r{ext}")
+    assert not list(tmp_path.iterdir())
+
+
+def test_zarr_has_consolidated_metadata_and_both_kinds_are_read(tmp_path):
+    import warnings
+
+    from snapcorr.cube import read_dataset
+
+    cube = _cube(np.float32)
+    write_cube(cube, tmp_path / "c.zarr")
+    assert json.loads((tmp_path / "c.zarr" / "zarr.json").read_text())["consolidated_metadata"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        xr.open_zarr(tmp_path / "c.zarr").close()  # default arguments: no warning
+        cube.to_dataset().to_zarr(tmp_path / "plain.zarr", consolidated=False)
+        for name in ("c.zarr", "plain.zarr"):
+            assert_array_equal(read_cube(tmp_path / name).values, cube.values)
+            assert_array_equal(read_dataset(tmp_path / name)["radiance"].values, cube.values)

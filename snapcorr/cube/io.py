@@ -332,18 +332,38 @@ def _read_file(path, *, chunks=None, what="cube", drop_alpha=False):
     return found
 
 
-def _lazy_or_loaded(array, chunks, dims=DIMS):
+class _Blocks:
+    """A memory map as dask reads it: block by block, each block copied (and brought to the
+    machine's byte order) only when computed. ``dask.array.from_array`` copies whole any
+    array that has a ``copy`` method, which would read the whole file; this has none."""
+
+    def __init__(self, array, dtype, token):
+        self._array, self.dtype, self._token = array, np.dtype(dtype), token
+        self.shape, self.ndim = array.shape, array.ndim
+
+    def __getitem__(self, key):
+        return np.array(self._array[key], dtype=self.dtype)
+
+    def __dask_tokenize__(self):
+        return self._token
+
+
+def _lazy_or_loaded(array, chunks, dims=DIMS, source=None):
     """A dask array over ``array`` (a memory map stays one: blocks are read when computed)
-    when chunks are asked for, else a native-order copy in memory."""
+    when chunks are asked for, else a native-order copy in memory. ``source`` is the file
+    the memory map reads (it names the dask graph without reading the data)."""
     native = array.dtype.newbyteorder("=") if array.dtype.byteorder not in ("=", "|") \
         else array.dtype
     if chunks is None:
         return np.array(array, dtype=native)
     import dask.array as da
 
+    st = os.stat(source) if source is not None else None
+    token = ("snapcorr-file", str(source), st and st.st_mtime_ns, st and st.st_size,
+             array.shape, array.strides, str(array.dtype), getattr(array, "offset", 0))
     sizes = tuple(chunks.get(d, -1) for d in dims)
-    lazy = da.from_array(array, chunks=sizes)
-    return lazy.astype(native) if native != array.dtype else lazy  # big-endian: per block
+    return da.from_array(_Blocks(array, native, token), chunks=sizes, asarray=False,
+                         meta=np.empty((0,) * array.ndim, native))
 
 
 def _to_nm(values, units, where):
@@ -635,7 +655,7 @@ def _read_envi(hdr, data_file, chunks):
         data = img.open_memmap(interleave="bip", writable=False)
     if data is None:
         raise ValueError(f"{hdr}: Spectral Python cannot memory-map {data_file.name}")
-    data = _lazy_or_loaded(data, chunks)
+    data = _lazy_or_loaded(data, chunks, source=data_file)
     found = _File(hdr, "envi", data, wavelength=_envi_list(h, "wavelength", hdr),
                   units=h.get("wavelength units"), fwhm=_envi_list(h, "fwhm", hdr),
                   fwhm_units=h.get("wavelength units"), name=h.get("snapcorr name"))
@@ -797,7 +817,7 @@ def _read_npy(path, chunks):
                          "frame (y, x)")
     file_ndim = data.ndim
     if data.dtype.kind in "iuf":
-        data = _lazy_or_loaded(data, chunks, DIMS[:data.ndim])
+        data = _lazy_or_loaded(data, chunks, DIMS[:data.ndim], source=path)
     if file_ndim == 2:
         data = data[:, :, None]
     found = _File(path, "npy", data, file_ndim=file_ndim, attrs={"source": str(path)})

@@ -30,9 +30,9 @@ def check_dtype(dtype, what="a cube"):
     dtype = np.dtype(dtype)
     if dtype.kind in "iuf":
         return dtype
-    hint = {"c": "keep the real part or the magnitude: cube.real or abs(cube)",
-            "b": "convert it: cube.astype('uint8')"}.get(
-                dtype.kind, "convert it to numbers: cube.astype('float32')")
+    hint = {"c": "keep its magnitude or real part, e.g. abs(cube).astype('float32')",
+            "b": "convert it, e.g. cube.astype('uint8')"}.get(
+                dtype.kind, "convert it to numbers, e.g. cube.astype('float32')")
     raise TypeError(f"{what} holds real numbers (integers or floats), not {dtype} values; "
                     f"{hint}")
 
