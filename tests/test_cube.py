@@ -290,3 +290,11 @@ def test_outputs_carry_cf_units_and_long_names():
     for v in ("reflectance", "mask"):
         assert ds[v].attrs["units"] == "1" and ds[v].attrs["long_name"]
     assert ds["raw"].attrs["long_name"]
+    # each variable says truly where it came from: the raw cube's file, not the dataset's
+    raw = _cube(np.full((2, 3, 5), 500.0))
+    raw.attrs["source"] = "scene.hdr"
+    ds = flatfield(raw, _cube(np.zeros((2, 3, 5))), _cube(np.full((2, 3, 5), 900.0)))
+    assert ds["raw"].attrs["source"] == "scene.hdr"
+    assert ds["reflectance"].attrs["source"].startswith("(raw - dark) / (white - dark) of "
+                                                        "scene.hdr")
+    assert "flatfield" in ds.attrs["source"] and "white <= dark" in ds["mask"].attrs["source"]

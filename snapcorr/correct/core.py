@@ -209,11 +209,16 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
     ds = xr.Dataset({
         name: data,
         "cra_deg": (cra_dims, cra if per_band else cra[:, :, 0],
-                    {"units": "degree", "long_name": "chief-ray angle"}),
+                    {"units": "degree", "long_name": "chief-ray angle",
+                     "source": f"Goossens et al. 2019 Eq. 8: sensor position, pitch "
+                               f"{sensor.pixel_pitch_um:g} um, optical centre ({center_source})"
+                               f", exit pupil {lens.exit_pupil_mm:g} mm"}),
         "wavelength_scale": (("y", "x", "scale"), scale, {
             "units": "1", "long_name": "corrected / nominal central wavelength",
             "comment": "wavelength_corrected = wavelength * wavelength_scale[y, x, "
-                       "scale_index[band]] (Goossens et al. 2019, Eq. 23)"}),
+                       "scale_index[band]] (Goossens et al. 2019, Eq. 23)",
+            "source": f"1 + mean shift / cwl by the {used} model at f/{f:g}, lens "
+                      f"{lens.name}, tolerance {float(tolerance_nm):g} nm"}),
         "scale_index": ("band", column.astype(np.int32),
                         {"long_name": "index into wavelength_scale's scale dimension"}),
     })
@@ -230,9 +235,12 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         ds["resampled"] = _resampled(cube, scale, column, cwl)
         ds["resampled"].attrs.update(
             {"units": data.attrs.get("units", "1"),
-             "long_name": f"{data.attrs.get('long_name', name)} on the nominal wavelengths"})
+             "long_name": f"{data.attrs.get('long_name', name)} on the nominal wavelengths",
+             "source": f"{name} interpolated linearly from wavelength_corrected onto "
+                       "wavelength"})
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
+        "source": f"snapcorr {__version__} correct",
         "Conventions": "CF-1.10",
         "lens": lens.name, "lens_P_mm": lens.vignetting_radius_mm or "none",
         "lens_h_mm": lens.vignetting_distance_mm or "none",

@@ -158,6 +158,7 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     out = out.transpose("y", "x", "band")
     n_dark, n_white = len(darks), len(whites)
     attrs = {
+        "source": f"snapcorr {__version__} flatfield",
         "method": "Goossens et al. 2019 Eq. 29: (DN - dark) / (white - dark)",
         "dark_frames": n_dark,
         "white_frames": n_white,
@@ -166,10 +167,13 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     }
     if saturation is not None:
         attrs["saturation"] = float(saturation)
-    out.attrs = cf_attrs(name)
-    mask.attrs = cf_attrs("mask")
+    origin = raw.attrs.get("source", "the raw cube")
+    out.attrs = {**cf_attrs(name), "source": f"(raw - dark) / (white - dark) of {origin}, "
+                 f"{len(darks)} dark and {len(whites)} white frame(s) averaged"}
+    mask.attrs = {**cf_attrs("mask"), "source": "white <= dark, saturation and non-finite "
+                  "values in the raw, dark and white frames"}
     kept = raw.copy(deep=False)
-    kept.attrs = {**cf_attrs("raw"), **raw.attrs}
+    kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin}
     n_masked = mask.sum().assign_attrs(long_name="number of masked values")
     ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
                     attrs={**raw.attrs, **attrs})
