@@ -240,6 +240,8 @@ def _replace(moves):
     (an interruption too) the new paths are taken out and the old ones put back.
     """
     moves = [(Path(new), Path(target)) for new, target in moves]
+    for new, target in moves:
+        _check_kind(target, directory=new.is_dir())
     if len(moves) == 1 and not moves[0][0].is_dir() and not moves[0][1].is_dir():
         new, target = moves[0]
         os.replace(new, target)
@@ -266,6 +268,18 @@ def _replace(moves):
         shutil.rmtree(aside, ignore_errors=True)
 
 
+def _check_kind(target, *, directory):
+    """Refuse to replace a folder by a file or a file by a folder (a symbolic link is
+    replaced itself, never what it points to)."""
+    if not os.path.lexists(target) or os.path.islink(target):
+        return
+    if os.path.isdir(target) != directory:
+        found = file_kind(os.stat(target).st_mode)
+        raise ValueError(f"{target} exists and is {found}; it is not replaced by a "
+                         f"{'folder' if directory else 'file'}: move it away or choose "
+                         "another name")
+
+
 def atomic_write(path, write, *, inputs=()):
     """Call ``write(tmp_path)`` and move the result to ``path`` atomically.
 
@@ -275,6 +289,7 @@ def atomic_write(path, write, *, inputs=()):
     """
     path = Path(path)
     refuse_inputs([path], inputs)
+    _check_kind(path, directory=False)
     tmp = _make_temporary(path)
     try:
         write(tmp)
@@ -290,6 +305,7 @@ def atomic_write_dir(path, write):
     """Call ``write(tmp_folder)`` and move the folder to ``path`` (replacing an existing
     folder safely); the temporary folder is removed if ``write`` fails or is interrupted."""
     path = Path(path)
+    _check_kind(path, directory=True)
     tmp = _make_temporary(path, directory=True)
     try:
         write(tmp)
@@ -311,6 +327,8 @@ def atomic_write_files(paths, write):
     paths = [Path(p) for p in paths]
     if len({p.parent for p in paths}) != 1:
         raise ValueError("files written together must share a folder")
+    for p in paths:
+        _check_kind(p, directory=False)
     tmp = _make_temporary(paths[0], directory=True)
     try:
         write(tmp)

@@ -479,6 +479,19 @@ def test_replacing_a_group_moves_old_files_back_on_failure(tmp_path, monkeypatch
     assert _snapshot(tmp_path) == before
 
 
+def test_atomic_writes_never_replace_a_folder_by_a_file_or_a_file_by_a_folder(tmp_path):
+    (tmp_path / "plot.png").mkdir()
+    (tmp_path / "plot.png" / "keep.txt").write_text("keep")
+    (tmp_path / "store.zarr").write_text("a file")
+    before = _snapshot(tmp_path)
+    with pytest.raises(ValueError, match=r"plot\.png exists and is a folder; it is not "
+                                         r"replaced by a file"):
+        _io.atomic_write(tmp_path / "plot.png", lambda tmp: tmp.write_text("png"))
+    with pytest.raises(ValueError, match=r"store\.zarr exists and is a regular file"):
+        _io.atomic_write_dir(tmp_path / "store.zarr", lambda tmp: None)
+    assert _snapshot(tmp_path) == before
+
+
 # -- 9. temporary files on signals -----------------------------------------------------------
 
 

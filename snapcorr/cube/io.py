@@ -584,9 +584,11 @@ def _envi_header(hdr):
         codes = ", ".join(map(str, _ENVI_DTYPES))
         raise ValueError(f"{hdr}: 'data type = {h['data type']}' is not an ENVI data type "
                          f"snapcorr can read ({codes}: integers and floats); fix the header")
-    interleave = str(h.get("interleave", "")).strip().lower()
+    if "interleave" not in h:
+        raise ValueError(f"{hdr}: the header has no 'interleave'; add it (bsq, bil or bip)")
+    interleave = str(h["interleave"]).strip().lower()
     if interleave not in ("bsq", "bil", "bip"):
-        raise ValueError(f"{hdr}: 'interleave = {h.get('interleave', '')}' must be bsq, bil or "
+        raise ValueError(f"{hdr}: 'interleave = {h['interleave']}' must be bsq, bil or "
                          "bip; fix the header")
     for key in ("major frame offsets", "minor frame offsets"):
         if key in h:
@@ -894,7 +896,7 @@ def _read_xarray(path, fmt, chunks):
         found.units = var["wavelength"].attrs.get("units")
     if "fwhm" in var.coords:
         found.fwhm = var["fwhm"].values
-        found.fwhm_units = var["fwhm"].attrs.get("units")
+        found.fwhm_units = var["fwhm"].attrs.get("units", found.units)  # else as wavelength
     return found
 
 
