@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import textwrap
 import warnings
@@ -135,12 +136,13 @@ def _positive(value):
 def _check_outputs(outputs, inputs, overwrite, suffixes):
     """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
     (without ``--overwrite``), have the wrong suffix or no folder to go in."""
-    srcs = [Path(i).resolve() for i in inputs if i is not None]
+    # realpath, unlike Path.resolve, does not raise on a symlink loop (the reader reports it)
+    srcs = [Path(os.path.realpath(i)) for i in inputs if i is not None]
     for out, allowed in zip(outputs, suffixes, strict=True):
         if out is None:
             continue
         out = Path(out)
-        res = out.resolve()
+        res = Path(os.path.realpath(out))
         for src in srcs:
             if res == src:
                 raise ValueError(f"output {out} is also an input; choose another output path")
@@ -165,14 +167,14 @@ class _StageBar:
         from dask.callbacks import Callback
         from tqdm import tqdm
 
+        # shown after a second of work, on a terminal only (not in logs or pipes)
         self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr, delay=1.0,
-                        leave=False, dynamic_ncols=True)
+                        leave=False, dynamic_ncols=True, disable=None)
         bar = self.bar
 
         class _Count(Callback):
             def _start_state(self, dsk, state):
                 bar.total += len(state["ready"]) + len(state["waiting"])
-                bar.refresh()
 
             def _posttask(self, key, result, dsk, state, worker_id):
                 bar.update(1)
@@ -256,7 +258,7 @@ def _cmd_flatfield(args):
     from .cube import flatfield, write_dataset
     from .cube.flatfield import check_masked
 
-    inputs = [args.raw, *args.dark, *args.white, args.filter_white]
+    inputs = [p for p in (args.raw, *args.dark, *args.white, args.filter_white) if p]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
     sensor = _sensor(args.sensor) if args.sensor else None
     if args.sensor_origin_px is not None and sensor is None:

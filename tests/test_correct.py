@@ -253,7 +253,15 @@ def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres()
     assert cra[300, 700, 0] == pytest.approx(full, rel=1e-12)
     # a sensor of another physical size: the areas cannot be matched
     other = Sensor("other", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1000, 1024))
-    with pytest.raises(PlacementError, match="--sensor-origin-px"):  # first: where is it?
-        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other)
     with pytest.raises(PlacementError, match="--center-px"):
-        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other, sensor_origin_px=(0, 0))
+        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other)
+    # ... also at the same pitch: a smaller sensor is not the calibration's pixel grid
+    small = Sensor("small", "snapscan", 5.5, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
+    with pytest.raises(PlacementError, match="--center-px"):
+        cube_cra_deg(_cube(small, ny=1024, nx=1024), lens, small)
+    # a crop of the calibrated sensor (placed by its origin) keeps the calibrated centre
+    cra, centre, _ = cube_cra_deg(_cube(FULL, ny=64, nx=64), lens, FULL,
+                                  sensor_origin_px=(900, 1000))
+    assert centre == (1047.3, 998.6)
+    assert cra[0, 0, 0] == pytest.approx(_by_hand(np.array([900.0]), np.array([1000.0]),
+                                                  1047.3, 998.6)[0, 0], rel=1e-12)

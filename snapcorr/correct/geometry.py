@@ -39,19 +39,19 @@ def _parse_pair(name, value):
     return a, b
 
 
-def _full_frames(lens, sensor):
-    """The full image sizes (rows, cols) in this sensor's pixels that are known, and whence."""
-    frames = []
+def _full_frame(lens, sensor):
+    """The full image size (rows, cols) in this sensor's pixels, and whence: the sensor's own
+    ``size_px``, else the lens calibration's image converted to this pitch; None if neither."""
     if sensor.size_px is not None:
-        frames.append((tuple(sensor.size_px), f"the sensor {sensor.name!r} (size_px)"))
+        return tuple(sensor.size_px), f"the sensor {sensor.name!r} (size_px)"
     cal = getattr(lens, "calibration", {}) or {}
     size, pitch = cal.get("image_size_px"), cal.get("pixel_pitch_um")
     if size is not None and pitch is not None:
         k = float(pitch) / sensor.pixel_pitch_um  # calibration pixels -> this sensor's
         w, h = (float(v) for v in size)  # recorded as [width, height]
-        frames.append(((h * k, w * k), f"the lens calibration's image ({int(w)} x {int(h)} px "
-                       f"of {float(pitch):g} um)"))
-    return frames
+        return (h * k, w * k), (f"the lens calibration's image ({int(w)} x {int(h)} px of "
+                                f"{float(pitch):g} um)")
+    return None
 
 
 def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
@@ -99,13 +99,23 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
             "--sensor-origin-px ROW,COL if cube pixel (y, x) is the tile whose top-left sensor "
             "pixel is (ROW + y * tile rows, COL + x * tile columns)")
     else:
-        for (fr, fc), what in _full_frames(lens, sensor):
+        frame = _full_frame(lens, sensor)
+        if frame is not None:
+            (fr, fc), what = frame
             if abs(fr - ny) > _SAME_AREA_PX or abs(fc - nx) > _SAME_AREA_PX:
                 raise PlacementError(
                     f"the cube is {ny} x {nx} px but {what} is {fr:g} x {fc:g} px, and the "
                     "cube does not say where it sits: give --sensor-origin-px ROW,COL "
                     "(sensor_origin_px), the sensor row and column of its first pixel")
         rows, cols = (a.astype(float) for a in sensor_positions(sensor, ny, nx, (0, 0)))
+    if sensor.size_px is not None and (rows.min() < 0 or cols.min() < 0
+                                       or rows.max() >= sensor.size_px[0]
+                                       or cols.max() >= sensor.size_px[1]):
+        raise PlacementError(
+            f"the cube covers sensor rows {rows.min():g}-{rows.max():g} and columns "
+            f"{cols.min():g}-{cols.max():g}, outside the {sensor.size_px[0]} x "
+            f"{sensor.size_px[1]} px sensor {sensor.name!r}: check --sensor-origin-px "
+            "(sensor_origin_px) and --sensor")
     if np.all(rows == rows[:, :1]) and np.all(cols == cols[:, :1]):
         rows, cols = rows[:, :1], cols[:, :1]  # every band at the same position
     return rows, cols
@@ -132,9 +142,10 @@ def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
     if "center_px" in cal and cal.get("pixel_pitch_um") is not None:
         cx, cy = _parse_pair("the lens calibration's center_px", cal["center_px"])
         p_cal, p = float(cal["pixel_pitch_um"]), sensor.pixel_pitch_um
-        if abs(p_cal - p) < 1e-9 * p:
-            return (cx, cy), "lens calibration"
         size = cal.get("image_size_px")
+        same_pitch = abs(p_cal - p) < 1e-9 * p
+        if same_pitch and (size is None or sensor.size_px is None):
+            return (cx, cy), "lens calibration"  # the same pixel grid, as far as is known
         why = None
         if size is None:
             why = "the profile does not record the calibration image's size"
@@ -152,6 +163,8 @@ def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
                 f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
                 f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
                 "give --center-px CX,CY (center_px) in this sensor's pixels")
+        if same_pitch:
+            return (cx, cy), "lens calibration"
         # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
         k = p_cal / p
         return ((cx + 0.5) * k - 0.5, (cy + 0.5) * k - 0.5), \
