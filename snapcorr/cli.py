@@ -200,11 +200,11 @@ def _read(path, sensor=None, origin=None, role="cube"):
     frame_error = None
     if sensor is not None and sensor.layout == "mosaic":
         try:
-            frame = read_frame(path, chunks={})
+            frame = read_frame(path, chunks={})  # lazily: nothing read yet
         except ValueError as err:  # not a single-band frame: read it as a cube below
             frame_error = err
         else:
-            frame = _row_blocks_2d(frame, sensor)
+            frame = read_frame(path, chunks={"y": _frame_rows(frame, sensor), "x": -1})
             if origin is None:
                 _check_full_frame(frame.shape, sensor, path)
             return mosaic_to_cube(frame.data, sensor, origin_px=origin or (0, 0),
@@ -225,13 +225,12 @@ def _read(path, sensor=None, origin=None, role="cube"):
     return cube
 
 
-def _row_blocks_2d(frame, sensor):
-    """A 2-D frame in blocks of whole tile rows of about 16 MiB."""
+def _frame_rows(frame, sensor):
+    """Rows per block of a 2-D mosaic frame: whole tiles, about 16 MiB."""
     from .cube.io import BLOCK_BYTES
 
     tr = sensor.mosaic_shape[0]
-    rows = max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
-    return frame.chunk({"y": rows, "x": -1})
+    return max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
 
 
 def _check_full_frame(shape, sensor, path):
