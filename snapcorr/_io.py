@@ -247,6 +247,8 @@ def _replace(moves):
         os.replace(new, target)
         _unregister(new)
         return
+    # The old paths moved aside are not registered as temporaries: if anything goes wrong
+    # they are put back, and a crash leaves them recoverable rather than deleted.
     asides, placed = [], []
     try:
         for new, target in moves:

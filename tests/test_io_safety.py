@@ -425,6 +425,8 @@ def test_outputs_never_touch_inputs_or_their_companions(tmp_path):
 
 
 def test_an_envi_header_is_not_written_beside_another_data_file(tmp_path):
+    with pytest.raises(ValueError, match=r"written by its header's name: .*s\.hdr"):
+        write_cube(_cube(), tmp_path / "s.raw")
     (tmp_path / "s.img").write_bytes(b"\0" * 240)
     before = _snapshot(tmp_path)
     with pytest.raises(ValueError, match=r"s\.img exists next to s\.hdr, and ENVI readers "

@@ -6,8 +6,8 @@ extension      format                                             library
 ``.hdr``       ENVI header + data (``.raw``, ``.img``, ...);      Spectral Python
                BSQ, BIL or BIP; ``wavelength`` and ``fwhm`` in
                the header's ``wavelength units``
-``.tif(f)``    TIFF: one page of one channel per band, or one     OpenImageIO
-               page of one channel per band; metadata in the
+``.tif(f)``    TIFF: one page with a channel per band, or one     OpenImageIO
+               single-channel page per band; metadata in the
                image description (JSON)
 ``.exr``       OpenEXR in the spectral layout of Fichet et al.    OpenImageIO
                2021 (``S0.<nm>nm`` emissive, ``T.<nm>nm``
@@ -48,6 +48,8 @@ Attributes
     or more values) as themselves and everything else (booleans, None, lists, tuples, dicts,
     strings that start with ``json:``) as a string ``json:<JSON>``; :func:`read_dataset` and
     :func:`read_cube` decode them (a tuple comes back as a list). Other types are refused.
+    TIFF, OpenEXR and ``.npy`` sidecars keep a cube's attributes in their JSON, ENVI headers
+    in one field, ``snapcorr attrs = json:{...}``.
     Variables and coordinates whose attrs hold ``derived_from`` are not written; the file
     lists them in ``derived_variables`` and :func:`read_dataset` rebuilds them
     (:func:`snapcorr.cube.derived.restore`). Every file carries a mark of its writer (the
@@ -1160,9 +1162,12 @@ def write_cube(cube, path, *, overwrite=False, inputs=(), interleave="bsq"):
         The path written (an ENVI cube: its header).
     """
     check_cube(cube)
+    path = Path(path)
+    if path.suffix.lower() in _ENVI_DATA:
+        raise ValueError(f"an ENVI cube is written by its header's name: "
+                         f"{path.with_suffix('.hdr')} (its data go to "
+                         f"{path.with_suffix('.raw').name}), not {path.name}")
     fmt, path, _ = _format(path)
-    if fmt == "envi" and path.suffix.lower() != ".hdr":
-        path = path.with_suffix(".hdr")
     _check_writable(fmt, cube, path, interleave)
     name = cube.name or "radiance"
     if fmt in ("netcdf", "zarr"):
