@@ -103,6 +103,7 @@ def error_line(err):
     assert "Traceback" not in err, err
     lines = [ln for ln in err.splitlines() if "error:" in ln or ln.startswith("error")]
     assert len(lines) == 1, f"expected one error line, got:\n{err}"
+    assert lines[0].startswith("snapcorr"), f"the error shares its line: {lines[0]!r}"
     return lines[0]
 
 
@@ -335,6 +336,48 @@ def test_result_written_over_its_own_input_is_refused(tmp_path, monkeypatch):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("how", ["input-inside", "input-linked-inside", "lens-inside"])
+def test_overwrite_never_deletes_a_previous_result_holding_an_input(tmp_path, monkeypatch, how):
+    """A previous snapcorr result that now holds (or backs) an input is not replaced."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    assert cli(*FF, "--out", "out.zarr")[0] == 0
+    if how == "input-inside":
+        os.replace(tmp_path / "raw.npy", tmp_path / "out.zarr" / "raw.npy")
+        args = ("flatfield", "out.zarr/raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                "--sensor", "sensor.toml", "--out", "out.zarr", "--overwrite")
+    elif how == "input-linked-inside":
+        os.replace(tmp_path / "raw.npy", tmp_path / "out.zarr" / "kept.npy")
+        os.symlink("out.zarr/kept.npy", tmp_path / "raw.npy")
+        args = (*FF, "--out", "out.zarr", "--overwrite")
+    else:
+        (tmp_path / "out.zarr" / "lens.toml").write_text(LENS.read_text())
+        args = correct_args("raw.npy", "out.zarr", "--overwrite", lens="out.zarr/lens.toml")
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args)
+    assert_refused(rc, err, "out.zarr")
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("target", ["folder", "folder-overwrite", "existing-png"])
+@pytest.mark.parametrize("command", ["flatfield", "correct"])
+def test_plot_never_replaces_what_is_there(tmp_path, monkeypatch, command, target):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    if target.startswith("folder"):
+        (tmp_path / "look.png").mkdir()
+        (tmp_path / "look.png" / "keep.txt").write_text("my figures\n")
+    else:
+        (tmp_path / "look.png").write_bytes(b"\x89PNG\r\n\x1a\n my own figure")
+    extra = ("--plot", "look.png") + (("--overwrite",) if target == "folder-overwrite" else ())
+    args = (*FF, "--out", "o.nc", *extra) if command == "flatfield" else \
+        correct_args("raw.npy", "o.nc", *extra)
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args)
+    assert_refused(rc, err, "look.png")
+    assert snapshot(tmp_path) == before
+
+
 # -- data safety: signals, FIFOs, links, permissions, empty cubes -----------------------------
 
 
@@ -399,7 +442,8 @@ def _run_with_timeout(args, cwd, timeout=20):
     return res, time.monotonic() - t0
 
 
-@pytest.mark.parametrize("where", ["flatfield-raw-npy", "correct-cube-nc", "calibrate-flat"])
+@pytest.mark.parametrize("where", ["flatfield-raw-npy", "correct-cube-nc", "calibrate-flat",
+                                   "correct-sensor-toml"])
 def test_fifo_input_returns_promptly_with_an_error(tmp_path, where):
     save_cubes(tmp_path)
     if where == "flatfield-raw-npy":
@@ -409,6 +453,9 @@ def test_fifo_input_returns_promptly_with_an_error(tmp_path, where):
     elif where == "correct-cube-nc":
         os.mkfifo(tmp_path / "scene.nc")
         args = correct_args("scene.nc", "o.nc")
+    elif where == "correct-sensor-toml":
+        os.mkfifo(tmp_path / "camera.toml")
+        args = correct_args("raw.npy", "o.nc", sensor="camera.toml")
     else:
         os.mkfifo(tmp_path / "f14.npy")
         np.save(tmp_path / "f2.npy", np.full((64, 64), 1000.0))
@@ -557,9 +604,21 @@ def _envi_triplet(folder, wavelength, units):
     return ("flatfield", "scene.hdr", "--dark", "dark.hdr", "--white", "white.hdr")
 
 
-def test_envi_wavelengths_in_micrometres_without_units_are_refused(tmp_path, monkeypatch):
+@pytest.mark.parametrize("units", [None, "Unknown"], ids=["no-units", "units-unknown"])
+def test_envi_wavelengths_in_micrometres_without_units_are_refused(tmp_path, monkeypatch,
+                                                                   units):
     monkeypatch.chdir(tmp_path)
-    args = _envi_triplet(tmp_path, [0.50, 0.52, 0.54, 0.56], None)
+    args = _envi_triplet(tmp_path, [0.50, 0.52, 0.54, 0.56], units)
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args, "--out", "o.nc")
+    assert_refused(rc, err, "wavelength")
+    assert snapshot(tmp_path) == before
+
+
+def test_envi_nm_values_labelled_micrometers_are_refused(tmp_path, monkeypatch):
+    """500 micrometres is not a filter of a VNIR camera: the header's units are wrong."""
+    monkeypatch.chdir(tmp_path)
+    args = _envi_triplet(tmp_path, WL4, "Micrometers")
     before = snapshot(tmp_path)
     rc, _, err = cli(*args, "--out", "o.nc")
     assert_refused(rc, err, "wavelength")
@@ -576,14 +635,15 @@ def test_envi_wavelength_units_micrometers_read_as_nm(tmp_path, monkeypatch, uni
     np.testing.assert_allclose(wl, WL4, rtol=1e-9)
 
 
-@pytest.mark.parametrize("units", ["um", "micrometre"])
+@pytest.mark.parametrize("units", ["um", "micrometre", "m"])
 def test_netcdf_wavelength_in_um_reads_as_nm(tmp_path, monkeypatch, units):
     monkeypatch.chdir(tmp_path)
+    factor = 1e-9 if units == "m" else 1e-3
     rng = np.random.default_rng(2)
     for name, data in (("scene", rng.uniform(100, 200, (6, 5, 4))),
                        ("dark", np.full((6, 5, 4), 10.0)), ("white", np.full((6, 5, 4), 400.0))):
         xr.Dataset({"radiance": (("y", "x", "band"), data.astype(np.float32))},
-                   coords={"wavelength": ("band", [0.50, 0.52, 0.54, 0.56],
+                   coords={"wavelength": ("band", np.array(WL4) * factor,
                                           {"units": units})},
                    attrs={"instrument": "lab camera"}).to_netcdf(tmp_path / f"{name}.nc",
                                                                  engine="h5netcdf")
@@ -622,11 +682,15 @@ def test_shift_refuses_a_wavelength_not_in_nm(value):
 # -- silently wrong results: types in TOML ----------------------------------------------------
 
 
-def test_lens_exit_pupil_true_is_refused(tmp_path, monkeypatch):
+@pytest.mark.parametrize("key, value", [
+    ("exit_pupil_mm", "true"), ("exit_pupil_mm", '"twenty"'), ("vignetting_radius_mm", "true"),
+    ("magnification", "true"), ("pupil_magnification", "false"),
+])
+def test_lens_value_of_the_wrong_type_is_refused(tmp_path, monkeypatch, key, value):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "lens.toml").write_text(lens_text(exit_pupil_mm="true"))
+    (tmp_path / "lens.toml").write_text(lens_text(**{key: value}))
     rc, out, err = cli("shift", "--lens", "lens.toml", "--f-number", "2", "--cra", "5")
-    assert_refused(rc, err, "exit_pupil_mm")
+    assert_refused(rc, err, key)
     assert out == ""
 
 
@@ -656,7 +720,10 @@ def test_sensor_value_of_the_wrong_type_is_refused(tmp_path, monkeypatch, key, v
     ("data type", "99", np.float32),
     ("data type", "6", np.complex64),
     ("interleave", "xyz", np.float32),
-], ids=["byte-order-7", "data-type-99", "data-type-6-complex", "interleave-xyz"])
+    ("samples", "4.5", np.float32),
+    ("header offset", "-8", np.float32),
+], ids=["byte-order-7", "data-type-99", "data-type-6-complex", "interleave-xyz",
+        "samples-4.5", "header-offset-negative"])
 def test_envi_header_field_out_of_range_is_refused(tmp_path, monkeypatch, field, value, dtype):
     monkeypatch.chdir(tmp_path)
     save_cubes(tmp_path, shape=(6, 5, 4))
@@ -717,10 +784,11 @@ def test_white_not_above_dark_anywhere_is_refused(tmp_path, monkeypatch, white):
     assert snapshot(tmp_path) == before
 
 
-def test_all_nan_raw_is_refused(tmp_path, monkeypatch):
+@pytest.mark.parametrize("which", ["raw", "dark", "white"])
+def test_all_nan_input_is_refused(tmp_path, monkeypatch, which):
     monkeypatch.chdir(tmp_path)
     save_cubes(tmp_path)
-    np.save(tmp_path / "raw.npy", np.full((12, 10, 4), np.nan, np.float32))
+    np.save(tmp_path / f"{which}.npy", np.full((12, 10, 4), np.nan, np.float32))
     before = snapshot(tmp_path)
     rc, _, err = cli(*FF, "--out", "o.nc")
     assert_refused(rc, err)
@@ -796,7 +864,8 @@ def test_raw_mosaic_frame_goes_through_flatfield_and_correct(tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     rows, cols = 1088, 2048
     rng = np.random.default_rng(4)
-    _save_frame(tmp_path / f"raw{ext}", rng.uniform(100, 200, (rows, cols)).astype(np.float32))
+    raw = rng.uniform(100, 200, (rows, cols)).astype(np.float32)
+    _save_frame(tmp_path / f"raw{ext}", raw)
     _save_frame(tmp_path / f"dark{ext}", np.full((rows, cols), 10.0, np.float32))
     _save_frame(tmp_path / f"white{ext}", np.full((rows, cols), 400.0, np.float32))
     rc, _, err = cli("flatfield", f"raw{ext}", "--dark", f"dark{ext}", "--white",
@@ -804,6 +873,10 @@ def test_raw_mosaic_frame_goes_through_flatfield_and_correct(tmp_path, monkeypat
     assert rc == 0, err
     ff = read_result(tmp_path / "ff.nc")
     assert ff["reflectance"].shape == (rows // 4, cols // 4, 16)
+    from snapcorr.cube import Sensor, mosaic_to_cube
+
+    expected = mosaic_to_cube((raw - 10.0) / 390.0, Sensor.load(MOSAIC))
+    np.testing.assert_allclose(ff["reflectance"].values, expected.values, rtol=1e-5)
     rc, _, err = cli(*correct_args("ff.nc", "c.nc", "--method", "none", sensor=MOSAIC))
     assert rc == 0, err
     res = read_result(tmp_path / "c.nc")
@@ -811,6 +884,42 @@ def test_raw_mosaic_frame_goes_through_flatfield_and_correct(tmp_path, monkeypat
     cra = cra_of(res)
     assert "band" in cra.dims and not np.allclose(cra.isel(band=0), cra.isel(band=15)), \
         "every band of a mosaic sits at its own place on the sensor"
+
+
+def test_raw_mosaic_crop_with_origin_goes_through_flatfield(tmp_path, monkeypatch):
+    """A 64 x 64 crop of the raw frame at row 400, column 800: positions as mosaic_to_cube's."""
+    from snapcorr import Lens
+    from snapcorr.correct import correct_cube
+    from snapcorr.cube import Sensor, mosaic_to_cube
+
+    monkeypatch.chdir(tmp_path)
+    frame = np.random.default_rng(6).uniform(100, 200, (64, 64)).astype(np.float32)
+    np.save(tmp_path / "raw.npy", frame)
+    np.save(tmp_path / "dark.npy", np.full((64, 64), 10.0, np.float32))
+    np.save(tmp_path / "white.npy", np.full((64, 64), 400.0, np.float32))
+    rc, _, err = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", MOSAIC, "--sensor-origin-px", "400,800", "--out", "ff.nc")
+    assert rc == 0, err
+    rc, _, err = cli(*correct_args("ff.nc", "c.nc", "--center-px", "1024,544", "--method",
+                                   "none", sensor=MOSAIC))
+    assert rc == 0, err
+    sensor = Sensor.load(MOSAIC)
+    expected = cra_of(correct_cube(mosaic_to_cube(frame, sensor, origin_px=(400, 800)),
+                                   Lens.load(LENS), sensor, 1.4, center_px=(1024.0, 544.0),
+                                   method="none"))
+    np.testing.assert_allclose(cra_of(read_result(tmp_path / "c.nc")).values, expected.values,
+                               rtol=0, atol=1e-9)
+
+
+def test_raw_mosaic_crop_off_the_tile_grid_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name, value in (("raw", 150.0), ("dark", 10.0), ("white", 400.0)):
+        np.save(tmp_path / f"{name}.npy", np.full((64, 64), value, np.float32))
+    before = snapshot(tmp_path)
+    rc, _, err = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", MOSAIC, "--sensor-origin-px", "401,802", "--out", "ff.nc")
+    assert_refused(rc, err, "--sensor-origin-px")
+    assert snapshot(tmp_path) == before
 
 
 # -- inputs real users have: multi-page TIFF --------------------------------------------------
@@ -959,11 +1068,12 @@ def test_crop_origin_survives_flatfielding(tmp_path, monkeypatch, mosaic_cube):
                                rtol=0, atol=1e-9)
 
 
-def test_crop_reaching_past_the_sensor_is_refused(tmp_path, monkeypatch):
+@pytest.mark.parametrize("origin", ["1900,1900", "-4,0"])
+def test_crop_reaching_past_the_sensor_is_refused(tmp_path, monkeypatch, origin):
     monkeypatch.chdir(tmp_path)
     _crop(tmp_path)
     before = snapshot(tmp_path)
-    rc, _, err = cli(*correct_args("crop.npy", "c.nc", "--sensor-origin-px", "1900,1900",
+    rc, _, err = cli(*correct_args("crop.npy", "c.nc", f"--sensor-origin-px={origin}",
                                    sensor="s2048.toml"))
     assert_refused(rc, err, "--sensor-origin-px")
     assert snapshot(tmp_path) == before
