@@ -562,6 +562,24 @@ def test_mosaic_cube_keeps_its_sensor_positions_through_a_file(tmp_path, monkeyp
     np.testing.assert_allclose(got.values, expected.values, rtol=0, atol=1e-9)
 
 
+def test_mosaic_npy_replaced_by_another_array_is_not_given_stale_positions(tmp_path,
+                                                                          monkeypatch,
+                                                                          mosaic_cube):
+    """The cube file is replaced by the user (np.save) with a smaller cube; whatever snapcorr
+    kept next to the old one must not be applied to it."""
+    from snapcorr.cube import write_cube
+
+    monkeypatch.chdir(tmp_path)
+    cube, _ = mosaic_cube
+    write_cube(cube, tmp_path / "m.npy")
+    np.save(tmp_path / "m.npy", np.ones((8, 8, 16), np.float32))
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*correct_args("m.npy", "out.nc", "--center-px", "1024,544",
+                                   sensor=MOSAIC))
+    assert_refused(rc, err, "m.npy")
+    assert snapshot(tmp_path) == before
+
+
 def _mosaic_without_positions(path, cube):
     data = np.asarray(cube.values)
     if path.suffix == ".npy":
@@ -818,13 +836,15 @@ def test_more_than_half_masked_is_a_loud_warning(tmp_path, monkeypatch):
     assert read_result(tmp_path / "o.nc")["mask"].values.mean() == pytest.approx(7 / 12)
 
 
-def test_dark_with_more_rows_than_the_cube_is_refused(tmp_path, monkeypatch):
+@pytest.mark.parametrize("which, value", [("dark", 10.0), ("white", 400.0)])
+def test_reference_with_more_rows_than_the_cube_is_refused(tmp_path, monkeypatch, which,
+                                                          value):
     monkeypatch.chdir(tmp_path)
     save_cubes(tmp_path)
-    np.save(tmp_path / "dark.npy", np.full((20, 10, 4), 10.0, np.float32))
+    np.save(tmp_path / f"{which}.npy", np.full((20, 10, 4), value, np.float32))
     before = snapshot(tmp_path)
     rc, _, err = cli(*FF, "--out", "o.nc")
-    assert_refused(rc, err, "dark")
+    assert_refused(rc, err, which)
     assert snapshot(tmp_path) == before
 
 
