@@ -383,10 +383,10 @@ def test_plot_never_replaces_what_is_there(tmp_path, monkeypatch, command, targe
 
 @pytest.fixture(scope="module")
 def big_inputs(tmp_path_factory):
-    """A 245 MB float32 cube (and one-row dark and white strips): its result takes a moment
+    """A 160 MB float32 cube (and one-row dark and white strips): its result takes a moment
     to write."""
     d = tmp_path_factory.mktemp("big")
-    ny, nx, nb = 1200, 1600, 32
+    ny, nx, nb = 1000, 1250, 32
     raw = np.lib.format.open_memmap(d / "raw.npy", mode="w+", dtype=np.float32,
                                     shape=(ny, nx, nb))
     raw[:] = np.linspace(100, 300, nx, dtype=np.float32)[None, :, None]
@@ -874,7 +874,7 @@ def _save_frame(path, frame):
     else:
         from spectral.io import envi
 
-        envi.save_image(str(path), frame[:, :, None], dtype=np.float32, interleave="bsq",
+        envi.save_image(str(path), frame[:, :, None], dtype=frame.dtype, interleave="bsq",
                         ext=".raw")
 
 
@@ -884,10 +884,10 @@ def test_raw_mosaic_frame_goes_through_flatfield_and_correct(tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     rows, cols = 1088, 2048
     rng = np.random.default_rng(4)
-    raw = rng.uniform(100, 200, (rows, cols)).astype(np.float32)
+    raw = rng.integers(100, 200, (rows, cols)).astype(np.uint16)  # as the camera gives it
     _save_frame(tmp_path / f"raw{ext}", raw)
-    _save_frame(tmp_path / f"dark{ext}", np.full((rows, cols), 10.0, np.float32))
-    _save_frame(tmp_path / f"white{ext}", np.full((rows, cols), 400.0, np.float32))
+    _save_frame(tmp_path / f"dark{ext}", np.full((rows, cols), 10, np.uint16))
+    _save_frame(tmp_path / f"white{ext}", np.full((rows, cols), 400, np.uint16))
     rc, _, err = cli("flatfield", f"raw{ext}", "--dark", f"dark{ext}", "--white",
                      f"white{ext}", "--sensor", MOSAIC, "--out", "ff.nc")
     assert rc == 0, err
@@ -895,7 +895,7 @@ def test_raw_mosaic_frame_goes_through_flatfield_and_correct(tmp_path, monkeypat
     assert ff["reflectance"].shape == (rows // 4, cols // 4, 16)
     from snapcorr.cube import Sensor, mosaic_to_cube
 
-    expected = mosaic_to_cube((raw - 10.0) / 390.0, Sensor.load(MOSAIC))
+    expected = mosaic_to_cube((raw.astype(float) - 10.0) / 390.0, Sensor.load(MOSAIC))
     np.testing.assert_allclose(ff["reflectance"].values, expected.values, rtol=1e-5)
     rc, _, err = cli(*correct_args("ff.nc", "c.nc", "--method", "none", sensor=MOSAIC))
     assert rc == 0, err
