@@ -336,6 +336,17 @@ def test_result_written_over_its_own_input_is_refused(tmp_path, monkeypatch):
     assert snapshot(tmp_path) == before
 
 
+def test_overwrite_through_a_link_to_the_input_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    assert cli(*FF, "--out", "ff.nc")[0] == 0
+    os.symlink("ff.nc", tmp_path / "latest.nc")
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*correct_args("ff.nc", "latest.nc", "--overwrite"))
+    assert_refused(rc, err, "latest.nc")
+    assert snapshot(tmp_path) == before
+
+
 @pytest.mark.parametrize("how", ["input-inside", "input-linked-inside", "lens-inside"])
 def test_overwrite_never_deletes_a_previous_result_holding_an_input(tmp_path, monkeypatch, how):
     """A previous snapcorr result that now holds (or backs) an input is not replaced."""
@@ -622,7 +633,8 @@ def _envi_triplet(folder, wavelength, units):
     return ("flatfield", "scene.hdr", "--dark", "dark.hdr", "--white", "white.hdr")
 
 
-@pytest.mark.parametrize("units", [None, "Unknown"], ids=["no-units", "units-unknown"])
+@pytest.mark.parametrize("units", [None, "Unknown", "Nanometers"],
+                         ids=["no-units", "units-unknown", "labelled-nanometers"])
 def test_envi_wavelengths_in_micrometres_without_units_are_refused(tmp_path, monkeypatch,
                                                                    units):
     monkeypatch.chdir(tmp_path)
@@ -671,6 +683,19 @@ def test_netcdf_wavelength_in_um_reads_as_nm(tmp_path, monkeypatch, units):
     wl = read_result(tmp_path / "o.nc")["wavelength"]
     np.testing.assert_allclose(wl.values, WL4, rtol=1e-9)
     assert wl.attrs.get("units") == "nm"
+
+
+def test_netcdf_wavelength_in_um_without_units_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name, value in (("scene", 150.0), ("dark", 10.0), ("white", 400.0)):
+        xr.Dataset({"radiance": (("y", "x", "band"), np.full((6, 5, 4), value, np.float32))},
+                   coords={"wavelength": ("band", [0.50, 0.52, 0.54, 0.56])}).to_netcdf(
+                       tmp_path / f"{name}.nc", engine="h5netcdf")
+    before = snapshot(tmp_path)
+    rc, _, err = cli("flatfield", "scene.nc", "--dark", "dark.nc", "--white", "white.nc",
+                     "--out", "o.nc")
+    assert_refused(rc, err, "wavelength")
+    assert snapshot(tmp_path) == before
 
 
 @pytest.mark.parametrize("command", ["correct", "budget"])
