@@ -7,7 +7,7 @@ import numpy as np
 
 from snapcorr import __version__
 
-from . import calibration, correct, mean_shift, scaling, speed_accuracy, stability
+from . import calibration, correct, io_memory, mean_shift, scaling, speed_accuracy, stability
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
 parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
@@ -27,5 +27,7 @@ print()
 stability.run(quick=args.quick, write=not args.quick)
 print()
 scaling.run(quick=args.quick, write=not args.quick)
+print()
+io_memory.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")
