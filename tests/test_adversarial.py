@@ -782,6 +782,17 @@ def test_envi_header_field_out_of_range_is_refused(tmp_path, monkeypatch, field,
     assert snapshot(tmp_path) == before
 
 
+def test_envi_header_with_fewer_wavelengths_than_bands_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, shape=(6, 5, 4))
+    write_envi(tmp_path / "scene", np.ones((6, 5, 4), np.float32), wavelength=WL4[:3])
+    before = snapshot(tmp_path)
+    rc, _, err = cli("flatfield", "scene.hdr", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "sensor.toml", "--out", "o.nc")
+    assert_refused(rc, err, "wavelength")
+    assert snapshot(tmp_path) == before
+
+
 # -- silently wrong results: EXR with a wavelength twice --------------------------------------
 
 
@@ -993,6 +1004,22 @@ def test_multipage_tiff_is_a_cube_in_flatfield(tmp_path, monkeypatch):
     got = read_result(tmp_path / "ff.nc")["reflectance"]
     assert got.shape == (12, 10, 4)
     np.testing.assert_allclose(got.values, (raw - 10.0) / 1990.0, rtol=1e-5)
+
+
+def test_multipage_tiff_with_pages_of_different_sizes_is_refused(tmp_path, monkeypatch):
+    import tifffile
+
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    with tifffile.TiffWriter(tmp_path / "scene.tif") as tw:
+        for b in range(4):
+            tw.write(np.ones((12, 10) if b != 2 else (12, 9), np.float32),
+                     photometric="minisblack")
+    before = snapshot(tmp_path)
+    rc, _, err = cli("flatfield", "scene.tif", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "sensor.toml", "--out", "o.nc")
+    assert_refused(rc, err, "scene.tif")
+    assert snapshot(tmp_path) == before
 
 
 def test_multipage_tiff_is_a_cube_in_correct(tmp_path, monkeypatch):
