@@ -151,6 +151,10 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
                                  "another output path")
         if out.suffix.lower() not in allowed:
             raise ValueError(f"{out}: the output must end in {' or '.join(allowed)}")
+        folder = out.suffix.lower() == ".zarr"  # a zarr store is a folder, the rest files
+        if out.exists() and out.is_dir() != folder:
+            raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
+                             "it is never replaced: choose another output path")
         if out.exists() and not overwrite:
             raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
         if not res.parent.is_dir():
