@@ -43,8 +43,9 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
         )
     if origin_px[0] % tr or origin_px[1] % tc:
         raise ValueError(
-            f"origin_px {tuple(origin_px)} is not on a {tr} x {tc} tile boundary, so the bands' "
-            "tile offsets would be misread; crop the frame to start at a tile"
+            f"the origin {tuple(origin_px)} (origin_px, --sensor-origin-px) is not on a "
+            f"{tr} x {tc} tile boundary, so the bands' tile offsets would be misread; crop the "
+            "frame to start at a tile (both numbers multiples of the tile's size)"
         )
     ny, nx = raw.shape[0] // tr, raw.shape[1] // tc
     tiles = raw.reshape(ny, tr, nx, tc)
