@@ -152,19 +152,25 @@ _REMOVED: dict[str, None] = {}
 
 
 def temporary_paths():
-    """The temporary paths registered now (a list of ``Path``)."""
+    """The temporary paths registered now (a list of absolute ``Path``)."""
     with _LOCK:
         return [Path(p) for p in _TEMPORARY]
 
 
+def _key(path):
+    """A registry key: the absolute path, so that a change of working folder cannot make it
+    name another file."""
+    return os.path.abspath(os.fspath(path))
+
+
 def _register(path):
     with _LOCK:
-        _TEMPORARY[str(path)] = None
+        _TEMPORARY[_key(path)] = None
 
 
 def _unregister(path):
     with _LOCK:
-        _TEMPORARY.pop(str(path), None)
+        _TEMPORARY.pop(_key(path), None)
 
 
 def remove_path(path, *, timeout_s=10.0, settle_s=0.2):
@@ -174,7 +180,7 @@ def remove_path(path, *, timeout_s=10.0, settle_s=0.2):
     ``settle_s`` (a thread still writing into an interrupted output may create it again).
     Returns True when the path is gone.
     """
-    path = str(path)
+    path = _key(path)
     deadline = time.monotonic() + timeout_s
     while True:
         try:

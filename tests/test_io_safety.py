@@ -454,10 +454,11 @@ def test_a_failed_overwrite_leaves_the_old_result_in_place(tmp_path, ext):
     old = _cube().to_dataset()
     write_dataset(old, path)
     before = _snapshot(tmp_path)
+    registered = set(_io.temporary_paths())
     with pytest.raises(OSError, match="disk full"):
         write_dataset(_failing(_cube(np.float32).to_dataset()), path, overwrite=True)
     assert _snapshot(tmp_path) == before
-    assert not _io.temporary_paths()
+    assert set(_io.temporary_paths()) == registered
     xr.testing.assert_equal(read_dataset(path)["radiance"], old["radiance"])
 
 
@@ -502,9 +503,21 @@ def test_atomic_write_removes_its_temporary_on_keyboard_interrupt(tmp_path):
         tmp.write_bytes(b"half")
         raise KeyboardInterrupt
 
+    registered = set(_io.temporary_paths())
     with pytest.raises(KeyboardInterrupt):
         _io.atomic_write(tmp_path / "x.nc", write)
-    assert not list(tmp_path.iterdir()) and not _io.temporary_paths()
+    assert not list(tmp_path.iterdir()) and set(_io.temporary_paths()) == registered
+
+
+def test_the_registry_holds_only_temporaries_that_exist(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # relative paths, as the command line gives them
+    registered = set(_io.temporary_paths())
+    cube = _cube()
+    for name in ("c.nc", "c.zarr", "c.hdr", "c.npy", "c.tif"):
+        write_cube(cube, name)
+        write_cube(cube, name, overwrite=True)
+    assert set(_io.temporary_paths()) == registered
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
 def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_path):
@@ -516,7 +529,7 @@ def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_pa
         assert signal.getsignal(signal.SIGTERM) is not before[signal.SIGTERM]
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(5)  # interrupted long before
-    assert not left.exists() and not _io.temporary_paths()
+    assert not left.exists() and _io._key(left) not in map(str, _io.temporary_paths())
     assert {s: signal.getsignal(s) for s in before} == before
     folder = tmp_path / ".left.zarr"
     with _io.cleanup_on_signals():  # leaving normally cleans up too
