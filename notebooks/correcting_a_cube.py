@@ -38,13 +38,12 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
-import xarray as xr
 
 from snapcorr import Lens
 from snapcorr.cli import main as snapcorr_cli
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, flatfield, make_cube, write_cube
-from snapcorr.cube.io import write_dataset
+from snapcorr.cube import read_dataset, write_dataset
 from snapcorr.data import lens_path, sensor_path
 from snapcorr.paper_experiment import PAPER_LENS, measured_transmittance, paper_metrics
 from snapcorr.simulate import cra_map, relative_illumination_map
@@ -60,10 +59,10 @@ from snapcorr.simulate import cra_map, relative_illumination_map
 # %%
 base = Sensor.load(sensor_path("snapscan_vnir"))
 binning = 8
+shape = (160, 256)  # rows, columns: a 2048 x 1280 sensor binned 8 x 8
 sensor = dataclasses.replace(
     base, name=f"{base.name} ({binning} x {binning} binned)",
-    pixel_pitch_um=base.pixel_pitch_um * binning,
-    size_px=None if base.size_px is None else tuple(n // binning for n in base.size_px))
+    pixel_pitch_um=base.pixel_pitch_um * binning, size_px=shape)
 cwl, fwhm = np.asarray(sensor.cwl_nm), np.asarray(sensor.fwhm_nm)
 lens = Lens.load(lens_path())
 print(sensor.name, f"{sensor.n_bands} bands, {cwl[0]:g}-{cwl[-1]:g} nm, n_eff",
@@ -73,7 +72,6 @@ print("correction:", lens.name, f"P = {lens.vignetting_radius_mm} mm, "
 print("simulation:", PAPER_LENS.name, f"P = {PAPER_LENS.vignetting_radius_mm} mm, "
       f"h = {PAPER_LENS.vignetting_distance_mm} mm")
 
-shape = (160, 256)
 centre = (131.0, 77.5)  # optical centre (column, row), a little off the image centre
 cra = cra_map(shape, sensor.pixel_pitch_um, lens.exit_pupil_mm, centre)
 print(f"chief-ray angles up to {cra.max():.2f} deg")
@@ -122,8 +120,10 @@ print(f"reflectance cube: {dict(cube.sizes)}, {cube.dtype}")
 #
 # `correct_cube` takes the cube, the lens profile, the sensor (central wavelengths, effective
 # indices, pixel pitch) and the f-number. The optical centre is given here; without it,
-# `correct_cube` takes it from the lens profile when that was calibrated with this pixel
-# pitch, else the centre of the image. `method="auto"` (the default) takes the cheapest
+# `correct_cube` takes it from the lens profile (converted through millimetres when that was
+# calibrated with another pixel pitch over the same image area, refused otherwise), else the
+# sensor's centre. A cube smaller than the sensor must say where it sits
+# (`sensor_origin_px`). `method="auto"` (the default) takes the cheapest
 # shift model that meets the tolerance (default 0.01 nm) over the cube's CRA range and says
 # why.
 
@@ -237,14 +237,18 @@ for key, value in ds.attrs.items():
 # ## Writing the result
 #
 # `write_dataset` writes `.nc` (netCDF 4) or `.zarr`, atomically, and refuses to replace an
-# existing file unless asked.
+# existing file unless asked. The corrected wavelengths are stored compactly, as the per-pixel
+# `wavelength_scale` and each band's `scale_index`; `read_dataset` rebuilds the
+# `wavelength_corrected` coordinate lazily (with plain xarray:
+# `back.wavelength * back.wavelength_scale.isel(scale=back.scale_index)`).
 
 # %%
 tmp = tempfile.TemporaryDirectory(prefix="snapcorr-cube-")
 out = Path(tmp.name)
 path = write_dataset(ds, out / "scene_corrected.nc")
-with xr.open_dataset(path) as back:
-    print(path.name, list(back.data_vars), "| method:", back.attrs["method"])
+back = read_dataset(path)
+print(path.name, list(back.data_vars), "| method:", back.attrs["method"])
+print(f"{path.stat().st_size / cube.nbytes:.2f} x the cube's bytes on disk")
 
 # %% [markdown]
 # ## The same from the command line
@@ -267,10 +271,10 @@ with contextlib.chdir(out), contextlib.redirect_stdout(log), contextlib.redirect
     status = snapcorr_cli(args)
 print(log.getvalue().strip())
 assert status == 0, log.getvalue()
-with xr.open_dataset(out / "scene_corrected_cli.nc") as cli:
-    for name in ("wavelength_corrected", "resampled"):
-        diff = np.nanmax(np.abs(cli[name].values - ds[name].values))
-        print(f"{name}: largest difference from the library's result {diff:.2g}")
+cli = read_dataset(out / "scene_corrected_cli.nc")
+for name in ("wavelength_corrected", "resampled"):
+    diff = np.nanmax(np.abs(cli[name].values - ds[name].values))
+    print(f"{name}: largest difference from the library's result {diff:.2g}")
 
 # %%
 tmp.cleanup()
