@@ -126,7 +126,7 @@ def _resolved(path):
 def refuse_inputs(targets, inputs):
     """Raise ``ValueError`` if any of ``targets`` is, contains or lies inside any of
     ``inputs`` (symbolic links resolved): writing it would destroy an input."""
-    sources = [(Path(src), _resolved(src)) for src in inputs]
+    sources = [(Path(src), _resolved(src)) for src in inputs if src is not None]
     for target in targets:
         t = _resolved(target)
         for src, s in sources:
@@ -231,11 +231,21 @@ def _make_temporary(target, *, directory=False):
     return Path(tmp)
 
 
+def _umask():
+    """The process's umask, read without changing it where the system tells it (Linux);
+    elsewhere set and restored at once."""
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    return umask
+
+
 def _usual_permissions(path, directory=False):
     """mkstemp and mkdtemp create private paths; give the permissions a new file would get."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, (0o777 if directory else 0o666) & ~umask)
+    os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
 
 
 def _replace(moves):

@@ -873,9 +873,15 @@ def _zarr_consolidated(path):
 
 
 def _open_dataset(path, fmt, chunks):
-    if fmt == "zarr":
-        return xr.open_zarr(path, consolidated=_zarr_consolidated(path), chunks=chunks)
-    return xr.open_dataset(path, engine="h5netcdf", chunks=chunks)
+    if fmt == "netcdf":
+        return xr.open_dataset(path, engine="h5netcdf", chunks=chunks)
+    # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
+    # directly, chunks that split the stored ones make xarray warn).
+    ds = xr.open_zarr(path, consolidated=_zarr_consolidated(path),
+                      chunks=None if chunks is None else {})
+    if chunks:
+        ds = ds.chunk({d: c for d, c in chunks.items() if d in ds.dims})
+    return ds
 
 
 def _read_xarray(path, fmt, chunks):
@@ -959,6 +965,8 @@ def _input_family(inputs):
     header of a data file, a ``.npy``'s sidecar)."""
     out = []
     for src in inputs:
+        if src is None:
+            continue
         p = Path(src)
         out.append(p)
         suffix = p.suffix.lower()
