@@ -348,7 +348,8 @@ def test_overwrite_through_a_link_to_the_input_is_refused(tmp_path, monkeypatch)
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("how", ["input-inside", "input-linked-inside", "lens-inside"])
+@pytest.mark.parametrize("how", ["input-inside", "input-linked-inside", "lens-inside",
+                                 "users-file-inside"])
 def test_overwrite_never_deletes_a_previous_result_holding_an_input(tmp_path, monkeypatch, how):
     """A previous snapcorr result that now holds (or backs) an input is not replaced."""
     monkeypatch.chdir(tmp_path)
@@ -362,9 +363,12 @@ def test_overwrite_never_deletes_a_previous_result_holding_an_input(tmp_path, mo
         os.replace(tmp_path / "raw.npy", tmp_path / "out.zarr" / "kept.npy")
         os.symlink("out.zarr/kept.npy", tmp_path / "raw.npy")
         args = (*FF, "--out", "out.zarr", "--overwrite")
-    else:
+    elif how == "lens-inside":
         (tmp_path / "out.zarr" / "lens.toml").write_text(LENS.read_text())
         args = correct_args("raw.npy", "out.zarr", "--overwrite", lens="out.zarr/lens.toml")
+    else:  # the user kept notes in the result's folder: not snapcorr's to delete
+        (tmp_path / "out.zarr" / "notes.txt").write_text("exposure 12 ms, sphere at 3 A\n")
+        args = (*FF, "--out", "out.zarr", "--overwrite")
     before = snapshot(tmp_path)
     rc, _, err = cli(*args)
     assert_refused(rc, err, "out.zarr")
@@ -444,6 +448,36 @@ def test_signal_during_write_leaves_no_temporary(tmp_path, big_inputs, sig, ext)
     assert not out.exists()
 
 
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
+    d = big_inputs
+    out = tmp_path / f"corrected{ext}"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snapcorr", "correct", d / "raw.npy", "--lens", LENS,
+         "--sensor", d / "sensor.toml", "--f-number", "1.4", "--out", out],
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while not hidden(tmp_path):
+            if proc.poll() is not None:
+                pytest.fail(f"finished (status {proc.returncode}) before a temporary appeared: "
+                            f"{proc.stderr.read()}")
+            if time.monotonic() > deadline:
+                pytest.fail("no temporary appeared within 90 s")
+            time.sleep(0.02)
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode != 0
+    assert "Traceback" not in err, err
+    assert not hidden(tmp_path), f"left behind: {hidden(tmp_path)}"
+    assert not out.exists()
+
+
 def _run_with_timeout(args, cwd, timeout=20):
     t0 = time.monotonic()
     try:
@@ -476,6 +510,29 @@ def test_fifo_input_returns_promptly_with_an_error(tmp_path, where):
     before = snapshot(tmp_path)
     res, _ = _run_with_timeout(args, tmp_path)
     assert_refused(res.returncode, res.stderr)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+def test_a_device_as_the_cube_returns_promptly_with_an_error(tmp_path, device):
+    if not os.path.exists(device):
+        pytest.skip(f"no {device} here")
+    save_cubes(tmp_path)
+    os.symlink(device, tmp_path / "scene.npy")
+    before = snapshot(tmp_path)
+    res, _ = _run_with_timeout(correct_args("scene.npy", "o.nc"), tmp_path)
+    assert_refused(res.returncode, res.stderr, "scene.npy")
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", ["scene.npy", "scene.nc", "scene.hdr", "scene.tif"])
+def test_a_folder_named_like_a_cube_is_one_error_line(tmp_path, monkeypatch, name):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    (tmp_path / name).mkdir()
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*correct_args(name, "o.nc"))
+    assert_refused(rc, err, name)
     assert snapshot(tmp_path) == before
 
 
@@ -1355,6 +1412,26 @@ def test_cf_units_and_long_name_in_zarr(pipeline):
         assert var in ds.variables, var
         assert str(ds[var].attrs.get("units", "")).strip(), var
         assert str(ds[var].attrs.get("long_name", "")).strip(), var
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_written_result_reads_back_as_computed(pipeline, ext):
+    from snapcorr import Lens
+    from snapcorr.correct import correct_cube
+    from snapcorr.cube import Sensor, read_cube
+
+    path = _ok(pipeline, f"c{ext}")
+    d = pipeline[0]
+    sensor = Sensor.load(d / "sensor.toml")
+    cube = read_cube(d / f"ff{ext}", wavelength_nm=sensor.cwl_nm)
+    mem = correct_cube(cube, Lens.load(LENS), sensor, 1.4, resample=True,
+                       source="tungsten:3000")
+    got = read_result(path)
+    for var in ("wavelength_corrected", "resampled", "reflectance"):
+        np.testing.assert_allclose(np.asarray(got[var].values, float),
+                                   np.asarray(mem[var].values, float), rtol=1e-6,
+                                   equal_nan=True, err_msg=var)
+    np.testing.assert_allclose(cra_of(got).values, cra_of(mem).values, rtol=1e-12)
 
 
 def test_wavelength_corrected_is_a_coordinate_to_plot_against(pipeline):
