@@ -1079,6 +1079,21 @@ def test_multipage_tiff_with_pages_of_different_sizes_is_refused(tmp_path, monke
     assert snapshot(tmp_path) == before
 
 
+def test_multipage_tiff_flat_with_pages_of_different_sizes_is_refused(tmp_path, monkeypatch):
+    import tifffile
+
+    monkeypatch.chdir(tmp_path)
+    with tifffile.TiffWriter(tmp_path / "f14.tif") as tw:
+        for shape in ((64, 64), (64, 64), (32, 64)):
+            tw.write(np.full(shape, 1000.0, np.float32), photometric="minisblack")
+    np.save(tmp_path / "f2.npy", np.full((64, 64), 1000.0))
+    before = snapshot(tmp_path)
+    rc, _, err = cli("calibrate", "--flat", "1.4=f14.tif", "--flat", "2=f2.npy",
+                     "--exit-pupil-mm", "21", "--pixel-pitch-um", "5.5", "--out", "lens.toml")
+    assert_refused(rc, err, "f14.tif")
+    assert snapshot(tmp_path) == before
+
+
 def test_multipage_tiff_is_a_cube_in_correct(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sensor.toml").write_text(SENSOR4)
