@@ -348,6 +348,18 @@ def test_overwrite_through_a_link_to_the_input_is_refused(tmp_path, monkeypatch)
     assert snapshot(tmp_path) == before
 
 
+def test_overwrite_through_a_hard_link_leaves_the_input_intact(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    assert cli(*FF, "--out", "ff.nc")[0] == 0
+    os.link(tmp_path / "ff.nc", tmp_path / "latest.nc")
+    before = snapshot(tmp_path)["ff.nc"]
+    rc, _, err = cli(*correct_args("ff.nc", "latest.nc", "--overwrite"))
+    assert "Traceback" not in err
+    assert snapshot(tmp_path)["ff.nc"] == before
+    assert not hidden(tmp_path)
+
+
 @pytest.mark.parametrize("how", ["input-inside", "input-linked-inside", "lens-inside",
                                  "users-file-inside"])
 def test_overwrite_never_deletes_a_previous_result_holding_an_input(tmp_path, monkeypatch, how):
@@ -467,6 +479,41 @@ def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
             time.sleep(0.02)
         time.sleep(0.2)
         proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode != 0
+    assert "Traceback" not in err, err
+    assert not hidden(tmp_path), f"left behind: {hidden(tmp_path)}"
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_ctrl_c_twice_during_write_leaves_no_temporary(tmp_path, big_inputs, ext):
+    """An impatient user presses Ctrl-C again while snapcorr cleans up."""
+    d = big_inputs
+    out = tmp_path / f"result{ext}"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snapcorr", "flatfield", d / "raw.npy", "--dark", d / "dark.npy",
+         "--white", d / "white.npy", "--sensor", d / "sensor.toml", "--out", out],
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while not hidden(tmp_path):
+            if proc.poll() is not None:
+                pytest.fail(f"finished (status {proc.returncode}) before a temporary appeared: "
+                            f"{proc.stderr.read()}")
+            if time.monotonic() > deadline:
+                pytest.fail("no temporary appeared within 90 s")
+            time.sleep(0.02)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        for _ in range(5):
+            time.sleep(0.01)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
