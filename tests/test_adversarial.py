@@ -448,7 +448,7 @@ def test_signal_during_write_leaves_no_temporary(tmp_path, big_inputs, sig, ext)
             if time.monotonic() > deadline:
                 pytest.fail("no temporary appeared within 90 s")
             time.sleep(0.02)
-        time.sleep(0.3)  # well inside the write
+        time.sleep(0.1)  # inside the write
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:
@@ -461,13 +461,14 @@ def test_signal_during_write_leaves_no_temporary(tmp_path, big_inputs, sig, ext)
     assert not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ext", [".nc", ".zarr"])
 def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
     d = big_inputs
     out = tmp_path / f"corrected{ext}"
     proc = subprocess.Popen(
         [sys.executable, "-m", "snapcorr", "correct", d / "raw.npy", "--lens", LENS,
-         "--sensor", d / "sensor.toml", "--f-number", "1.4", "--out", out],
+         "--sensor", d / "sensor.toml", "--f-number", "1.4", "--resample", "--out", out],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 90
@@ -478,7 +479,6 @@ def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
             if time.monotonic() > deadline:
                 pytest.fail("no temporary appeared within 90 s")
             time.sleep(0.02)
-        time.sleep(0.2)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
     finally:
@@ -491,6 +491,7 @@ def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
     assert not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ext", [".nc", ".zarr"])
 def test_ctrl_c_twice_during_write_leaves_no_temporary(tmp_path, big_inputs, ext):
     """An impatient user presses Ctrl-C again while snapcorr cleans up."""
@@ -509,7 +510,7 @@ def test_ctrl_c_twice_during_write_leaves_no_temporary(tmp_path, big_inputs, ext
             if time.monotonic() > deadline:
                 pytest.fail("no temporary appeared within 90 s")
             time.sleep(0.02)
-        time.sleep(0.5)
+        time.sleep(0.1)
         proc.send_signal(signal.SIGINT)
         for _ in range(5):
             time.sleep(0.01)
