@@ -123,14 +123,25 @@ def _resolved(path):
         return Path(os.path.abspath(path))
 
 
+def _identity(path):
+    """``(device, inode)`` of an existing path, else None."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
+
+
 def refuse_inputs(targets, inputs):
     """Raise ``ValueError`` if any of ``targets`` is, contains or lies inside any of
-    ``inputs`` (symbolic links resolved): writing it would destroy an input."""
-    sources = [(Path(src), _resolved(src)) for src in inputs if src is not None]
+    ``inputs`` (symbolic links resolved; a hard link to an input is the input): writing it
+    would destroy an input."""
+    sources = [(Path(src), _resolved(src), _identity(src)) for src in inputs
+               if src is not None]
     for target in targets:
-        t = _resolved(target)
-        for src, s in sources:
-            if t == s:
+        t, ti = _resolved(target), _identity(target)
+        for src, s, si in sources:
+            if t == s or (ti is not None and ti == si):  # a hard link is the same file too
                 raise ValueError(f"output {target} is also an input ({src}); choose another "
                                  "output path")
             if s.is_relative_to(t):

@@ -402,6 +402,7 @@ def test_outputs_never_touch_inputs_or_their_companions(tmp_path):
     np.save(box / "raw.npy", cube.values)
     (tmp_path / "link.nc").symlink_to(tmp_path / "scene.raw")
     (tmp_path / "other.raw").symlink_to(tmp_path / "scene.raw")  # a data file shared by link
+    os.link(tmp_path / "c.npy", tmp_path / "hard.npy")
     before = _snapshot(tmp_path)
     cases = [
         (lambda: write_cube(cube, tmp_path / "scene.hdr", overwrite=True,
@@ -416,6 +417,8 @@ def test_outputs_never_touch_inputs_or_their_companions(tmp_path):
                                inputs=[store]), r"inside\.nc lies inside the input"),
         (lambda: write_cube(cube, tmp_path / "link.nc", overwrite=True,
                             inputs=[tmp_path / "scene.hdr"]), r"link\.nc is also an input"),
+        (lambda: write_cube(cube, tmp_path / "hard.npy", overwrite=True,
+                            inputs=[tmp_path / "c.npy"]), r"hard\.npy is also an input"),
     ]
     for write, message in cases:
         with pytest.raises(ValueError, match=message) as err:
