@@ -430,35 +430,66 @@ def big_inputs(tmp_path_factory):
     return d
 
 
+def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
+    """Run ``snapcorr ARGS`` in ``folder``; once a hidden temporary appears (the write has
+    begun), wait ``after`` s and send ``signals`` (10 ms apart). Returns (status, stderr).
+
+    An attempt where the result was written before the first signal arrived proves nothing
+    and is repeated."""
+    for _ in range(attempts):
+        proc = subprocess.Popen([sys.executable, "-m", "snapcorr", *map(str, args)], cwd=folder,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 90
+            while not hidden(folder):
+                if proc.poll() is not None:
+                    pytest.fail(f"finished (status {proc.returncode}) before a temporary "
+                                f"appeared: {proc.stderr.read()}")
+                if time.monotonic() > deadline:
+                    pytest.fail("no temporary appeared within 90 s")
+                time.sleep(0.01)
+            time.sleep(after)
+            for i, sig in enumerate(signals):
+                if proc.poll() is None:
+                    proc.send_signal(sig)
+                if i + 1 < len(signals):
+                    time.sleep(0.01)
+            stdout, stderr = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        if "wrote" not in stdout:
+            return proc.returncode, stderr
+        # the write won the race: start again
+        if out.is_dir():
+            import shutil
+
+            shutil.rmtree(out)
+        elif out.exists():
+            out.unlink()
+    pytest.fail(f"the write finished before the signal in {attempts} attempts")
+
+
+def _assert_interrupted_cleanly(status, err, folder, out):
+    assert status != 0
+    assert "Traceback" not in err, err
+    assert not hidden(folder), f"left behind: {hidden(folder)}"
+    if out.exists():  # renamed just before the signal: it must then be whole
+        read_result(out).load()
+
+
+def _flatfield_big(d, out):
+    return ("flatfield", d / "raw.npy", "--dark", d / "dark.npy", "--white", d / "white.npy",
+            "--sensor", d / "sensor.toml", "--out", out)
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 @pytest.mark.parametrize("ext", [".nc", ".zarr"])
 def test_signal_during_write_leaves_no_temporary(tmp_path, big_inputs, sig, ext):
-    d = big_inputs
     out = tmp_path / f"result{ext}"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "snapcorr", "flatfield", d / "raw.npy", "--dark", d / "dark.npy",
-         "--white", d / "white.npy", "--sensor", d / "sensor.toml", "--out", out],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 90
-        while not hidden(tmp_path):
-            if proc.poll() is not None:
-                pytest.fail(f"finished (status {proc.returncode}) before a temporary appeared: "
-                            f"{proc.stderr.read()}")
-            if time.monotonic() > deadline:
-                pytest.fail("no temporary appeared within 90 s")
-            time.sleep(0.02)
-        time.sleep(0.1)  # inside the write
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode != 0
-    assert "Traceback" not in err, err
-    assert not hidden(tmp_path), f"left behind: {hidden(tmp_path)}"
-    assert not out.exists()
+    status, err = _interrupt(_flatfield_big(big_inputs, out), tmp_path, out, [sig], after=0.1)
+    _assert_interrupted_cleanly(status, err, tmp_path, out)
 
 
 @pytest.mark.slow
@@ -466,65 +497,20 @@ def test_signal_during_write_leaves_no_temporary(tmp_path, big_inputs, sig, ext)
 def test_sigterm_during_correct_leaves_no_temporary(tmp_path, big_inputs, ext):
     d = big_inputs
     out = tmp_path / f"corrected{ext}"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "snapcorr", "correct", d / "raw.npy", "--lens", LENS,
-         "--sensor", d / "sensor.toml", "--f-number", "1.4", "--resample", "--out", out],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 90
-        while not hidden(tmp_path):
-            if proc.poll() is not None:
-                pytest.fail(f"finished (status {proc.returncode}) before a temporary appeared: "
-                            f"{proc.stderr.read()}")
-            if time.monotonic() > deadline:
-                pytest.fail("no temporary appeared within 90 s")
-            time.sleep(0.02)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode != 0
-    assert "Traceback" not in err, err
-    assert not hidden(tmp_path), f"left behind: {hidden(tmp_path)}"
-    assert not out.exists()
+    args = ("correct", d / "raw.npy", "--lens", LENS, "--sensor", d / "sensor.toml",
+            "--f-number", "1.4", "--resample", "--out", out)
+    status, err = _interrupt(args, tmp_path, out, [signal.SIGTERM])
+    _assert_interrupted_cleanly(status, err, tmp_path, out)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("ext", [".nc", ".zarr"])
 def test_ctrl_c_twice_during_write_leaves_no_temporary(tmp_path, big_inputs, ext):
     """An impatient user presses Ctrl-C again while snapcorr cleans up."""
-    d = big_inputs
     out = tmp_path / f"result{ext}"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "snapcorr", "flatfield", d / "raw.npy", "--dark", d / "dark.npy",
-         "--white", d / "white.npy", "--sensor", d / "sensor.toml", "--out", out],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 90
-        while not hidden(tmp_path):
-            if proc.poll() is not None:
-                pytest.fail(f"finished (status {proc.returncode}) before a temporary appeared: "
-                            f"{proc.stderr.read()}")
-            if time.monotonic() > deadline:
-                pytest.fail("no temporary appeared within 90 s")
-            time.sleep(0.02)
-        time.sleep(0.1)
-        proc.send_signal(signal.SIGINT)
-        for _ in range(5):
-            time.sleep(0.01)
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode != 0
-    assert "Traceback" not in err, err
-    assert not hidden(tmp_path), f"left behind: {hidden(tmp_path)}"
-    assert not out.exists()
+    status, err = _interrupt(_flatfield_big(big_inputs, out), tmp_path, out,
+                             [signal.SIGINT] * 6, after=0.1)
+    _assert_interrupted_cleanly(status, err, tmp_path, out)
 
 
 def _run_with_timeout(args, cwd, timeout=20):
