@@ -90,6 +90,7 @@ from .._io import (
     refuse_inputs,
 )
 from .._validation import check_wavelengths_nm
+from .blockfile import RowBlockFile, lazy_file_array
 from .model import DIMS, POSITION_DIMS, check_cube, check_dtype, make_cube
 
 __all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_dataset", "read_frame", "row_blocks",
@@ -628,7 +629,6 @@ def _envi_list(h, key, hdr):
 
 
 def _read_envi(hdr, data_file, chunks):
-    from spectral.io import envi
 
     p = _envi_header(hdr)
     h = p["header"]
@@ -654,12 +654,10 @@ def _read_envi(hdr, data_file, chunks):
             f"({rows} x {cols} x {bands}, {dtype.name}, offset {p['offset']}) needs "
             f"{expected}; it is truncated or the header does not describe it"
         )
-    with _quiet_spectral():
-        img = envi.open(str(hdr), image=str(data_file))
-        data = img.open_memmap(interleave="bip", writable=False)
-    if data is None:
-        raise ValueError(f"{hdr}: Spectral Python cannot memory-map {data_file.name}")
-    data = _lazy_or_loaded(data, chunks, source=data_file)
+    # Spectral Python parsed and checked the header (_envi_header); the data are read in row
+    # blocks with plain file reads (blockfile), never through a whole-file memory map
+    data = _from_file(data_file, dtype, (rows, cols, bands), p["offset"], p["interleave"],
+                      chunks)
     found = _File(hdr, "envi", data, wavelength=_envi_list(h, "wavelength", hdr),
                   units=h.get("wavelength units"), fwhm=_envi_list(h, "fwhm", hdr),
                   fwhm_units=h.get("wavelength units"), name=h.get("snapcorr name"))
@@ -808,7 +806,62 @@ def _oiio_pages(path, fmt, pages):
 # numpy -------------------------------------------------------------------------------------
 
 
+def _npy_layout(path):
+    """``(shape, dtype, offset)`` of a C-ordered numeric ``.npy`` from its header, else None
+    (numpy then reads it: Fortran order, structured or object arrays, a bad file)."""
+    try:
+        with open(path, "rb") as fh:
+            version = np.lib.format.read_magic(fh)
+            read = {(1, 0): np.lib.format.read_array_header_1_0,
+                    (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+            if read is None:
+                return None
+            shape, fortran, dtype = read(fh)
+            offset = fh.tell()
+    except (OSError, ValueError):
+        return None
+    if fortran or dtype.kind not in "iuf" or len(shape) not in (2, 3) or 0 in shape:
+        return None
+    if os.path.getsize(path) < offset + int(np.prod(shape)) * dtype.itemsize:
+        raise ValueError(f"{path}: the file is shorter than its header's {shape} "
+                         f"{dtype.name} array; it is truncated")
+    return shape, dtype, offset
+
+
+def _from_file(path, dtype, shape, offset, interleave, chunks):
+    """The values of a raw file, ``(y, x, band)`` in the machine's byte order: all of them
+    (``chunks`` None), or a dask array reading blocks of whole rows as they are computed."""
+    source = RowBlockFile(path, dtype, shape, offset, interleave)
+    if chunks is None:
+        return source[:]
+    rows = chunks.get("y", -1)
+    if rows in (-1, None) or chunks.get("x", -1) not in (-1, None) \
+            or chunks.get("band", -1) not in (-1, None):
+        # other blocks than whole rows: read as the chunks ask (each block still on its own)
+        import dask.array as da
+
+        sizes = tuple(chunks.get(d, -1) for d in DIMS)
+        return da.from_array(source, chunks=sizes, asarray=False, fancy=False,
+                             meta=np.empty((0, 0, 0), source.dtype),
+                             name=f"read-{_file_token(path, shape, dtype, offset)}")
+    return lazy_file_array(path, dtype, shape, offset=offset, interleave=interleave,
+                           rows_per_block=rows)
+
+
+def _file_token(path, shape, dtype, offset):
+    st = os.stat(path)
+    return abs(hash((str(path), st.st_mtime_ns, st.st_size, tuple(shape), str(dtype),
+                     offset)))
+
+
 def _read_npy(path, chunks):
+    layout = _npy_layout(path)
+    if layout is not None:  # read in row blocks, not through a memory map
+        shape, dtype, offset = layout
+        file_ndim = len(shape)
+        data = _from_file(path, dtype, shape if file_ndim == 3 else (*shape, 1), offset, "bip",
+                          None if chunks is None else {**chunks, "band": -1})
+        return _npy_found(path, data, file_ndim)
     try:
         data = np.load(path, mmap_mode="r", allow_pickle=False)
     except Exception as err:  # numpy raises several types for a bad or empty file
@@ -824,6 +877,11 @@ def _read_npy(path, chunks):
         data = _lazy_or_loaded(data, chunks, DIMS[:data.ndim], source=path)
     if file_ndim == 2:
         data = data[:, :, None]
+    return _npy_found(path, data, file_ndim)
+
+
+def _npy_found(path, data, file_ndim):
+    """The ``.npy``'s array with what its sidecar (if any) says about it."""
     found = _File(path, "npy", data, file_ndim=file_ndim, attrs={"source": str(path)})
     side = _sidecar(path)
     if os.path.lexists(side):
