@@ -1423,6 +1423,19 @@ def _store(ds, path, fmt):
             from None
 
 
+def _zarr_encoding(ds):
+    """Blosc LZ4 with bit shuffling for numeric variables without an encoding of their own:
+    on cubes it writes about 4 x faster than zarr's default Zstandard for files about a tenth
+    larger (measured on flat-fielded reflectance, raw counts and masks), and the writing is
+    what a file-to-file run spends its time on."""
+    from zarr.codecs import BloscCodec
+
+    codec = BloscCodec(cname="lz4", clevel=5, shuffle="bitshuffle")
+    return {name: {"compressors": [codec]} for name, v in ds.variables.items()
+            if v.dtype.kind in "biuf" and v.ndim >= 2 and "compressors" not in v.encoding
+            and "compressor" not in v.encoding}
+
+
 def _store_dataset(ds, path, fmt):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
@@ -1441,9 +1454,10 @@ def _store_dataset(ds, path, fmt):
     def write_zarr(tmp):
         import zarr
 
-        first.to_zarr(tmp, mode="w", consolidated=False)
+        first.to_zarr(tmp, mode="w", consolidated=False, encoding=_zarr_encoding(first))
         for v in lazy:
-            ds[[v]].to_zarr(tmp, mode="a", consolidated=False)
+            ds[[v]].to_zarr(tmp, mode="a", consolidated=False,
+                            encoding=_zarr_encoding(ds[[v]]))
         # Zarr 3 keeps consolidated metadata in zarr.json as an extension that other readers
         # may ignore ("must_understand": false); it lets xr.open_zarr(path) open the store
         # with its default arguments, quickly and without a warning.
