@@ -25,13 +25,15 @@ def test_quick_scaling_benchmark_runs_and_reports_sane_figures(tmp_path):
     assert [r["n"] for r in memory] == list(scaling.QUICK_SIZES)
     for r in memory:
         assert _finite_positive(r["seconds"], r["copy_s"], r["x_copy"], r["s_per_gib"],
-                                r["gib_per_s"], r["slope"])
-        # the input and the result (resampled, corrected wavelengths) are all resident; at
-        # the quick sizes (a few MB) imports and allocator pools weigh as much, so no upper
-        # bound here (the full run measures 3.0 x)
-        assert math.isfinite(r["peak_x_cube"]) and r["peak_x_cube"] > 2.0
+                                r["gib_per_s"])
+        assert math.isfinite(r["slope"])  # its sign is noise at these sizes on a busy machine
+        # the input and the resampled result are both resident (2 cubes, less what the
+        # allocator already held: more than 1.5); at the quick sizes (a few MB) imports and
+        # allocator pools weigh as much, so no upper bound here (the full run measures 2.0 x)
+        assert math.isfinite(r["peak_x_cube"]) and r["peak_x_cube"] > 1.5
     for part in ("numpy copy", "Numba pass alone"):
-        assert all(_finite_positive(r["seconds"], r["slope"]) for r in rows if r["part"] == part)
+        assert all(_finite_positive(r["seconds"]) and math.isfinite(r["slope"])
+                   for r in rows if r["part"] == part)
 
     for r in (r for r in rows if r["part"].startswith("dask")):
         assert r["n"] in scaling.QUICK_SIZES
