@@ -222,10 +222,10 @@ def _read(path, sensor=None, origin=None, role="cube"):
     cube = read_cube(path, wavelength_nm=wl, chunks=dict(row_blocks(cube).chunksizes))
     if origin is not None and "sensor_row" not in cube.coords:
         from .cube import sensor_positions
+        from .cube.model import with_positions
 
-        rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
-        cube = cube.assign_coords(sensor_row=(("y", "band"), rows),
-                                  sensor_col=(("x", "band"), cols))
+        cube = with_positions(cube, *sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"],
+                                                      origin))
     return cube
 
 

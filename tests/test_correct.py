@@ -265,3 +265,22 @@ def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres()
     assert centre == (1047.3, 998.6)
     assert cra[0, 0, 0] == pytest.approx(_by_hand(np.array([900.0]), np.array([1000.0]),
                                                   1047.3, 998.6)[0, 0], rel=1e-12)
+
+
+def test_every_variable_and_coordinate_of_a_result_has_cf_units_and_long_name(tmp_path):
+    from snapcorr.cube import flatfield, read_dataset, write_dataset
+
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    frame = np.random.default_rng(3).uniform(500, 900, (16, 24)).astype(np.float32)
+    raw = mosaic_to_cube(frame, sensor, origin_px=(40, 80))
+    dark, white = mosaic_to_cube(frame * 0 + 100, sensor), mosaic_to_cube(frame * 0 + 1e3, sensor)
+    ff = flatfield(raw, dark, white)
+    ds = correct_cube(ff["reflectance"], PAPER, sensor, 1.4, resample=True, mask=ff["mask"])
+    for name, result in (("ff", ff), ("c", ds)):
+        for path in (tmp_path / f"{name}.nc", tmp_path / f"{name}.zarr"):
+            write_dataset(result, path)
+            back = read_dataset(path)
+            for v in back.variables:
+                if v in ("y", "x", "band", "scale"):
+                    continue  # bare dimensions without values of their own
+                assert "long_name" in back[v].attrs and "units" in back[v].attrs, (path, v)

@@ -220,7 +220,8 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
             "source": f"1 + mean shift / cwl by the {used} model at f/{f:g}, lens "
                       f"{lens.name}, tolerance {float(tolerance_nm):g} nm"}),
         "scale_index": ("band", column.astype(np.int32),
-                        {"long_name": "index into wavelength_scale's scale dimension"}),
+                        {"long_name": "index into wavelength_scale's scale dimension",
+                         "units": "1"}),
     })
     ds["wavelength"].attrs = {"units": "nm", "long_name": "nominal central wavelength",
                               **ds["wavelength"].attrs}

@@ -30,7 +30,8 @@ def cf_attrs(name):
             "transmittance": {"units": "1", "long_name": "transmittance"},
             "mask": {"units": "1", "long_name": "value not meaningful (white <= dark, "
                      "saturated, or not finite in an input)"},
-            "raw": {"long_name": "raw cube as read, unchanged"}}.get(name, {"long_name": name})
+            "raw": {"long_name": "raw cube as read, unchanged", "units": "count"},
+            }.get(name, {"long_name": name})
 
 
 def check_masked(ds, *, warn_fraction=MASKED_WARN_FRACTION):
@@ -174,7 +175,7 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
                   "values in the raw, dark and white frames"}
     kept = raw.copy(deep=False)
     kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin}
-    n_masked = mask.sum().assign_attrs(long_name="number of masked values")
+    n_masked = mask.sum().assign_attrs(long_name="number of masked values", units="1")
     ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
                     attrs={**raw.attrs, **attrs})
     if ds[name].chunks is None:

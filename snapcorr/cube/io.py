@@ -91,7 +91,15 @@ from .._io import (
 )
 from .._validation import check_wavelengths_nm
 from .blockfile import RowBlockFile, lazy_file_array
-from .model import DIMS, POSITION_DIMS, check_cube, check_dtype, make_cube
+from .model import (
+    DIMS,
+    FWHM_LONG_NAME,
+    POSITION_ATTRS,
+    POSITION_DIMS,
+    check_cube,
+    check_dtype,
+    make_cube,
+)
 
 __all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_dataset", "read_frame", "row_blocks",
            "write_cube", "write_dataset"]
@@ -468,7 +476,8 @@ def _to_cube(f, given):
             if "wavelength" in f.data.coords else wl_attrs
         cube = cube.assign_coords(wavelength=("band", wl, wl_attrs))
         if fw is not None:
-            cube = cube.assign_coords(fwhm=("band", fw, {"units": "nm"}))
+            cube = cube.assign_coords(
+                fwhm=("band", fw, {"units": "nm", "long_name": FWHM_LONG_NAME}))
         cube.attrs = attrs
         cube.name = f.name
         return check_cube(cube)
@@ -477,7 +486,7 @@ def _to_cube(f, given):
     for name, spec in f.positions.items():
         dims = POSITION_DIMS[name]
         values = _decode_positions(spec, tuple(sizes[d] for d in dims), name, str(f.path))
-        cube = cube.assign_coords({name: (dims, values)})
+        cube = cube.assign_coords({name: (dims, values, POSITION_ATTRS[name])})
     return check_cube(cube)
 
 

@@ -18,11 +18,25 @@ import xarray as xr
 
 from .._validation import check_wavelengths_nm
 
-__all__ = ["DIMS", "POSITION_DIMS", "check_cube", "check_dtype", "make_cube"]
+__all__ = ["DIMS", "POSITION_ATTRS", "POSITION_DIMS", "check_cube", "check_dtype", "make_cube",
+           "with_positions"]
 
 DIMS = ("y", "x", "band")
 #: The sensor-position coordinates a cube may carry and their dims.
 POSITION_DIMS = {"sensor_row": ("y", "band"), "sensor_col": ("x", "band")}
+FWHM_LONG_NAME = "band width (full width at half maximum)"
+#: CF attributes of the sensor positions (a pixel index has no physical unit: "1").
+POSITION_ATTRS = {
+    "sensor_row": {"long_name": "sensor row of the cube pixel, per band", "units": "1"},
+    "sensor_col": {"long_name": "sensor column of the cube pixel, per band", "units": "1"},
+}
+
+
+def with_positions(cube, rows, cols):
+    """``cube`` with its sensor positions: ``rows`` ``(y, band)`` and ``cols`` ``(x, band)``."""
+    return cube.assign_coords(
+        sensor_row=(POSITION_DIMS["sensor_row"], rows, POSITION_ATTRS["sensor_row"]),
+        sensor_col=(POSITION_DIMS["sensor_col"], cols, POSITION_ATTRS["sensor_col"]))
 
 
 def check_dtype(dtype, what="a cube"):
@@ -92,7 +106,7 @@ def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name="radiance")
         fw = np.broadcast_to(fw, wl.shape).copy()
         if not (np.all(np.isfinite(fw)) and np.all(fw > 0)):
             raise ValueError(f"fwhm must be finite and > 0 (nm), got {fw.tolist()[:5]}")
-        coords["fwhm"] = ("band", fw, {"units": "nm"})
+        coords["fwhm"] = ("band", fw, {"units": "nm", "long_name": FWHM_LONG_NAME})
     return xr.DataArray(data, dims=DIMS, coords=coords, attrs=dict(attrs or {}), name=name)
 
 

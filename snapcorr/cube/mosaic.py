@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import make_cube
+from .model import make_cube, with_positions
 from .sensor import Sensor
 
 __all__ = ["mosaic_to_cube", "sensor_positions"]
@@ -56,7 +56,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
     cube = make_cube(stack, sensor.cwl_nm, fwhm_nm=sensor.fwhm_nm,
                      attrs={"sensor": sensor.name, **(attrs or {})})
     rows, cols = sensor_positions(sensor, ny, nx, origin_px)
-    return cube.assign_coords(sensor_row=(("y", "band"), rows), sensor_col=(("x", "band"), cols))
+    return with_positions(cube, rows, cols)
 
 
 def _dask_stack(arrays, axis):
