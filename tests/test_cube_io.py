@@ -11,6 +11,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from snapcorr.cube import make_cube, read_frame
 from snapcorr.cube.io import read_cube, write_cube
+from snapcorr.cube.model import with_positions
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -223,14 +224,13 @@ def _snapscan_crop():
     ny, nx, nb = cube.shape
     rows = np.repeat((100 + np.arange(ny))[:, None], nb, axis=1)
     cols = np.repeat((40 + np.arange(nx))[:, None], nb, axis=1)
-    return cube.assign_coords(sensor_row=(("y", "band"), rows), sensor_col=(("x", "band"), cols))
+    return with_positions(cube, rows, cols)  # with their CF attributes, as readers give them
 
 
 def _irregular():
     cube = _cube(np.float32)
     rng = np.random.default_rng(5)
-    return cube.assign_coords(sensor_row=(("y", "band"), rng.integers(0, 2048, (5, 4))),
-                              sensor_col=(("x", "band"), rng.integers(0, 2048, (7, 4))))
+    return with_positions(cube, rng.integers(0, 2048, (5, 4)), rng.integers(0, 2048, (7, 4)))
 
 
 @pytest.mark.parametrize("ext", FORMATS_ALL)
