@@ -781,9 +781,25 @@ def main(argv=None):
         print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
+        # Libraries interrupted mid-write (h5netcdf, zarr's threads) may fail again when their
+        # half-closed objects are collected; Python would print those as "Exception ignored"
+        # tracebacks. The outputs are already removed: say it once, quietly.
+        import signal
+
+        # finishing: a second Ctrl-C waits (for the command line; a caller of main(argv) in a
+        # Python session gets its handlers back)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        hook, sys.unraisablehook = sys.unraisablehook, _quiet_unraisable
         print(f"snapcorr {args.command}: interrupted; unfinished outputs were removed",
               file=sys.stderr)
+        if argv is not None:
+            signal.signal(signal.SIGINT, previous)
+            sys.unraisablehook = hook
         return 130
+
+
+def _quiet_unraisable(unraisable):
+    """Drop errors raised while collecting objects left behind by an interruption."""
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
