@@ -192,7 +192,7 @@ class _StageBar:
         self.bar.close()
 
 
-def _read(path, sensor=None, origin=None, role="cube"):
+def _read(path, sensor=None, origin=None):
     """A cube (or a raw mosaic frame split into bands) from any format, in row blocks.
 
     Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
@@ -267,12 +267,12 @@ def _cmd_flatfield(args):
     if args.sensor_origin_px is not None and sensor is None:
         raise ValueError("--sensor-origin-px needs --sensor (the layout places the pixels)")
 
-    def read(path, role):
-        return _read(path, sensor, args.sensor_origin_px, role)
+    def read(path):
+        return _read(path, sensor, args.sensor_origin_px)
 
-    raw = read(args.raw, "cube")
-    darks = [read(p, "dark") for p in args.dark]
-    whites = [read(p, "white") for p in args.white]
+    raw = read(args.raw)
+    darks = [read(p) for p in args.dark]
+    whites = [read(p) for p in args.white]
     for label, cubes, paths in (("--dark", darks, args.dark), ("--white", whites, args.white)):
         for c, p in zip(cubes, paths, strict=True):
             if c.sizes["band"] != raw.sizes["band"] or c.sizes["x"] != raw.sizes["x"]:
@@ -281,7 +281,7 @@ def _cmd_flatfield(args):
                                  f"{raw.shape[2]}: x and band must match")
     ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
     if args.filter_white:
-        tr = flatfield(read(args.filter_white, "filter white"), darks, whites,
+        tr = flatfield(read(args.filter_white), darks, whites,
                        saturation=args.saturation, name="transmittance", dtype=args.dtype)
         ds["transmittance"] = tr["transmittance"]
         ds["filter_white_raw"] = tr["raw"]
