@@ -225,8 +225,8 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
     })
     ds["wavelength"].attrs = {"units": "nm", "long_name": "nominal central wavelength",
                               **ds["wavelength"].attrs}
-    chunks = cube.chunks if cube.chunks is not None else None
-    ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=chunks))
+    # in the cube's blocks when it has them, so a block of the coordinate matches one of data
+    ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
     if mask is not None:
         if tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape:
             raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
