@@ -318,27 +318,21 @@ def atomic_write(path, write, *, inputs=()):
     """
     path = Path(path)
     refuse_inputs([path], inputs)
-    _check_kind(path, directory=False)
-    tmp = _make_temporary(path)
-    try:
-        write(tmp)
-        _usual_permissions(tmp)
-        _replace([(tmp, path)])
-    except BaseException:
-        remove_path(tmp)
-        raise
-    return path
+    return _write_and_move(path, write, directory=False)
 
 
 def atomic_write_dir(path, write):
     """Call ``write(tmp_folder)`` and move the folder to ``path`` (replacing an existing
     folder safely); the temporary folder is removed if ``write`` fails or is interrupted."""
-    path = Path(path)
-    _check_kind(path, directory=True)
-    tmp = _make_temporary(path, directory=True)
+    return _write_and_move(Path(path), write, directory=True)
+
+
+def _write_and_move(path, write, *, directory):
+    _check_kind(path, directory=directory)
+    tmp = _make_temporary(path, directory=directory)
     try:
         write(tmp)
-        _usual_permissions(tmp, directory=True)
+        _usual_permissions(tmp, directory=directory)
         _replace([(tmp, path)])
     except BaseException:
         remove_path(tmp)
