@@ -164,6 +164,9 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
 class _StageBar:
     """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage."""
 
+    #: Seconds of work before the bar shows (short stages print nothing).
+    DELAY_S = 1.0
+
     def __init__(self, desc):
         self.desc = desc
 
@@ -172,7 +175,8 @@ class _StageBar:
         from tqdm import tqdm
 
         # shown after a second of work, on a terminal only (not in logs or pipes)
-        self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr, delay=1.0,
+        self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr,
+                        delay=self.DELAY_S,
                         leave=False, dynamic_ncols=True, disable=None)
         bar = self.bar
 

@@ -1,5 +1,7 @@
 """`snapcorr flatfield`: the result, and every foreseeable mistake as one line, no output."""
 
+import io
+import re
 import subprocess
 import sys
 
@@ -8,7 +10,7 @@ import pytest
 import xarray as xr
 from numpy.testing import assert_allclose
 
-from snapcorr.cube import make_cube, write_cube
+from snapcorr.cube import Sensor, make_cube, write_cube
 
 WL = np.linspace(500.0, 800.0, 4)
 
@@ -129,3 +131,32 @@ def test_unreadable_file(files):
     before = sorted(p.name for p in d.iterdir())
     res = run("locked.nc", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
     _assert_clean_failure(res, d, "locked.nc", before)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_each_stage_shows_one_labelled_progress_bar(tmp_path, monkeypatch):
+    from snapcorr import cli
+
+    monkeypatch.chdir(tmp_path)
+    wl = [500.0, 600.0, 700.0, 800.0]
+    Sensor("s", "snapscan", 5.5, wl, 10.0, 1.7).save(tmp_path / "s.toml")
+    for name, value in (("raw", 1500.0), ("dark", 100.0), ("white", 3100.0)):
+        np.save(tmp_path / f"{name}.npy", np.full((40, 30, 4), value, np.float32))
+    monkeypatch.setattr(cli._StageBar, "DELAY_S", 0)  # show at once, on a terminal
+    err = _Terminal()
+    monkeypatch.setattr(sys, "stderr", err)
+    assert cli.main(["flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "s.toml", "--out", "o.zarr"]) == 0
+    bars = [part.strip() for part in re.split(r"[\r\n]", err.getvalue()) if "block" in part]
+    labels = ("flat-fielding (checking the mask)", "writing o.zarr")
+    assert bars and all(b.startswith(labels) for b in bars), bars  # none unlabelled
+    assert {next(lab for lab in labels if b.startswith(lab)) for b in bars} == set(labels)
+    err.truncate(0)
+    monkeypatch.setattr(sys, "stderr", io.StringIO())  # a log file or a pipe: no bar at all
+    assert cli.main(["flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "s.toml", "--out", "p.zarr"]) == 0
+    assert "block" not in sys.stderr.getvalue()
