@@ -550,6 +550,7 @@ def _print_budget(args, b, sensor, lens, source, field, ranges):
 # -- the parser --------------------------------------------------------------------------------
 
 SENSOR_HELP = "sensor description (.toml) or a bundled one (snapscan_vnir, mosaic_4x4_vis, ...)"
+OVERWRITE_HELP = "replace an existing --out (or --plot) that snapcorr wrote; never an input"
 ORIGIN_HELP = ("sensor row and column of the cube's first pixel (of its tile, for a mosaic), "
                "for a crop that does not record where it sits")
 
@@ -591,9 +592,7 @@ def _add_flatfield(command):
                    help="type of the result (default: %(default)s)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the mask and a few pixels' spectra")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an existing --out (or --plot) that snapcorr wrote; never an "
-                   "input")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_flatfield)
 
 
@@ -671,9 +670,7 @@ def _add_correct(command):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
                    "(default: in-process threads)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an existing --out (or --plot) that snapcorr wrote; never an "
-                   "input")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_correct)
 
 

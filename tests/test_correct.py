@@ -198,8 +198,8 @@ FULL = Sensor("full", "snapscan", 5.5, np.linspace(500, 900, 3), 10.0, 1.7, size
 
 
 def _by_hand(rows, cols, cx, cy, pitch_mm=5.5e-3, x_mm=21.0):
-    d = np.hypot(np.subtract.outer(rows, np.zeros_like(cols)) - cy,
-                 np.subtract.outer(np.zeros_like(rows), -np.asarray(cols, float)) - cx)
+    """Eq. 8 on the grid rows x cols (sensor pixels): tan CRA = distance * pitch / x."""
+    d = np.hypot(np.asarray(rows, float)[:, None] - cy, np.asarray(cols, float)[None, :] - cx)
     return np.degrees(np.arctan(d * pitch_mm / x_mm))
 
 
