@@ -22,7 +22,7 @@ from snapcorr.simulate import flat_field
 
 from . import pyplot, write_csv
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 HERE = Path(__file__).parent
 ESTIMATORS = ("onset-ratio", "onset-model", "joint")
@@ -113,7 +113,7 @@ def full_size_time(*, quick=False, echo=print):
     t0 = time.perf_counter()
     res = _calibrate(flats, pitch)
     seconds = time.perf_counter() - t0
-    P, h = res.lens.vignetting_radius_mm, res.lens.vignetting_distance_mm
+    P, h = res.lens.vignetting[0][0], res.lens.vignetting[0][1]
     echo(f"calibrating five {n} x {n} flats (1 % noise): {seconds:.1f} s on this machine; "
          f"P {100 * (P / 7.4236 - 1):+.3f} %, h {100 * (h / 16.991 - 1):+.3f} % "
          f"({res.method}, {res.model} circle)")

@@ -20,7 +20,7 @@ from snapcorr import Lens
 from snapcorr.correct import correct_cube, cube_cra_deg, relative_shift
 from snapcorr.cube import Sensor, make_cube
 n, what = int(sys.argv[1]), sys.argv[2]
-lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 sensor = Sensor("bench", "snapscan", 5.5 * 2048 / n, np.linspace(470, 900, 150), 10.0, 1.7)
 data = np.random.default_rng(0).random((n, n, 150), dtype=np.float32)
 cube = make_cube(data, sensor.cwl_nm)

@@ -20,8 +20,8 @@ from snapcorr.optics import goossens2019 as g19
 
 CWL, NEFF = 700.0, 1.7
 LENSES = {
-    "h<x (Edmund 16 mm)": Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3),
-    "h>=x": Lens("long tube", 21.0, 6.5, 27.0, 0.06, 1.3),
+    "h<x (Edmund 16 mm)": Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm"),
+    "h>=x": Lens(21.0, [(6.5, 27.0)], 0.06, 1.3, name="long tube"),
 }
 
 
@@ -47,7 +47,7 @@ def _contour(lens, f, cra, nodes):
     R = lens.exit_pupil_radius_mm(f)
     t = np.tan(np.deg2rad(cra))
     return g19.mean_shift_contour(
-        CWL, NEFF, x, R, x * t, lens.vignetting_radius_mm, lens.vignetting_distance_mm * t,
+        CWL, NEFF, x, R, x * t, *lens.vignetting_args(t),
         nodes=nodes,
     )
 

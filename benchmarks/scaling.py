@@ -52,7 +52,7 @@ from snapcorr.cube.io import BLOCK_BYTES, write_dataset
 from . import pyplot, write_csv
 
 HERE = Path(__file__).parent
-LENS = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+LENS = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 F_NUMBER = 1.4
 N_BANDS = 150
 SIZES, QUICK_SIZES = (256, 512, 1024, 2048), (64, 128)

@@ -27,8 +27,8 @@ from . import pyplot, write_csv
 
 CWL, NEFF = 700.0, 1.7
 LENSES = {
-    "h<x (Edmund 16 mm)": Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3),
-    "h>=x": Lens("long tube", 21.0, 6.5, 27.0, 0.06, 1.3),
+    "h<x (Edmund 16 mm)": Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm"),
+    "h>=x": Lens(21.0, [(6.5, 27.0)], 0.06, 1.3, name="long tube"),
 }
 HERE = Path(__file__).parent
 
@@ -43,8 +43,7 @@ def _pairs(lens, n, rng):
 def _geom(lens, f, cra):
     x = lens.exit_pupil_mm
     t = np.tan(np.deg2rad(cra))
-    return x, lens.exit_pupil_radius_mm(f), x * t, lens.vignetting_radius_mm, \
-        lens.vignetting_distance_mm * t
+    return (x, lens.exit_pupil_radius_mm(f), x * t, *lens.vignetting_args(t))
 
 
 def _timed(fn, n, repeat=3):

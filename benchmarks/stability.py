@@ -23,7 +23,7 @@ from . import pyplot
 
 CWL, NEFF = 700.0, 1.7
 HERE = Path(__file__).parent
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 EDGES = (0.01, 0.1, 1.0)
 LABELS = ("< 0.01 nm", "0.01-0.1", "0.1-1", "> 1 nm", "no answer")
 
@@ -31,8 +31,7 @@ LABELS = ("< 0.01 nm", "0.01-0.1", "0.1-1", "> 1 nm", "no answer")
 def _geometry(lens, f, cra):
     x = lens.exit_pupil_mm
     t = np.tan(np.deg2rad(cra))
-    return (x, lens.exit_pupil_radius_mm(f), x * t, lens.vignetting_radius_mm,
-            (lens.vignetting_distance_mm or 0.0) * t)
+    return (x, lens.exit_pupil_radius_mm(f), x * t, *lens.vignetting_args(t))
 
 
 def _api(method, **kw):
@@ -126,7 +125,7 @@ def maps(*, quick=False):
         cls = np.full((k, k), np.nan)
         for i, a in enumerate(hx):
             for j, b in enumerate(pr):
-                lens = Lens("grid", 21.0, b * R, a * 21.0, 0.06, 1.3)
+                lens = Lens(21.0, [(b * R, a * 21.0)], 0.06, 1.3, name="grid")
                 if 15.0 >= lens.cutoff_cra_deg(2.0) - 0.05:
                     continue
                 e = _errors(m, lens, np.array([2.0]), np.array([15.0]))

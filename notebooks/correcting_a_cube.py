@@ -42,8 +42,7 @@ import numpy as np
 from snapcorr import Lens
 from snapcorr.cli import main as snapcorr_cli
 from snapcorr.correct import correct_cube
-from snapcorr.cube import Sensor, flatfield, make_cube, write_cube
-from snapcorr.cube import read_dataset, write_dataset
+from snapcorr.cube import Sensor, flatfield, make_cube, read_dataset, write_cube, write_dataset
 from snapcorr.data import lens_path, sensor_path
 from snapcorr.paper_experiment import PAPER_LENS, measured_transmittance, paper_metrics
 from snapcorr.simulate import cra_map, relative_illumination_map
@@ -67,10 +66,8 @@ cwl, fwhm = np.asarray(sensor.cwl_nm), np.asarray(sensor.fwhm_nm)
 lens = Lens.load(lens_path())
 print(sensor.name, f"{sensor.n_bands} bands, {cwl[0]:g}-{cwl[-1]:g} nm, n_eff",
       sorted(set(sensor.n_eff)))
-print("correction:", lens.name, f"P = {lens.vignetting_radius_mm} mm, "
-      f"h = {lens.vignetting_distance_mm} mm")
-print("simulation:", PAPER_LENS.name, f"P = {PAPER_LENS.vignetting_radius_mm} mm, "
-      f"h = {PAPER_LENS.vignetting_distance_mm} mm")
+print("correction:", lens.name, lens.describe_vignetting())
+print("simulation:", PAPER_LENS.name, PAPER_LENS.describe_vignetting())
 
 centre = (131.0, 77.5)  # optical centre (column, row), a little off the image centre
 cra = cra_map(shape, sensor.pixel_pitch_um, lens.exit_pupil_mm, centre)

@@ -113,7 +113,7 @@ estimates = {
     **{f"onset-{det}": (of.P_mm, of.P_stderr_mm, of.h_mm, of.h_stderr_mm)
        for det, of in res.onset_fits.items() if of is not None},
 }
-P0, h0 = truth.vignetting_radius_mm, truth.vignetting_distance_mm
+P0, h0 = truth.vignetting[0][0], truth.vignetting[0][1]
 print(f"{'estimator':>12} {'P (mm)':>18} {'error':>8} {'h (mm)':>18} {'error':>8}")
 print(f"{'truth':>12} {P0:>18.4f} {'':>8} {h0:>18.3f}")
 for name, (P, dP, h, dh) in estimates.items():
@@ -158,9 +158,9 @@ print(f"joint fit: P = {one2.params['P_mm']:.4f} mm ({100 * (one2.params['P_mm']
       f" %), h = {one2.params['h_mm']:.3f} mm ({100 * (one2.params['h_mm'] / h0 - 1):+.2f} %),"
       f" reduced chi2 {one2.reduced_chi2:.2f}")
 lens2 = res2.lens
-print(f"chosen: {res2.method}: P = {lens2.vignetting_radius_mm:.4f} mm "
-      f"({100 * (lens2.vignetting_radius_mm / P0 - 1):+.2f} %), h = "
-      f"{lens2.vignetting_distance_mm:.3f} mm ({100 * (lens2.vignetting_distance_mm / h0 - 1):+.2f}"
+print(f"chosen: {res2.method}: P = {lens2.vignetting[0][0]:.4f} mm "
+      f"({100 * (lens2.vignetting[0][0] / P0 - 1):+.2f} %), h = "
+      f"{lens2.vignetting[0][1]:.3f} mm ({100 * (lens2.vignetting[0][1] / h0 - 1):+.2f}"
       " %)")
 print("why:", res2.reason)
 

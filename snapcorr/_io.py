@@ -435,11 +435,17 @@ def read_toml(path, table, what):
 
 
 def write_toml(path, doc, *, overwrite=False):
-    """Write ``doc`` as TOML atomically, refusing to replace a file unless ``overwrite``."""
+    """Write ``doc`` as TOML atomically, refusing to replace a file unless ``overwrite``.
+
+    ``doc`` is a dict, or a list of parts written one after another: dicts, and strings of
+    TOML written as they are (an array of tables such as ``[[lens.vignetting]]`` in block
+    form, which tomli_w would write inline).
+    """
     import tomli_w
 
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    text = tomli_w.dumps(doc)
+    parts = doc if isinstance(doc, list) else [doc]
+    text = "\n".join(p if isinstance(p, str) else tomli_w.dumps(p) for p in parts)
     return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))

@@ -73,8 +73,8 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     rows, lines = [], []
     lines.append(f"snapcorr {__version__} demo: {lens.name}, cwl {CWL_NM:g} nm, n_eff {N_EFF:g}")
     lines.append(
-        f"exit pupil x = {lens.exit_pupil_mm:g} mm, P = {lens.vignetting_radius_mm:g} mm, "
-        f"h = {lens.vignetting_distance_mm:g} mm, m = {lens.magnification:g}, "
+        f"exit pupil x = {lens.exit_pupil_mm:g} mm, {lens.describe_vignetting()}, "
+        f"m = {lens.magnification:g}, "
         f"m_P = {lens.pupil_magnification:g}"
     )
     lines.append("")

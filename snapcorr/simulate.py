@@ -32,7 +32,7 @@ References
 Examples
 --------
 >>> from snapcorr import Lens
->>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+>>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 >>> expected = flat_field(lens, 1.4, (1088, 2048), 5.5, noise=False)
 >>> round(float(expected[543, 1023])), round(float(expected[0, 0]))  # centre, corner
 (10000, 4857)
@@ -171,12 +171,12 @@ def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
 # -- relative illumination ----------------------------------------------------------------------
 def _discs(lens, f_number, pixel_acceptance_deg):
     """Radii (mm) and centre slopes (centre = slope * tan(CRA)) of the discs a pixel looks
-    through: the exit pupil, the vignetting circle and the pixel's acceptance circle."""
+    through: the exit pupil, the vignetting circles and the pixel's acceptance circle."""
     R = float(lens.exit_pupil_radius_mm(f_number))
     radii, slopes = [R], [0.0]
-    if lens.has_vignetting:
-        radii.append(float(lens.vignetting_radius_mm))
-        slopes.append(float(lens.vignetting_distance_mm))
+    for P, h in lens.vignetting:
+        radii.append(float(P))
+        slopes.append(float(h))
     if pixel_acceptance_deg is not None:
         x = float(lens.exit_pupil_mm)
         radii.append(x * math.tan(math.radians(pixel_acceptance_deg)))
@@ -296,7 +296,7 @@ def relative_illumination_map(lens, f_number, shape, pixel_pitch_um, *, center_p
     Examples
     --------
     >>> from snapcorr import Lens
-    >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
     >>> v = relative_illumination_map(lens, 1.4, (1, 3), 2000.0, center_px=(0, 0))
     >>> v.round(4)  # CRA 0, 5.44 and 10.78 deg
     array([[1.    , 0.8725, 0.6939]])
@@ -413,7 +413,7 @@ def flat_field(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
     Examples
     --------
     >>> from snapcorr import Lens
-    >>> sphere = flat_field(Lens("no vignetting", 21.0), 2.8, (512, 512), 5.5, rng=7,
+    >>> sphere = flat_field(Lens(21.0, name="no vignetting"), 2.8, (512, 512), 5.5, rng=7,
     ...                     read_noise_electrons=30.0, gain_electrons_per_dn=2.0, dark_dn=64.0)
     >>> noise_dn = float(sphere[200:312, 200:312].std())
     >>> bool(abs(noise_dn - np.sqrt(1e4 + 30.0**2) / 2.0) < 1.5)  # 52.2 DN

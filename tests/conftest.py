@@ -12,7 +12,7 @@ DATA = Path(__file__).resolve().parent / "data"
 @pytest.fixture(scope="session")
 def edmund():
     """The paper's Edmund Optics 16 mm lens (Goossens 2019, Sec. 3.2, Eq. 31)."""
-    return Lens("Edmund Optics 16 mm C Series", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    return Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm C Series")
 
 
 def brute_force_mean(cwl, n_eff, x, R, d, P=None, dv=None, N=1500):

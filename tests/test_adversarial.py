@@ -1156,8 +1156,8 @@ def test_multipage_tiff_flats_are_averaged_in_calibrate(tmp_path, monkeypatch):
     assert rc == 0, err
     assert err.count("mean of 3 bands") == 5, err
     got = Lens.load(tmp_path / "lens.toml")
-    assert got.vignetting_radius_mm == pytest.approx(7.4236, rel=0.02)
-    assert got.vignetting_distance_mm == pytest.approx(16.991, rel=0.03)
+    assert got.vignetting[0][0] == pytest.approx(7.4236, rel=0.02)
+    assert got.vignetting[0][1] == pytest.approx(16.991, rel=0.03)
 
 
 # -- inputs real users have: a crop of the sensor ---------------------------------------------

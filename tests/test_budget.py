@@ -10,7 +10,7 @@ from snapcorr import Lens, budget
 from snapcorr.cube import Sensor
 from snapcorr.optics.profiles import MultiLorentzian, PiShaped
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 FLAT = budget.Spectrum(np.array([200.0, 2000.0]), np.array([3.7, 3.7]), "flat")
 
 
@@ -190,7 +190,7 @@ def test_pixel_signal_matches_brute_force_pupil_sampling(cra):
     # every ray through the (vignetted) pupil shifts the whole filter by Eq. 3 at its angle
     x, R = PAPER.exit_pupil_mm, float(PAPER.exit_pupil_radius_mm(f))
     t = np.tan(np.deg2rad(cra))
-    d, P, dv = x * t, PAPER.vignetting_radius_mm, PAPER.vignetting_distance_mm * t
+    d, P, dv = x * t, PAPER.vignetting[0][0], PAPER.vignetting[0][1] * t
     N = 600
     c = (np.arange(N) + 0.5) * (2 * R / N) - R
     X, Y = np.meshgrid(c, c, indexing="ij")

@@ -18,7 +18,7 @@ def test_eq30_gives_eq31():
 def test_exact_onsets_recover_the_lens():
     # Onsets computed from a known lens (Eq. 46) give back its P and h exactly (f-numbers
     # where P > R, so the onset is not at 0).
-    lens = Lens("t", 21.0, 6.5, 23.0, 0.05, 1.2)
+    lens = Lens(21.0, [(6.5, 23.0)], 0.05, 1.2, name="t")
     f = np.array([2.0, 2.8, 4.0, 5.6, 8.0])
     fit = solve_vignetting_circle(lens.onset_cra_deg(f), lens.exit_pupil_radius_mm(f))
     assert_allclose([fit.P_mm, fit.h_mm], [6.5, 23.0], rtol=1e-10)
@@ -46,8 +46,8 @@ def test_shipped_edmund_profile_is_eq26_of_its_own_onsets():
     lens = Lens.load(lens_path("edmund_optics_16mm"))
     cal = lens.calibration
     fit = solve_vignetting_circle(cal["onset_cra_deg"], cal["exit_pupil_radius_mm"])
-    assert abs(fit.P_mm - lens.vignetting_radius_mm) < 1e-3
-    assert abs(fit.h_mm - lens.vignetting_distance_mm) < 1e-3
+    assert abs(fit.P_mm - lens.vignetting[0][0]) < 1e-3
+    assert abs(fit.h_mm - lens.vignetting[0][1]) < 1e-3
     assert_allclose(fit.residuals_mm, cal["residuals_mm"], atol=1e-4)
     assert_allclose([fit.P_stderr_mm, fit.h_stderr_mm],
                     [cal["P_stderr_mm"], cal["h_stderr_mm"]], rtol=5e-3)
@@ -55,7 +55,7 @@ def test_shipped_edmund_profile_is_eq26_of_its_own_onsets():
 
 
 def test_onset_uncertainties_propagate_into_p_and_h():
-    lens = Lens("t", 21.0, 6.5, 23.0, 0.05, 1.2)
+    lens = Lens(21.0, [(6.5, 23.0)], 0.05, 1.2, name="t")
     f = np.array([2.0, 4.0])
     on = lens.onset_cra_deg(f)
     exact = solve_vignetting_circle(on, lens.exit_pupil_radius_mm(f), [0.1, 0.1])
@@ -74,7 +74,7 @@ def test_a_circle_that_cuts_no_ray_has_no_standard_error():
     # outside every ray changes nothing when it moves, so its P2 and h2 have no error bar
     from snapcorr.calibrate.joint_fit import BlockData, _tan, fit_model, model_ratio
 
-    lens = Lens("paper", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="paper")
     y, x = np.mgrid[0:2048:64, 0:2048:64]
     xpix, ypix = x.ravel() + 32.0, y.ravel() + 32.0
     fs = np.array([1.4, 2.0, 2.8])
@@ -97,7 +97,7 @@ def test_a_second_circle_the_flats_hardly_see_gets_a_wide_error_bar():
     from snapcorr.calibrate import calibrate_lens
     from snapcorr.simulate import flat_field
 
-    lens = Lens("paper", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="paper")
     rng = np.random.default_rng(2019)
     flats = {f: flat_field(lens, f, (256, 256), 44.0, center_px=(140.3, 118.6), rng=rng)
              for f in (1.4, 2.0, 2.8, 4.0, 8.0)}

@@ -14,8 +14,8 @@ from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, ra
 from snapcorr.calibrate.flats import clean_flat, cra_deg_map
 from snapcorr.simulate import LampPlaque, flat_field
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
-H_GE_X = Lens("h >= x", 21.0, 9.5, 26.0, 0.0, 1.0)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
+H_GE_X = Lens(21.0, [(9.5, 26.0)], 0.0, 1.0, name="h >= x")
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 SHAPE, PITCH = (512, 512), 22.0
 CENTRE = (281.3, 236.8)  # off the image centre (255.5, 255.5)
@@ -36,8 +36,8 @@ def _calibrate(flats, lens, **kw):
 def _check(res, truth, *, rtol, onset_tol_deg=0.3, centre_tol_px=1.0):
     lens = res.lens
     assert lens.has_vignetting and res.model == "one"
-    assert abs(lens.vignetting_radius_mm / truth.vignetting_radius_mm - 1) < rtol
-    assert abs(lens.vignetting_distance_mm / truth.vignetting_distance_mm - 1) < rtol
+    assert abs(lens.vignetting[0][0] / truth.vignetting[0][0] - 1) < rtol
+    assert abs(lens.vignetting[0][1] / truth.vignetting[0][1] - 1) < rtol
     fs = np.asarray(res.f_numbers)
     true_on = truth.onset_cra_deg(fs)
     inside = true_on < res.max_cra_deg
@@ -93,7 +93,7 @@ def test_plot_draws_profiles_onsets_and_model(paper_sphere, tmp_path):
 def test_h_ge_x_regime():
     res = _calibrate(_flats(H_GE_X, seed=1), H_GE_X)
     _check(res, H_GE_X, rtol=0.01)
-    assert res.lens.vignetting_distance_mm > res.lens.exit_pupil_mm
+    assert res.lens.vignetting[0][1] > res.lens.exit_pupil_mm
 
 
 def test_lamp_and_plaque_within_two_percent():
@@ -119,8 +119,8 @@ def test_single_f_number_needs_h():
     with pytest.raises(ValueError, match=r"cannot tell .* P .* h"):
         _calibrate(flats, PAPER)
     res = _calibrate(flats, PAPER, vignetting_distance_mm=16.991)
-    assert abs(res.lens.vignetting_distance_mm - 16.991) < 1e-12
-    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][1] - 16.991) < 1e-12
+    assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.01
     fig = res.plot()  # the profile without cos^4 against the model
     assert len(fig.axes[1].lines) >= 2 and "relative illumination" in fig.axes[1].get_ylabel()
     import matplotlib.pyplot as plt
@@ -129,7 +129,7 @@ def test_single_f_number_needs_h():
 
 
 def test_no_onset_inside_the_field_chooses_the_ideal_aperture():
-    wide = Lens("wide", 21.0, 15.0, 17.0, 0.06, 1.3)  # first onset at 24.7 deg
+    wide = Lens(21.0, [(15.0, 17.0)], 0.06, 1.3, name="wide")  # first onset at 24.7 deg
     assert wide.onset_cra_deg(1.4) > 22
     res = _calibrate(_flats(wide, seed=5), wide)
     assert res.model == "none" and not res.lens.has_vignetting
@@ -193,7 +193,7 @@ def test_pixel_vignetting_needs_a_second_circle():
     # the pixel's acceptance circle sits on the pixel: h = x, radius x tan(22 deg)
     assert abs(second["distance_mm"] / 21.0 - 1) < 0.05
     assert abs(second["radius_mm"] / (21.0 * np.tan(np.deg2rad(22.0))) - 1) < 0.05
-    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.02
+    assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.02
 
 
 # -- the pieces, each against something computed independently ------------------------------
@@ -243,8 +243,8 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     one = res.fits["one"]
     assert one.reduced_chi2 > 2.0 and abs(one.params["h_mm"] / 16.991 - 1) > 0.02
     assert res.method == "onset-ratio" and "misfits" in res.reason
-    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
-    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][1] / 16.991 - 1) < 0.01
 
 
 def test_block_average_against_numpy_reshape():
@@ -267,12 +267,12 @@ def test_block_average_against_numpy_reshape():
 def test_reference_cut_off_inside_the_field():
     # h >= x lens whose f/8 reference is fully cut off from 13.7 deg: past that the ratios are
     # noise over noise and must not count.
-    lens = Lens("short tube", 21.0, 6.0, 30.0, 0.0, 1.0)
+    lens = Lens(21.0, [(6.0, 30.0)], 0.0, 1.0, name="short tube")
     assert lens.cutoff_cra_deg(8.0) < 14
     res = _calibrate(_flats(lens, seed=12), lens)
     assert res.method == "joint" and res.fits["one"].reduced_chi2 < 1.5
-    assert abs(res.lens.vignetting_radius_mm / 6.0 - 1) < 0.01
-    assert abs(res.lens.vignetting_distance_mm / 30.0 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][0] / 6.0 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][1] / 30.0 - 1) < 0.01
 
 
 def test_optical_centre_outside_the_image():
@@ -284,8 +284,8 @@ def test_optical_centre_outside_the_image():
                          pupil_magnification=1.3)
     assert res.model == "one" and res.method == "joint"
     assert np.hypot(res.center_px[0] + 60, res.center_px[1] - 100) < 2
-    assert abs(res.lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
-    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][1] / 16.991 - 1) < 0.01
 
 
 def test_noise_model_measures_read_and_shot_noise():
@@ -307,7 +307,7 @@ def test_nan_in_the_dark_frame_masks_that_pixel():
     img, ok, var = clean_flat(flats[2.0], dark=dark)
     assert not ok[100, 200] and np.isfinite(var).all() and np.isfinite(img).all()
     res = _calibrate(flats, PAPER, dark=dark)
-    assert abs(res.lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    assert abs(res.lens.vignetting[0][1] / 16.991 - 1) < 0.01
 
 
 def test_bad_library_inputs_are_value_errors():

@@ -53,8 +53,8 @@ def test_demo_writes_figure_table_and_summary(tmp_path, capsys):
     for name in ("calibration.png", "spectra.png", "maps.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
     lens = Lens.load(out / "lens.toml")  # the profile calibrated from the simulated flats
-    assert abs(lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
-    assert abs(lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    assert abs(lens.vignetting[0][0] / 7.4236 - 1) < 0.01
+    assert abs(lens.vignetting[0][1] / 16.991 - 1) < 0.01
     # The paper's findings (Sec. 3.3-3.4), from the simulated experiment: at f/1.4 the
     # uncorrected spectra differ little, the ideal-aperture model over-corrects (worse than
     # none), the vignetting model aligns them best; at f/8 the two models agree.

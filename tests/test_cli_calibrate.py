@@ -9,7 +9,7 @@ import pytest
 from snapcorr import Lens
 from snapcorr.simulate import flat_field
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 SHAPE, PITCH = (256, 256), 44.0  # the angles of a 2048 x 2048, 5.5 um sensor
 CENTRE = (140.2, 118.9)
 OPTICS = ["--exit-pupil-mm", "21", "--pixel-pitch-um", str(PITCH), "--magnification", "0.06",
@@ -69,8 +69,8 @@ def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
     assert res.returncode == 0, res.stderr
     assert "mean of 3 bands" in res.stderr and "wrote lens.toml and lens.png" in res.stdout
     lens = Lens.load(flats / "lens.toml")
-    assert abs(lens.vignetting_radius_mm / 7.4236 - 1) < 0.01
-    assert abs(lens.vignetting_distance_mm / 16.991 - 1) < 0.01
+    assert abs(lens.vignetting[0][0] / 7.4236 - 1) < 0.01
+    assert abs(lens.vignetting[0][1] / 16.991 - 1) < 0.01
     cal = lens.calibration
     assert cal["pixel_pitch_um"] == PITCH and cal["dark"] == "dark.npy"
     assert cal["bands"] == "mean of the bands in each file"

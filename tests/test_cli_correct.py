@@ -11,7 +11,7 @@ from snapcorr import Lens
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, make_cube, read_dataset, write_cube
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 
 
 def run(*args, cwd):

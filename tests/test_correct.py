@@ -12,8 +12,8 @@ from snapcorr.correct.resample import resample_to_nominal
 from snapcorr.cube import Sensor, make_cube, mosaic_to_cube
 from snapcorr.data import sensor_path
 
-PAPER = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
-H_GE_X = Lens("long tube", 21.0, 6.5, 27.0, 0.06, 1.3)
+PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
+H_GE_X = Lens(21.0, [(6.5, 27.0)], 0.06, 1.3, name="long tube")
 
 
 def _sensor(n=6, pitch=40.0, n_eff=1.7):
@@ -41,10 +41,10 @@ def test_cra_map_by_hand():
 def test_centre_from_the_lens_calibration_only_for_the_same_pitch():
     s = _sensor(pitch=40.0)
     cube = _cube(s)
-    lens = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3,
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="cal",
                 calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 40.0})
     assert cube_cra_deg(cube, lens, s)[1:] == ((3.0, 4.0), "lens calibration")
-    other = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3,
+    other = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="cal",
                  calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
     # another pitch and no image size to match the areas: refused, never the image centre
     with pytest.raises(PlacementError, match="--center-px"):
@@ -78,8 +78,8 @@ def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
         yy, xx, b = rng.integers(0, 60), rng.integers(0, 70), rng.integers(0, 4)
         t = np.hypot(xx + 10.0, yy - 5.0) * 0.080 / x
         bf, _ = brute_force_mean(s.cwl_nm[b], s.n_eff[b], x, R, x * t,
-                                     lens.vignetting_radius_mm,
-                                     lens.vignetting_distance_mm * t, N=1200)
+                                     lens.vignetting[0][0],
+                                     lens.vignetting[0][1] * t, N=1200)
         got = float(ds["wavelength_corrected"].values[yy, xx, b])
         cra = float(ds["cra_deg"].values[yy, xx])
         exact = s.cwl_nm[b] + float(mean_shift(s.cwl_nm[b], s.n_eff[b], f, cra, lens,
@@ -240,7 +240,7 @@ def test_a_mosaic_cube_without_positions_is_refused_not_put_at_one_place():
 
 def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres():
     cal = {"center_px": [1047.3, 998.6], "pixel_pitch_um": 5.5, "image_size_px": [2048, 2048]}
-    lens = Lens("cal", 21.0, 7.4236, 16.991, 0.06, 1.3, calibration=cal)
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, calibration=cal, name="cal")
     binned = Sensor("binned", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
     cra, (cx, cy), source = cube_cra_deg(_cube(binned, ny=1024, nx=1024), lens, binned)
     # pixel i spans [i, i + 1) pitches: the centre 1047.3 px of 5.5 um is at 5.76290 mm,

@@ -13,7 +13,7 @@ def test_exit_pupil_radius_eq27_28(edmund):
     R = edmund.exit_pupil_radius_mm([1.4, 2, 2.8, 4])
     assert_allclose(R, [7.1715, 5.0201, 3.5858, 2.5100], rtol=4e-4)
     assert_allclose(
-        Lens("x", 21.0, magnification=0.06, pupil_magnification=1.31).exit_pupil_radius_mm(
+        Lens(21.0, magnification=0.06, pupil_magnification=1.31, name="x").exit_pupil_radius_mm(
             [1.4, 2, 2.8, 4]
         ),
         [7.1715, 5.0201, 3.5858, 2.5100],
@@ -28,10 +28,10 @@ def test_onset_satisfies_eq25(edmund):
 
 
 def test_onset_cases():
-    assert Lens("ideal", 20.0).onset_cra_deg(2.0) == np.inf
-    small = Lens("P<R", 20.0, 3.0, 15.0)
+    assert Lens(20.0, name="ideal").onset_cra_deg(2.0) == np.inf
+    small = Lens(20.0, [(3.0, 15.0)], name="P<R")
     assert small.onset_cra_deg(1.4) == 0.0  # vignetted on axis
-    assert Lens("h=0", 20.0, 30.0, 0.0).onset_cra_deg(2.0) == np.inf
+    assert Lens(20.0, [(30.0, 0.0)], name="h=0").onset_cra_deg(2.0) == np.inf
 
 
 def test_toml_round_trip(tmp_path, edmund):
@@ -73,7 +73,9 @@ def test_toml_schema_keys(tmp_path):
     [
         dict(exit_pupil_mm=0),
         dict(exit_pupil_mm=np.nan),
-        dict(vignetting_radius_mm=-1, vignetting_distance_mm=5),
+        dict(vignetting=[(-1, 5)]),
+        dict(vignetting=[(7.0, np.inf)]),
+        dict(vignetting=[{"radius_mm": 7.0}]),
         dict(pupil_magnification=0),
         dict(magnification=-0.1),
     ],
@@ -100,11 +102,75 @@ def test_overlap_of_two_discs_is_eq33_and_relative_illumination_uses_it():
                                atol=1e-12)
     assert overlap_area_mm2([1.0, 1.0], [0.0, 0.0]) == pytest.approx(np.pi)
     assert overlap_area_mm2([1.0, 1.0], [0.0, 2.5]) == 0.0
-    lens = Lens("E", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="E")
     cra = np.linspace(0, 40, 81)
     R14 = lens.exit_pupil_radius_mm(1.4)
     direct = vignetted_area_mm2(R14, 7.4236, 16.991 * np.tan(np.deg2rad(cra))) / (np.pi * R14**2)
     np.testing.assert_allclose(lens.relative_illumination(1.4, cra), direct, atol=1e-12)
-    assert np.all(Lens("ideal", 21.0).relative_illumination(2.0, cra) == 1.0)
+    assert np.all(Lens(21.0, name="ideal").relative_illumination(2.0, cra) == 1.0)
     with pytest.raises(ValueError, match="one centre per radius"):
         overlap_area_mm2([1.0, 2.0], [0.0])
+
+
+def test_several_circles_load_and_save_as_lens_vignetting_tables(tmp_path):
+    path = tmp_path / "three.toml"
+    path.write_text(
+        "[lens]\nexit_pupil_mm = 21.0\n\n"
+        "[[lens.vignetting]]\nradius_mm = 7.4236\ndistance_mm = 16.991\n\n"
+        "[[lens.vignetting]]\nradius_mm = 9.0\ndistance_mm = 21.0\n\n"
+        "[[lens.vignetting]]\nradius_mm = 12.0\ndistance_mm = -4.0\n")
+    lens = Lens.load(path)
+    assert lens.vignetting == ((7.4236, 16.991), (9.0, 21.0), (12.0, -4.0))
+    assert lens.name == "" and lens.magnification == 0.0
+    again = lens.save(tmp_path / "again.toml")
+    assert again.read_text().count("[[lens.vignetting]]") == 3
+    assert Lens.load(again) == lens
+    assert Lens(21.0, vignetting=[(7.4236, 16.991), (9.0, 21.0), (12.0, -4.0)]) == lens
+
+
+def test_the_single_circle_keys_still_load_and_save_in_the_new_form(tmp_path):
+    old = tmp_path / "old.toml"
+    old.write_text('[lens]\nname = "E"\nexit_pupil_mm = 21.0\nvignetting_radius_mm = 7.4236\n'
+                   "vignetting_distance_mm = 16.991\n")
+    lens = Lens.load(old)
+    assert lens.vignetting == ((7.4236, 16.991),)
+    text = lens.save(tmp_path / "new.toml").read_text()
+    assert "[[lens.vignetting]]" in text and "vignetting_radius_mm" not in text
+    both = tmp_path / "both.toml"
+    both.write_text(old.read_text()
+                    + "\n[[lens.vignetting]]\nradius_mm = 9.0\ndistance_mm = 30.0\n")
+    with pytest.raises(ValueError, match="not both"):
+        Lens.load(both)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[lens]\nexit_pupil_mm = 21.0\n\n[[lens.vignetting]]\nradius_mm = 9.0\n")
+    with pytest.raises(ValueError, match="radius_mm and distance_mm"):
+        Lens.load(bad)
+    bad.write_text("[lens]\nexit_pupil_mm = 21.0\nvignetting = 3\n")
+    with pytest.raises(ValueError, match=r"\[\[lens.vignetting\]\]"):
+        Lens.load(bad)
+
+
+def test_python_mistakes_get_a_hint():
+    with pytest.raises(TypeError, match=r"vignetting=\[\(7.0, 16.0\)\]"):
+        Lens(21.0, (7.0, 16.0))
+    with pytest.raises(TypeError, match="name is a keyword"):
+        Lens("Edmund", 21.0)
+    with pytest.raises(TypeError, match="boolean"):
+        Lens(21.0, [(True, 16.0)])
+
+
+def test_several_circles_onsets_cutoff_and_description():
+    lens = Lens(21.0, [(7.4236, 16.991), (9.0, 30.0), (6.0, 0.0)], name="three")
+    R = float(lens.exit_pupil_radius_mm(2.8))
+    on = lens.circle_onsets_cra_deg(2.8)
+    assert on[0] == pytest.approx(np.rad2deg(np.arctan((7.4236 - R) / 16.991)))
+    assert on[1] == pytest.approx(np.rad2deg(np.arctan((9.0 - R) / 30.0)))
+    assert on[2] == np.inf  # a stop larger than the pupil never cuts it
+    assert lens.onset_cra_deg(2.8) == pytest.approx(on[:2].min())
+    assert Lens(21.0, [(3.0, 0.0)]).onset_cra_deg(2.8) == 0.0  # a stop smaller: cut on axis
+    # the first pair to come apart: the two moving circles (|30 - 16.991| tan = 7.42 + 9)
+    pairs = [(R + 7.4236) / 16.991, (R + 9.0) / 30.0, (7.4236 + 9.0) / (30.0 - 16.991),
+             (7.4236 + 6.0) / 16.991, (9.0 + 6.0) / 30.0]
+    assert lens.cutoff_cra_deg(2.8) == pytest.approx(np.rad2deg(np.arctan(min(pairs))))
+    assert "3 circles" in lens.describe_vignetting()
+    assert Lens(21.0).describe_vignetting() == "no vignetting circle"

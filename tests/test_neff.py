@@ -75,7 +75,7 @@ def test_kernel_mean_tracks_centroid_not_peak():
     move by the kernel mean; its peak lags far behind (it stays with the on-axis rays)."""
     theta = np.arange(0, 30.1, 5.0)
     n_eff = fit_n_eff(theta, [_peak("2H", t) for t in theta]).n_eff
-    lens = Lens("ideal", 21.0)
+    lens = Lens(21.0, name="ideal")
     f, cra = 1.4, 15.0
     mu, w = kernel_bins(DESIGN, n_eff, f, cra, lens, step_nm=1.0)
     aoi = aoi_from_shift_deg(np.clip(mu, None, 0), DESIGN, n_eff)

@@ -12,7 +12,7 @@ from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, flatfield, make_cube
 from snapcorr.quicklook import plot_correction, plot_flatfield
 
-LENS = snapcorr.Lens("Edmund", 21.0, 7.4236, 16.991, 0.06, 1.3)
+LENS = snapcorr.Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund")
 SENSOR = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
 NY, NX, NB = 24, 32, 5
 

@@ -88,7 +88,7 @@ def test_rienstra_temperature_factor_scales_wavelengths():
     # acts; the curve's centroid scales by it.
     prof = Tabulated(P_GRID * 5, MultiLorentzian(3500.0, 60.0)(P_GRID * 5), n_eff=2.037)
     w, t = prof.wavelength_nm, prof.transmission
-    lens = Lens("cold shield", 100.0)
+    lens = Lens(100.0, name="cold shield")
     out = filter_response(
         w,
         t,
@@ -123,7 +123,7 @@ def test_no_light_and_dirac_kernels(edmund):
         with pytest.raises(ValueError, match="cut"):
             filter_response(P_GRID, T, cra_deg=cut + 1, method=method, **kw)
     # A nearly collimated beam: the response is the curve shifted by Eq. 3, not zeros.
-    lens = Lens("ideal", 21.0)
+    lens = Lens(21.0, name="ideal")
     out = filter_response(P_GRID, T, cwl_nm=700.0, n_eff=1.7, f_number=1e6, cra_deg=10.0,
                           lens=lens)
     assert_allclose(centroid(P_GRID, out) - centroid(P_GRID, T),

@@ -14,9 +14,9 @@ from snapcorr.simulate import (
     relative_illumination_map,
 )
 
-EDMUND = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)  # h < x
-H_GE_X = Lens("h>=x", 21.0, 9.0, 30.0, 0.0, 1.0)
-NO_VIGNETTING = Lens("no vignetting", 21.0)
+EDMUND = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")  # h < x
+H_GE_X = Lens(21.0, [(9.0, 30.0)], 0.0, 1.0, name="h>=x")
+NO_VIGNETTING = Lens(21.0, name="no vignetting")
 PITCH_UM = 5.5  # 2048 pixels: an 11.3 mm wide sensor
 
 
@@ -122,7 +122,7 @@ def test_pixel_vignetting_area_against_a_grid_count(lens, f_number, acceptance_d
     x = lens.exit_pupil_mm
     R = float(lens.exit_pupil_radius_mm(f_number))
     rho = x * math.tan(math.radians(acceptance_deg))
-    P, h = lens.vignetting_radius_mm, lens.vignetting_distance_mm
+    P, h = lens.vignetting[0] if lens.vignetting else (None, None)
     for j in range(n):
         t = pitch_mm * j / x
         expected = three_disc_grid_count(R, P, None if P is None else h * t, rho, x * t)
@@ -134,7 +134,8 @@ def test_pixel_vignetting_area_against_a_grid_count(lens, f_number, acceptance_d
 
 
 @pytest.mark.parametrize("lens", [EDMUND, H_GE_X, NO_VIGNETTING,
-                                  Lens("h<0", 21.0, 6.0, -5.0), Lens("h=x", 21.0, 7.5, 21.0)],
+                                  Lens(21.0, [(6.0, -5.0)], name="h<0"),
+                                  Lens(21.0, [(7.5, 21.0)], name="h=x")],
                          ids=lambda lens: lens.name)
 def test_radial_interpolation_is_within_1e_6_of_the_exact_per_pixel_value(lens):
     shape = (90, 120)

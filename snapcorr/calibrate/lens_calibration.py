@@ -145,8 +145,7 @@ class LensCalibration:
         lens = self.lens
         if lens.has_vignetting:
             lines.append(f"chosen: {self.method}, {_CIRCLES[self.model]}: "
-                         f"P = {lens.vignetting_radius_mm:.4f} mm, "
-                         f"h = {lens.vignetting_distance_mm:.3f} mm")
+                         f"{lens.describe_vignetting()}")
         else:
             lines.append(f"chosen: no optical vignetting up to {self.max_cra_deg:.1f} deg "
                          "(the ideal-aperture model suffices)")
@@ -232,8 +231,7 @@ class LensCalibration:
         if self.reference_f_number is None:
             return None
         circles = []
-        if lens.has_vignetting:
-            circles.append((lens.vignetting_radius_mm, lens.vignetting_distance_mm))
+        circles.extend(lens.vignetting)
         second = self.lens.calibration.get("second_circle")
         if second:
             circles.append((second["radius_mm"], second["distance_mm"]))
@@ -347,8 +345,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             raise ValueError(f"center_px must be finite, got {center_px!r}")
         center_px = (cx, cy)
     items = _check_inputs(flats, dark)
-    base = Lens(name, exit_pupil_mm, magnification=magnification,
-                pupil_magnification=pupil_magnification)
+    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name)
     if len(items) == 1 and vignetting_distance_mm is None:
         raise ValueError(
             f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
@@ -548,7 +545,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
                              f"{of.h_mm:.4g} mm, which is not a lens; use the joint fit")
         lens_P, lens_h = of.P_mm, of.h_mm
         model = "one"
-    lens = Lens(name, x, lens_P, lens_h, magnification, pupil_magnification)
+    circles = [(lens_P, lens_h)] if lens_P is not None else []
+    lens = Lens(x, circles, magnification, pupil_magnification, name=name)
     result = LensCalibration(
         lens=lens, method=used, model=model,
         reason=reason, f_numbers=fs, reference_f_number=None if single else float(fs[ref]),
@@ -558,7 +556,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     calibration = _calibration_table(result, inputs)
     if second is not None:
         calibration["second_circle"] = second
-    result.lens = Lens(name, x, lens_P, lens_h, magnification, pupil_magnification,
+    result.lens = Lens(x, circles, magnification, pupil_magnification, name=name,
                        calibration=calibration)
     return result
 

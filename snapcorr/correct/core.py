@@ -33,8 +33,8 @@ DEFAULT_TOLERANCE_NM = 0.01
 
 
 def _ideal_lens(lens):
-    return Lens(lens.name, lens.exit_pupil_mm, None, None, lens.magnification,
-                lens.pupil_magnification)
+    return Lens(lens.exit_pupil_mm, (), lens.magnification, lens.pupil_magnification,
+                name=lens.name)
 
 
 def choose_method(lens, f_number, cra_max_deg, cwl_nm, n_eff, tolerance_nm):
@@ -243,8 +243,8 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
         "source": f"snapcorr {__version__} correct",
         "Conventions": "CF-1.10",
-        "lens": lens.name, "lens_P_mm": lens.vignetting_radius_mm or "none",
-        "lens_h_mm": lens.vignetting_distance_mm or "none",
+        "lens": lens.name,
+        "lens_vignetting_mm": [list(c) for c in lens.vignetting] or "none",
         "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
         "method_requested": method, "tolerance_nm": float(tolerance_nm),
         "optical_center_px": [float(center[0]), float(center[1])],

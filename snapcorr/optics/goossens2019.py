@@ -38,6 +38,7 @@ from functools import cache
 
 import numpy as np
 
+from . import discs
 from .pupil import (
     gamma,
     lens_area,
@@ -130,6 +131,18 @@ def _validate_geometry(x_mm, R_mm, d_mm, P_mm, dv_mm):
     return np.where(flip, -F, F), rho1, rho2, np.abs(v)
 
 
+def circle_list(P_mm, dv_mm):
+    """The vignetting circles as ``[(P, d_v), ...]``: none (``P_mm=None``), one (array-likes)
+    or several (``P_mm`` and ``dv_mm`` lists with one entry per circle)."""
+    if P_mm is None:
+        return []
+    if isinstance(P_mm, (list, tuple)):
+        if not isinstance(dv_mm, (list, tuple)) or len(dv_mm) != len(P_mm):
+            raise ValueError("give one circle centre dv_mm per radius P_mm")
+        return list(zip(P_mm, dv_mm, strict=True))
+    return [(P_mm, dv_mm)]
+
+
 def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, nodes=None):
     """Exact kernel mean, Eq. (22), by Gauss-Legendre on the vignetted pupil's boundary.
 
@@ -139,8 +152,9 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
         Filter central wavelength (nm) and effective index.
     x_mm, R_mm, d_mm : array_like
         Exit-pupil distance, exit-pupil radius (Eq. 28) and pixel distance from the axis (Eq. 8).
-    P_mm, dv_mm : array_like, optional
-        Vignetting-circle radius and centre ``d_v = h tan(CRA)`` (Eq. 9). ``None``: ideal aperture.
+    P_mm, dv_mm : array_like or list of array_like, optional
+        Vignetting-circle radius and centre ``d_v = h tan(CRA)`` (Eq. 9); lists of one entry
+        per circle for several circles. ``None``: ideal aperture.
     nodes : int, optional
         Gauss-Legendre nodes per arc (default :data:`DEFAULT_NODES`).
 
@@ -152,8 +166,31 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     Raises
     ------
     PupilCutOffError
-        Where the vignetting circle leaves no part of the pupil.
+        Where the vignetting circles leave no part of the pupil.
     """
+    circles = circle_list(P_mm, dv_mm)
+    if len(circles) > 1:
+        return _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes)
+    P_mm, dv_mm = circles[0] if circles else (None, None)
+    return _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes)
+
+
+def _cut_off(count):
+    return PupilCutOffError(
+        f"the vignetting circles cut off the whole exit pupil for {count} input(s): no light "
+        "reaches those pixels, so their filter shift is undefined. Restrict the chief-ray "
+        "angles to below Lens.cutoff_cra_deg(f_number)."
+    )
+
+
+def _point_mean(s_mid, n):
+    """Relative shift at one point (a pupil thinner than ``_TINY_EXTENT``)."""
+    q = s_mid / ((1.0 + s_mid) * n * n)
+    return -q / (1.0 + np.sqrt(1.0 - q))
+
+
+def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes):
+    """The pupil and at most one vignetting circle: two arcs, found in closed form."""
     n = check_n_eff(n_eff)
     F, rho1, rho2, v = _validate_geometry(x_mm, R_mm, d_mm, P_mm, dv_mm)
     shape = np.broadcast_shapes(F.shape, np.shape(cwl_nm), n.shape)
@@ -161,11 +198,7 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     beta, alpha = lens_boundary_arcs(rho1, rho2, v)
     area = lens_area(rho1, rho2, beta, alpha)
     if np.any(area <= 0):
-        raise PupilCutOffError(
-            f"the vignetting circle cuts off the whole exit pupil for {int(np.sum(area <= 0))} "
-            "input(s): no light reaches those pixels, so their filter shift is undefined. "
-            "Restrict the chief-ray angles to below Lens.cutoff_cra_deg(f_number)."
-        )
+        raise _cut_off(int(np.sum(area <= 0)))
     # Subtract Psi at a point inside the vignetted pupil (the middle of its extent along the
     # axis): the constant part integrates exactly (to 2 A Psi_ref), and the remainder stays
     # small where the boundary terms cancel -- slivers near the full cut-off and pupils far
@@ -199,9 +232,49 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     # while the contour terms would cancel to their last digits.
     tiny = (np.minimum(rho1, v + rho2) - np.maximum(-rho1, v - rho2)) < _TINY_EXTENT
     if np.any(tiny):
-        s_mid = (x_mid[tiny] - F[tiny]) ** 2
-        q = s_mid / ((1.0 + s_mid) * n[tiny] ** 2)
-        mean[tiny] = -q / (1.0 + np.sqrt(1.0 - q))
+        mean[tiny] = _point_mean((x_mid[tiny] - F[tiny]) ** 2, n[tiny])
+    return (np.broadcast_to(cwl_nm, shape).ravel() * mean).reshape(shape)
+
+
+def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes):
+    """The pupil and several vignetting circles: the boundary is a chain of arcs
+    (:func:`~snapcorr.optics.discs.boundary`), each integrated as in the two-disc case."""
+    n = check_n_eff(n_eff)
+    x = np.asarray(x_mm, float)
+    args = [np.asarray(d_mm, float) / x, np.asarray(R_mm, float) / x]
+    for P, dv in circles:
+        args += [np.asarray(P, float) / x, np.asarray(dv, float) / x]
+    shape = np.broadcast_shapes(*(a.shape for a in args), np.shape(cwl_nm), n.shape)
+    flat = [np.broadcast_to(a, shape).ravel() for a in (*args, n)]
+    F, rho = flat[0], flat[1]
+    rad = [rho, *flat[2:-1:2]]
+    cen = [np.zeros_like(rho), *flat[3:-1:2]]
+    n = flat[-1]
+    xi, w = _gauss_legendre(nodes or DEFAULT_NODES)
+    mean = np.empty(F.shape)
+    for lo_i in range(0, F.size, _CONTOUR_CHUNK):  # bounded memory for any input size
+        sl = slice(lo_i, lo_i + _CONTOUR_CHUNK)
+        radii, centres, Fs, ns = [a[sl] for a in rad], [a[sl] for a in cen], F[sl], n[sl]
+        b = discs.boundary(radii, centres)
+        rk, ck, t_right, t_left = discs.arc_angles(b, radii, centres)
+        area = discs.upper_area(b, rk, t_right, t_left)
+        if np.any(area <= 0):
+            raise _cut_off(int(np.sum(area <= 0)))
+        x_mid = 0.5 * (b.lo + b.hi)
+        psi_ref = shift_potential((x_mid - Fs) ** 2, ns)
+        half = 0.5 * (t_left - t_right)  # (pieces, n)
+        t = t_right[..., None] + half[..., None] * (1.0 + xi)
+        e = (ck - Fs)[..., None]
+        rr = rk[..., None]
+        c = np.cos(t)
+        s = (e + rr * c) ** 2 + (rr * np.sin(t)) ** 2
+        integrand = (shift_potential(s, ns[:, None]) - psi_ref[:, None]) * (rr * rr + rr * e * c)
+        rest = np.sum(half * (integrand @ w), axis=0)
+        m = -(2.0 * psi_ref + rest / area)
+        tiny = (b.hi - b.lo) < _TINY_EXTENT
+        if np.any(tiny):
+            m[tiny] = _point_mean((x_mid[tiny] - Fs[tiny]) ** 2, ns[tiny])
+        mean[sl] = m
     return (np.broadcast_to(cwl_nm, shape).ravel() * mean).reshape(shape)
 
 
@@ -288,16 +361,24 @@ def mean_shift_riemann(
     Eq. (37). The cost grows with the kernel width divided by the step.
     """
     n = check_n_eff(n_eff)
+    circles = circle_list(P_mm, dv_mm)
+    flat_circles = [v for c in circles for v in c]
     arrays = np.broadcast_arrays(
-        *(np.asarray(a, float) for a in (cwl_nm, n, x_mm, R_mm, d_mm)),
-        *(np.asarray(a, float) for a in ((P_mm, dv_mm) if P_mm is not None else (0.0, 0.0))),
-    )
+        *(np.asarray(a, float) for a in (cwl_nm, n, x_mm, R_mm, d_mm, *flat_circles)))
     shape = arrays[0].shape
-    cwl, n, x, R, d, P, dv = (a.ravel() for a in arrays)
-    vign = P_mm is not None
+    cwl, n, x, R, d = (a.ravel() for a in arrays[:5])
+    Ps, dvs = [a.ravel() for a in arrays[5::2]], [a.ravel() for a in arrays[6::2]]
+
+    def circle_args(sel):  # the kernel's P_mm, dv_mm for the elements sel
+        if not circles:
+            return None, None
+        if len(circles) == 1:
+            return Ps[0][sel], dvs[0][sel]
+        return [P[sel] for P in Ps], [dv[sel] for dv in dvs]
+
     # App. B's limits; the exact r_max (equal to Eq. 44 wherever Eq. 44 holds) is also right
     # when the vignetting circle sits wholly inside the pupil.
-    rmax = max_radius_mm(d, R, dv if vign else None, P if vign else None)
+    rmax = max_radius_mm(d, R, *circle_args(slice(None))[::-1])
     s2max = np.sin(np.arctan(rmax / x)) ** 2 / n**2
     lam_min = -cwl * s2max / (1.0 + np.sqrt(1.0 - s2max))  # Eq. (45)
     out = np.empty_like(cwl)
@@ -310,8 +391,7 @@ def mean_shift_riemann(
         lam = lam_min[sl, None] + k * step_nm
         inside = lam < 0
         args = [a[sl, None] for a in (cwl, n, x, R, d)]
-        extra = (P[sl, None], dv[sl, None]) if vign else (None, None)
-        K = kernel(lam, *args, *extra) * inside
+        K = kernel(lam, *args, *circle_args((sl, None))) * inside
         norm = np.sum(K, axis=1)
         if np.any(norm <= 0):
             raise ValueError(

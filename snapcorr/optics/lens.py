@@ -10,7 +10,7 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,56 +33,85 @@ def _finite(name, value, *, positive=False):
     return v
 
 
+def _circles(vignetting):
+    """``vignetting`` as a tuple of ``(P, h)`` float pairs, checked."""
+    if vignetting is None:
+        return ()
+    if isinstance(vignetting, (str, bytes, dict)) or not hasattr(vignetting, "__iter__"):
+        raise TypeError(f"vignetting must be a list of (P, h) pairs in mm, got {vignetting!r}")
+    items = list(vignetting)
+    if len(items) == 2 and all(isinstance(v, (int, float, np.number)) for v in items):
+        raise TypeError(f"vignetting is a list of (P, h) pairs: write vignetting=[{tuple(items)}]"
+                        " for one circle")
+    out = []
+    for i, c in enumerate(items):
+        if isinstance(c, dict):
+            unknown = set(c) - {"radius_mm", "distance_mm"}
+            missing = {"radius_mm", "distance_mm"} - set(c)
+            if unknown or missing:
+                raise ValueError(f"vignetting circle {i + 1} needs exactly radius_mm and "
+                                 f"distance_mm (got {sorted(c)})")
+            c = (c["radius_mm"], c["distance_mm"])
+        try:
+            P, h = c
+        except (TypeError, ValueError):
+            raise TypeError(f"vignetting circle {i + 1} must be a (P, h) pair in mm, got {c!r}")\
+                from None
+        out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True),
+                    _finite(f"vignetting circle {i + 1} distance_mm (h)", h)))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class Lens:
-    """An objective lens described by its exit pupil and (optionally) one vignetting circle.
+    """An objective lens as its filters see it: exit pupil and projected vignetting circles.
 
     Parameters
     ----------
-    name : str
-        Human-readable name.
     exit_pupil_mm : float
         Distance x from the sensor to the exit-pupil plane, mm.
-    vignetting_radius_mm, vignetting_distance_mm : float, optional
-        Radius P and distance h of the projected vignetting circle (variable-cone model,
-        Goossens 2019 Fig. 3). Give both, or neither for a lens without optical vignetting.
-        ``h`` may be any finite number; ``h >= x`` and ``h < x`` are the two regimes of Eq. (18).
+    vignetting : sequence of (P, h), optional
+        Radius P and distance h (mm) of each projected vignetting circle (variable-cone model,
+        Goossens 2019 Fig. 3): circle ``i`` is centred at ``h_i tan(CRA)`` in the exit-pupil
+        plane (Eq. 9). ``h`` may be any finite number: ``h > x`` and ``h < x`` are the two
+        regimes of Eq. (18), ``h = x`` is pixel vignetting, ``h = 0`` a stop (a circle that does
+        not move) and ``h < 0`` a circle moving against the chief ray. Empty: no optical
+        vignetting.
     magnification : float
         Linear magnification m (0: focused at infinity).
     pupil_magnification : float
         Pupil magnification m_P (> 0).
+    name : str, optional
+        Human-readable name.
     calibration : dict, optional
         Free-form record of how the profile was obtained (the ``[calibration]`` table of a lens
         file). Kept as-is through load/save; not used in computations.
 
     Examples
     --------
-    >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
     >>> round(float(lens.exit_pupil_radius_mm(1.4)), 4)  # the paper's Eq. 30 prints 7.1715
     7.1691
+    >>> rear = Lens(21.0, [(7.4236, 16.991), (9.0, 30.0)], 0.06, 1.3)
+    >>> rear.circle_onsets_cra_deg(2.8).round(2)
+    array([12.73, 10.23])
     """
 
-    name: str
     exit_pupil_mm: float
-    vignetting_radius_mm: float | None = None
-    vignetting_distance_mm: float | None = None
+    vignetting: tuple = ()
     magnification: float = 0.0
     pupil_magnification: float = 1.0
-    calibration: dict = field(default_factory=dict, compare=False, repr=False)
+    name: str = field(default="", kw_only=True)
+    calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
+        if isinstance(self.exit_pupil_mm, str):
+            raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
+                            "name is a keyword argument: Lens(x, ..., name='...'))")
         set_(self, "name", str(self.name))
         set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True))
-        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
-        if (P is None) != (h is None):
-            raise ValueError(
-                "give both vignetting_radius_mm (P) and vignetting_distance_mm (h), or neither "
-                f"for a lens without optical vignetting (got P={P!r}, h={h!r})."
-            )
-        if P is not None:
-            set_(self, "vignetting_radius_mm", _finite("vignetting_radius_mm", P, positive=True))
-            set_(self, "vignetting_distance_mm", _finite("vignetting_distance_mm", h))
+        set_(self, "vignetting", _circles(self.vignetting))
         m = _finite("magnification", self.magnification)
         if m < 0:
             raise ValueError(f"magnification must be >= 0 (its magnitude), got {m}")
@@ -97,8 +126,8 @@ class Lens:
     # -- optics ---------------------------------------------------------------------------
     @property
     def has_vignetting(self) -> bool:
-        """True if the lens has a vignetting circle (P and h)."""
-        return self.vignetting_radius_mm is not None
+        """True if the lens has at least one vignetting circle."""
+        return bool(self.vignetting)
 
     def working_f_number(self, f_number):
         """Working f-number, Eq. (27): ``(1 + m / m_P) * f_number``."""
@@ -115,85 +144,146 @@ class Lens:
         """Half-cone angle of the image-side light cone, ``arctan(R / x)``, degrees."""
         return np.rad2deg(np.arctan(1.0 / (2.0 * self.working_f_number(f_number))))
 
-    def onset_cra_deg(self, f_number):
-        """Chief-ray angle where optical vignetting starts, Eq. (24)-(25) and (46).
-
-        ``arctan((P - R) / h)``; 0 where ``P < R`` (vignetted on axis); ``inf`` for a lens
-        without vignetting or where the circle never moves (``h == 0`` with ``P >= R``).
+    def pupil_discs(self, f_number, cra_deg):
+        """Radii and centres (mm, along the pixel's radial line) of the exit pupil and every
+        vignetting circle, Eq. (8)-(9) and (28): ``[R, P_1, ...]`` and ``[0, h_1 tan(CRA), ...]``.
         """
+        R = self.exit_pupil_radius_mm(f_number)
+        t = np.tan(np.deg2rad(np.asarray(cra_deg, float)))
+        if not np.all(np.isfinite(t)):
+            raise ValueError("cra_deg must be finite and inside (-90, 90) degrees")
+        radii = [R] + [P for P, _ in self.vignetting]
+        centres = [np.zeros_like(t)] + [h * t for _, h in self.vignetting]
+        return radii, centres
+
+    def vignetting_args(self, tan_cra):
+        """The circles as the ``P_mm, dv_mm`` arguments of the kernel functions
+        (:mod:`~snapcorr.optics.goossens2019`) at ``tan(CRA)``: ``None, None`` without a circle,
+        two arrays for one, two lists (one entry per circle) for several."""
+        t = np.asarray(tan_cra, float)
+        if not self.vignetting:
+            return None, None
+        if len(self.vignetting) == 1:
+            P, h = self.vignetting[0]
+            return P, h * t
+        return [P for P, _ in self.vignetting], [h * t for _, h in self.vignetting]
+
+    def describe_vignetting(self) -> str:
+        """The circles in a few words: ``"P = 7.4236 mm, h = 16.991 mm"`` for one."""
+        if not self.vignetting:
+            return "no vignetting circle"
+        if len(self.vignetting) == 1:
+            P, h = self.vignetting[0]
+            return f"P = {P:.6g} mm, h = {h:.6g} mm"
+        return f"{len(self.vignetting)} circles (P, h) = " + ", ".join(
+            f"({P:.6g}, {h:.6g})" for P, h in self.vignetting) + " mm"
+
+    def circle_onsets_cra_deg(self, f_number):
+        """Chief-ray angle where each circle starts to cut the pupil, Eq. (24)-(25) and (46).
+
+        ``arctan((P_i - R) / |h_i|)``; 0 where ``P_i < R`` (cut on axis); ``inf`` where the circle
+        never cuts (``h_i = 0`` with ``P_i >= R``). Shape ``(n_circles, *shape(f_number))``.
+        """
+        R = np.asarray(self.exit_pupil_radius_mm(f_number))
+        out = np.empty((len(self.vignetting), *R.shape))
+        for i, (P, h) in enumerate(self.vignetting):
+            with np.errstate(divide="ignore", over="ignore"):
+                on = np.rad2deg(np.arctan((P - R) / abs(h))) if h else np.full(R.shape, np.inf)
+            out[i] = np.where(P < R, 0.0, on)
+        return out
+
+    def onset_cra_deg(self, f_number):
+        """Chief-ray angle where optical vignetting starts: the first circle's onset
+        (:meth:`circle_onsets_cra_deg`); ``inf`` for a lens without vignetting."""
         R = self.exit_pupil_radius_mm(f_number)
         if not self.has_vignetting:
             return np.full(np.shape(R), np.inf)[()]
-        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
-        with np.errstate(divide="ignore", over="ignore"):
-            on = np.where(P < R, 0.0, np.rad2deg(np.arctan((P - R) / abs(h))) if h else np.inf)
-        return on[()]
+        return np.min(self.circle_onsets_cra_deg(f_number), axis=0)[()]
 
     def is_vignetted(self, f_number, cra_deg):
-        """True where the vignetting circle cuts the pupil: ``P < R`` or CRA past the onset."""
-        if not self.has_vignetting:
-            return np.zeros(np.broadcast_shapes(np.shape(f_number), np.shape(cra_deg)), bool)
-        R = self.exit_pupil_radius_mm(f_number)
+        """True where a vignetting circle cuts the pupil: ``P_i < R`` or CRA past its onset."""
         cra = np.abs(np.asarray(cra_deg, float))
-        return (R > self.vignetting_radius_mm) | (cra > self.onset_cra_deg(f_number))
+        shape = np.broadcast_shapes(np.shape(f_number), cra.shape)
+        if not self.has_vignetting:
+            return np.zeros(shape, bool)
+        return np.broadcast_to(cra > self.onset_cra_deg(f_number), shape) | np.broadcast_to(
+            np.asarray(self.onset_cra_deg(f_number)) == 0.0, shape)
 
     def relative_illumination(self, f_number, cra_deg):
-        """Fraction of the exit pupil left by the vignetting circle (optical vignetting only).
+        """Fraction of the exit pupil left by the vignetting circles (optical vignetting only).
 
-        ``A / (pi R^2)`` with ``A`` the vignetted-pupil area, Eq. (33)-(35); 1 for a lens without
-        vignetting. Natural (cos^4) and pixel vignetting are not included.
+        ``A / (pi R^2)`` with ``A`` the area common to the pupil and every circle (Eq. 33-35
+        for one circle, :func:`~snapcorr.optics.pupil.overlap_area_mm2` for any number); 1 for a
+        lens without vignetting. Natural (cos^4) vignetting is not included.
 
         Examples
         --------
-        >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+        >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3)
         >>> lens.relative_illumination(1.4, [0.0, 10.0]).round(3)
         array([1.   , 0.766])
         """
         from .pupil import overlap_area_mm2
 
-        R = self.exit_pupil_radius_mm(f_number)
-        t = np.tan(np.deg2rad(np.asarray(cra_deg, float)))
-        if not np.all(np.isfinite(t)):
-            raise ValueError("cra_deg must be finite and inside (-90, 90) degrees")
+        radii, centres = self.pupil_discs(f_number, cra_deg)
+        R = radii[0]
         if not self.has_vignetting:
-            return np.ones(np.broadcast_shapes(np.shape(R), t.shape))[()]
-        area = overlap_area_mm2([R, self.vignetting_radius_mm],
-                                [0.0, self.vignetting_distance_mm * t])
-        return area / (np.pi * R * R)
+            return np.ones(np.broadcast_shapes(np.shape(R), centres[0].shape))[()]
+        return (overlap_area_mm2(radii, centres) / (np.pi * R * R))[()]
 
     def cutoff_cra_deg(self, f_number):
-        """Chief-ray angle beyond which the pupil is fully cut off: ``arctan((P + R) / |h|)``."""
-        R = self.exit_pupil_radius_mm(f_number)
-        if not self.has_vignetting or self.vignetting_distance_mm == 0:
-            return np.full(np.shape(R), np.inf)[()]
-        P, h = self.vignetting_radius_mm, self.vignetting_distance_mm
-        with np.errstate(over="ignore"):
-            return np.rad2deg(np.arctan((P + R) / abs(h)))[()]
+        """Chief-ray angle beyond which no light passes: the first pair of discs (pupil and
+        circles) to come apart, ``arctan((r_i + r_j) / |h_i - h_j|)``."""
+        R = np.asarray(self.exit_pupil_radius_mm(f_number))
+        discs = [(R, 0.0), *list(self.vignetting)]
+        out = np.full(R.shape, np.inf)
+        for i, (ri, hi) in enumerate(discs):
+            for rj, hj in discs[i + 1:]:
+                if hi != hj:
+                    with np.errstate(over="ignore"):
+                        out = np.minimum(out, np.rad2deg(np.arctan((ri + rj) / abs(hi - hj))))
+        return out[()]
 
     # -- files ----------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """The ``[lens]`` table as a dict (optional keys left out when unset)."""
+        """The ``[lens]`` table as a dict: one ``[[lens.vignetting]]`` table per circle."""
         d = {"name": self.name, "exit_pupil_mm": self.exit_pupil_mm}
         if self.has_vignetting:
-            d["vignetting_radius_mm"] = self.vignetting_radius_mm
-            d["vignetting_distance_mm"] = self.vignetting_distance_mm
+            d["vignetting"] = [{"radius_mm": P, "distance_mm": h} for P, h in self.vignetting]
         d["magnification"] = self.magnification
         d["pupil_magnification"] = self.pupil_magnification
         return d
 
     @classmethod
     def from_dict(cls, table: dict, *, calibration: dict | None = None) -> Lens:
-        """Build a lens from a ``[lens]`` table; unknown keys are an error."""
-        known = {f for f in asdict(cls("x", 1.0)) if f != "calibration"}
-        unknown = set(table) - known
+        """Build a lens from a ``[lens]`` table; unknown keys are an error.
+
+        A single circle may also be given by the keys ``vignetting_radius_mm`` and
+        ``vignetting_distance_mm`` (the form of earlier profiles).
+        """
+        single = {"vignetting_radius_mm", "vignetting_distance_mm"}
+        known = {"name", "exit_pupil_mm", "vignetting", "magnification", "pupil_magnification"}
+        unknown = set(table) - known - single
         if unknown:
-            raise ValueError(
-                f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are {sorted(known)}"
-            )
-        missing = {"name", "exit_pupil_mm"} - set(table)
-        if missing:
-            raise ValueError(f"[lens] is missing required key(s) {sorted(missing)}")
-        return cls(**table, calibration=calibration or {})
+            raise ValueError(f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are "
+                             f"{sorted(known)} (or {sorted(single)} for one circle)")
+        if "exit_pupil_mm" not in table:
+            raise ValueError("[lens] is missing required key(s) ['exit_pupil_mm']")
+        args = {k: v for k, v in table.items() if k not in single}
+        given = single & set(table)
+        if given:
+            if "vignetting" in table:
+                raise ValueError("give the vignetting circles either as [[lens.vignetting]] "
+                                 f"tables or as {sorted(single)}, not both")
+            if given != single:
+                raise ValueError(f"give both {sorted(single)} for one circle, or neither "
+                                 f"(got only {sorted(given)})")
+            args["vignetting"] = [(
+                _finite("vignetting_radius_mm", table["vignetting_radius_mm"], positive=True),
+                _finite("vignetting_distance_mm", table["vignetting_distance_mm"]))]
+        if "vignetting" in args and not isinstance(args["vignetting"], list):
+            raise ValueError("[lens] vignetting must be [[lens.vignetting]] tables with "
+                             "radius_mm and distance_mm")
+        return cls(**args, calibration=calibration or {})
 
     @classmethod
     def load(cls, path) -> Lens:
@@ -207,9 +297,14 @@ class Lens:
     def save(self, path, *, overwrite=False) -> Path:
         """Write the profile as TOML, atomically (temporary file, then rename).
 
-        Refuses to replace an existing file unless ``overwrite=True``.
+        Each circle is a ``[[lens.vignetting]]`` table. Refuses to replace an existing file
+        unless ``overwrite=True``.
         """
-        doc = {"lens": self.to_dict()}
+        table = self.to_dict()
+        circles = table.pop("vignetting", [])
+        parts = [{"lens": table}]
+        parts += [f"[[lens.vignetting]]\nradius_mm = {c['radius_mm']!r}\n"
+                  f"distance_mm = {c['distance_mm']!r}\n" for c in circles]
         if self.calibration:
-            doc["calibration"] = self.calibration
-        return write_toml(path, doc, overwrite=overwrite)
+            parts.append({"calibration": self.calibration})
+        return write_toml(path, parts, overwrite=overwrite)

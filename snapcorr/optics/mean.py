@@ -66,10 +66,7 @@ def _geometry(f_number, cra_deg, lens):
     x = lens.exit_pupil_mm
     R = lens.exit_pupil_radius_mm(f_number)
     tan_cra = np.tan(np.deg2rad(np.abs(cra)))
-    d = x * tan_cra
-    if lens.has_vignetting:
-        return x, R, d, lens.vignetting_radius_mm, lens.vignetting_distance_mm * tan_cra
-    return x, R, d, None, None
+    return (x, R, x * tan_cra, *lens.vignetting_args(tan_cra))
 
 
 def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens):
@@ -226,7 +223,7 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     Examples
     --------
     >>> from snapcorr import Lens, mean_shift
-    >>> lens = Lens("Edmund Optics 16 mm", 21.0, 7.4236, 16.991, 0.06, 1.3)
+    >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
     >>> mean_shift(700.0, 1.7, 1.4, [0.0, 20.0], lens).round(3)
     array([-6.593, -8.954])
     """

@@ -17,6 +17,8 @@ import itertools
 
 import numpy as np
 
+from .discs import arc_half_angle, extreme_radii
+
 __all__ = [
     "eta",
     "gamma",
@@ -71,8 +73,12 @@ def gamma(r_mm, d_mm, R_mm, dv_mm=None, P_mm=None, *, h_ge_x=None):
     """Half-angle of the contributing arc, Eq. (18).
 
     ``max(eta - nu, 0)`` for ``h >= x`` and ``min(eta, nu)`` for ``h < x``; ``eta`` alone
-    without a vignetting circle (``P_mm=None``). ``h_ge_x`` defaults to ``d_v >= d``.
+    without a vignetting circle (``P_mm=None``). ``h_ge_x`` defaults to ``d_v >= d``. With
+    several circles (``P_mm`` and ``dv_mm`` lists) the arc kept by all of them
+    (:func:`~snapcorr.optics.discs.arc_half_angle`).
     """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return arc_half_angle(r_mm, d_mm, [R_mm, *P_mm], [0.0, *dv_mm])
     e = eta(r_mm, d_mm, R_mm)
     if P_mm is None:
         return e
@@ -86,8 +92,11 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
     """Area of the vignetted exit pupil, Eq. (33)-(35).
 
     ``A = P^2 (alpha - sin alpha cos alpha) + R^2 (beta - sin beta cos beta)``. With
-    ``d_v = 0`` the limits of Eq. (34)-(35) give the smaller disc.
+    ``d_v = 0`` the limits of Eq. (34)-(35) give the smaller disc. With several circles
+    (``P_mm`` and ``dv_mm`` lists), :func:`overlap_area_mm2` of all of them.
     """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return overlap_area_mm2([R_mm, *P_mm], [0.0, *dv_mm])
     R, P, dv = (np.asarray(v, float) for v in (R_mm, P_mm, dv_mm))
     dv = np.abs(dv)
     alpha = _re_arccos(P * P - R * R + dv * dv, 2.0 * P * dv)
@@ -186,7 +195,10 @@ def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     The farthest point lies on the boundary (:func:`lens_boundary_arcs`): on an arc of a circle
     with centre ``c`` and radius ``rho`` the distance ``|c - d + rho e^{it}|`` is monotonic in
     ``t`` on ``[0, pi]``, so it peaks at an end of the arc. Zero where the pupil is cut off.
+    ``P_mm`` and ``dv_mm`` may be lists, one entry per circle.
     """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[1]
     d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
     if P_mm is None:
         return np.abs(d) + R
@@ -210,6 +222,8 @@ def min_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     region the nearest point is on its boundary, at an end of an arc (see
     :func:`max_radius_mm`).
     """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[0]
     d, R = np.abs(np.asarray(d_mm, float)), np.asarray(R_mm, float)
     if P_mm is None:
         return np.maximum(d - R, 0.0)

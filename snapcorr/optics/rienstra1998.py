@@ -68,8 +68,9 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     step_deg : float
         Angle increment ``Delta theta``.
     lens : Lens, optional
-        With a vignetting circle, ``alpha_j`` becomes ``gamma`` (Goossens Eq. 18) and
-        ``pi A^2`` the vignetted area; the bundle geometry then comes from the lens (units x).
+        With vignetting circles, ``alpha_j`` becomes ``gamma`` (Goossens Eq. 18; for several
+        circles the arc kept by all) and ``pi A^2`` the vignetted area; the bundle geometry
+        then comes from the lens (units x).
 
     Returns
     -------
@@ -86,7 +87,11 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     vign = lens is not None and lens.has_vignetting
     if vign:
         x = lens.exit_pupil_mm
-        P, dv = lens.vignetting_radius_mm / x, lens.vignetting_distance_mm / x * D
+        P, dv = lens.vignetting_args(D)  # mm at tan(CRA) = D; to units of x below
+        if isinstance(P, list):
+            P, dv = [p / x for p in P], [v / x for v in dv]
+        else:
+            P, dv = P / x, dv / x
         r_max = float(max_radius_mm(D, A, dv, P))
     else:
         r_max = A + D
@@ -101,7 +106,7 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
         area = vignetted_area_mm2(A, P, dv)
         if area <= 0:
             raise PupilCutOffError(
-                f"at CRA {cra_deg} deg the vignetting circle cuts off the whole bundle; "
+                f"at CRA {cra_deg} deg the vignetting circles cut off the whole bundle; "
                 "no light reaches the filter"
             )
     else:

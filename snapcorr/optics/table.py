@@ -95,11 +95,15 @@ class ShiftTable:
         cra_max = max(float(cra_max_deg), min(1.0, 0.999 * cutoff))
         x, R = lens.exit_pupil_mm, float(lens.exit_pupil_radius_mm(f_number))
         breaks = [0.0, cra_max]
-        if lens.has_vignetting and lens.vignetting_distance_mm != 0:
-            P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
-            kink = float(np.rad2deg(np.arctan(abs(P - R) / h)))
-            if 0 < kink < cra_max:
-                breaks.append(kink)
+        # Where two discs (the pupil and a circle, or two circles) touch inside each other the
+        # boundary changes its arcs: a kink in the mean (the onsets of Eq. 46 among them).
+        discs = [(R, 0.0), *lens.vignetting]
+        for i, (ri, hi) in enumerate(discs):
+            for rj, hj in discs[i + 1:]:
+                if hi != hj:
+                    kink = float(np.rad2deg(np.arctan(abs(ri - rj) / abs(hi - hj))))
+                    if 0 < kink < cra_max:
+                        breaks.append(kink)
         breaks = np.unique(breaks)
         grid = [
             np.linspace(a, b, max(3, int(np.ceil((b - a) / _INITIAL_STEP_DEG)) + 1))
@@ -109,19 +113,11 @@ class ShiftTable:
 
         def exact(c):
             tan_c = np.tan(np.deg2rad(c))
-            d = x * tan_c
-            if lens.has_vignetting:
-                P, h = lens.vignetting_radius_mm, lens.vignetting_distance_mm
-                return g19.mean_shift_contour(1.0, n_eff, x, R, d, P, h * tan_c, nodes=nodes)
-            return g19.mean_shift_contour(1.0, n_eff, x, R, d, nodes=nodes)
+            return g19.mean_shift_contour(1.0, n_eff, x, R, x * tan_c,
+                                          *lens.vignetting_args(tan_c), nodes=nodes)
 
-        g19._check_validity(
-            x,
-            R,
-            x * np.tan(np.deg2rad(cra_max)),
-            lens.vignetting_radius_mm,
-            (lens.vignetting_distance_mm or 0.0) * np.tan(np.deg2rad(cra_max)),
-        )
+        top = np.tan(np.deg2rad(cra_max))
+        g19._check_validity(x, R, x * top, *lens.vignetting_args(top))
         vals = exact(cra)
         tol_rel = 0.5 * tolerance_nm / cwl_max_nm
         nodes_c, nodes_v = [cra], [vals]
@@ -256,12 +252,16 @@ class ShiftGrid:
         """
         R = 0.5 * lens.exit_pupil_mm * a
         top = np.tan(np.deg2rad(cra_max))
-        if lens.has_vignetting and lens.vignetting_distance_mm != 0:
-            P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
-            k = np.abs(P - R) / h
-            U = np.minimum(top, (P + R) / h * (1.0 - _CUTOFF_MARGIN))
-        else:
-            k = U = np.full(np.shape(a), top)
+        k = U = np.full(np.shape(a), top)
+        # the first onset (Eq. 46) over all circles, and the first full cut-off of any pair
+        for P, h in lens.vignetting:
+            if h != 0:
+                k = np.minimum(k, np.abs(P - R) / abs(h))
+        discs = [(R, 0.0), *lens.vignetting]
+        for i, (ri, hi) in enumerate(discs):
+            for rj, hj in discs[i + 1:]:
+                if hi != hj:
+                    U = np.minimum(U, (ri + rj) / abs(hi - hj) * (1.0 - _CUTOFF_MARGIN))
         return np.minimum(k, U), U
 
     @staticmethod
@@ -303,16 +303,20 @@ class ShiftGrid:
         """Values of ``a`` in ``(a_lo, a_hi)`` where the frame has a kink: ``P = R``, and where
         the onset or the full cut-off crosses ``cra_max``."""
         out = []
-        if lens.has_vignetting and lens.vignetting_distance_mm != 0:
-            P, h = lens.vignetting_radius_mm, abs(lens.vignetting_distance_mm)
-            x = lens.exit_pupil_mm
-            top = np.tan(np.deg2rad(cra_max))
+        x = lens.exit_pupil_mm
+        top = np.tan(np.deg2rad(cra_max))
+        moving = [(P, abs(h)) for P, h in lens.vignetting if h != 0]
+        for P, h in moving:
             # R = x a / 2 equal to: P (onset at 0); P -+ h top (onset at cra_max); and
             # h top / (1 - margin) - P (cut-off at cra_max).
-            for R_k in (P, P - h * top, P + h * top, h * top / (1.0 - _CUTOFF_MARGIN) - P):
-                if R_k > 0:
-                    out.append(2 * R_k / x)
-        return sorted(k for k in out if a_lo < k < a_hi)
+            out += [P, P - h * top, P + h * top, h * top / (1.0 - _CUTOFF_MARGIN) - P]
+        # where two circles' onsets cross, the first onset changes circle
+        for (P1, h1), (P2, h2) in itertools.combinations(moving, 2):
+            for s1, s2 in itertools.product((1.0, -1.0), repeat=2):
+                den = s2 * h1 - s1 * h2
+                if den != 0:
+                    out.append((s2 * P2 * h1 - s1 * P1 * h2) / den)
+        return sorted(2 * R_k / x for R_k in out if R_k > 0 and a_lo < 2 * R_k / x < a_hi)
 
     def _u(self, a):
         return np.interp(a, self.a_breaks, self.a_break_nodes.astype(float))
@@ -334,11 +338,8 @@ class ShiftGrid:
         def exact(a, xi):
             k, U = cls._frame(lens, a, cra_max_deg)
             t = cls._from_xi(xi, k, U)
-            R = 0.5 * x * a
-            if lens.has_vignetting:
-                P, h = lens.vignetting_radius_mm, lens.vignetting_distance_mm
-                return g19.mean_shift_contour(1.0, n_eff, x, R, x * t, P, h * t)
-            return g19.mean_shift_contour(1.0, n_eff, x, R, x * t)
+            return g19.mean_shift_contour(1.0, n_eff, x, 0.5 * x * a, x * t,
+                                          *lens.vignetting_args(t))
 
         breaks = np.array([a_lo, *cls._kinks(lens, a_lo, a_hi, cra_max_deg), a_hi])
         na, nx = _GRID_START
@@ -396,10 +397,8 @@ class ShiftGrid:
         if np.any(bad):  # failed cells and CRAs past the grid's top: the exact method, once
             lens, tb = self.lens, t[bad]
             x = lens.exit_pupil_mm
-            P = lens.vignetting_radius_mm
-            dvv = None if P is None else lens.vignetting_distance_mm * tb
-            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, 0.5 * x * a[bad], x * tb, P,
-                                              dvv)
+            out[bad] = g19.mean_shift_contour(1.0, self.n_eff, x, 0.5 * x * a[bad], x * tb,
+                                              *lens.vignetting_args(tb))
         return (cwl.ravel() * out).reshape(cwl.shape)
 
     def _relative(self, a, t):
