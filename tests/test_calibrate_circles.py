@@ -1,0 +1,342 @@
+"""Lens calibration judged on flats from the independent simulator (tests/flatsim.py).
+
+The criterion is functional: the calibrated lens must predict the TRUE lens's mean filter
+shift (Goossens 2019, Eq. 22; ``mean_shift(..., method="vignetted")``, 1000 nm, n_eff 1.5)
+within 0.01 nm (one-circle truth) or 0.02 nm (two circles) at every chief-ray angle of the
+field (0 .. ``res.max_cra_deg``, where both lenses pass light) and at every f-number of the
+flats. Where a circle is identifiable (its onset, Eq. 24-25, inside the field at two or more
+f-numbers) its P and h must come out within 1 %. A stop-like circle (|h| < 0.05 x, or P within
+1 % of a pupil radius R_F with |h| < x / 4) that the truth does not have must never be chosen.
+
+The default run holds a handful of representative cases on 640 x 512 flats whose pixels are
+twice the pitch of the user's 1280 x 1024 sensor (the same chief-ray angles); the matrix over
+noise and seeds, and the user's full-size scene, are ``slow``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from flatsim import LensTruth, make_flats, mean_shift_nm, relative_illumination
+
+import snapcorr
+from snapcorr.calibrate import calibrate_lens
+
+X = 21.0
+CWL, N_EFF = 1000.0, 1.5
+F_NUMBERS = (2.0, 2.8, 4.0, 5.6, 11.0)
+FULL = dict(shape=(1024, 1280), pitch_um=7.1, center_px=(700.0, 480.0))
+HALF = dict(shape=(512, 640), pitch_um=14.2, center_px=(350.0, 240.0))  # same angles
+QUARTER = dict(shape=(256, 320), pitch_um=28.4, center_px=(174.75, 119.75))
+
+TRUTHS = {
+    # the paper's Edmund Optics 16 mm (Goossens 2019, Eq. 31): h < x
+    "one_h_lt_x": LensTruth(X, ((7.4236, 16.991),), 0.06, 1.3, name="one circle, h < x"),
+    # h > x: onsets at f/2, 2.8, 4 and 5.6 inside the field
+    "one_h_gt_x": LensTruth(X, ((9.5, 26.0),), 0.0, 1.0, name="one circle, h > x"),
+    "one_h_gt_x_m": LensTruth(X, ((9.5, 26.0),), 0.06, 1.3, name="one circle, h > x, m > 0"),
+    # a weak circle: it cuts only the outer field, at f/2 and f/2.8 (tan CRA 0.23 and 0.28)
+    "one_weak": LensTruth(X, ((12.0, 30.0),), 0.06, 1.3, name="one weak circle, h > x"),
+    # a front (h < x) and a rear (h > x) circle, each the one that cuts (its effective onset)
+    # inside the field at >= 2 f-numbers: the front one at f/2 and f/2.8, the rear one from
+    # f/2 to f/5.6 (tan CRA 0.08, 0.21 and 0.21-0.27; the field reaches 0.30)
+    "two_front_rear": LensTruth(X, ((6.2, 12.0), (10.0, 30.0)), 0.0, 1.0,
+                                name="front and rear circle"),
+    # front circle moving against the chief ray (h < 0) and a rear one: they cut opposite sides
+    "two_opposite": LensTruth(X, ((6.0, -8.0), (9.5, 30.0)), 0.0, 1.0,
+                              name="circles on opposite sides"),
+    # the paper's circle plus pixel vignetting (h = x): the paper's circle cuts first (f/2,
+    # f/2.8), the pixel's acceptance past tan CRA 0.27-0.29 (f/2-f/4)
+    "circle_pixel": LensTruth(X, ((7.4236, 16.991), (8.5, X)), 0.06, 1.3,
+                              name="circle plus pixel vignetting"),
+    # a circle whose onset lies outside the field at every f-number
+    "none_in_field": LensTruth(X, ((12.0, 17.0),), 0.06, 1.3, name="no circle in the field"),
+    "no_circle": LensTruth(X, (), 0.0, 1.0, name="no circle at all"),
+}
+
+
+# -- compatibility with the lens API before and after lenses took several circles ----------
+def make_lens(truth):
+    """The truth as a snapcorr.Lens, or None if this snapcorr cannot hold its circles."""
+    try:
+        return snapcorr.Lens(truth.exit_pupil_mm, vignetting=truth.circles,
+                             magnification=truth.magnification,
+                             pupil_magnification=truth.pupil_magnification, name=truth.name)
+    except TypeError:  # one-circle Lens(name, x, P, h, m, m_P)
+        if len(truth.circles) > 1:
+            return None
+        P, h = truth.circles[0] if truth.circles else (None, None)
+        return snapcorr.Lens(truth.name, truth.exit_pupil_mm, P, h, truth.magnification,
+                             truth.pupil_magnification)
+
+
+def lens_circles(lens):
+    v = getattr(lens, "vignetting", None)
+    if v is not None and not isinstance(v, (int, float)):
+        return tuple((float(P), float(h)) for P, h in v)
+    if lens.has_vignetting:
+        return ((float(lens.vignetting_radius_mm), float(lens.vignetting_distance_mm)),)
+    return ()
+
+
+# -- judging one calibration ----------------------------------------------------------------
+@dataclass
+class Outcome:
+    truth: LensTruth
+    noise: float
+    seed: int
+    model: str
+    circles: tuple
+    max_cra_deg: float
+    field_cra_deg: float
+    shift_error_nm: float
+    worst_at: tuple  # (f-number, CRA) of the largest error
+    circle_errors: list  # per identifiable true circle: (P err %, h err %) or None if missed
+    center_error_px: float
+    spurious: list
+    res: object
+
+    def describe(self):
+        errs = ", ".join("missed" if e is None else f"P {e[0]:+.3f} % h {e[1]:+.3f} %"
+                         for e in self.circle_errors)
+        circ = ", ".join(f"(P {P:.4f}, h {h:.3f})" for P, h in self.circles) or "none"
+        return (f"{self.truth.name} {self.truth.circles}, noise {100 * self.noise:g} %, seed "
+                f"{self.seed}: chose {self.model} -> {circ}; max |shift error| "
+                f"{self.shift_error_nm:.4f} nm at f/{self.worst_at[0]:g}, "
+                f"{self.worst_at[1]:.2f} deg; identifiable circles: {errs or '-'}; "
+                f"spurious: {self.spurious or '-'}; max CRA {self.max_cra_deg:.2f} "
+                f"(field {self.field_cra_deg:.2f}); centre off by {self.center_error_px:.2f} "
+                "px")
+
+
+def field_cra_deg(scene, x=X):
+    cx, cy = scene["center_px"]
+    rows, cols = scene["shape"]
+    corners = [(0, 0), (0, rows - 1), (cols - 1, 0), (cols - 1, rows - 1)]
+    rho = max(math.hypot(u - cx, v - cy) for u, v in corners) * scene["pitch_um"] * 1e-3
+    return math.degrees(math.atan(rho / x))
+
+
+def effective_onset_tan(truth, f_number, i, t_max=0.6, n=3001):
+    """Smallest tan(CRA) where circle ``i`` removes more than 0.1 % of the pupil that the pupil
+    and the other circles leave (inf if nowhere up to ``t_max``): a circle hidden behind
+    another one has no onset of its own."""
+    t = np.linspace(0.0, t_max, n)
+    others = LensTruth(truth.exit_pupil_mm,
+                       tuple(c for j, c in enumerate(truth.circles) if j != i),
+                       truth.magnification, truth.pupil_magnification)
+    cut = relative_illumination(others, f_number, t) - relative_illumination(truth, f_number, t)
+    k = np.nonzero(cut > 1e-3)[0]
+    return float(t[k[0]]) if k.size else np.inf
+
+
+def identifiable(truth, f_numbers, max_cra_deg):
+    """Indices of true circles whose (effective) onset lies inside the field at >= 2
+    f-numbers."""
+    t_max = math.tan(math.radians(max_cra_deg))
+    return [i for i in range(len(truth.circles))
+            if sum(effective_onset_tan(truth, f, i) < t_max for f in f_numbers) >= 2]
+
+
+def spurious_circles(circles, truth, f_numbers):
+    """Stop-like circles: |h| < 0.05 x, or P within 1 % of some R_F with |h| < x / 4."""
+    x = truth.exit_pupil_mm
+    R = [float(truth.pupil_radius_mm(f)) for f in f_numbers]
+    out = []
+    for P, h in circles:
+        near_R = min(abs(P - r) / r for r in R) < 0.01
+        if abs(h) < 0.05 * x or (near_R and abs(h) < 0.25 * x):
+            out.append((P, h))
+    return out
+
+
+def shift_error(truth, lens, f_numbers, max_cra_deg, n=121):
+    """Largest |mean-shift error| over 0..max CRA (where both lenses pass light) and f-numbers."""
+    true_lens = make_lens(truth)
+    got_truth = LensTruth(truth.exit_pupil_mm, lens_circles(lens), lens.magnification,
+                          lens.pupil_magnification)
+    cra = np.linspace(0.0, max_cra_deg, n)
+    t = np.tan(np.deg2rad(cra))
+    worst, at = 0.0, (f_numbers[0], 0.0)
+    for f in f_numbers:
+        lit = (relative_illumination(truth, f, t) > 1e-6) & (
+            relative_illumination(got_truth, f, t) > 1e-6)
+        c = cra[lit]
+        if c.size == 0:
+            continue
+        if true_lens is not None:
+            want = snapcorr.mean_shift(CWL, N_EFF, f, c, true_lens, method="vignetted")
+        else:
+            want = mean_shift_nm(truth, CWL, N_EFF, f, c)
+        got = snapcorr.mean_shift(CWL, N_EFF, f, c, lens, method="vignetted")
+        err = np.abs(np.asarray(got) - np.asarray(want))
+        i = int(np.argmax(err))
+        if err[i] > worst:
+            worst, at = float(err[i]), (f, float(c[i]))
+    return worst, at
+
+
+def calibrate(truth, *, noise, seed, scene=HALF, f_numbers=F_NUMBERS, **kw):
+    flats = make_flats(truth, f_numbers, noise=noise, seed=seed, **scene, **kw)
+    res = calibrate_lens(flats, exit_pupil_mm=truth.exit_pupil_mm,
+                         pixel_pitch_um=scene["pitch_um"], magnification=truth.magnification,
+                         pupil_magnification=truth.pupil_magnification)
+    circles = lens_circles(res.lens)
+    max_cra = float(res.max_cra_deg)
+    err, at = shift_error(truth, res.lens, f_numbers, max_cra)
+    circle_errors = []
+    for i in identifiable(truth, f_numbers, field_cra_deg(scene, truth.exit_pupil_mm)):
+        P, h = truth.circles[i]
+        best = None
+        for Pc, hc in circles:
+            e = (100 * (Pc / P - 1), 100 * (hc / h - 1))
+            if best is None or max(map(abs, e)) < max(map(abs, best)):
+                best = e
+        circle_errors.append(best)
+    spur = [c for c in spurious_circles(circles, truth, f_numbers)
+            if c not in [tuple(t) for t in truth.circles]]
+    centre = math.hypot(res.center_px[0] - scene["center_px"][0],
+                        res.center_px[1] - scene["center_px"][1])
+    return Outcome(truth, noise, seed, str(res.model), circles, max_cra,
+                   field_cra_deg(scene, truth.exit_pupil_mm), err, at, circle_errors, centre,
+                   spur, res)
+
+
+def check(out: Outcome):
+    tol = 0.01 if len(out.truth.circles) <= 1 else 0.02
+    msg = out.describe()
+    assert not out.spurious, "stop-like circle chosen: " + msg
+    assert out.shift_error_nm <= tol, msg
+    for e in out.circle_errors:
+        assert e is not None and abs(e[0]) <= 1.0 and abs(e[1]) <= 1.0, msg
+
+
+# -- the simulator and the package agree on the truth ---------------------------------------
+@pytest.mark.parametrize("key", ["one_h_lt_x", "one_h_gt_x_m", "two_front_rear",
+                                 "circle_pixel"])
+def test_truths_mean_shift_agrees_with_the_independent_quadrature(key):
+    truth = TRUTHS[key]
+    lens = make_lens(truth)
+    if lens is None:
+        pytest.skip("this snapcorr.Lens holds one vignetting circle only")
+    cra = np.linspace(0, 18, 37)
+    for f in F_NUMBERS:
+        lit = relative_illumination(truth, f, np.tan(np.deg2rad(cra))) > 1e-3
+        want = mean_shift_nm(truth, CWL, N_EFF, f, cra[lit])
+        got = snapcorr.mean_shift(CWL, N_EFF, f, cra[lit], lens, method="vignetted")
+        np.testing.assert_allclose(got, want, atol=1e-6, err_msg=f"{key} f/{f}")
+
+
+def test_field_covers_the_onsets():
+    """The scenes are built so that the circles named identifiable are so."""
+    fmax = field_cra_deg(HALF)
+    assert fmax == pytest.approx(field_cra_deg(FULL), abs=0.05)
+    assert identifiable(TRUTHS["one_h_lt_x"], F_NUMBERS, fmax) == [0]
+    assert identifiable(TRUTHS["one_h_gt_x"], F_NUMBERS, fmax) == [0]
+    assert identifiable(TRUTHS["two_front_rear"], F_NUMBERS, fmax) == [0, 1]
+    assert identifiable(TRUTHS["circle_pixel"], F_NUMBERS, fmax) == [0, 1]
+    assert identifiable(TRUTHS["two_opposite"], F_NUMBERS, fmax) == [0, 1]
+    assert identifiable(TRUTHS["one_weak"], F_NUMBERS, fmax) == [0]
+    assert identifiable(TRUTHS["none_in_field"], F_NUMBERS, fmax) == []
+
+
+# -- default run: a handful of representative cases -----------------------------------------
+@pytest.mark.parametrize("key, noise, seed", [
+    ("one_h_lt_x", 0.005, 0),
+    ("one_h_lt_x", 0.05, 3),
+    ("one_h_gt_x_m", 0.02, 2),
+    ("one_weak", 0.005, 0),
+    ("two_front_rear", 0.005, 0),
+    ("circle_pixel", 0.01, 0),
+    ("none_in_field", 0.02, 0),
+])
+def test_calibration_predicts_the_true_shift(key, noise, seed):
+    check(calibrate(TRUTHS[key], noise=noise, seed=seed))
+
+
+@pytest.mark.parametrize("key", ["one_h_gt_x", "one_h_gt_x_m"])
+def test_users_scene_chooses_no_stop_like_circle(key):
+    """The user's report: one circle with h > x, f/2-f/11, 0.5 % noise, off-centre axis.
+
+    Run on the half-size sensor of the same angles; the full 1280 x 1024 scene is in the slow
+    set."""
+    out = calibrate(TRUTHS[key], noise=0.005, seed=0)
+    assert not out.spurious, out.describe()
+    assert len(out.circles) == 1, out.describe()
+    check(out)
+
+
+# -- slow: the full matrix and the user's full-size scene -----------------------------------
+@pytest.mark.slow
+@pytest.mark.parametrize("key", ["one_h_gt_x", "one_h_gt_x_m"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_users_full_size_scene(key, seed):
+    out = calibrate(TRUTHS[key], noise=0.005, seed=seed, scene=FULL)
+    assert not out.spurious, out.describe()
+    assert len(out.circles) == 1, out.describe()
+    check(out)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("noise", [0.005, 0.01, 0.02, 0.05, 0.1])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("key", list(TRUTHS))
+def test_matrix(key, noise, seed):
+    check(calibrate(TRUTHS[key], noise=noise, seed=seed))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("key", ["one_h_lt_x", "two_front_rear"])
+def test_with_source_non_uniformity_dark_and_poisson(key):
+    out = calibrate(TRUTHS[key], noise=0.005, seed=5, source_amplitude=0.05, dark_dn=64.0,
+                    poisson_gain=2.0)
+    check(out)
+
+
+# -- standard errors: z-scores over seeds ----------------------------------------------------
+def fitted_with_stderr(res):
+    """[(P, sP, h, sh), ...] of the chosen joint-fit model, or None if not exposed."""
+    fit = getattr(res, "fits", {}).get(getattr(res, "model", None))
+    if fit is None or not getattr(fit, "stderr", None):
+        return None
+    out = {}
+    for k, v in fit.params.items():
+        m = re.fullmatch(r"([Ph])(\d*)_mm", k)
+        if m and k in fit.stderr:
+            out.setdefault(m.group(2) or "1", {})[m.group(1)] = (v, fit.stderr[k])
+    circles = [out[i] for i in sorted(out) if {"P", "h"} <= set(out[i])]
+    return [(c["P"][0], c["P"][1], c["h"][0], c["h"][1]) for c in circles] or None
+
+
+def zscores(key, noise, seeds, scene=HALF):
+    truth = TRUTHS[key]
+    z = []
+    for seed in seeds:
+        out = calibrate(truth, noise=noise, seed=seed, scene=scene)
+        fitted = fitted_with_stderr(out.res)
+        if fitted is None:
+            pytest.skip("the calibration exposes no standard errors of P and h")
+        for P, h in truth.circles:
+            Pc, sP, hc, sh = min(fitted, key=lambda c, P=P, h=h: abs(c[0] / P - 1)
+                                 + abs(c[2] / h - 1))
+            z += [(Pc - P) / sP, (hc - h) / sh]
+    return np.asarray(z)
+
+
+def test_standard_errors_are_honest():
+    z = zscores("one_h_gt_x", 0.02, range(5), scene=QUARTER)
+    rms = float(np.sqrt(np.mean(z**2)))
+    assert 0.5 <= rms <= 2.0, f"z-scores {np.round(z, 2)}, RMS {rms:.2f}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("key", ["one_h_lt_x", "one_h_gt_x", "two_front_rear",
+                                 "circle_pixel"])
+def test_standard_errors_are_honest_matrix(key):
+    z = zscores(key, 0.02, range(12))
+    rms = float(np.sqrt(np.mean(z**2)))
+    assert 0.5 <= rms <= 2.0, f"z-scores {np.round(z, 2)}, RMS {rms:.2f}"
