@@ -47,6 +47,7 @@ def _row(key, out, seconds):
         "worst_cra_deg": out.worst_at[1],
         "identifiable": len(out.circle_errors), "missed": sum(e is None for e in out.circle_errors),
         "max_Ph_error_pct": worst, "spurious": len(out.spurious),
+        "center_error_px": out.center_error_px, "pixel_shift_error_nm": out.pixel_error_nm,
         "seconds": round(seconds, 2),
     }
 
