@@ -2,8 +2,8 @@
 
 Flats come from the independent simulator ``tests/flatsim.py`` (it shares no code with
 snapcorr): five f-numbers f/2-f/11, each with its own exposure (+-20 %), the optical axis off
-the image centre, 640 x 512 pixels of 14.2 um (the chief-ray angles of a 1280 x 1024 sensor of
-7.1 um; field up to 16.7 deg), Gaussian noise of a given fraction of every pixel's signal. For
+the image centre, the user's 1280 x 1024 sensor (7.1 um pixels here: field up to 16.7 deg),
+Gaussian noise of a given fraction of every pixel's signal. For
 each truth, noise level and seed the calibrated lens is judged as ``tests/
 test_calibrate_circles.py`` judges it: the largest |mean-shift error| (Goossens 2019, Eq. 22,
 1000 nm filters, n_eff 1.5) over the field and the f-numbers against the true lens, the model
@@ -26,7 +26,7 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from flatsim import LensTruth, make_flats  # noqa: E402
-from test_calibrate_circles import HALF, TRUTHS, calibrate  # noqa: E402
+from test_calibrate_circles import FULL, TRUTHS, calibrate  # noqa: E402
 
 from snapcorr.calibrate import calibrate_lens  # noqa: E402
 
@@ -58,7 +58,7 @@ def noise_sweep(*, quick=False, echo=print, write=True):
         cases, noises, seeds = ("one_h_gt_x",), (0.01,), (0,)
         scene = dict(shape=(128, 160), pitch_um=56.8, center_px=(87.5, 60.0))
     else:
-        cases, noises, seeds, scene = CASES, NOISES, SEEDS, HALF
+        cases, noises, seeds, scene = CASES, NOISES, SEEDS, FULL
     rows = []
     echo(f"calibration with vignetting circles: {scene['shape'][1]} x {scene['shape'][0]} "
          f"flats of {scene['pitch_um']:g} um, f/2-f/11, {len(seeds)} seed(s); error = max "
