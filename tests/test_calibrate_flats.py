@@ -9,7 +9,7 @@ fewer pixels, so the statistical errors are about 4 times those of a full-size s
 import numpy as np
 import pytest
 
-from snapcorr import Lens
+from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, radial_profile
 from snapcorr.calibrate.flats import clean_flat, cra_deg_map
 from snapcorr.simulate import LampPlaque, flat_field
@@ -187,13 +187,22 @@ def test_flats_of_different_sizes_and_repeated_f_numbers():
 def test_pixel_vignetting_needs_a_second_circle():
     flats = _flats(PAPER, seed=8, pixel_acceptance_deg=22.0)
     res = _calibrate(flats, PAPER)
-    assert res.model == "two"
-    assert "second_circle" in res.lens.calibration
-    second = res.lens.calibration["second_circle"]
+    assert res.model == "two" and len(res.lens.vignetting) == 2  # the profile keeps both
+    (P1, h1), (P2, h2) = sorted(res.lens.vignetting, key=lambda c: c[1])
     # the pixel's acceptance circle sits on the pixel: h = x, radius x tan(22 deg)
-    assert abs(second["distance_mm"] / 21.0 - 1) < 0.05
-    assert abs(second["radius_mm"] / (21.0 * np.tan(np.deg2rad(22.0))) - 1) < 0.05
-    assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.02
+    assert abs(h2 / 21.0 - 1) < 0.01
+    assert abs(P2 / (21.0 * np.tan(np.deg2rad(22.0))) - 1) < 0.01
+    assert abs(P1 / 7.4236 - 1) < 0.01 and abs(h1 / 16.991 - 1) < 0.01
+    table = res.lens.calibration
+    assert table["joint_fit"]["two"]["chosen"] and not table["joint_fit"]["one"]["chosen"]
+    assert "one" in table["model_choice"]["models_tried"]
+    # the correction uses both circles: with the pixel's circle the mean shift moves
+    truth = Lens(21.0, [(7.4236, 16.991), (21.0 * np.tan(np.deg2rad(22.0)), 21.0)], 0.06, 1.3)
+    cra = np.linspace(0.0, res.max_cra_deg, 50)
+    got = mean_shift(1000.0, 1.5, 2.0, cra, res.lens, method="vignetted")
+    want = mean_shift(1000.0, 1.5, 2.0, cra, truth, method="vignetted")
+    one_circle = mean_shift(1000.0, 1.5, 2.0, cra, PAPER, method="vignetted")
+    assert np.max(np.abs(got - want)) < 0.02 < np.max(np.abs(one_circle - want))
 
 
 # -- the pieces, each against something computed independently ------------------------------

@@ -1,5 +1,6 @@
 """Lens characterisation from flat fields (Goossens et al. 2019, Sec. 2.7 and 3.2)."""
 
+from .choice import ModelVerdict
 from .flats import (
     RadialProfile,
     clean_flat,
@@ -18,6 +19,7 @@ __all__ = [
     "METHODS",
     "LensCalibration",
     "ModelFit",
+    "ModelVerdict",
     "Onset",
     "OnsetFit",
     "RadialProfile",

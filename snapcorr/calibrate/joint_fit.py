@@ -10,14 +10,14 @@ with ``A`` the fraction of the exit pupil (radius ``R_F``, Eq. 28) left by the v
 circle(s) (Goossens et al. 2019, Eq. 33; several circles via
 :func:`~snapcorr.optics.pupil.overlap_area_mm2`) and ``s_F`` the exposure ratio. The fit
 (scipy ``least_squares``) runs on block-averaged ratio images, weighted by their noise, with
-the ``s_F`` solved in closed form at each step. Three models are compared by the Bayesian
-information criterion: no vignetting circle (``s_F`` only), one circle (P, h, centre) and two
-circles (a second P, h: pixel vignetting is a circle with h = x).
+the ``s_F`` solved in closed form at each step. Models have no vignetting circle (``s_F``
+only), one circle (P, h, centre) and up to three (more P, h: pixel vignetting is a circle with
+h = x); :mod:`snapcorr.calibrate.choice` decides between them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -26,7 +26,13 @@ from ..optics.pupil import overlap_area_mm2
 
 __all__ = ["BlockData", "ModelFit", "block_average", "fit_model"]
 
-MODELS = ("none", "one", "two")
+MODELS = ("none", "one", "two", "three")
+#: Number of vignetting circles of each model.
+N_CIRCLES = {name: i for i, name in enumerate(MODELS)}
+#: Starting points are screened and run on about this many blocks before a final polish.
+SCREEN_BLOCKS = 3000
+#: Most evaluations of the polish on all blocks (from a minimum it takes a few).
+POLISH_NFEV = 60
 #: Relative floor added to the standard errors of P and h: the bias of evaluating the area
 #: model at block centres instead of averaging it over each block.
 SYSTEMATIC_REL = 1e-4
@@ -113,17 +119,26 @@ def _area_fraction(R, circles, t):
     return overlap_area_mm2(radii, centres) / (np.pi * R * R)
 
 
-def _circles(model, p):
-    if model == "none":
+def param_names(model):
+    """Parameter names of a model: circle 1, the optical centre, then circles 2, 3."""
+    n = N_CIRCLES[model]
+    if n == 0:
         return []
-    if model == "one":
-        return [(p[0], p[1])]
-    return [(p[0], p[1]), (p[4], p[5])]
+    return ["P_mm", "h_mm", "cx_px", "cy_px"] + [
+        name for i in range(2, n + 1) for name in (f"P{i}_mm", f"h{i}_mm")]
+
+
+def circles_of(model, p):
+    """The circles [(P, h), ...] of a model's parameter vector (see :func:`param_names`)."""
+    n = N_CIRCLES[model]
+    if n == 0:
+        return []
+    return [(p[0], p[1])] + [(p[2 * i], p[2 * i + 1]) for i in range(2, n + 1)]
 
 
 def model_ratio(data: BlockData, model, p, tan_cra):
     """Model ratio image(s) A_F / A_ref (times cos^4 for a single flat), shape (n_f, n)."""
-    circles = _circles(model, p)
+    circles = circles_of(model, p)
     tmax = float(np.max(tan_cra)) * 1.0001 + 1e-9
     n_grid = 1024
     grid = np.linspace(0.0, tmax, n_grid + 1)
@@ -131,14 +146,15 @@ def model_ratio(data: BlockData, model, p, tan_cra):
     pos = np.asarray(tan_cra) * (n_grid / tmax)
     i = np.minimum(pos.astype(np.int64), n_grid - 1)
     frac = pos - i
-    ref = None if data.R_ref_mm is None else _area_fraction(data.R_ref_mm, circles, grid)
-    m = np.empty((len(data.R_mm), np.size(tan_cra)))
-    for k, R in enumerate(data.R_mm):
-        a = _area_fraction(R, circles, grid)
-        if ref is not None:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                a = np.where(ref > 1e-9, a / np.where(ref > 1e-9, ref, 1.0), np.nan)
-        m[k] = a[i] + (a[i + 1] - a[i]) * frac
+    # every f-number (and the reference) in one call: the grid is small, the call overhead not
+    R = np.asarray(list(data.R_mm) + ([] if data.R_ref_mm is None else [data.R_ref_mm]))
+    a = _area_fraction(R[:, None], circles, grid[None, :])
+    a = np.broadcast_to(a, (R.size, grid.size))
+    if data.R_ref_mm is not None:
+        ref = a[-1]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = np.where(ref > 1e-9, a[:-1] / np.where(ref > 1e-9, ref, 1.0), np.nan)
+    m = a[:, i] + (a[:, i + 1] - a[:, i]) * frac
     if data.natural:
         m *= (1.0 + np.asarray(tan_cra) ** 2) ** -2  # cos^4
     return m
@@ -161,15 +177,35 @@ def _residuals(data, model, p, center):
     return np.where(ok, r, 10.0).ravel(), s
 
 
+def floor_chi2(data: BlockData, fit: ModelFit, floor_rel, center=None):
+    """Chi-square of a fit with a systematic floor: each block's variance is
+    ``sigma^2 + (floor_rel * q)^2``, the part of the misfit no area model removes (the source,
+    pupil aberrations, a model evaluated at block centres). With millions of pixels, any tiny
+    mismatch is "significant" against pixel noise alone; against the floor only a difference
+    the size of a real fall-off counts."""
+    p = [fit.params[k] for k in fit.names]
+    c = center if fit.model == "none" or center is not None else (p[2], p[3])
+    cx, cy = c if c is not None else (0.0, 0.0)
+    m = model_ratio(data, fit.model, p, _tan(data, cx, cy))
+    ok = np.isfinite(m)
+    r = np.where(ok, (data.q - fit.scales[:, None] * m), 10.0 * data.sigma)
+    var = data.sigma ** 2 + (floor_rel * data.q) ** 2
+    return float(np.sum(r * r / var))
+
+
 def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_nfev=60,
               keep=2):
     """Fit one model from several starting points; return the best :class:`ModelFit`.
 
+    The first circle's h is kept positive: mirroring every circle through the axis
+    (all h -> -h) leaves every area unchanged, so only the signs of the others relative to it
+    are seen. The others may have any sign.
+
     Parameters
     ----------
-    model : {"none", "one", "two"}
+    model : {"none", "one", "two", "three"}
     starts : list of sequences
-        Starting values: (P, h, cx, cy) for "one", plus (P2, h2) for "two".
+        Starting values: (P, h, cx, cy) for "one", plus (P2, h2) for "two", plus (P3, h3).
     center : (cx, cy), optional
         Keep the optical centre fixed here instead of fitting it.
     fixed_h : float, optional
@@ -183,19 +219,27 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     if model == "none":
         r, s = _residuals(data, "none", (), center or (0.0, 0.0))
         return ModelFit("none", {}, {}, None, (), float(r @ r), n, data.q.shape[0], s, True)
-    names = ["P_mm", "h_mm", "cx_px", "cy_px"] + (["P2_mm", "h2_mm"] if model == "two" else [])
+    names = param_names(model)
     free = [i for i, nm in enumerate(names)
             if not (center is not None and nm in ("cx_px", "cy_px"))
             and not (fixed_h is not None and nm == "h_mm")]
     x = data.x_mm
-    lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf, 1e-3, 1e-3])[: len(names)]
-    hi_all = np.array([20 * x, 20 * x, np.inf, np.inf, 20 * x, 20 * x])[: len(names)]
+    lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf] + [1e-3, -20 * x] * 2)[: len(names)]
+    hi_all = np.array([20 * x, 20 * x, np.inf, np.inf] + [20 * x, 20 * x] * 2)[: len(names)]
 
     def full(pf, base):
         p = np.array(base, float)
         p[free] = pf
         return p
 
+    # Starts are screened and run on every k-th block (about SCREEN_BLOCKS of them); the best
+    # is then polished on all blocks. The minimum barely moves with the subset, and this is
+    # where the time goes.
+    step = max(1, int(np.ceil(data.q.shape[1] / SCREEN_BLOCKS)))
+    screen = data if step == 1 else replace(
+        data, q=data.q[:, ::step], sigma=data.sigma[:, ::step], xpix=data.xpix[::step],
+        ypix=data.ypix[::step])
+    margin = np.where(np.isfinite(lo_all), 1e-4 * np.maximum(np.abs(lo_all), 1.0), 0.0)
     bases = []
     for start in starts:
         base = np.array(start, float)[: len(names)]
@@ -203,22 +247,29 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
             base[2:4] = center
         if fixed_h is not None:
             base[1] = fixed_h
-        base[free] = np.clip(base[free], lo_all[free] * 1.0001, hi_all[free] * 0.9999)
-        r = _residuals(data, model, base, center)[0]
+        base[free] = np.clip(base[free], (lo_all + margin)[free], (hi_all - margin)[free])
+        r = _residuals(screen, model, base, center)[0]
         bases.append((float(r @ r), base))
     bases.sort(key=lambda cb: cb[0])
     best = None
     for i, (_, base) in enumerate(bases[:keep]):
         p0 = base[free]
 
-        def fun(pf, base=base):
-            return _residuals(data, model, full(pf, base), center)[0]
+        def fun(pf, base=base, d=screen):
+            return _residuals(d, model, full(pf, base), center)[0]
 
         # the most promising start gets a longer run
         res = least_squares(fun, p0, bounds=(lo_all[free], hi_all[free]), x_scale="jac",
                             max_nfev=max_nfev * (3 if i == 0 else 1))
         if best is None or res.cost < best[0].cost:
             best = (res, base)
+    if step > 1:
+        res, base = best
+        p0 = np.clip(res.x, (lo_all + margin)[free], (hi_all - margin)[free])
+        res = least_squares(lambda pf: _residuals(data, model, full(pf, base), center)[0], p0,
+                            bounds=(lo_all[free], hi_all[free]), x_scale="jac",
+                            max_nfev=POLISH_NFEV)
+        best = (res, base)
     res, base = best
     p = full(res.x, base)
     r, s = _residuals(data, model, p, center)

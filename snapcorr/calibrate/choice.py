@@ -1,0 +1,197 @@
+"""Which vignetting model the flats support: rules a spurious circle cannot pass.
+
+Flat fields with millions of pixels make any tiny mismatch between the flats and the area
+model "significant" against pixel noise, so an information criterion on pixels alone will add
+circles that fit the mismatch: a stop (``h ~ 0``) with ``P`` equal to the fastest exit pupil,
+say, which only rescales one flat. The choice here therefore has three parts.
+
+1. **Identifiability** (:func:`check_circles`). A circle counts only if
+
+   - its onset (Eq. 24-25) lies inside the field at two or more f-numbers of the flats:
+     Eq. (26) needs two onsets to tell ``P`` from ``h``, and so do the flats;
+   - its ``P`` and ``h`` have finite standard errors below ``MAX_REL_ERROR`` of their values;
+   - its ``h`` is more than ``MIN_H_SIGMAS`` standard errors from 0: a circle that does not
+     move with the chief-ray angle changes the aperture, which the flats' exposure scales
+     absorb (and which the f-number already sets).
+
+   A model with any circle that fails is never chosen.
+2. **A criterion that allows for model error** (:func:`~snapcorr.calibrate.joint_fit.floor_chi2`).
+   The Bayesian information criterion is computed with each block's variance raised by a
+   systematic floor, ``(FLOOR_REL * q)^2``: a relative 0.1 % that no area model describes
+   (source, pupil aberrations, the model taken at block centres). A model with more circles
+   must lower that criterion by more than ``MIN_BIC_GAIN``.
+3. **Function, not parameters** (:func:`shift_difference_nm`). The profile serves the
+   wavelength correction, so a further circle is kept only where it moves the predicted mean
+   shift, somewhere in the field at some f-number of the flats, by more than the tolerance
+   (0.005 nm by default, for a filter at ``REFERENCE_CWL_NM`` with ``REFERENCE_N_EFF``, a
+   long wavelength and a low index: the largest shifts such cameras show). Otherwise the
+   simpler model is as good for correcting, and it is the one chosen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..optics.goossens2019 import PupilCutOffError
+from ..optics.lens import Lens
+from ..optics.mean import mean_shift
+from .joint_fit import N_CIRCLES, ModelFit, circles_of
+
+__all__ = [
+    "FLOOR_REL",
+    "MIN_BIC_GAIN",
+    "ModelVerdict",
+    "check_circles",
+    "choose",
+    "shift_difference_nm",
+]
+
+#: Relative systematic floor of the ratio images in the model criterion.
+FLOOR_REL = 1e-3
+#: A model with more circles must lower the floored BIC by more than this ("very strong").
+MIN_BIC_GAIN = 10.0
+#: A circle's P and h must have standard errors below this fraction of their values.
+MAX_REL_ERROR = 0.05
+#: A circle's |h| must exceed this many standard errors (else it is a change of aperture).
+MIN_H_SIGMAS = 5.0
+#: The filter the functional differences are stated for (nm, effective index).
+REFERENCE_CWL_NM = 1000.0
+REFERENCE_N_EFF = 1.5
+#: Default tolerance of the functional test, nm of mean shift.
+TOLERANCE_NM = 0.005
+_CRA_SAMPLES = 97
+
+
+@dataclass
+class ModelVerdict:
+    """What became of one model: chosen or rejected, and why."""
+
+    model: str
+    chosen: bool
+    why: str
+    bic_floor: float
+    reduced_chi2: float
+    problems: list = field(default_factory=list)
+
+    def as_table(self) -> dict:
+        return {"chosen": self.chosen, "why": self.why,
+                "bic_with_floor": _finite(self.bic_floor),
+                "reduced_chi2": _finite(self.reduced_chi2)}
+
+
+def _finite(v):
+    v = float(v)
+    return v if math.isfinite(v) else ("nan" if math.isnan(v) else "inf")
+
+
+def lens_of(fit: ModelFit, base: Lens) -> Lens:
+    """``base`` (exit pupil, magnifications) with the fit's circles."""
+    p = [fit.params[k] for k in fit.names]
+    return Lens(base.exit_pupil_mm, circles_of(fit.model, p), base.magnification,
+                base.pupil_magnification, name=base.name)
+
+
+def check_circles(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *, h_given=False):
+    """Reasons (a list of sentences) why the fit's circles are not identifiable; empty: all
+    are. With ``h`` given (one circle), one onset inside the field suffices."""
+    problems = []
+    p = [fit.params[k] for k in fit.names]
+    err = [fit.stderr[k] for k in fit.names]
+    names = list(fit.names)
+    lens = lens_of(fit, base)
+    onsets = lens.circle_onsets_cra_deg(np.asarray(f_numbers, float))
+    for i, (P, h) in enumerate(circles_of(fit.model, p)):
+        label = "P_mm" if i == 0 else f"P{i + 1}_mm"
+        sP = err[names.index(label)]
+        sh = err[names.index(label.replace("P", "h"))]
+        tag = f"circle {i + 1} (P {P:.4g} mm, h {h:.4g} mm)"
+        inside = int(np.sum(onsets[i] < max_cra_deg))
+        need = 1 if h_given else 2
+        if inside < need:
+            problems.append(f"{tag} starts cutting inside the field at {inside} f-number(s); "
+                            + ("one is needed" if h_given else "two are needed to tell P "
+                               "from h"))
+        if not (math.isfinite(sP) and math.isfinite(sh)):
+            problems.append(f"{tag} has no finite standard error: the flats do not pin it")
+        elif sP > MAX_REL_ERROR * P or sh > MAX_REL_ERROR * abs(h):
+            problems.append(f"{tag} is loose: +- {sP:.2g} mm in P, +- {sh:.2g} mm in h")
+        if math.isfinite(sh) and abs(h) <= MIN_H_SIGMAS * sh:
+            problems.append(f"{tag} hardly moves (h within {MIN_H_SIGMAS:g} standard errors "
+                            "of 0): a change of aperture, not a vignetting circle")
+    if not fit.success:
+        problems.append(f"the fit did not converge ({fit.message})")
+    return problems
+
+
+def shift_difference_nm(lens_a: Lens, lens_b: Lens, f_numbers, max_cra_deg, *,
+                        cwl_nm=REFERENCE_CWL_NM, n_eff=REFERENCE_N_EFF):
+    """Largest difference of the predicted mean shift (nm) between two lenses over the field
+    (CRA 0 to ``max_cra_deg``), for each f-number; CRAs past either lens's full cut-off are
+    left out (no light, no shift). NaN where no CRA is left."""
+    out = []
+    for f in np.asarray(f_numbers, float):
+        top = min(max_cra_deg, 0.999 * float(lens_a.cutoff_cra_deg(f)),
+                  0.999 * float(lens_b.cutoff_cra_deg(f)))
+        if not top > 0:
+            out.append(float("nan"))
+            continue
+        cra = np.linspace(0.0, top, _CRA_SAMPLES)
+        try:
+            a = mean_shift(cwl_nm, n_eff, f, cra, lens_a, method="vignetted")
+            b = mean_shift(cwl_nm, n_eff, f, cra, lens_b, method="vignetted")
+        except PupilCutOffError:
+            out.append(float("nan"))
+            continue
+        out.append(float(np.max(np.abs(a - b))))
+    return np.array(out)
+
+
+def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
+           tolerance_nm=TOLERANCE_NM, h_given=False):
+    """The model the flats support, and a verdict on every model tried.
+
+    Models are taken in order of their number of circles; each step up must pass all three
+    rules of the module's description against the model chosen so far.
+    """
+    import warnings
+
+    from ..optics.shift import EffectiveIndexWarning
+
+    order = sorted(fits, key=lambda m: N_CIRCLES[m])
+    chosen = order[0]
+    verdicts = {chosen: ModelVerdict(chosen, True, "", bic_floor[chosen],
+                                     fits[chosen].reduced_chi2)}
+    for model in order[1:]:
+        fit = fits[model]
+        v = ModelVerdict(model, False, "", bic_floor[model], fit.reduced_chi2)
+        verdicts[model] = v
+        problems = check_circles(fit, base, f_numbers, max_cra_deg, h_given=h_given)
+        if problems:
+            v.problems = problems
+            v.why = "not identifiable: " + "; ".join(problems)
+            continue
+        gain = bic_floor[chosen] - bic_floor[model]
+        if gain <= MIN_BIC_GAIN:
+            v.why = (f"no better than {chosen} once a {100 * FLOOR_REL:g} % systematic floor is "
+                     f"allowed for (BIC gain {gain:.1f} <= {MIN_BIC_GAIN:g})")
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EffectiveIndexWarning)
+            diff = shift_difference_nm(lens_of(fit, base), lens_of(fits[chosen], base),
+                                       f_numbers, max_cra_deg)
+        if not np.nanmax(diff, initial=0.0) > tolerance_nm:
+            v.why = (f"changes the predicted mean shift by at most {np.nanmax(diff):.4f} nm "
+                     f"(<= {tolerance_nm:g} nm) from {chosen}: {chosen} suffices")
+            continue
+        verdicts[chosen].chosen = False
+        verdicts[chosen].why = f"{model} describes the flats better and it matters (below)"
+        v.chosen = True
+        v.why = (f"every circle identifiable; BIC gain {gain:.1f} over {chosen} with the floor; "
+                 f"moves the mean shift by up to {np.nanmax(diff):.3f} nm")
+        chosen = model
+    if not verdicts[chosen].why:
+        verdicts[chosen].why = "no model with more circles passed the rules"
+    return chosen, verdicts

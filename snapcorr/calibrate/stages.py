@@ -1,0 +1,332 @@
+"""The stages of a lens calibration, each a function of the one before.
+
+:func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_centre` ->
+:func:`profiles_and_onsets` -> :func:`joint_fits`; :mod:`snapcorr.calibrate.choice` then picks
+the model and :func:`snapcorr.calibrate.calibrate_lens` strings them together.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..optics.lens import Lens
+from .flats import clean_flat, cra_deg_map, estimate_center, radial_profile
+from .joint_fit import MODELS, BlockData, ModelFit, block_average, fit_model, floor_chi2
+from .onset_fit import OnsetFit, solve_vignetting_circle
+from .onsets import Onset, detect_onset
+
+__all__ = [
+    "Flats",
+    "Ratios",
+    "clean_flats",
+    "joint_fits",
+    "optical_centre",
+    "profiles_and_onsets",
+    "ratio_images",
+]
+
+#: Largest side of the block-averaged images used by the joint fit.
+FIT_GRID = 160
+#: Pixels where the reference flat is below this fraction of its peak are not used (past its
+#: own cut-off a ratio is noise over noise).
+LIT_FRACTION = 0.05
+#: Width of the radial-profile bins, degrees of chief-ray angle.
+BIN_DEG = 0.1
+#: Largest side of the images the radial profiles are taken from (larger flats are binned).
+PROFILE_SIZE = 1024
+
+
+@dataclass
+class Flats:
+    """Cleaned flats, sorted by f-number (the last is the reference of the ratios)."""
+
+    f_numbers: np.ndarray
+    images: list
+    valids: list
+    variances: list
+    shape: tuple
+    notes: list
+
+    @property
+    def single(self) -> bool:
+        return len(self.images) == 1
+
+
+@dataclass
+class Ratios:
+    """Block-averaged flats and their ratios to the reference flat."""
+
+    block: int
+    images: list  # block means of every flat
+    variances: list
+    enough: list  # blocks with enough valid pixels
+    bx: np.ndarray  # block centres, full-resolution pixels
+    by: np.ndarray
+    ratios: list  # one per flat but the reference (the flats themselves for a single one)
+    ratio_variances: list
+    ratio_ok: list
+    ref_peak: float | None
+
+
+def clean_flats(items, dark, saturation) -> Flats:
+    """Dark-subtract and mask each flat (:func:`~snapcorr.calibrate.clean_flat`); refuse flats
+    with too few usable pixels or no signal."""
+    sat = saturation if isinstance(saturation, dict) else {f: saturation for f, _ in items}
+    notes = []
+    images, valids, variances = [], [], []
+    for f, img in items:
+        image, ok, var = clean_flat(img, dark=dark, saturation=sat.get(f))
+        lost = 1.0 - ok.mean()
+        if lost > 0.05:
+            notes.append(f"f/{f:g}: {100 * lost:.1f} % of pixels masked (saturated, dead, hot "
+                         "or non-finite)")
+        if ok.mean() < 0.2:
+            raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
+                             "pixels (saturated, dead or non-finite); lower the exposure or "
+                             "check the file")
+        images.append(image)
+        valids.append(ok)
+        variances.append(var)
+    for (f, _), img, ok in zip(items, images, valids, strict=True):
+        if not np.percentile(img[ok], 99) > 0:
+            raise ValueError(f"the flat at f/{f:g} has no signal above the dark frame")
+    return Flats(np.array([f for f, _ in items]), images, valids, variances,
+                 items[0][1].shape, notes)
+
+
+def ratio_images(flats: Flats) -> Ratios:
+    """Block means of every flat and their ratios to the reference (highest f-number), only
+    where the reference itself is lit: past its own cut-off a ratio is noise over noise."""
+    block = max(1, math.ceil(max(flats.shape) / FIT_GRID))
+    bimgs, bvars, bcnt, bx, by = block_average(flats.images, flats.valids, flats.variances,
+                                               block)
+    enough = [c >= 0.5 * block * block for c in bcnt]
+    if flats.single:
+        return Ratios(block, bimgs, bvars, enough, bx, by, bimgs, bvars, enough, None)
+    ref = len(bimgs) - 1
+    ref_peak = float(np.nanpercentile(np.where(enough[ref], bimgs[ref], np.nan), 99))
+    with np.errstate(invalid="ignore"):
+        lit = (bimgs[ref] > LIT_FRACTION * ref_peak) & (bimgs[ref] > 5.0 * np.sqrt(bvars[ref]))
+    ratios, rvars, rok = [], [], []
+    for i in range(ref):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = bimgs[i] / bimgs[ref]
+            v = q * q * (bvars[i] / bimgs[i] ** 2 + bvars[ref] / bimgs[ref] ** 2)
+        ratios.append(q)
+        rvars.append(v)
+        rok.append(enough[i] & enough[ref] & np.isfinite(q) & lit & (v > 0))
+    return Ratios(block, bimgs, bvars, enough, bx, by, ratios, rvars, rok, ref_peak)
+
+
+def optical_centre(flats: Flats, ratios: Ratios, center_px=None):
+    """The optical centre (pixels), how it was found, and a note if it could not be."""
+    if center_px is not None:
+        return (float(center_px[0]), float(center_px[1])), "given", None
+    c = None
+    if not flats.single:
+        c, _ = estimate_center(ratios.ratios, ratios.ratio_ok)
+    if c is None:
+        c, _ = estimate_center(ratios.images, ratios.enough)
+    if c is None:
+        shape = flats.shape
+        return (((shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0), "image centre",
+                "no radial fall-off to find the optical centre from: the image centre is used")
+    b = ratios.block  # block coordinates -> pixels
+    return (c[0] * b + (b - 1) / 2.0, c[1] * b + (b - 1) / 2.0), "contours", None
+
+
+def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_pitch_um,
+                        fixed_h=None):
+    """Radial profiles of every flat and of every ratio, and the onsets found in them by the
+    paper's discontinuity (``"ratio"``) and by the area model per profile (``"model"``).
+
+    Returns ``(profiles, ratio_profiles, onsets, max_cra_deg)``.
+    """
+    shape, x = flats.shape, base.exit_pupil_mm
+    # from pixels binned k x k on large sensors (k <= PROFILE_SIZE / side keeps a binned pixel
+    # well under a bin's 0.1 deg)
+    k = max(1, math.ceil(max(shape) / PROFILE_SIZE))
+    if k > 1:
+        pimgs, _, pcnt, _, _ = block_average(flats.images, flats.valids, flats.variances, k)
+        pvalid = [c >= 0.5 * k * k for c in pcnt]
+        pimgs = [np.where(ok, im, 0.0) for im, ok in zip(pimgs, pvalid, strict=True)]
+        pcentre = ((center[0] - (k - 1) / 2.0) / k, (center[1] - (k - 1) / 2.0) / k)
+    else:
+        pimgs, pvalid, pcentre = flats.images, flats.valids, center
+    cra = cra_deg_map(pimgs[0].shape, pcentre, pixel_pitch_um * k, x)
+    max_cra = float(cra_deg_map(shape, center, pixel_pitch_um, x).max())
+    fs = flats.f_numbers
+    profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
+                for i, f in enumerate(fs)}
+    short = [f for f, p in profiles.items() if p.cra_deg.size < 8]
+    if short:
+        n_bins = profiles[short[0]].cra_deg.size
+        raise ValueError(
+            f"the flats span only {max_cra:.2f} deg of chief-ray angle ({n_bins} bins of "
+            f"{BIN_DEG} deg): too few to see a fall-off; check the pixel pitch and the "
+            "exit-pupil distance, and that the flats hold signal")
+    R = base.exit_pupil_radius_mm(fs)
+    single = flats.single
+    R_ref = None if single else float(R[-1])
+    ratio_profiles, onsets = {}, {"ratio": {}, "model": {}}
+    for i in range(len(fs) - (0 if single else 1)):
+        f = float(fs[i])
+        if single:
+            prof = profiles[f]
+            cos4 = np.cos(np.deg2rad(prof.cra_deg)) ** 4
+            onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value / cos4, prof.stderr / cos4)
+        else:
+            ref_img = np.where(pimgs[-1] > LIT_FRACTION * ratios.ref_peak, pimgs[-1], 0.0)
+            prof = radial_profile(pimgs[i], pvalid[i] & pvalid[-1], cra, bin_deg=BIN_DEG,
+                                  denominator=ref_img)
+            ratio_profiles[f] = prof
+            onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
+        onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,
+                                          fixed_h=fixed_h, natural=single)
+    return profiles, ratio_profiles, onsets, max_cra
+
+
+def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False):
+    """Onset from fitting the vignetted-area ratio to one profile (model-based detection)."""
+    tan = np.tan(np.deg2rad(prof.cra_deg))
+    ok = prof.stderr > 0
+    data = BlockData(q=prof.value[None, ok], sigma=prof.stderr[None, ok], xpix=tan[ok] * x,
+                     ypix=np.zeros(ok.sum()), R_mm=np.array([R_F]), R_ref_mm=R_ref,
+                     pitch_mm=1.0, x_mm=x, natural=natural)
+    starts = [[R_F + h * math.tan(math.radians(th)), h, 0.0, 0.0]
+              for h in ((fixed_h,) if fixed_h else (0.5 * x, 0.8 * x, 1.2 * x, 2.0 * x))
+              for th in (0.1 * max_cra, 0.4 * max_cra, 0.7 * max_cra)]
+    none = fit_model(data, "none", [], center=(0.0, 0.0))
+    fit = fit_model(data, "one", starts, center=(0.0, 0.0), fixed_h=fixed_h, keep=3)
+    if not fit.success or fit.bic >= none.bic:
+        return Onset(float("nan"), float("inf"), False, max_cra)
+    P, h = fit.params["P_mm"], fit.params["h_mm"]
+    u = max(P - R_F, 0.0) / h
+    on = math.degrees(math.atan(u))
+    g = np.array([1.0, -u]) / (h * (1 + u * u)) if P > R_F else np.zeros(2)
+    var = float(g @ fit.covariance[:2, :2] @ g)
+    err = math.degrees(math.sqrt(max(var, 0.0))) if np.isfinite(var) else float("inf")
+    if on > max_cra:
+        return Onset(float("nan"), float("inf"), False, max_cra)
+    return Onset(on, err, True, max_cra)
+
+
+def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
+    """Eq. (26) over the onsets found (None with fewer than two, or one without h)."""
+    # An onset at 0 means the circle cuts the pupil already on axis (P < R): that is an
+    # inequality, not an equation of Eq. (26).
+    # An onset without a finite error (at the start of the profile) cannot be weighted.
+    found = [(f, o) for f, o in onsets.items()
+             if o.found and o.cra_deg > 0 and np.isfinite(o.stderr_deg)]
+    if h_given is not None and found:
+        # h known: each onset gives P = R + h tan(onset); average them, weighted.
+        t = np.tan(np.deg2rad([o.cra_deg for _, o in found]))
+        Rf = base.exit_pupil_radius_mm([f for f, _ in found])
+        P_i = Rf + h_given * t
+        err = np.maximum(h_given * (1 + t * t) * np.deg2rad([o.stderr_deg for _, o in found]),
+                         1e-12)
+        w = 1.0 / err**2
+        P = float(np.sum(w * P_i) / np.sum(w))
+        return OnsetFit(P, float(h_given), float(1.0 / np.sqrt(np.sum(w))), 0.0, P_i - P)
+    if len(found) < 2:
+        return None
+    t = np.array([o.cra_deg for _, o in found])
+    if np.ptp(t) == 0:
+        return None
+    return solve_vignetting_circle(t, base.exit_pupil_radius_mm([f for f, _ in found]),
+                                   onset_stderr_deg=[max(o.stderr_deg, 1e-3) for _, o in found])
+
+
+def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> BlockData:
+    """The ratio blocks every f-number sees, ready for :func:`fit_model`."""
+    n = len(ratios.ratios)
+    q = np.stack(ratios.ratios)
+    okall = np.stack(ratios.ratio_ok).all(axis=0)
+    R = base.exit_pupil_radius_mm(flats.f_numbers)
+    return BlockData(
+        q=q[:, okall], sigma=np.sqrt(np.stack(ratios.ratio_variances))[:, okall],
+        xpix=ratios.bx[okall], ypix=ratios.by[okall], R_mm=R[:n],
+        R_ref_mm=None if flats.single else float(R[-1]), pitch_mm=pixel_pitch_um * 1e-3,
+        x_mm=base.exit_pupil_mm, natural=flats.single)
+
+
+def _starts_one(onset_fits, R, x, centers, max_cra, h_given):
+    starts = []
+    for cx, cy in centers:
+        for of in onset_fits:
+            if of is not None and of.h_mm > 0 and of.P_mm > 0:
+                starts.append([of.P_mm, of.h_mm, cx, cy])
+        for hf in (0.5, 0.8, 1.2, 2.0):
+            h = h_given or hf * x
+            # the fastest pupil cut from near the axis to the far corner of the field
+            for frac in (0.15, 0.3, 0.45, 0.6, 0.75, 0.9):
+                th = math.radians(frac * max_cra)
+                starts.append([R[0] + h * math.tan(th), h, cx, cy])
+    return starts
+
+
+def _starts_more(fit: ModelFit, R, x, max_cra):
+    """Starts for one more circle, added to the fit so far.
+
+    A circle that cuts nothing in the field has no gradient, and one that cuts much fits worse
+    than none, so neither is a useful start. For each distance ``h`` (against the chief ray,
+    in front of the pupil, pixel vignetting at ``h = x``, behind it) the start's ``P`` is just
+    inside the largest radius that still cuts the light somewhere in the field at some
+    f-number: the farthest point of the vignetted pupil from the circle's centre
+    (:func:`~snapcorr.optics.discs.extreme_radii`)."""
+    from ..optics.discs import extreme_radii
+    from .joint_fit import circles_of
+
+    p = [fit.params[k] for k in fit.names]
+    circles = circles_of(fit.model, p)
+    t = np.linspace(0.0, math.tan(math.radians(max_cra)), 64)[:, None]
+    Rs = np.asarray(R, float)[None, :]
+    radii = [Rs] + [P for P, _ in circles]
+    centres = [0.0 * t] + [h * t for _, h in circles]
+    starts = []
+    for hf in (-1.0, -0.5, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0):
+        h = hf * x
+        _, rmax = extreme_radii(h * t, radii, centres)
+        P_crit = float(np.max(rmax))
+        starts += [[*p, P_crit * (1.0 - d), h] for d in (0.002, 0.01, 0.03, 0.1)]
+    return starts
+
+
+def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center, max_cra,
+               *, fixed_h=None, max_circles=3, keep_going=None):
+    """Fit the area model with no circle, then one, two, three circles, each from the last.
+
+    ``centers`` are the starting optical centres (the first is the no-circle model's);
+    ``fix_center`` keeps it fixed. A model with one more circle is fitted only while
+    ``keep_going(fits, bic)`` says the one with most circles so far is chosen (one that is not
+    cannot be the base of a better one). Returns ``(fits, bic)``: the fits by model name and
+    each one's information criterion with the systematic floor
+    (:data:`~snapcorr.calibrate.choice.FLOOR_REL`).
+    """
+    from .choice import FLOOR_REL
+
+    x = base.exit_pupil_mm
+    R = base.exit_pupil_radius_mm(fs)
+    fits, bic = {}, {}
+
+    def add(name, fit):
+        fits[name] = fit
+        c = centers[0] if name == "none" or fix_center is not None else None
+        bic[name] = floor_chi2(data, fit, FLOOR_REL, center=c) + fit.k * math.log(fit.n)
+
+    add("none", fit_model(data, "none", [], center=centers[0]))
+    add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers, max_cra, fixed_h),
+                         center=fix_center, fixed_h=fixed_h))
+    single = data.R_ref_mm is None
+    for n in range(2, max_circles + 1):
+        if single or fixed_h is not None or (keep_going is not None
+                                             and not keep_going(fits, bic)):
+            break
+        prev = fits[MODELS[n - 1]]
+        # two runs for a second circle; one for a third, which rarely matters
+        add(MODELS[n], fit_model(data, MODELS[n], _starts_more(prev, R, x, max_cra),
+                                 center=fix_center, keep=2 if n == 2 else 1))
+    return fits, bic

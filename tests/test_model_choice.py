@@ -1,0 +1,71 @@
+"""The rules that choose the vignetting model (snapcorr.calibrate.choice), each shown failing
+the model it is there to stop, on flats from the independent simulator tests/flatsim.py."""
+
+import numpy as np
+import pytest
+from flatsim import LensTruth, make_flats
+
+from snapcorr import Lens
+from snapcorr.calibrate import calibrate_lens
+from snapcorr.calibrate.choice import check_circles, choose, shift_difference_nm
+from snapcorr.calibrate.joint_fit import fit_model
+from snapcorr.calibrate.stages import block_data, clean_flats, ratio_images
+
+X = 21.0
+FS = (2.0, 2.8, 4.0, 5.6, 11.0)
+SCENE = dict(shape=(256, 320), pitch_um=28.4, center_px=(174.75, 119.75))
+H_GT_X = LensTruth(X, ((9.5, 26.0),), 0.06, 1.3)  # the user's case: one circle, h > x
+
+
+@pytest.fixture(scope="module")
+def user_flats():
+    return make_flats(H_GT_X, FS, noise=0.005, seed=3, **SCENE)
+
+
+def _data(flats):
+    fl = clean_flats(sorted(flats.items()), None, None)
+    base = Lens(X, (), 0.06, 1.3)
+    return block_data(fl, ratio_images(fl), base, SCENE["pitch_um"]), base
+
+
+def test_a_stop_like_second_circle_is_refused(user_flats):
+    data, base = _data(user_flats)
+    R_fast = float(base.exit_pupil_radius_mm(FS[0]))
+    centre = SCENE["center_px"]
+    one = fit_model(data, "one", [[9.5, 26.0, *centre]])
+    # the spurious solution seen on a user's flats: a stop at the fastest pupil's radius
+    stop = fit_model(data, "two", [[9.5, 26.0, *centre, R_fast, 0.03]], max_nfev=5)
+    problems = check_circles(stop, base, FS, 16.66)
+    assert any("circle 2" in p for p in problems), problems
+    bic = {"one": 0.0, "two": -1e9}  # even an overwhelming criterion gain does not admit it
+    model, verdicts = choose({"one": one, "two": stop}, bic, base, FS, 16.66)
+    assert model == "one" and "not identifiable" in verdicts["two"].why
+
+
+def test_the_rules_are_each_decisive():
+    # identifiability: one f-number's onset inside the field does not tell P from h
+    lens = Lens(X, [(12.0, 30.0)], 0.06, 1.3)
+    on = lens.circle_onsets_cra_deg(np.array(FS))[0]
+    assert np.sum(on < 14.0) == 1 and np.sum(on < 16.66) == 2
+    # the functional test: identical lenses differ by nothing, a moved circle by nanometres
+    a = Lens(X, [(7.4236, 16.991)], 0.06, 1.3)
+    b = Lens(X, [(7.4236, 16.991), (200.0, 30.0)], 0.06, 1.3)  # never cuts in the field
+    c = Lens(X, [(7.0, 16.991)], 0.06, 1.3)
+    assert np.nanmax(shift_difference_nm(a, b, FS, 16.0)) < 1e-9
+    assert np.nanmax(shift_difference_nm(a, c, FS, 16.0)) > 0.1
+
+
+def test_pixel_vignetting_is_kept_only_where_it_matters_to_the_tolerance():
+    truth = LensTruth(X, ((7.4236, 16.991), (8.5, X)), 0.06, 1.3)
+    flats = make_flats(truth, FS, noise=0.005, seed=1, **SCENE)
+    kw = dict(exit_pupil_mm=X, pixel_pitch_um=SCENE["pitch_um"], magnification=0.06,
+              pupil_magnification=1.3)
+    res = calibrate_lens(flats, **kw)
+    assert res.model == "two" and len(res.lens.vignetting) == 2
+    coarse = calibrate_lens(flats, tolerance_nm=1.0, **kw)  # 0.2 nm does not matter at 1 nm
+    assert coarse.model == "one" and "suffices" in coarse.verdicts["two"].why
+    only_one = calibrate_lens(flats, max_circles=1, **kw)
+    assert list(only_one.fits) == ["none", "one"]
+    table = res.lens.calibration["model_choice"]
+    assert table["next_best"] in ("one", "three") and table["models_tried"][0] == "none"
+    assert len(table["shift_difference_to_next_best_nm"]) == len(FS)
