@@ -48,6 +48,11 @@ EXAMPLES = {
           --magnification 0.06 --pupil-magnification 1.3 --dark dark.tif \
           --out my_lens.toml --plot my_lens.png
                                           lens profile from integrating-sphere flats
+      snapcorr calibrate --flat 2=f2.tif --flat 4=f4.tif --flat 11=f11.tif \
+          --exit-pupil-mm 21 --pixel-pitch-um 5.5 --max-circles 2 --tolerance-nm 0.01 \
+          --out my_lens.toml
+                                          at most two circles; keep a second only if it
+                                          moves the mean shift by more than 0.01 nm
     """,
     "shift": r"""
       snapcorr shift --f-number 1.4 --cra 0 10 20
@@ -420,7 +425,8 @@ def _cmd_calibrate(args):
         magnification=args.magnification, pupil_magnification=args.pupil_magnification,
         dark=dark, center_px=args.center_px, saturation=sat,
         vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
-        name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat})
+        name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
+        tolerance_nm=args.tolerance_nm, max_circles=args.max_circles)
     cal = dict(res.lens.calibration)
     cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
                     else "single-band flats")
@@ -599,8 +605,8 @@ def _add_flatfield(command):
 def _add_calibrate(command):
     from .calibrate import METHODS as CAL_METHODS
 
-    p = command("calibrate", "lens profile (P, h) from flat fields at several f-numbers "
-                "(Goossens Sec. 2.7, 3.2)")
+    p = command("calibrate", "lens profile (vignetting circles P, h) from flat fields at "
+                "several f-numbers (Goossens Sec. 2.7, 3.2)")
     p.add_argument("--flat", type=_flat_arg, action="append", required=True,
                    metavar="F_NUMBER=PATH",
                    help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
@@ -628,6 +634,11 @@ def _add_calibrate(command):
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="value at or above which a pixel is saturated (default: the "
                    "largest value of the file's integer type)")
+    p.add_argument("--max-circles", type=int, default=3, choices=(0, 1, 2, 3),
+                   help="most vignetting circles to try (default: %(default)s)")
+    p.add_argument("--tolerance-nm", type=_positive, default=0.005, metavar="NM",
+                   help="a further circle is kept only if it moves the predicted mean shift "
+                   "(1000 nm filter, n_eff 1.5) by more than this (default: %(default)s)")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
     p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_cmd_calibrate)

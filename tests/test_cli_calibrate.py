@@ -83,7 +83,18 @@ def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
     assert Lens.load(flats / "lens.toml") == lens
 
 
+def test_the_model_choice_options_reach_the_profile(flats):
+    res = run(*FLATS, *OPTICS, "--max-circles", "1", "--tolerance-nm", "0.01", "--out",
+              "one.toml", cwd=flats)
+    assert res.returncode == 0, res.stderr
+    choice = Lens.load(flats / "one.toml").calibration["model_choice"]
+    assert choice["models_tried"] == ["none", "one"] and choice["tolerance_nm"] == 0.01
+    assert "joint fit, one circle" in res.stdout and "-> chosen" in res.stdout
+
+
 @pytest.mark.parametrize("args, message", [
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--max-circles", "4"], "max-circles"),
+    (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--tolerance-nm", "0"], "tolerance-nm"),
     (["--flat", "2=f1.4.npy", "--flat", "2.0=f8.npy"], "f/2 given twice"),
     (["--flat", "1.4=f1.4.npy"], "cannot tell"),
     (["--flat", "1.4=missing.npy", "--flat", "8=f8.npy"], "no such file"),
