@@ -118,8 +118,8 @@ def run(out, *, echo=print, seed=2019):
     cal.save_plot(out / "calibration.png")
     lens.save(out / "lens.toml", overwrite=True)
     lines.append(f"1. calibration from simulated flats (f/1.4-f/8, 1 % noise): {cal.method}, "
-                 f"{cal.model} circle; P = {lens.vignetting[0][0]:.4f} mm (true 7.4236), "
-                 f"h = {lens.vignetting[0][1]:.3f} mm (true 16.991), centre "
+                 f"{cal.model} circle(s): {lens.describe_vignetting()} (true "
+                 f"{truth.describe_vignetting()}), centre "
                  f"({cal.center_px[0]:.1f}, {cal.center_px[1]:.1f}) px (true {flat_centre})")
 
     # 2. the cube: 8 x 8 binned Snapscan pixels (44 um), the same sensor area
