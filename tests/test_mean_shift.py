@@ -451,3 +451,18 @@ def test_float_policy_and_empty_inputs(method, edmund):
 def test_bad_wavelength(cwl, edmund):
     with pytest.raises(ValueError, match="cwl_nm"):
         mean_shift(cwl, 1.7, 2.0, 5.0, edmund)
+
+
+def test_auto_builds_no_grid_for_a_few_scattered_pixels_of_a_two_circle_lens():
+    # a grid of a two-circle lens costs seconds; 150 000 exact evaluations cost < 1 s
+    from snapcorr.optics import mean as mean_mod
+
+    lens = Lens(X, [(7.4236, 16.991), (8.5, 30.0)], 0.06, 1.3)
+    rng = np.random.default_rng(5)
+    f = rng.uniform(2.0, 8.0, 150_000)
+    cra = rng.uniform(0.0, 12.0, f.size)
+    mean_mod._grid.cache_clear()
+    got = mean_shift(700.0, 1.7, f, cra, lens)
+    assert mean_mod._grid.cache_info().currsize == 0
+    exact = mean_shift(700.0, 1.7, f[:2000], cra[:2000], lens, method="vignetted")
+    assert np.max(np.abs(got[:2000] - exact)) < 1e-3

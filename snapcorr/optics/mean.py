@@ -32,7 +32,8 @@ ASYMPTOTIC_SAFETY = 4.0
 AUTO_TABLE_MIN_SIZE = 20_000
 #: ``"auto"`` interpolates in a (f-number, CRA) grid (:class:`ShiftGrid`) when at least this many
 #: elements with scattered f-numbers remain: a grid costs ~0.15 s to build (about 60 000 exact
-#: evaluations), then ~0.3 us per element; built grids are cached.
+#: evaluations), then ~0.3 us per element; built grids are cached. With several vignetting
+#: circles a grid costs 2-20 s, and the threshold is 20 times higher.
 AUTO_GRID_MIN_SIZE = 100_000
 
 
@@ -269,7 +270,10 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
         for sel in groups:
             out[sel] = _table(cwl[sel], n[sel], f[sel], cra[sel], lens, tolerance_nm)
             todo[sel] = False
-    if np.count_nonzero(todo) >= AUTO_GRID_MIN_SIZE:
+    # With several circles a grid takes seconds to build (the boundary's arcs change at more
+    # places than its frame pins), so it pays only for far more elements.
+    grid_min = AUTO_GRID_MIN_SIZE * (1 if len(lens.vignetting) <= 1 else 20)
+    if np.count_nonzero(todo) >= grid_min:
         idx = np.flatnonzero(todo)
         out[idx] = _grid_method(cwl[idx], n[idx], f[idx], cra[idx], lens, tolerance_nm)
         todo[idx] = False
