@@ -222,13 +222,21 @@ class Lens:
         >>> lens.relative_illumination(1.4, [0.0, 10.0]).round(3)
         array([1.   , 0.766])
         """
+        from . import discs
         from .pupil import overlap_area_mm2
 
         radii, centres = self.pupil_discs(f_number, cra_deg)
         R = radii[0]
         if not self.has_vignetting:
             return np.ones(np.broadcast_shapes(np.shape(R), centres[0].shape))[()]
-        return (overlap_area_mm2(radii, centres) / (np.pi * R * R))[()]
+        if len(self.vignetting) == 1:
+            return (overlap_area_mm2(radii, centres) / (np.pi * R * R))[()]
+        # Several circles: trapezoids under the chain of chords plus circular segments, all
+        # positive, keep slivers near the cut-off to full relative precision.
+        b = discs.boundary(radii, centres)
+        rk, _, t_right, t_left = discs.arc_angles(b, radii, centres)
+        area = np.where(b.hi > b.lo, 2.0 * discs.upper_area(b, rk, t_right, t_left), 0.0)
+        return (area / (np.pi * R * R))[()]
 
     def cutoff_cra_deg(self, f_number):
         """Chief-ray angle beyond which no light passes: the first pair of discs (pupil and
