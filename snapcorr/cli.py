@@ -455,7 +455,7 @@ def _cmd_shift(args):
     if np.any(past):
         raise ValueError(f"CRA {float(np.abs(cra[past]).max()):g} deg is past the full cut-off "
                          f"at {cutoff:.2f} deg for f/{args.f_number:g} (the lens's vignetting "
-                         "circle leaves no light); give smaller --cra values")
+                         "circles leave no light); give smaller --cra values")
     shift = mean_shift(args.cwl_nm, args.n_eff, args.f_number, cra, lens, method=args.method,
                        tolerance_nm=args.tolerance_nm)
     if args.method == "auto":

@@ -242,15 +242,15 @@ def relative_illumination_map(lens, f_number, shape, pixel_pitch_um, *, center_p
     """Expected flat-field signal of every pixel relative to the optical centre, no noise.
 
     ``V = A / (pi R^2) * cos^4(CRA) * S`` with ``A`` the area common to the exit pupil (radius
-    ``R``, Eq. 28), the projected vignetting circle (radius ``P``, centre ``h tan(CRA)``; if the
-    lens has one) and the pixel's acceptance circle (radius ``x tan(a)``, centre
+    ``R``, Eq. 28), every projected vignetting circle of the lens (radius ``P_i``, centre
+    ``h_i tan(CRA)``) and the pixel's acceptance circle (radius ``x tan(a)``, centre
     ``x tan(CRA)``; if ``pixel_acceptance_deg`` is given), and ``S`` the source's relative
     signal (1 for a uniform source).
 
     Parameters
     ----------
     lens : snapcorr.Lens
-        Exit pupil distance ``x``, vignetting circle and working f-number (Eq. 27).
+        Exit pupil distance ``x``, vignetting circles and working f-number (Eq. 27).
     f_number : float
         F-number (> 0).
     shape : tuple of int

@@ -69,3 +69,53 @@ def test_pixel_vignetting_is_kept_only_where_it_matters_to_the_tolerance():
     table = res.lens.calibration["model_choice"]
     assert table["next_best"] in ("one", "three") and table["models_tried"][0] == "none"
     assert len(table["shift_difference_to_next_best_nm"]) == len(FS)
+
+
+def test_an_onset_hidden_behind_another_circle_is_one_equation_not_two():
+    # circle 2 touches circle 1 inside it at atan((8 - 7.4236) / (19 - 16.991)) = 16.0 deg at
+    # every f-number: against the bare pupil it would start at 8.9 and 13.1 deg
+    from snapcorr.calibrate.choice import effective_onsets_deg
+
+    lens = Lens(X, [(7.4236, 16.991), (8.0, 19.0)], 0.06, 1.3)
+    bare = lens.circle_onsets_cra_deg(np.array([2.0, 2.8]))[1]
+    eff = effective_onsets_deg(lens, [2.0, 2.8], 18.0)[1]
+    touch = np.rad2deg(np.arctan((8.0 - 7.4236) / (19.0 - 16.991)))
+    assert np.all(bare < touch - 2.0) and np.all(np.abs(eff - touch) < 0.1)
+
+
+KW = dict(exit_pupil_mm=X, pixel_pitch_um=SCENE["pitch_um"], magnification=0.06,
+          pupil_magnification=1.3)
+
+
+def test_without_vignetting_the_centre_is_not_taken_from_a_refused_fit():
+    truth = LensTruth(X, (), 0.06, 1.3)
+    res = calibrate_lens(make_flats(truth, FS, noise=0.005, seed=4, **SCENE), **KW)
+    assert res.model == "none" and res.center_source == "contours"
+    assert np.hypot(res.center_px[0] - SCENE["center_px"][0],
+                    res.center_px[1] - SCENE["center_px"][1]) < 1.0
+
+
+def test_max_circles_zero_tries_no_circle_and_says_so(user_flats):
+    res = calibrate_lens(user_flats, max_circles=0, **KW)
+    assert list(res.fits) == ["none"] and not res.lens.has_vignetting
+    assert "no vignetting circle tried" in res.reason
+
+
+def test_a_misfit_keeps_a_two_circle_joint_fit(monkeypatch):
+    # the paper's onsets see one circle: falling back to them would drop the other
+    from snapcorr.calibrate import lens_calibration
+
+    truth = LensTruth(X, ((6.2, 12.0), (10.0, 30.0)), 0.0, 1.0)
+    flats = make_flats(truth, FS, noise=0.005, seed=2, **SCENE)
+    monkeypatch.setattr(lens_calibration, "MISFIT_CHI2", 0.1)
+    res = calibrate_lens(flats, **{**KW, "magnification": 0.0, "pupil_magnification": 1.0})
+    assert res.method == "joint" and len(res.lens.vignetting) == 2
+    assert any("joint fit is kept" in n for n in res.notes)
+
+
+def test_an_onset_method_leaves_no_joint_model_marked_chosen(user_flats):
+    res = calibrate_lens(user_flats, method="onset-model", **KW)
+    assert res.method == "onset-model" and len(res.lens.vignetting) == 1
+    table = res.lens.calibration["joint_fit"]
+    assert not any(entry["chosen"] for entry in table.values())
+    assert "not used (onset-model)" in table["one"]["why"]

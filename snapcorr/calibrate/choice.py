@@ -7,8 +7,9 @@ say, which only rescales one flat. The choice here therefore has three parts.
 
 1. **Identifiability** (:func:`check_circles`). A circle counts only if
 
-   - its onset (Eq. 24-25) lies inside the field at two or more f-numbers of the flats:
-     Eq. (26) needs two onsets to tell ``P`` from ``h``, and so do the flats;
+   - it starts to cut the light (the pupil and the other circles leave) inside the field at
+     two or more different chief-ray angles over the f-numbers of the flats: Eq. (26) needs
+     two onsets to tell ``P`` from ``h``, and so do the flats (:func:`effective_onsets_deg`);
    - its ``P`` and ``h`` have finite standard errors below ``MAX_REL_ERROR`` of their values;
    - its ``h`` is more than ``MIN_H_SIGMAS`` standard errors from 0: a circle that does not
      move with the chief-ray angle changes the aperture, which the flats' exposure scales
@@ -46,6 +47,7 @@ __all__ = [
     "ModelVerdict",
     "check_circles",
     "choose",
+    "effective_onsets_deg",
     "shift_difference_nm",
 ]
 
@@ -63,6 +65,7 @@ REFERENCE_N_EFF = 1.5
 #: Default tolerance of the functional test, nm of mean shift.
 TOLERANCE_NM = 0.005
 _CRA_SAMPLES = 97
+_ONSET_SAMPLES = 400
 
 
 @dataclass
@@ -94,6 +97,29 @@ def lens_of(fit: ModelFit, base: Lens) -> Lens:
                 base.pupil_magnification, name=base.name)
 
 
+def effective_onsets_deg(lens: Lens, f_numbers, max_cra_deg, samples=_ONSET_SAMPLES):
+    """Where each circle starts to cut the light the pupil *and the other circles* leave.
+
+    Shape ``(n_circles, n_f)``, degrees on a grid of ``samples`` CRAs from 0 to
+    ``max_cra_deg`` (``inf``: not inside the field). A circle hidden behind another until a
+    CRA that does not depend on the f-number (two circles touching inside each other) tells
+    nothing about its own P and h there, unlike its onset against the bare pupil (Eq. 24-25).
+    """
+    fs = np.asarray(f_numbers, float)
+    cra = np.linspace(0.0, max_cra_deg, samples)
+    out = np.full((len(lens.vignetting), fs.size), np.inf)
+    for j, f in enumerate(fs):
+        with_all = lens.relative_illumination(f, cra)
+        for i in range(len(lens.vignetting)):
+            others = Lens(lens.exit_pupil_mm, lens.vignetting[:i] + lens.vignetting[i + 1:],
+                          lens.magnification, lens.pupil_magnification)
+            without = others.relative_illumination(f, cra)
+            cut = np.flatnonzero(without - with_all > 1e-9 * np.maximum(without, 1e-300))
+            if cut.size:
+                out[i, j] = cra[max(cut[0] - 1, 0)]
+    return out
+
+
 def check_circles(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *, h_given=False):
     """Reasons (a list of sentences) why the fit's circles are not identifiable; empty: all
     are. With ``h`` given (one circle), one onset inside the field suffices."""
@@ -102,18 +128,22 @@ def check_circles(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *, h_given=
     err = [fit.stderr[k] for k in fit.names]
     names = list(fit.names)
     lens = lens_of(fit, base)
-    onsets = lens.circle_onsets_cra_deg(np.asarray(f_numbers, float))
+    onsets = effective_onsets_deg(lens, f_numbers, max_cra_deg)
+    step = max_cra_deg / (_ONSET_SAMPLES - 1)
     for i, (P, h) in enumerate(circles_of(fit.model, p)):
         label = "P_mm" if i == 0 else f"P{i + 1}_mm"
         sP = err[names.index(label)]
         sh = err[names.index(label.replace("P", "h"))]
         tag = f"circle {i + 1} (P {P:.4g} mm, h {h:.4g} mm)"
-        inside = int(np.sum(onsets[i] < max_cra_deg))
+        found = np.sort(onsets[i][np.isfinite(onsets[i])])
+        # onsets at different CRAs: the same onset at every f-number gives one equation
+        distinct = int(found.size > 0) + int(np.sum(np.diff(found) > 1.5 * step))
         need = 1 if h_given else 2
-        if inside < need:
-            problems.append(f"{tag} starts cutting inside the field at {inside} f-number(s); "
-                            + ("one is needed" if h_given else "two are needed to tell P "
-                               "from h"))
+        if distinct < need:
+            problems.append(
+                f"{tag} starts cutting the light inside the field at {distinct} distinct "
+                "chief-ray angle(s) over the f-numbers; "
+                + ("one is needed" if h_given else "two are needed to tell P from h"))
         if not (math.isfinite(sP) and math.isfinite(sh)):
             problems.append(f"{tag} has no finite standard error: the flats do not pin it")
         elif sP > MAX_REL_ERROR * P or sh > MAX_REL_ERROR * abs(h):
@@ -193,5 +223,6 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
                  f"moves the mean shift by up to {np.nanmax(diff):.3f} nm")
         chosen = model
     if not verdicts[chosen].why:
-        verdicts[chosen].why = "no model with more circles passed the rules"
+        verdicts[chosen].why = ("no model with more circles passed the rules" if len(order) > 1
+                                else "the only model tried")
     return chosen, verdicts

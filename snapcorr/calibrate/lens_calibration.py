@@ -38,6 +38,7 @@ from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
 from . import choice, report, stages
 from .flats import cra_deg_map
+from .joint_fit import N_CIRCLES
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
 
@@ -54,7 +55,8 @@ class LensCalibration:
     Attributes
     ----------
     lens : Lens
-        The profile: every circle of the chosen model (none if no vignetting was found).
+        The profile: every circle of the chosen joint-fit model (none if no vignetting was
+        found), or the one circle of an onset method where that was used.
     method, model : str
         Estimator used (``"joint"``, ``"onset-ratio"`` or ``"onset-model"``) and vignetting
         model chosen (``"none"``, ``"one"``, ``"two"`` or ``"three"`` circles).
@@ -208,8 +210,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     saturation : float or mapping, optional
         Values at or above are saturated and ignored (one level, or f-number -> level).
     vignetting_distance_mm : float, optional
-        h, if known (one circle). Required with a single f-number, whose flat cannot tell P
-        from h.
+        h, if known; then one circle is fitted. Required with a single f-number, whose flat
+        cannot tell P from h.
     method : {"auto", "joint", "onset-ratio", "onset-model"}
         ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
         the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from
@@ -273,34 +275,36 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
 
     fits, bic = stages.joint_fits(
         data, base, fs, onset_fits.values(), centers, fix_center, max_cra,
-        fixed_h=vignetting_distance_mm, max_circles=max(max_circles, 1), keep_going=keep_going)
-    if max_circles == 0:
-        fits = {"none": fits["none"]}
-    if fix_center is None and len(fits) > 1:
-        # The field's extent (and the paper's profiles) come from the centre the flats support
-        # best: the fit with circles and the lowest criterion. Where it moved from the contours'
-        # centre, the profiles and onsets are taken again about it.
-        best = fits[min((m for m in fits if m != "none"), key=lambda m: bic[m])]
-        fitted = (best.params["cx_px"], best.params["cy_px"])
-        if best.success and np.hypot(fitted[0] - center[0], fitted[1] - center[1]) > 2.0:
-            center, center_source = fitted, "joint fit"
+        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going)
+    if vignetting_distance_mm is not None and max_circles > 1:
+        notes.append("h given: one circle fitted (a further circle's h would be unknown)")
+    model, verdicts = decide(fits, bic)
+    if model != "none" and fix_center is None:
+        # The chosen model's centre; where it moved from the contours' centre, the field's
+        # extent, the profiles and the paper's onsets are taken again about it, and the
+        # choice is made again over that field.
+        contour_centre, contour_source = center, center_source
+        center, center_source = _fitted_centre(fits[model]), "joint fit"
+        if np.hypot(center[0] - contour_centre[0], center[1] - contour_centre[1]) > 2.0:
             profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
                 fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
             onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
                           for det in onsets}
-    model, verdicts = decide(fits, bic)
+            model, verdicts = decide(fits, bic)
+            if model == "none":  # no circle after all: the contours' centre stands
+                center, center_source = contour_centre, contour_source
+            else:
+                center = _fitted_centre(fits[model])
+        max_cra = float(cra_deg_map(fl.shape, center, pixel_pitch_um, exit_pupil_mm).max())
     notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
               for k, v in fits.items() if not v.success]
-    chosen = fits[model]
-    if model != "none" and fix_center is None:
-        center = (chosen.params["cx_px"], chosen.params["cy_px"])
-        center_source = "joint fit"
-        max_cra = float(cra_deg_map(fl.shape, center, pixel_pitch_um, exit_pupil_mm).max())
     used, reason, circles, misfit_note = _decide_method(
         method, model, fits, verdicts, onsets, onset_fits, max_cra, base.exit_pupil_mm)
     if misfit_note:
         notes.append(misfit_note)
     if used != "joint":
+        verdicts[model].chosen = False
+        verdicts[model].why = f"the joint fit's choice, not used ({used}): {verdicts[model].why}"
         model = "one"
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
@@ -318,6 +322,10 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     return result
 
 
+def _fitted_centre(fit):
+    return (fit.params["cx_px"], fit.params["cy_px"])
+
+
 def _decide_method(method, model, fits, verdicts, onsets, onset_fits, max_cra, x):
     """The estimator used, why, and the circles of the profile."""
     chosen = fits[model]
@@ -328,11 +336,14 @@ def _decide_method(method, model, fits, verdicts, onsets, onset_fits, max_cra, x
                 f"{fits['none'].reduced_chi2:.1f}); check the optical centre, the f-numbers "
                 "and the files")
     if method == "auto":
-        if model == "none":
+        if model == "none" and len(fits) == 1:
+            used = "joint"
+            reason = "no vignetting circle tried (max_circles=0): the ideal-aperture model"
+        elif model == "none":
             used = "joint"
             reason = (f"no optical vignetting inside the field up to {max_cra:.1f} deg: "
                       f"{verdicts['none'].why}; the ideal-aperture model suffices")
-        elif misfit and _sane(onset_fits["ratio"], x):
+        elif misfit and N_CIRCLES[model] == 1 and _sane(onset_fits["ratio"], x):
             used = "onset-ratio"
             reason = (f"the area model misfits the flats (reduced chi2 "
                       f"{chosen.reduced_chi2:.1f} > {MISFIT_CHI2}), so only where the fall-off "
@@ -340,8 +351,11 @@ def _decide_method(method, model, fits, verdicts, onsets, onset_fits, max_cra, x
         else:
             used = "joint"
             if misfit:
-                note = (f"the joint fit misfits (reduced chi2 {chosen.reduced_chi2:.1f}) but the "
-                        "paper's onsets give no usable P and h to fall back to")
+                note = (f"the joint fit misfits (reduced chi2 {chosen.reduced_chi2:.1f}) but "
+                        + ("the paper's onsets give no usable P and h to fall back to"
+                           if N_CIRCLES[model] == 1 else
+                           f"the paper's onsets see one circle, not {N_CIRCLES[model]}: the "
+                           "joint fit is kept"))
             reason = (f"{report.CIRCLES[model]}: {verdicts[model].why}; the joint fit uses "
                       f"every pixel (reduced chi2 {chosen.reduced_chi2:.2f})")
     else:

@@ -318,6 +318,8 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         bic[name] = floor_chi2(data, fit, FLOOR_REL, center=c) + fit.k * math.log(fit.n)
 
     add("none", fit_model(data, "none", [], center=centers[0]))
+    if max_circles < 1:
+        return fits, bic
     add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers, max_cra, fixed_h),
                          center=fix_center, fixed_h=fixed_h))
     single = data.R_ref_mm is None

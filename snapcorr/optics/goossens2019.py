@@ -71,7 +71,7 @@ RIEMANN_STEP_NM = 0.01
 
 
 class PupilCutOffError(ValueError):
-    """The vignetting circle cuts off the whole exit pupil: no light reaches the pixel."""
+    """The vignetting circles cut off the whole exit pupil: no light reaches the pixel."""
 
 
 @cache

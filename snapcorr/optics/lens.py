@@ -1,4 +1,4 @@
-"""The lens as the filters see it: exit pupil, vignetting circle and working f-number.
+"""The lens as the filters see it: exit pupil, vignetting circles and working f-number.
 
 References
 ----------

@@ -158,11 +158,11 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     The rule, cheapest first:
 
     1. ``"asymptotic"`` (Eq. 6) where the pixel is not vignetted (below the onset of Eq. 46,
-       or a lens without a vignetting circle) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
+       or a lens without vignetting circles) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
        error estimate (:func:`~snapcorr.optics.goossens2019.asymptotic_error_estimate_nm`) is
        below the tolerance;
     2. ``"ideal"`` (exact, one full circle) where the pixel is not vignetted;
-    3. ``"vignetted"`` (exact, two arcs) elsewhere.
+    3. ``"vignetted"`` (exact, the chain of arcs bounding the vignetted pupil) elsewhere.
 
     Before the onset the vignetted and the ideal kernels are identical, so step 2 loses nothing.
     """
@@ -190,11 +190,11 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     cra_deg : array_like
         Chief-ray angle, degrees.
     lens : Lens
-        Exit pupil and vignetting circle.
+        Exit pupil and vignetting circles.
     method : {"auto", "vignetted", "ideal", "asymptotic", "riemann", "table", "grid"}
         ``"vignetted"``: exact for the vignetted aperture (contour quadrature,
         :func:`~snapcorr.optics.goossens2019.mean_shift_contour`). ``"ideal"``: exact, ignoring
-        the vignetting circle. ``"asymptotic"``: Eq. (6). ``"riemann"``: the paper's left
+        the vignetting circles. ``"asymptotic"``: Eq. (6). ``"riemann"``: the paper's left
         Riemann sum with a 0.01 nm step (slow; the baseline). ``"table"``: interpolation in
         lookup tables over CRA built per (f-number, n_eff) to ``tolerance_nm``. ``"grid"``:
         interpolation in a cached (f-number, CRA) grid per n_eff (:class:`ShiftGrid`), for many

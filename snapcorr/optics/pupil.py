@@ -4,6 +4,8 @@ All lengths in mm. A pixel at distance ``d = x tan(CRA)`` from the optical axis 
 the exit pupil (radius ``R``, on axis, distance ``x``) through the projected vignetting circle
 (radius ``P``, centre ``d_v = h tan(CRA)`` from the axis, Eq. 9). Rays at incidence angle
 ``phi`` meet the pupil plane on a circle of radius ``r = x tan(phi)`` about the pixel's foot.
+The functions here are the paper's, for one circle; where ``P_mm`` and ``dv_mm`` are lists
+(several circles) they hand over to :mod:`snapcorr.optics.discs`.
 
 References
 ----------

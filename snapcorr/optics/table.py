@@ -89,7 +89,7 @@ class ShiftTable:
         cutoff = float(lens.cutoff_cra_deg(f_number))
         if cra_max_deg >= cutoff:
             raise g19.PupilCutOffError(
-                f"at f/{f_number:g} the vignetting circle cuts off the whole pupil from "
+                f"at f/{f_number:g} the vignetting circles cut off the whole pupil from "
                 f"CRA {cutoff:.3f} deg; the table was asked to reach {cra_max_deg:.3f} deg."
             )
         cra_max = max(float(cra_max_deg), min(1.0, 0.999 * cutoff))
