@@ -306,10 +306,6 @@ def test_users_scene_chooses_no_stop_like_circle(key):
     check(out)
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "calibrate_lens takes the optical centre from the best fit with circles even where the "
-    "model chosen has none: 77-1182 px off, where the contours of the flats' cos^4 fall-off "
-    "gave it within 0.1 px before"))
 def test_optical_centre_of_a_lens_without_a_circle():
     """No circle in the field: the centre comes from the flats' natural (cos^4) fall-off, which
     an integrating sphere leaves intact; a centre off by pixels moves every pixel's chief-ray
