@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from flatsim import LensTruth, make_flats
 
-from snapcorr import Lens
+from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens
 from snapcorr.calibrate.choice import check_circles, choose, shift_difference_nm
 from snapcorr.calibrate.joint_fit import fit_model
@@ -119,3 +119,23 @@ def test_an_onset_method_leaves_no_joint_model_marked_chosen(user_flats):
     table = res.lens.calibration["joint_fit"]
     assert not any(entry["chosen"] for entry in table.values())
     assert "not used (onset-model)" in table["one"]["why"]
+
+
+@pytest.mark.slow
+def test_the_reported_shift_uncertainty_is_honest_over_seeds():
+    # |error| / reported standard error of the mean shift, worst f-number, over seeds
+    from flatsim import mean_shift_nm
+
+    ratios = []
+    for seed in range(8):
+        res = calibrate_lens(make_flats(H_GT_X, FS, noise=0.05, seed=100 + seed, **SCENE), **KW)
+        assert res.model == "one"
+        j = int(np.nanargmax(res.shift_stderr_nm))
+        f = FS[j]
+        cra = np.linspace(0.0, res.max_cra_deg, 25)
+        got = mean_shift(1000.0, 1.5, f, cra, res.lens, method="vignetted")
+        want = np.ravel(mean_shift_nm(H_GT_X, 1000.0, 1.5, f, cra))
+        ratios.append(np.max(np.abs(got - want)) / res.shift_stderr_nm[j])
+    ratios = np.array(ratios)
+    assert np.all(ratios < 4.0), ratios
+    assert 0.3 < np.sqrt(np.mean(ratios ** 2)) < 2.0, ratios

@@ -32,13 +32,15 @@ say, which only rescales one flat. The choice here therefore has three parts.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..optics.goossens2019 import PupilCutOffError
 from ..optics.lens import Lens
 from ..optics.mean import mean_shift
+from ..optics.shift import EffectiveIndexWarning
 from .joint_fit import N_CIRCLES, ModelFit, circles_of
 
 __all__ = [
@@ -49,6 +51,7 @@ __all__ = [
     "choose",
     "effective_onsets_deg",
     "shift_difference_nm",
+    "shift_stderr_nm",
 ]
 
 #: Relative systematic floor of the ratio images in the model criterion.
@@ -179,6 +182,52 @@ def shift_difference_nm(lens_a: Lens, lens_b: Lens, f_numbers, max_cra_deg, *,
     return np.array(out)
 
 
+def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
+                    cwl_nm=REFERENCE_CWL_NM, n_eff=REFERENCE_N_EFF):
+    """Standard error of the predicted mean shift that the fit's uncertainty in P and h leaves,
+    largest over the field, for each f-number (nm; NaN where it cannot be propagated).
+
+    The covariance of the circles' parameters (correlations from the fit, variances from the
+    reported standard errors, which carry the systematic floor) is carried through the mean
+    shift by finite differences: ``sqrt(diag(J C J^T))`` on a grid of CRAs.
+    """
+    names = [k for k in fit.names if k.endswith("_mm")]
+    fs = np.asarray(f_numbers, float)
+    if not names or fit.covariance is None:
+        return np.full(fs.size, np.nan)
+    idx = [fit.names.index(k) for k in names]
+    cov = np.asarray(fit.covariance)[np.ix_(idx, idx)]
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    err = np.array([fit.stderr[k] for k in names])
+    if not np.all(np.isfinite(err)):
+        return np.full(fs.size, np.inf)
+    free = sd > 0
+    scale = np.where(free, err / np.where(free, sd, 1.0), 0.0)
+    cov = cov * np.outer(scale, scale)
+    p0 = {k: fit.params[k] for k in fit.names}
+    lens = lens_of(fit, base)
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EffectiveIndexWarning)
+        for f in fs:
+            top = min(max_cra_deg, 0.999 * float(lens.cutoff_cra_deg(f)))
+            cra = np.linspace(0.0, top, 49)
+            try:
+                ref = mean_shift(cwl_nm, n_eff, f, cra, lens, method="vignetted")
+                J = []
+                for k in names:
+                    step = 1e-5 * max(abs(p0[k]), 1.0)
+                    moved = replace(fit, params={**p0, k: p0[k] + step})
+                    J.append((mean_shift(cwl_nm, n_eff, f, cra, lens_of(moved, base),
+                                         method="vignetted") - ref) / step)
+            except (PupilCutOffError, ValueError):
+                out.append(float("nan"))
+                continue
+            J = np.asarray(J).T  # (cra, params)
+            out.append(float(np.sqrt(np.max(np.einsum("ij,jk,ik->i", J, cov, J)))))
+    return np.array(out)
+
+
 def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
            tolerance_nm=TOLERANCE_NM, h_given=False):
     """The model the flats support, and a verdict on every model tried.
@@ -186,10 +235,6 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
     Models are taken in order of their number of circles; each step up must pass all three
     rules of the module's description against the model chosen so far.
     """
-    import warnings
-
-    from ..optics.shift import EffectiveIndexWarning
-
     order = sorted(fits, key=lambda m: N_CIRCLES[m])
     chosen = order[0]
     verdicts = {chosen: ModelVerdict(chosen, True, "", bic_floor[chosen],

@@ -81,6 +81,9 @@ class LensCalibration:
     next_best : str or None
         The best model not chosen, and ``shift_difference_nm`` the largest difference of the
         predicted mean shift between it and the chosen one at each f-number.
+    shift_stderr_nm : ndarray
+        The largest standard error of the predicted mean shift over the field that the
+        uncertainty of P and h leaves, at each f-number (joint fit with circles only).
     profiles, ratio_profiles : dict
         f-number -> :class:`RadialProfile` of each flat and of its ratio to the reference.
     """
@@ -105,6 +108,7 @@ class LensCalibration:
     verdicts: dict = field(default_factory=dict)
     next_best: str | None = None
     shift_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shift_stderr_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     tolerance_nm: float = choice.TOLERANCE_NM
     notes: list = field(default_factory=list)
 
@@ -309,6 +313,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
+    shift_err = (choice.shift_stderr_nm(fits[model], base, fs, max_cra)
+                 if used == "joint" and model != "none" else np.zeros(0))
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -316,6 +322,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         onset_fits=onset_fits, fits=fits, profiles=profiles, ratio_profiles=ratio_profiles,
         pixel_pitch_um=float(pixel_pitch_um), shape=fl.shape, bic_floor=bic,
         verdicts=verdicts, next_best=next_best, shift_difference_nm=diff,
+        shift_stderr_nm=shift_err,
         tolerance_nm=tolerance_nm, notes=notes)
     result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
                        calibration=_calibration_table(result, inputs))
@@ -462,6 +469,8 @@ def _calibration_table(res: LensCalibration, inputs):
     check = res.onset_check_deg()
     if check is not None:
         table["model_choice"]["paper_onsets_vs_chosen_max_deg"] = _clean(check)
+    if res.shift_stderr_nm.size:
+        table["model_choice"]["shift_stderr_nm"] = [_clean(v) for v in res.shift_stderr_nm]
     if inputs:
         table["inputs"] = {f"f/{float(k):g}": str(v) for k, v in inputs.items()}
     if res.notes:

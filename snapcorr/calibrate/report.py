@@ -63,6 +63,11 @@ def summary(res) -> str:
         lines.append(f"mean-shift difference to the next best ({CIRCLES[res.next_best]}), "
                      f"nm, for a filter at {REFERENCE_CWL_NM:g} nm with n_eff "
                      f"{REFERENCE_N_EFF:g}: {diff}")
+    if res.shift_stderr_nm.size:
+        err = ", ".join(f"f/{f:g} {e:.4f}" for f, e in
+                        zip(res.f_numbers, res.shift_stderr_nm, strict=True))
+        lines.append(f"mean-shift standard error from P and h (largest over the field), nm, "
+                     f"same filter: {err}")
     lines.append(f"why: {res.reason}")
     lines.extend(f"note: {n}" for n in res.notes)
     return "\n".join(lines)
