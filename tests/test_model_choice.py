@@ -71,7 +71,7 @@ def test_pixel_vignetting_is_kept_only_where_it_matters_to_the_tolerance():
     assert len(table["shift_difference_to_next_best_nm"]) == len(FS)
 
 
-def test_an_onset_hidden_behind_another_circle_is_one_equation_not_two():
+def test_where_a_circle_starts_to_cut_the_light_the_others_leave():
     # circle 2 touches circle 1 inside it at atan((8 - 7.4236) / (19 - 16.991)) = 16.0 deg at
     # every f-number: against the bare pupil it would start at 8.9 and 13.1 deg
     from snapcorr.calibrate.choice import effective_onsets_deg
@@ -81,6 +81,9 @@ def test_an_onset_hidden_behind_another_circle_is_one_equation_not_two():
     eff = effective_onsets_deg(lens, [2.0, 2.8], 18.0)[1]
     touch = np.rad2deg(np.arctan((8.0 - 7.4236) / (19.0 - 16.991)))
     assert np.all(bare < touch - 2.0) and np.all(np.abs(eff - touch) < 0.1)
+    # a circle wholly hidden behind another cuts no light: never identifiable
+    hidden = Lens(X, [(7.4236, 16.991), (9.0, 16.991)], 0.06, 1.3)
+    assert np.all(np.isinf(effective_onsets_deg(hidden, [2.0, 2.8], 18.0)[1]))
 
 
 KW = dict(exit_pupil_mm=X, pixel_pitch_um=SCENE["pitch_um"], magnification=0.06,

@@ -7,9 +7,12 @@ say, which only rescales one flat. The choice here therefore has three parts.
 
 1. **Identifiability** (:func:`check_circles`). A circle counts only if
 
-   - it starts to cut the light (the pupil and the other circles leave) inside the field at
-     two or more different chief-ray angles over the f-numbers of the flats: Eq. (26) needs
-     two onsets to tell ``P`` from ``h``, and so do the flats (:func:`effective_onsets_deg`);
+   - its onset (Eq. 24-25) lies inside the field at two or more f-numbers of the flats:
+     Eq. (26) needs two onsets to tell ``P`` from ``h``, and so do the flats; and it cuts the
+     light the pupil and the other circles leave somewhere in the field
+     (:func:`effective_onsets_deg`). A circle partly hidden behind another may still be
+     pinned by the events it leaves (where it starts to cut, where another takes over); the
+     next rule says whether it is;
    - its ``P`` and ``h`` have finite standard errors below ``MAX_REL_ERROR`` of their values;
    - its ``h`` is more than ``MIN_H_SIGMAS`` standard errors from 0: a circle that does not
      move with the chief-ray angle changes the aperture, which the flats' exposure scales
@@ -131,22 +134,22 @@ def check_circles(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *, h_given=
     err = [fit.stderr[k] for k in fit.names]
     names = list(fit.names)
     lens = lens_of(fit, base)
-    onsets = effective_onsets_deg(lens, f_numbers, max_cra_deg)
-    step = max_cra_deg / (_ONSET_SAMPLES - 1)
+    fs = np.asarray(f_numbers, float)
+    bare = lens.circle_onsets_cra_deg(fs)
+    effective = effective_onsets_deg(lens, fs, max_cra_deg)
     for i, (P, h) in enumerate(circles_of(fit.model, p)):
         label = "P_mm" if i == 0 else f"P{i + 1}_mm"
         sP = err[names.index(label)]
         sh = err[names.index(label.replace("P", "h"))]
         tag = f"circle {i + 1} (P {P:.4g} mm, h {h:.4g} mm)"
-        found = np.sort(onsets[i][np.isfinite(onsets[i])])
-        # onsets at different CRAs: the same onset at every f-number gives one equation
-        distinct = int(found.size > 0) + int(np.sum(np.diff(found) > 1.5 * step))
+        inside = int(np.sum(bare[i] < max_cra_deg))
         need = 1 if h_given else 2
-        if distinct < need:
-            problems.append(
-                f"{tag} starts cutting the light inside the field at {distinct} distinct "
-                "chief-ray angle(s) over the f-numbers; "
-                + ("one is needed" if h_given else "two are needed to tell P from h"))
+        if inside < need:
+            problems.append(f"{tag} starts cutting the pupil inside the field at {inside} "
+                            "f-number(s); " + ("one is needed" if h_given else
+                                               "two are needed to tell P from h"))
+        elif not np.any(np.isfinite(effective[i])):
+            problems.append(f"{tag} cuts no light inside the field: the other circles hide it")
         if not (math.isfinite(sP) and math.isfinite(sh)):
             problems.append(f"{tag} has no finite standard error: the flats do not pin it")
         elif sP > MAX_REL_ERROR * P or sh > MAX_REL_ERROR * abs(h):
