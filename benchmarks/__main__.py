@@ -7,7 +7,16 @@ import numpy as np
 
 from snapcorr import __version__
 
-from . import calibration, correct, io_memory, mean_shift, scaling, speed_accuracy, stability
+from . import (
+    calibration,
+    calibration_circles,
+    correct,
+    io_memory,
+    mean_shift,
+    scaling,
+    speed_accuracy,
+    stability,
+)
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
 parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of seconds")
@@ -19,6 +28,8 @@ print()
 calibration.full_size_time(quick=args.quick)
 calibration.noise_sweep(quick=args.quick, write=not args.quick)
 calibration.fnumber_sweep(quick=args.quick, write=not args.quick)
+calibration_circles.noise_sweep(quick=args.quick, write=not args.quick)
+calibration_circles.full_size_time(quick=args.quick)
 print()
 correct.run(quick=args.quick)
 print()

@@ -28,6 +28,15 @@ def test_quick_calibration_benchmark_runs():
     assert seconds > 0 and res.lens.has_vignetting and "flats" in lines[-1]
 
 
+def test_quick_circle_calibration_benchmark_runs():
+    from benchmarks import calibration_circles
+
+    lines = []
+    rows = calibration_circles.noise_sweep(quick=True, echo=lines.append, write=False)
+    assert rows and not any(r["spurious"] for r in rows)
+    assert all(r["model"] == "one" for r in rows)
+
+
 def test_quick_correction_benchmark_runs():
     from benchmarks import correct
 
