@@ -19,7 +19,7 @@ import itertools
 
 import numpy as np
 
-from .discs import arc_half_angle, extreme_radii
+from .discs import _segment, arc_half_angle, extreme_radii
 
 __all__ = [
     "eta",
@@ -280,19 +280,6 @@ def lens_boundary_arcs(rho1, rho2, v):
     beta = np.where(crossing, beta, np.where(pupil_inside, np.pi, 0.0))
     alpha = np.where(crossing, alpha, np.where(circle_inside & ~pupil_inside, np.pi, 0.0))
     return beta, alpha
-
-
-def _segment(theta):
-    """``theta - sin(theta) cos(theta)`` (a circular segment over its radius squared, times
-    two), accurate for small ``theta`` where it is ~ 2 theta^3 / 3."""
-    x = 2.0 * np.asarray(theta, float)
-    small = x < 0.6
-    xs = np.where(small, x, 0.0)
-    x2 = xs * xs
-    # x - sin x = x^3/3! - x^5/5! + ... ; the x^15 term is < 1e-16 of the first at x = 0.6.
-    series = xs * x2 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 * (1 / 362880 - x2 * (
-        1 / 39916800 - x2 * (1 / 6227020800))))))
-    return 0.5 * np.where(small, series, x - np.sin(x))
 
 
 def lens_area(rho1, rho2, beta, alpha):
