@@ -1,8 +1,9 @@
 """The stages of a lens calibration, each a function of the one before.
 
 :func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_centre` ->
-:func:`profiles_and_onsets` -> :func:`joint_fits`; :mod:`snapcorr.calibrate.choice` then picks
-the model and :func:`snapcorr.calibrate.calibrate_lens` strings them together.
+:func:`profiles_and_onsets` (and :func:`solve_onsets`, Eq. 26) -> :func:`block_data` ->
+:func:`joint_fits`; :mod:`snapcorr.calibrate.choice` then picks the model and
+:func:`snapcorr.calibrate.calibrate_lens` strings them together.
 """
 
 from __future__ import annotations
@@ -21,11 +22,13 @@ from .onsets import Onset, detect_onset
 __all__ = [
     "Flats",
     "Ratios",
+    "block_data",
     "clean_flats",
     "joint_fits",
     "optical_centre",
     "profiles_and_onsets",
     "ratio_images",
+    "solve_onsets",
 ]
 
 #: Largest side of the block-averaged images used by the joint fit.
