@@ -430,6 +430,12 @@ def big_inputs(tmp_path_factory):
     return d
 
 
+def _sigint_default():
+    """In the child: Ctrl-C as a terminal sends it. A shell starts background jobs with
+    SIGINT ignored, and Python then installs no KeyboardInterrupt handler."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
     """Run ``snapcorr ARGS`` in ``folder``; once a hidden temporary appears (the write has
     begun), wait ``after`` s and send ``signals`` (10 ms apart). Returns (status, stderr).
@@ -438,7 +444,8 @@ def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
     and is repeated."""
     for _ in range(attempts):
         proc = subprocess.Popen([sys.executable, "-m", "snapcorr", *map(str, args)], cwd=folder,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_sigint_default)
         try:
             deadline = time.monotonic() + 90
             while not hidden(folder):

@@ -541,6 +541,12 @@ def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_pa
     assert not folder.exists()
 
 
+def _sigint_default():
+    """In the child: Ctrl-C as a terminal sends it. A shell starts background jobs with
+    SIGINT ignored, and Python then installs no KeyboardInterrupt handler."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 SCRIPT = textwrap.dedent("""
     import sys
 
@@ -565,7 +571,8 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path, ext, signum):
     out = tmp_path / "work"
     out.mkdir()
     proc = subprocess.Popen([sys.executable, str(script), str(out / f"big{ext}")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=_sigint_default)
     try:
         deadline = time.monotonic() + 20
         while not any(p.name.startswith(".") for p in out.iterdir()):
