@@ -60,18 +60,23 @@ def read_flat(path):
 
 
 def noise_model(image, valid):
-    """Noise variance as ``a + b * signal`` (read plus shot noise), measured in the image.
+    """Noise variance as ``a + b * signal + c * signal**2`` (read, shot and gain noise: the
+    photon-transfer curve), measured in the image.
 
     The residual of each pixel from the mean of its four neighbours (OpenCV ``filter2D``) has
     variance ``1.25 sigma^2`` for independent noise and cancels any linear gradient, so steep
     fall-offs do not leak into it. Its robust spread (median absolute deviation) in bins of
-    signal, fitted by a straight line, gives ``a`` and ``b``.
+    signal gives the curve, fitted with non-negative coefficients (scipy ``nnls``): a
+    straight line cannot follow noise that grows with the signal itself (fixed-pattern gain,
+    frames summed with different gains), and with its intercept held at or above 0 it would
+    overstate the variance everywhere.
 
     Returns
     -------
-    a, b : float
+    a, b, c : float
     """
     import cv2
+    from scipy.optimize import nnls
 
     img = np.asarray(image, np.float32)
     kernel = np.array([[0, -0.25, 0], [-0.25, 1, -0.25], [0, -0.25, 0]], np.float32)
@@ -82,8 +87,8 @@ def noise_model(image, valid):
     signal = cv2.blur(img, (3, 3))[ok]
     r = resid[ok]
     if r.size < 200:
-        return 0.0, 0.0
-    step = max(1, r.size // 400_000)  # a few 1e5 pixels pin the line down
+        return 0.0, 0.0, 0.0
+    step = max(1, r.size // 400_000)  # a few 1e5 pixels pin the curve down
     signal, r = signal[::step], r[::step]
     order = np.argsort(signal, kind="stable")
     centers, variances, weights = [], [], []
@@ -93,14 +98,19 @@ def noise_model(image, valid):
         rr = r[part]
         mad = np.median(np.abs(rr - np.median(rr)))
         centers.append(float(np.median(signal[part])))
-        variances.append((1.4826 * mad) ** 2 / 1.25)
+        variances.append(float((1.4826 * mad) ** 2 / 1.25))
         weights.append(float(part.size))
-    if len(centers) < 2 or np.ptp(centers) == 0:  # no spread of signal to fit a line to
-        return float(np.mean(variances)) if variances else 0.0, 0.0
-    b, a = np.polyfit(centers, variances, 1, w=np.sqrt(weights))
-    if b < 0:  # no shot-noise trend: a constant
-        a, b = float(np.average(variances, weights=weights)), 0.0
-    return max(float(a), 0.0), float(b)
+    if len(centers) < 2 or np.ptp(centers) == 0:  # no spread of signal to fit a curve to
+        return (float(np.mean(variances)) if variances else 0.0), 0.0, 0.0
+    s = np.asarray(centers)
+    v = np.asarray(variances)
+    # each bin's variance is known to about sqrt(2 / n) of itself: weight by that
+    w = np.sqrt(np.asarray(weights)) / np.maximum(v, 1e-30)
+    scale = max(float(np.max(np.abs(s))), 1e-30)
+    u = s / scale
+    design = np.stack([np.ones_like(u), u, u * u], axis=1)
+    coef, _ = nnls(design * w[:, None], v * w)
+    return float(coef[0]), float(coef[1] / scale), float(coef[2] / scale**2)
 
 
 def clean_flat(image, *, dark=None, saturation=None):
@@ -134,10 +144,11 @@ def clean_flat(image, *, dark=None, saturation=None):
         img = img - np.where(np.isfinite(dark), dark, 0.0)
     img = np.where(valid, img, 0.0).astype(np.float32)
     med = cv2.medianBlur(img, 5)
-    a, b = noise_model(img, valid)
+    a, b, c = noise_model(img, valid)
     peak = float(np.percentile(med[valid], 99)) if valid.any() else 0.0
     floor = (1e-4 * abs(peak)) ** 2  # noise-free data: tolerate rounding and kinks
-    var = (a + b * np.maximum(med, 0.0) + floor).astype(np.float32)
+    level = np.maximum(med, 0.0)
+    var = (a + (b + c * level) * level + floor).astype(np.float32)
     valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)
