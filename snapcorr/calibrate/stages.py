@@ -244,16 +244,29 @@ def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
 
 
 def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> BlockData:
-    """The ratio blocks every f-number sees, ready for :func:`fit_model`."""
-    n = len(ratios.ratios)
-    q = np.stack(ratios.ratios)
-    okall = np.stack(ratios.ratio_ok).all(axis=0)
+    """The blocks to fit, ready for :func:`fit_model`: every flat's block means where the
+    reference (highest f-number) flat is lit, each block's gain to be solved for; a single
+    flat as it is (its fall-off taken as ``cos^4``)."""
     R = base.exit_pupil_radius_mm(flats.f_numbers)
-    return BlockData(
-        q=q[:, okall], sigma=np.sqrt(np.stack(ratios.ratio_variances))[:, okall],
-        xpix=ratios.bx[okall], ypix=ratios.by[okall], R_mm=R[:n],
-        R_ref_mm=None if flats.single else float(R[-1]), pitch_mm=pixel_pitch_um * 1e-3,
-        x_mm=base.exit_pupil_mm, natural=flats.single)
+    common = dict(pitch_mm=pixel_pitch_um * 1e-3, x_mm=base.exit_pupil_mm)
+    if flats.single:
+        ok = ratios.ratio_ok[0]
+        return BlockData(q=ratios.ratios[0][None, ok],
+                         sigma=np.sqrt(ratios.ratio_variances[0])[None, ok],
+                         xpix=ratios.bx[ok], ypix=ratios.by[ok], R_mm=R, R_ref_mm=None,
+                         natural=True, **common)
+    imgs = np.stack(ratios.images)
+    var = np.stack(ratios.variances)
+    with np.errstate(invalid="ignore"):
+        used = np.stack(ratios.enough) & np.isfinite(imgs) & (var > 0)
+        ref = imgs[-1]
+        lit = (ref > LIT_FRACTION * ratios.ref_peak) & (ref > 5.0 * np.sqrt(var[-1]))
+    keep = lit & used[-1] & (used.sum(axis=0) >= 2)
+    used = used[:, keep]
+    return BlockData(q=np.where(used, imgs[:, keep], 0.0),
+                     sigma=np.where(used, np.sqrt(np.where(used, var[:, keep], 1.0)), np.inf),
+                     xpix=ratios.bx[keep], ypix=ratios.by[keep], R_mm=R, R_ref_mm=None,
+                     gains=True, **common)
 
 
 def _starts_one(onset_fits, R, x, centers, max_cra, h_given):
@@ -325,7 +338,7 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         return fits, bic
     add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers, max_cra, fixed_h),
                          center=fix_center, fixed_h=fixed_h))
-    single = data.R_ref_mm is None
+    single = not data.gains
     for n in range(2, max_circles + 1):
         if single or fixed_h is not None or (keep_going is not None
                                              and not keep_going(fits, bic)):
