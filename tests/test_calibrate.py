@@ -105,8 +105,9 @@ def test_a_second_circle_the_flats_hardly_see_gets_a_wide_error_bar():
                          pupil_magnification=1.3)
     two = res.fits["two"]
     assert two.stderr["P_mm"] < 0.01 and two.stderr["h_mm"] < 0.05
-    # 0.73 mm and 1.8 mm here: 9 % of P2 and h2, far from the floor, and too loose to count
+    # far from the floor: loose, or not pinned at all
     assert two.stderr["P2_mm"] > 0.05 * two.params["P2_mm"]
     assert two.stderr["h2_mm"] > 0.05 * abs(two.params["h2_mm"])
     assert res.model == "one" and not res.verdicts["two"].chosen
-    assert "loose" in res.verdicts["two"].why
+    why = res.verdicts["two"].why
+    assert "not identifiable" in why or "cannot tell them apart" in why, why

@@ -13,7 +13,10 @@ say, which only rescales one flat. The choice here therefore has three parts.
      (:func:`effective_onsets_deg`). A circle partly hidden behind another may still be
      pinned by the events it leaves (where it starts to cut, where another takes over); the
      next rule says whether it is;
-   - its ``P`` and ``h`` have finite standard errors below ``MAX_REL_ERROR`` of their values;
+   - its ``P`` and ``h`` have finite standard errors below ``MAX_REL_ERROR`` (half) of their
+     values: bounded, though not necessarily small (P and h of a circle that cuts only the
+     field's edge are strongly correlated, yet the shift they predict may be well pinned:
+     rule 3 judges that);
    - its ``h`` is more than ``MIN_H_SIGMAS`` standard errors from 0: a circle that does not
      move with the chief-ray angle changes the aperture, which the flats' exposure scales
      absorb (and which the f-number already sets).
@@ -28,8 +31,16 @@ say, which only rescales one flat. The choice here therefore has three parts.
    wavelength correction, so a further circle is kept only where it moves the predicted mean
    shift, somewhere in the field at some f-number of the flats, by more than the tolerance
    (0.005 nm by default, for a filter at ``REFERENCE_CWL_NM`` with ``REFERENCE_N_EFF``, a
-   long wavelength and a low index: the largest shifts such cameras show). Otherwise the
-   simpler model is as good for correcting, and it is the one chosen.
+   long wavelength and a low index: the largest shifts such cameras show), and by more than
+   ``MIN_SHIFT_SIGMAS`` times the standard error of the shift the richer model predicts
+   (:func:`shift_stderr_nm`, at the same f-number). Otherwise the simpler model is as good
+   for correcting, or the flats cannot tell the two apart where it matters, and the simpler
+   one is chosen.
+
+   A circle is judged by what it does, not by the relative error of its parameters: a pixel
+   vignetting circle that removes 0.2 nm of shift at the field's edge is kept at 10 % noise
+   per pixel even though its P and h are only known to 5-8 % there; dropping it would be the
+   confident wrong answer.
 """
 
 from __future__ import annotations
@@ -48,7 +59,10 @@ from .joint_fit import N_CIRCLES, ModelFit, circles_of
 
 __all__ = [
     "FLOOR_REL",
+    "MAX_REL_ERROR",
     "MIN_BIC_GAIN",
+    "MIN_H_SIGMAS",
+    "MIN_SHIFT_SIGMAS",
     "ModelVerdict",
     "check_circles",
     "choose",
@@ -62,7 +76,9 @@ FLOOR_REL = 1e-3
 #: A model with more circles must lower the floored BIC by more than this ("very strong").
 MIN_BIC_GAIN = 10.0
 #: A circle's P and h must have standard errors below this fraction of their values.
-MAX_REL_ERROR = 0.05
+MAX_REL_ERROR = 0.5
+#: A further circle must move the mean shift by more than this many of its standard errors.
+MIN_SHIFT_SIGMAS = 3.0
 #: A circle's |h| must exceed this many standard errors (else it is a change of aperture).
 MIN_H_SIGMAS = 5.0
 #: The filter the functional differences are stated for (nm, effective index).
@@ -231,6 +247,18 @@ def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
     return np.array(out)
 
 
+def _significance(diff, sd):
+    """Largest ratio, over f-numbers, of a shift difference to its standard error (``inf``
+    where the error is 0 and the difference is not, ``nan`` if none can be formed)."""
+    diff, sd = np.asarray(diff, float), np.asarray(sd, float)
+    ok = np.isfinite(diff) & (diff > 0) & ~np.isnan(sd)
+    if not ok.any():
+        return float("nan")
+    with np.errstate(divide="ignore"):
+        return float(np.max(np.where(sd[ok] > 0, diff[ok] / np.where(sd[ok] > 0, sd[ok], 1.0),
+                                     np.inf)))
+
+
 def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
            tolerance_nm=TOLERANCE_NM, h_given=False):
     """The model the flats support, and a verdict on every model tried.
@@ -264,11 +292,21 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
             v.why = (f"changes the predicted mean shift by at most {np.nanmax(diff):.4f} nm "
                      f"(<= {tolerance_nm:g} nm) from {chosen}: {chosen} suffices")
             continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EffectiveIndexWarning)
+            sd = shift_stderr_nm(fit, base, f_numbers, max_cra_deg)
+        z = _significance(diff, sd)
+        if not z > MIN_SHIFT_SIGMAS:
+            v.why = (f"changes the predicted mean shift by up to {np.nanmax(diff):.4f} nm from "
+                     f"{chosen}, but that is only {z:.1f} of its own standard errors "
+                     f"(<= {MIN_SHIFT_SIGMAS:g}): the flats cannot tell them apart")
+            continue
         verdicts[chosen].chosen = False
         verdicts[chosen].why = f"{model} describes the flats better and it matters (below)"
         v.chosen = True
         v.why = (f"every circle identifiable; BIC gain {gain:.1f} over {chosen} with the floor; "
-                 f"moves the mean shift by up to {np.nanmax(diff):.3f} nm")
+                 f"moves the mean shift by up to {np.nanmax(diff):.3f} nm ({z:.0f} standard "
+                 "errors)")
         chosen = model
     if not verdicts[chosen].why:
         verdicts[chosen].why = ("no model with more circles passed the rules" if len(order) > 1

@@ -313,8 +313,23 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
+    rival = verdicts.get(next_best) if next_best is not None else None
+    if (rival is not None and not rival.problems and N_CIRCLES[next_best] > N_CIRCLES[model]
+            and np.nanmax(diff, initial=0.0) > tolerance_nm):
+        notes.append(
+            f"the flats cannot settle whether {report.CIRCLES[next_best]} are there: that "
+            f"model was rejected ({rival.why}), yet it would move the mean shift by up to "
+            f"{np.nanmax(diff):.3g} nm; flats with less noise (more frames averaged) would "
+            "decide")
     shift_err = (choice.shift_stderr_nm(fits[model], base, fs, max_cra)
                  if used == "joint" and model != "none" else np.zeros(0))
+    if shift_err.size and np.nanmax(shift_err, initial=0.0) > tolerance_nm:
+        worst = int(np.nanargmax(shift_err))
+        notes.append(
+            f"the flats pin the mean shift only to +- {shift_err[worst]:.3g} nm (one standard "
+            f"error, at f/{fs[worst]:g} for a {choice.REFERENCE_CWL_NM:g} nm filter), more "
+            f"than the {tolerance_nm:g} nm tolerance: averaging k frames at every f-number "
+            "divides it by sqrt(k)")
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -457,7 +472,8 @@ def _calibration_table(res: LensCalibration, inputs):
                  f"standard errors < {100 * choice.MAX_REL_ERROR:g} % of P and h, |h| > "
                  f"{choice.MIN_H_SIGMAS:g} sigma); a further circle must lower the BIC with a "
                  f"{100 * choice.FLOOR_REL:g} % systematic floor by > {choice.MIN_BIC_GAIN:g} "
-                 f"and move the mean shift by > {res.tolerance_nm:g} nm"),
+                 f"and move the mean shift by > {res.tolerance_nm:g} nm and by > "
+                 f"{choice.MIN_SHIFT_SIGMAS:g} of its standard errors"),
         "tolerance_nm": res.tolerance_nm,
         "reference_filter": {"cwl_nm": choice.REFERENCE_CWL_NM,
                              "n_eff": choice.REFERENCE_N_EFF},
