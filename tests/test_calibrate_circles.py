@@ -10,6 +10,16 @@ it starts to cut what the pupil and the other circles leave) its P and h must co
 1 %. A stop-like circle (|h| < 0.05 x, or P within
 1 % of a pupil radius R_F with |h| < x / 4) that the truth does not have must never be chosen.
 
+What the flats can tell is limited: no unbiased estimator beats the Cramér-Rao bound
+(tests/cramer_rao.py, written without snapcorr). A tolerance counts as within reach where
+``REACH`` standard deviations of the bound's mean shift (largest over f-numbers) fit inside it,
+and a circle's 1 % where ``REACH`` of its parameters' do. Within reach the criterion above
+holds. Beyond it (a weak circle at 5 % noise per pixel, pixel vignetting at 2 %: no method can
+meet the tolerance there) the calibration must say how far it can be trusted instead: its
+error stays within ``REACH`` of the standard errors it reports, or within the shift difference
+to the richer model it reports it could not rule out; and its standard errors are not smaller
+than the bound allows (0.7 of it at least).
+
 The default run holds a handful of representative cases on 640 x 512 flats whose pixels are
 twice the pitch of the user's 1280 x 1024 sensor (the same chief-ray angles; a quarter of the
 pixels, so twice the statistical error); the matrix over noise and seeds on the full-size
@@ -18,12 +28,14 @@ sensor, and the user's full-size scene, are ``slow``.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from cramer_rao import bound, shift_bound_nm
 from flatsim import LensTruth, make_flats, mean_shift_nm, relative_illumination
 
 import snapcorr
@@ -103,6 +115,8 @@ class Outcome:
     pixel_error_nm: float  # the same, pixel by pixel, each lens at its own optical centre
     spurious: list
     res: object
+    scene: dict = None
+    f_numbers: tuple = F_NUMBERS
 
     def describe(self):
         errs = ", ".join("missed" if e is None else f"P {e[0]:+.3f} % h {e[1]:+.3f} %"
@@ -241,16 +255,69 @@ def calibrate(truth, *, noise, seed, scene=HALF, f_numbers=F_NUMBERS, give_dark=
                         res.center_px[1] - scene["center_px"][1])
     return Outcome(truth, noise, seed, str(res.model), circles, max_cra,
                    field_cra_deg(scene, truth.exit_pupil_mm), err, at, circle_errors, centre,
-                   pixel_error(truth, res, scene, f_numbers), spur, res)
+                   pixel_error(truth, res, scene, f_numbers), spur, res, scene,
+                   tuple(f_numbers))
+
+
+#: Standard deviations of the bound that must fit inside a tolerance for it to be in reach.
+REACH = 2.5
+
+
+@functools.cache
+def _bound(truth, noise, shape, pitch_um, center_px, f_numbers):
+    cov = bound(truth, noise, shape, pitch_um, center_px, f_numbers, step=2)
+    field = field_cra_deg(dict(shape=shape, pitch_um=pitch_um, center_px=center_px),
+                          truth.exit_pupil_mm)
+    shift = float(np.nanmax(shift_bound_nm(truth, cov, f_numbers, field)))
+    values = np.abs(np.ravel(truth.circles))
+    return shift, np.sqrt(np.diag(cov)) / values  # nm; relative sd of P1, h1, P2, h2, ...
+
+
+def cramer_rao(out: Outcome):
+    """The bound's mean-shift sd (nm, largest over f-numbers) and each true circle's largest
+    relative sd of P and h, for this outcome's scene and noise. Circles that cut no light in
+    the field change neither the flats nor the shift there, and are left out (sd 0); a
+    circle the flats cannot pin at all makes both infinite."""
+    truth = out.truth
+    t_max = math.tan(math.radians(out.field_cra_deg))
+    acting = [i for i in range(len(truth.circles))
+              if any(effective_onset_tan(truth, f, i) < t_max for f in out.f_numbers)]
+    rel_all = [0.0] * len(truth.circles)
+    if not acting:
+        return 0.0, rel_all
+    reduced = LensTruth(truth.exit_pupil_mm, tuple(truth.circles[i] for i in acting),
+                        truth.magnification, truth.pupil_magnification, name=truth.name)
+    sc = out.scene or HALF
+    try:
+        shift, rel = _bound(reduced, out.noise, tuple(sc["shape"]), sc["pitch_um"],
+                            tuple(sc["center_px"]), tuple(out.f_numbers))
+    except np.linalg.LinAlgError:
+        return math.inf, [math.inf] * len(truth.circles)
+    for j, i in enumerate(acting):
+        rel_all[i] = max(rel[2 * j], rel[2 * j + 1])
+    return shift, rel_all
 
 
 def check(out: Outcome):
     tol = 0.01 if len(out.truth.circles) <= 1 else 0.02
     msg = out.describe()
     assert not out.spurious, "stop-like circle chosen: " + msg
-    assert out.shift_error_nm <= tol, msg
-    for e in out.circle_errors:
-        assert e is not None and abs(e[0]) <= 1.0 and abs(e[1]) <= 1.0, msg
+    sd_bound, rel_bound = cramer_rao(out)
+    msg += f"; Cramér-Rao shift sd {sd_bound:.4f} nm"
+    if REACH * sd_bound <= tol:
+        assert out.shift_error_nm <= tol, msg
+    else:  # beyond the flats' information: the calibration's own error bars must cover it
+        reported = float(np.nanmax(out.res.shift_stderr_nm, initial=0.0))
+        rival = float(np.nanmax(out.res.shift_difference_nm, initial=0.0))
+        msg += f"; reported sd {reported:.4f} nm, rival model {rival:.4f} nm"
+        if len(out.circles) >= len(out.truth.circles):
+            assert reported >= 0.7 * sd_bound, "claims more than the flats hold: " + msg
+        assert (out.shift_error_nm <= REACH * reported
+                or out.shift_error_nm <= 1.5 * rival), msg
+    identifiable_circles = identifiable(out.truth, out.f_numbers, out.field_cra_deg)
+    for e, i in zip(out.circle_errors, identifiable_circles, strict=True):
+        if REACH * 100 * rel_bound[i] <= 1.0:
+            assert e is not None and abs(e[0]) <= 1.0 and abs(e[1]) <= 1.0, msg
 
 
 # -- the simulator and the package agree on the truth ---------------------------------------
@@ -413,3 +480,21 @@ def test_standard_errors_are_honest(key):
     assert not missed, "true circles left out:\n" + "\n".join(missed)
     rms = float(np.sqrt(np.mean(z**2)))
     assert 0.5 <= rms <= 2.0, f"z-scores {np.round(z, 2)}, RMS {rms:.2f}"
+
+
+# -- efficiency: the reported standard errors against the Cramér-Rao bound -------------------
+@pytest.mark.parametrize("key", [
+    "one_h_gt_x_m", "circle_pixel",
+    pytest.param("one_h_lt_x", marks=pytest.mark.slow),
+    pytest.param("one_weak", marks=pytest.mark.slow),
+    pytest.param("two_front_rear", marks=pytest.mark.slow)])
+def test_standard_errors_reach_the_cramer_rao_bound(key):
+    """The calibration's standard error of the mean shift (largest over the field and the
+    f-numbers) against the smallest any unbiased estimator can have (tests/cramer_rao.py):
+    within 15 % of it. Dividing every flat by the slowest one, as the paper does, and weighting
+    by a read-plus-shot noise line was 1.4-1.55 x the bound on these flats."""
+    out = calibrate(TRUTHS[key], noise=0.02, seed=0)
+    assert len(out.circles) == len(TRUTHS[key].circles), out.describe()
+    sd_bound, _ = cramer_rao(out)
+    reported = float(np.nanmax(out.res.shift_stderr_nm))
+    assert reported / sd_bound == pytest.approx(1.0, abs=0.15), (reported, sd_bound)
