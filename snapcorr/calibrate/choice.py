@@ -206,9 +206,13 @@ def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
     """Standard error of the predicted mean shift that the fit's uncertainty in P and h leaves,
     largest over the field, for each f-number (nm; NaN where it cannot be propagated).
 
-    The covariance of the circles' parameters (correlations from the fit, variances from the
-    reported standard errors, which carry the systematic floor) is carried through the mean
-    shift by finite differences: ``sqrt(diag(J C J^T))`` on a grid of CRAs.
+    The covariance of the circles' parameters is the fit's, scaled up as a whole by the
+    largest ratio of a reported standard error (which carries the systematic floor) to the
+    fit's own. Scaling each variance by its own ratio, keeping the correlations, would upset
+    the cancellation between strongly correlated P and h, and could report less than the
+    noise allows; scaling as a whole keeps the shape, so the result is never below the
+    fit's. It is carried through the mean shift by finite differences:
+    ``sqrt(diag(J C J^T))`` on a grid of CRAs.
     """
     names = [k for k in fit.names if k.endswith("_mm")]
     fs = np.asarray(f_numbers, float)
@@ -221,8 +225,7 @@ def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
     if not np.all(np.isfinite(err)):
         return np.full(fs.size, np.inf)
     free = sd > 0
-    scale = np.where(free, err / np.where(free, sd, 1.0), 0.0)
-    cov = cov * np.outer(scale, scale)
+    cov = cov * float(np.max(np.where(free, err / np.where(free, sd, 1.0), 1.0), initial=1.0)) ** 2
     p0 = {k: fit.params[k] for k in fit.names}
     lens = lens_of(fit, base)
     out = []
