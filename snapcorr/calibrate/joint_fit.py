@@ -65,7 +65,8 @@ class BlockData:
     x_mm: float
     natural: bool = False  # model includes cos^4 (a single flat, no reference)
     gains: bool = False  # q holds every flat; each block's gain G is solved for
-    #: log exposures of the last evaluation of each model, the next one's start
+    #: the weights, and the log exposures of the last evaluation of each model (the next
+    #: one's start); a copy with other blocks needs its own
     warm: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -197,7 +198,7 @@ def _tan(data, cx, cy):
 _EXPOSURE_STEPS = 12
 
 
-def _profiled(q, sigma, A, start=None):
+def _profiled(q, sigma, A, start=None, weights=None):
     """Residuals of ``q = e_F G A`` with each block's gain ``G`` and each flat's exposure
     ``e_F`` (the last one 1) at their least-squares values, and the exposures.
 
@@ -205,37 +206,36 @@ def _profiled(q, sigma, A, start=None):
     determined, follow by Gauss-Newton on ``log e`` with the gains eliminated (variable
     projection): the Jacobian includes how the gains move with them. ``start``: log
     exposures to start from (a fit's previous step: then one or two steps suffice).
+    ``weights``: ``(1 / sigma^2, 1 / sigma, q / sigma^2)`` if already at hand.
     """
-    w = 1.0 / sigma**2  # 0 where not used
-    sw = np.sqrt(w)
+    w, sw, wq = weights if weights is not None else _weights(q, sigma)
     n_f = q.shape[0]
+    wA2 = w * A * A
+    wqA = wq * A
     if start is not None and np.all(np.isfinite(start)):
-        u = np.array(start, float)
+        e = np.exp(np.array(start, float))
     else:  # each block's gain from the flats it sees, then the exposures against it
         with np.errstate(invalid="ignore", divide="ignore"):
-            g0 = np.sum(w * A * q, axis=0) / np.sum(w * A * A, axis=0)
+            g0 = np.sum(wqA, axis=0) / np.sum(wA2, axis=0)
             g0 = np.where(np.isfinite(g0), g0, 0.0)
-            e = np.sum(w * A * q * g0, axis=1) / np.sum(w * (A * g0) ** 2, axis=1)
+            e = (wqA @ g0) / (wA2 @ (g0 * g0))
         e = np.where(np.isfinite(e) & (e > 0), e, 1.0)
-        u = np.log(e / e[-1])
-    for _ in range(_EXPOSURE_STEPS):
-        if n_f == 1:
-            break
-        sA = np.exp(u)[:, None] * A
-        wsA = w * sA
-        D = np.sum(wsA * sA, axis=0)
+    e = e / e[-1]
+    k = n_f - 1
+    for _ in range(_EXPOSURE_STEPS if n_f > 1 else 0):
+        D = (e * e) @ wA2
         D = np.where(D > 0, D, 1.0)
-        G = np.sum(wsA * q, axis=0) / D
-        mu = sA * G
-        # residual r = sw (q - mu); its Jacobian in u_j (j < n_f - 1) is
-        # -(a_k c_j + delta_kj m_k) per block, with a = sw sA, m = sw mu and
-        # c_j = dG/du_j = wsA_j (q_j - 2 mu_j) / D. Since sum_k a_k r_k = 0 (G is optimal),
-        # J^T r = -sum_b m_j r_j, and J^T J needs only (n_f - 1) x blocks products.
-        m = (np.sqrt(w) * mu)[:-1]
-        c = (wsA * (q - 2.0 * mu) / D)[:-1]
-        am = (w * sA * mu)[:-1]  # a * m
-        JtJ = (c * D) @ c.T + am @ c.T + c @ am.T + np.diag(np.sum(m * m, axis=1))
-        Jtr = -np.sum(w[:-1] * mu[:-1] * (q - mu)[:-1], axis=1)
+        G = (e @ wqA) / D
+        # With mu = e A G the residual is r = sw (q - mu); its Jacobian in u = log e_j
+        # (j < n_f - 1) is -(a_k c_j + delta_kj m_k) per block, with a = sw e A,
+        # m = sw mu and c_j = dG/du_j = (e_j wqA_j - 2 e_j^2 wA2_j G) / D. Since
+        # sum_k a_k r_k = 0 (G is optimal), J^T r = -sum_b w mu (q - mu), and J^T J needs
+        # only (n_f - 1) x blocks products.
+        e1, e2 = e[:k, None], (e * e)[:k, None]
+        am = e2 * wA2[:k] * G  # a * m
+        c = (e1 * wqA[:k] - 2.0 * am) / D
+        JtJ = (c * D) @ c.T + am @ c.T + c @ am.T + np.diag(am @ G)
+        Jtr = -(e1[:, 0] * (wqA[:k] @ G) - am @ G)
         try:
             step = np.linalg.solve(JtJ, -Jtr)
         except np.linalg.LinAlgError:
@@ -243,20 +243,26 @@ def _profiled(q, sigma, A, start=None):
         if not np.all(np.isfinite(step)):
             break
         step = np.clip(step, -1.0, 1.0)  # a factor e at most: a bad start cannot run away
-        u[: n_f - 1] += step
+        e[:k] *= np.exp(step)
         if np.max(np.abs(step)) < 1e-6:  # quadratic convergence: now within ~1e-12
             break
-    sA = np.exp(u)[:, None] * A
-    D = np.sum(w * sA * sA, axis=0)
-    G = np.sum(w * sA * q, axis=0) / np.where(D > 0, D, 1.0)
-    return ((q - sA * G) * sw).ravel(), np.exp(u)
+    D = (e * e) @ wA2
+    G = (e @ wqA) / np.where(D > 0, D, 1.0)
+    return ((q - (e[:, None] * A) * G) * sw).ravel(), e
+
+
+def _weights(q, sigma):
+    w = 1.0 / sigma**2  # 0 where not used
+    return w, np.sqrt(w), w * q
 
 
 def _residuals(data, model, p, center):
     cx, cy = center if center is not None else (p[2], p[3])
     m = model_ratio(data, model, p, _tan(data, cx, cy))
     if data.gains:
-        r, e = _profiled(data.q, data.sigma, m, data.warm.get(model))
+        if "weights" not in data.warm:
+            data.warm["weights"] = _weights(data.q, data.sigma)
+        r, e = _profiled(data.q, data.sigma, m, data.warm.get(model), data.warm["weights"])
         data.warm[model] = np.log(e)
         return r, e[:-1]  # as ratio scales to the last flat
     w = 1.0 / data.sigma**2
@@ -333,7 +339,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     step = max(1, int(np.ceil(data.q.shape[1] / SCREEN_BLOCKS)))
     screen = data if step == 1 else replace(
         data, q=data.q[:, ::step], sigma=data.sigma[:, ::step], xpix=data.xpix[::step],
-        ypix=data.ypix[::step])
+        ypix=data.ypix[::step], warm={})
     margin = np.where(np.isfinite(lo_all), 1e-4 * np.maximum(np.abs(lo_all), 1.0), 0.0)
     bases = []
     for start in starts:
