@@ -111,3 +111,35 @@ def test_a_second_circle_the_flats_hardly_see_gets_a_wide_error_bar():
     assert res.model == "one" and not res.verdicts["two"].chosen
     why = res.verdicts["two"].why
     assert "not identifiable" in why or "cannot tell them apart" in why, why
+
+
+def test_gains_and_exposures_solved_for_match_a_brute_force_joint_fit():
+    # q = e_F G A per block: the closed-form gains with Gauss-Newton exposures against every
+    # gain and exposure as explicit parameters of one scipy least-squares fit; some values
+    # unused (sigma inf), from a cold start and from a warm one
+    from scipy.optimize import least_squares
+
+    from snapcorr.calibrate.joint_fit import _profiled
+
+    rng = np.random.default_rng(1)
+    k, n = 4, 300
+    A = rng.uniform(0.2, 1.0, (k, n))
+    G = rng.uniform(1.0, 2.0, n)
+    e = np.array([3.0, 1.5, 0.7, 1.0])
+    sigma = 0.01 * rng.uniform(0.5, 2.0, (k, n))
+    sigma[1, :50] = np.inf
+    q = e[:, None] * G * A + np.where(np.isfinite(sigma), sigma, 0) * rng.standard_normal((k, n))
+    q[~np.isfinite(sigma)] = 0.0
+
+    def residuals(x):
+        ee = np.r_[np.exp(x[: k - 1]), 1.0]
+        return np.where(np.isfinite(sigma), (q - ee[:, None] * x[k - 1:] * A) / sigma,
+                        0.0).ravel()
+
+    ref = least_squares(residuals, np.r_[np.zeros(k - 1), np.ones(n)], xtol=1e-15,
+                        ftol=1e-15, gtol=1e-15)
+    r, got = _profiled(q, sigma, A)
+    assert r @ r == pytest.approx(2 * ref.cost, rel=1e-10)
+    np.testing.assert_allclose(got[:-1], np.exp(ref.x[: k - 1]), rtol=1e-8)
+    _, warm = _profiled(q, sigma, A, start=np.log(got) + 0.05)
+    np.testing.assert_allclose(warm, got, rtol=1e-10)
