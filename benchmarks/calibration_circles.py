@@ -7,7 +7,10 @@ Gaussian noise of a given fraction of every pixel's signal. For
 each truth, noise level and seed the calibrated lens is judged as ``tests/
 test_calibrate_circles.py`` judges it: the largest |mean-shift error| (Goossens 2019, Eq. 22,
 1000 nm filters, n_eff 1.5) over the field and the f-numbers against the true lens, the model
-chosen, and the errors in P and h of the circles identifiable in the field. The chart
+chosen, and the errors in P and h of the circles identifiable in the field; beside it the
+standard error of the shift the calibration reports, and the Cramér-Rao bound of the flats
+(``tests/cramer_rao.py``: the smallest standard deviation any unbiased estimator can reach
+from them, with each pixel's gain unknown). The chart
 (``calibration_circles.png``) and its data (``calibration_circles.csv``) are written next to
 this file. ``full_size_time`` prints the time to calibrate five 2048 x 2048 flats.
 """
@@ -26,11 +29,11 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from flatsim import LensTruth, make_flats  # noqa: E402
-from test_calibrate_circles import FULL, TRUTHS, calibrate  # noqa: E402
+from test_calibrate_circles import FULL, TRUTHS, calibrate, cramer_rao  # noqa: E402
 
 from snapcorr.calibrate import calibrate_lens  # noqa: E402
 
-CASES = ("one_h_lt_x", "one_h_gt_x", "two_front_rear")
+CASES = ("one_h_lt_x", "one_h_gt_x", "two_front_rear", "circle_pixel")
 NOISES = (0.005, 0.01, 0.02, 0.05, 0.1)
 SEEDS = (0, 1, 2, 3, 4)
 TOLERANCE = {1: 0.01, 2: 0.02}
@@ -48,6 +51,8 @@ def _row(key, out, seconds):
         "identifiable": len(out.circle_errors), "missed": sum(e is None for e in out.circle_errors),
         "max_Ph_error_pct": worst, "spurious": len(out.spurious),
         "center_error_px": out.center_error_px, "pixel_shift_error_nm": out.pixel_error_nm,
+        "reported_sd_nm": float(np.nanmax(out.res.shift_stderr_nm, initial=0.0)),
+        "cramer_rao_sd_nm": cramer_rao(out)[0],
         "seconds": round(seconds, 2),
     }
 
@@ -64,7 +69,7 @@ def noise_sweep(*, quick=False, echo=print, write=True):
          f"flats of {scene['pitch_um']:g} um, f/2-f/11, {len(seeds)} seed(s); error = max "
          "|mean-shift error| over the field and f-numbers (1000 nm, n_eff 1.5)")
     echo(f"{'truth':<16} {'noise':>6}  {'models chosen':<22} {'shift error nm':>26} "
-         f"{'max P/h err %':>14} {'spurious':>8}")
+         f"{'reported sd':>11} {'bound sd':>9} {'max P/h err %':>14} {'spurious':>8}")
     for key in cases:
         truth = TRUTHS[key]
         for noise in noises:
@@ -82,7 +87,9 @@ def noise_sweep(*, quick=False, echo=print, write=True):
             ph_txt = f"{np.nanmax(ph):.3f}" if np.isfinite(ph).any() else "-"
             echo(f"{key:<16} {100 * noise:>5.1f}%  "
                  f"{', '.join(f'{k} x{v}' for k, v in models.items()):<22} "
-                 f"median {np.median(err):.4f} max {err.max():.4f}  {ph_txt:>14} "
+                 f"median {np.median(err):.4f} max {err.max():.4f} "
+                 f"{np.median([r['reported_sd_nm'] for r in batch]):>11.4f} "
+                 f"{batch[0]['cramer_rao_sd_nm']:>9.4f}  {ph_txt:>14} "
                  f"{sum(r['spurious'] for r in batch):>8}")
     if write:
         _write(rows)
@@ -103,6 +110,9 @@ def _write(rows):
         levels = sorted(set(noise))
         axes[0].plot(levels, [np.median(err[noise == lv]) for lv in levels], "-",
                      color=f"C{k}", label=f"{key} ({sel[0]['true_circles']} circle(s))")
+        bound = [next(r["cramer_rao_sd_nm"] for r in sel if r["noise"] * 100 == lv)
+                 for lv in levels]
+        axes[0].plot(levels, bound, "--", color=f"C{k}", lw=0.9)
         ncirc = np.array([r["circles"] for r in sel])
         axes[1].plot(jitter, ncirc + 0.05 * (k - 1), "o", ms=5, alpha=0.5, color=f"C{k}",
                      label=key)
@@ -112,7 +122,7 @@ def _write(rows):
         axes[0].axhline(tol, color="k", lw=0.6, ls=":")
     axes[0].set(xscale="log", yscale="log", xlabel="noise per pixel (%)",
                 ylabel="max |mean-shift error| (nm)",
-                title="functional error: points = seeds, line = median")
+                title="error: points = seeds, line = median, dashed = Cramér-Rao sd")
     axes[0].legend(fontsize=8)
     axes[1].set(xscale="log", xlabel="noise per pixel (%)", ylabel="circles in the profile",
                 yticks=[0, 1, 2, 3], title="circles chosen (dotted: the truth)")
