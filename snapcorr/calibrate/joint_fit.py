@@ -29,6 +29,7 @@ decides between them.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -65,9 +66,14 @@ class BlockData:
     x_mm: float
     natural: bool = False  # model includes cos^4 (a single flat, no reference)
     gains: bool = False  # q holds every flat; each block's gain G is solved for
-    #: the weights, and the log exposures of the last evaluation of each model (the next
-    #: one's start); a copy with other blocks needs its own
+    #: log exposures of the last evaluation of each model, the next one's start
     warm: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @functools.cached_property
+    def weights(self):
+        """``(1 / sigma^2, 1 / sigma, q / sigma^2)``, for :func:`_profiled` (a copy made with
+        :func:`dataclasses.replace` works out its own)."""
+        return _weights(self.q, self.sigma)
 
     @property
     def n_used(self) -> int:
@@ -260,9 +266,7 @@ def _residuals(data, model, p, center):
     cx, cy = center if center is not None else (p[2], p[3])
     m = model_ratio(data, model, p, _tan(data, cx, cy))
     if data.gains:
-        if "weights" not in data.warm:
-            data.warm["weights"] = _weights(data.q, data.sigma)
-        r, e = _profiled(data.q, data.sigma, m, data.warm.get(model), data.warm["weights"])
+        r, e = _profiled(data.q, data.sigma, m, data.warm.get(model), data.weights)
         data.warm[model] = np.log(e)
         return r, e[:-1]  # as ratio scales to the last flat
     w = 1.0 / data.sigma**2
