@@ -7,7 +7,7 @@ from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
 from .mean import METHODS, mean_shift, select_method
 from .neff import NeffFit, fit_n_eff
-from .profiles import PROFILES, Airy, MultiLorentzian, PiShaped, Tabulated
+from .profiles import PROFILES, Airy, Gaussian, MultiLorentzian, PiShaped, Tabulated
 from .response import RESPONSE_METHODS, filter_response
 from .shift import (
     AOI_VALIDITY_DEG,
@@ -25,6 +25,7 @@ __all__ = [
     "RESPONSE_METHODS",
     "Airy",
     "EffectiveIndexWarning",
+    "Gaussian",
     "Lens",
     "MultiLorentzian",
     "NeffFit",

@@ -25,7 +25,7 @@ from scipy.optimize import brentq
 from .._validation import check_curve
 from .shift import check_n_eff, shift_nm
 
-__all__ = ["PROFILES", "Airy", "MultiLorentzian", "PiShaped", "Tabulated", "fwhm_of"]
+__all__ = ["PROFILES", "Airy", "Gaussian", "MultiLorentzian", "PiShaped", "Tabulated", "fwhm_of"]
 
 #: Flittner & Slater: "the transmittance of the multi-Lorentzian is cut off at wavelengths where
 #: the transmittance is below 5.0 percent of the peak value".
@@ -42,6 +42,27 @@ def fwhm_of(wavelength_nm, transmission):
     left = np.interp(half, [t[i - 1], t[i]], [w[i - 1], w[i]]) if i > 0 else w[0]
     right = np.interp(half, [t[j + 1], t[j]], [w[j + 1], w[j]]) if j + 1 < t.size else w[-1]
     return right - left
+
+
+@dataclass(frozen=True)
+class Gaussian:
+    """A Gaussian passband of the given FWHM, peak ``peak``; tilts shift it by Eq. (3)
+    (Goossens Eq. 4). The shape a sensor's filters are taken to have unless it says otherwise.
+    """
+
+    cwl_nm: float
+    fwhm_nm: float
+    n_eff: float = 1.7
+    peak: float = 1.0
+
+    def __post_init__(self):
+        if not (self.fwhm_nm > 0 and self.cwl_nm > 0):
+            raise ValueError("cwl_nm and fwhm_nm must be > 0")
+
+    def __call__(self, wavelength_nm, aoi_deg=0.0):
+        centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
+        u = (np.asarray(wavelength_nm, float) - centre) / self.fwhm_nm
+        return self.peak * np.exp(-4.0 * np.log(2.0) * u * u)
 
 
 @dataclass(frozen=True)
@@ -223,6 +244,7 @@ class Tabulated:
 
 #: Registry of filter-profile models.
 PROFILES = {
+    "gaussian": Gaussian,
     "airy": Airy.from_passband,
     "multi_lorentzian": MultiLorentzian,
     "pi": PiShaped,
