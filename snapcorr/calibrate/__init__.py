@@ -1,6 +1,15 @@
 """Lens characterisation from flat fields (Goossens et al. 2019, Sec. 2.7 and 3.2)."""
 
 from .choice import ModelVerdict
+from .exit_pupil import (
+    CANDIDATE_TARGETS,
+    FeaturelessTargetError,
+    Precision,
+    PupilFit,
+    estimate_target_center,
+    locate_pupil,
+    pupil_precision,
+)
 from .flats import (
     RadialProfile,
     clean_flat,
@@ -16,19 +25,26 @@ from .onset_fit import OnsetFit, solve_vignetting_circle
 from .onsets import Onset, detect_onset
 
 __all__ = [
+    "CANDIDATE_TARGETS",
     "METHODS",
+    "FeaturelessTargetError",
     "LensCalibration",
     "ModelFit",
     "ModelVerdict",
     "Onset",
     "OnsetFit",
+    "Precision",
+    "PupilFit",
     "RadialProfile",
     "calibrate_lens",
     "clean_flat",
     "cra_deg_map",
     "detect_onset",
     "estimate_center",
+    "estimate_target_center",
+    "locate_pupil",
     "noise_model",
+    "pupil_precision",
     "radial_profile",
     "read_flat",
     "solve_vignetting_circle",

@@ -1,0 +1,802 @@
+"""The exit pupil distance and the filters' effective index from cubes of a spectral target.
+
+Goossens, Geelen, Lambrechts and Van Hoof (OSA Continuum 2, 2217, 2019) find the exit pupil
+distance ``x`` from the spectral shift the camera itself sees on a spatially uniform target
+with spectral features: a pixel at ``d`` mm from the optical axis has ``tan CRA = d / x``
+(Goossens et al. 2019, Eq. 8), its filters move to the blue by Eq. (3), and a target whose
+spectrum changes within the bands turns that shift into a change of signal over the field.
+
+:func:`locate_pupil` fits the binned cubes (:mod:`~snapcorr.calibrate.target_model`: the whole
+filter behind the lens, Eq. 13) by least squares in ``x`` (and ``n_eff``), the target's
+spectrum either given or solved for with the field centre as reference. What the data can
+tell apart:
+
+* At small angles the field's shift depends on ``sin^2(CRA) / n_eff^2 ~ d^2 / (x n_eff)^2``:
+  the field alone gives the product ``x * n_eff``.
+* The cone term separates ``n_eff``: the centre's spectrum moves between f-numbers by
+  ``~ cwl tan^2(theta_cone) / (4 n_eff^2)`` whatever ``x`` is. One f-number with ``n_eff``
+  unknown gives ``x * n_eff`` (and says so); two or more give both.
+
+:func:`pupil_precision` predicts, before any measurement, the standard error of ``x`` a target
+would give (the Cramer-Rao bound of the same model), so a target can be chosen;
+:data:`CANDIDATE_TARGETS` holds the usual ones.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+
+from .. import __version__
+from ..optics.lens import Lens
+from ..optics.shift import EffectiveIndexWarning
+from .target_model import PRIOR_SD, RadialBins, TargetModel, radial_bins, rebin
+
+__all__ = [
+    "CANDIDATE_TARGETS",
+    "FeaturelessTargetError",
+    "Precision",
+    "PupilFit",
+    "estimate_target_center",
+    "locate_pupil",
+    "pupil_precision",
+]
+
+#: The field must explain the data better than a field without any shift by at least this
+#: chi-square (5 standard deviations) or the target is refused as featureless.
+MIN_DELTA_CHI2 = 25.0
+#: A fit whose relative standard error of x exceeds this is refused as uninformative.
+MAX_REL_STDERR = 0.2
+#: Per-band effective indices are reported when they improve the fit at this significance
+#: and every one is known to this relative standard error.
+PER_BAND_P = 1e-3
+PER_BAND_REL_STDERR = 0.01
+
+
+class FeaturelessTargetError(ValueError):
+    """The target's spectrum shows no shift over the field above the noise."""
+
+
+@dataclass
+class PupilFit:
+    """What :func:`locate_pupil` found.
+
+    Attributes
+    ----------
+    exit_pupil_mm, exit_pupil_stderr_mm : float
+    n_eff : ndarray, shape (n_bands,)
+        The index used: fitted (``n_eff_fitted``) or the sensor's.
+    n_eff_stderr : ndarray or None
+    n_eff_fitted : {"no", "one", "per band", "product"}
+        ``"product"``: one f-number, index unknown; only ``x * n_eff`` is determined and
+        ``exit_pupil_mm`` assumes the sensor's index.
+    x_n_eff_mm, x_n_eff_stderr_mm : float
+        The product ``x * mean(n_eff)`` and its standard error (what the field alone fixes).
+    chi2_red : float
+    lens : Lens
+        The profile to write: ``x``, the circles and magnifications of the lens given.
+    notes : list of str
+    """
+
+    exit_pupil_mm: float
+    exit_pupil_stderr_mm: float
+    n_eff: np.ndarray
+    n_eff_stderr: np.ndarray | None
+    n_eff_fitted: str
+    x_n_eff_mm: float
+    x_n_eff_stderr_mm: float
+    chi2_red: float
+    dof: int
+    center_px: tuple
+    center_source: str
+    spectrum: str
+    lens: Lens
+    model: TargetModel = field(repr=False)
+    coefficients: np.ndarray = field(repr=False)
+    scan: tuple = field(repr=False, default=())
+    notes: list = field(default_factory=list)
+    covariance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((1, 1)))
+    """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
+
+    def summary(self) -> str:
+        lines = [f"exit pupil x = {self.exit_pupil_mm:.4g} +- {self.exit_pupil_stderr_mm:.2g} mm"
+                 f" (reduced chi-square {self.chi2_red:.3g}, {self.dof} degrees of freedom)"]
+        n = self.n_eff
+        if self.n_eff_fitted == "one":
+            lines.append(f"n_eff = {n[0]:.4g} +- {self.n_eff_stderr[0]:.2g} (one value, fitted)")
+        elif self.n_eff_fitted == "per band":
+            lines.append(f"n_eff per band {n.min():.4g}-{n.max():.4g}, standard errors "
+                         f"{self.n_eff_stderr.min():.2g}-{self.n_eff_stderr.max():.2g}")
+        elif self.n_eff_fitted == "product":
+            lines.append(f"x * n_eff = {self.x_n_eff_mm:.4g} +- {self.x_n_eff_stderr_mm:.2g} mm "
+                         f"(x assumes the sensor's n_eff = {np.mean(n):.4g})")
+        lines.append(f"optical centre ({self.center_px[0]:.2f}, {self.center_px[1]:.2f}) px "
+                     f"({self.center_source}); target spectrum {self.spectrum}")
+        lines.extend(f"note: {t}" for t in self.notes)
+        return "\n".join(lines)
+
+    def plot(self, *, bands=4):
+        """The data and the model over the field for the most informative bands, and the
+        chi-square against ``x``. Returns a matplotlib Figure."""
+        from .pupil_report import plot_pupil_fit
+
+        return plot_pupil_fit(self, bands=bands)
+
+    def save_plot(self, path):
+        """Write :meth:`plot` to ``path`` (PNG), atomically."""
+        import matplotlib.pyplot as plt
+
+        from .._io import atomic_write
+
+        fig = self.plot()
+        try:
+            atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+        finally:
+            plt.close(fig)
+
+
+# -- the optical centre -------------------------------------------------------------------
+def _block_mean(img, k):
+    ny, nx = (s // k * k for s in img.shape)
+    v = img[:ny, :nx].reshape(ny // k, k, nx // k, k)
+    with np.errstate(invalid="ignore"), np.testing.suppress_warnings() as sup:
+        sup.filter(RuntimeWarning)
+        return np.nanmean(v, axis=(1, 3))
+
+
+def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use=12,
+                           block=4, degree=4):
+    """The optical centre (column, row) in sensor pixels from a cube of a uniform target.
+
+    Every band's image is a function of the distance to the centre only; the centre is where
+    a polynomial in ``d^2`` (per band, solved for) fits the most informative bands best
+    (``scipy.optimize.least_squares`` on ``(cx, cy)``; the images block-averaged).
+
+    Returns
+    -------
+    (cx, cy), (sx, sy) : the centre and its standard errors, pixels.
+    """
+    stats_ = []
+    for b in range(n_bands):
+        v = np.asarray(band_image(b), float)
+        noise = np.nanmedian(np.abs(np.diff(v, axis=1))) / (0.6745 * math.sqrt(2)) + 1e-12
+        spread = np.nanpercentile(v, 95) - np.nanpercentile(v, 5)
+        stats_.append(spread / noise)
+    use = np.argsort(stats_)[::-1][:n_use]
+    ys, rr, cc, noise = [], [], [], []
+    for b in use:
+        v = _block_mean(np.asarray(band_image(int(b)), float), block)
+        # the scatter of neighbouring block means: noise plus a little of the trend
+        noise.append(np.nanmedian(np.abs(np.diff(v, axis=1))) / (0.6745 * math.sqrt(2))
+                     + 1e-12)
+        r = _block_mean(np.repeat(rows[:, min(b, rows.shape[1] - 1), None], cols.shape[0],
+                                  axis=1), block)
+        c = _block_mean(np.repeat(cols[None, :, min(b, cols.shape[1] - 1)], rows.shape[0],
+                                  axis=0), block)
+        ok = np.isfinite(v)
+        ys.append(v[ok])
+        rr.append(r[ok])
+        cc.append(c[ok])
+    scale = float(max(np.ptp(np.concatenate(rr)), np.ptp(np.concatenate(cc)), 1.0))
+    if start is None:
+        start = (0.5 * (cols.min() + cols.max()), 0.5 * (rows.min() + rows.max()))
+
+    def residuals(p):
+        out = []
+        for y, r, c, s in zip(ys, rr, cc, noise, strict=True):
+            rho = ((r - p[1]) ** 2 + (c - p[0]) ** 2) / scale**2
+            V = np.vander(rho, degree + 1)
+            coef, *_ = np.linalg.lstsq(V, y, rcond=None)
+            out.append((y - V @ coef) / s)
+        return np.concatenate(out)
+
+    sol = optimize.least_squares(residuals, np.asarray(start, float), x_scale=scale * 0.05,
+                                 diff_step=1e-6)
+    J = sol.jac
+    dof = max(sol.fun.size - 2 - len(ys) * (degree + 1), 1)
+    try:
+        cov = np.linalg.inv(J.T @ J) * max(1.0, float(sol.fun @ sol.fun) / dof)
+        err = tuple(float(v) for v in np.sqrt(np.clip(np.diag(cov), 0, None)))
+    except np.linalg.LinAlgError:
+        err = (math.inf, math.inf)
+    return (float(sol.x[0]), float(sol.x[1])), err
+
+
+# -- the fit ------------------------------------------------------------------------------
+def _pinv_solve(Aw, rhs):
+    """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
+    normal equations; also the rank used."""
+    N = (Aw.T @ Aw)
+    N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
+    b = Aw.T @ rhs
+    d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
+    w, V = np.linalg.eigh(N / d[:, None] / d[None, :])
+    keep = w > 1e-12 * w.max()
+    bd = b / (d if b.ndim == 1 else d[:, None])
+    z = V[:, keep] @ ((V[:, keep].T @ bd) / (w[keep] if b.ndim == 1 else w[keep][:, None]))
+    return (z / d if b.ndim == 1 else z / d[:, None]), int(keep.sum())
+
+
+def _whiten(model, A):
+    """The whitened design, with the target's prior as extra rows when it is unknown."""
+    from scipy import sparse
+
+    Aw = sparse.diags_array(1.0 / model.sigma) @ A
+    if model.prior_sd is None:
+        return Aw
+    eye = sparse.identity(A.shape[1], format="csr") / model.prior_sd
+    return sparse.vstack([Aw, eye], format="csr")
+
+
+def _whitened_y(model):
+    yw = model.y / model.sigma
+    if model.prior_sd is None:
+        return yw
+    return np.concatenate([yw, np.full(model.n_columns, model.prior_mean / model.prior_sd)])
+
+
+def _solve(model, A):
+    """Weighted least squares for the linear coefficients: ``s``, whitened residuals (the
+    prior's rows last), and the number of parameters the data spend on them (the trace of
+    the hat matrix: the rank without a prior, less with one)."""
+    Aw = _whiten(model, A)
+    yw = _whitened_y(model)
+    s, rank = _pinv_solve(Aw, yw)
+    if model.prior_sd is not None:  # the prior is isotropic: lambda / (lambda + 1 / sd^2)
+        Ad = Aw[:model.n_rows]
+        lam = np.clip(np.linalg.eigvalsh((Ad.T @ Ad).toarray()), 0.0, None)
+        rank = float(np.sum(lam / (lam + model.prior_sd**-2)))
+    return s, yw - Aw @ s, rank
+
+
+def _project_off(Aw, J):
+    """``J`` minus its least-squares fit by the columns of ``Aw``: the Jacobian of the
+    profiled residuals (variable projection). ``J`` may lack the prior's rows (zero)."""
+    if J.shape[0] < Aw.shape[0]:
+        J = np.vstack([J, np.zeros((Aw.shape[0] - J.shape[0], J.shape[1]))])
+    z, _ = _pinv_solve(Aw, J)
+    return J - Aw @ z
+
+
+class _Problem:
+    """``x`` (and a common scale of ``n_eff``, or one index per band) -> whitened residuals,
+    the target's coefficients profiled out."""
+
+    def __init__(self, model, n_design):
+        self.model = model
+        self.n_design = np.asarray(n_design, float)
+
+    def residuals(self, x, k=1.0, *, field=True):
+        A = self.model.design(x, self.n_design * k, field=field)
+        s, r, rank = _solve(self.model, A)
+        return r, s, rank
+
+    def chi2(self, x, k=1.0, *, field=True):
+        r, _, _ = self.residuals(x, k, field=field)
+        return float(r @ r)
+
+
+def _scan_grid(r_max, x_lo, x_hi, n_mean, cwl_mean, step_nm):
+    """Trial x from ``x_hi`` to ``x_lo``, evenly spaced in the shift they give at the field's
+    edge (steps of ``step_nm``): every trial shift pattern differs from its neighbours alike."""
+    def edge_shift(x):
+        return 1.0 - math.sqrt(1.0 - math.sin(math.atan(r_max / x)) ** 2 / n_mean**2)
+
+    lo, hi = edge_shift(x_hi), edge_shift(x_lo)
+    count = int(np.clip(math.ceil((hi - lo) * cwl_mean / step_nm), 16, 80))
+    eps = np.linspace(lo, hi, count)
+    sin_t = np.sqrt(n_mean**2 * (1.0 - (1.0 - eps) ** 2))
+    return r_max / np.tan(np.arcsin(np.clip(sin_t, 1e-9, 0.999)))
+
+
+def _start(problem, grid, *, candidates=3):
+    """The best of the scan's deepest local minima, each refined by a bounded 1-D search."""
+    c2 = np.array([problem.chi2(x) for x in grid])
+    inner = [i for i in range(grid.size)
+             if (i == 0 or c2[i] <= c2[i - 1]) and (i == grid.size - 1 or c2[i] <= c2[i + 1])]
+    best = (math.inf, float(grid[int(np.argmin(c2))]))
+    for i in sorted(inner, key=lambda i: c2[i])[:candidates]:
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        lo, hi = min(a, b), max(a, b)
+        if hi <= lo:
+            continue
+        sol = optimize.minimize_scalar(problem.chi2, bounds=(lo, hi), method="bounded",
+                                       options={"xatol": 1e-4 * lo})
+        best = min(best, (float(sol.fun), float(sol.x)))
+    return best[1], (grid, c2)
+
+
+def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
+    """Least squares in ``x`` (and the index scale ``k``) with numerical derivatives of the
+    profiled residuals; the covariance from their Jacobian (exact for variable projection)."""
+    def fun(p):
+        return problem.residuals(p[0], p[1] if fit_k else 1.0)[0]
+
+    p0 = [x0, 1.0] if fit_k else [x0]
+    lo = [x_lo, k_bounds[0]] if fit_k else [x_lo]
+    hi = [x_hi, k_bounds[1]] if fit_k else [x_hi]
+    sol = optimize.least_squares(fun, p0, bounds=(lo, hi), x_scale=[x0 * 0.05, 0.02][:len(p0)],
+                                 diff_step=1e-5, method="trf", xtol=1e-10, ftol=1e-12)
+    r, s, rank = problem.residuals(sol.x[0], sol.x[1] if fit_k else 1.0)
+    J = sol.jac
+    try:
+        cov = np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        cov = np.full((len(p0), len(p0)), np.inf)
+    return sol.x, cov, r, s, rank
+
+
+def _per_band_jacobian(model, x, n):
+    """Whitened residuals and their Jacobian in ``(x, n_1..n_B)`` at fixed target
+    coefficients, projected off the target's columns (variable projection)."""
+    A = model.design(x, n)
+    s, r, _ = _solve(model, A)
+    base = A @ s
+    eps_n = 1e-4 * n
+    # every band's rows depend on its own index only: one evaluation gives every column
+    dn = (model.design(x, n + eps_n) @ s - base) / model.sigma
+    dx = (model.design(x * (1 + 1e-5), n) @ s - base) / (x * 1e-5) / model.sigma
+    Jn = np.zeros((model.n_rows, n.size))
+    for _, k, rows, _ in model.blocks:
+        Jn[rows, k] = dn[rows] / eps_n[k]
+    return r, _project_off(_whiten(model, A), np.column_stack([dx, Jn]))
+
+
+def _per_band(problem, x, k, cov_scale):
+    """One index per band (and x), from the common fit by damped Gauss-Newton.
+
+    Returns ``(x, n, standard errors of x and n, chi-square)``, or ``(None, n, errors, None)``
+    when
+    the data do not constrain every band's index to ``PER_BAND_REL_STDERR`` (judged at the
+    common fit, before any step)."""
+    model = problem.model
+    n = problem.n_design * k
+    xb = float(x)
+    for it in range(6):
+        r, Jp = _per_band_jacobian(model, xb, n)
+        try:
+            cov = np.linalg.inv(Jp.T @ Jp)
+        except np.linalg.LinAlgError:
+            return None, n, np.full(n.size, np.inf), None
+        err = np.sqrt(np.clip(np.diag(cov), 0, None) * cov_scale)
+        if it == 0 and not np.all(err[1:] < PER_BAND_REL_STDERR * n):
+            return None, n, err, None
+        step = cov @ (Jp.T @ r)
+        limit = max(1.0, float(np.max(np.abs(step[1:]) / (0.02 * n))))
+        xb, n = xb + step[0] / limit, n + step[1:] / limit
+        if limit == 1.0 and np.all(np.abs(step[1:]) < 0.01 * err[1:]):
+            break
+    _, r, _ = _solve(model, model.design(xb, n))
+    return xb, n, err, float(r @ r)
+
+
+def _field_radius(bins):
+    return float(math.sqrt(max(b.rho.max() for b in bins)))
+
+
+def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
+                 target_spectrum=None, sensor_origin_px=None, magnification=None,
+                 pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
+                 name=None) -> PupilFit:
+    """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
+
+    Parameters
+    ----------
+    cubes : dict of float -> xarray.DataArray
+        Flat-fielded cubes (``(y, x, band)``, the sensor's bands) of one spatially uniform
+        target with spectral features, keyed by f-number.
+    sensor : Sensor
+    lens : Lens, optional
+        Its vignetting circles (P, h), magnification and pupil magnification are used in the
+        model and copied to the result; its ``x`` starts the search.
+    fit_n_eff : bool
+        Fit the effective index too: one value (the sensor's values times one factor), or one
+        per band where the data constrain it (``PER_BAND_P``, ``PER_BAND_REL_STDERR``). With
+        one f-number only ``x * n_eff`` is determined: the result says so.
+    center_px : (cx, cy), optional
+        Optical centre in sensor pixels (default: found from the cubes).
+    target_spectrum : callable or (wavelength_nm, value), optional
+        The target's spectrum, known up to a scale per cube. Default: unknown, solved for.
+    sensor_origin_px : (row, col), optional
+        Sensor position of the cubes' first pixel, for crops that do not carry positions.
+    magnification, pupil_magnification : float, optional
+        When no lens is given (default 0 and 1).
+    profile : str
+        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`).
+    n_bins : int
+        Annuli per cube.
+
+    Returns
+    -------
+    PupilFit
+
+    Raises
+    ------
+    FeaturelessTargetError
+        The target's signal does not change over the field above the noise.
+    """
+    from ..correct.geometry import cube_positions
+
+    cubes = _check_cubes(cubes, sensor)
+    base = lens or Lens(30.0, (), magnification or 0.0,
+                        pupil_magnification if pupil_magnification is not None else 1.0)
+    spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
+    pitch = sensor.pixel_pitch_mm
+    positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
+    nb = sensor.n_bands
+
+    def reader(cube):
+        return lambda b: np.asarray(cube.isel(band=b).transpose("y", "x").values, float)
+
+    notes = []
+    if center_px is not None:
+        center, center_source = (float(center_px[0]), float(center_px[1])), "given"
+    else:
+        f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
+        rows, cols = positions[f0]
+        center, err = estimate_target_center(reader(cubes[f0]), nb, rows, cols)
+        center_source = f"found from the f/{f0:g} cube (+- {err[0]:.2g}, {err[1]:.2g} px)"
+    bins = [radial_bins(reader(c), nb, *positions[f], center, pitch, f_number=f, n_bins=n_bins)
+            for f, c in cubes.items()]
+    r_max = _field_radius(bins)
+    n_design = np.asarray(sensor.n_eff, float)
+    # trial range: chief-ray angles at the field's edge from 45 to ~1 degrees
+    x_lo, x_hi = r_max, r_max / 0.02
+    phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(
+        base.working_f_number(min(cubes)))))
+    max_rel = 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
+                                       / (0.6 * n_design.min()) ** 2, 0.05)))
+    common = dict(spectrum=spectrum, profile=profile, n_eff_design=n_design,
+                  max_shift_rel=max_rel)
+    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, base, **common)
+    problem = _Problem(model, n_design)
+    several = len(cubes) >= 2
+    fit_k = bool(fit_n_eff) and several
+    # the start: a scan of a coarse copy (four annuli in one), its minima refined
+    coarse = _Problem(TargetModel([rebin(b, 4) for b in bins], sensor.cwl_nm, sensor.fwhm_nm,
+                                  base, **common), n_design)
+    grid = _scan_grid(r_max, x_lo, x_hi, float(np.mean(n_design)),
+                      float(np.mean(sensor.cwl_nm)), float(np.min(sensor.fwhm_nm)) / 8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EffectiveIndexWarning)  # trials beyond 40 degrees
+        x0, (xs, c2) = _start(coarse, grid)
+        p, cov, r, s, rank = _fit(problem, x0, fit_k, x_lo, x_hi)
+    x, k = float(p[0]), float(p[1]) if fit_k else 1.0
+    chi2 = float(r @ r)
+    dof = max(round(model.n_rows - rank - len(p)), 1)
+    chi2_red = chi2 / dof
+    scale = max(1.0, chi2_red)
+    err = np.sqrt(np.clip(np.diag(cov), 0, None) * scale)
+    r_flat, _, rank_flat = problem.residuals(x, k, field=False)
+    flat = float(r_flat @ r_flat)
+    # a field without shift is the nested model: the field must beat it by more than the
+    # parameters it adds (the target seen at more wavelengths, x) could win from noise alone
+    extra = max(rank - rank_flat, 0.0) + len(p)
+    if (flat - chi2 - extra * scale < math.sqrt(MIN_DELTA_CHI2) * math.sqrt(2 * extra) * scale
+            or flat - chi2 < MIN_DELTA_CHI2 * scale or not err[0] < MAX_REL_STDERR * x):
+        raise FeaturelessTargetError(
+            f"the target shows no spectral shift over the field above the noise (a field "
+            f"without any shift fits within chi-square {max(flat - chi2, 0):.3g} of the best, "
+            f"where noise alone gives about {extra * scale:.3g}; x would be {x:.3g} +- "
+            f"{err[0]:.2g} mm): its spectrum has no features inside the "
+            "bands (a white tile?). Use a target whose spectrum changes within the bands: a "
+            "colour filter, a rare-earth glass or a line lamp (see pupil_precision)")
+    n = n_design * k
+    n_err = n_design * err[1] if fit_k else None
+    mode = "one" if fit_k else ("product" if fit_n_eff else "no")
+    if fit_n_eff and not several:
+        notes.append("one f-number: the field fixes only x * n_eff; x assumes the sensor's "
+                     "n_eff. A cube at a second f-number (far apart, e.g. f/2 and f/8) "
+                     "separates them through the cone term")
+    if fit_k and nb >= 2:
+        xb, nbnd, nbe, chi2b = _per_band(problem, x, k, scale)
+        worst = float(np.max(nbe[1:] / nbnd))
+        if xb is None:
+            notes.append("one index for all bands: the data would pin one per band only to "
+                         + (f"{100 * worst:.2g} %" if worst < 1 else "nothing (a band without a "
+                            "feature of the target)")
+                         + f" at worst (limit {100 * PER_BAND_REL_STDERR:g} %)")
+        else:
+            gain = chi2 - chi2b
+            pval = float(stats.chi2.sf(max(gain, 0.0) / scale, nb - 1))
+            if pval < PER_BAND_P and worst < PER_BAND_REL_STDERR:
+                x, n, n_err, mode = xb, nbnd, nbe[1:], "per band"
+                err = np.array([nbe[0]])
+                cov = np.array([[nbe[0] ** 2 / scale]])
+                _, r, rank = _solve(model, model.design(x, n))
+                chi2 = float(r @ r)
+                chi2_red = chi2 / max(round(model.n_rows - rank - 1 - nb), 1)
+                notes.append(f"one index per band: chi-square lower by {gain:.3g} for {nb - 1} "
+                             f"more parameters (p = {pval:.2g})")
+            else:
+                notes.append(f"one index for all bands: one per band would lower chi-square "
+                             f"by {gain:.3g} for {nb - 1} more parameters (p = {pval:.2g}) "
+                             f"and be known to {100 * worst:.2g} % at worst")
+    xn = x * float(np.mean(n))
+    if fit_k and mode == "one":
+        c = cov * scale
+        g = np.array([k, x]) * float(np.mean(n_design))
+        xn_err = float(np.sqrt(max(g @ c @ g, 0.0)))
+    else:
+        xn_err = float(err[0]) * float(np.mean(n))
+    if chi2_red > 2.0:
+        notes.append(f"reduced chi-square {chi2_red:.3g}: the model misses something (a target "
+                     "that is not uniform, stray light, another filter shape); the errors are "
+                     "scaled by it")
+    out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
+                            center, center_source, sensor, cubes, spectrum_desc, profile,
+                            inputs, name)
+    return PupilFit(x, float(err[0]), np.asarray(n, float),
+                    None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
+                    chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
+                    (xs, c2), notes, cov * scale)
+
+
+def _check_cubes(cubes, sensor):
+    if not cubes:
+        raise ValueError("give at least one cube")
+    out = {}
+    for f, cube in cubes.items():
+        fv = float(f)
+        if not (math.isfinite(fv) and fv > 0):
+            raise ValueError(f"f-number must be finite and > 0, got {f!r}")
+        if fv in out:
+            raise ValueError(f"f/{fv:g} given twice")
+        nbands = cube.sizes.get("band")
+        if nbands != sensor.n_bands:
+            raise ValueError(f"the f/{fv:g} cube has {nbands} bands, the sensor "
+                             f"{sensor.name!r} {sensor.n_bands}; use the sensor the cubes were "
+                             "taken with")
+        if "wavelength" in cube.coords:
+            nominal = np.asarray(cube["wavelength"].values, float)
+            cwl = np.asarray(sensor.cwl_nm, float)
+            if np.max(np.abs(nominal - cwl)) > 0.5:
+                raise ValueError(f"the f/{fv:g} cube's wavelengths differ from the sensor "
+                                 f"{sensor.name!r}'s (by up to "
+                                 f"{np.max(np.abs(nominal - cwl)):.3g} nm); use the matching "
+                                 "sensor")
+        out[fv] = cube
+    return dict(sorted(out.items()))
+
+
+def _spectrum(target, sensor):
+    """The target spectrum as a callable (or None) and a description."""
+    if target is None:
+        return None, "unknown (solved for, the field centre as reference)"
+    if callable(target):
+        return target, f"given ({getattr(target, '__name__', 'a function')})"
+    try:
+        wl, val = (np.asarray(v, float) for v in target)
+    except (TypeError, ValueError):
+        raise ValueError("target_spectrum must be a function or (wavelength_nm, value)") from None
+    from .._validation import check_curve, check_wavelengths_nm
+
+    check_wavelengths_nm("target spectrum wavelengths", wl)
+    wl, val = check_curve(wl, val)
+    cwl = np.asarray(sensor.cwl_nm)
+    fwhm = np.asarray(sensor.fwhm_nm)
+    need_lo, need_hi = float(np.min(cwl - 2 * fwhm)), float(np.max(cwl + 2 * fwhm))
+    if wl[0] > need_lo or wl[-1] < need_hi:
+        raise ValueError(f"the target spectrum covers {wl[0]:g}-{wl[-1]:g} nm, but the bands "
+                         f"need {need_lo:g}-{need_hi:g} nm")
+    if np.ptp(val) <= 0:
+        raise FeaturelessTargetError("the target spectrum is constant: a featureless target "
+                                     "cannot show a spectral shift")
+    return (lambda lam: np.interp(lam, wl, val)), f"given ({wl.size} points, " \
+        f"{wl[0]:g}-{wl[-1]:g} nm)"
+
+
+def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof, center,
+                 center_source, sensor, cubes, spectrum_desc, profile, inputs, name):
+    def r(v, d=6):
+        return float(f"{float(v):.{d}g}")
+
+    uniform = bool(np.ptp(n) == 0)
+    cal = {
+        "source": "flat-fielded cubes of a spatially uniform spectral target",
+        "method": ("least squares of the binned cubes: whole filter behind the lens (Goossens "
+                   "et al. 2019, Eq. 13; exit pupil as in Goossens et al., OSA Continuum 2019)"),
+        "f_numbers": [float(f) for f in cubes],
+        "exit_pupil_stderr_mm": r(x_err, 3),
+        "reduced_chi2": r(chi2_red, 4),
+        "degrees_of_freedom": int(dof),
+        "n_eff_fitted": mode,
+        "x_times_n_eff_mm": r(xn),
+        "x_times_n_eff_stderr_mm": r(xn_err, 3),
+        "target_spectrum": spectrum_desc,
+        "filter_profile": profile,
+        "sensor": sensor.name,
+        "center_px": [r(center[0], 8), r(center[1], 8)],
+        "center_source": center_source,
+        "pixel_pitch_um": float(sensor.pixel_pitch_um),
+        "snapcorr_version": __version__,
+        "date": _dt.date.today().isoformat(),
+    }
+    if mode in ("one", "per band"):
+        cal["n_eff"] = r(n[0]) if uniform else [r(v) for v in n]
+        cal["n_eff_stderr"] = (r(n_err[0], 3) if mode == "one" and uniform
+                               else [r(v, 3) for v in n_err])
+    else:
+        cal["n_eff"] = r(n[0]) if uniform else [r(v) for v in n]
+        cal["n_eff_source"] = "the sensor's (not fitted)"
+    if sensor.size_px is not None:
+        cal["image_size_px"] = [int(sensor.size_px[1]), int(sensor.size_px[0])]
+    if inputs:
+        cal["inputs"] = {f"f{float(f):g}": str(p) for f, p in inputs.items()}
+    if lens is not None:
+        cal["vignetting_from"] = lens.name or "the lens given"
+        if lens.calibration.get("method"):
+            cal["vignetting_method"] = str(lens.calibration["method"])
+    return Lens(x, base.vignetting, base.magnification, base.pupil_magnification,
+                name=name or (lens.name if lens is not None else "lens (exit pupil from a target)"),
+                calibration=cal)
+
+
+# -- choosing a target ----------------------------------------------------------------------
+def white_tile(lam):
+    """A white reference tile: no spectral feature at all."""
+    return np.full(np.shape(lam), 0.95)
+
+
+def colour_filter(lam):
+    """The colour filter of the experiment in Goossens et al. 2019 as simulated in
+    :func:`snapcorr.paper_experiment.colour_filter` (a long-pass edge at 640 nm, a notch)."""
+    from ..paper_experiment import colour_filter as paper
+
+    return paper(lam)
+
+
+#: Absorption bands (centre, FWHM nm, depth) of a holmium/didymium-like rare-earth glass.
+RARE_EARTH_BANDS = ((446.0, 4.0, 0.5), (453.0, 3.0, 0.45), (485.0, 5.0, 0.35),
+                    (536.0, 6.0, 0.55), (573.0, 8.0, 0.45), (586.0, 4.0, 0.5),
+                    (640.0, 5.0, 0.4), (685.0, 6.0, 0.3), (741.0, 8.0, 0.45),
+                    (803.0, 9.0, 0.5), (865.0, 7.0, 0.3))
+
+
+def rare_earth_glass(lam):
+    """A holmium/didymium-like glass: narrow absorption bands (:data:`RARE_EARTH_BANDS`) on
+    a high continuum."""
+    lam = np.asarray(lam, float)
+    t = np.full(lam.shape, 0.92)
+    for c, w, d in RARE_EARTH_BANDS:
+        t = t * (1 - d * np.exp(-4 * math.log(2) * ((lam - c) / w) ** 2))
+    return t
+
+
+#: Mercury-argon lamp lines (nm) between 430 and 920 nm.
+LAMP_LINES_NM = (435.8, 546.1, 577.0, 579.1, 696.5, 706.7, 738.4, 750.4, 763.5, 794.8,
+                 811.5, 826.5, 842.5, 852.1, 912.3)
+
+
+def line_lamp(lam):
+    """Narrow emission lines (:data:`LAMP_LINES_NM`, 0.3 nm FWHM) of a mercury-argon lamp
+    seen through a diffuser, on a weak continuum; the scale is arbitrary."""
+    lam = np.asarray(lam, float)
+    out = np.full(lam.shape, 0.01)
+    for c in LAMP_LINES_NM:
+        out = out + np.exp(-4 * math.log(2) * ((lam - c) / 0.3) ** 2)
+    return out
+
+
+#: Targets :func:`pupil_precision` compares by default.
+CANDIDATE_TARGETS = {
+    "white tile": white_tile,
+    "colour filter (Goossens 2019)": colour_filter,
+    "rare-earth glass": rare_earth_glass,
+    "emission lines (Hg-Ar lamp)": line_lamp,
+}
+
+
+@dataclass(frozen=True)
+class Precision:
+    """Predicted standard errors (one standard deviation) of :func:`pupil_precision`."""
+
+    x_stderr_mm: float
+    n_eff_stderr: float | None
+    spectrum_known: bool
+    noise: float
+    exit_pupil_mm: float = math.nan
+
+    @property
+    def informative(self) -> bool:
+        """Whether the target would pin ``x`` at all (to ``MAX_REL_STDERR``)."""
+        return bool(self.x_stderr_mm < MAX_REL_STDERR * self.exit_pupil_mm)
+
+
+def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
+    """Annuli of the full sensor (centred on the axis) with their pixel counts per band."""
+    rows, cols = size_px or sensor.size_px
+    pitch = sensor.pixel_pitch_mm
+    y = (np.arange(rows) - (rows - 1) / 2) * pitch
+    x = (np.arange(cols) - (cols - 1) / 2) * pitch
+    rho = (y**2)[:, None] + (x**2)[None, :]
+    edges = np.linspace(0, rho.max() * (1 + 1e-12), n_bins + 1)
+    idx = np.clip(np.searchsorted(edges, rho.ravel(), side="right") - 1, 0, n_bins - 1)
+    n = np.bincount(idx, minlength=n_bins).astype(float)
+    s1 = np.bincount(idx, rho.ravel(), minlength=n_bins)
+    s2 = np.bincount(idx, rho.ravel() ** 2, minlength=n_bins)
+    mean = s1 / np.maximum(n, 1)
+    var = np.maximum(s2 / np.maximum(n, 1) - mean**2, 0)
+    cells = 1 if sensor.layout == "snapscan" else sensor.mosaic_shape[0] * sensor.mosaic_shape[1]
+    nb = sensor.n_bands
+    count = np.tile(n / cells, (nb, 1))
+    return RadialBins(float(f_number), mean, np.tile(mean, (nb, 1)), np.tile(var, (nb, 1)),
+                      np.zeros((nb, n_bins)), np.ones((nb, n_bins)), count)
+
+
+def pupil_precision(spectrum, sensor, lens: Lens, f_numbers, *, noise=0.01, fit_n_eff=False,
+                    spectrum_known=False, size_px=None, n_bins=64, profile="gaussian",
+                    absolute_noise=False):
+    """Predicted standard error of ``x`` (and ``n_eff``) from cubes of a target.
+
+    The Cramer-Rao bound of the model :func:`locate_pupil` fits: the Fisher information of
+    the annulus means over the full sensor, with the target's spectrum solved for (or known
+    up to a scale, ``spectrum_known``) and per-pixel noise of standard deviation ``noise``
+    times the brightest band's signal (the exposure set so that the brightest band is near
+    full scale).
+
+    Parameters
+    ----------
+    spectrum : callable
+        ``S(lambda_nm)``.
+    sensor : Sensor
+        Needs ``size_px`` unless ``size_px`` is given.
+    lens : Lens
+        The true lens (x, circles, magnifications).
+    f_numbers : sequence of float
+    noise : float
+    fit_n_eff : bool
+        Count ``n_eff`` as unknown (one common value).
+    absolute_noise : bool
+        ``noise`` is in the cube's units (flat-fielded: white = 1), not a fraction of the
+        brightest band.
+
+    Returns
+    -------
+    Precision
+        ``x_stderr_mm`` is ``inf`` for a target without features.
+    """
+    size = size_px or sensor.size_px
+    if size is None:
+        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
+    if not (math.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be > 0, got {noise!r}")
+    bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
+    n_design = np.asarray(sensor.n_eff, float)
+    x = float(lens.exit_pupil_mm)
+    truth = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens, spectrum=spectrum,
+                        profile=profile, n_eff_design=n_design, max_shift_rel=0.15)
+    y = np.asarray(truth.design(x, n_design).sum(axis=1)).ravel()
+    sigma_px = noise * (1.0 if absolute_noise else float(np.max(np.abs(y))))
+    for b in bins:
+        b.mean[:] = 0.0
+    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens,
+                        spectrum=spectrum if spectrum_known else None, profile=profile,
+                        n_eff_design=n_design, max_shift_rel=0.15)
+    if model.prior_sd is not None:  # the fit's prior, for the signal the target gives
+        model.prior_mean = float(np.median(y))
+        model.prior_sd = PRIOR_SD * float(np.max(np.abs(y)))
+    count = np.empty(model.n_rows)
+    for j, k, rows, ok in model.blocks:
+        count[rows] = bins[j].count[k, ok]
+    model.sigma = sigma_px / np.sqrt(count)
+    A = model.design(x, n_design)
+    s_true, _ = _pinv_solve(A, y)  # the noise-free means as the model has them
+    cols = [(model.design(x * (1 + 1e-5), n_design) - model.design(x * (1 - 1e-5), n_design))
+            @ s_true / (2e-5 * x)]
+    if fit_n_eff:
+        cols.append((model.design(x, n_design * (1 + 1e-5))
+                     - model.design(x, n_design * (1 - 1e-5))) @ s_true / 2e-5)
+    J = np.column_stack(cols) / model.sigma[:, None]
+    Jp = _project_off(_whiten(model, A), J)
+    F = Jp.T @ Jp
+    if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14 or F[0, 0] <= 0:
+        return Precision(math.inf, math.inf if fit_n_eff else None, spectrum_known, noise, x)
+    cov = np.linalg.inv(F)
+    n_err = float(math.sqrt(cov[1, 1]) * np.mean(n_design)) if fit_n_eff else None
+    return Precision(float(math.sqrt(cov[0, 0])), n_err, spectrum_known, noise, x)

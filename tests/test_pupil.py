@@ -1,0 +1,144 @@
+"""The exit pupil distance and effective index from cubes of a spectral target.
+
+Every cube here is made by ``tests/spectralsim.py``, a simulator that shares no code with
+snapcorr: it samples the vignetted pupil point by point and scales each ray's whole filter
+curve by the shift law (Rienstra's transform), where snapcorr's model shifts the curve by the
+closed-form kernel (Goossens Eq. 13, 37). So the fit is judged on data its own forward model
+did not make.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import spectralsim as sim
+from flatsim import LensTruth
+
+from snapcorr import Lens
+from snapcorr.calibrate import (
+    FeaturelessTargetError,
+    locate_pupil,
+    pupil_precision,
+)
+from snapcorr.cube import Sensor, make_cube
+
+# A 1280 x 1024 sensor of 5.5 um pixels seen through 8 x 8 binning: the same field (7 x 5.6 mm)
+# in few pixels. 30 bands of 12 nm every 12 nm, 500-848 nm.
+PITCH_UM = 44.0
+SHAPE = (128, 160)
+CWL = np.arange(500.0, 849.0, 12.0)
+FWHM = 12.0
+N_EFF = 1.7
+CENTER = (82.3, 61.6)  # (column, row): off the image centre
+
+PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3, name="paper lens")
+PLAIN = LensTruth(16.0, (), 0.0, 1.0, name="no vignetting")
+LENSES = {"paper": PAPER, "plain": PLAIN}
+
+
+def sensor(n_eff=N_EFF):
+    return Sensor("test", "snapscan", PITCH_UM, CWL, FWHM, n_eff)
+
+
+def as_lens(truth, x=None):
+    """The lens the user would give: its circles and magnifications, x from elsewhere."""
+    return Lens(truth.exit_pupil_mm if x is None else x, truth.circles, truth.magnification,
+                truth.pupil_magnification)
+
+
+@functools.cache
+def clean_cube(target, lens, f_number, n_eff=N_EFF, profile="gaussian", shape=SHAPE,
+               center=CENTER, origin=(0, 0)):
+    return sim.target_cube(getattr(sim, target), cwl_nm=CWL, fwhm_nm=FWHM, n_eff=n_eff,
+                           f_number=f_number, lens=LENSES[lens], shape=shape,
+                           pixel_pitch_um=PITCH_UM, center_px=center, profile=profile,
+                           origin_px=origin)
+
+
+def cubes(target, lens, f_numbers, *, noise, seed, n_eff=N_EFF, nan_fraction=0.0, **kw):
+    rng = np.random.default_rng(seed)
+    out = {}
+    for f in f_numbers:
+        data = clean_cube(target, lens, f, n_eff, **kw).copy()
+        data += rng.normal(0.0, noise, data.shape)
+        if nan_fraction:
+            data[rng.random(data.shape) < nan_fraction] = np.nan
+        out[f] = make_cube(data, CWL)
+    return out
+
+
+@pytest.mark.parametrize("lens", ["paper", "plain"])
+@pytest.mark.parametrize("target", ["colour_filter", "rare_earth_glass"])
+def test_x_within_one_percent_with_n_eff_known(target, lens):
+    truth = LENSES[lens]
+    got = locate_pupil(cubes(target, lens, (2.0, 8.0), noise=0.01, seed=1), sensor(),
+                       lens=as_lens(truth, x=30.0))
+    x = truth.exit_pupil_mm
+    assert abs(got.exit_pupil_mm - x) < 0.01 * x
+    assert abs(got.exit_pupil_mm - x) < 4 * got.exit_pupil_stderr_mm
+    assert 0.7 < got.chi2_red < 1.5
+    # the centre was found, not given
+    assert "found" in got.center_source
+    assert np.hypot(got.center_px[0] - CENTER[0], got.center_px[1] - CENTER[1]) < 0.5
+
+
+@pytest.mark.parametrize("lens", ["paper", "plain"])
+def test_x_and_n_eff_from_two_f_numbers(lens):
+    truth = LENSES[lens]
+    # the filters' true index differs from the design value the sensor file holds
+    got = locate_pupil(cubes("rare_earth_glass", lens, (2.0, 8.0), noise=0.01, seed=2,
+                             n_eff=1.85), sensor(1.7), lens=as_lens(truth), fit_n_eff=True)
+    x = truth.exit_pupil_mm
+    assert got.n_eff_fitted == "one"
+    assert abs(got.exit_pupil_mm - x) < 0.025 * x
+    assert abs(got.n_eff[0] - 1.85) < 0.015 * 1.85
+    assert abs(got.n_eff[0] - 1.85) < 4 * got.n_eff_stderr[0]
+    assert got.lens.calibration["n_eff_fitted"] == "one"
+
+
+def test_one_f_number_gives_only_the_product():
+    """A wrong index moves x by about its ratio; x * n_eff stays nearly right (exactly at
+    small angles; here the field reaches 16 deg, where sin^2 CRA departs from tan^2 CRA by 8 %),
+    and the result says so."""
+    truth = PLAIN
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.005, seed=3, n_eff=1.85)
+    got = locate_pupil(data, sensor(1.7), lens=as_lens(truth), fit_n_eff=True)
+    assert got.n_eff_fitted == "product"
+    assert any("x * n_eff" in note for note in got.notes)
+    product = truth.exit_pupil_mm * 1.85
+    assert abs(got.x_n_eff_mm - product) < 0.02 * product
+    # x itself is off by the index ratio, as the degeneracy says
+    assert got.exit_pupil_mm == pytest.approx(truth.exit_pupil_mm * 1.85 / 1.7, rel=0.02)
+
+
+def test_a_white_target_is_refused():
+    with pytest.raises(FeaturelessTargetError, match="no spectral shift"):
+        locate_pupil(cubes("white", "paper", (2.0, 8.0), noise=0.01, seed=4), sensor(),
+                     lens=as_lens(PAPER))
+
+
+def test_known_spectrum_and_given_centre():
+    got = locate_pupil(cubes("colour_filter", "paper", (2.0,), noise=0.01, seed=5), sensor(),
+                       lens=as_lens(PAPER), target_spectrum=sim.colour_filter,
+                       center_px=CENTER)
+    assert got.center_source == "given"
+    assert got.center_px == CENTER
+    assert abs(got.exit_pupil_mm - 21.0) < 0.01 * 21.0
+    assert "given" in got.spectrum
+
+
+def test_precision_predicts_the_reported_error():
+    """The Cramer-Rao bound for the same sensor, lens and noise is the error the fit
+    reports, and a white tile has none."""
+    sens = Sensor("test", "snapscan", PITCH_UM, CWL, FWHM, N_EFF, size_px=SHAPE)
+    got = locate_pupil(cubes("colour_filter", "paper", (2.0, 8.0), noise=0.01, seed=6,
+                             center=((SHAPE[1] - 1) / 2, (SHAPE[0] - 1) / 2)),
+                       sens, lens=as_lens(PAPER), center_px=((SHAPE[1] - 1) / 2,
+                                                              (SHAPE[0] - 1) / 2))
+    pred = pupil_precision(sim.colour_filter, sens, as_lens(PAPER), (2.0, 8.0), noise=0.01,
+                           absolute_noise=True)
+    assert pred.x_stderr_mm == pytest.approx(got.exit_pupil_stderr_mm, rel=0.25)
+    white = pupil_precision(sim.white, sens, as_lens(PAPER), (2.0, 8.0), noise=0.01)
+    assert not white.informative
