@@ -54,6 +54,19 @@ EXAMPLES = {
                                           at most two circles; keep a second only if it
                                           moves the mean shift by more than 0.01 nm
     """,
+    "pupil": r"""
+      snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
+          --lens my_lens.toml --fit-n-eff --out my_lens_x.toml --plot my_lens_x.png
+                                          exit pupil x and n_eff from cubes of a spectral
+                                          target at two f-numbers (P, h kept from my_lens.toml)
+      snapcorr pupil --cube 2.8=target_ff.hdr --sensor sensor.toml --target-spectrum filter.csv \
+          --out lens_x.toml
+                                          ... one f-number and a target of known spectrum
+      snapcorr pupil --predict --sensor snapscan_vnir --lens edmund_optics_16mm \
+          --f-number 2 --f-number 8 --noise-pct 1
+                                          which target pins x best (Cramer-Rao bound)
+      then: snapcorr calibrate --flat ... --exit-pupil-mm X (the x found) for P and h
+    """,
     "shift": r"""
       snapcorr shift --f-number 1.4 --cra 0 10 20
                                           mean shift of 700 nm filters behind the bundled lens
@@ -441,6 +454,101 @@ def _cmd_calibrate(args):
     return 0
 
 
+def _cmd_pupil(args):
+    if args.predict:
+        return _pupil_predict(args)
+    from .calibrate import FeaturelessTargetError, locate_pupil
+
+    if not args.cube or args.out is None:
+        raise ValueError("give --cube F_NUMBER=PATH (one per f-number) and --out LENS.toml, or "
+                         "--predict to compare targets before measuring")
+    seen = {}
+    for f, path in args.cube:
+        if f in seen:
+            raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one cube per "
+                             "f-number")
+        seen[f] = path
+    inputs = [p for _, p in args.cube] + [args.sensor, args.lens, args.target_spectrum]
+    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    sensor = _sensor(args.sensor)
+    lens = _lens(args.lens) if args.lens else None
+    spectrum = _target_spectrum(args.target_spectrum)
+    cubes = {f: _read(path, sensor, args.sensor_origin_px) for f, path in sorted(args.cube)}
+    for f, cube in cubes.items():
+        print(f"read f/{f:g}: {seen[f]} ({cube.sizes['y']} x {cube.sizes['x']} x "
+              f"{cube.sizes['band']})", file=sys.stderr)
+    try:
+        with _StageBar("fitting the exit pupil"):
+            fit = locate_pupil(cubes, sensor, lens=lens, fit_n_eff=args.fit_n_eff,
+                               center_px=args.center_px, target_spectrum=spectrum,
+                               sensor_origin_px=args.sensor_origin_px,
+                               magnification=args.magnification,
+                               pupil_magnification=args.pupil_magnification,
+                               inputs=seen, name=args.name or args.out.stem)
+    except FeaturelessTargetError as err:
+        raise ValueError(f"nothing written: {err}") from None
+    fit.lens.save(args.out, overwrite=args.overwrite)
+    if args.plot:
+        fit.save_plot(args.plot)
+    print(fit.summary())
+    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+    return 0
+
+
+def _target_spectrum(path):
+    if path is None:
+        return None
+    from .budget import read_spectrum
+
+    sp = read_spectrum(path)
+    return sp.wavelength_nm, sp.values
+
+
+def _pupil_predict(args):
+    from .calibrate import CANDIDATE_TARGETS, pupil_precision
+
+    if args.cube:
+        raise ValueError("--predict compares targets before measuring; leave out --cube")
+    if not args.f_number:
+        raise ValueError("give the f-numbers you would measure at: --f-number F (repeat)")
+    sensor = _sensor(args.sensor)
+    lens = _lens(args.lens or "edmund_optics_16mm")
+    targets = dict(CANDIDATE_TARGETS)
+    if args.target_spectrum is not None:
+        wl, val = _target_spectrum(args.target_spectrum)
+        targets[str(args.target_spectrum)] = lambda lam: np.interp(lam, wl, val)
+    noise = args.noise_pct / 100.0
+    fs = sorted(set(args.f_number))
+    print(f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
+          f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
+          f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "
+          "band per pixel" + (", n_eff fitted too" if args.fit_n_eff else ""))
+    print(f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
+          + (f" {'n_eff':>12s}" if args.fit_n_eff else ""))
+    with _StageBar("bounds for each target"):
+        for name, S in targets.items():
+            row = []
+            for known in (False, True):
+                p = pupil_precision(S, sensor, lens, fs, noise=noise,
+                                    fit_n_eff=args.fit_n_eff and len(fs) > 1,
+                                    spectrum_known=known)
+                row.append(p)
+            cells = [_precision_cell(p) for p in row]
+            extra = ""
+            if args.fit_n_eff:
+                extra = (f" {'x * n_eff only':>12s}" if len(fs) < 2 else
+                         f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else
+                         f" {'-':>12s}")
+            print(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
+    return 0
+
+
+def _precision_cell(p):
+    if not p.informative:
+        return "no information"
+    return f"{p.x_stderr_mm:.2g} mm ({100 * p.x_stderr_mm / p.exit_pupil_mm:.2g} %)"
+
+
 def _cmd_shift(args):
     from ._validation import check_wavelengths_nm
     from .optics import mean_shift, select_method
@@ -708,6 +816,48 @@ def _add_shift(command):
     p.set_defaults(func=_cmd_shift)
 
 
+def _add_pupil(command):
+    p = command("pupil", "exit pupil distance x (and n_eff) from flat-fielded cubes of a "
+                "spectral target (Goossens et al., OSA Continuum 2019)")
+    p.add_argument("--cube", type=_flat_arg, action="append", default=[],
+                   metavar="F_NUMBER=PATH",
+                   help="flat-fielded cube of a uniform target with spectral features at an "
+                   "f-number (any format snapcorr reads); repeat for each f-number")
+    p.add_argument("--sensor", type=str, required=True, metavar="SENSOR",
+                   help="sensor description (bundled name or .toml)")
+    p.add_argument("--out", type=Path, default=None, help="lens profile to write (.toml)")
+    p.add_argument("--lens", type=str, default=None, metavar="LENS",
+                   help="lens profile whose vignetting circles (P, h) and magnifications are "
+                   "used and copied (bundled name or .toml)")
+    p.add_argument("--fit-n-eff", action="store_true",
+                   help="fit the effective index too (needs two f-numbers to separate it from "
+                   "x; one gives x * n_eff)")
+    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                   help="optical centre in sensor pixels (default: found from the cubes)")
+    p.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
+                   help="the target's spectrum, two columns (wavelength nm, value); default: "
+                   "unknown, solved for")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help="sensor row and column of the cubes' first pixel (crops)")
+    p.add_argument("--magnification", type=float, default=None,
+                   help="linear magnification m without --lens (default 0)")
+    p.add_argument("--pupil-magnification", type=_positive, default=None,
+                   help="pupil magnification m_P without --lens (default 1)")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="draw the target over the field and chi-square in x")
+    p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    g = p.add_argument_group("choosing a target (--predict)")
+    g.add_argument("--predict", action="store_true",
+                   help="print the predicted standard error of x for candidate targets (and "
+                   "--target-spectrum) instead of fitting cubes")
+    g.add_argument("--f-number", type=_positive, action="append", default=[],
+                   help="an f-number you would measure at (repeat)")
+    g.add_argument("--noise-pct", type=_positive, default=1.0,
+                   help="per-pixel noise, %% of the brightest band (default: %(default)s)")
+    p.set_defaults(func=_cmd_pupil)
+
+
 def _add_budget(command):
     p = command("budget", "which bands and pixels a scene needs corrected, and with which "
                 "model (signal error of the filter shift)")
@@ -759,8 +909,8 @@ def build_parser():
         return sub.add_parser(name, help=help_, description=help_, epilog=_examples(name),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
-    for add in (_add_demo, _add_flatfield, _add_calibrate, _add_correct, _add_shift,
-                _add_budget):
+    for add in (_add_demo, _add_flatfield, _add_calibrate, _add_pupil, _add_correct,
+                _add_shift, _add_budget):
         add(command)
     return parser
 
