@@ -516,7 +516,7 @@ def _pupil_predict(args):
     targets = dict(CANDIDATE_TARGETS)
     if args.target_spectrum is not None:
         wl, val = _target_spectrum(args.target_spectrum)
-        targets[str(args.target_spectrum)] = lambda lam: np.interp(lam, wl, val)
+        targets[Path(args.target_spectrum).name] = lambda lam: np.interp(lam, wl, val)
     noise = args.noise_pct / 100.0
     fs = sorted(set(args.f_number))
     print(f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
@@ -540,6 +540,8 @@ def _pupil_predict(args):
                          f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else
                          f" {'-':>12s}")
             print(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
+    print("noise only: a target that is not uniform, or filters of another shape than the "
+          "sensor file says, add errors of their own")
     return 0
 
 

@@ -70,7 +70,8 @@ def cubes(target, lens, f_numbers, *, noise, seed, n_eff=N_EFF, nan_fraction=0.0
 
 
 @pytest.mark.parametrize("lens", ["paper", "plain"])
-@pytest.mark.parametrize("target", ["colour_filter", "rare_earth_glass"])
+@pytest.mark.parametrize("target", ["colour_filter",
+                                    pytest.param("rare_earth_glass", marks=pytest.mark.slow)])
 def test_x_within_one_percent_with_n_eff_known(target, lens):
     truth = LENSES[lens]
     got = locate_pupil(cubes(target, lens, (2.0, 8.0), noise=0.01, seed=1), sensor(),
@@ -113,6 +114,7 @@ def test_one_f_number_gives_only_the_product():
     assert got.exit_pupil_mm == pytest.approx(truth.exit_pupil_mm * 1.85 / 1.7, rel=0.02)
 
 
+@pytest.mark.slow  # the command line's refusal is in the default run (test_cli_pupil.py)
 def test_a_white_target_is_refused():
     with pytest.raises(FeaturelessTargetError, match="no spectral shift"):
         locate_pupil(cubes("white", "paper", (2.0, 8.0), noise=0.01, seed=4), sensor(),
@@ -142,3 +144,78 @@ def test_precision_predicts_the_reported_error():
     assert pred.x_stderr_mm == pytest.approx(got.exit_pupil_stderr_mm, rel=0.25)
     white = pupil_precision(sim.white, sens, as_lens(PAPER), (2.0, 8.0), noise=0.01)
     assert not white.informative
+
+
+# -- stability: where the method is pushed -------------------------------------------------
+def test_five_percent_noise_is_honest():
+    truth = PAPER
+    got = locate_pupil(cubes("rare_earth_glass", "paper", (2.0, 8.0), noise=0.05, seed=8),
+                       sensor(), lens=as_lens(truth))
+    err = got.exit_pupil_mm - truth.exit_pupil_mm
+    assert abs(err) < 4 * got.exit_pupil_stderr_mm
+    assert abs(err) < 0.02 * truth.exit_pupil_mm
+    assert got.exit_pupil_stderr_mm > 0.001 * truth.exit_pupil_mm  # not a wishful error bar
+
+
+def test_a_target_with_one_feature_only():
+    got = locate_pupil(cubes("single_feature", "plain", (2.0, 8.0), noise=0.01, seed=9),
+                       sensor(), lens=as_lens(PLAIN))
+    err = got.exit_pupil_mm - PLAIN.exit_pupil_mm
+    assert abs(err) < 4 * got.exit_pupil_stderr_mm
+    assert abs(err) < 0.02 * PLAIN.exit_pupil_mm
+
+
+def test_a_crop_off_centre_with_its_origin():
+    """A 64 x 80 crop of the sensor's lower right, the optical axis outside it: the crop says
+    where it sits, the centre is given."""
+    origin = (60, 75)
+    data = cubes("colour_filter", "paper", (2.0,), noise=0.01, seed=10, shape=(64, 80),
+                 origin=origin)
+    got = locate_pupil(data, sensor(), lens=as_lens(PAPER), center_px=CENTER,
+                       sensor_origin_px=origin)
+    err = got.exit_pupil_mm - PAPER.exit_pupil_mm
+    assert abs(err) < 4 * got.exit_pupil_stderr_mm
+    assert abs(err) < 0.02 * PAPER.exit_pupil_mm
+
+
+def test_masked_pixels_and_a_dead_band():
+    data = cubes("rare_earth_glass", "paper", (2.0, 8.0), noise=0.01, seed=11,
+                 nan_fraction=0.2)
+    for f, cube in data.items():
+        values = cube.values.copy()
+        values[:, :, 5] = np.nan  # a band with no valid pixel at all
+        data[f] = make_cube(values, CWL)
+    got = locate_pupil(data, sensor(), lens=as_lens(PAPER))
+    err = got.exit_pupil_mm - PAPER.exit_pupil_mm
+    assert abs(err) < 4 * got.exit_pupil_stderr_mm
+    assert abs(err) < 0.01 * PAPER.exit_pupil_mm
+    assert np.hypot(got.center_px[0] - CENTER[0], got.center_px[1] - CENTER[1]) < 0.5
+
+
+@pytest.mark.slow
+def test_airy_filters_with_their_profile():
+    data = cubes("rare_earth_glass", "plain", (2.0, 8.0), noise=0.01, seed=12,
+                 profile="airy")
+    got = locate_pupil(data, sensor(), lens=as_lens(PLAIN), profile="airy")
+    err = got.exit_pupil_mm - PLAIN.exit_pupil_mm
+    assert abs(err) < 4 * got.exit_pupil_stderr_mm
+    assert abs(err) < 0.01 * PLAIN.exit_pupil_mm
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fit_n_eff", [False, True])
+def test_z_scores_over_seeds(fit_n_eff):
+    """The reported standard errors are the scatter: z-scores of x (and n_eff) over seeds."""
+    zx, zn = [], []
+    for seed in range(8):
+        got = locate_pupil(cubes("colour_filter", "paper", (2.0, 8.0), noise=0.01,
+                                 seed=100 + seed), sensor(), lens=as_lens(PAPER),
+                           fit_n_eff=fit_n_eff)
+        zx.append((got.exit_pupil_mm - 21.0) / got.exit_pupil_stderr_mm)
+        if fit_n_eff:
+            zn.append((got.n_eff[0] - N_EFF) / got.n_eff_stderr[0])
+    for z in (zx, zn):
+        if z:
+            z = np.asarray(z)
+            assert np.all(np.abs(z) < 3.5), z
+            assert np.mean(z**2) < 2.5, z  # chi-square with 8 degrees: < 2.5 at p ~ 0.01

@@ -58,6 +58,14 @@ PER_BAND_P = 1e-3
 PER_BAND_REL_STDERR = 0.01
 
 
+#: The chief-ray angles at the field's edge the search covers, degrees.
+EDGE_CRA_DEG = (1.0, 38.0)
+#: Cubes up to this size are read into memory once; larger ones band by band.
+IN_MEMORY_BYTES = 2 << 30
+#: The effective-index law is validated up to about this angle (Goossens 2019, Sec. 2.2).
+AOI_VALIDITY_DEG = 40.0
+
+
 class FeaturelessTargetError(ValueError):
     """The target's spectrum shows no shift over the field above the noise."""
 
@@ -144,8 +152,8 @@ class PupilFit:
 def _block_mean(img, k):
     ny, nx = (s // k * k for s in img.shape)
     v = img[:ny, :nx].reshape(ny // k, k, nx // k, k)
-    with np.errstate(invalid="ignore"), np.testing.suppress_warnings() as sup:
-        sup.filter(RuntimeWarning)
+    with warnings.catch_warnings():  # blocks without a finite pixel are NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
         return np.nanmean(v, axis=(1, 3))
 
 
@@ -164,7 +172,11 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
     stats_ = []
     for b in range(n_bands):
         v = np.asarray(band_image(b), float)
-        noise = np.nanmedian(np.abs(np.diff(v, axis=1))) / (0.6745 * math.sqrt(2)) + 1e-12
+        dv = np.abs(np.diff(v, axis=1))
+        if np.count_nonzero(np.isfinite(dv)) < 0.1 * dv.size:  # a band masked almost whole
+            stats_.append(-np.inf)
+            continue
+        noise = np.nanmedian(dv) / (0.6745 * math.sqrt(2)) + 1e-12
         spread = np.nanpercentile(v, 95) - np.nanpercentile(v, 5)
         stats_.append(spread / noise)
     use = np.argsort(stats_)[::-1][:n_use]
@@ -210,12 +222,23 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
 # -- the fit ------------------------------------------------------------------------------
 def _pinv_solve(Aw, rhs):
     """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
-    normal equations; also the rank used."""
+    normal equations; also the rank used. A well-conditioned system (the unknown target
+    with its prior) is solved by Cholesky, anything else by eigenvalues."""
+    from scipy import linalg
+
     N = (Aw.T @ Aw)
     N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
     b = Aw.T @ rhs
     d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
-    w, V = np.linalg.eigh(N / d[:, None] / d[None, :])
+    Ns = N / d[:, None] / d[None, :]
+    try:
+        c = linalg.cho_factor(Ns, check_finite=False)
+        if np.min(np.abs(np.diag(c[0]))) ** 2 > 1e-10:
+            z = linalg.cho_solve(c, b / (d if b.ndim == 1 else d[:, None]), check_finite=False)
+            return (z / d if b.ndim == 1 else z / d[:, None]), N.shape[0]
+    except linalg.LinAlgError:
+        pass
+    w, V = np.linalg.eigh(Ns)
     keep = w > 1e-12 * w.max()
     bd = b / (d if b.ndim == 1 else d[:, None])
     z = V[:, keep] @ ((V[:, keep].T @ bd) / (w[keep] if b.ndim == 1 else w[keep][:, None]))
@@ -240,13 +263,16 @@ def _whitened_y(model):
     return np.concatenate([yw, np.full(model.n_columns, model.prior_mean / model.prior_sd)])
 
 
-def _solve(model, A):
+def _solve(model, A, *, rank=False):
     """Weighted least squares for the linear coefficients: ``s``, whitened residuals (the
-    prior's rows last), and the number of parameters the data spend on them (the trace of
-    the hat matrix: the rank without a prior, less with one)."""
+    prior's rows last), and with ``rank`` the number of parameters the data spend on them
+    (the trace of the hat matrix: the rank without a prior, less with one; else None)."""
     Aw = _whiten(model, A)
     yw = _whitened_y(model)
-    s, rank = _pinv_solve(Aw, yw)
+    s, used = _pinv_solve(Aw, yw)
+    if not rank:
+        return s, yw - Aw @ s, None
+    rank = used
     if model.prior_sd is not None:  # the prior is isotropic: lambda / (lambda + 1 / sd^2)
         Ad = Aw[:model.n_rows]
         lam = np.clip(np.linalg.eigvalsh((Ad.T @ Ad).toarray()), 0.0, None)
@@ -271,10 +297,10 @@ class _Problem:
         self.model = model
         self.n_design = np.asarray(n_design, float)
 
-    def residuals(self, x, k=1.0, *, field=True):
+    def residuals(self, x, k=1.0, *, field=True, rank=False):
         A = self.model.design(x, self.n_design * k, field=field)
-        s, r, rank = _solve(self.model, A)
-        return r, s, rank
+        s, r, used = _solve(self.model, A, rank=rank)
+        return r, s, used
 
     def chi2(self, x, k=1.0, *, field=True):
         r, _, _ = self.residuals(x, k, field=field)
@@ -322,7 +348,7 @@ def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
     hi = [x_hi, k_bounds[1]] if fit_k else [x_hi]
     sol = optimize.least_squares(fun, p0, bounds=(lo, hi), x_scale=[x0 * 0.05, 0.02][:len(p0)],
                                  diff_step=1e-5, method="trf", xtol=1e-10, ftol=1e-12)
-    r, s, rank = problem.residuals(sol.x[0], sol.x[1] if fit_k else 1.0)
+    r, s, rank = problem.residuals(sol.x[0], sol.x[1] if fit_k else 1.0, rank=True)
     J = sol.jac
     try:
         cov = np.linalg.inv(J.T @ J)
@@ -379,6 +405,23 @@ def _field_radius(bins):
     return float(math.sqrt(max(b.rho.max() for b in bins)))
 
 
+def _one_blas_thread(func):
+    """Run ``func`` with one BLAS thread: the fit solves hundreds of small systems (a few
+    hundred unknowns), where threaded BLAS only adds synchronisation, and on a busy machine
+    makes each solve hundreds of times slower (measured)."""
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1, user_api="blas"):
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+@_one_blas_thread
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
@@ -431,7 +474,11 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     nb = sensor.n_bands
 
     def reader(cube):
-        return lambda b: np.asarray(cube.isel(band=b).transpose("y", "x").values, float)
+        cube = cube.transpose("y", "x", "band")
+        if cube.nbytes <= IN_MEMORY_BYTES:  # one read of the file, not one per band
+            data = np.asarray(cube.values)
+            return lambda b: data[:, :, b].astype(float)
+        return lambda b: np.asarray(cube.isel(band=b).values, float)
 
     notes = []
     if center_px is not None:
@@ -445,8 +492,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
             for f, c in cubes.items()]
     r_max = _field_radius(bins)
     n_design = np.asarray(sensor.n_eff, float)
-    # trial range: chief-ray angles at the field's edge from 45 to ~1 degrees
-    x_lo, x_hi = r_max, r_max / 0.02
+    # trial range: chief-ray angles at the field's edge from EDGE_CRA_DEG down to ~1 degree
+    x_lo = r_max / math.tan(math.radians(EDGE_CRA_DEG[1]))
+    x_hi = r_max / math.tan(math.radians(EDGE_CRA_DEG[0]))
     phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(
         base.working_f_number(min(cubes)))))
     max_rel = 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
@@ -472,7 +520,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     chi2_red = chi2 / dof
     scale = max(1.0, chi2_red)
     err = np.sqrt(np.clip(np.diag(cov), 0, None) * scale)
-    r_flat, _, rank_flat = problem.residuals(x, k, field=False)
+    r_flat, _, rank_flat = problem.residuals(x, k, field=False, rank=True)
     flat = float(r_flat @ r_flat)
     # a field without shift is the nested model: the field must beat it by more than the
     # parameters it adds (the target seen at more wavelengths, x) could win from noise alone
@@ -508,7 +556,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                 x, n, n_err, mode = xb, nbnd, nbe[1:], "per band"
                 err = np.array([nbe[0]])
                 cov = np.array([[nbe[0] ** 2 / scale]])
-                _, r, rank = _solve(model, model.design(x, n))
+                _, r, rank = _solve(model, model.design(x, n), rank=True)
                 chi2 = float(r @ r)
                 chi2_red = chi2 / max(round(model.n_rows - rank - 1 - nb), 1)
                 notes.append(f"one index per band: chi-square lower by {gain:.3g} for {nb - 1} "
@@ -524,6 +572,12 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         xn_err = float(np.sqrt(max(g @ c @ g, 0.0)))
     else:
         xn_err = float(err[0]) * float(np.mean(n))
+    aoi = math.degrees(math.atan(r_max / x) + math.atan(
+        1.0 / (2.0 * float(base.working_f_number(min(cubes))))))
+    if aoi > AOI_VALIDITY_DEG:
+        notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
+                     f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "
+                     "2.2): x rests on its extrapolation")
     if chi2_red > 2.0:
         notes.append(f"reduced chi-square {chi2_red:.3g}: the model misses something (a target "
                      "that is not uniform, stray light, another filter shape); the errors are "
@@ -729,6 +783,7 @@ def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
                       np.zeros((nb, n_bins)), np.ones((nb, n_bins)), count)
 
 
+@_one_blas_thread
 def pupil_precision(spectrum, sensor, lens: Lens, f_numbers, *, noise=0.01, fit_n_eff=False,
                     spectrum_known=False, size_px=None, n_bins=64, profile="gaussian",
                     absolute_noise=False):

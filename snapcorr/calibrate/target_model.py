@@ -22,6 +22,7 @@ projection), and only what the bands see of it matters.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,7 @@ from ..optics.goossens2019 import PupilCutOffError
 from ..optics.lens import Lens
 from ..optics.profiles import PROFILES
 from ..optics.response import kernel_bins
+from ..optics.shift import EffectiveIndexWarning
 
 __all__ = ["RadialBins", "TargetModel", "radial_bins", "rebin"]
 
@@ -40,8 +42,9 @@ __all__ = ["RadialBins", "TargetModel", "radial_bins", "rebin"]
 TRANSFORMS = ("scale", "shift")
 #: Standard deviation of the unknown target's prior, in units of the largest signal.
 PRIOR_SD = 3.0
-#: Relative width of a kernel bin (of the central wavelength): 0.14 nm at 700 nm.
-KERNEL_STEP = 2e-4
+#: Kernel bins are at most this fraction of the narrowest filter's FWHM wide (at the longest
+#: wavelength): the spread a bin leaves out, width^2 / 12, is then ~1e-4 of the filter's.
+KERNEL_STEP_FWHM = 1 / 30
 #: Index at which the kernels are computed (any value works: they are stored as sin^2 phi).
 N_REF = 1.7
 #: Filter profiles are cut where they fall below this fraction of their peak (and at
@@ -171,15 +174,30 @@ def rebin(bins: RadialBins, factor: int) -> RadialBins:
         var = wmean(bins.var_rho) + wmean(bins.rho_band**2) - rho_b**2
         mean = wmean(bins.mean)
         se = np.sqrt(np.nansum((grouped(bins.stderr) * c) ** 2, axis=2)) / tot
-        pooled_c = np.nan_to_num(grouped(bins.count)).sum(axis=(0, 2))
-        pooled = np.nansum(np.nan_to_num(grouped(bins.rho_band)) * np.nan_to_num(
-            grouped(bins.count)), axis=(0, 2)) / pooled_c
+        cr = grouped(np.where(np.isfinite(bins.rho_band), bins.count, 0.0))
+        cr = np.nan_to_num(cr)
+        pooled = (np.nansum(np.nan_to_num(grouped(bins.rho_band)) * cr, axis=(0, 2))
+                  / cr.sum(axis=(0, 2)))
     empty = tot == 0
     for a in (rho_b, var, mean, se):
         a[empty] = np.nan
     keep = np.isfinite(pooled)
     return RadialBins(bins.f_number, pooled[keep], rho_b[:, keep], np.maximum(var, 0)[:, keep],
                       mean[:, keep], se[:, keep], tot[:, keep])
+
+
+def _lerp(table, pos, other=None):
+    """``table`` (and ``other``, of the same length) at fractional indices ``pos``, linearly
+    interpolated, zero outside."""
+    n = table.size
+    i = np.floor(pos).astype(int)
+    f = pos - i
+    ok0 = (i >= 0) & (i < n)
+    ok1 = (i >= -1) & (i < n - 1)
+    i0, i1 = np.clip(i, 0, n - 1), np.clip(i + 1, 0, n - 1)
+    w0, w1 = np.where(ok0, 1 - f, 0.0), np.where(ok1, f, 0.0)
+    first = table[i0] * w0 + table[i1] * w1
+    return first if other is None else (first, other[i0] * w0 + other[i1] * w1)
 
 
 def _derivatives(x):
@@ -195,6 +213,8 @@ def _derivatives(x):
         c = min(max(i, 1), n - 2)
         a, b, d = x[c - 1], x[c], x[c + 1]
         h0, h1 = b - a, d - b
+        if not (h0 > 0 and h1 > 0):  # not a strictly increasing triple: no correction
+            continue
         D2[i, c - 1:c + 2] = 2 / (h0 * (h0 + h1)), -2 / (h0 * h1), 2 / (h1 * (h0 + h1))
         t = x[i]  # derivative of the parabola through the triple, at x[i]
         D1[i, c - 1] = (2 * t - b - d) / ((a - b) * (a - d))
@@ -355,27 +375,37 @@ class TargetModel:
             return self._kernel_cache[key]
         lens = self._lens(float(x))
         out = []
-        for b in self.bins:
-            per_bin = []
-            cra = np.rad2deg(np.arctan(np.sqrt(b.rho) / x)) if field else np.zeros_like(b.rho)
-            for c in cra:
-                try:
-                    mu, w = kernel_bins(1.0, N_REF, b.f_number, float(c), lens,
-                                        step_nm=KERNEL_STEP)
-                except PupilCutOffError:
-                    per_bin.append(None)
-                    continue
-                per_bin.append((N_REF**2 * (1.0 - (1.0 + mu) ** 2), w))
-            lit = [(i, kw) for i, kw in enumerate(per_bin) if kw is not None]
-            u = np.concatenate([kw[0] for _, kw in lit]) if lit else np.zeros(0)
-            w = np.concatenate([kw[1] for _, kw in lit]) if lit else np.zeros(0)
-            owner = (np.concatenate([np.full(kw[1].size, i) for i, kw in lit]) if lit
-                     else np.zeros(0, int))
-            out.append((u, w, owner, len(per_bin)))
+        with warnings.catch_warnings():
+            # trial x may send rays beyond the index law's validated 40 degrees; the fit says
+            # so for the x it settles on
+            warnings.simplefilter("ignore", EffectiveIndexWarning)
+            step = KERNEL_STEP_FWHM * float(self.fwhm.min() / self.cwl.max())
+            for b in self.bins:
+                out.append(self._cube_kernels(b, x, lens, field, step))
         if len(self._kernel_cache) > 64:
             self._kernel_cache.clear()
         self._kernel_cache[key] = out
         return out
+
+    @staticmethod
+    def _cube_kernels(b, x, lens, field, step):
+        """One cube's kernels at every bin, concatenated (see :meth:`kernels`)."""
+        per_bin = []
+        cra = np.rad2deg(np.arctan(np.sqrt(b.rho) / x)) if field else np.zeros_like(b.rho)
+        for c in cra:
+            try:
+                mu, w = kernel_bins(1.0, N_REF, b.f_number, float(c), lens,
+                                    step_nm=step)
+            except PupilCutOffError:
+                per_bin.append(None)
+                continue
+            per_bin.append((N_REF**2 * (1.0 - (1.0 + mu) ** 2), w))
+        lit = [(i, kw) for i, kw in enumerate(per_bin) if kw is not None]
+        u = np.concatenate([kw[0] for _, kw in lit]) if lit else np.zeros(0)
+        w = np.concatenate([kw[1] for _, kw in lit]) if lit else np.zeros(0)
+        owner = (np.concatenate([np.full(kw[1].size, i) for i, kw in lit]) if lit
+                 else np.zeros(0, int))
+        return u, w, owner, len(per_bin)
 
     # -- the model -------------------------------------------------------------------------
     def design(self, x, n_eff, *, field=True):
@@ -409,13 +439,18 @@ class TargetModel:
         shape = (self.n_rows, self.n_columns)
         if not ri:
             return sparse.csr_array(shape)
-        return sparse.csr_array((np.concatenate(vals), (np.concatenate(ri), np.concatenate(ci))),
-                                shape=shape)
+        v = np.concatenate(vals)
+        # entries from the filters' far wings: dropped (they would only leave subnormal numbers
+        # in the normal equations, which slow every later step a thousandfold)
+        v[np.abs(v) < 1e-12 * np.max(np.abs(v))] = 0.0
+        A = sparse.csr_array((v, (np.concatenate(ri), np.concatenate(ci))), shape=shape)
+        A.eliminate_zeros()
+        return A
 
     def _band_block(self, kern, k, n):
-        """Rows for every bin of one cube and band ``k``: the kernel deposited on the fine grid
-        (linear weights) times the band's response table. Returns the first column (hat) the
-        block covers and the block."""
+        """Rows for every bin of one cube and band ``k``: every kernel mass reads the band's
+        response table at its filter centre (linear interpolation on the fine grid). Returns the
+        first column (hat) the block covers and the block."""
         u, w, owner, nb = kern
         cwl = self.cwl[k]
         if u.size == 0:
@@ -426,37 +461,31 @@ class TargetModel:
             # white reference sees the same, so only the weights' ratios change)
             w = w * scale
             w = w / np.bincount(owner, w, minlength=nb)[owner]
-        p = (cwl * scale - self.lam0) / self.h
-        g = np.floor(p).astype(int)
-        f = p - g
-        g0, g1 = int(g.min()), int(g.max()) + 1
-        width = g1 - g0 + 1
-        flat = owner * width + (g - g0)
-        size = nb * width
-
-        def deposit(weights):
-            return (np.bincount(flat, weights * (1 - f), minlength=size)
-                    + np.bincount(flat + 1, weights * f, minlength=size)).reshape(nb, width)
-
-        kappa = deposit(w)
-        kappa_d = deposit(w * (scale - 1.0)) if self.transform == "scale" else None
-        idx = np.arange(g0, g1 + 1)
+        p = (cwl * scale - self.lam0) / self.h  # each mass's filter centre, fine-grid units
+        wd = w * (scale - 1.0) if self.transform == "scale" else None
         if self.known:
-            def table(F):
-                return np.where((idx >= 0) & (idx < F.size), F[np.clip(idx, 0, F.size - 1)], 0.0)
-
-            out = kappa @ table(self.F[k])
-            if kappa_d is not None:
-                out = out + kappa_d @ table(self.FD[k])
+            if wd is None:
+                out = np.bincount(owner, w * _lerp(self.F[k], p), minlength=nb)
+            else:
+                f, fd = _lerp(self.F[k], p, self.FD[k])
+                out = np.bincount(owner, w * f + wd * fd, minlength=nb)
             return 0, out[:, None]
         J, q = self.J[k], self.q
-        # hat m reaches fine point g when |g - q m| <= J + q
-        m_lo = max(int(np.ceil((g0 - J - q) / q)), 0)
-        m_hi = min(int(np.floor((g1 + J + q) / q)), self.n_basis - 1)
-        lag = idx[:, None] - q * np.arange(m_lo, m_hi + 1)[None, :] + J + q
-        inside = (lag >= 0) & (lag < self.H[k].size)
-        lag = np.clip(lag, 0, self.H[k].size - 1)
-        out = kappa @ np.where(inside, self.H[k][lag], 0.0)
-        if kappa_d is not None:
-            out = out + kappa_d @ np.where(inside, self.HD[k][lag], 0.0)
+        # every mass reaches the hats m with |p - q m| < J + q: H at lag p - q m + J + q
+        first = np.ceil((p - J - q) / q).astype(int)
+        reach = (2 * (J + q)) // q + 2
+        m = first[:, None] + np.arange(reach)[None, :]
+        lag = p[:, None] - q * m + (J + q)
+        inside = (m >= 0) & (m < self.n_basis)  # the grid covers every trial (max_shift_rel)
+        m = np.clip(m, 0, self.n_basis - 1)
+        m_lo = int(m.min())
+        cols = int(m.max()) - m_lo + 1
+        flat = (owner[:, None] * cols + (m - m_lo)).ravel()
+        if wd is None:
+            vals = w[:, None] * _lerp(self.H[k], lag)
+        else:
+            h, hd = _lerp(self.H[k], lag, self.HD[k])
+            vals = w[:, None] * h + wd[:, None] * hd
+        vals = np.where(inside, vals, 0.0).ravel()
+        out = np.bincount(flat, vals, minlength=nb * cols).reshape(nb, cols)
         return m_lo, out

@@ -1,0 +1,127 @@
+"""`snapcorr pupil`: target cubes to a lens profile with x (and n_eff); mistakes are one line,
+and nothing is written when the target cannot tell x."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import spectralsim as sim
+from flatsim import LensTruth
+
+from snapcorr import Lens
+from snapcorr.cli import main
+from snapcorr.cube import Sensor, make_cube, write_cube
+
+PITCH_UM, SHAPE = 44.0, (96, 120)
+CWL = np.arange(500.0, 849.0, 12.0)
+TRUTH = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("pupil")
+    sensor = Sensor("test", "snapscan", PITCH_UM, CWL, 12.0, 1.7, size_px=SHAPE)
+    sensor.save(d / "sensor.toml")
+    Lens(30.0, TRUTH.circles, TRUTH.magnification, TRUTH.pupil_magnification,
+         name="circles known").save(d / "lens_ph.toml")
+    rng = np.random.default_rng(7)
+    for name, target in (("glass", sim.rare_earth_glass), ("white", sim.white)):
+        for f in (2.0, 8.0):
+            data = sim.target_cube(target, cwl_nm=CWL, fwhm_nm=12.0, n_eff=1.7, f_number=f,
+                                   lens=TRUTH, shape=SHAPE, pixel_pitch_um=PITCH_UM,
+                                   center_px=(61.0, 46.5))
+            data = (data + rng.normal(0, 0.01, data.shape)).astype(np.float32)
+            write_cube(make_cube(data, CWL), d / f"{name}_f{f:g}.nc")
+    np.savetxt(d / "glass.csv", np.column_stack([np.arange(400.0, 950.0, 0.25),
+                                                 sim.rare_earth_glass(np.arange(400.0, 950.0,
+                                                                                0.25))]),
+               delimiter=",", header="wavelength_nm,transmittance")
+    return d
+
+
+def snapshot(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+
+
+def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, capsys):
+    out, plot = files / "lens_x.toml", files / "lens_x.png"
+    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}",
+                 "--cube", f"f/8={files / 'glass_f8.nc'}", "--sensor", str(files / "sensor.toml"),
+                 "--lens", str(files / "lens_ph.toml"), "--fit-n-eff", "--out", str(out),
+                 "--plot", str(plot)])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    lens = Lens.load(out)
+    assert abs(lens.exit_pupil_mm - 21.0) < 0.25
+    assert lens.vignetting == TRUTH.circles  # P and h copied from --lens
+    cal = lens.calibration
+    assert abs(cal["n_eff"] - 1.7) < 0.025
+    for key in ("exit_pupil_stderr_mm", "n_eff_stderr", "reduced_chi2", "f_numbers", "inputs",
+                "method", "center_px", "snapcorr_version", "target_spectrum"):
+        assert key in cal
+    assert cal["f_numbers"] == [2.0, 8.0]
+    assert plot.stat().st_size > 10_000
+    assert "exit pupil x =" in text and "n_eff =" in text
+
+
+def test_a_known_spectrum_from_a_file(files, capsys):
+    out = files / "lens_known.toml"
+    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
+                 str(files / "sensor.toml"), "--target-spectrum", str(files / "glass.csv"),
+                 "--magnification", "0.06", "--pupil-magnification", "1.3",
+                 "--center-px", "61,46.5", "--out", str(out)])
+    assert code == 0, capsys.readouterr()
+    lens = Lens.load(out)
+    assert abs(lens.exit_pupil_mm - 21.0) < 0.21
+    assert "given" in lens.calibration["target_spectrum"]
+    assert lens.calibration["center_source"] == "given"
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--cube", "2={d}/white_f2.nc", "--cube", "8={d}/white_f8.nc"], "no spectral shift"),
+    (["--cube", "2={d}/glass_f2.nc", "--cube", "2={d}/glass_f8.nc"], "given twice"),
+    (["--cube", "2={d}/missing.nc"], "missing.nc"),
+    ([], "give --cube"),
+    (["--cube", "2={d}/glass_f2.nc", "--target-spectrum", "{d}/sensor.toml"],
+     "not numbers"),
+])
+def test_mistakes_are_one_line_and_write_nothing(files, capsys, args, message):
+    before = snapshot(files)
+    out = files / "never.toml"
+    code = main(["pupil", *[a.format(d=files) for a in args], "--sensor",
+                 str(files / "sensor.toml"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code != 0
+    errors = [line for line in err.splitlines() if "error" in line]
+    assert len(errors) == 1 and message in errors[0], err
+    assert "Traceback" not in err and "warning" not in err
+    assert not out.exists()
+    assert snapshot(files) == before
+
+
+def test_an_input_is_never_the_output(files, capsys):
+    before = snapshot(files)
+    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
+                 str(files / "sensor.toml"), "--out", str(files / "sensor.toml"),
+                 "--overwrite"])
+    assert code == 1
+    assert "also an input" in capsys.readouterr().err
+    assert snapshot(files) == before
+
+
+def test_predict_ranks_the_targets(files, capsys):
+    code = main(["pupil", "--predict", "--sensor", str(files / "sensor.toml"), "--f-number", "2",
+                 "--f-number", "8", "--noise-pct", "2", "--target-spectrum",
+                 str(files / "glass.csv")])
+    text = capsys.readouterr().out
+    assert code == 0
+    rows = {line.split("  ")[0].strip(): line for line in text.splitlines()[2:]}
+    assert "no information" in rows["white tile"]
+    assert "mm (" in rows["rare-earth glass"]
+    assert any("glass.csv" in k for k in rows)
+
+
+def test_help_shows_the_two_step_workflow(capsys):
+    assert main(["pupil", "--help"]) == 0
+    text = capsys.readouterr().out
+    assert "--predict" in text and "snapcorr calibrate" in text and "--exit-pupil-mm" in text
