@@ -436,7 +436,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     sensor : Sensor
     lens : Lens, optional
         Its vignetting circles (P, h), magnification and pupil magnification are used in the
-        model and copied to the result; its ``x`` starts the search.
+        model and copied to the result; its ``x`` is not used (the search scans the chief-ray
+        angles at the field's edge, :data:`EDGE_CRA_DEG`). Give the circles wherever the
+        fastest f-number is vignetted inside the field: without them that cube misleads.
     fit_n_eff : bool
         Fit the effective index too: one value (the sensor's values times one factor), or one
         per band where the data constrain it (``PER_BAND_P``, ``PER_BAND_REL_STDERR``). With
@@ -530,8 +532,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         raise FeaturelessTargetError(
             f"the target shows no spectral shift over the field above the noise (a field "
             f"without any shift fits within chi-square {max(flat - chi2, 0):.3g} of the best, "
-            f"where noise alone gives about {extra * scale:.3g}; x would be {x:.3g} +- "
-            f"{err[0]:.2g} mm): its spectrum has no features inside the "
+            f"where noise alone gives about {extra * scale:.3g}): its spectrum has no features "
+            "inside the "
             "bands (a white tile?). Use a target whose spectrum changes within the bands: a "
             "colour filter, a rare-earth glass or a line lamp (see pupil_precision)")
     n = n_design * k

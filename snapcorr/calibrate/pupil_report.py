@@ -22,9 +22,6 @@ def plot_pupil_fit(fit, *, bands=4):
     """Left: annulus means of the most informative bands against the distance from the axis,
     one marker per f-number, with the fitted model. Right: chi-square against ``x`` about the
     fit, with the parabola its standard error implies."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     from .exit_pupil import _Problem
