@@ -410,17 +410,24 @@ def _flat_arg(value):
     return fv, Path(path)
 
 
+def _one_per_f_number(pairs, what):
+    """``{f_number: path}`` from ``F_NUMBER=PATH`` arguments; an f-number given twice is an
+    error."""
+    seen = {}
+    for f, path in pairs:
+        if f in seen:
+            raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one {what} per "
+                             "f-number")
+        seen[f] = path
+    return seen
+
+
 def _cmd_calibrate(args):
     import dataclasses
 
     from .calibrate import calibrate_lens, read_flat
 
-    seen = {}
-    for f, path in args.flat:
-        if f in seen:
-            raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one flat per "
-                             "f-number")
-        seen[f] = path
+    _one_per_f_number(args.flat, "flat")
     inputs = [p for _, p in args.flat] + [args.dark]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     flats, bands, sat = {}, set(), {}
@@ -462,12 +469,7 @@ def _cmd_pupil(args):
     if not args.cube or args.out is None:
         raise ValueError("give --cube F_NUMBER=PATH (one per f-number) and --out LENS.toml, or "
                          "--predict to compare targets before measuring")
-    seen = {}
-    for f, path in args.cube:
-        if f in seen:
-            raise ValueError(f"f/{f:g} given twice ({seen[f]} and {path}); give one cube per "
-                             "f-number")
-        seen[f] = path
+    seen = _one_per_f_number(args.cube, "cube")
     inputs = [p for _, p in args.cube] + [args.sensor, args.lens, args.target_spectrum]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     sensor = _sensor(args.sensor)

@@ -219,3 +219,11 @@ def test_z_scores_over_seeds(fit_n_eff):
             z = np.asarray(z)
             assert np.all(np.abs(z) < 3.5), z
             assert np.mean(z**2) < 2.5, z  # chi-square with 8 degrees: < 2.5 at p ~ 0.01
+
+
+def test_precision_on_a_small_sensor_with_empty_annuli():
+    """64 x 80 pixels in 64 annuli leave some empty: they enter no row (no division by 0)."""
+    small = Sensor("test", "snapscan", PITCH_UM, CWL, FWHM, N_EFF, size_px=(64, 80))
+    pred = pupil_precision(sim.colour_filter, small, as_lens(PAPER), (2.0, 8.0), noise=0.01,
+                           n_bins=64)
+    assert pred.informative and pred.x_stderr_mm > 0

@@ -106,7 +106,6 @@ class PupilFit:
     lens: Lens
     model: TargetModel = field(repr=False)
     coefficients: np.ndarray = field(repr=False)
-    scan: tuple = field(repr=False, default=())
     notes: list = field(default_factory=list)
     covariance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((1, 1)))
     """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
@@ -334,7 +333,7 @@ def _start(problem, grid, *, candidates=3):
         sol = optimize.minimize_scalar(problem.chi2, bounds=(lo, hi), method="bounded",
                                        options={"xatol": 1e-4 * lo})
         best = min(best, (float(sol.fun), float(sol.x)))
-    return best[1], (grid, c2)
+    return best[1]
 
 
 def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
@@ -514,7 +513,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                       float(np.mean(sensor.cwl_nm)), float(np.min(sensor.fwhm_nm)) / 8)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EffectiveIndexWarning)  # trials beyond 40 degrees
-        x0, (xs, c2) = _start(coarse, grid)
+        x0 = _start(coarse, grid)
         p, cov, r, s, rank = _fit(problem, x0, fit_k, x_lo, x_hi)
     x, k = float(p[0]), float(p[1]) if fit_k else 1.0
     chi2 = float(r @ r)
@@ -590,7 +589,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     return PupilFit(x, float(err[0]), np.asarray(n, float),
                     None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
                     chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
-                    (xs, c2), notes, cov * scale)
+                    notes, cov * scale)
 
 
 def _check_cubes(cubes, sensor):
@@ -781,8 +780,10 @@ def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
     cells = 1 if sensor.layout == "snapscan" else sensor.mosaic_shape[0] * sensor.mosaic_shape[1]
     nb = sensor.n_bands
     count = np.tile(n / cells, (nb, 1))
+    # an annulus no pixel falls in (a small sensor, many annuli) enters no row: NaN
+    empty = np.tile(n == 0, (nb, 1))
     return RadialBins(float(f_number), mean, np.tile(mean, (nb, 1)), np.tile(var, (nb, 1)),
-                      np.zeros((nb, n_bins)), np.ones((nb, n_bins)), count)
+                      np.where(empty, np.nan, 0.0), np.where(empty, np.nan, 1.0), count)
 
 
 @_one_blas_thread
@@ -816,7 +817,8 @@ def pupil_precision(spectrum, sensor, lens: Lens, f_numbers, *, noise=0.01, fit_
     Returns
     -------
     Precision
-        ``x_stderr_mm`` is ``inf`` for a target without features.
+        For a target without features ``x_stderr_mm`` is ``inf`` or merely huge (the bound of
+        an almost singular information); ``informative`` is False either way.
     """
     size = size_px or sensor.size_px
     if size is None:

@@ -278,7 +278,6 @@ class TargetModel:
         nd = np.broadcast_to(np.asarray(n_eff_design, float), self.cwl.shape)
         self.lens = lens
         self.known = spectrum is not None
-        self._max_rel = float(max_shift_rel)
         self.h = float(grid_step_nm or self.fwhm.min() / 200.0)
         q = max(1, round((basis_step_nm or self.fwhm.min() / 6.0) / self.h))
         self.q, self.step = q, q * self.h
