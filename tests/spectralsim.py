@@ -713,3 +713,16 @@ def single_feature(lam):
     """One absorption band (550 nm, FWHM 10 nm, depth 50 %) on a flat continuum of 0.9."""
     lam = np.asarray(lam, float)
     return 0.9 * (1.0 - 0.5 * _gauss(lam, 550.0, 10.0))
+
+
+def channel_spectrum(lam, period_nm=23.0):
+    """A thin etalon's channel spectrum (interference fringes of a plate seen in transmission):
+    0.5 + 0.35 cos(2 pi lam / period), a feature inside every band of up to ~20 nm FWHM.
+
+    Examples
+    --------
+    >>> round(float(channel_spectrum(23.0 * 30)), 6)
+    0.85
+    """
+    lam = np.asarray(lam, float)
+    return 0.5 + 0.35 * np.cos(2.0 * np.pi * lam / period_nm)

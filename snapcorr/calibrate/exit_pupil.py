@@ -28,6 +28,7 @@ import datetime as _dt
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy import optimize, stats
@@ -52,10 +53,11 @@ __all__ = [
 MIN_DELTA_CHI2 = 25.0
 #: A fit whose relative standard error of x exceeds this is refused as uninformative.
 MAX_REL_STDERR = 0.2
-#: Per-band effective indices are reported when they improve the fit at this significance
-#: and every one is known to this relative standard error.
-PER_BAND_P = 1e-3
-PER_BAND_REL_STDERR = 0.01
+#: A richer model of the effective index (linear in wavelength, one per band) is taken when it
+#: improves the fit at this significance and pins every band's index to this relative
+#: standard error.
+N_EFF_P = 1e-3
+N_EFF_REL_STDERR = 0.01
 
 
 #: The chief-ray angles at the field's edge the search covers, degrees.
@@ -80,7 +82,8 @@ class PupilFit:
     n_eff : ndarray, shape (n_bands,)
         The index used: fitted (``n_eff_fitted``) or the sensor's.
     n_eff_stderr : ndarray or None
-    n_eff_fitted : {"no", "one", "per band", "product"}
+    n_eff_fitted : {"no", "one", "linear", "per band", "product"}
+        ``"linear"``: the sensor's values times a factor linear in wavelength.
         ``"product"``: one f-number, index unknown; only ``x * n_eff`` is determined and
         ``exit_pupil_mm`` assumes the sensor's index.
     x_n_eff_mm, x_n_eff_stderr_mm : float
@@ -116,8 +119,9 @@ class PupilFit:
         n = self.n_eff
         if self.n_eff_fitted == "one":
             lines.append(f"n_eff = {n[0]:.4g} +- {self.n_eff_stderr[0]:.2g} (one value, fitted)")
-        elif self.n_eff_fitted == "per band":
-            lines.append(f"n_eff per band {n.min():.4g}-{n.max():.4g}, standard errors "
+        elif self.n_eff_fitted in ("linear", "per band"):
+            how = "linear in wavelength" if self.n_eff_fitted == "linear" else "per band"
+            lines.append(f"n_eff {how} {n.min():.4g}-{n.max():.4g}, standard errors "
                          f"{self.n_eff_stderr.min():.2g}-{self.n_eff_stderr.max():.2g}")
         elif self.n_eff_fitted == "product":
             lines.append(f"x * n_eff = {self.x_n_eff_mm:.4g} +- {self.x_n_eff_stderr_mm:.2g} mm "
@@ -372,32 +376,98 @@ def _per_band_jacobian(model, x, n):
     return r, _project_off(_whiten(model, A), np.column_stack([dx, Jn]))
 
 
-def _per_band(problem, x, k, cov_scale):
-    """One index per band (and x), from the common fit by damped Gauss-Newton.
+class _IndexFit(NamedTuple):
+    status: str  # "fitted", "unconstrained" or "not needed"
+    x: float
+    n: np.ndarray
+    n_err: np.ndarray  # unscaled standard errors
+    x_err: float
+    chi2: float = math.nan  # for "not needed": the gain one step predicts
+    rank: float | None = None
 
-    Returns ``(x, n, standard errors of x and n, chi-square)``, or ``(None, n, errors, None)``
-    when
-    the data do not constrain every band's index to ``PER_BAND_REL_STDERR`` (judged at the
-    common fit, before any step)."""
+
+def _index_fit(problem, x, n, basis, *, needed_gain=0.0):
+    """``x`` and the index ``n = n_design * (basis @ c)`` by damped Gauss-Newton from ``(x, n)``.
+
+    Stops at the start (status ``"unconstrained"``) when even noise alone leaves some band's
+    index unknown to more than ``N_EFF_REL_STDERR``, or (``"not needed"``) when the first
+    step's predicted chi-square gain is below ``needed_gain``."""
     model = problem.model
-    n = problem.n_design * k
+    B = problem.n_design[:, None] * basis
+    c = np.linalg.lstsq(B, n, rcond=None)[0]
     xb = float(x)
-    for it in range(6):
+    for it in range(30):
+        n = B @ c
         r, Jp = _per_band_jacobian(model, xb, n)
+        J = np.column_stack([Jp[:, 0], Jp[:, 1:] @ B])
         try:
-            cov = np.linalg.inv(Jp.T @ Jp)
+            cov = np.linalg.inv(J.T @ J)
         except np.linalg.LinAlgError:
-            return None, n, np.full(n.size, np.inf), None
-        err = np.sqrt(np.clip(np.diag(cov), 0, None) * cov_scale)
-        if it == 0 and not np.all(err[1:] < PER_BAND_REL_STDERR * n):
-            return None, n, err, None
-        step = cov @ (Jp.T @ r)
-        limit = max(1.0, float(np.max(np.abs(step[1:]) / (0.02 * n))))
-        xb, n = xb + step[0] / limit, n + step[1:] / limit
-        if limit == 1.0 and np.all(np.abs(step[1:]) < 0.01 * err[1:]):
+            return _IndexFit("unconstrained", xb, n, np.full(n.size, np.inf), math.inf)
+        n_err = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, cov[1:, 1:], B), 0, None))
+        x_err = math.sqrt(max(cov[0, 0], 0.0))
+        step = cov @ (J.T @ r)
+        if it == 0 and not np.all(n_err < N_EFF_REL_STDERR * n):
+            return _IndexFit("unconstrained", xb, n, n_err, x_err)
+        if it == 0 and step @ (J.T @ r) < needed_gain:
+            return _IndexFit("not needed", xb, n, n_err, x_err, float(step @ (J.T @ r)))
+        limit = max(1.0, float(np.max(np.abs(B @ step[1:]) / (0.05 * n))),
+                    abs(step[0]) / (0.05 * xb))
+        xb, c = xb + step[0] / limit, c + step[1:] / limit
+        if limit == 1.0 and np.all(np.abs(step) < 0.02 * np.sqrt(np.diag(cov))):
             break
-    _, r, _ = _solve(model, model.design(xb, n))
-    return xb, n, err, float(r @ r)
+    n = B @ c
+    _, r, rank = _solve(model, model.design(xb, n), rank=True)
+    return _IndexFit("fitted", xb, n, n_err, x_err, float(r @ r), rank)
+
+
+def _index_ladder(problem, x, n, x_err, n_err, chi2, scale, notes):
+    """The cheapest index model the data need, from one value (fitted) up: linear in
+    wavelength, then one per band. A richer model is taken when it lowers chi-square at
+    significance ``N_EFF_P`` (scaled by its own reduced chi-square) and pins every band's index
+    to ``N_EFF_REL_STDERR``; it is not fitted when one Gauss-Newton step from the current model
+    predicts a gain ten times less significant than that.
+
+    Returns ``(mode, x, x_err, n, n_err, chi2, chi2_red)``, errors scaled; ``chi2_red`` is None
+    when one value stays."""
+    model = problem.model
+    nb = n.size
+    t = (model.cwl - model.cwl.mean()) / max(float(np.ptp(model.cwl)) / 2, 1e-9)
+    ladder = [("linear in wavelength", np.column_stack([np.ones(nb), t]))] if nb >= 3 else []
+    ladder.append(("one per band", np.eye(nb)))
+    best = ("one", x, x_err, n, n_err, chi2, None)
+    q_best, limit = 1, 100 * N_EFF_REL_STDERR
+    for name, basis in ladder:
+        q = basis.shape[1]
+        needed = float(stats.chi2.isf(10 * N_EFF_P, q - q_best)) * scale
+        fit = _index_fit(problem, best[1], best[3], basis, needed_gain=needed)
+        if fit.status == "unconstrained":
+            worst = float(np.max(fit.n_err / fit.n))
+            notes.append(f"n_eff not {name}: the data would pin it only to "
+                         + (f"{100 * worst:.2g} %" if worst < 1 else "nothing (a band without a "
+                            "feature of the target)") + f" at worst (limit {limit:g} %)")
+            continue
+        if fit.status == "not needed":
+            notes.append(f"n_eff not {name}: it would lower chi-square by about {fit.chi2:.3g} "
+                         f"for {q - q_best} more parameter{'s' if q - q_best > 1 else ''}")
+            continue
+        dof = max(round(model.n_rows - fit.rank - 1 - q), 1)
+        s = max(1.0, fit.chi2 / dof)
+        ne, xe = fit.n_err * math.sqrt(s), fit.x_err * math.sqrt(s)
+        gain = best[5] - fit.chi2
+        pval = float(stats.chi2.sf(max(gain, 0.0) / s, q - q_best))
+        worst = float(np.max(ne / fit.n))
+        told = (f"chi-square lower by {gain:.3g} for {q - q_best} more parameter"
+                f"{'s' if q - q_best > 1 else ''} (p = {pval:.2g}), every index known to "
+                f"{100 * worst:.2g} % or better")
+        if pval < N_EFF_P and worst < N_EFF_REL_STDERR:
+            best = ("linear" if q == 2 else "per band", fit.x, xe, fit.n, ne, fit.chi2,
+                    fit.chi2 / dof)
+            q_best, scale = q, s
+            notes.append(f"n_eff {name}: {told}")
+        else:
+            notes.append(f"n_eff not {name}: {told} (needs p < {N_EFF_P:g} and {limit:g} %)")
+    return best
 
 
 def _field_radius(bins):
@@ -439,8 +509,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         angles at the field's edge, :data:`EDGE_CRA_DEG`). Give the circles wherever the
         fastest f-number is vignetted inside the field: without them that cube misleads.
     fit_n_eff : bool
-        Fit the effective index too: one value (the sensor's values times one factor), or one
-        per band where the data constrain it (``PER_BAND_P``, ``PER_BAND_REL_STDERR``). With
+        Fit the effective index too: one value (the sensor's values times one factor), or,
+        where the data ask for it and constrain it (``N_EFF_P``, ``N_EFF_REL_STDERR``), the
+        sensor's values times a factor linear in wavelength, or one per band. With
         one f-number only ``x * n_eff`` is determined: the result says so.
     center_px : (cx, cy), optional
         Optical centre in sensor pixels (default: found from the cubes).
@@ -543,29 +614,10 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                      "n_eff. A cube at a second f-number (far apart, e.g. f/2 and f/8) "
                      "separates them through the cone term")
     if fit_k and nb >= 2:
-        xb, nbnd, nbe, chi2b = _per_band(problem, x, k, scale)
-        worst = float(np.max(nbe[1:] / nbnd))
-        if xb is None:
-            notes.append("one index for all bands: the data would pin one per band only to "
-                         + (f"{100 * worst:.2g} %" if worst < 1 else "nothing (a band without a "
-                            "feature of the target)")
-                         + f" at worst (limit {100 * PER_BAND_REL_STDERR:g} %)")
-        else:
-            gain = chi2 - chi2b
-            pval = float(stats.chi2.sf(max(gain, 0.0) / scale, nb - 1))
-            if pval < PER_BAND_P and worst < PER_BAND_REL_STDERR:
-                x, n, n_err, mode = xb, nbnd, nbe[1:], "per band"
-                err = np.array([nbe[0]])
-                cov = np.array([[nbe[0] ** 2 / scale]])
-                _, r, rank = _solve(model, model.design(x, n), rank=True)
-                chi2 = float(r @ r)
-                chi2_red = chi2 / max(round(model.n_rows - rank - 1 - nb), 1)
-                notes.append(f"one index per band: chi-square lower by {gain:.3g} for {nb - 1} "
-                             f"more parameters (p = {pval:.2g})")
-            else:
-                notes.append(f"one index for all bands: one per band would lower chi-square "
-                             f"by {gain:.3g} for {nb - 1} more parameters (p = {pval:.2g}) "
-                             f"and be known to {100 * worst:.2g} % at worst")
+        mode, x, x_err, n, n_err, chi2, red = _index_ladder(problem, x, n, float(err[0]),
+                                                            n_err, chi2, scale, notes)
+        if mode != "one":
+            err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
     xn = x * float(np.mean(n))
     if fit_k and mode == "one":
         c = cov * scale
@@ -672,7 +724,7 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
         "snapcorr_version": __version__,
         "date": _dt.date.today().isoformat(),
     }
-    if mode in ("one", "per band"):
+    if mode in ("one", "linear", "per band"):
         cal["n_eff"] = r(n[0]) if uniform else [r(v) for v in n]
         cal["n_eff_stderr"] = (r(n_err[0], 3) if mode == "one" and uniform
                                else [r(v, 3) for v in n_err])
