@@ -313,19 +313,23 @@ except FeaturelessTargetError as err:
 #     --magnification 0.05 --pupil-magnification 1.2 --fit-n-eff --out lens_x.toml
 # ```
 #
-# With the `x` it prints, the vignetting circle (P and h) from integrating-sphere flats:
+# With that `x` (and the magnifications, read from `lens_x.toml`), the vignetting circle
+# (P and h) from integrating-sphere flats:
 #
 # ```bash
 # snapcorr calibrate --flat 1.4=flat_f1.4.tif --flat 2=flat_f2.tif --flat 2.8=flat_f2.8.tif \
-#     --flat 4=flat_f4.tif --flat 8=flat_f8.tif --exit-pupil-mm X --pixel-pitch-um 5.5 \
-#     --magnification 0.05 --pupil-magnification 1.2 --out lens_with_P_h.toml
+#     --flat 4=flat_f4.tif --flat 8=flat_f8.tif --dark dark.tif --lens lens_x.toml \
+#     --pixel-pitch-um 5.5 --out lens_with_P_h.toml
 # ```
 #
 # and `x` again with the circle known, which writes the finished profile:
 #
 # ```bash
 # snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
-#     --lens lens_with_P_h.toml --fit-n-eff --out my_lens.toml --plot my_lens.png
+#     --lens lens_with_P_h.toml --fit-n-eff --out my_lens.toml --plot my_lens.png \
+#     --sensor-out my_sensor.toml
 # ```
+#
+# (`my_sensor.toml` is the sensor with the fitted `n_eff`, for `snapcorr correct`.)
 #
 # If the second `x` differs from the first by more than a little, calibrate again with it.

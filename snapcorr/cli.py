@@ -53,19 +53,24 @@ EXAMPLES = {
           --out my_lens.toml
                                           at most two circles; keep a second only if it
                                           moves the mean shift by more than 0.01 nm
+      snapcorr calibrate --flat 2=f2.tif --flat 8=f8.tif --dark dark.tif --lens lens_x.toml \
+          --pixel-pitch-um 5.5 --out my_lens.toml
+                                          x (and m, m_P) from the profile snapcorr pupil wrote
     """,
     "pupil": r"""
       snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
-          --lens my_lens.toml --fit-n-eff --out my_lens_x.toml --plot my_lens_x.png
+          --lens my_lens.toml --fit-n-eff --out my_lens_x.toml --plot my_lens_x.png \
+          --sensor-out my_sensor.toml
                                           exit pupil x and n_eff from cubes of a spectral
-                                          target at two f-numbers (P, h kept from my_lens.toml)
+                                          target at two f-numbers (P, h kept from my_lens.toml);
+                                          my_sensor.toml: the sensor with the fitted n_eff
       snapcorr pupil --cube 2.8=target_ff.hdr --sensor sensor.toml --target-spectrum filter.csv \
           --out lens_x.toml
                                           ... one f-number and a target of known spectrum
       snapcorr pupil --predict --sensor snapscan_vnir --lens edmund_optics_16mm \
           --f-number 2 --f-number 8 --noise-pct 1
                                           which target pins x best (Cramer-Rao bound)
-      then: snapcorr calibrate --flat ... --exit-pupil-mm X (the x found) for P and h
+      then: snapcorr calibrate --flat ... --lens lens_x.toml (the x found) for P and h
     """,
     "shift": r"""
       snapcorr shift --f-number 1.4 --cra 0 10 20
@@ -428,8 +433,14 @@ def _cmd_calibrate(args):
     from .calibrate import calibrate_lens, read_flat
 
     _one_per_f_number(args.flat, "flat")
-    inputs = [p for _, p in args.flat] + [args.dark]
+    inputs = [p for _, p in args.flat] + [args.dark, args.lens]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    given = _lens(args.lens) if args.lens else None
+    x = given.exit_pupil_mm if given else args.exit_pupil_mm
+    m = args.magnification if args.magnification is not None else (
+        given.magnification if given else 0.0)
+    mp = args.pupil_magnification if args.pupil_magnification is not None else (
+        given.pupil_magnification if given else 1.0)
     flats, bands, sat = {}, set(), {}
     for f, path in sorted(args.flat):
         image, info = read_flat(path)
@@ -441,8 +452,8 @@ def _cmd_calibrate(args):
               file=sys.stderr)
     dark = read_flat(args.dark)[0] if args.dark else None
     res = calibrate_lens(
-        flats, exit_pupil_mm=args.exit_pupil_mm, pixel_pitch_um=args.pixel_pitch_um,
-        magnification=args.magnification, pupil_magnification=args.pupil_magnification,
+        flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
+        magnification=m, pupil_magnification=mp,
         dark=dark, center_px=args.center_px, saturation=sat,
         vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
         name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
@@ -452,6 +463,12 @@ def _cmd_calibrate(args):
                     else "single-band flats")
     if args.dark:
         cal["dark"] = str(args.dark)
+    if given is not None:
+        cal["exit_pupil_from"] = str(args.lens)
+        for key in ("exit_pupil_stderr_mm", "n_eff", "n_eff_stderr", "n_eff_fitted"):
+            if key in given.calibration:
+                cal[f"exit_pupil_{key}" if key.startswith("n_eff") else key] = \
+                    given.calibration[key]
     lens = dataclasses.replace(res.lens, calibration=cal)
     lens.save(args.out, overwrite=args.overwrite)
     if args.plot:
@@ -470,8 +487,15 @@ def _cmd_pupil(args):
         raise ValueError("give --cube F_NUMBER=PATH (one per f-number) and --out LENS.toml, or "
                          "--predict to compare targets before measuring")
     seen = _one_per_f_number(args.cube, "cube")
+    if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
+        raise ValueError("--sensor-out needs --fit-n-eff and cubes at two or more f-numbers "
+                         "(one f-number fixes only x * n_eff)")
     inputs = [p for _, p in args.cube] + [args.sensor, args.lens, args.target_spectrum]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
+                   [(".toml",), (".png",), (".toml",)])
+    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
+            args.out):
+        raise ValueError("--sensor-out and --out are the same file; choose two paths")
     sensor = _sensor(args.sensor)
     lens = _lens(args.lens) if args.lens else None
     spectrum = _target_spectrum(args.target_spectrum)
@@ -490,11 +514,30 @@ def _cmd_pupil(args):
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     fit.lens.save(args.out, overwrite=args.overwrite)
+    written = [args.out]
+    if args.sensor_out is not None:
+        _fitted_sensor(sensor, fit, args).save(args.sensor_out, overwrite=args.overwrite)
+        written.append(args.sensor_out)
     if args.plot:
         fit.save_plot(args.plot)
+        written.append(args.plot)
     print(fit.summary())
-    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+    print("wrote " + ", ".join(str(w) for w in written))
     return 0
+
+
+def _fitted_sensor(sensor, fit, args):
+    """The sensor with the fitted effective index, and where it came from."""
+    import dataclasses
+
+    cal = fit.lens.calibration
+    keep = ("n_eff_fitted", "n_eff_stderr", "f_numbers", "target_spectrum", "inputs",
+            "snapcorr_version", "date")
+    record = {"n_eff_from": str(args.out), "n_eff_design": list(sensor.n_eff),
+              **{k: cal[k] for k in keep if k in cal}}
+    record["source"] = "snapcorr pupil: " + cal["source"]
+    return dataclasses.replace(sensor, name=f"{sensor.name} (n_eff fitted)",
+                               n_eff=tuple(float(v) for v in fit.n_eff), calibration=record)
 
 
 def _target_spectrum(path):
@@ -724,14 +767,19 @@ def _add_calibrate(command):
                    help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
                    "several bands or TIFF pages in a file are averaged); repeat for each "
                    "f-number")
-    p.add_argument("--exit-pupil-mm", type=_positive, required=True, metavar="X",
+    x = p.add_mutually_exclusive_group(required=True)
+    x.add_argument("--exit-pupil-mm", type=_positive, metavar="X",
                    help="distance x from the sensor to the exit pupil, mm")
+    x.add_argument("--lens", default=None, metavar="LENS.toml",
+                   help="take x (and m, m_P unless given) from this lens profile, e.g. the "
+                   "output of snapcorr pupil; its provenance is recorded")
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
                    help="pixel pitch of the flats, micrometres")
-    p.add_argument("--magnification", type=float, default=0.0,
-                   help="linear magnification m (default 0: focused at infinity)")
-    p.add_argument("--pupil-magnification", type=_positive, default=1.0,
-                   help="pupil magnification m_P (default 1)")
+    p.add_argument("--magnification", type=float, default=None,
+                   help="linear magnification m (default 0: focused at infinity, or the "
+                   "--lens value)")
+    p.add_argument("--pupil-magnification", type=_positive, default=None,
+                   help="pupil magnification m_P (default 1, or the --lens value)")
     p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
     p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
                    help="optical centre in pixels (default: found from the flats)")
@@ -836,6 +884,9 @@ def _add_pupil(command):
     p.add_argument("--fit-n-eff", action="store_true",
                    help="fit the effective index too (needs two f-numbers to separate it from "
                    "x; one gives x * n_eff)")
+    p.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
+                   help="with --fit-n-eff and two or more f-numbers: also write the sensor "
+                   "description with the fitted n_eff, for snapcorr correct")
     p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
                    help="optical centre in sensor pixels (default: found from the cubes)")
     p.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",

@@ -160,3 +160,32 @@ def test_multipage_tiff_pages_are_averaged(flats):
     out.close()
     image, info = read_flat(path)
     assert info["bands"] == 2 and np.all(image == 200.0)
+
+
+def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, capsys):
+    """Step 2 of the two-step workflow: x (and m, m_P) from the profile `snapcorr pupil`
+    wrote, its provenance carried over; x given twice is refused."""
+    from snapcorr.cli import main
+
+    found = flats / "x_found.toml"
+    Lens(21.0, (), 0.06, 1.3, name="x from a target", calibration={
+        "exit_pupil_stderr_mm": 0.04, "n_eff": 1.71, "n_eff_stderr": 0.01,
+        "n_eff_fitted": "one"}).save(found)
+    out = flats / "from_found.toml"
+    args = ["calibrate", "--flat", f"1.4={flats / 'f1.4.npy'}", "--flat",
+            f"8={flats / 'f8.npy'}", "--flat", f"2.8={flats / 'f2.8.exr'}",
+            "--dark", str(flats / "dark.npy"), "--pixel-pitch-um", str(PITCH), "--out", str(out)]
+    assert main([*args, "--lens", str(found)]) == 0, capsys.readouterr().err
+    lens = Lens.load(out)
+    assert lens.exit_pupil_mm == 21.0
+    assert (lens.magnification, lens.pupil_magnification) == (0.06, 1.3)
+    assert abs(lens.vignetting[0][0] / 7.4236 - 1) < 0.01
+    assert abs(lens.vignetting[0][1] / 16.991 - 1) < 0.01
+    cal = lens.calibration
+    assert cal["exit_pupil_from"] == str(found) and cal["exit_pupil_stderr_mm"] == 0.04
+    assert cal["exit_pupil_n_eff"] == 1.71 and cal["exit_pupil_n_eff_fitted"] == "one"
+    capsys.readouterr()
+    code = main([*args[:-1], str(flats / "never.toml"), "--lens", str(found),
+                 "--exit-pupil-mm", "21"])
+    assert code == 2 and "not allowed with" in capsys.readouterr().err
+    assert not (flats / "never.toml").exists()

@@ -45,10 +45,11 @@ def snapshot(folder):
 
 def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, capsys):
     out, plot = files / "lens_x.toml", files / "lens_x.png"
+    sensor_out = files / "sensor_fitted.toml"
     code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}",
                  "--cube", f"f/8={files / 'glass_f8.nc'}", "--sensor", str(files / "sensor.toml"),
                  "--lens", str(files / "lens_ph.toml"), "--fit-n-eff", "--out", str(out),
-                 "--plot", str(plot)])
+                 "--plot", str(plot), "--sensor-out", str(sensor_out)])
     text = capsys.readouterr().out
     assert code == 0, text
     lens = Lens.load(out)
@@ -62,6 +63,12 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, capsys):
     assert cal["f_numbers"] == [2.0, 8.0]
     assert plot.stat().st_size > 10_000
     assert "exit pupil x =" in text and "n_eff =" in text
+    # the sensor with the fitted index, for `snapcorr correct`, says where it came from
+    fitted = Sensor.load(sensor_out)
+    assert np.allclose(fitted.n_eff, cal["n_eff"]) and fitted.cwl_nm == tuple(CWL)
+    assert fitted.calibration["n_eff_from"] == str(out)
+    assert fitted.calibration["n_eff_design"] == [1.7] * CWL.size
+    assert str(sensor_out) in text
 
 
 def test_a_known_spectrum_from_a_file(files, capsys):
@@ -84,6 +91,10 @@ def test_a_known_spectrum_from_a_file(files, capsys):
     ([], "give --cube"),
     (["--cube", "2={d}/glass_f2.nc", "--target-spectrum", "{d}/sensor.toml"],
      "not numbers"),
+    (["--cube", "2={d}/glass_f2.nc", "--cube", "8={d}/glass_f8.nc", "--sensor-out",
+      "{d}/sensor_never.toml"], "--sensor-out needs --fit-n-eff"),
+    (["--cube", "2={d}/glass_f2.nc", "--fit-n-eff", "--sensor-out", "{d}/sensor_never.toml"],
+     "two or more f-numbers"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, capsys, args, message):
     before = snapshot(files)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +61,9 @@ class Sensor:
     size_px : (int, int), optional
         The image's full size in pixels (rows, columns), centred on the optical axis: the
         field the scene budget (``snapcorr budget``) covers when no cube is given.
+    calibration : dict, optional
+        Free-form record of where values came from (the ``[calibration]`` table of the file,
+        e.g. an effective index fitted by ``snapcorr pupil``). Not compared.
     """
 
     name: str
@@ -72,6 +75,7 @@ class Sensor:
     mosaic_shape: tuple | None = None
     band_offset: tuple | None = None
     size_px: tuple | None = None
+    calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -111,6 +115,7 @@ class Sensor:
                 raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
                                  f"{self.size_px!r}")
             set_(self, "size_px", tuple(int(v) for v in size))
+        set_(self, "calibration", dict(self.calibration or {}))
 
     @property
     def field_radius_mm(self) -> float | None:
@@ -140,7 +145,7 @@ class Sensor:
         return d
 
     @classmethod
-    def from_dict(cls, table: dict) -> Sensor:
+    def from_dict(cls, table: dict, *, calibration: dict | None = None) -> Sensor:
         unknown = set(table) - _KEYS
         if unknown:
             raise ValueError(f"unknown key(s) in [sensor]: {sorted(unknown)}; valid keys are "
@@ -148,17 +153,20 @@ class Sensor:
         missing = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff"} - set(table)
         if missing:
             raise ValueError(f"[sensor] is missing required key(s) {sorted(missing)}")
-        return cls(**table)
+        return cls(**table, calibration=calibration or {})
 
     @classmethod
     def load(cls, path) -> Sensor:
         """Read a sensor description (TOML with a ``[sensor]`` table)."""
         doc = read_toml(path, "sensor", "sensor description")
         try:
-            return cls.from_dict(doc["sensor"])
+            return cls.from_dict(doc["sensor"], calibration=doc.get("calibration"))
         except (TypeError, ValueError) as err:
             raise ValueError(f"{path}: {err}") from None
 
     def save(self, path, *, overwrite=False) -> Path:
         """Write the description as TOML, atomically; never replaces a file unless asked."""
-        return write_toml(path, {"sensor": self.to_dict()}, overwrite=overwrite)
+        doc = {"sensor": self.to_dict()}
+        if self.calibration:
+            doc["calibration"] = self.calibration
+        return write_toml(path, doc, overwrite=overwrite)
