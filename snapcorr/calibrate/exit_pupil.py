@@ -386,19 +386,27 @@ class _IndexFit(NamedTuple):
     rank: float | None = None
 
 
-def _index_fit(problem, x, n, basis, *, needed_gain=0.0):
+def _index_fit(problem, x, n, basis, *, needed_gain=0.0, jacobians=None):
     """``x`` and the index ``n = n_design * (basis @ c)`` by damped Gauss-Newton from ``(x, n)``.
 
     Stops at the start (status ``"unconstrained"``) when even noise alone leaves some band's
     index unknown to more than ``N_EFF_REL_STDERR``, or (``"not needed"``) when the first
-    step's predicted chi-square gain is below ``needed_gain``."""
+    step's predicted chi-square gain is below ``needed_gain``. ``jacobians`` (a dict) keeps
+    the first Jacobian for the next rung, which starts from the same point when this one is
+    not taken."""
     model = problem.model
     B = problem.n_design[:, None] * basis
-    c = np.linalg.lstsq(B, n, rcond=None)[0]
+    c = np.linalg.lstsq(B, n, rcond=None)[0]  # the start lies in every richer model's span
     xb = float(x)
     for it in range(30):
-        n = B @ c
-        r, Jp = _per_band_jacobian(model, xb, n)
+        n = n if it == 0 else B @ c
+        key = (xb, n.tobytes())
+        if jacobians is not None and key in jacobians:
+            r, Jp = jacobians[key]
+        else:
+            r, Jp = _per_band_jacobian(model, xb, n)
+            if jacobians is not None and it == 0:
+                jacobians[key] = (r, Jp)
         J = np.column_stack([Jp[:, 0], Jp[:, 1:] @ B])
         try:
             cov = np.linalg.inv(J.T @ J)
@@ -436,11 +444,12 @@ def _index_ladder(problem, x, n, x_err, n_err, chi2, scale, notes):
     ladder = [("linear in wavelength", np.column_stack([np.ones(nb), t]))] if nb >= 3 else []
     ladder.append(("one per band", np.eye(nb)))
     best = ("one", x, x_err, n, n_err, chi2, None)
-    q_best, limit = 1, 100 * N_EFF_REL_STDERR
+    q_best, limit, jacobians = 1, 100 * N_EFF_REL_STDERR, {}
     for name, basis in ladder:
         q = basis.shape[1]
         needed = float(stats.chi2.isf(10 * N_EFF_P, q - q_best)) * scale
-        fit = _index_fit(problem, best[1], best[3], basis, needed_gain=needed)
+        fit = _index_fit(problem, best[1], best[3], basis, needed_gain=needed,
+                         jacobians=jacobians)
         if fit.status == "unconstrained":
             worst = float(np.max(fit.n_err / fit.n))
             notes.append(f"n_eff not {name}: the data would pin it only to "
