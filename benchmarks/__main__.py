@@ -13,6 +13,7 @@ from . import (
     correct,
     io_memory,
     mean_shift,
+    pupil,
     scaling,
     speed_accuracy,
     stability,
@@ -40,5 +41,7 @@ print()
 scaling.run(quick=args.quick, write=not args.quick)
 print()
 io_memory.run(quick=args.quick, write=not args.quick)
+print()
+pupil.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")
