@@ -3,6 +3,7 @@
 Pure numpy, no file I/O beyond lens profiles; every function broadcasts.
 """
 
+from .bandwidth import FWHM_METHODS, response_fwhm
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
 from .mean import METHODS, mean_shift, select_method
@@ -20,6 +21,7 @@ from .table import ShiftGrid, ShiftTable
 
 __all__ = [
     "AOI_VALIDITY_DEG",
+    "FWHM_METHODS",
     "METHODS",
     "PROFILES",
     "RESPONSE_METHODS",
@@ -40,6 +42,7 @@ __all__ = [
     "kernel",
     "kernel_asymptotic",
     "mean_shift",
+    "response_fwhm",
     "select_method",
     "shift_nm",
     "tilted_cwl_nm",
