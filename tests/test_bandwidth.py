@@ -86,3 +86,37 @@ def test_no_light_is_nan_and_bad_input_is_refused():
         response_fwhm([700.0], [10.0], 1.8, 2.0, [0.0], lens, method="fast")
     with pytest.raises(ValueError, match="> 0"):
         response_fwhm([700.0], [0.0], 1.8, 2.0, [0.0], lens)
+
+
+# -- the sensor names its filters' shape ------------------------------------------------------
+def test_a_sensor_names_its_filter_shape_or_gives_a_measured_one(tmp_path):
+    from snapcorr.cube import Sensor
+
+    base = {"name": "s", "layout": "snapscan", "pixel_pitch_um": 5.5, "cwl_nm": [600.0, 700.0],
+            "fwhm_nm": 10.0, "n_eff": 1.8}
+    assert Sensor(**base).profile == "gaussian"  # the default, and not written out
+    assert "profile" not in Sensor(**base).to_dict()
+    airy = Sensor(**base, profile="airy")
+    airy.save(tmp_path / "airy.toml")
+    assert Sensor.load(tmp_path / "airy.toml").profile_shape == "airy"
+    # a measured shape: a Gaussian of 10 nm tabulated, relative to the sensor file's folder
+    off = np.linspace(-30.0, 30.0, 601)
+    np.savetxt(tmp_path / "shape.csv", np.column_stack([off, np.exp(-4 * np.log(2) * (off / 10)
+                                                                     ** 2)]),
+               delimiter=",", header="offset_nm,transmission")
+    (tmp_path / "measured.toml").write_text(
+        '[sensor]\nname = "m"\nlayout = "snapscan"\npixel_pitch_um = 5.5\n'
+        'cwl_nm = [600.0, 700.0]\nfwhm_nm = 10.0\nn_eff = 1.8\nprofile = "shape.csv"\n')
+    measured = Sensor.load(tmp_path / "measured.toml")
+    lens = as_lens(PAPER)
+    tab = response_fwhm(measured.cwl_nm, measured.fwhm_nm, 1.8, 1.4, [0.0, 17.4], lens,
+                        profile=measured.profile_shape)
+    gauss = response_fwhm(measured.cwl_nm, measured.fwhm_nm, 1.8, 1.4, [0.0, 17.4], lens)
+    np.testing.assert_allclose(tab, gauss, atol=0.01)
+    with pytest.raises(ValueError, match="profile must be one of"):
+        Sensor(**base, profile="lorentzian")
+    (tmp_path / "bad.csv").write_text("500,0.1\n600,1\n700,0.1\n")
+    with pytest.raises(ValueError, match="relative"):
+        Sensor(**base, profile=str(tmp_path / "bad.csv"))
+    with pytest.raises(FileNotFoundError, match="not found"):
+        Sensor(**base, profile=str(tmp_path / "missing.csv"))

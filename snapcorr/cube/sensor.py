@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +18,10 @@ __all__ = ["LAYOUTS", "Sensor"]
 #: repeating tile.
 LAYOUTS = ("snapscan", "mosaic")
 _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosaic_shape",
-         "band_offset", "size_px"}
+         "band_offset", "size_px", "profile"}
+#: Filter shapes a sensor may name (``snapcorr.optics.PROFILES`` at normal incidence); any
+#: other ``profile`` is a file of a measured shape.
+PROFILE_NAMES = ("gaussian", "airy", "multi_lorentzian", "pi")
 
 
 def _per_band(name, value, n_bands, *, minimum=None, strict=True):
@@ -61,6 +65,12 @@ class Sensor:
     size_px : (int, int), optional
         The image's full size in pixels (rows, columns), centred on the optical axis: the
         field the scene budget (``snapcorr budget``) covers when no cube is given.
+    profile : str
+        The filters' shape: ``"gaussian"`` (default), ``"airy"``, ``"multi_lorentzian"``,
+        ``"pi"``, or the path of a two-column file (offset from the band's centre in nm,
+        transmission), one measured shape for every band (a relative path in a sensor file is
+        relative to that file's folder). It sets each pixel's bandwidth
+        (``fwhm_corrected``).
     calibration : dict, optional
         Free-form record of where values came from (the ``[calibration]`` table of the file,
         e.g. an effective index fitted by ``snapcorr pupil``). Not compared.
@@ -75,6 +85,7 @@ class Sensor:
     mosaic_shape: tuple | None = None
     band_offset: tuple | None = None
     size_px: tuple | None = None
+    profile: str = "gaussian"
     calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
 
     def __post_init__(self):
@@ -115,6 +126,9 @@ class Sensor:
                 raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
                                  f"{self.size_px!r}")
             set_(self, "size_px", tuple(int(v) for v in size))
+        set_(self, "profile", str(self.profile))
+        if self.profile not in PROFILE_NAMES:
+            _read_shape(self.profile)  # read and checked now: a bad file fails at load
         set_(self, "calibration", dict(self.calibration or {}))
 
     @property
@@ -124,6 +138,14 @@ class Sensor:
             return None
         rows, cols = self.size_px
         return 0.5 * float(np.hypot(rows, cols)) * self.pixel_pitch_mm
+
+    @property
+    def profile_shape(self):
+        """The filters' shape as :func:`snapcorr.optics.bandwidth.band_profile` takes it: the
+        name, or ``(offset_nm, transmission)`` read from the file."""
+        if self.profile in PROFILE_NAMES:
+            return self.profile
+        return _read_shape(self.profile)
 
     @property
     def n_bands(self) -> int:
@@ -142,6 +164,8 @@ class Sensor:
             d["band_offset"] = [list(o) for o in self.band_offset]
         if self.size_px is not None:
             d["size_px"] = list(self.size_px)
+        if self.profile != "gaussian":
+            d["profile"] = self.profile
         return d
 
     @classmethod
@@ -159,8 +183,12 @@ class Sensor:
     def load(cls, path) -> Sensor:
         """Read a sensor description (TOML with a ``[sensor]`` table)."""
         doc = read_toml(path, "sensor", "sensor description")
+        table = dict(doc["sensor"])
+        shape = table.get("profile")
+        if isinstance(shape, str) and shape not in PROFILE_NAMES:
+            table["profile"] = str(Path(path).parent / shape)  # relative to the sensor file
         try:
-            return cls.from_dict(doc["sensor"], calibration=doc.get("calibration"))
+            return cls.from_dict(table, calibration=doc.get("calibration"))
         except (TypeError, ValueError) as err:
             raise ValueError(f"{path}: {err}") from None
 
@@ -170,3 +198,42 @@ class Sensor:
         if self.calibration:
             doc["calibration"] = self.calibration
         return write_toml(path, doc, overwrite=overwrite)
+
+
+def _read_shape(path):
+    """``(offset_nm, transmission)`` of a measured filter shape, checked (cached per file)."""
+    off, t = _read_shape_cached(str(Path(path).resolve()))
+    return off.copy(), t.copy()
+
+
+@functools.cache
+def _read_shape_cached(path):
+    p = Path(path)
+    if p.suffix.lower() not in (".csv", ".txt", ".tsv", ".dat"):
+        raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)} or a two-column "
+                         f"file (.csv, .txt), got {p.name!r}")
+    if not p.is_file():
+        raise FileNotFoundError(f"filter profile file not found: {p}")
+    rows = []
+    for k, line in enumerate(p.read_text(errors="replace").splitlines()):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.replace(",", " ").replace(";", " ").split()
+        try:
+            rows.append([float(v) for v in parts])
+        except ValueError:
+            if rows:  # a header is allowed before the numbers only
+                raise ValueError(f"{p}, line {k + 1}: not numbers: {line!r}") from None
+    if not rows or any(len(r) != 2 for r in rows) or len(rows) < 3:
+        raise ValueError(f"{p}: need two columns (offset from the band's centre, nm; "
+                         "transmission) and at least 3 rows")
+    off, t = np.array(rows).T
+    if not (np.all(np.isfinite(off)) and np.all(np.isfinite(t)) and np.all(np.diff(off) > 0)
+            and np.all(t >= 0) and t.max() > 0):
+        raise ValueError(f"{p}: offsets must increase, transmissions be finite, >= 0 and not "
+                         "all zero")
+    if not (off[0] < 0 < off[-1]):
+        raise ValueError(f"{p}: the offsets ({off[0]:g} to {off[-1]:g} nm) must be relative "
+                         "to the band's centre, spanning 0")
+    return off, t
