@@ -16,7 +16,7 @@ import xarray as xr
 
 from .. import __version__
 from .._validation import check_positive
-from ..cube.derived import corrected_wavelength
+from ..cube.derived import corrected_fwhm, corrected_wavelength
 from ..cube.flatfield import cf_attrs
 from ..cube.model import check_cube
 from ..optics import ShiftTable, mean_shift
@@ -227,6 +227,7 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
                               **ds["wavelength"].attrs}
     # in the cube's blocks when it has them, so a block of the coordinate matches one of data
     ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
+    ds = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
     if mask is not None:
         if tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape:
             raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
@@ -252,6 +253,31 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         "snapcorr_version": __version__, **budget_attrs,
     })
     return ds
+
+
+def _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm):
+    """``fwhm_corrected``: each band's whole response (filter shape spread by the kernel,
+    Eq. 13) tabulated over CRA once, interpolated per pixel lazily."""
+    from ..optics.bandwidth import FwhmTable
+
+    shape = sensor.profile_shape
+    table = FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
+                            cra_max_deg=cra_max, profile=shape, tolerance_nm=tolerance_nm)
+    ds = ds.assign_coords(fwhm_cra_deg=("fwhm_cra", table.cra_deg,
+                                        {"units": "degree",
+                                         "long_name": "chief-ray angles of fwhm_table"}))
+    ds["fwhm_table"] = (("band", "fwhm_cra"), table.fwhm_nm, {
+        "units": "nm", "long_name": "FWHM of each band's whole response at fwhm_cra_deg",
+        "source": f"{sensor.profile} filters (FWHM {_span(sensor.fwhm_nm)} nm at normal "
+                  f"incidence) spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
+                  "et al. 2019 Eq. 13, 37; each ray scales the curve); linear interpolation "
+                  f"within {float(tolerance_nm):g} nm"})
+    return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks))
+
+
+def _span(values):
+    v = np.asarray(values, float)
+    return f"{v.min():g}" if np.ptp(v) == 0 else f"{v.min():g}-{v.max():g}"
 
 
 def _resampled(cube, scale, column, cwl):
