@@ -41,6 +41,10 @@ EXAMPLES = {
       snapcorr correct scene_ff.nc --lens my_lens.toml --sensor sensor.toml --f-number 4 \
           --source cube --tolerance-pct 0.5 --out scene_corrected.nc
                                           ... with the model the scene's own spectrum needs
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 1.4 \
+          --harmonise --out scene_harmonised.nc
+                                          ... and spectra with one response per band, the
+                                          same for a material anywhere in the field
     """,
     "calibrate": r"""
       snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
@@ -357,6 +361,9 @@ def _cmd_correct(args):
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
         raise ValueError("--tolerance-pct applies to the scene budget: give --source too")
+    if args.target_fwhm_nm is not None and not args.harmonise:
+        raise ValueError("--target-fwhm-nm sets the common response of --harmonise: give "
+                         "--harmonise too")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     cube, mask = _correct_input(args, sensor)
@@ -368,7 +375,8 @@ def _cmd_correct(args):
                       sensor_origin_px=args.sensor_origin_px,
                       method=args.method, tolerance_nm=args.tolerance_nm,
                       resample=args.resample, source=args.source, mask=mask,
-                      tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct)
+                      tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
+                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm)
     ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
@@ -390,6 +398,14 @@ def _cmd_correct(args):
           f"{tuple(round(c, 1) for c in ds.attrs['optical_center_px'])} px "
           f"({ds.attrs['optical_center_source']})"
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
+    table = ds["fwhm_table"].values
+    print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over the "
+          f"field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):g}-"
+          f"{np.max(sensor.fwhm_nm):g} nm)")
+    if args.harmonise:
+        w = ds["fwhm_harmonised"].values
+        print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
+              f"({ds['fwhm_harmonised'].attrs['source']})")
     if args.plot:
         from .quicklook import plot_correction
 
@@ -835,6 +851,13 @@ def _add_correct(command):
                    help="radiometric tolerance with --source, percent (default: 0.5)")
     p.add_argument("--resample", action="store_true",
                    help="also interpolate each spectrum onto the nominal wavelengths")
+    p.add_argument("--harmonise", action="store_true",
+                   help="also give every pixel one common response per band (the widest in "
+                   "the field, or --target-fwhm-nm) on the nominal wavelengths: the same "
+                   "material gives the same spectrum anywhere")
+    p.add_argument("--target-fwhm-nm", type=_positive, default=None, metavar="NM",
+                   help="with --harmonise: the common response's FWHM for every band (at "
+                   "least the widest in the field)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the CRA and shift maps, a few pixels' "
                    "spectra at nominal and corrected wavelengths")

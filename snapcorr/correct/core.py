@@ -92,7 +92,7 @@ def relative_shift(method, lens, f_number, n_eff, cra_deg, *, tolerance_nm, cwl_
 
 def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_px=None,
                  method="auto", tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False, source=None,
-                 tolerance_pct=0.5, mask=None):
+                 tolerance_pct=0.5, mask=None, harmonise=False, target_fwhm_nm=None):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
@@ -127,6 +127,14 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         Radiometric tolerance for ``source``, percent of the signal.
     mask : xarray.DataArray, optional
         The flat-field mask (True where a value is not meaningful), kept in the output.
+    harmonise : bool
+        Also give ``harmonised``: every pixel's spectrum on the nominal wavelengths with one
+        common response per band (:mod:`snapcorr.correct.harmonise`), so the same material
+        gives the same spectrum anywhere in the field. NaN where ``resampled`` would be.
+    target_fwhm_nm : float, optional
+        The common response's FWHM for every band (default: the widest response in the
+        cube's field at each band). It must be at least that widest response: harmonising
+        only widens.
 
     Returns
     -------
@@ -137,7 +145,10 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         lazily, block by block (``wavelength * wavelength_scale[..., scale_index]``, see
         :mod:`snapcorr.cube.derived`): for a Snapscan it is one factor per pixel and effective
         index, so it never doubles the memory or the file; ``cra_deg(y, x[, band])``;
-        ``resampled`` on request; ``mask`` when given; provenance in attrs.
+        ``fwhm_corrected(y, x, band)`` (float32, nm; each pixel's response FWHM, rebuilt
+        lazily from ``fwhm_table(band, fwhm_cra)``); ``resampled`` and ``harmonised`` (with
+        ``fwhm_harmonised(band)``, the common response) on request; ``mask`` when given;
+        provenance in attrs.
     """
     check_cube(cube)
     if method not in METHODS:
@@ -227,7 +238,7 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
                               **ds["wavelength"].attrs}
     # in the cube's blocks when it has them, so a block of the coordinate matches one of data
     ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
-    ds = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
+    ds, table = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
     if mask is not None:
         if tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape:
             raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
@@ -240,6 +251,13 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
              "long_name": f"{data.attrs.get('long_name', name)} on the nominal wavelengths",
              "source": f"{name} interpolated linearly from wavelength_corrected onto "
                        "wavelength"})
+    if harmonise:
+        ds = _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm,
+                         lambda c, n: 1.0 + relative_shift(
+                             used, lens, f, n, c, tolerance_nm=tolerance_nm,
+                             cwl_max_nm=float(cwl.max())), n_eff)
+    elif target_fwhm_nm is not None:
+        raise ValueError("target_fwhm_nm sets the common response of harmonise=True")
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
         "source": f"snapcorr {__version__} correct",
@@ -272,7 +290,87 @@ def _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm):
                   f"incidence) spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
                   "et al. 2019 Eq. 13, 37; each ray scales the curve); linear interpolation "
                   f"within {float(tolerance_nm):g} nm"})
-    return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks))
+    return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks)), table
+
+
+#: Chief-ray-angle step of the Snapscan path's weight tables (the weights change by far less
+#: than their interpolation could notice over it: a shift of at most ~0.1 nm).
+HARMONISE_NODE_STEP_DEG = 0.1
+
+
+def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff):
+    from .harmonise import harmonise_spectra
+
+    cra_lo, cra_hi = float(cra.min()), float(cra.max())
+    inside = (table.cra_deg >= cra_lo) & (table.cra_deg <= cra_hi)
+    field = np.concatenate([table(np.array([cra_lo, cra_hi])).T, table.fwhm_nm[:, inside]],
+                           axis=1)
+    widest = np.nanmax(field, axis=1)
+    if target_fwhm_nm is None:
+        target = widest
+        how = "the widest response in the field at each band"
+    else:
+        F = check_positive("target_fwhm_nm", target_fwhm_nm)
+        short = np.flatnonzero(widest > F + 1e-9)
+        if short.size:
+            b = short[np.argmax(widest[short])]
+            raise ValueError(f"target_fwhm_nm {F:g} nm is narrower than the widest response in "
+                             f"the field ({widest[b]:.3g} nm at {cwl[b]:g} nm): harmonising "
+                             "only widens; ask for at least that")
+        target = np.full(cwl.size, F)
+        how = f"{F:g} nm at every band (asked for)"
+    var_table = np.clip(target[:, None] ** 2 - table.fwhm_nm ** 2, 0.0, None) / (8 * math.log(2))
+    if not np.all(np.diff(cwl) > 0):
+        raise ValueError("harmonise needs the bands in increasing nominal wavelength")
+    dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
+                                         np.int16) else np.float64
+    snapscan = cra.shape[2] == 1 and scale.shape[2] == 1
+    if snapscan:
+        cra_hi = max(cra_hi, cra_lo + 1e-6)  # two distinct nodes even for one pixel
+        nodes = np.linspace(cra_lo, cra_hi, max(2, math.ceil(
+            (cra_hi - cra_lo) / HARMONISE_NODE_STEP_DEG) + 1))
+        node_sigma = np.sqrt(np.stack([np.interp(nodes, table.cra_deg, v) for v in var_table],
+                                      axis=1))
+        node_scale = scale_at(nodes, float(np.unique(n_eff)[0]))
+
+        def block(data, c, sc):
+            return harmonise_spectra(np.asarray(data, dtype), sc, column, cwl, cra=c[..., 0],
+                                     nodes=nodes, node_scale=node_scale,
+                                     node_sigma=node_sigma)
+    else:
+        def block(data, c, sc):
+            sig = np.empty(data.shape)
+            for b in range(cwl.size):
+                cb = c[..., b if c.shape[2] > 1 else 0]
+                sig[..., b] = np.sqrt(np.interp(cb, table.cra_deg, var_table[b]))
+            return harmonise_spectra(np.asarray(data, dtype), sc, column, cwl, sig)
+
+    cr = xr.DataArray(cra, dims=("y", "x", "c"))
+    sc = xr.DataArray(scale, dims=("y", "x", "m"))
+    data = cube
+    if cube.chunks is not None:
+        data = cube.chunk({"band": -1})
+        cr = cr.chunk({"y": data.chunks[0], "x": data.chunks[1], "c": -1})
+        sc = sc.chunk({"y": data.chunks[0], "x": data.chunks[1], "m": -1})
+    out = xr.apply_ufunc(block, data, cr, sc, input_core_dims=[["band"], ["c"], ["m"]],
+                         output_core_dims=[["band"]], dask="parallelized",
+                         output_dtypes=[dtype]).transpose("y", "x", "band")
+    name = cube.name or "radiance"
+    out.attrs = {"units": cube.attrs.get("units", "1"),
+                 "long_name": f"{cube.attrs.get('long_name', name)} on the nominal wavelengths, "
+                              "one response per band",
+                 "source": "each pixel's spectrum (straight lines between its corrected "
+                           "wavelengths) averaged with a Gaussian of variance (fwhm_harmonised"
+                           "^2 - fwhm_corrected^2) / (8 ln 2), at the nominal wavelengths",
+                 "common_response": f"the band's filter spread to fwhm_harmonised: {how}",
+                 "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
+                         "range (extrapolation is not done)"}
+    ds["harmonised"] = out
+    ds["fwhm_harmonised"] = ("band", target, {"units": "nm",
+                                              "long_name": "FWHM of the common response of "
+                                                           "harmonised",
+                                              "source": how})
+    return ds
 
 
 def _span(values):

@@ -1,0 +1,125 @@
+"""Spectra that are the same anywhere in the field (``correct_cube(harmonise=True)``).
+
+The cubes are made by ``tests/spectralsim.py``, which shares no code with snapcorr: it samples
+the vignetted pupil point by point and scales each ray's whole filter curve by the shift law.
+The pixels are those at the three chief-ray angles of Goossens et al. (1.9, 10.3, 17.4 deg).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import spectralsim as sim
+import xarray as xr
+from flatsim import LensTruth
+
+from snapcorr import Lens
+from snapcorr.correct import correct_cube
+from snapcorr.correct.harmonise import harmonise_spectra
+from snapcorr.cube import Sensor, make_cube
+
+PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3, name="paper lens")
+PLAIN = LensTruth(21.0, (), 0.06, 1.3, name="no vignetting")
+CWL = np.arange(470.0, 901.0, 5.0)  # 87 bands of 12 nm every 5 nm
+SHAPE, PITCH, CENTER = (6, 160), 44.0, (2.0, 3.0)  # CRA 0-18.3 deg along a row
+
+
+def as_lens(truth):
+    return Lens(truth.exit_pupil_mm, truth.circles, truth.magnification,
+                truth.pupil_magnification, name=truth.name)
+
+
+def spread_at_paper_angles(ds, values):
+    """The largest difference, over bands, between the spectra of the pixels nearest CRA 1.9,
+    10.3 and 17.4 deg."""
+    cra = ds["cra_deg"].values
+    pix = [np.unravel_index(np.argmin(np.abs(cra - c)), cra.shape) for c in (1.9, 10.3, 17.4)]
+    spectra = np.array([values[p] for p in pix])
+    keep = np.all(np.isfinite(spectra), axis=0)
+    return float(np.max(np.ptp(spectra[:, keep], axis=0)))
+
+
+CASES = [("rare_earth_glass", "gaussian", "paper", 1.4),
+         ("colour_filter", "gaussian", "paper", 1.4),
+         ("emission_lines", "gaussian", "plain", 1.4),
+         ("rare_earth_glass", "gaussian", "plain", 2.8),
+         pytest.param("rare_earth_glass", "airy", "paper", 1.4, marks=pytest.mark.slow)]
+
+
+@pytest.mark.parametrize(("target", "profile", "lens", "f_number"), CASES)
+def test_harmonised_spectra_agree_across_the_field(target, profile, lens, f_number):
+    """At 0.2 % noise the largest difference between the three pixels' spectra after
+    harmonising is at most half of that after resampling alone."""
+    truth = {"paper": PAPER, "plain": PLAIN}[lens]
+    clean = sim.target_cube(getattr(sim, target), cwl_nm=CWL, fwhm_nm=12.0, n_eff=1.8,
+                            f_number=f_number, lens=truth, shape=SHAPE, pixel_pitch_um=PITCH,
+                            center_px=CENTER, profile=profile)
+    noisy = clean + np.random.default_rng(0).normal(0, 0.002 * clean.max(), clean.shape)
+    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8, profile=profile)
+    ds = correct_cube(make_cube(noisy.astype(np.float32), CWL), as_lens(truth), sensor, f_number,
+                      center_px=CENTER, resample=True, harmonise=True)
+    resampled = spread_at_paper_angles(ds, ds["resampled"].values)
+    harmonised = spread_at_paper_angles(ds, ds["harmonised"].values)
+    assert harmonised <= 0.5 * resampled, (harmonised, resampled)
+    # the common response is the widest in the field, and said so
+    assert np.allclose(ds["fwhm_harmonised"].values,
+                       np.nanmax(ds["fwhm_corrected"].values, axis=(0, 1)), atol=0.02)
+    assert "widest" in ds["harmonised"].attrs["common_response"]
+    # NaN exactly where resampling would extrapolate
+    np.testing.assert_array_equal(np.isnan(ds["harmonised"].values),
+                                  np.isnan(ds["resampled"].values))
+
+
+def test_the_tabulated_path_is_the_direct_one():
+    """A Snapscan cube takes tabulated weights; the direct computation per pixel agrees."""
+    rng = np.random.default_rng(1)
+    ny, nx = 20, 30
+    cra = rng.uniform(0.0, 18.0, (ny, nx))
+    nodes = np.linspace(0.0, 18.0, 181)
+    node_scale = 1.0 - 0.0005 * nodes**1.5
+    node_sigma = np.sqrt(np.outer(18.0 - nodes, np.linspace(0.5, 1.5, CWL.size)) / 4.0)
+    scale = np.interp(cra, nodes, node_scale)[..., None]
+    sigma = np.stack([np.sqrt(np.interp(cra, nodes, node_sigma[:, k] ** 2))
+                      for k in range(CWL.size)], axis=-1)
+    data = rng.random((ny, nx, CWL.size))
+    column = np.zeros(CWL.size, int)
+    direct = harmonise_spectra(data, scale, column, CWL, sigma)
+    table = harmonise_spectra(data, scale, column, CWL, cra=cra, nodes=nodes,
+                              node_scale=node_scale, node_sigma=node_sigma)
+    np.testing.assert_array_equal(np.isnan(direct), np.isnan(table))
+    np.testing.assert_allclose(table, direct, atol=2e-4, equal_nan=True)
+
+
+def test_blocks_give_identical_values_and_the_target_is_checked():
+    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
+    data = np.random.default_rng(2).random((24, 40, CWL.size)).astype(np.float32)
+    cube = make_cube(data, CWL)
+    lens = as_lens(PAPER)
+    a = correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0))
+    b = correct_cube(cube.chunk({"y": 7, "x": 9}), lens, sensor, 1.4, harmonise=True,
+                     center_px=(3.0, 2.0))
+    xr.testing.assert_identical(a["harmonised"], b["harmonised"].compute())
+    widest = float(a["fwhm_harmonised"].max())
+    wide = correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0),
+                        target_fwhm_nm=widest + 2.0)
+    assert np.all(wide["fwhm_harmonised"].values == widest + 2.0)
+    assert "asked for" in wide["harmonised"].attrs["common_response"]
+    with pytest.raises(ValueError, match="only widens"):
+        correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0),
+                     target_fwhm_nm=12.0)
+    with pytest.raises(ValueError, match="harmonise=True"):
+        correct_cube(cube, lens, sensor, 1.4, target_fwhm_nm=20.0)
+
+
+def test_a_mosaic_is_harmonised_band_by_band():
+    from snapcorr.cube import mosaic_to_cube
+    from snapcorr.data import sensor_path
+
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    cube = mosaic_to_cube(np.ones((64, 96), np.float32), sensor, origin_px=(400, 800))
+    ds = correct_cube(cube, as_lens(PAPER), sensor, 1.4, center_px=(0.0, 0.0),
+                      harmonise=True, resample=True)
+    h = ds["harmonised"].values
+    # a flat spectrum stays flat: the weights of every output sum to one
+    assert np.allclose(h[np.isfinite(h)], 1.0, atol=1e-5)
+    np.testing.assert_array_equal(np.isnan(h), np.isnan(ds["resampled"].values))
