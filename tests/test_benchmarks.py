@@ -44,6 +44,8 @@ def test_quick_correction_benchmark_runs():
     r = correct.run(quick=True, echo=lines.append)
     assert r["copy_s"] > 0 and r["resample_s"] > 0 and r["shift_map_s"] > 0
     assert np.isfinite(r["peak_ratio"]) and any("target 1.5 x" in line for line in lines)
+    assert r["harmonise_s"] > 0 and np.isfinite(r["harmonise_peak_ratio"])
+    assert any("harmonise=True" in line for line in lines)
 
 
 def test_quick_speed_accuracy_chart_runs_and_the_default_meets_its_tolerance():

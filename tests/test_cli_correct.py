@@ -54,6 +54,8 @@ def test_correct_writes_what_the_library_computes(files):
     (["--f-number", "2", "--out", "out.txt"], ".nc or .zarr"),
     (["--f-number", "2", "--sensor", "badsensor.toml"], "cwl_nm"),
     (["--f-number", "2", "--center-px", "100000,0"], "cuts off the whole pupil"),
+    (["--f-number", "2", "--target-fwhm-nm", "30"], "give --harmonise too"),
+    (["--f-number", "2", "--harmonise", "--target-fwhm-nm", "5"], "only widens"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, args, message):
     d, cube, _ = files
@@ -62,9 +64,12 @@ def test_mistakes_are_one_line_and_write_nothing(files, args, message):
                                       'pixel_pitch_um = 5.5\n')
     Sensor("s6", "snapscan", 40.0, np.linspace(500, 900, 6), 10.0, 1.7).save(d / "sensor6.toml")
     base = {"--lens": "lens.toml", "--sensor": "sensor.toml", "--out": "new.nc"}
-    for flag, value in zip(args[::2], args[1::2], strict=True):
-        base[flag] = value
-    argv = ["cube.nc"] + [v for kv in base.items() for v in kv]
+    k = 0
+    while k < len(args):  # flags with a value, and bare switches
+        bare = k + 1 == len(args) or args[k + 1].startswith("--")
+        base[args[k]] = None if bare else args[k + 1]
+        k += 1 if bare else 2
+    argv = ["cube.nc"] + [v for kv in base.items() for v in kv if v is not None]
     if "--f-number" not in base:
         argv += ["--f-number", "2"]
     res = run(*argv, cwd=d)
@@ -88,21 +93,23 @@ def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster):
     from distributed import Client
 
     d, cube, sensor = files
-    a = correct_cube(cube, PAPER, sensor, 1.4, resample=True)
-    b = correct_cube(cube.chunk({"y": 7, "x": 9}), PAPER, sensor, 1.4, resample=True)
+    a = correct_cube(cube, PAPER, sensor, 1.4, resample=True, harmonise=True)
+    b = correct_cube(cube.chunk({"y": 7, "x": 9}), PAPER, sensor, 1.4, resample=True,
+                     harmonise=True)
     with Client(cluster):
         c = b.compute()
     xr.testing.assert_identical(a, b.compute())
     xr.testing.assert_identical(a, c)
     # and the command line on that cluster writes the same as in-process
     args = ["cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml", "--f-number", "1.4",
-            "--resample"]
+            "--resample", "--harmonise"]
     r1 = run(*args, "--out", "local.nc", cwd=d)
     r2 = run(*args, "--out", "cluster.zarr", "--scheduler", cluster.scheduler_address, cwd=d)
     assert r1.returncode == 0 and r2.returncode == 0, r1.stderr + r2.stderr
     one = read_dataset(d / "local.nc")
     two = read_dataset(d / "cluster.zarr")
-    for name in ("reflectance", "wavelength_corrected", "resampled", "cra_deg"):
+    for name in ("reflectance", "wavelength_corrected", "resampled", "cra_deg", "harmonised",
+                 "fwhm_corrected", "fwhm_harmonised"):
         np.testing.assert_array_equal(one[name].values, two[name].values)
 
 
