@@ -31,9 +31,8 @@ import numpy as np
 
 __all__ = ["harmonise_spectra"]
 
-#: Weights below this fraction are dropped from the tabulated band (the sum is renormalised
-#: by nothing: their total is below 1e-9 per output value).
-_TINY = 1e-12
+#: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
+_REACH = 6.0
 _SQRT2 = math.sqrt(2.0)
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 
@@ -66,7 +65,7 @@ def _segment_weights(lam, t, sigma, w):  # pragma: no cover - compiled
         return
     w[0] += _cdf((lam[0] - t) / sigma)
     w[n - 1] += 1.0 - _cdf((lam[n - 1] - t) / sigma)
-    reach = 9.0 * sigma
+    reach = _REACH * sigma
     for j in range(n - 1):
         a, b = lam[j], lam[j + 1]
         if b < t - reach or a > t + reach:
@@ -91,7 +90,7 @@ def _value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
             j += 1
         u = (t - lam[j]) / (lam[j + 1] - lam[j])
         return d[j] + u * (d[j + 1] - d[j]), j
-    reach = 9.0 * sigma
+    reach = _REACH * sigma
     j = j0
     while j < n - 2 and lam[j + 1] < t - reach:
         j += 1
@@ -137,13 +136,16 @@ def _direct(data, scale, column, cwl, sigma, out):  # pragma: no cover - compile
                 out[y, x, k], j = _value(lam, d, t, sigma[y, x, k], j)
 
 
-@numba.njit(parallel=True, cache=True)
-def _tabulated(data, scale, cra, nodes, W, lo, hi, var, sigma_direct, cwl,
+@numba.njit(parallel=True, cache=True, fastmath={"reassoc", "contract"})
+def _tabulated(data, scale, cra, nodes, W, lo, cnt, var, sigma_direct, cwl,
                out):  # pragma: no cover - compiled
-    # below sigma_direct the weights bend within a node step (a straight line's kinks are
-    # barely smoothed): those values are computed directly, over the few segments in reach
+    # A pixel's weights are those of its two neighbouring nodes, interpolated linearly in
+    # chief-ray angle (nodes a few hundredths of a nanometre of shift apart). Below
+    # sigma_direct the weights bend within a node step (a straight line's kinks are barely
+    # smoothed): those values are computed directly, over the few segments in reach.
     ny, nx, nb = data.shape
     m = nodes.size
+    step = (nodes[m - 1] - nodes[0]) / (m - 1) if m > 1 else 1.0
     for y in numba.prange(ny):
         lam = np.empty(nb)
         d = np.empty(nb)
@@ -152,17 +154,9 @@ def _tabulated(data, scale, cra, nodes, W, lo, hi, var, sigma_direct, cwl,
             for b in range(nb):
                 lam[b] = cwl[b] * s
                 d[b] = data[y, x, b]
-            c = cra[y, x]
-            a, b = 0, m - 1
-            while b - a > 1:  # nodes are few (hundreds): bisection
-                mid = (a + b) // 2
-                if nodes[mid] <= c:
-                    a = mid
-                else:
-                    b = mid
-            i = a
-            u = (c - nodes[i]) / (nodes[i + 1] - nodes[i])
-            u = min(max(u, 0.0), 1.0)
+            pos = min(max((cra[y, x] - nodes[0]) / step, 0.0), m - 1.0)
+            i = min(int(pos), m - 2) if m > 1 else 0
+            u = pos - i
             j = 0
             for k in range(nb):
                 t = cwl[k]
@@ -174,27 +168,35 @@ def _tabulated(data, scale, cra, nodes, W, lo, hi, var, sigma_direct, cwl,
                     out[y, x, k], j = _value(lam, d, t, math.sqrt(max(v2, 0.0)), j)
                     continue
                 acc = 0.0
-                for q in range(min(lo[i, k], lo[i + 1, k]), max(hi[i, k], hi[i + 1, k])):
-                    acc += ((1.0 - u) * W[i, k, q] + u * W[i + 1, k, q]) * d[q]
+                a0, a1 = lo[i, k], lo[i + 1, k]
+                wa, wb = W[i, k], W[i + 1, k]
+                for q in range(cnt[i, k]):
+                    acc += (1.0 - u) * wa[q] * d[a0 + q]
+                for q in range(cnt[i + 1, k]):
+                    acc += u * wb[q] * d[a1 + q]
                 out[y, x, k] = acc
 
 
 @numba.njit(parallel=True, cache=True)
-def _node_weights(cwl, node_scale, node_sigma, W, lo, hi):  # pragma: no cover - compiled
+def _node_weights(cwl, node_scale, node_sigma, W, lo, cnt):  # pragma: no cover - compiled
     m, nb = node_sigma.shape
+    L = W.shape[2]
     for i in numba.prange(m):
         lam = cwl * node_scale[i]
         w = np.empty(nb)
         for k in range(nb):
             _segment_weights(lam, cwl[k], node_sigma[i, k], w)
-            first, last = nb, 0
-            for j in range(nb):
-                if abs(w[j]) > _TINY:
-                    W[i, k, j] = w[j]
-                    first = min(first, j)
-                    last = j + 1
-            lo[i, k] = first if first < nb else 0
-            hi[i, k] = last
+            first = 0  # the end tails are always there, if tiny: skip what is negligible
+            while first < nb - 1 and abs(w[first]) < 1e-13:
+                first += 1
+            first = min(first, max(nb - L, 0))
+            lo[i, k] = first
+            last = min(first + L, nb)
+            while last > first + 1 and abs(w[last - 1]) < 1e-13:
+                last -= 1
+            cnt[i, k] = last - first
+            for q in range(last - first):
+                W[i, k, q] = w[first + q]
 
 
 def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, nodes=None,
@@ -248,16 +250,22 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     if scale.shape[2] != 1 or cra is None:
         raise ValueError("the tabulated path needs one scale column and cra")
     nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+    if nodes.size > 1 and not np.allclose(np.diff(nodes), (nodes[-1] - nodes[0]) /
+                                          (nodes.size - 1), rtol=1e-6, atol=1e-12):
+        raise ValueError("the tabulated path needs evenly spaced nodes")
     ns = np.ascontiguousarray(node_sigma, dtype=np.float64)
-    W = np.zeros((nodes.size, cwl.size, cwl.size))
+    node_scale = np.ascontiguousarray(node_scale, dtype=np.float64)
+    # every weight of an output lies within the Gaussian's reach of it (plus the segment
+    # on each side): the band of columns to keep
+    spacing = float(np.min(np.diff(cwl)) * node_scale.min())
+    L = min(cwl.size, int(np.ceil(2 * _REACH * float(ns.max(initial=0.0)) / spacing)) + 4)
+    W = np.zeros((nodes.size, cwl.size, L))
     lo = np.zeros((nodes.size, cwl.size), np.int64)
-    hi = np.zeros((nodes.size, cwl.size), np.int64)
-    _node_weights(cwl, np.ascontiguousarray(node_scale, dtype=np.float64), ns, W, lo, hi)
-    # the widening below which a node step could move the weights' kinks noticeably: ten
-    # times the largest shift of a band between neighbouring nodes
-    step = np.max(np.abs(np.diff(np.asarray(node_scale, float)))) * cwl.max() if \
-        nodes.size > 1 else 0.0
+    cnt = np.zeros((nodes.size, cwl.size), np.int64)
+    _node_weights(cwl, node_scale, ns, W, lo, cnt)
+    # below ten node steps' shift of a band the weights are computed directly
+    step = np.max(np.abs(np.diff(node_scale))) * cwl.max() if nodes.size > 1 else 0.0
     _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
-               np.ascontiguousarray(cra, dtype=np.float64), nodes, W, lo, hi, ns * ns,
+               np.ascontiguousarray(cra, dtype=np.float64), nodes, W, lo, cnt, ns * ns,
                10.0 * step, cwl, out)
     return out
