@@ -67,9 +67,13 @@ __all__ = [
     "tolerance_ranges",
 ]
 
-#: Correction models in order of cost (``snapcorr.correct``'s, without ``"auto"``): the
-#: budget picks the first whose residual is below the tolerance.
-MODELS = tuple(m for m in CORRECT_METHODS if m != "auto")
+#: Correction models in order of cost (``snapcorr.correct``'s, without ``"auto"``, then
+#: ``"harmonised"``: the vignetted correction plus the widening to one response per band,
+#: ``correct_cube(harmonise=True)``): the budget picks the first whose residual is below the
+#: tolerance.
+MODELS = (*(m for m in CORRECT_METHODS if m != "auto"), "harmonised")
+#: Gauss-Hermite nodes of the harmonising Gaussian in the budget.
+_HERMITE_NODES = 12
 
 #: Filter-profile models for a band of given centre and FWHM.
 PROFILES = {"multi_lorentzian": MultiLorentzian, "pi": PiShaped}
@@ -578,8 +582,11 @@ class Budget:
         return tuple(str(m) for m in self.data["model"].values)
 
     def worst_pct(self, model):
-        """Largest |residual| over bands and the field, percent."""
-        return float(np.abs(self.data["residual"].sel(model=model)).max()) * 100
+        """Largest |residual| over bands and the field, percent (infinite where the model
+        could not be evaluated: ``harmonised`` where the widened band reaches past the
+        source's end)."""
+        res = np.abs(self.data["residual"].sel(model=model).values)
+        return math.inf if np.isnan(res).any() else float(res.max()) * 100
 
     def recommend(self, tolerance_pct=None):
         """``(model, reason)``: the cheapest model whose residual stays below the tolerance
@@ -758,12 +765,23 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
     for n in np.unique(n_eff):
         bins[n] = [kernel_bins(ref, n, f, c, lens, step_nm=kernel_step_nm) for c in cra]
         per_model[n] = {m: (np.zeros(cra.size) if m == "none" else np.asarray(
-            mean_shift(ref, n, f, cra, lens, method=m), float)) for m in models}
+            mean_shift(ref, n, f, cra, lens, method="vignetted" if m == "harmonised" else m),
+            float)) for m in models}
     lat = _lattice(source)
     d = shift_step_nm if lat is None else lat[1] / math.ceil(lat[1] / shift_step_nm - 1e-9)
     nb = cwl.size
     residual = np.empty((len(models), nb, cra.size))
     shifts = np.empty((len(models), nb, cra.size))
+    harmonised = "harmonised" in models
+    if harmonised:  # each pixel widened to the widest response of its band in the field
+        from .optics.bandwidth import response_fwhm
+
+        width = response_fwhm(cwl, fwhm, n_eff, f, cra, lens, profile=profile)
+        var = np.clip(np.nanmax(width, axis=1, keepdims=True) ** 2 - width**2, 0, None) / (
+            8 * math.log(2))
+        widest = np.nanargmax(width, axis=1)
+        gh_x, gh_w = np.polynomial.hermite_e.hermegauss(_HERMITE_NODES)
+        gh_w = gh_w / gh_w.sum()
     for b in range(nb):
         prof = PROFILES[profile](cwl[b], fwhm[b], n_eff[b])
         scale = cwl[b] / ref
@@ -772,11 +790,30 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
         # every shift this band needs: P on a fine grid of shifts (0 among them, as "none"
         # asks for it), in one pass over the source, then interpolated (exactly 1 for a flat
         # source)
-        allshift = np.concatenate(mus + means)
-        j0 = int(np.floor(allshift.min() / d)) - 1
-        j1 = int(np.ceil(allshift.max() / d)) + 1
+        if harmonised:  # the kernel's points, recentred and spread by the Gaussian's nodes
+            sig = np.sqrt(var[b])
+            m_h = means[models.index("harmonised")]
+            spread = [((mu - m_h[i])[:, None] + sig[i] * gh_x[None, :]).ravel()
+                      for i, mu in enumerate(mus)]
+        else:
+            spread = []
+        allshift = np.concatenate(mus + means + spread)
+        try:
+            j0 = int(np.floor(allshift.min() / d)) - 1
+            j1 = int(np.ceil(allshift.max() / d)) + 1
+            p = _signals_on_grid(source, prof, _FilterMoments.of(prof), j0, j1, d,
+                                 lattice=lat)
+        except ValueError:
+            if not spread:
+                raise
+            # the widened band reaches past the source's end: no harmonised figure here
+            spread = []
+            allshift = np.concatenate(mus + means)
+            j0 = int(np.floor(allshift.min() / d)) - 1
+            j1 = int(np.ceil(allshift.max() / d)) + 1
+            p = _signals_on_grid(source, prof, _FilterMoments.of(prof), j0, j1, d,
+                                 lattice=lat)
         grid = np.arange(j0, j1 + 1) * d
-        p = _signals_on_grid(source, prof, _FilterMoments.of(prof), j0, j1, d, lattice=lat)
         p0 = p[-j0]  # the shift 0
         if not p0 > 0:
             raise ValueError(f"the source {source.name!r} has no signal in the band at "
@@ -792,6 +829,18 @@ def scene_budget(sensor, lens: Lens, f_number, source, *, cra_max_deg, profile="
             pos += cra.size
             residual[k, b] = pixel / rm - 1.0
             shifts[k, b] = means[k]
+        if harmonised and not spread:
+            residual[models.index("harmonised"), b] = np.nan
+        elif harmonised:
+            # the harmonised value: the pixel's response, recentred on the nominal wavelength
+            # and widened, against the common response (the widest pixel's, recentred)
+            h = np.empty(cra.size)
+            for i, (_, w) in enumerate(bins[n_eff[b]]):
+                rk = r[pos:pos + w.size * gh_x.size].reshape(w.size, gh_x.size)
+                # normalised by the same sums of ones: exactly 1 where every rk is 1
+                h[i] = np.sum(w * (rk @ gh_w)) / np.sum(w * (np.ones_like(rk) @ gh_w))
+                pos += w.size * gh_x.size
+            residual[models.index("harmonised"), b] = h / h[widest[b]] - 1.0
     x = lens.exit_pupil_mm
     radius = x * np.tan(np.deg2rad(cra))
     ds = xr.Dataset(

@@ -402,7 +402,7 @@ def _cmd_correct(args):
     print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over the "
           f"field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):g}-"
           f"{np.max(sensor.fwhm_nm):g} nm)")
-    if args.harmonise:
+    if "harmonised" in ds:  # asked for, or chosen by the scene budget
         w = ds["fwhm_harmonised"].values
         print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
               f"({ds['fwhm_harmonised'].attrs['source']})")

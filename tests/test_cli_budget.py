@@ -135,11 +135,13 @@ def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path
     write_cube(make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm),
                tmp_path / "edge.nc")  # tmp_path is the folder of `files` (lens.toml)
     res = run("correct", "edge.nc", "--lens", "lens.toml", "--sensor", "s21.toml",
-              "--f-number", "1.4", "--source", "cube", "--out", "out.zarr", cwd=tmp_path)
+              "--f-number", "1.4", "--source", "cube", "--tolerance-pct", "0.1", "--out",
+              "out.zarr", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     ds = xr.open_zarr(tmp_path / "out.zarr", consolidated=False)
     assert ds.attrs["budget_source"] == "cube mean" and ds.attrs["method"] != "none"
     assert "no model is within" in ds.attrs["method_reason"]
+    assert "harmonised" in ds and "harmonised:" in res.stdout  # what the budget chose
 
 
 def test_correct_cube_with_the_cubes_own_spectrum():
@@ -147,13 +149,18 @@ def test_correct_cube_with_the_cubes_own_spectrum():
     lam = np.asarray(sensor.cwl_nm)
     step = np.where(lam < 700, 1.0, 0.05).astype(np.float32)  # a red edge in the scene
     cube = make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm)
-    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.5)
-    # the edge inside the 700 nm band (200 % uncorrected): no model brings it within 0.5 %,
-    # and the one that leaves the least is taken
+    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.1)
+    # the edge inside the 700 nm band (200 % uncorrected): no model brings it within 0.1 %,
+    # and the one that leaves the least is taken: harmonising (the vignetted shift and one
+    # response per band)
     worst = dict(zip(ds.attrs["budget_models"], ds.attrs["budget_worst_pct"], strict=True))
     assert ds.attrs["budget_source"] == "cube mean" and worst["none"] > 100
-    assert ds.attrs["method"] == min(worst, key=worst.get) != "none"
+    assert min(worst, key=worst.get) == "harmonised" and worst["harmonised"] < 0.5
+    assert ds.attrs["method"] == "vignetted" and "harmonised" in ds
     assert "no model is within" in ds.attrs["method_reason"]
+    # within 0.5 % harmonising is enough, and is what is done
+    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.5)
+    assert "harmonised" in ds and "harmonised leaves at most" in ds.attrs["method_reason"]
     with pytest.raises(ValueError, match="method='auto'"):
         correct_cube(cube, PAPER, sensor, 1.4, source="cube", method="ideal")
     flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)

@@ -188,6 +188,9 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         budget = scene_budget(sensor, lens, f, spectrum, cra_max_deg=cra_max,
                               tolerance_pct=tolerance_pct)
         used, reason = budget.recommend()
+        if used == "harmonised":  # the shift is not enough for this scene: widen too
+            used, harmonise = "vignetted", True
+            reason += "; harmonised (one response per band), as the budget needs"
         budget_attrs = {"budget_source": spectrum.name, "tolerance_pct": float(tolerance_pct),
                         "budget_worst_pct": [budget.worst_pct(m) for m in budget.models],
                         "budget_models": list(budget.models)}
