@@ -32,6 +32,7 @@
 import contextlib
 import dataclasses
 import io
+import os
 import shlex
 import tempfile
 from pathlib import Path
@@ -220,6 +221,44 @@ stack = np.array(list(resampled.values()))
 ok = np.isfinite(stack).all(axis=0)
 print(f"largest difference between the spots on the nominal grid: "
       f"{np.ptp(stack[:, ok], axis=0).max():.4f}")
+
+# %% [markdown]
+# ## One response per band: spectra the same anywhere in the field
+#
+# Resampling puts every band where the sensor description says, but not with the same width:
+# a pixel's band is its filter spread over the pixel's kernel of ray angles (Goossens Eq. 13),
+# wider off axis, narrower again where vignetting cuts the oblique rays. `fwhm_corrected`
+# holds every pixel's width. With `harmonise=True` every pixel's spectrum is also widened to
+# one common response per band (the widest in the field; `fwhm_harmonised`), so the same
+# material gives the same spectrum anywhere (`harmonised`, NaN where `resampled` is).
+
+# %%
+dh = correct_cube(cube, lens, sensor, f_number, center_px=centre, resample=True,
+                  harmonise=True)
+fw = dh["fwhm_corrected"].values[..., band]
+print(f"{cwl[band]:.1f} nm band: FWHM {fw.min():.2f}-{fw.max():.2f} nm over the field "
+      f"(filter {fwhm[band]:g} nm); common response {float(dh['fwhm_harmonised'][band]):.2f} nm")
+spread = {}
+fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), constrained_layout=True)
+axes[0].imshow(fw, cmap="cividis")
+fig.colorbar(axes[0].images[0], ax=axes[0], label="nm")
+axes[0].set_title(f"fwhm_corrected, {cwl[band]:.1f} nm band")
+for ax, name in zip(axes[1:], ("resampled", "harmonised"), strict=True):
+    spectra = []
+    for c, (sy, sx) in spots.items():
+        s = dh[name].values[sy, sx].mean(axis=(0, 1))
+        spectra.append(s)
+        ax.plot(cwl, s, lw=1, label=f"CRA {c:g} deg")
+    stack = np.array(spectra)
+    ok = np.isfinite(stack).all(axis=0)
+    spread[name] = float(np.ptp(stack[:, ok], axis=0).max())
+    ax.set(xlim=(600, 830), xlabel="nominal wavelength (nm)",
+           title=f"{name}: largest difference {spread[name]:.4f}")
+axes[1].set_ylabel("transmittance")
+axes[1].legend(fontsize=8)
+print({k: round(v, 4) for k, v in spread.items()})
+if os.environ.get("SNAPCORR_FIGURES"):  # the README's figure
+    fig.savefig(Path(os.environ["SNAPCORR_FIGURES"]) / "harmonise.png", dpi=110)
 
 # %% [markdown]
 # ## Provenance
