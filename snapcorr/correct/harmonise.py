@@ -33,6 +33,9 @@ __all__ = ["harmonise_spectra"]
 
 #: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
 _REACH = 6.0
+#: The tabulated weights stop at this many (the mass beyond: 6e-5) and are renormalised to
+#: sum to one: fewer terms per value, a flat spectrum still flat.
+_TABLE_REACH = 4.0
 _SQRT2 = math.sqrt(2.0)
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 
@@ -48,7 +51,7 @@ def _cdf(z):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _segment_weights(lam, t, sigma, w):  # pragma: no cover - compiled
+def _segment_weights(lam, t, sigma, w, k_reach=_REACH):  # pragma: no cover - compiled
     """Weights ``w`` (len(lam)) such that ``sum(w * y)`` is the Gaussian (``sigma``) average
     about ``t`` of the straight-line interpolant of ``y`` at ``lam``, held constant beyond
     the ends."""
@@ -65,7 +68,7 @@ def _segment_weights(lam, t, sigma, w):  # pragma: no cover - compiled
         return
     w[0] += _cdf((lam[0] - t) / sigma)
     w[n - 1] += 1.0 - _cdf((lam[n - 1] - t) / sigma)
-    reach = _REACH * sigma
+    reach = k_reach * sigma
     for j in range(n - 1):
         a, b = lam[j], lam[j + 1]
         if b < t - reach or a > t + reach:
@@ -189,7 +192,19 @@ def _node_weights(cwl, node_scale, node_sigma, W, lo, cnt):  # pragma: no cover 
         lam = cwl * node_scale[i]
         w = np.empty(nb)
         for k in range(nb):
-            _segment_weights(lam, cwl[k], node_sigma[i, k], w)
+            _segment_weights(lam, cwl[k], node_sigma[i, k], w, _TABLE_REACH)
+            if node_sigma[i, k] > 0.0:  # cut at the reach: renormalised
+                t = cwl[k]
+                total = 0.0
+                for j in range(nb):
+                    lo_j = lam[j - 1] if j > 0 else lam[0]
+                    hi_j = lam[j + 1] if j < nb - 1 else lam[nb - 1]
+                    if hi_j < t - _TABLE_REACH * node_sigma[i, k] or \
+                            lo_j > t + _TABLE_REACH * node_sigma[i, k]:
+                        w[j] = 0.0
+                    total += w[j]
+                for j in range(nb):
+                    w[j] /= total
             first = 0  # the end tails are always there, if tiny: skip what is negligible
             while first < nb - 1 and abs(w[first]) < 1e-13:
                 first += 1
@@ -262,7 +277,8 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     # every weight of an output lies within the Gaussian's reach of it (plus the segment
     # on each side): the band of columns to keep
     spacing = float(np.min(np.diff(cwl)) * node_scale.min())
-    L = min(cwl.size, int(np.ceil(2 * _REACH * float(ns.max(initial=0.0)) / spacing)) + 4)
+    L = min(cwl.size, int(np.ceil(2 * _TABLE_REACH * float(ns.max(initial=0.0)) / spacing))
+            + 4)
     W = np.zeros((nodes.size, cwl.size, L), np.float32)
     lo = np.zeros((nodes.size, cwl.size), np.int64)
     cnt = np.zeros((nodes.size, cwl.size), np.int64)
