@@ -3,7 +3,7 @@
 Pure numpy, no file I/O beyond lens profiles; every function broadcasts.
 """
 
-from .bandwidth import FWHM_METHODS, response_fwhm
+from .bandwidth import FWHM_METHODS, FwhmTable, response_fwhm
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
 from .mean import METHODS, mean_shift, select_method
@@ -27,6 +27,7 @@ __all__ = [
     "RESPONSE_METHODS",
     "Airy",
     "EffectiveIndexWarning",
+    "FwhmTable",
     "Gaussian",
     "Lens",
     "MultiLorentzian",
