@@ -135,4 +135,5 @@ def test_predict_ranks_the_targets(files, capsys):
 def test_help_shows_the_two_step_workflow(capsys):
     assert main(["pupil", "--help"]) == 0
     text = capsys.readouterr().out
-    assert "--predict" in text and "snapcorr calibrate" in text and "--exit-pupil-mm" in text
+    assert "--predict" in text and "snapcorr calibrate" in text and "--lens lens_x.toml" in text
+    assert "--sensor-out" in text
