@@ -158,10 +158,14 @@ def test_zarr_cube_larger_than_the_memory_limit_streams(tmp_path, extra):
     nbytes = 8192 * 256 * 128 * 4
     args = ["--lens", "lens.toml", "--sensor", "sensor.toml", "--f-number", "1.4", "--resample",
             *extra]
-    baseline = _peak(["correct", "small.zarr", *args, "--out", "small_out.zarr"], tmp_path)
-    peak = _peak(["correct", "big.zarr", *args, "--out", "out.zarr"], tmp_path)
+    # the least of two runs each: how many chunks the scheduler keeps in flight varies from
+    # run to run (+-40 MB here, measured), what a run needs does not
+    baseline = min(_peak(["correct", "small.zarr", *args, "--out", f"small_out{k}.zarr"],
+                         tmp_path) for k in range(2))
+    peak = min(_peak(["correct", "big.zarr", *args, "--out", f"out{k}.zarr"], tmp_path)
+               for k in range(2))
     assert peak - baseline < nbytes / 2.5, (peak - baseline) / nbytes
-    out = xr.open_zarr(tmp_path / "out.zarr", consolidated=False)
+    out = xr.open_zarr(tmp_path / "out0.zarr", consolidated=False)
     assert out["resampled"].shape == (8192, 256, 128)
     big = xr.open_zarr(tmp_path / "big.zarr", consolidated=False)["reflectance"]
     ref = correct_cube(big[:64].load(), PAPER, sensor, 1.4, resample=True,
