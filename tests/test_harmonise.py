@@ -131,3 +131,21 @@ def test_a_mosaic_is_harmonised_band_by_band():
     # a flat spectrum stays flat: the weights of every output sum to one
     assert np.allclose(h[np.isfinite(h)], 1.0, atol=1e-5)
     np.testing.assert_array_equal(np.isnan(h), np.isnan(ds["resampled"].values))
+
+
+def test_bands_listed_out_of_order_give_the_same_spectra():
+    """A sensor may list its bands in any order (a mosaic's tile order): the result is the
+    ordered one's, band for band."""
+    cwl = np.linspace(500.0, 880.0, 20)
+    perm = np.random.default_rng(4).permutation(cwl.size)
+    data = np.random.default_rng(5).random((12, 20, cwl.size)).astype(np.float32)
+    lens = as_lens(PAPER)
+    ref = correct_cube(make_cube(data, cwl), lens, Sensor("a", "snapscan", PITCH, cwl, 12.0,
+                                                          1.8), 1.4, harmonise=True,
+                       center_px=(1.0, 2.0))
+    got = correct_cube(make_cube(data[..., perm], cwl[perm]), lens,
+                       Sensor("b", "snapscan", PITCH, cwl[perm], 12.0, 1.8), 1.4,
+                       harmonise=True, center_px=(1.0, 2.0))
+    np.testing.assert_array_equal(got["harmonised"].values, ref["harmonised"].values[..., perm])
+    np.testing.assert_array_equal(got["fwhm_harmonised"].values,
+                                  ref["fwhm_harmonised"].values[perm])

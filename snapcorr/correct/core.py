@@ -324,30 +324,45 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
         target = np.full(cwl.size, F)
         how = f"{F:g} nm at every band (asked for)"
     var_table = np.clip(target[:, None] ** 2 - table.fwhm_nm ** 2, 0.0, None) / (8 * math.log(2))
-    if not np.all(np.diff(cwl) > 0):
-        raise ValueError("harmonise needs the bands in increasing nominal wavelength")
+    # the spectra are walked in increasing wavelength; bands listed otherwise are put in order
+    # for the pass and back after it
+    order = np.argsort(cwl, kind="stable")
+    inverse = np.argsort(order, kind="stable")
+    if np.any(np.diff(cwl[order]) <= 0):
+        raise ValueError("two bands share a nominal wavelength: harmonising needs distinct "
+                         "ones")
+    in_order = np.array_equal(order, np.arange(order.size))
+    cs, cols, vt = cwl[order], column[order], var_table[order]
     dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
                                          np.int16) else np.float64
+
+    def ordered(data):
+        data = np.asarray(data, dtype)
+        return data if in_order else data[..., order]
+
+    def restored(out):
+        return out if in_order else out[..., inverse]
+
     snapscan = cra.shape[2] == 1 and scale.shape[2] == 1
     if snapscan:
         cra_hi = max(cra_hi, cra_lo + 1e-6)  # two distinct nodes even for one pixel
         nodes = np.linspace(cra_lo, cra_hi, max(2, math.ceil(
             (cra_hi - cra_lo) / HARMONISE_NODE_STEP_DEG) + 1))
-        node_sigma = np.sqrt(np.stack([np.interp(nodes, table.cra_deg, v) for v in var_table],
+        node_sigma = np.sqrt(np.stack([np.interp(nodes, table.cra_deg, v) for v in vt],
                                       axis=1))
         node_scale = scale_at(nodes, float(np.unique(n_eff)[0]))
 
         def block(data, c, sc):
-            return harmonise_spectra(np.asarray(data, dtype), sc, column, cwl, cra=c[..., 0],
-                                     nodes=nodes, node_scale=node_scale,
-                                     node_sigma=node_sigma)
+            return restored(harmonise_spectra(ordered(data), sc, cols, cs, cra=c[..., 0],
+                                              nodes=nodes, node_scale=node_scale,
+                                              node_sigma=node_sigma))
     else:
         def block(data, c, sc):
             sig = np.empty(data.shape)
-            for b in range(cwl.size):
+            for k, b in enumerate(order):  # k: place in the walk, b: the band
                 cb = c[..., b if c.shape[2] > 1 else 0]
-                sig[..., b] = np.sqrt(np.interp(cb, table.cra_deg, var_table[b]))
-            return harmonise_spectra(np.asarray(data, dtype), sc, column, cwl, sig)
+                sig[..., k] = np.sqrt(np.interp(cb, table.cra_deg, vt[k]))
+            return restored(harmonise_spectra(ordered(data), sc, cols, cs, sig))
 
     cr = xr.DataArray(cra, dims=("y", "x", "c"))
     sc = xr.DataArray(scale, dims=("y", "x", "m"))
