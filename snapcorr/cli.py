@@ -479,6 +479,8 @@ def _cmd_calibrate(args):
                     else "single-band flats")
     if args.dark:
         cal["dark"] = str(args.dark)
+    else:
+        cal["dark"] = "none given: the flats were taken as already dark-subtracted"
     if given is not None:
         cal["exit_pupil_from"] = str(args.lens)
         for key in ("exit_pupil_stderr_mm", "n_eff", "n_eff_stderr", "n_eff_fitted"):
@@ -490,6 +492,9 @@ def _cmd_calibrate(args):
     if args.plot:
         res.save_plot(args.plot)
     print(res.summary())
+    if not args.dark:
+        print("note: no --dark: the flats were taken as already dark-subtracted; an offset left "
+              "in them is read as light and biases P and h (it can even add a circle)")
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
 

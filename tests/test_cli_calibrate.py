@@ -189,3 +189,21 @@ def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, capsys):
                  "--exit-pupil-mm", "21"])
     assert code == 2 and "not allowed with" in capsys.readouterr().err
     assert not (flats / "never.toml").exists()
+
+
+def test_flats_without_a_dark_frame_are_said_to_be_taken_as_dark_subtracted(flats, capsys):
+    """These flats carry a 100 DN dark level. Without --dark it is read as light (here the
+    selection even adds a second circle); the output says what was assumed, and the profile
+    records it."""
+    from snapcorr.cli import main
+
+    args = ["calibrate", "--flat", f"1.4={flats / 'f1.4.npy'}", "--flat",
+            f"8={flats / 'f8.npy'}", "--flat", f"2.8={flats / 'f2.8.exr'}", *OPTICS]
+    assert main([*args, "--out", str(flats / "nodark.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "note: no --dark" in out
+    assert Lens.load(flats / "nodark.toml").calibration["dark"].startswith("none given")
+    assert main([*args, "--dark", str(flats / "dark.npy"), "--out",
+                 str(flats / "withdark.toml")]) == 0
+    assert "no --dark" not in capsys.readouterr().out
+    assert len(Lens.load(flats / "withdark.toml").vignetting) == 1
