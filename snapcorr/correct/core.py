@@ -276,14 +276,22 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
     return ds
 
 
+#: The finest interpolation tolerance of the FWHM table, nm: a wavelength tolerance below it
+#: (which the shift tables meet) would ask for thousands of CRA nodes for widths nobody can
+#: measure to that.
+FWHM_TOLERANCE_NM = 0.005
+
+
 def _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm):
     """``fwhm_corrected``: each band's whole response (filter shape spread by the kernel,
     Eq. 13) tabulated over CRA once, interpolated per pixel lazily."""
     from ..optics.bandwidth import FwhmTable
 
     shape = sensor.profile_shape
+    # the widths need no finer table than FWHM_TOLERANCE_NM even when the wavelengths do
+    tol = max(float(tolerance_nm), FWHM_TOLERANCE_NM)
     table = FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
-                            cra_max_deg=cra_max, profile=shape, tolerance_nm=tolerance_nm)
+                            cra_max_deg=cra_max, profile=shape, tolerance_nm=tol)
     ds = ds.assign_coords(fwhm_cra_deg=("fwhm_cra", table.cra_deg,
                                         {"units": "degree",
                                          "long_name": "chief-ray angles of fwhm_table"}))
@@ -292,7 +300,7 @@ def _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm):
         "source": f"{sensor.profile} filters (FWHM {_span(sensor.fwhm_nm)} nm at normal "
                   f"incidence) spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
                   "et al. 2019 Eq. 13, 37; each ray scales the curve); linear interpolation "
-                  f"within {float(tolerance_nm):g} nm"})
+                  f"within {tol:g} nm"})
     return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks)), table
 
 
