@@ -18,7 +18,7 @@ import numpy as np
 
 from snapcorr import Lens
 from snapcorr.calibrate import calibrate_lens
-from snapcorr.simulate import flat_field
+from snapcorr.simulate import Detector, flat_frame
 
 from . import pyplot, write_csv
 
@@ -30,9 +30,10 @@ ESTIMATORS = ("onset-ratio", "onset-model", "joint")
 
 def _flats(shape, pitch_um, electrons, seed):
     rng = np.random.default_rng(seed)
-    centre = (shape[1] * 0.55, shape[0] * 0.46)
-    return {f: flat_field(PAPER, f, shape, pitch_um, center_px=centre,
-                          signal_electrons=electrons, rng=rng) for f in F_NUMBERS}
+    center = (shape[1] * 0.55, shape[0] * 0.46)
+    camera = Detector(signal_electrons=electrons)
+    return {f: flat_frame(shape, pitch_um, f, PAPER, center_px=center, detector=camera, rng=rng)
+            for f in F_NUMBERS}
 
 
 def _calibrate(flats, pitch_um):

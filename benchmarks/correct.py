@@ -30,28 +30,28 @@ if what == "copy":
     t = time.perf_counter(); c = data.copy(); out["seconds"] = time.perf_counter() - t
 elif what == "shiftmap":
     t = time.perf_counter()
-    cra = cube_cra_deg(cube, lens, sensor)[0]
-    rel = relative_shift("vignetted", lens, 1.4, 1.7, cra[:, :, 0], tolerance_nm=0.01,
-                         cwl_max_nm=900.0)
+    cra = cube_cra_deg(cube, sensor, lens)[0]
+    rel = relative_shift(1.7, 1.4, cra[:, :, 0], lens, model="vignetted",
+                         tolerance_nm=0.01, cwl_max_nm=900.0)
     out["seconds"] = time.perf_counter() - t
 elif what == "resample":
     small = make_cube(data[:4, :4], sensor.cwl_nm)
-    correct_cube(small, lens, sensor, 1.4, resample=True)  # compile once, outside the timing
+    correct_cube(small, sensor, 1.4, lens, resample=True)  # compile once, outside the timing
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     from snapcorr.correct.resample import resample_to_nominal
-    cra = cube_cra_deg(cube, lens, sensor)[0]
-    scale = 1.0 + relative_shift("vignetted", lens, 1.4, 1.7, cra, tolerance_nm=0.01,
-                                 cwl_max_nm=900.0)
+    cra = cube_cra_deg(cube, sensor, lens)[0]
+    scale = 1.0 + relative_shift(1.7, 1.4, cra, lens, model="vignetted",
+                                 tolerance_nm=0.01, cwl_max_nm=900.0)
     t = time.perf_counter()
     r = resample_to_nominal(data, scale, np.zeros(150, int), np.asarray(sensor.cwl_nm))
     out["seconds"] = time.perf_counter() - t
     out["nan_fraction"] = float(np.isnan(r[::64, ::64]).mean())
 elif what == "harmonise":
     small = make_cube(data[:4, :4], sensor.cwl_nm)
-    correct_cube(small, lens, sensor, 1.4, harmonise=True)  # compile once, outside the timing
+    correct_cube(small, sensor, 1.4, lens, harmonise=True)  # compile once, outside the timing
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     t = time.perf_counter()
-    ds = correct_cube(cube, lens, sensor, 1.4, harmonise=True)
+    ds = correct_cube(cube, sensor, 1.4, lens, harmonise=True)
     h = ds["harmonised"].values  # the whole job: CRA, shift and FWHM tables, weights, pass
     out["seconds"] = time.perf_counter() - t
     out["nan_fraction"] = float(np.isnan(h[::64, ::64]).mean())

@@ -261,8 +261,9 @@ def _job(spec):
     if spec["kind"] == "bound":
         target = {**TARGETS, **CHECKS}[spec["target"]]
         t0 = time.perf_counter()
-        p = pupil_precision(target, _sensor(scene, size=True), _lens(TRUTH.exit_pupil_mm),
-                            F_NUMBERS, noise=spec["noise"], fit_n_eff=spec["fit_n"],
+        p = pupil_precision(target, _sensor(scene, size=True), F_NUMBERS,
+                            _lens(TRUTH.exit_pupil_mm), noise=spec["noise"],
+                            fit_n_eff=spec["fit_n"],
                             spectrum_known=spec["known"], n_bins=scene["bound_bins"],
                             absolute_noise=spec.get("absolute", False))
         return {"x_stderr_mm": p.x_stderr_mm, "n_eff_stderr": p.n_eff_stderr,

@@ -81,7 +81,7 @@ def correct_file(src, dst, n):
     """
     sens = sensor(n)
     cube = row_blocks(read_cube(src, wavelength_nm=sens.cwl_nm, chunks={}))
-    ds = correct_cube(cube, LENS, sens, F_NUMBER, resample=True)
+    ds = correct_cube(cube, sens, F_NUMBER, LENS, resample=True)
     return write_dataset(ds, dst)
 
 
@@ -116,11 +116,11 @@ def _child():
     sens = sensor(n)
     tiny = make_cube(np.random.default_rng(1).random((4, 4, N_BANDS), dtype=np.float32),
                      sens.cwl_nm)
-    correct_cube(tiny, LENS, sens, F_NUMBER, resample=True)  # compile once, outside the timing
+    correct_cube(tiny, sens, F_NUMBER, LENS, resample=True)  # compile once, outside the timing
     if mode != "memory":
         import dask
 
-        dask.compute(correct_cube(tiny.chunk({"y": 2}), LENS, sens, F_NUMBER,
+        dask.compute(correct_cube(tiny.chunk({"y": 2}), sens, F_NUMBER, LENS,
                                   resample=True)["resampled"].data)
     if mode == "zarr":  # the reader and writer's imports and first calls
         with tempfile.TemporaryDirectory() as tmp:
@@ -143,7 +143,7 @@ def _child():
         runs = []
         for _ in range(2):
             t = time.perf_counter()
-            ds = correct_cube(cube, LENS, sens, F_NUMBER, resample=True)
+            ds = correct_cube(cube, sens, F_NUMBER, LENS, resample=True)
             # what the correction computes: the resampled cube and the per-pixel scale behind
             # the corrected wavelengths (a lazy coordinate, expanded only where it is read)
             result = [np.asarray(ds[v].values) for v in ("wavelength_scale", "resampled")]
@@ -154,9 +154,9 @@ def _child():
         from snapcorr.correct import cube_cra_deg, relative_shift
         from snapcorr.correct.resample import resample_to_nominal
 
-        cra = cube_cra_deg(cube, LENS, sens)[0]
-        scale = 1.0 + relative_shift("vignetted", LENS, F_NUMBER, 1.7, cra, tolerance_nm=0.01,
-                                     cwl_max_nm=900.0)
+        cra = cube_cra_deg(cube, sens, LENS)[0]
+        scale = 1.0 + relative_shift(1.7, F_NUMBER, cra, LENS, model="vignetted",
+                                     tolerance_nm=0.01, cwl_max_nm=900.0)
         t = time.perf_counter()
         resample_to_nominal(data, scale, np.zeros(N_BANDS, int), np.asarray(sens.cwl_nm))
         out["kernel_s"] = time.perf_counter() - t
@@ -167,7 +167,7 @@ def _child():
         data = np.random.default_rng(0).random((n, n, N_BANDS), dtype=np.float32)
         cube = make_cube(da.from_array(data, chunks=(block_rows(n), -1, -1)), sens.cwl_nm)
         t = time.perf_counter()
-        ds = correct_cube(cube, LENS, sens, F_NUMBER, resample=True)
+        ds = correct_cube(cube, sens, F_NUMBER, LENS, resample=True)
         dask.compute(ds["wavelength_corrected"].data, ds["resampled"].data)
         out["seconds"] = time.perf_counter() - t
         out["peak_bytes"] = _peak() - base
@@ -297,8 +297,11 @@ def cluster(*, quick=False, echo=print):
             if workers == 0:
                 seconds = batch("threads")
             else:
+                # no fixed port anywhere (the scheduler's HTTP server would take 8787): two
+                # runs on one machine must not collide
                 with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=logging.ERROR) as lc, \
+                                  dashboard_address=None, silence_logs=logging.ERROR,
+                                  scheduler_kwargs={"dashboard_address": "127.0.0.1:0"}) as lc, \
                         Client(lc) as client:
                     client.run(importlib.import_module, "zarr")
                     client.run(resample_to_nominal, *tiny)  # every worker loads the pass

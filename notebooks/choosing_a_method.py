@@ -44,10 +44,9 @@ import numpy as np
 
 import snapcorr
 from snapcorr import Lens, mean_shift
-from snapcorr.correct import choose_method
 from snapcorr.cube import Sensor
 from snapcorr.data import lens_path, sensor_path
-from snapcorr.optics import select_method
+from snapcorr.optics import choose_model, select_method
 from snapcorr.optics.mean import AUTO_GRID_MIN_SIZE, AUTO_TABLE_MIN_SIZE
 
 # %% [markdown]
@@ -214,7 +213,7 @@ for f in np.unique(f_grid):
 # %% [markdown]
 # ## What `"auto"` does for a cube
 #
-# `correct_cube` chooses one model for the whole cube with `choose_method`: the cheapest
+# `correct_cube` chooses one model for the whole cube with `choose_model`: the cheapest
 # whose error stays below its tolerance (default 0.01 nm) over the cube's chief-ray angles and
 # bands: `none` when no band moves by more than the tolerance, then Eq. 6, then the exact
 # ideal aperture while every CRA is below the onset of vignetting, else the vignetted
@@ -237,7 +236,7 @@ cases = [(1.4, (2048, 1280), 0.01), (8.0, (2048, 1280), 0.01), (8.0, (256, 256),
          (16.0, (64, 64), 0.5)]
 for f, (w, h), tol in cases:
     c = cra_max_deg(w, h)
-    method, reason = choose_method(lens, f, c, cwl, n_eff, tol)
+    method, reason = choose_model(cwl, n_eff, f, c, lens, tolerance_nm=tol)
     print(f"f/{f:g}, {w} x {h} px (CRA <= {c:.2f} deg), tolerance {tol:g} nm -> {method}")
     print(f"    {reason}")
 

@@ -39,8 +39,9 @@ from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens
 from snapcorr.calibrate.lens_calibration import MISFIT_CHI2
 from snapcorr.cli import build_parser
+from snapcorr.optics import cra_map
 from snapcorr.paper_experiment import PAPER_LENS
-from snapcorr.simulate import cra_map, flat_field
+from snapcorr.simulate import flat_frame
 
 truth = PAPER_LENS
 print(truth)
@@ -56,11 +57,11 @@ print(truth)
 # %%
 f_numbers = (1.4, 2.0, 2.8, 4.0, 8.0)
 shape, pitch_um = (256, 256), 44.0
-true_centre = (140.3, 118.6)  # (column, row), pixels
+true_center = (140.3, 118.6)  # (column, row), pixels
 rng = np.random.default_rng(2019)
-flats = {f: flat_field(truth, f, shape, pitch_um, center_px=true_centre, rng=rng)
+flats = {f: flat_frame(shape, pitch_um, f, truth, center_px=true_center, rng=rng)
          for f in f_numbers}
-cra = cra_map(shape, pitch_um, truth.exit_pupil_mm, true_centre)
+cra = cra_map(shape, pitch_um, truth.exit_pupil_mm, true_center)
 print(f"chief-ray angles up to {cra.max():.1f} deg")
 
 fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), constrained_layout=True)
@@ -124,7 +125,7 @@ for name, (P, dP, h, dh) in estimates.items():
           f"{h:>9.3f} +- {dh:<6.3f} {100 * (h / h0 - 1):>+7.2f}%")
 cx, cy = res.center_px
 print(f"optical centre ({cx:.2f}, {cy:.2f}) px from the {res.center_source}, "
-      f"true ({true_centre[0]}, {true_centre[1]})")
+      f"true ({true_center[0]}, {true_center[1]})")
 print(f"chosen: {res.method}, {res.model} circle")
 
 # %% [markdown]
@@ -176,7 +177,7 @@ print("why:", res2.reason)
 
 # %%
 two_truth = Lens(21.0, [(7.4236, 16.991), (8.5, 30.0)], 0.06, 1.3, name="front and rear")
-two_flats = {f: flat_field(two_truth, f, shape, pitch_um, center_px=true_centre, rng=rng)
+two_flats = {f: flat_frame(shape, pitch_um, f, two_truth, center_px=true_center, rng=rng)
              for f in flats}
 res3 = calibrate_lens(two_flats, exit_pupil_mm=21.0, pixel_pitch_um=pitch_um,
                       magnification=0.06, pupil_magnification=1.3)

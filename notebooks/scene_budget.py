@@ -31,13 +31,13 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from snapcorr import Lens, budget
+from snapcorr import Lens, budget, spectra
 from snapcorr.cube import Sensor
 from snapcorr.data import lens_path, sensor_path
 from snapcorr.optics.profiles import MultiLorentzian
 
-sun = budget.solar()  # the Kurucz model (rms-solar), smoothed to 0.5 nm as they did
-lamp = budget.blackbody(2856.0)  # a tungsten lamp (CIE illuminant A)
+sun = spectra.solar()  # the Kurucz model (rms-solar), smoothed to 0.5 nm as they did
+lamp = spectra.blackbody(2856.0)  # a tungsten lamp (CIE illuminant A)
 print(sun.name, "|", lamp.name)
 
 # %% [markdown]
@@ -58,11 +58,11 @@ for cwl, shift in ((413, 1), (413, -1), (413, -5), (413, 5), (411, -5)):
     print(f"{cwl} nm, shift {shift:+d} nm: sun {100 * budget.shift_error(sun, f, shift):+.2f} %,"
           f" tungsten {100 * budget.shift_error(lamp, f, shift):+.2f} %")
 
-centres = np.arange(400.0, 450.0, 0.2)
+centers = np.arange(400.0, 450.0, 0.2)
 fig, ax = plt.subplots(figsize=(8, 3.5))
 for shift in (-5, -1, 1, 5):
-    err = [100 * budget.shift_error(sun, MultiLorentzian(c, 15.0), shift) for c in centres]
-    ax.plot(centres, err, label=f"{shift:+d} nm")
+    err = [100 * budget.shift_error(sun, MultiLorentzian(c, 15.0), shift) for c in centers]
+    ax.plot(centers, err, label=f"{shift:+d} nm")
 ax.axvline(413, color="k", lw=0.6)
 ax.set(xlabel="filter centre (nm)", ylabel="ERROR (%)",
        title="15 nm filter under the sun (their Fig. 4 and 5)")
@@ -99,7 +99,7 @@ sensor = Sensor.load(sensor_path("snapscan_vnir"))
 lens = Lens.load(lens_path())
 cra_max = np.degrees(np.arctan(sensor.field_radius_mm / lens.exit_pupil_mm))
 for f in (1.4, 8.0):
-    b = budget.scene_budget(sensor, lens, f, sun, cra_max_deg=cra_max, tolerance_pct=0.5)
+    b = budget.scene_budget(sun, sensor, f, lens, cra_max_deg=cra_max, tolerance_pct=0.5)
     worst = ", ".join(f"{m} {b.worst_pct(m):.2f} %" for m in b.models)
     print(f"f/{f:g}: worst signal error {worst}")
     print("   recommended:", *b.recommend())
@@ -118,11 +118,11 @@ fig = b.plot()
 # %%
 one_band = Sensor("540 nm channel", "snapscan", 5.5, [540.0], 40.0, 1.5)
 edge = 555.0
-step = budget.Spectrum(np.array([300.0, edge, edge + 1e-6, 1100.0]),
+step = spectra.Spectrum(np.array([300.0, edge, edge + 1e-6, 1100.0]),
                        np.array([1.0, 1.0, 0.0, 0.0]), "step at 555 nm")
 fig, ax = plt.subplots(figsize=(7, 3.5))
-for src in (budget.blackbody(5800.0), step):
-    b = budget.scene_budget(one_band, lens, 4.0, src, cra_max_deg=20.0, profile="pi")
+for src in (spectra.blackbody(5800.0), step):
+    b = budget.scene_budget(src, one_band, 4.0, lens, cra_max_deg=20.0, profile="pi")
     e = 100 * np.abs(b.data["residual"].sel(model="none")).values[0]
     ax.plot(b.data["radius_mm"], e, label=src.name)
     within = {tol: b.radius_mm(tol) for tol in (1.0, 5.0)}

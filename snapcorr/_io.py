@@ -189,7 +189,21 @@ def remove_path(path, *, timeout_s=10.0, settle_s=0.2):
 
     Retries for up to ``timeout_s`` while the removal fails or the path comes back within
     ``settle_s`` (a thread still writing into an interrupted output may create it again).
-    Returns True when the path is gone.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file or folder (a symbolic link is removed itself, not what it points to).
+    timeout_s : float
+        How long to keep retrying, seconds.
+    settle_s : float
+        How long to wait after each removal before checking the path stays gone, seconds. When
+        non-zero the path is also checked again when the interpreter exits; 0 waits not at all.
+
+    Returns
+    -------
+    bool
+        True when the path is gone.
     """
     path = _key(path)
     deadline = time.monotonic() + timeout_s
@@ -315,6 +329,20 @@ def atomic_write(path, write, *, inputs=()):
     The temporary file is hidden, next to ``path``, registered while it exists (see
     :func:`cleanup_on_signals`) and removed if ``write`` fails or is interrupted. Refuses to
     write over, into or around any of ``inputs`` (outputs never replace an input file).
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file; an existing file is replaced, an existing folder refused.
+    write : callable
+        ``write(tmp_path)`` writes the whole output to the temporary ``Path`` it is given.
+    inputs : iterable of str or Path
+        Input paths the target must not be, contain or lie inside (None entries are ignored).
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     path = Path(path)
     refuse_inputs([path], inputs)
@@ -417,7 +445,29 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
 
 
 def read_toml(path, table, what):
-    """The parsed TOML document at ``path``, which must hold ``[table]``; clear errors."""
+    """The parsed TOML document at ``path``, which must hold ``[table]``; clear errors.
+
+    Parameters
+    ----------
+    path : str or Path
+        A regular file of UTF-8 TOML.
+    table : str
+        Name of the top-level table the document must hold.
+    what : str
+        What the file holds, for the messages ("lens calibration", ...).
+
+    Returns
+    -------
+    dict
+        The whole document.
+
+    Raises
+    ------
+    FileNotFoundError
+        Nothing at ``path``.
+    ValueError
+        Not a regular file, not valid UTF-8 TOML, or no ``[table]``.
+    """
     path = Path(path)
     try:
         check_input(path, what=what)
@@ -440,6 +490,20 @@ def write_toml(path, doc, *, overwrite=False):
     ``doc`` is a dict, or a list of parts written one after another: dicts, and strings of
     TOML written as they are (an array of tables such as ``[[lens.vignetting]]`` in block
     form, which tomli_w would write inline).
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file.
+    doc : dict or list of (dict or str)
+        The document, or its parts in order.
+    overwrite : bool
+        Replace an existing file (else ``FileExistsError``).
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     import tomli_w
 

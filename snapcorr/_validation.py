@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 
-__all__ = ["WAVELENGTH_NM_RANGE", "check_curve", "check_integers", "check_numbers",
-           "check_positive", "check_wavelengths_nm", "validate_method"]
+__all__ = ["WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers",
+           "check_numbers", "check_pair", "check_positive", "check_positive_array",
+           "check_wavelengths_nm", "validate_method"]
 
 
 def check_positive(name, value):
@@ -23,8 +24,76 @@ def check_positive(name, value):
     return v
 
 
+def check_positive_array(name, values, unit=""):
+    """``values`` as a float array, raising a clear ``ValueError`` unless every element is a
+    finite number > 0 (the array form of :func:`check_positive`).
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    values : array_like
+        The numbers, any shape.
+    unit : str
+        Their unit, for the message ("nm", "mm", ...; "" for none).
+
+    Returns
+    -------
+    ndarray
+        ``values`` as float64, same shape.
+    """
+    try:
+        v = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers, got {values!r}") from None
+    if not (np.all(np.isfinite(v)) and np.all(v > 0)):
+        unit = f" ({unit})" if unit else ""
+        raise ValueError(f"{name} must be finite and > 0{unit}, got {np.ravel(v)[:5].tolist()}")
+    return v
+
+
+def check_pair(name, value, what="two numbers"):
+    """``value`` as two finite floats, or a clear ``ValueError`` saying it must be ``what``.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    value : iterable
+        Exactly two numbers.
+    what : str
+        What the pair should be, for the message.
+
+    Returns
+    -------
+    (float, float)
+    """
+    try:
+        a, b = (float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return a, b
+
+
+def check_center(center_px, name="center_px"):
+    """An optical centre ``(cx, cy)`` in pixels (column, row) as two finite floats."""
+    return check_pair(name, center_px, "two numbers (cx, cy) in pixels (column, row)")
+
+
 def validate_method(method, methods, what="method"):
-    """Return ``method`` if it names an entry of ``methods``, else raise a helpful error."""
+    """Return ``method`` if it names an entry of ``methods``, else raise a helpful error.
+
+    Parameters
+    ----------
+    method : str
+        The name asked for.
+    methods : collection of str
+        The accepted names.
+    what : str
+        What is being chosen, for the message ("method", "model", ...).
+    """
     if method not in methods:
         names = ", ".join(repr(m) for m in methods)
         raise ValueError(f"unknown {what} {method!r}; choose one of {names}")
@@ -55,6 +124,20 @@ def check_wavelengths_nm(name, values, *, where=""):
     Refuses non-finite values, values outside :data:`WAVELENGTH_NM_RANGE` (micrometres or
     metres written as nanometres: convert them, or declare the units where the format can)
     and repeated values (two bands at one wavelength cannot be told apart).
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    values : array_like
+        Wavelengths, nm; repeats are refused only in a 1-D array.
+    where : str
+        Where the values come from (a file name, ...), prefixed to the message.
+
+    Returns
+    -------
+    ndarray
+        ``values`` as float64, same shape.
     """
     prefix = f"{where}: " if where else ""
     try:

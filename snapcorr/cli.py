@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from ._validation import check_positive
 
 #: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
 EXAMPLES = {
@@ -152,12 +153,10 @@ _origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
 
 def _positive(value):
     try:
-        v = float(value)
+        return check_positive("value", value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {value!r}")
-    return v
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {value!r}") \
+            from None
 
 
 def _check_outputs(outputs, inputs, overwrite, suffixes):
@@ -367,17 +366,20 @@ def _cmd_correct(args):
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     cube, mask = _correct_input(args, sensor)
-    if cube.sizes["band"] != sensor.n_bands:
-        raise ValueError(f"{args.cube} has {cube.sizes['band']} bands but --sensor "
-                         f"{args.sensor} has {sensor.n_bands}; give the sensor the cube was "
-                         "taken with")
-    ds = correct_cube(cube, lens, sensor, args.f_number, center_px=args.center_px,
-                      sensor_origin_px=args.sensor_origin_px,
-                      method=args.method, tolerance_nm=args.tolerance_nm,
-                      resample=args.resample, source=args.source, mask=mask,
-                      tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
-                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm)
-    ds.attrs.update({"cube_file": str(args.cube), "lens_file": str(args.lens),
+    sensor.check_cube(cube, str(args.cube))
+    method, provenance = args.method, {}
+    if args.source is not None:  # the scene budget chooses the model
+        from .budget import recommend_model
+
+        method, _, provenance = recommend_model(
+            cube, sensor, args.f_number, lens, args.source,
+            tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
+            center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
+    ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
+                      tolerance_nm=args.tolerance_nm, center_px=args.center_px,
+                      sensor_origin_px=args.sensor_origin_px, resample=args.resample,
+                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm, mask=mask)
+    ds.attrs.update({**provenance, "cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
         from distributed import Client
@@ -421,11 +423,9 @@ def _flat_arg(value):
     f, path = value.split("=", 1)
     f = f.strip().lower().removeprefix("f").removeprefix("/")
     try:
-        fv = float(f)
+        fv = check_positive("the f-number", f)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number") from None
-    if not np.isfinite(fv) or fv <= 0:
-        raise argparse.ArgumentTypeError(f"{value!r}: the f-number must be > 0")
+        raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number > 0") from None
     if not path:
         raise argparse.ArgumentTypeError(f"{value!r}: no file after '='")
     return fv, Path(path)
@@ -564,7 +564,7 @@ def _fitted_sensor(sensor, fit, args):
 def _target_spectrum(path):
     if path is None:
         return None
-    from .budget import read_spectrum
+    from .spectra import read_spectrum
 
     sp = read_spectrum(path)
     return sp.wavelength_nm, sp.values
@@ -595,7 +595,7 @@ def _pupil_predict(args):
         for name, S in targets.items():
             row = []
             for known in (False, True):
-                p = pupil_precision(S, sensor, lens, fs, noise=noise,
+                p = pupil_precision(S, sensor, fs, lens, noise=noise,
                                     fit_n_eff=args.fit_n_eff and len(fs) > 1,
                                     spectrum_known=known)
                 row.append(p)
@@ -653,7 +653,7 @@ def _budget_field(args, lens, sensor, cube):
     if args.cra_max is not None:
         return args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
     if cube is not None:
-        cra_max = float(cube_cra_deg(cube, lens, sensor, args.center_px)[0].max())
+        cra_max = float(cube_cra_deg(cube, sensor, lens, args.center_px)[0].max())
         return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
     if sensor.field_radius_mm is not None:
         cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
@@ -664,7 +664,8 @@ def _budget_field(args, lens, sensor, cube):
 
 
 def _cmd_budget(args):
-    from .budget import parse_source, scene_budget, tolerance_ranges
+    from .budget import scene_budget, tolerance_ranges
+    from .spectra import parse_source
 
     _check_outputs([args.plot], [args.cube, args.sensor, args.lens], args.overwrite,
                    [(".png",)])
@@ -675,16 +676,10 @@ def _cmd_budget(args):
     cube = None
     if args.cube is not None:
         cube = _read(args.cube, sensor)
-        if cube.sizes["band"] != sensor.n_bands:
-            raise ValueError(f"--cube {args.cube} has {cube.sizes['band']} bands, --sensor "
-                             f"{sensor.name!r} {sensor.n_bands}; give the sensor the cube was "
-                             "taken with")
-        if not np.allclose(cube["wavelength"].values, sensor.cwl_nm, rtol=0, atol=0.05):
-            raise ValueError(f"--cube {args.cube}'s wavelengths differ from --sensor "
-                             f"{sensor.name!r}'s; give the matching sensor")
+        sensor.check_cube(cube, f"--cube {args.cube}")
     source = parse_source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
-    b = scene_budget(sensor, lens, args.f_number, source, cra_max_deg=cra_max,
+    b = scene_budget(source, sensor, args.f_number, lens, cra_max_deg=cra_max,
                      profile=args.profile, tolerance_pct=args.tolerance_pct)
     ranges = []
     for c, w, n in zip(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, strict=True):
@@ -826,7 +821,7 @@ def _add_calibrate(command):
 
 
 def _add_correct(command):
-    from .correct import METHODS as COR_METHODS
+    from .optics import MODELS
 
     p = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
     p.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
@@ -842,9 +837,9 @@ def _add_correct(command):
                    "converted to this pixel pitch, else the sensor's centre)")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help=ORIGIN_HELP)
-    p.add_argument("--method", default="auto", choices=list(COR_METHODS),
-                   help="shift model (default: %(default)s, the cheapest meeting the "
-                   "tolerance)")
+    p.add_argument("--method", default="auto", choices=["auto", *MODELS],
+                   help="the model, cheapest first (default: %(default)s, the cheapest "
+                   "meeting the tolerance; harmonised = vignetted and --harmonise)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.01, metavar="NM",
                    help="largest wavelength error allowed, nm (default: %(default)s)")
     p.add_argument("--source", default=None, metavar="SOURCE",

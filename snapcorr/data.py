@@ -64,7 +64,7 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
 
     Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), as the camera would
     give them: the white frame is an integrating sphere seen through the bundled lens at
-    ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_field`) times
+    ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_frame`) times
     each band's sensitivity; the scene is a uniform target whose reflectance peaks at 550 nm,
     under the same light; both carry shot noise and a dark offset of 64 DN, which the dark
     frame holds alone.
@@ -89,7 +89,7 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     """
     from .cube import Sensor
     from .optics import Lens
-    from .simulate import flat_field
+    from .simulate import Detector, flat_frame
 
     sens = Sensor.load(sensor_path(sensor))
     if sens.layout != "mosaic":
@@ -97,16 +97,17 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     rng = np.random.default_rng(seed)
     shape = tuple(sens.size_px)
     cwl = np.asarray(sens.cwl_nm, float)
-    centre = 0.5 * (cwl.min() + cwl.max())
-    sensitivity = 0.75 + 0.25 * np.cos(np.pi * (cwl - centre) / (np.ptp(cwl) + 1e-9))
+    center = 0.5 * (cwl.min() + cwl.max())
+    sensitivity = 0.75 + 0.25 * np.cos(np.pi * (cwl - center) / (np.ptp(cwl) + 1e-9))
     reflectance = 0.15 + 0.6 * np.exp(-0.5 * ((cwl - 550.0) / 30.0) ** 2)
     tr, tc = sens.mosaic_shape
     gain, refl = np.empty(shape), np.empty(shape)
     for b, (r, c) in enumerate(np.asarray(sens.band_offset)):
         gain[r::tr, c::tc] = sensitivity[b]
         refl[r::tr, c::tc] = reflectance[b]
-    light = flat_field(Lens.load(lens_path(lens)), f_number, shape, sens.pixel_pitch_um,
-                       noise=False, dtype=np.float64, signal_electrons=3500.0) * gain
+    light = flat_frame(shape, sens.pixel_pitch_um, f_number, Lens.load(lens_path(lens)),
+                       noise=False, dtype=np.float64,
+                       detector=Detector(signal_electrons=3500.0)) * gain
     dark_dn, full_scale = 64.0, 4095
 
     def frame(electrons):

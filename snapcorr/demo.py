@@ -21,14 +21,15 @@ import numpy as np
 from . import __version__
 from ._io import atomic_write
 from .data import lens_path
-from .optics import Lens, mean_shift
+from .optics import METHODS, Lens, mean_shift
+from .optics import MODELS as LADDER
 
 __all__ = ["run_demo"]
 
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 PAPER_CRAS = (1.9, 10.3, 17.4)
 CWL_NM, N_EFF = 700.0, 1.7
-MODELS = ("asymptotic", "ideal", "vignetted")
+MODELS = tuple(m for m in LADDER if m in METHODS)  # the ladder's mean-shift rungs
 
 
 #: Written into a demo's folder: a later run may replace what is in such a folder.
@@ -54,80 +55,87 @@ def check_out_dir(out_dir, *, overwrite=False):
     return out
 
 
-def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
-    """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``.
+def _mean_shift_over_the_field(lens):
+    """Part 1: the summary's lines, the CSV's rows and the figure (without pyplot, so no
+    global plotting state changes) of the mean shift and relative illumination over CRA."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
 
-    Refuses a folder holding files the demo did not make unless ``overwrite``
-    (:func:`check_out_dir`).
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out = check_out_dir(out_dir, overwrite=overwrite)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / MARKER).write_text(f"written by snapcorr {__version__} demo\n", encoding="utf-8")
-    lens = lens or Lens.load(lens_path())
     cra = np.linspace(0.0, 20.0, 201)
-    rows, lines = [], []
-    lines.append(f"snapcorr {__version__} demo: {lens.name}, cwl {CWL_NM:g} nm, n_eff {N_EFF:g}")
-    lines.append(
-        f"exit pupil x = {lens.exit_pupil_mm:g} mm, {lens.describe_vignetting()}, "
-        f"m = {lens.magnification:g}, "
-        f"m_P = {lens.pupil_magnification:g}"
-    )
-    lines.append("")
-    lines.append("spread of the mean shift between CRA 1.9, 10.3 and 17.4 deg (nm):")
-    lines.append(f"{'f/#':>6} {'onset':>8} {'Eq. 6':>8} {'ideal':>8} {'vignetted':>10}")
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-    colours = plt.cm.viridis(np.linspace(0, 0.9, len(F_NUMBERS)))
+    rows = []
+    lines = [f"snapcorr {__version__} demo: {lens.name}, cwl {CWL_NM:g} nm, n_eff {N_EFF:g}",
+             f"exit pupil x = {lens.exit_pupil_mm:g} mm, {lens.describe_vignetting()}, "
+             f"m = {lens.magnification:g}, m_P = {lens.pupil_magnification:g}", "",
+             "spread of the mean shift between CRA 1.9, 10.3 and 17.4 deg (nm):",
+             f"{'f/#':>6} {'onset':>8} {'Eq. 6':>8} {'ideal':>8} {'vignetted':>10}"]
+    fig = Figure(figsize=(11, 4.2), layout="constrained")
+    ax, ax2 = fig.subplots(1, 2)
+    colours = colormaps["viridis"](np.linspace(0, 0.9, len(F_NUMBERS)))
+    spreads = {}
     for f, colour in zip(F_NUMBERS, colours, strict=True):
         curves = {m: mean_shift(CWL_NM, N_EFF, f, cra, lens, method=m) for m in MODELS}
         rel = lens.relative_illumination(f, cra)
         for i, c in enumerate(cra):
             rows.append((f, c, *(curves[m][i] for m in MODELS), rel[i]))
         onset = float(lens.onset_cra_deg(f))
-        spread = {
+        spread = spreads[f] = {
             m: np.ptp(mean_shift(CWL_NM, N_EFF, f, PAPER_CRAS, lens, method=m)) for m in MODELS
         }
-        lines.append(
-            f"{f:>6g} {onset:>7.2f}° {spread['asymptotic']:>8.2f} {spread['ideal']:>8.2f} "
-            f"{spread['vignetted']:>10.2f}"
-        )
+        lines.append(f"{f:>6g} {onset:>7.2f}° {spread['asymptotic']:>8.2f} "
+                     f"{spread['ideal']:>8.2f} {spread['vignetted']:>10.2f}")
         ax.plot(cra, curves["vignetted"], color=colour, lw=2, label=f"f/{f:g} vignetted")
         ax.plot(cra, curves["asymptotic"], color=colour, lw=1, ls="--")
         if onset < cra[-1]:
             ax.plot(onset, mean_shift(CWL_NM, N_EFF, f, onset, lens), "o", color=colour)
         ax2.plot(cra, rel, color=colour, lw=2, label=f"f/{f:g}")
-    ax.set(
-        xlabel="chief-ray angle (deg)",
-        ylabel="mean shift of a 700 nm filter (nm)",
-        title="Kernel mean: vignetted (solid), Eq. 6 (dashed), onset (dots)",
-    )
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    ax2.set(
-        xlabel="chief-ray angle (deg)",
-        ylabel="relative illumination A / (pi R^2)",
-        title="Relative illumination of the vignetted pupil (no cos^4)",
-    )
-    ax2.grid(alpha=0.3)
-    ax2.legend(fontsize=8)
+    ax.set(xlabel="chief-ray angle (deg)", ylabel="mean shift of a 700 nm filter (nm)",
+           title="Kernel mean: vignetted (solid), Eq. 6 (dashed), onset (dots)")
+    ax2.set(xlabel="chief-ray angle (deg)", ylabel="relative illumination A / (pi R^2)",
+            title="Relative illumination of the vignetted pupil (no cos^4)")
+    for a in (ax, ax2):
+        a.legend(fontsize=8)
+        a.grid(alpha=0.3)
     first = F_NUMBERS[0]
-    spread_first = {
-        m: np.ptp(mean_shift(CWL_NM, N_EFF, first, PAPER_CRAS, lens, method=m)) for m in MODELS
-    }
-    lines.append("")
-    lines.append(
-        f"Reading: without vignetting the field spreads the filters by ~{spread_first['ideal']:.0f}"
-        f"-{spread_first['asymptotic']:.0f} nm at any f-number; the vignetting circle cuts the "
-        f"oblique rays at wide apertures, so at f/{first:g} the spread is only "
-        f"{spread_first['vignetted']:.1f} nm (Goossens et al. measured ~2 nm). Correcting with "
-        "Eq. 6 there would over-correct the field edge by the difference."
-    )
+    s1 = spreads[first]
+    lines += ["", f"Reading: without vignetting the field spreads the filters by "
+              f"~{s1['ideal']:.0f}-{s1['asymptotic']:.0f} nm at any f-number; the vignetting "
+              f"circle cuts the oblique rays at wide apertures, so at f/{first:g} the spread is "
+              f"only {s1['vignetted']:.1f} nm (Goossens et al. measured ~2 nm). Correcting with "
+              "Eq. 6 there would over-correct the field edge by the difference."]
+    return lines, rows, fig
+
+
+def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
+    """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``, and the
+    simulated experiment's ``calibration.png``, ``lens.toml``, ``spectra.png`` and ``maps.png``.
+
+    Refuses a folder holding files the demo did not make unless ``overwrite``
+    (:func:`check_out_dir`).
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Output folder, created if missing.
+    lens : Lens, optional
+        The lens of part 1 (default: the bundled Edmund Optics 16 mm profile); the simulated
+        experiment uses its own.
+    echo : callable
+        ``echo(text)`` prints progress and the summary.
+    overwrite : bool
+        Write into a folder holding other files.
+
+    Returns
+    -------
+    dict
+        Paths of the outputs: ``figure``, ``table``, ``summary``, ``spectra``,
+        ``calibration``, ``maps`` and ``lens``.
+    """
+    out = check_out_dir(out_dir, overwrite=overwrite)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).write_text(f"written by snapcorr {__version__} demo\n", encoding="utf-8")
+    lens = lens or Lens.load(lens_path())
+    lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = atomic_write(out / "mean_shift.png", lambda p: fig.savefig(p, dpi=120, format="png"))
-    plt.close(fig)
     header = "f_number,cra_deg,asymptotic_nm,ideal_nm,vignetted_nm,relative_illumination"
 
     def write_csv(p):

@@ -5,7 +5,7 @@ A colour filter in front of a white tile, seen by a Snapscan-like VNIR camera (1
 looks at the same filter, so after a correct wavelength correction every pixel shows the same
 spectrum. The steps are the package's own, in the order a user runs them:
 
-1. flat fields of the lens at five f-numbers (:func:`snapcorr.simulate.flat_field`) ->
+1. flat fields of the lens at five f-numbers (:func:`snapcorr.simulate.flat_frame`) ->
    :func:`snapcorr.calibrate.calibrate_lens` -> a lens profile;
 2. raw, dark and white cubes -> :func:`snapcorr.cube.flatfield` (Eq. 29);
 3. :func:`snapcorr.correct.correct_cube` with the ideal-aperture and the vignetting model.
@@ -43,6 +43,27 @@ def measured_transmittance(cwl_nm, fwhm_nm, n_eff, f_number, cra_deg, lens, *, s
     Band b sees ``sum_k w_k F_b(cwl_b mu_k)`` with ``F_b(delta)`` the filter curve through the
     band's Gaussian moved by ``delta`` and ``(mu_k, w_k)`` the kernel at that CRA per nm of
     central wavelength (the shift scales with the central wavelength).
+
+    Parameters
+    ----------
+    cwl_nm : array_like
+        The bands' central wavelengths at normal incidence, nm.
+    fwhm_nm : float or array_like
+        The bands' FWHM, nm (one value for every band, or one per band).
+    n_eff : float
+        The filters' effective index.
+    f_number : float
+        Nominal f-number.
+    cra_deg : float or array_like
+        Chief-ray angles, degrees.
+    lens : Lens
+        The lens the light passes (the true one).
+    step_nm : float
+        Step of the wavelength grid the filter curve is sampled on, nm.
+
+    Returns
+    -------
+    ndarray, shape (len(cra_deg), len(cwl_nm))
     """
     cwl = np.asarray(cwl_nm, float)
     fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape)
@@ -68,7 +89,21 @@ def measured_transmittance(cwl_nm, fwhm_nm, n_eff, f_number, cra_deg, lens, *, s
 
 def paper_metrics(spectra, wavelengths, grid):
     """The paper's comparison of spectra from different pixels: on a common grid, the worst
-    correlation coefficient and the largest absolute difference over all pairs."""
+    correlation coefficient and the largest absolute difference over all pairs.
+
+    Parameters
+    ----------
+    spectra : sequence of 1-D arrays
+        The spectra, one per pixel.
+    wavelengths : sequence of 1-D arrays
+        The wavelengths of each spectrum's values, nm.
+    grid : 1-D array
+        The common wavelengths, nm; only those inside both spectra of a pair are compared.
+
+    Returns
+    -------
+    worst_r, max_err : float
+    """
     on_grid = [np.interp(grid, w, s, left=np.nan, right=np.nan)
                for s, w in zip(spectra, wavelengths, strict=True)]
     worst_r, max_err = 1.0, 0.0
@@ -89,17 +124,7 @@ def run(out, *, echo=print, seed=2019):
     and 17.4 deg, uncorrected and corrected by both models, f/1.4-f/8) and ``maps.png`` (CRA
     and shift over the image at f/1.4).
     """
-    import dataclasses
     from pathlib import Path
-
-    import matplotlib.pyplot as plt
-
-    from ._io import atomic_write
-    from .calibrate import calibrate_lens
-    from .correct import correct_cube
-    from .cube import Sensor, flatfield, make_cube
-    from .data import sensor_path
-    from .simulate import cra_map, flat_field, relative_illumination_map
 
     out = Path(out)
     truth = PAPER_LENS
@@ -109,68 +134,119 @@ def run(out, *, echo=print, seed=2019):
     lines = []
 
     # 1. the lens, from flat fields (512 x 320 at 22 um: a 2048 x 1280, 5.5 um sensor)
-    flat_centre = (262.8, 155.4)  # the optical axis a little off the image centre
-    flats = {f: flat_field(truth, f, (320, 512), 22.0, center_px=flat_centre, rng=rng)
-             for f in f_numbers}
-    cal = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=22.0, magnification=0.06,
-                         pupil_magnification=1.3, name="Edmund Optics 16 mm (demo calibration)")
+    flat_center = (262.8, 155.4)  # the optical axis a little off the image centre
+    cal = _calibrate(out, truth, f_numbers, flat_center, rng)
     lens = cal.lens
-    cal.save_plot(out / "calibration.png")
-    lens.save(out / "lens.toml", overwrite=True)
     lines.append(f"1. calibration from simulated flats (f/1.4-f/8, 1 % noise): {cal.method}, "
                  f"{cal.model} circle(s): {lens.describe_vignetting()} (true "
                  f"{truth.describe_vignetting()}), centre "
-                 f"({cal.center_px[0]:.1f}, {cal.center_px[1]:.1f}) px (true {flat_centre})")
+                 f"({cal.center_px[0]:.1f}, {cal.center_px[1]:.1f}) px (true {flat_center})")
 
     # 2. the cube: 8 x 8 binned Snapscan pixels (44 um), the same sensor area
-    base = Sensor.load(sensor_path("snapscan_vnir"))
     shape = (160, 256)
+    # flat-field pixel -> cube pixel: the same point of the sensor
+    center = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in cal.center_px)
+    true_center = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in flat_center)
+    cwl, results = _correct_cubes(lens, truth, f_numbers, shape, center, true_center, rng)
+
+    # 3. spectra at the paper's three positions, 5 x 5 pixels each
+    spots = _spots(shape, true_center, cras)
+    lines += _compare_spectra(out / "spectra.png", results, f_numbers, cras, spots, cwl)
+
+    # 4. maps at f/1.4
+    _draw_maps(out / "maps.png", results[1.4]["vignetted"], cwl)
+
+    m = results[1.4]
+    lines.append(
+        f"   at f/1.4 the vignetted model aligns the spectra best (largest difference "
+        f"{m['vignetted_metrics'][1]:.4f} against {m['uncorrected_metrics'][1]:.4f} "
+        f"uncorrected and {m['ideal_metrics'][1]:.4f} with the ideal-aperture model, which "
+        "over-corrects the field edge)")
+    echo("\n".join(lines))
+    return lines, results
+
+
+def _calibrate(out, truth, f_numbers, flat_center, rng):
+    """Calibrate the lens from simulated flats; write its figure and profile into ``out``."""
+    from .calibrate import calibrate_lens
+    from .simulate import flat_frame
+
+    flats = {f: flat_frame((320, 512), 22.0, f, truth, center_px=flat_center, rng=rng)
+             for f in f_numbers}
+    cal = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=22.0, magnification=0.06,
+                         pupil_magnification=1.3, name="Edmund Optics 16 mm (demo calibration)")
+    cal.save_plot(out / "calibration.png")
+    cal.lens.save(out / "lens.toml", overwrite=True)
+    return cal
+
+
+def _correct_cubes(lens, truth, f_numbers, shape, center, true_center, rng):
+    """The bands' wavelengths, and per f-number the filter's cube and its two corrections."""
+    import dataclasses
+
+    from .correct import correct_cube
+    from .cube import Sensor, flatfield, make_cube
+    from .data import sensor_path
+    from .optics.chief_ray import cra_map
+    from .simulate import relative_illumination_map
+
+    base = Sensor.load(sensor_path("snapscan_vnir"))
     sensor = dataclasses.replace(base, name=base.name + " (8 x 8 binned)", pixel_pitch_um=44.0,
                                  size_px=shape)
-    # flat-field pixel -> cube pixel: the same point of the sensor
-    centre = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in cal.center_px)
-    true_centre = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in flat_centre)
-    cra = cra_map(shape, 44.0, 21.0, true_centre)
+    cra = cra_map(shape, 44.0, 21.0, true_center)
     grid = np.linspace(0.0, float(cra.max()) + 1e-6, 90)
     cwl, fwhm = np.asarray(base.cwl_nm), np.asarray(base.fwhm_nm)
+
+    def frame(signal):  # shot noise on top of a 100 DN dark level
+        return rng.poisson(signal).astype(np.float32) + np.float32(100.0)
+
     results = {}
     for f in f_numbers:
         meas = measured_transmittance(cwl, fwhm, 1.7, f, grid, truth)  # (grid, band)
         idx = np.clip(np.searchsorted(grid, cra) - 1, 0, grid.size - 2)
         w = ((cra - grid[idx]) / (grid[idx + 1] - grid[idx]))[..., None]
         transmittance = meas[idx] * (1 - w) + meas[idx + 1] * w  # (y, x, band)
-        white = 3000.0 * relative_illumination_map(truth, f, shape, 44.0,
-                                                   center_px=true_centre)[..., None]
-        def frame(signal):  # shot noise on top of a 100 DN dark level
-            return rng.poisson(signal).astype(np.float32) + np.float32(100.0)
-
+        white = 3000.0 * relative_illumination_map(shape, 44.0, f, truth,
+                                                   center_px=true_center)[..., None]
         raw = make_cube(frame(transmittance * white), cwl, fwhm_nm=fwhm)
         whites = [make_cube(frame(np.broadcast_to(white, raw.shape)), cwl) for _ in range(4)]
         darks = [make_cube(frame(np.zeros(raw.shape)), cwl) for _ in range(4)]
         ff = flatfield(raw, darks, whites)["reflectance"]
-        results[f] = {m: correct_cube(ff, lens, sensor, f, center_px=centre, method=m)
+        results[f] = {m: correct_cube(ff, sensor, f, lens, center_px=center, method=m)
                       for m in ("ideal", "vignetted")}
         results[f]["cube"] = ff
+    return cwl, results
 
-    # 3. spectra at the paper's three positions, 5 x 5 pixels each
+
+def _spots(shape, true_center, cras):
+    """The (row, column) of each chief-ray angle in ``cras`` on the way to the far corner."""
     pitch = 44.0e-3
     # along the line from the optical centre to the farthest corner
     corner = np.array([shape[1] - 3.0, shape[0] - 3.0])
     corner = max(([2.0, 2.0], [corner[0], 2.0], [2.0, corner[1]], corner),
-                 key=lambda p: np.hypot(p[0] - true_centre[0], p[1] - true_centre[1]))
-    u = np.subtract(corner, true_centre)
+                 key=lambda p: np.hypot(p[0] - true_center[0], p[1] - true_center[1]))
+    u = np.subtract(corner, true_center)
     u = u / np.hypot(*u)
     spots = []
     for c in cras:
         r = 21.0 * np.tan(np.radians(c)) / pitch
-        spots.append((round(true_centre[1] + r * u[1]), round(true_centre[0] + r * u[0])))
+        spots.append((round(true_center[1] + r * u[1]), round(true_center[0] + r * u[0])))
+    return spots
+
+
+def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
+    """Plot the spots' spectra to ``path``, add the metrics to ``results``, return lines."""
+    from matplotlib.figure import Figure
+
+    from ._io import atomic_write
+
     common = np.arange(500.0, 880.0, 1.0)
-    fig, axes = plt.subplots(len(f_numbers), 3, figsize=(12, 2.3 * len(f_numbers)),
-                             sharex=True, sharey=True, constrained_layout=True)
-    lines.append("2. spectra of one colour filter at CRA 1.9, 10.3, 17.4 deg: worst correlation "
-                 "coefficient and largest difference between any two (the paper's metrics)")
-    lines.append(f"   {'f/#':>5} {'uncorrected':>20} {'ideal (Eq. 7)':>20} "
-                 f"{'vignetted (Eq. 23)':>20}")
+    fig = Figure(figsize=(12, 2.3 * len(f_numbers)), layout="constrained")
+    axes = fig.subplots(len(f_numbers), 3, sharex=True, sharey=True)
+    lines = ["2. spectra of one colour filter at CRA 1.9, 10.3, 17.4 deg: worst correlation "
+             "coefficient and largest difference between any two (the paper's metrics)",
+             f"   {'f/#':>5} {'uncorrected':>20} {'ideal (Eq. 7)':>20} "
+             f"{'vignetted (Eq. 23)':>20}"]
     for row, f in enumerate(f_numbers):
         cells = []
         for col, model in enumerate(("uncorrected", "ideal", "vignetted")):
@@ -196,27 +272,23 @@ def run(out, *, echo=print, seed=2019):
     for ax in axes[:, 0]:
         ax.set_ylabel("transmittance")
     axes[0, 0].legend(fontsize=8)
-    atomic_write(out / "spectra.png", lambda p: fig.savefig(p, dpi=110, format="png"))
-    plt.close(fig)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))
+    return lines
 
-    # 4. maps at f/1.4
-    vig = results[1.4]["vignetted"]
+
+def _draw_maps(path, vig, cwl):
+    """The chief-ray angle and one band's shift of the vignetted model's result, to ``path``."""
+    from matplotlib.figure import Figure
+
+    from ._io import atomic_write
+
     band = int(np.argmin(np.abs(cwl - 700.0)))
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
+    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    a1, a2 = fig.subplots(1, 2)
     im = a1.imshow(vig["cra_deg"].values, cmap="viridis")
     fig.colorbar(im, ax=a1, label="deg")
     a1.set_title("chief-ray angle")
     im = a2.imshow(vig["wavelength_corrected"].values[..., band] - cwl[band], cmap="magma")
     fig.colorbar(im, ax=a2, label="nm")
     a2.set_title(f"shift of the {cwl[band]:.0f} nm band at f/1.4 (vignetted model)")
-    atomic_write(out / "maps.png", lambda p: fig.savefig(p, dpi=110, format="png"))
-    plt.close(fig)
-
-    m = results[1.4]
-    lines.append(
-        f"   at f/1.4 the vignetted model aligns the spectra best (largest difference "
-        f"{m['vignetted_metrics'][1]:.4f} against {m['uncorrected_metrics'][1]:.4f} "
-        f"uncorrected and {m['ideal_metrics'][1]:.4f} with the ideal-aperture model, which "
-        "over-corrects the field edge)")
-    echo("\n".join(lines))
-    return lines, results
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))

@@ -260,25 +260,38 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
           empty=empty, bad_label="masked")
 
     # 2. the masked fraction per band
-    a_frac.plot(wl[order], frac[order], "o-", ms=3, lw=1, color="C3")
-    top = float(frac.max()) if frac.size else 0.0
-    top = 100.0 if top > 20.0 else max(1.0, 1.25 * top)  # small fractions stay readable
-    a_frac.set_ylim(-0.03 * top, 1.03 * top)
-    a_frac.set_xlabel("wavelength (nm)")
-    a_frac.set_ylabel("masked values (%)")
-    total = 100.0 * float(n_masked_band.sum()) / max(1, n_sample * nb)
-    a_frac.set_title(f"masked values per band ({total:.1f} % of all)"
-                     + (f"\nfrom one pixel in {s} along x and y" if s > 1 else ""),
-                     fontsize=10)
-    a_frac.grid(alpha=0.3)
+    _draw_masked_fraction(a_frac, wl, order, frac, n_masked_band, n_sample * nb, s)
 
     # 3. spectra of a few pixels: centre and near the corners, moved to unmasked ones
-    h, w = n_masked_px.shape
+    _draw_flat_spectra(a_spec, a_img, result, name, n_masked_px < nb, s, wl, order, all_masked)
+
+    fig.suptitle(title or f"Flat-field quick look: {name}, {ny} x {nx} px, {nb} bands",
+                 fontsize=12)
+    return _save(fig, path)
+
+
+def _draw_masked_fraction(ax, wl, order, frac, n_masked_band, n_values, s):
+    """The panel of the percentage of masked values in every band."""
+    ax.plot(wl[order], frac[order], "o-", ms=3, lw=1, color="C3")
+    top = float(frac.max()) if frac.size else 0.0
+    top = 100.0 if top > 20.0 else max(1.0, 1.25 * top)  # small fractions stay readable
+    ax.set_ylim(-0.03 * top, 1.03 * top)
+    ax.set_xlabel("wavelength (nm)")
+    ax.set_ylabel("masked values (%)")
+    total = 100.0 * float(n_masked_band.sum()) / max(1, n_values)
+    ax.set_title(f"masked values per band ({total:.1f} % of all)"
+                 + (f"\nfrom one pixel in {s} along x and y" if s > 1 else ""),
+                 fontsize=10)
+    ax.grid(alpha=0.3)
+
+
+def _draw_flat_spectra(a_spec, a_img, result, name, valid, s, wl, order, all_masked):
+    """The panel of up to five pixels' spectra, each pixel circled on the image."""
+    h, w = valid.shape
     targets = [((h - 1) / 2, (w - 1) / 2)]
     for fy in (0.1, 0.9):
         for fx in (0.1, 0.9):
             targets.append((fy * (h - 1), fx * (w - 1)))
-    valid = n_masked_px < nb
     picked = _nearest(valid, [(round(r), round(c)) for r, c in targets])
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
     (spectra,) = _load(_points(result, ys, xs))
@@ -300,10 +313,6 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
     a_spec.set_ylabel(_label(result, name))
     a_spec.set_title("spectra of a few pixels (gaps: masked)", fontsize=10)
     a_spec.grid(alpha=0.3)
-
-    fig.suptitle(title or f"Flat-field quick look: {name}, {ny} x {nx} px, {nb} bands",
-                 fontsize=12)
-    return _save(fig, path)
 
 
 # --------------------------------------------------------------------------- correction
@@ -377,12 +386,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
         If ``path`` exists and ``overwrite`` is false; nothing is written.
     """
     path = _check_path(path, overwrite)
-    cra_name = next((n for n in _CRA_NAMES if n in ds.variables), None)
-    for need, have in (("wavelength_corrected", "wavelength_corrected" in ds.variables),
-                       ("cra", cra_name is not None)):
-        if not have:
-            raise ValueError(f"not a correction result: no {need!r}; see "
-                             "snapcorr.correct.correct_cube")
+    cra_name = _check_correction(ds)
     name = _cube_name(ds)
     cube = ds[name].transpose("y", "x", "band")
     corrected = ds["wavelength_corrected"].transpose("y", "x", "band")
@@ -395,22 +399,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     img, cra_img = _load(_image(cube, s, b), _image(cra, s, 0))
     cra_img = np.asarray(cra_img, float)
 
-    # three pixels by chief-ray angle: smallest, halfway, largest (among finite ones)
-    valid = np.isfinite(cra_img) & np.isfinite(np.asarray(img, float))
-    if not valid.any():
-        valid = np.isfinite(cra_img)
-    picked, roles = [], []
-    if valid.any():
-        rows, cols = np.nonzero(valid)
-        angles = cra_img[rows, cols]
-        lo, hi = float(angles.min()), float(angles.max())
-        for role, k in (("on axis", int(np.argmin(angles))),
-                        ("mid-field", int(np.argmin(np.abs(angles - 0.5 * (lo + hi))))),
-                        ("edge", int(np.argmax(angles)))):
-            rc = (int(rows[k]), int(cols[k]))
-            if rc not in picked:
-                picked.append(rc)
-                roles.append(role)
+    picked, roles = _pick_by_cra(img, cra_img)
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
     lazy = [_points(cube, ys, xs), _points(corrected, ys, xs)]
     has_resampled = "resampled" in ds.variables
@@ -418,12 +407,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
         lazy.append(_points(ds["resampled"].transpose("y", "x", "band"), ys, xs))
     spectra = [np.asarray(v, float) for v in _load(*lazy)] if picked else []
 
-    # the band that moves most, from the pixels read (the shift grows with the CRA)
-    b_shift = b
-    if picked:
-        moved = np.abs(spectra[1] - wl[None, :])
-        if np.isfinite(moved).any():
-            b_shift = int(np.nanargmax(np.where(np.isfinite(moved), moved, -1.0).max(axis=0)))
+    b_shift = _band_moving_most(spectra, wl, b)
     (shift_img,) = _load(_image(corrected, s, b_shift))
     shift_img = np.asarray(shift_img, float) - wl[b_shift]
 
@@ -441,6 +425,60 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
 
+    _draw_corrected_spectra(a_spec, ys, xs, spectra, wl, order, roles,
+                            [cra_img[rc] for rc in picked], has_resampled, _label(cube, name))
+
+    head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
+    sub = _subtitle(ds.attrs)
+    fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
+    return _save(fig, path)
+
+
+def _check_correction(ds):
+    """The chief-ray angle map's name; refuse a dataset without it or wavelength_corrected."""
+    cra_name = next((n for n in _CRA_NAMES if n in ds.variables), None)
+    for need, have in (("wavelength_corrected", "wavelength_corrected" in ds.variables),
+                       ("cra", cra_name is not None)):
+        if not have:
+            raise ValueError(f"not a correction result: no {need!r}; see "
+                             "snapcorr.correct.correct_cube")
+    return cra_name
+
+
+def _pick_by_cra(img, cra_img):
+    """Up to three grid pixels, on axis, mid-field and at the edge, and their roles."""
+    # three pixels by chief-ray angle: smallest, halfway, largest (among finite ones)
+    valid = np.isfinite(cra_img) & np.isfinite(np.asarray(img, float))
+    if not valid.any():
+        valid = np.isfinite(cra_img)
+    picked, roles = [], []
+    if valid.any():
+        rows, cols = np.nonzero(valid)
+        angles = cra_img[rows, cols]
+        lo, hi = float(angles.min()), float(angles.max())
+        for role, k in (("on axis", int(np.argmin(angles))),
+                        ("mid-field", int(np.argmin(np.abs(angles - 0.5 * (lo + hi))))),
+                        ("edge", int(np.argmax(angles)))):
+            rc = (int(rows[k]), int(cols[k]))
+            if rc not in picked:
+                picked.append(rc)
+                roles.append(role)
+    return picked, roles
+
+
+def _band_moving_most(spectra, wl, b):
+    """The band whose corrected wavelength moves most at the pixels read (else ``b``)."""
+    # the band that moves most, from the pixels read (the shift grows with the CRA)
+    if spectra:
+        moved = np.abs(spectra[1] - wl[None, :])
+        if np.isfinite(moved).any():
+            return int(np.nanargmax(np.where(np.isfinite(moved), moved, -1.0).max(axis=0)))
+    return b
+
+
+def _draw_corrected_spectra(a_spec, ys, xs, spectra, wl, order, roles, cra_deg, has_resampled,
+                            ylabel):
+    """The panel of the pixels' spectra at nominal and corrected wavelengths (and resampled)."""
     from matplotlib.lines import Line2D
 
     handles = []
@@ -458,7 +496,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
                         ms=4)
         handles.append(Line2D([], [], color=c, lw=2,
                               label=f"{roles[k]}: (y, x) = ({y}, {x}), "
-                                    f"CRA {cra_img[picked[k]]:.2f} deg"))
+                                    f"CRA {cra_deg[k]:.2f} deg"))
     if handles:
         styles = [Line2D([], [], color="0.3", ls="--", label="at nominal wavelengths"),
                   Line2D([], [], color="0.3", ls="-", label="at corrected wavelengths")]
@@ -471,11 +509,6 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     else:
         _note(a_spec, "no finite values at these pixels:\nno spectrum to show")
     a_spec.set_xlabel("wavelength (nm)")
-    a_spec.set_ylabel(_label(cube, name))
+    a_spec.set_ylabel(ylabel)
     a_spec.set_title("spectra by chief-ray angle", fontsize=10)
     a_spec.grid(alpha=0.3)
-
-    head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
-    sub = _subtitle(ds.attrs)
-    fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
-    return _save(fig, path)

@@ -33,10 +33,10 @@ Examples
 --------
 >>> from snapcorr import Lens
 >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
->>> expected = flat_field(lens, 1.4, (1088, 2048), 5.5, noise=False)
+>>> expected = flat_frame((1088, 2048), 5.5, 1.4, lens, noise=False)
 >>> round(float(expected[543, 1023])), round(float(expected[0, 0]))  # centre, corner
 (10000, 4857)
->>> frame = flat_field(lens, 1.4, (1088, 2048), 5.5, rng=0, dtype=np.uint16)
+>>> frame = flat_frame((1088, 2048), 5.5, 1.4, lens, rng=0, dtype=np.uint16)
 >>> frame.dtype, bool(abs(frame[512:576, 992:1056].std() / 1e4 - 0.01) < 0.001)  # 1 % noise
 (dtype('uint16'), True)
 """
@@ -44,20 +44,20 @@ Examples
 from __future__ import annotations
 
 import math
-import operator
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._validation import validate_method
+from .optics.chief_ray import pixel_tangents
 from .optics.pupil import overlap_area_mm2
 
 __all__ = [
     "METHODS",
+    "Detector",
     "LampPlaque",
-    "cra_map",
-    "flat_field",
+    "flat_frame",
     "relative_illumination_map",
 ]
 
@@ -80,16 +80,6 @@ _BRDF_KEYS = (*((mu, nu) for mu in range(3) for nu in range(3) if mu or nu), "t"
 
 
 # -- input checks -------------------------------------------------------------------------------
-def _shape(shape):
-    try:
-        ny, nx = (operator.index(n) for n in shape)
-    except (TypeError, ValueError):
-        raise ValueError(f"shape must be two positive integers (ny, nx), got {shape!r}") from None
-    if ny < 1 or nx < 1:
-        raise ValueError(f"shape must be two positive integers (ny, nx), got {shape!r}")
-    return ny, nx
-
-
 def _number(name, value, *, positive=False, nonnegative=False):
     try:
         v = float(value)
@@ -104,71 +94,12 @@ def _number(name, value, *, positive=False, nonnegative=False):
     return v
 
 
-def _centre(center_px, ny, nx):
-    if center_px is None:
-        return (nx - 1) / 2.0, (ny - 1) / 2.0
-    try:
-        cx, cy = (float(c) for c in center_px)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"center_px must be (cx, cy) in pixels (column, row), got {center_px!r}"
-        ) from None
-    if not (math.isfinite(cx) and math.isfinite(cy)):
-        raise ValueError(f"center_px must be finite, got {center_px!r}")
-    return cx, cy
-
-
-def _pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px):
-    """``tan`` of the chief-ray angle's components along columns (x) and rows (y), 1-D each."""
-    ny, nx = _shape(shape)
-    pitch_mm = _number("pixel_pitch_um", pixel_pitch_um, positive=True) * 1e-3
-    x_mm = _number("exit_pupil_mm", exit_pupil_mm, positive=True)
-    cx, cy = _centre(center_px, ny, nx)
-    scale = pitch_mm / x_mm  # Eq. (8) of [1]: tan(CRA) = d / x
-    return (np.arange(nx) - cx) * scale, (np.arange(ny) - cy) * scale
-
-
 def _row_blocks(ny, nx):
     step = max(1, _CHUNK_PIXELS // nx)
     return [(r0, min(r0 + step, ny)) for r0 in range(0, ny, step)]
 
 
 # -- chief-ray angle ----------------------------------------------------------------------------
-def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
-    """Chief-ray angle of every pixel, degrees.
-
-    Parameters
-    ----------
-    shape : tuple of int
-        ``(ny, nx)``.
-    pixel_pitch_um : float
-        Pixel pitch, micrometres.
-    exit_pupil_mm : float
-        Distance ``x`` from the sensor to the exit pupil, mm.
-    center_px : tuple of float, optional
-        Optical centre ``(cx, cy)`` in image coordinates: pixel (row ``i``, column ``j``) has its
-        centre at ``(x=j, y=i)``, as in OpenCV and scikit-image. May be fractional or outside the
-        image. Default: the image centre ``((nx - 1) / 2, (ny - 1) / 2)``.
-
-    Returns
-    -------
-    ndarray
-        float64, shape ``(ny, nx)``: ``arctan(d / x)`` with
-        ``d = pitch * hypot(j - cx, i - cy)`` (Goossens et al. 2019, Eq. 8).
-
-    Examples
-    --------
-    >>> cra = cra_map((3, 5), 5.5, 21.0, center_px=(0, 0))
-    >>> cra.shape, float(cra[0, 0])
-    ((3, 5), 0.0)
-    >>> round(float(cra[0, 4]), 4)  # 22 um off axis
-    0.06
-    """
-    tx, ty = _pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px)
-    return np.rad2deg(np.arctan(np.hypot(ty[:, None], tx[None, :])))
-
-
-# -- relative illumination ----------------------------------------------------------------------
 def _discs(lens, f_number, pixel_acceptance_deg):
     """Radii (mm) and centre slopes (centre = slope * tan(CRA)) of the discs a pixel looks
     through: the exit pupil, the vignetting circles and the pixel's acceptance circle."""
@@ -236,44 +167,42 @@ def _radial_profile(t_max, R, radii, slopes, natural):
     return t, v[first]
 
 
-def relative_illumination_map(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
+def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
                               natural_vignetting=True, pixel_acceptance_deg=None, source=None,
                               method="radial"):
     """Expected flat-field signal of every pixel relative to the optical centre, no noise.
 
-    ``V = A / (pi R^2) * cos^4(CRA) * S`` with ``A`` the area common to the exit pupil (radius
-    ``R``, Eq. 28), every projected vignetting circle of the lens (radius ``P_i``, centre
+    ``V = A / (pi R^2) * cos^4(CRA) * S``: ``A`` the area common to the exit pupil (radius
+    ``R``, Eq. 28), the lens's projected vignetting circles (radius ``P_i``, centre
     ``h_i tan(CRA)``) and the pixel's acceptance circle (radius ``x tan(a)``, centre
-    ``x tan(CRA)``; if ``pixel_acceptance_deg`` is given), and ``S`` the source's relative
-    signal (1 for a uniform source).
+    ``x tan(CRA)``, if given); ``S`` the source's relative signal (1 if uniform).
 
     Parameters
     ----------
-    lens : snapcorr.Lens
-        Exit pupil distance ``x``, vignetting circles and working f-number (Eq. 27).
-    f_number : float
-        F-number (> 0).
     shape : tuple of int
         ``(ny, nx)``.
     pixel_pitch_um : float
         Pixel pitch, micrometres.
+    f_number : float
+        F-number (> 0).
+    lens : snapcorr.Lens
+        Exit pupil distance ``x``, vignetting circles and working f-number (Eq. 27).
     center_px : tuple of float, optional
-        Optical centre ``(cx, cy)``, image coordinates (see :func:`cra_map`).
+        Optical centre ``(cx, cy)``, image coordinates (:func:`snapcorr.optics.chief_ray.cra_map`).
     natural_vignetting : bool
         Include ``cos^4(CRA)``.
     pixel_acceptance_deg : float, optional
         Half-angle ``a`` (0 < a < 90) of the cone about its normal from which a pixel accepts
-        light (pixel vignetting). Default: no pixel vignetting. Note that a cone narrower than
-        the lens's (``x tan(a) < R``) also lowers the signal at the optical centre.
+        light (pixel vignetting; default none). A cone narrower than the lens's
+        (``x tan(a) < R``) lowers the signal at the optical centre too.
     source : LampPlaque or object with ``relative_signal(tan_x, tan_y)``, optional
-        Non-uniform source; ``None`` is a uniform one (integrating sphere). It is given the
-        tangents of each pixel's line of sight in object space, taken equal to the image-side
-        chief ray: ``tan_x = (j - cx) * pitch / x``, ``tan_y = (i - cy) * pitch / x``.
+        ``None`` is uniform (integrating sphere). It is given the tangents of each pixel's line
+        of sight in object space, taken equal to the image-side chief ray's:
+        ``tan_x = (j - cx) * pitch / x``, ``tan_y = (i - cy) * pitch / x``.
     method : {"radial", "exact"}
-        ``"radial"``: the lens terms depend on ``tan(CRA)`` only, so they are computed exactly on
-        an adaptive 1-D grid (refined until linear interpolation is within 1e-7 at the checked
-        points; tangencies of the discs are grid points) and interpolated per pixel.
-        ``"exact"``: the disc overlap is computed for every pixel (about ten times slower).
+        ``"radial"``: the lens terms, functions of ``tan(CRA)`` only, exact on an adaptive 1-D
+        grid (linear interpolation within 1e-7 at the checked points; the discs' tangencies are
+        nodes), interpolated per pixel; ``"exact"``: every pixel's disc overlap (10x slower).
 
     Returns
     -------
@@ -288,16 +217,15 @@ def relative_illumination_map(lens, f_number, shape, pixel_pitch_um, *, center_p
 
     Notes
     -----
-    A source sees each pixel's line of sight at the image-side chief-ray angle,
-    ``tan = d / x``. For a lens focused far away the object-side angle is nearer
-    ``arctan(d / f)``; where ``x > f`` (the Edmund Optics lens: ``x = 21`` mm, ``f = 16`` mm)
-    the simulated non-uniformity of a lamp-plaque source is then somewhat too small.
+    For a lens focused far away a line of sight's object-side angle is nearer ``arctan(d / f)``
+    than the image-side ``arctan(d / x)`` used: where ``x > f`` (the Edmund Optics lens: 21 and
+    16 mm) the simulated non-uniformity of a lamp-plaque source is somewhat too small.
 
     Examples
     --------
     >>> from snapcorr import Lens
     >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
-    >>> v = relative_illumination_map(lens, 1.4, (1, 3), 2000.0, center_px=(0, 0))
+    >>> v = relative_illumination_map((1, 3), 2000.0, 1.4, lens, center_px=(0, 0))
     >>> v.round(4)  # CRA 0, 5.44 and 10.78 deg
     array([[1.    , 0.8725, 0.6939]])
     >>> cra = np.rad2deg(np.arctan(2.0 / 21.0))  # 2 mm off axis, x = 21 mm
@@ -319,7 +247,7 @@ def relative_illumination_map(lens, f_number, shape, pixel_pitch_um, *, center_p
             f"or be None for a uniform source; got {type(source).__name__}"
         )
     _number("f_number", f_number, positive=True)
-    tx, ty = _pixel_tangents(shape, pixel_pitch_um, lens.exit_pupil_mm, center_px)
+    tx, ty = pixel_tangents(shape, pixel_pitch_um, lens.exit_pupil_mm, center_px)
     ny, nx = ty.size, tx.size
     R, radii, slopes = _discs(lens, f_number, pixel_acceptance_deg)
     natural = bool(natural_vignetting)
@@ -357,23 +285,12 @@ def _to_dtype(dn, dtype):
     return dn.astype(dtype)
 
 
-def flat_field(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
-               natural_vignetting=True, pixel_acceptance_deg=None, source=None,
-               signal_electrons=1e4, read_noise_electrons=0.0, gain_electrons_per_dn=1.0,
-               dark_dn=0.0, saturation_dn=None, dtype=np.float32, rng=None, noise=True):
-    """A simulated flat-field frame in digital numbers (DN).
-
-    The expected signal of a pixel is ``signal_electrons * V`` electrons, with ``V`` from
-    :func:`relative_illumination_map`. With ``noise=True`` the electrons are drawn from a
-    Poisson distribution (shot noise) and Gaussian read noise is added; then
-    ``DN = electrons / gain + dark_dn``, clipped at ``saturation_dn``.
+@dataclass(frozen=True)
+class Detector:
+    """How a simulated camera turns light into digital numbers: signal, noise, gain, offset.
 
     Parameters
     ----------
-    lens, f_number, shape, pixel_pitch_um, center_px, natural_vignetting, pixel_acceptance_deg,
-    source
-        As for :func:`relative_illumination_map`. ``source=None`` is an integrating sphere;
-        :class:`LampPlaque` is a lamp and a diffuse plaque.
     signal_electrons : float
         Mean signal at the optical centre without pixel vignetting, electrons (> 0). 1e4
         electrons means 1 % shot noise there.
@@ -385,6 +302,47 @@ def flat_field(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
         Dark offset added to every pixel, DN.
     saturation_dn : float, optional
         Values above this are set to it (full well / ADC range), DN (> 0).
+    """
+
+    signal_electrons: float = 1e4
+    read_noise_electrons: float = 0.0
+    gain_electrons_per_dn: float = 1.0
+    dark_dn: float = 0.0
+    saturation_dn: float | None = None
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        set_(self, "signal_electrons", _number("signal_electrons", self.signal_electrons,
+                                               positive=True))
+        set_(self, "read_noise_electrons", _number(
+            "read_noise_electrons", self.read_noise_electrons, nonnegative=True))
+        set_(self, "gain_electrons_per_dn", _number(
+            "gain_electrons_per_dn", self.gain_electrons_per_dn, positive=True))
+        set_(self, "dark_dn", _number("dark_dn", self.dark_dn))
+        if self.saturation_dn is not None:
+            set_(self, "saturation_dn", _number("saturation_dn", self.saturation_dn,
+                                                positive=True))
+
+
+def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
+               natural_vignetting=True, pixel_acceptance_deg=None, source=None,
+               detector=None, dtype=np.float32, rng=None, noise=True):
+    """A simulated flat-field frame in digital numbers (DN).
+
+    The expected signal of a pixel is ``detector.signal_electrons * V`` electrons, with ``V``
+    from :func:`relative_illumination_map`. With ``noise=True`` the electrons are drawn from a
+    Poisson distribution (shot noise) and Gaussian read noise is added; then
+    ``DN = electrons / gain + dark_dn``, clipped at ``saturation_dn``.
+
+    Parameters
+    ----------
+    shape, pixel_pitch_um, f_number, lens, center_px, natural_vignetting, pixel_acceptance_deg,
+    source
+        As for :func:`relative_illumination_map`. ``source=None`` is an integrating sphere;
+        :class:`LampPlaque` is a lamp and a diffuse plaque.
+    detector : Detector, optional
+        Signal level, read noise, gain, dark offset and saturation (default:
+        ``Detector()``, 1e4 electrons, no read noise, 1 electron per DN, no offset).
     dtype : numpy dtype
         Output type. Integer types are rounded to the nearest integer and clipped to the type's
         range (e.g. negative values to 0 for unsigned types).
@@ -393,7 +351,7 @@ def flat_field(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
         reproducible frame.
     noise : bool
         ``False`` returns the expected frame (no random numbers are drawn; ``rng`` and
-        ``read_noise_electrons`` do not change the result).
+        the read noise do not change the result).
 
     Returns
     -------
@@ -413,24 +371,25 @@ def flat_field(lens, f_number, shape, pixel_pitch_um, *, center_px=None,
     Examples
     --------
     >>> from snapcorr import Lens
-    >>> sphere = flat_field(Lens(21.0, name="no vignetting"), 2.8, (512, 512), 5.5, rng=7,
-    ...                     read_noise_electrons=30.0, gain_electrons_per_dn=2.0, dark_dn=64.0)
+    >>> camera = Detector(read_noise_electrons=30.0, gain_electrons_per_dn=2.0, dark_dn=64.0)
+    >>> sphere = flat_frame((512, 512), 5.5, 2.8, Lens(21.0, name="no vignetting"),
+    ...                     detector=camera, rng=7)
     >>> noise_dn = float(sphere[200:312, 200:312].std())
     >>> bool(abs(noise_dn - np.sqrt(1e4 + 30.0**2) / 2.0) < 1.5)  # 52.2 DN
     True
     """
-    signal = _number("signal_electrons", signal_electrons, positive=True)
-    read = _number("read_noise_electrons", read_noise_electrons, nonnegative=True)
-    gain = _number("gain_electrons_per_dn", gain_electrons_per_dn, positive=True)
-    dark = _number("dark_dn", dark_dn)
-    sat = None if saturation_dn is None else _number("saturation_dn", saturation_dn,
-                                                      positive=True)
+    det = Detector() if detector is None else detector
+    if not isinstance(det, Detector):
+        raise TypeError(f"detector must be a snapcorr.simulate.Detector, got "
+                        f"{type(det).__name__}")
+    signal, read, gain = det.signal_electrons, det.read_noise_electrons, det.gain_electrons_per_dn
+    dark, sat = det.dark_dn, det.saturation_dn
     out_dtype = np.dtype(dtype)
     if out_dtype.kind not in "fiu":
         raise ValueError(f"dtype must be a float or integer type, got {out_dtype}")
 
     v = relative_illumination_map(
-        lens, f_number, shape, pixel_pitch_um, center_px=center_px,
+        shape, pixel_pitch_um, f_number, lens, center_px=center_px,
         natural_vignetting=natural_vignetting, pixel_acceptance_deg=pixel_acceptance_deg,
         source=source,
     )
@@ -621,7 +580,7 @@ class LampPlaque:
         on the camera's axis: ``(E g)(point) / (E g)(plaque centre)``.
 
         ``tan_x, tan_y`` are the object-space direction relative to the camera's axis (see the
-        class docstring); :func:`flat_field` takes them equal to the image-side chief ray.
+        class docstring); :func:`flat_frame` takes them equal to the image-side chief ray.
         """
         x, y = self.plaque_point(tan_x, tan_y)
         on_axis = self.irradiance_ratio(0.0, 0.0) * self.brdf_ratio(0.0, 0.0)

@@ -1,9 +1,25 @@
+import contextlib
+import io
+import os
+import signal
+import sys
+import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
+from flatsim import LensTruth
 
 from snapcorr import Lens
+
+#: The paper's lens, the Edmund Optics 16 mm (Goossens 2019, Sec. 3.2, Eq. 31): exit pupil x,
+#: vignetting circle (P, h), magnification m and pupil magnification m_P. Tests use these, the
+#: ``edmund`` fixture, or the lens for the test suite's own simulators, never a new literal.
+PAPER_X_MM, PAPER_CIRCLE, PAPER_M, PAPER_M_P = 21.0, (7.4236, 16.991), 0.06, 1.3
+PAPER_LENS = Lens(PAPER_X_MM, [PAPER_CIRCLE], PAPER_M, PAPER_M_P,
+                  name="Edmund Optics 16 mm C Series")
+PAPER_TRUTH = LensTruth(PAPER_X_MM, (PAPER_CIRCLE,), PAPER_M, PAPER_M_P, name="paper lens")
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
 DATA = Path(__file__).resolve().parent / "data"
@@ -12,7 +28,7 @@ DATA = Path(__file__).resolve().parent / "data"
 @pytest.fixture(scope="session")
 def edmund():
     """The paper's Edmund Optics 16 mm lens (Goossens 2019, Sec. 3.2, Eq. 31)."""
-    return Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm C Series")
+    return PAPER_LENS
 
 
 def brute_force_mean(cwl, n_eff, x, R, d, P=None, dv=None, N=1500):
@@ -40,3 +56,115 @@ def load_reference_csv():
     rows = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
     assert rows[0].startswith("f_number")
     return np.array([[float(v) for v in ln.split(",")] for ln in rows[1:]])
+
+
+# -- the command line, run in-process ----------------------------------------------------------
+
+
+class CliResult(NamedTuple):
+    """What ``snapcorr ARGS`` did, as ``subprocess.run(..., capture_output=True, text=True)``
+    reports it; also unpacks as ``(returncode, stdout, stderr)``."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+_SIGNALS = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+
+
+def _global_state():
+    """What a run of ``main(argv)`` must leave as it found it (a Python caller's process)."""
+    from snapcorr import _io
+
+    state = {
+        "signal handlers": {s: signal.getsignal(s) for s in _SIGNALS},
+        "warnings.filters": list(warnings.filters),
+        "warnings.showwarning": warnings.showwarning,
+        "sys.unraisablehook": sys.unraisablehook,
+        "sys.excepthook": sys.excepthook,
+        "sys.stdout, sys.stderr": (sys.stdout, sys.stderr),
+        "working folder": os.getcwd(),
+        "numpy error handling": np.geterr(),
+        "registered temporaries": sorted(map(str, _io.temporary_paths())),
+    }
+    # modules a run may import for the first time: their state as if not imported
+    state["dask scheduler"] = None
+    if "dask" in sys.modules:
+        state["dask scheduler"] = sys.modules["dask"].config.get("scheduler", None)
+    state["distributed default client"] = None
+    if "distributed.client" in sys.modules:
+        state["distributed default client"] = sys.modules["distributed.client"] \
+            ._get_global_client()
+    state["open pyplot figures"] = []
+    if "matplotlib.pyplot" in sys.modules:
+        state["open pyplot figures"] = sys.modules["matplotlib.pyplot"].get_fignums()
+    return state
+
+
+def _exit_status(code, stderr):
+    """The exit status of ``sys.exit(code)``: None 0, an int itself, anything else printed on
+    stderr and 1."""
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    print(code, file=stderr)
+    return 1
+
+
+@contextlib.contextmanager
+def _environ(**values):
+    """Environment variables set for a block, then as they were (only these)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def run_cli(*args, cwd=None):
+    """Run ``snapcorr ARGS`` in this process, as ``python -m snapcorr ARGS`` would: the exit
+    status (``sys.exit(main(argv))``, argparse's ``SystemExit`` included), stdout and stderr
+    (warnings and progress bars too), in ``cwd`` if given. stdout and stderr are no terminal,
+    as with a pipe: no progress bar, help text 80 columns wide.
+
+    An exception escaping ``main`` (a traceback the user would see) is not caught: it fails
+    the test. A run must leave no signal handler, warning filter or other global state behind
+    (a Python caller of ``main(argv)`` keeps its process); that is checked after each run.
+    """
+    from snapcorr.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.ExitStack() as stack:
+        if cwd is not None:
+            stack.enter_context(contextlib.chdir(cwd))
+        stack.enter_context(_environ(COLUMNS="80"))
+        before = _global_state()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main([os.fspath(a) if isinstance(a, os.PathLike) else str(a)
+                             for a in args])
+            except SystemExit as exit_:  # argparse, or a sys.exit() within a command
+                code = exit_.code
+            except BaseException as exc:  # a traceback for the user: fails the test, as is
+                exc.add_note(f"stderr of snapcorr {' '.join(map(str, args))}:\n"
+                             f"{err.getvalue()}")
+                raise
+            code = _exit_status(code, err)
+        after = _global_state()
+    changed = {k: (before[k], after[k]) for k in before if after[k] != before[k]}
+    assert not changed, f"snapcorr {' '.join(map(str, args))} left global state behind: " \
+        f"{changed}\nstderr:\n{err.getvalue()}"
+    return CliResult(code, out.getvalue(), err.getvalue())
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """``cli(*args, cwd=None)``: run ``snapcorr ARGS`` in-process (:func:`run_cli`)."""
+    return run_cli

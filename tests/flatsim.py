@@ -85,7 +85,7 @@ class LensTruth:
         return out
 
 
-def common_area_mm2(radii, centres):
+def common_area_mm2(radii, centers):
     """Area common to discs centred on one line (the radial line), mm^2.
 
     ``radii`` and ``centres``: sequences with one entry per disc, each a scalar or an array
@@ -94,7 +94,7 @@ def common_area_mm2(radii, centres):
     equal, each piece mapped by ``u = a + (b - a)(1 - cos s) / 2`` so that the square-root ends
     become smooth.
     """
-    arrs = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii, *centres)])
+    arrs = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii, *centers)])
     k = len(radii)
     r = np.stack(arrs[:k])  # (k, ...)
     c = np.stack(arrs[k:])
@@ -129,14 +129,14 @@ def _discs(truth, f_number, tan_cra):
     t = np.asarray(tan_cra, float)
     R = float(truth.pupil_radius_mm(f_number))
     radii = [R] + [P for P, _ in truth.circles]
-    centres = [np.zeros_like(t)] + [h * t for _, h in truth.circles]
-    return R, radii, centres
+    centers = [np.zeros_like(t)] + [h * t for _, h in truth.circles]
+    return R, radii, centers
 
 
 def relative_illumination(truth, f_number, tan_cra):
     """Fraction of the exit pupil (radius R_F) left by all the circles, at these tan(CRA)."""
-    R, radii, centres = _discs(truth, f_number, tan_cra)
-    return common_area_mm2(radii, centres) / (np.pi * R * R)
+    R, radii, centers = _discs(truth, f_number, tan_cra)
+    return common_area_mm2(radii, centers) / (np.pi * R * R)
 
 
 def cra_map_deg(shape, pitch_um, center_px, exit_pupil_mm):
@@ -224,9 +224,9 @@ def mean_shift_nm(truth, cwl_nm, n_eff, f_number, cra_deg, nodes=32):
     out = np.full(cras.shape, np.nan)
     for n_i, cra in enumerate(cras):
         t = np.tan(np.deg2rad(abs(cra)))
-        _, radii, centres = _discs(truth, f_number, t)
+        _, radii, centers = _discs(truth, f_number, t)
         r = np.array(radii, float)
-        c = np.array([float(v) for v in centres])
+        c = np.array([float(v) for v in centers])
         lo, hi = np.max(c - r), np.min(c + r)
         if hi <= lo:
             continue

@@ -208,9 +208,9 @@ def pupil_radius_mm(lens, f_number):
 def _discs(lens, f_number, d_mm):
     """Centres and radii (mm) of the pupil disc and the vignetting circles, on the u axis."""
     x = float(lens.exit_pupil_mm)
-    centres = [0.0] + [h * d_mm / x for _, h in lens.circles]  # Eq. 9: d_v = h tan(CRA)
+    centers = [0.0] + [h * d_mm / x for _, h in lens.circles]  # Eq. 9: d_v = h tan(CRA)
     radii = [pupil_radius_mm(lens, f_number)] + [P for P, _ in lens.circles]
-    return np.array(centres, float), np.array(radii, float)
+    return np.array(centers, float), np.array(radii, float)
 
 
 def _corner_angles(c, r, u0):
@@ -638,8 +638,8 @@ def target_cube(target: Callable, *, cwl_nm, fwhm_nm, n_eff, f_number, lens, sha
 # --------------------------------------------------------------------------------------------
 # Targets
 # --------------------------------------------------------------------------------------------
-def _gauss(lam, centre, fwhm):
-    return np.exp(-_FOUR_LN2 * ((lam - centre) / fwhm) ** 2)
+def _gauss(lam, center, fwhm):
+    return np.exp(-_FOUR_LN2 * ((lam - center) / fwhm) ** 2)
 
 
 def white(lam):

@@ -11,12 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import spectralsim as sim
+from conftest import PAPER_TRUTH
 from flatsim import LensTruth
 
 from snapcorr import Lens
 from snapcorr.optics import response_fwhm
 
-PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3, name="paper lens")
+PAPER = PAPER_TRUTH
 PLAIN = LensTruth(16.0, (), 0.0, 1.0, name="no vignetting")
 
 
@@ -132,7 +133,7 @@ def _corrected(chunks=None, profile="airy"):
     cube = make_cube(np.ones((128, 160, 3), np.float32), sensor.cwl_nm)
     if chunks:
         cube = cube.chunk(chunks)
-    return correct_cube(cube, as_lens(PAPER), sensor, 1.4, center_px=(80.0, 64.0)), sensor
+    return correct_cube(cube, sensor, 1.4, as_lens(PAPER), center_px=(80.0, 64.0)), sensor
 
 
 def test_fwhm_corrected_is_the_response_of_each_pixel():
@@ -173,7 +174,7 @@ def test_a_mosaic_pixel_has_each_band_at_its_own_angle():
     raw = np.ones((64, 96), np.float32)
     cube = mosaic_to_cube(raw, sensor, origin_px=(400, 800))
     lens = as_lens(PAPER)
-    ds = correct_cube(cube, lens, sensor, 2.0, center_px=(0.0, 0.0))
+    ds = correct_cube(cube, sensor, 2.0, lens, center_px=(0.0, 0.0))
     cra = ds["cra_deg"].values  # (y, x, band)
     got = ds["fwhm_corrected"].values
     for yy, xx, b in ((0, 0, 0), (7, 11, 5), (15, 23, sensor.n_bands - 1)):
@@ -204,6 +205,6 @@ def test_a_fine_wavelength_tolerance_does_not_ask_the_width_table_for_it():
 
     sensor = Sensor("s", "snapscan", 300.0, np.linspace(500, 900, 6), 10.0, 1.7)
     cube = make_cube(np.ones((40, 50, 6), np.float32), sensor.cwl_nm)
-    ds = correct_cube(cube, as_lens(PAPER), sensor, 2.8, tolerance_nm=1e-4)
+    ds = correct_cube(cube, sensor, 2.8, as_lens(PAPER), tolerance_nm=1e-4)
     assert ds.attrs["tolerance_nm"] == 1e-4
     assert "within 0.005 nm" in ds["fwhm_table"].attrs["source"]

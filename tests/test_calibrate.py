@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 from numpy.testing import assert_allclose
 
 from snapcorr import Lens
@@ -74,7 +75,7 @@ def test_a_circle_that_cuts_no_ray_has_no_standard_error():
     # outside every ray changes nothing when it moves, so its P2 and h2 have no error bar
     from snapcorr.calibrate.joint_fit import BlockData, _tan, fit_model, model_ratio
 
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="paper")
+    lens = PAPER_LENS
     y, x = np.mgrid[0:2048:64, 0:2048:64]
     xpix, ypix = x.ravel() + 32.0, y.ravel() + 32.0
     fs = np.array([1.4, 2.0, 2.8])
@@ -82,9 +83,9 @@ def test_a_circle_that_cuts_no_ray_has_no_standard_error():
                      xpix=xpix, ypix=ypix, R_mm=lens.exit_pupil_radius_mm(fs),
                      R_ref_mm=float(lens.exit_pupil_radius_mm(8.0)), pitch_mm=5.5e-3,
                      x_mm=21.0)
-    centre = (1000.0, 1030.0)
-    data.q[:] = model_ratio(data, "one", [7.4236, 16.991, *centre], _tan(data, *centre))
-    fit = fit_model(data, "two", [[7.4, 17.0, *centre, 200.0, 21.0]], center=centre)
+    center = (1000.0, 1030.0)
+    data.q[:] = model_ratio(data, "one", [7.4236, 16.991, *center], _tan(data, *center))
+    fit = fit_model(data, "two", [[7.4, 17.0, *center, 200.0, 21.0]], center=center)
     assert fit.params["P_mm"] == pytest.approx(7.4236, rel=1e-3)
     assert np.isfinite(fit.stderr["P_mm"]) and np.isfinite(fit.stderr["h_mm"])
     assert fit.stderr["P2_mm"] == np.inf and fit.stderr["h2_mm"] == np.inf
@@ -95,11 +96,11 @@ def test_a_second_circle_the_flats_hardly_see_gets_a_wide_error_bar():
     # barely touches the field; moving it by 0.5 mm changes the model by (almost) nothing, so
     # its error bar must not be the 1e-4 floor
     from snapcorr.calibrate import calibrate_lens
-    from snapcorr.simulate import flat_field
+    from snapcorr.simulate import flat_frame
 
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="paper")
+    lens = PAPER_LENS
     rng = np.random.default_rng(2019)
-    flats = {f: flat_field(lens, f, (256, 256), 44.0, center_px=(140.3, 118.6), rng=rng)
+    flats = {f: flat_frame((256, 256), 44.0, f, lens, center_px=(140.3, 118.6), rng=rng)
              for f in (1.4, 2.0, 2.8, 4.0, 8.0)}
     res = calibrate_lens(flats, exit_pupil_mm=21, pixel_pitch_um=44.0, magnification=0.06,
                          pupil_magnification=1.3)

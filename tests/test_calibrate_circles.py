@@ -34,10 +34,11 @@ from __future__ import annotations
 import functools
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
+from conftest import PAPER_TRUTH
 from cramer_rao import bound, shift_bound_nm
 from flatsim import LensTruth, make_flats, mean_shift_nm, relative_illumination
 
@@ -53,7 +54,7 @@ QUARTER = dict(shape=(256, 320), pitch_um=28.4, center_px=(174.75, 119.75))
 
 TRUTHS = {
     # the paper's Edmund Optics 16 mm (Goossens 2019, Eq. 31): h < x
-    "one_h_lt_x": LensTruth(X, ((7.4236, 16.991),), 0.06, 1.3, name="one circle, h < x"),
+    "one_h_lt_x": replace(PAPER_TRUTH, name="one circle, h < x"),
     # h > x: onsets at f/2, 2.8, 4 and 5.6 inside the field
     "one_h_gt_x": LensTruth(X, ((9.5, 26.0),), 0.0, 1.0, name="one circle, h > x"),
     "one_h_gt_x_m": LensTruth(X, ((9.5, 26.0),), 0.06, 1.3, name="one circle, h > x, m > 0"),
@@ -254,10 +255,10 @@ def calibrate(truth, *, noise, seed, scene=HALF, f_numbers=F_NUMBERS, give_dark=
         circle_errors.append(best)
     spur = [c for c in spurious_circles(circles, truth, f_numbers)
             if c not in [tuple(t) for t in truth.circles]]
-    centre = math.hypot(res.center_px[0] - scene["center_px"][0],
+    center = math.hypot(res.center_px[0] - scene["center_px"][0],
                         res.center_px[1] - scene["center_px"][1])
     return Outcome(truth, noise, seed, str(res.model), circles, max_cra,
-                   field_cra_deg(scene, truth.exit_pupil_mm), err, at, circle_errors, centre,
+                   field_cra_deg(scene, truth.exit_pupil_mm), err, at, circle_errors, center,
                    pixel_error(truth, res, scene, f_numbers), spur, res, scene,
                    tuple(f_numbers))
 
@@ -410,7 +411,7 @@ def test_users_scene_chooses_no_stop_like_circle(key):
     check(out)
 
 
-def test_optical_centre_of_a_lens_without_a_circle():
+def test_optical_center_of_a_lens_without_a_circle():
     """No circle in the field: the centre comes from the flats' natural (cos^4) fall-off, which
     an integrating sphere leaves intact; a centre off by pixels moves every pixel's chief-ray
     angle, and with it the shift the profile predicts."""

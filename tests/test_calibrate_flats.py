@@ -8,23 +8,26 @@ fewer pixels, so the statistical errors are about 4 times those of a full-size s
 
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 
 from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, radial_profile
-from snapcorr.calibrate.flats import clean_flat, cra_deg_map
-from snapcorr.simulate import LampPlaque, flat_field
+from snapcorr.calibrate.flats import clean_flat
+from snapcorr.optics import cra_map
+from snapcorr.simulate import Detector, LampPlaque, flat_frame
 
-PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
+PAPER = PAPER_LENS
 H_GE_X = Lens(21.0, [(9.5, 26.0)], 0.0, 1.0, name="h >= x")
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 SHAPE, PITCH = (512, 512), 22.0
-CENTRE = (281.3, 236.8)  # off the image centre (255.5, 255.5)
+CENTER = (281.3, 236.8)  # off the image centre (255.5, 255.5)
 
 
-def _flats(lens, *, seed=0, fs=F_NUMBERS, electrons=1e4, **kw):
+def _flats(lens, *, seed=0, fs=F_NUMBERS, electrons=1e4, saturation_dn=None, **kw):
     rng = np.random.default_rng(seed)
-    return {f: flat_field(lens, f, SHAPE, PITCH, center_px=CENTRE, signal_electrons=electrons,
-                          rng=rng, **kw) for f in fs}
+    camera = Detector(signal_electrons=electrons, saturation_dn=saturation_dn)
+    return {f: flat_frame(SHAPE, PITCH, f, lens, center_px=CENTER, detector=camera, rng=rng,
+                          **kw) for f in fs}
 
 
 def _calibrate(flats, lens, **kw):
@@ -33,7 +36,7 @@ def _calibrate(flats, lens, **kw):
                           pupil_magnification=lens.pupil_magnification, **kw)
 
 
-def _check(res, truth, *, rtol, onset_tol_deg=0.3, centre_tol_px=1.0):
+def _check(res, truth, *, rtol, onset_tol_deg=0.3, center_tol_px=1.0):
     lens = res.lens
     assert lens.has_vignetting and res.model == "one"
     assert abs(lens.vignetting[0][0] / truth.vignetting[0][0] - 1) < rtol
@@ -42,7 +45,7 @@ def _check(res, truth, *, rtol, onset_tol_deg=0.3, centre_tol_px=1.0):
     true_on = truth.onset_cra_deg(fs)
     inside = true_on < res.max_cra_deg
     assert np.all(np.abs(res.model_onsets_deg()[inside] - true_on[inside]) < onset_tol_deg)
-    assert np.hypot(res.center_px[0] - CENTRE[0], res.center_px[1] - CENTRE[1]) < centre_tol_px
+    assert np.hypot(res.center_px[0] - CENTER[0], res.center_px[1] - CENTER[1]) < center_tol_px
 
 
 @pytest.fixture(scope="module")
@@ -105,12 +108,12 @@ def test_lamp_and_plaque_within_two_percent():
     left, right = f8[:, : nx // 8].mean(), f8[:, -nx // 8:].mean()
     assert abs(left / right - 1) > 0.03
     res = _calibrate(flats, PAPER)
-    _check(res, PAPER, rtol=0.02, centre_tol_px=2.0)
+    _check(res, PAPER, rtol=0.02, center_tol_px=2.0)
 
 
-def test_given_centre_is_kept():
-    res = _calibrate(_flats(PAPER, seed=3), PAPER, center_px=CENTRE)
-    assert res.center_px == CENTRE and res.center_source == "given"
+def test_given_center_is_kept():
+    res = _calibrate(_flats(PAPER, seed=3), PAPER, center_px=CENTER)
+    assert res.center_px == CENTER and res.center_source == "given"
     _check(res, PAPER, rtol=0.01)
 
 
@@ -218,7 +221,7 @@ def test_detect_onset_on_an_exact_ratio_profile():
     assert not flat.found and np.isnan(flat.cra_deg)
 
 
-def test_centre_from_contours_of_a_shifted_fall_off():
+def test_center_from_contours_of_a_shifted_fall_off():
     ny, nx = 200, 300
     yy, xx = np.mgrid[:ny, :nx]
     img = 1.0 - 1e-5 * ((xx - 190.4) ** 2 + (yy - 80.7) ** 2)
@@ -230,7 +233,7 @@ def test_radial_profile_against_a_direct_average():
     rng = np.random.default_rng(9)
     img = rng.normal(100, 5, (120, 160))
     ok = np.ones(img.shape, bool)
-    cra = cra_deg_map(img.shape, (70.0, 50.0), 10.0, 21.0)
+    cra = cra_map(img.shape, 10.0, 21.0, (70.0, 50.0))
     prof = radial_profile(img, ok, cra, bin_deg=0.5)
     sel = (cra >= 2.0) & (cra < 2.5)
     k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))
@@ -245,7 +248,7 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     # is biased by a few percent and says so by its chi-square, and auto falls back to the
     # onsets of the ratio profiles, which only need to know where the fall-off starts.
     flats = _flats(PAPER, seed=11)
-    t = np.tan(np.deg2rad(cra_deg_map(SHAPE, CENTRE, PITCH, 21.0)))
+    t = np.tan(np.deg2rad(cra_map(SHAPE, PITCH, 21.0, CENTER)))
     for f in flats:
         flats[f] = flats[f] * (1 - 0.6 * t**2 / f)
     res = _calibrate(flats, PAPER)
@@ -284,10 +287,10 @@ def test_reference_cut_off_inside_the_field():
     assert abs(res.lens.vignetting[0][1] / 30.0 - 1) < 0.01
 
 
-def test_optical_centre_outside_the_image():
+def test_optical_center_outside_the_image():
     rng = np.random.default_rng(13)
-    centre = (-60.0, 100.0)
-    flats = {f: flat_field(PAPER, f, (256, 256), 44.0, center_px=centre, rng=rng)
+    center = (-60.0, 100.0)
+    flats = {f: flat_frame((256, 256), 44.0, f, PAPER, center_px=center, rng=rng)
              for f in F_NUMBERS}
     res = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0.06,
                          pupil_magnification=1.3)
@@ -301,8 +304,8 @@ def test_noise_model_measures_read_and_shot_noise():
     from snapcorr.calibrate import noise_model
 
     for electrons, read in ((1e4, 0.0), (400.0, 10.0), (1e7, 0.0)):
-        img = flat_field(PAPER, 1.4, SHAPE, PITCH, signal_electrons=electrons,
-                         read_noise_electrons=read, rng=14)
+        camera = Detector(signal_electrons=electrons, read_noise_electrons=read)
+        img = flat_frame(SHAPE, PITCH, 1.4, PAPER, detector=camera, rng=14)
         a, b, c = noise_model(img, np.ones(img.shape, bool))
         s = np.percentile(img, [5, 50, 95])
         # variance = read^2 + signal (gain 1), whichever terms the curve gives it to
@@ -354,7 +357,7 @@ def test_ratio_profile_is_the_ratio_of_bin_sums_with_a_pixelwise_error():
     num, den = rng.normal(50, 2, (80, 90)), rng.normal(100, 3, (80, 90))
     src = 1 + 0.3 * np.linspace(0, 1, 90)[None, :]  # a source that varies around the ring
     ok = np.ones(num.shape, bool)
-    cra = cra_deg_map(num.shape, (40.0, 40.0), 20.0, 21.0)
+    cra = cra_map(num.shape, 20.0, 21.0, (40.0, 40.0))
     prof = radial_profile(num * src, ok, cra, bin_deg=0.5, denominator=den * src)
     sel = (cra >= 1.0) & (cra < 1.5)
     k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))

@@ -1,28 +1,72 @@
 """The command line: help, version, the demo, and one-line errors instead of tracebacks."""
 
 import re
+import signal
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 
 from snapcorr import Lens, __version__
-from snapcorr.cli import main
 
 
-def run(*args):
-    return subprocess.run([sys.executable, "-m", "snapcorr", *args], capture_output=True,
-                          text=True, timeout=300)
+def test_the_entry_point_exits_with_the_status_and_one_line():
+    """The real entry point, in a process of its own (the other tests run the same ``main``
+    in-process): ``python -m snapcorr`` prints the version, and an error is one line on
+    stderr, no traceback, with a non-zero exit status."""
+    res = subprocess.run([sys.executable, "-m", "snapcorr", "--version"], capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0 and res.stdout == f"snapcorr {__version__}\n" and not res.stderr
+    res = subprocess.run([sys.executable, "-m", "snapcorr", "shift", "--lens", "nope",
+                          "--f-number", "2", "--cra", "1"], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 1 and not res.stdout and "Traceback" not in res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("snapcorr shift: error: no bundled lens")
 
 
-def test_version_and_help():
-    res = run("--version")
+def test_in_process_runs_leave_no_global_state(cli, monkeypatch):
+    """``main(argv)`` called from Python gives the caller's process back as it was: signal
+    handlers, warning filters, hooks (``cli`` checks this after every run), also after an
+    interruption; and the check itself notices a handler left behind."""
+    from snapcorr import cli as cli_module
+
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    filters = list(warnings.filters)
+    for args in (["shift", "--f-number", "1.4", "--cra", "0"], ["shift", "--f-number", "0"],
+                 ["shift", "--lens", "nope", "--f-number", "2", "--cra", "1"], ["--help"]):
+        cli(*args)
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_module, "_cmd_shift", interrupted)
+    res = cli("shift", "--f-number", "2", "--cra", "1")
+    assert res.returncode == 130 and "interrupted" in res.stderr
+    assert {s: signal.getsignal(s) for s in handlers} == handlers
+    assert warnings.filters == filters
+
+    def leaky(args):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return 0
+
+    monkeypatch.setattr(cli_module, "_cmd_shift", leaky)
+    try:
+        with pytest.raises(AssertionError, match="left global state behind"):
+            cli("shift", "--f-number", "2", "--cra", "1")
+    finally:
+        signal.signal(signal.SIGINT, handlers[signal.SIGINT])
+
+
+def test_version_and_help(cli):
+    res = cli("--version")
     assert res.returncode == 0 and __version__ in res.stdout
-    res = run("--help")
+    res = cli("--help")
     assert res.returncode == 0 and "examples:" in res.stdout and "demo" in res.stdout
     for sub in ("demo", "shift", "flatfield", "calibrate", "correct", "budget"):
-        res = run(sub, "--help")
+        res = cli(sub, "--help")
         assert res.returncode == 0 and "examples:" in res.stdout
         # each subcommand shows its own examples only
         shown = set(re.findall(r"^\s+snapcorr (\w+)", res.stdout.split("examples:")[1], re.M))
@@ -42,8 +86,9 @@ def test_every_option_has_help_text():
                 assert action.help, f"snapcorr {name} {action.option_strings or action.dest}"
 
 
-def test_demo_writes_figure_table_and_summary(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path / "out")]) == 0
+def test_demo_writes_figure_table_and_summary(tmp_path, cli):
+    res = cli("demo", "--out", tmp_path / "out")
+    assert res.returncode == 0, res.stderr
     out = tmp_path / "out"
     assert (out / "mean_shift.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     table = np.loadtxt(out / "mean_shift.csv", delimiter=",", skiprows=1)
@@ -70,12 +115,13 @@ def test_demo_writes_figure_table_and_summary(tmp_path, capsys):
     from snapcorr.demo import MARKER
 
     assert [p.name for p in out.glob(".*")] == [MARKER]  # no temporary files left behind
-    assert "wrote" in capsys.readouterr().out
+    assert "wrote" in res.stdout
 
 
-def test_shift_table(capsys):
-    assert main(["shift", "--f-number", "1.4", "--cra", "0", "20"]) == 0
-    out = capsys.readouterr().out
+def test_shift_table(cli):
+    res = cli("shift", "--f-number", "1.4", "--cra", "0", "20")
+    assert res.returncode == 0
+    out = res.stdout
     assert "-8.954" in out and "vignetted" in out
 
 
@@ -89,25 +135,25 @@ def test_shift_table(capsys):
         (["shift", "--f-number", "2", "--cra", "1", "--n-eff", "0.9"], "--n-eff"),
     ],
 )
-def test_foreseeable_mistakes_are_one_line_errors(args, message):
-    res = run(*args)
+def test_foreseeable_mistakes_are_one_line_errors(cli, args, message):
+    res = cli(*args)
     assert res.returncode != 0
     assert "Traceback" not in res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0]
 
 
-def test_bad_lens_file_is_one_line_error(tmp_path):
+def test_bad_lens_file_is_one_line_error(tmp_path, cli):
     bad = tmp_path / "bad.toml"
     bad.write_text("[lens]\nname = 'x'\n")
-    res = run("shift", "--lens", str(bad), "--f-number", "2", "--cra", "1")
+    res = cli("shift", "--lens", str(bad), "--f-number", "2", "--cra", "1")
     assert res.returncode != 0 and "Traceback" not in res.stderr
     assert "exit_pupil_mm" in res.stderr
 
 
-def test_warning_is_one_line(tmp_path):
+def test_warning_is_one_line(tmp_path, cli):
     lens = tmp_path / "wide.toml"
     lens.write_text("[lens]\nname = 'wide'\nexit_pupil_mm = 21.0\n")
-    res = run("shift", "--lens", str(lens), "--f-number", "1.2", "--cra", "30")
+    res = cli("shift", "--lens", str(lens), "--f-number", "1.2", "--cra", "30")
     assert res.returncode == 0
     assert "warning" in res.stderr and "Traceback" not in res.stderr

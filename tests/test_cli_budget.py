@@ -1,22 +1,15 @@
 """`snapcorr budget` and `snapcorr correct --source`: the model a scene needs."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import PAPER_LENS
 
-from snapcorr import Lens, budget
+from snapcorr import budget, spectra
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, make_cube, read_dataset, write_cube
 
-PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
-
-
-def run(command, *args, cwd):
-    return subprocess.run([sys.executable, "-m", "snapcorr", command, *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd)
+PAPER = PAPER_LENS
 
 
 @pytest.fixture
@@ -34,13 +27,13 @@ def files(tmp_path):
     return tmp_path
 
 
-def test_budget_prints_the_table_and_the_library_recommendation(files):
-    res = run("budget", "--sensor", "sized.toml", "--lens", "lens.toml", "--f-number", "4",
+def test_budget_prints_the_table_and_the_library_recommendation(files, cli):
+    res = cli("budget", "--sensor", "sized.toml", "--lens", "lens.toml", "--f-number", "4",
               "--source", "solar", "--tolerance-pct", "1", "--plot", "b.png", cwd=files)
     assert res.returncode == 0, res.stderr
     sensor = Sensor.load(files / "sized.toml")
     cra_max = np.degrees(np.arctan(sensor.field_radius_mm / PAPER.exit_pupil_mm))
-    b = budget.scene_budget(sensor, PAPER, 4.0, budget.solar(), cra_max_deg=cra_max,
+    b = budget.scene_budget(spectra.solar(), sensor, 4.0, PAPER, cra_max_deg=cra_max,
                             tolerance_pct=1.0)
     model, reason = b.recommend()
     assert f"recommended: {model}: {reason}" in res.stdout
@@ -51,18 +44,18 @@ def test_budget_prints_the_table_and_the_library_recommendation(files):
     assert (files / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_budget_table_says_na_where_the_source_ends_near_a_band(files):
+def test_budget_table_says_na_where_the_source_ends_near_a_band(files, cli):
     lam = np.arange(400.0, 910.6, 0.5)  # reaches the 900 nm band, not its 5 nm shifts
     np.savetxt(files / "short.csv", np.c_[lam, 1 + 0.001 * lam], delimiter=",")
-    res = run("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "4",
+    res = cli("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "4",
               "--source", "short.csv", "--cra-max", "10", cwd=files)
     assert res.returncode == 0, res.stderr
     (row,) = [line for line in res.stdout.splitlines() if line.startswith("   4 ")]
     assert "n/a" in row
 
 
-def test_budget_of_a_flat_source_recommends_no_correction(files):
-    res = run("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "1.4",
+def test_budget_of_a_flat_source_recommends_no_correction(files, cli):
+    res = cli("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "1.4",
               "--source", "flat.csv", "--cra-max", "15", cwd=files)
     assert res.returncode == 0, res.stderr
     assert "recommended: none" in res.stdout and "over the whole field" in res.stdout
@@ -83,10 +76,7 @@ def test_budget_of_a_flat_source_recommends_no_correction(files):
     (["--lens", "nolens.toml"], "nolens.toml"),
     (["--f-number", "-1"], "--f-number"),
 ])
-def test_budget_mistakes_are_one_line(files, args, message, capsys, monkeypatch):
-    from snapcorr.cli import main
-
-    monkeypatch.chdir(files)  # in-process: the same main() as the console script, faster
+def test_budget_mistakes_are_one_line(files, args, message, cli):
     (files / "old.png").write_bytes(b"keep")
     Sensor("s7", "snapscan", 40.0, np.linspace(500, 900, 7), 10.0, 1.7,
            size_px=(100, 100)).save(files / "s7.toml")
@@ -96,14 +86,15 @@ def test_budget_mistakes_are_one_line(files, args, message, capsys, monkeypatch)
         base["--sensor"] = "s7.toml"  # 7 bands against the cube's 5
     for flag, value in zip(args[::2], args[1::2], strict=True):
         base[flag] = value
-    assert main(["budget", *[v for kv in base.items() for v in kv]]) in (1, 2)  # 2: usage
-    err = capsys.readouterr().err
+    res = cli("budget", *[v for kv in base.items() for v in kv], cwd=files)
+    assert res.returncode in (1, 2)  # 2: usage
+    err = res.stderr
     assert message in err and len(err.strip().splitlines()) == 1, err
     assert not (files / "b.jpg").exists() and (files / "old.png").read_bytes() == b"keep"
 
 
-def test_correct_with_a_source_uses_the_budget(files):
-    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+def test_correct_with_a_source_uses_the_budget(files, cli):
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
               "--f-number", "4", "--source", "flat.csv", "--out", "flat.nc", cwd=files)
     assert res.returncode == 0, res.stderr
     ds = read_dataset(files / "flat.nc")
@@ -112,29 +103,31 @@ def test_correct_with_a_source_uses_the_budget(files):
     assert ds.attrs["tolerance_pct"] == 0.5
     np.testing.assert_array_equal(ds["wavelength_corrected"].values[..., 2],
                                   np.float32(700.0))
-    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
               "--f-number", "1.4", "--source", "solar", "--tolerance-pct", "0.2",
               "--out", "sun.nc", cwd=files)
     assert res.returncode == 0, res.stderr
     ds = xr.open_dataset(files / "sun.nc")
-    assert ds.attrs["method"] == "vignetted" and "sun" in ds.attrs["method_reason"]
-    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+    # the sun's lines within a band: the budget asks for one response per band too
+    assert ds.attrs["method"] == "harmonised" and "sun" in ds.attrs["method_reason"]
+    assert "harmonised" in ds and ds.attrs["method_requested"] == "auto"
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
               "--f-number", "4", "--source", "solar", "--method", "ideal", "--out", "x.nc",
               cwd=files)
     assert res.returncode != 0 and "--method auto" in res.stderr
-    res = run("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
               "--f-number", "4", "--tolerance-pct", "1", "--out", "x.nc", cwd=files)
     assert res.returncode != 0 and "give --source" in res.stderr
     assert not (files / "x.nc").exists()
 
 
-def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path):
+def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path, cli):
     sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
     sensor.save(tmp_path / "s21.toml")
     step = np.where(np.asarray(sensor.cwl_nm) < 700, 1.0, 0.05).astype(np.float32)
     write_cube(make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm),
                tmp_path / "edge.nc")  # tmp_path is the folder of `files` (lens.toml)
-    res = run("correct", "edge.nc", "--lens", "lens.toml", "--sensor", "s21.toml",
+    res = cli("correct", "edge.nc", "--lens", "lens.toml", "--sensor", "s21.toml",
               "--f-number", "1.4", "--source", "cube", "--tolerance-pct", "0.1", "--out",
               "out.zarr", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
@@ -144,24 +137,29 @@ def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path
     assert "harmonised" in ds and "harmonised:" in res.stdout  # what the budget chose
 
 
-def test_correct_cube_with_the_cubes_own_spectrum():
+def test_the_budget_recommends_the_model_correct_cube_takes():
     sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
     lam = np.asarray(sensor.cwl_nm)
     step = np.where(lam < 700, 1.0, 0.05).astype(np.float32)  # a red edge in the scene
     cube = make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm)
-    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.1)
+    model, reason, attrs = budget.recommend_model(cube, sensor, 1.4, PAPER, "cube",
+                                                  tolerance_pct=0.1)
     # the edge inside the 700 nm band (200 % uncorrected): no model brings it within 0.1 %,
     # and the one that leaves the least is taken: harmonising (the vignetted shift and one
     # response per band)
-    worst = dict(zip(ds.attrs["budget_models"], ds.attrs["budget_worst_pct"], strict=True))
-    assert ds.attrs["budget_source"] == "cube mean" and worst["none"] > 100
+    worst = dict(zip(attrs["budget_models"], attrs["budget_worst_pct"], strict=True))
+    assert attrs["budget_source"] == "cube mean" and worst["none"] > 100
     assert min(worst, key=worst.get) == "harmonised" and worst["harmonised"] < 0.5
-    assert ds.attrs["method"] == "vignetted" and "harmonised" in ds
-    assert "no model is within" in ds.attrs["method_reason"]
-    # within 0.5 % harmonising is enough, and is what is done
-    ds = correct_cube(cube, PAPER, sensor, 1.4, source="cube", tolerance_pct=0.5)
-    assert "harmonised" in ds and "harmonised leaves at most" in ds.attrs["method_reason"]
-    with pytest.raises(ValueError, match="method='auto'"):
-        correct_cube(cube, PAPER, sensor, 1.4, source="cube", method="ideal")
+    assert model == "harmonised" and "no model is within" in reason
+    ds = correct_cube(cube, sensor, 1.4, PAPER, method=model)
+    assert ds.attrs["method"] == "harmonised" and "harmonised" in ds
+    # the shift is the vignetted model's
+    exact = correct_cube(cube, sensor, 1.4, PAPER, method="vignetted")
+    np.testing.assert_array_equal(ds["wavelength_scale"], exact["wavelength_scale"])
+    assert "harmonised" not in exact
+    # within 0.5 % harmonising is enough, and is what is chosen
+    model, reason, _ = budget.recommend_model(cube, sensor, 1.4, PAPER, "cube",
+                                              tolerance_pct=0.5)
+    assert model == "harmonised" and "harmonised leaves at most" in reason
     flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)
-    assert correct_cube(flat, PAPER, sensor, 1.4, source="cube").attrs["method"] == "none"
+    assert budget.recommend_model(flat, sensor, 1.4, PAPER, "cube")[0] == "none"

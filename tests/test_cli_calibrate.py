@@ -1,24 +1,17 @@
 """`snapcorr calibrate`: flats in any format to a lens profile; mistakes are one line."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 
 from snapcorr import Lens
-from snapcorr.simulate import flat_field
+from snapcorr.simulate import Detector, flat_frame
 
-PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
+PAPER = PAPER_LENS
 SHAPE, PITCH = (256, 256), 44.0  # the angles of a 2048 x 2048, 5.5 um sensor
-CENTRE = (140.2, 118.9)
+CENTER = (140.2, 118.9)
 OPTICS = ["--exit-pupil-mm", "21", "--pixel-pitch-um", str(PITCH), "--magnification", "0.06",
           "--pupil-magnification", "1.3"]
-
-
-def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "snapcorr", "calibrate", *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
 def _write_oiio(path, image):
@@ -40,8 +33,9 @@ def flats(tmp_path_factory):
     rng = np.random.default_rng(0)
     dark = 100.0
     for f in (1.4, 2.0, 2.8, 4.0, 8.0):
-        img = flat_field(PAPER, f, SHAPE, PITCH, center_px=CENTRE, dark_dn=dark,
-                         signal_electrons=2e4, rng=rng, dtype=np.uint16)
+        img = flat_frame(SHAPE, PITCH, f, PAPER, center_px=CENTER,
+                         detector=Detector(dark_dn=dark, signal_electrons=2e4), rng=rng,
+                         dtype=np.uint16)
         if f == 1.4:
             np.save(d / "f1.4.npy", img)
         elif f == 2.0:
@@ -63,8 +57,8 @@ FLATS = ["--flat", "1.4=f1.4.npy", "--flat", "f/2=f2.tif", "--flat", "2.8=f2.8.e
          "--flat", "f4=f4.hdr", "--flat", "8=f8.npy"]
 
 
-def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
-    res = run(*FLATS, *OPTICS, "--dark", "dark.npy", "--out", "lens.toml", "--plot",
+def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats, cli):
+    res = cli("calibrate", *FLATS, *OPTICS, "--dark", "dark.npy", "--out", "lens.toml", "--plot",
               "lens.png", cwd=flats)
     assert res.returncode == 0, res.stderr
     assert "mean of 3 bands" in res.stderr and "wrote lens.toml and lens.png" in res.stdout
@@ -74,17 +68,17 @@ def test_calibrate_from_mixed_formats_writes_profile_and_plot(flats):
     cal = lens.calibration
     assert cal["pixel_pitch_um"] == PITCH and cal["dark"] == "dark.npy"
     assert cal["bands"] == "mean of the bands in each file"
-    assert abs(cal["center_px"][0] - CENTRE[0]) < 1 and abs(cal["center_px"][1] - CENTRE[1]) < 1
+    assert abs(cal["center_px"][0] - CENTER[0]) < 1 and abs(cal["center_px"][1] - CENTER[1]) < 1
     assert cal["inputs"]["f/4"] == "f4.hdr" and cal["f_numbers"] == [1.4, 2.0, 2.8, 4.0, 8.0]
     assert (flats / "lens.png").read_bytes()[:4] == b"\x89PNG"
     # an existing output is kept unless --overwrite
-    again = run(*FLATS, *OPTICS, "--out", "lens.toml", cwd=flats)
+    again = cli("calibrate", *FLATS, *OPTICS, "--out", "lens.toml", cwd=flats)
     assert again.returncode == 1 and "exists" in again.stderr
     assert Lens.load(flats / "lens.toml") == lens
 
 
-def test_the_model_choice_options_reach_the_profile(flats):
-    res = run(*FLATS, *OPTICS, "--max-circles", "1", "--tolerance-nm", "0.01", "--out",
+def test_the_model_choice_options_reach_the_profile(flats, cli):
+    res = cli("calibrate", *FLATS, *OPTICS, "--max-circles", "1", "--tolerance-nm", "0.01", "--out",
               "one.toml", cwd=flats)
     assert res.returncode == 0, res.stderr
     choice = Lens.load(flats / "one.toml").calibration["model_choice"]
@@ -107,38 +101,38 @@ def test_the_model_choice_options_reach_the_profile(flats):
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--dark", "small.npy"], "dark frame"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=empty.npy"], "not a numpy array file"),
 ])
-def test_mistakes_are_one_line_and_write_nothing(flats, args, message):
+def test_mistakes_are_one_line_and_write_nothing(flats, args, message, cli):
     np.save(flats / "small.npy", np.ones((10, 12)))
     (flats / "empty.npy").write_bytes(b"")
     (flats / "notes.txt").write_text("not an image")
-    res = run(*args, *OPTICS, "--out", "bad.toml", "--plot", "bad.png", cwd=flats)
+    res = cli("calibrate", *args, *OPTICS, "--out", "bad.toml", "--plot", "bad.png", cwd=flats)
     assert res.returncode != 0
     assert message in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
     assert not (flats / "bad.toml").exists() and not (flats / "bad.png").exists()
 
 
-def test_output_may_not_be_an_input_or_not_toml(flats):
-    res = run(*FLATS, *OPTICS, "--out", "f8.npy", cwd=flats)
+def test_output_may_not_be_an_input_or_not_toml(flats, cli):
+    res = cli("calibrate", *FLATS, *OPTICS, "--out", "f8.npy", cwd=flats)
     assert res.returncode == 1 and "also an input" in res.stderr
-    res = run(*FLATS, *OPTICS, "--out", "x.npy", cwd=flats)
+    res = cli("calibrate", *FLATS, *OPTICS, "--out", "x.npy", cwd=flats)
     assert res.returncode == 1 and ".toml" in res.stderr
-    res = run(*FLATS, *OPTICS, "--out", "x.toml", "--plot", "f8.npy", cwd=flats)
+    res = cli("calibrate", *FLATS, *OPTICS, "--out", "x.toml", "--plot", "f8.npy", cwd=flats)
     assert res.returncode == 1 and "also an input" in res.stderr
     assert np.load(flats / "f8.npy").shape == SHAPE
 
 
-def test_help_shows_the_command_shape():
-    res = subprocess.run([sys.executable, "-m", "snapcorr", "calibrate", "--help"],
-                         capture_output=True, text=True, timeout=60)
+def test_help_shows_the_command_shape(cli):
+    res = cli("calibrate", "--help")
+    assert res.returncode == 0
     for word in ("--flat F_NUMBER=PATH", "--exit-pupil-mm", "--pixel-pitch-um",
                  "--magnification", "--pupil-magnification", "--dark", "--center-px CX,CY",
                  "--out", "--plot PNG", "examples:"):
         assert word in res.stdout, word
 
 
-def test_missing_output_folder_is_refused_before_any_work(flats):
-    res = run(*FLATS, *OPTICS, "--out", "nowhere/x.toml", "--plot", "o.png", cwd=flats)
+def test_missing_output_folder_is_refused_before_any_work(flats, cli):
+    res = cli("calibrate", *FLATS, *OPTICS, "--out", "nowhere/x.toml", "--plot", "o.png", cwd=flats)
     assert res.returncode == 1 and "not a folder" in res.stderr
     assert "read f/" not in res.stderr and not (flats / "o.png").exists()
 
@@ -162,11 +156,9 @@ def test_multipage_tiff_pages_are_averaged(flats):
     assert info["bands"] == 2 and np.all(image == 200.0)
 
 
-def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, capsys):
+def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, cli):
     """Step 2 of the two-step workflow: x (and m, m_P) from the profile `snapcorr pupil`
     wrote, its provenance carried over; x given twice is refused."""
-    from snapcorr.cli import main
-
     found = flats / "x_found.toml"
     Lens(21.0, (), 0.06, 1.3, name="x from a target", calibration={
         "exit_pupil_stderr_mm": 0.04, "n_eff": 1.71, "n_eff_stderr": 0.01,
@@ -175,7 +167,8 @@ def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, capsys):
     args = ["calibrate", "--flat", f"1.4={flats / 'f1.4.npy'}", "--flat",
             f"8={flats / 'f8.npy'}", "--flat", f"2.8={flats / 'f2.8.exr'}",
             "--dark", str(flats / "dark.npy"), "--pixel-pitch-um", str(PITCH), "--out", str(out)]
-    assert main([*args, "--lens", str(found)]) == 0, capsys.readouterr().err
+    res = cli(*args, "--lens", found)
+    assert res.returncode == 0, res.stderr
     lens = Lens.load(out)
     assert lens.exit_pupil_mm == 21.0
     assert (lens.magnification, lens.pupil_magnification) == (0.06, 1.3)
@@ -184,26 +177,22 @@ def test_x_from_a_lens_profile_the_pupil_command_wrote(flats, capsys):
     cal = lens.calibration
     assert cal["exit_pupil_from"] == str(found) and cal["exit_pupil_stderr_mm"] == 0.04
     assert cal["exit_pupil_n_eff"] == 1.71 and cal["exit_pupil_n_eff_fitted"] == "one"
-    capsys.readouterr()
-    code = main([*args[:-1], str(flats / "never.toml"), "--lens", str(found),
-                 "--exit-pupil-mm", "21"])
-    assert code == 2 and "not allowed with" in capsys.readouterr().err
+    res = cli(*args[:-1], flats / "never.toml", "--lens", found, "--exit-pupil-mm", "21")
+    assert res.returncode == 2 and "not allowed with" in res.stderr
     assert not (flats / "never.toml").exists()
 
 
-def test_flats_without_a_dark_frame_are_said_to_be_taken_as_dark_subtracted(flats, capsys):
+def test_flats_without_a_dark_frame_are_said_to_be_taken_as_dark_subtracted(flats, cli):
     """These flats carry a 100 DN dark level. Without --dark it is read as light (here the
     selection even adds a second circle); the output says what was assumed, and the profile
     records it."""
-    from snapcorr.cli import main
-
     args = ["calibrate", "--flat", f"1.4={flats / 'f1.4.npy'}", "--flat",
             f"8={flats / 'f8.npy'}", "--flat", f"2.8={flats / 'f2.8.exr'}", *OPTICS]
-    assert main([*args, "--out", str(flats / "nodark.toml")]) == 0
-    out = capsys.readouterr().out
-    assert "note: no --dark" in out
+    res = cli(*args, "--out", flats / "nodark.toml")
+    assert res.returncode == 0, res.stderr
+    assert "note: no --dark" in res.stdout
     assert Lens.load(flats / "nodark.toml").calibration["dark"].startswith("none given")
-    assert main([*args, "--dark", str(flats / "dark.npy"), "--out",
-                 str(flats / "withdark.toml")]) == 0
-    assert "no --dark" not in capsys.readouterr().out
+    res = cli(*args, "--dark", flats / "dark.npy", "--out", flats / "withdark.toml")
+    assert res.returncode == 0, res.stderr
+    assert "no --dark" not in res.stdout
     assert len(Lens.load(flats / "withdark.toml").vignetting) == 1

@@ -6,17 +6,12 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import PAPER_LENS
 
-from snapcorr import Lens
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, make_cube, read_dataset, write_cube
 
-PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
-
-
-def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "snapcorr", "correct", *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd)
+PAPER = PAPER_LENS
 
 
 @pytest.fixture
@@ -30,14 +25,14 @@ def files(tmp_path):
     return tmp_path, cube, sensor
 
 
-def test_correct_writes_what_the_library_computes(files):
+def test_correct_writes_what_the_library_computes(files, cli):
     d, cube, sensor = files
-    res = run("cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml", "--f-number", "1.4",
-              "--out", "out.nc", "--resample", cwd=d)
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--out", "out.nc", "--resample", cwd=d)
     assert res.returncode == 0, res.stderr
     assert "method vignetted" in res.stdout
     ds = read_dataset(d / "out.nc")
-    ref = correct_cube(cube, PAPER, sensor, 1.4, resample=True)
+    ref = correct_cube(cube, sensor, 1.4, PAPER, resample=True)
     np.testing.assert_array_equal(ds["wavelength_corrected"].values,
                                   ref["wavelength_corrected"].values)
     np.testing.assert_array_equal(ds["reflectance"].values, cube.values)
@@ -57,7 +52,7 @@ def test_correct_writes_what_the_library_computes(files):
     (["--f-number", "2", "--target-fwhm-nm", "30"], "give --harmonise too"),
     (["--f-number", "2", "--harmonise", "--target-fwhm-nm", "5"], "only widens"),
 ])
-def test_mistakes_are_one_line_and_write_nothing(files, args, message):
+def test_mistakes_are_one_line_and_write_nothing(files, args, message, cli):
     d, cube, _ = files
     (d / "badlens.toml").write_text('[lens]\nname = "x"\n')
     (d / "badsensor.toml").write_text('[sensor]\nname = "x"\nlayout = "snapscan"\n'
@@ -72,7 +67,7 @@ def test_mistakes_are_one_line_and_write_nothing(files, args, message):
     argv = ["cube.nc"] + [v for kv in base.items() for v in kv if v is not None]
     if "--f-number" not in base:
         argv += ["--f-number", "2"]
-    res = run(*argv, cwd=d)
+    res = cli("correct", *argv, cwd=d)
     assert res.returncode != 0 and message in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
     assert not (d / "new.nc").exists() and not (d / "out.txt").exists()
@@ -84,17 +79,20 @@ def test_mistakes_are_one_line_and_write_nothing(files, args, message):
 def cluster():
     from distributed import LocalCluster
 
+    # every port the system's choice (another run of the tests may hold 8787, the default
+    # of the scheduler's HTTP server, which it keeps even without a dashboard)
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=True,
-                      dashboard_address=None) as c:
+                      dashboard_address=None,
+                      scheduler_kwargs={"dashboard_address": "127.0.0.1:0"}) as c:
         yield c
 
 
-def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster):
+def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster, cli):
     from distributed import Client
 
     d, cube, sensor = files
-    a = correct_cube(cube, PAPER, sensor, 1.4, resample=True, harmonise=True)
-    b = correct_cube(cube.chunk({"y": 7, "x": 9}), PAPER, sensor, 1.4, resample=True,
+    a = correct_cube(cube, sensor, 1.4, PAPER, resample=True, harmonise=True)
+    b = correct_cube(cube.chunk({"y": 7, "x": 9}), sensor, 1.4, PAPER, resample=True,
                      harmonise=True)
     with Client(cluster):
         c = b.compute()
@@ -103,8 +101,9 @@ def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster):
     # and the command line on that cluster writes the same as in-process
     args = ["cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml", "--f-number", "1.4",
             "--resample", "--harmonise"]
-    r1 = run(*args, "--out", "local.nc", cwd=d)
-    r2 = run(*args, "--out", "cluster.zarr", "--scheduler", cluster.scheduler_address, cwd=d)
+    r1 = cli("correct", *args, "--out", "local.nc", cwd=d)
+    r2 = cli("correct", *args, "--out", "cluster.zarr", "--scheduler",
+             cluster.scheduler_address, cwd=d)
     assert r1.returncode == 0 and r2.returncode == 0, r1.stderr + r2.stderr
     one = read_dataset(d / "local.nc")
     two = read_dataset(d / "cluster.zarr")
@@ -113,16 +112,17 @@ def test_numpy_dask_and_distributed_give_identical_outputs(files, cluster):
         np.testing.assert_array_equal(one[name].values, two[name].values)
 
 
-def test_unreachable_scheduler_is_one_line(files):
+def test_unreachable_scheduler_is_one_line(files, cli):
     d, _, _ = files
-    res = run("cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml", "--f-number", "2",
-              "--out", "x.nc", "--scheduler", "tcp://127.0.0.1:9", cwd=d)
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "2", "--out", "x.nc", "--scheduler", "tcp://127.0.0.1:9", cwd=d)
     assert res.returncode == 1 and "scheduler" in res.stderr and "Traceback" not in res.stderr
     assert not (d / "x.nc").exists()
 
 
 _PEAK = r"""
 import resource, runpy, sys
+from conftest import PAPER_LENS
 sys.argv = ["snapcorr"] + sys.argv[1:]
 try:
     runpy.run_module("snapcorr", run_name="__main__")
@@ -168,11 +168,11 @@ def test_zarr_cube_larger_than_the_memory_limit_streams(tmp_path, extra):
     out = xr.open_zarr(tmp_path / "out0.zarr", consolidated=False)
     assert out["resampled"].shape == (8192, 256, 128)
     big = xr.open_zarr(tmp_path / "big.zarr", consolidated=False)["reflectance"]
-    ref = correct_cube(big[:64].load(), PAPER, sensor, 1.4, resample=True,
+    ref = correct_cube(big[:64].load(), sensor, 1.4, PAPER, resample=True,
                        center_px=(127.5, 4095.5))  # the full cube's centre
     np.testing.assert_array_equal(out["resampled"][:64].values, ref["resampled"].values)
     if extra:  # one common response (asked for), so the crop's and the cube's agree
-        ref = correct_cube(big[:64].load(), PAPER, sensor, 1.4, harmonise=True,
+        ref = correct_cube(big[:64].load(), sensor, 1.4, PAPER, harmonise=True,
                            target_fwhm_nm=30.0, center_px=(127.5, 4095.5))
         np.testing.assert_allclose(out["harmonised"][:64].values, ref["harmonised"].values,
                                    atol=2e-5, equal_nan=True)

@@ -2,7 +2,6 @@
 
 import io
 import re
-import subprocess
 import sys
 
 import numpy as np
@@ -13,11 +12,6 @@ from numpy.testing import assert_allclose
 from snapcorr.cube import Sensor, make_cube, write_cube
 
 WL = np.linspace(500.0, 800.0, 4)
-
-
-def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "snapcorr", "flatfield", *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
 @pytest.fixture
@@ -31,10 +25,10 @@ def files(tmp_path):
     return tmp_path, scene
 
 
-def test_flatfield_writes_result_mask_raw_and_provenance(files):
+def test_flatfield_writes_result_mask_raw_and_provenance(files, cli):
     d, scene = files
-    res = run("scene.hdr", "--dark", "dark.hdr", "--dark", "dark.hdr", "--white", "white.tif",
-              "--filter-white", "fw.nc", "--out", "out.nc", cwd=d)
+    res = cli("flatfield", "scene.hdr", "--dark", "dark.hdr", "--dark", "dark.hdr", "--white",
+              "white.tif", "--filter-white", "fw.nc", "--out", "out.nc", cwd=d)
     assert res.returncode == 0, res.stderr
     assert "0 of 120 values masked" in res.stdout
     ds = xr.open_dataset(d / "out.nc")
@@ -53,25 +47,27 @@ def _assert_clean_failure(res, d, message, before):
     assert sorted(p.name for p in d.iterdir()) == before  # nothing written, nothing left
 
 
-def test_truncated_data_file(files):
+def test_truncated_data_file(files, cli):
     d, _ = files
     raw = d / "scene.raw"
     raw.write_bytes(raw.read_bytes()[:-7])
     before = sorted(p.name for p in d.iterdir())
-    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    res = cli("flatfield", "scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out",
+              "o.nc", cwd=d)
     _assert_clean_failure(res, d, "truncated", before)
 
 
-def test_header_band_count_differs_from_data(files):
+def test_header_band_count_differs_from_data(files, cli):
     d, _ = files
     hdr = d / "scene.hdr"
     hdr.write_text(hdr.read_text().replace("bands = 4", "bands = 3"))
     before = sorted(p.name for p in d.iterdir())
-    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    res = cli("flatfield", "scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out",
+              "o.nc", cwd=d)
     _assert_clean_failure(res, d, "bytes", before)
 
 
-def test_wavelength_list_length_mismatch(files):
+def test_wavelength_list_length_mismatch(files, cli):
     d, _ = files
     hdr = d / "scene.hdr"
     text = hdr.read_text()
@@ -79,15 +75,16 @@ def test_wavelength_list_length_mismatch(files):
     hdr.write_text(text[:start] + "wavelength = {500, 600, 700}" +
                    text[text.index("}", start) + 1:])
     before = sorted(p.name for p in d.iterdir())
-    res = run("scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    res = cli("flatfield", "scene.hdr", "--dark", "dark.hdr", "--white", "white.tif", "--out",
+              "o.nc", cwd=d)
     _assert_clean_failure(res, d, "4 bands but 3 wavelengths", before)
 
 
-def test_shape_mismatch_between_inputs(files):
+def test_shape_mismatch_between_inputs(files, cli):
     d, _ = files
     write_cube(make_cube(np.zeros((6, 4, 4), np.uint16), WL), d / "small_dark.hdr")
     before = sorted(p.name for p in d.iterdir())
-    res = run("scene.hdr", "--dark", "small_dark.hdr", "--white", "white.tif", "--out",
+    res = cli("flatfield", "scene.hdr", "--dark", "small_dark.hdr", "--white", "white.tif", "--out",
               "o.nc", cwd=d)
     _assert_clean_failure(res, d, "x and band must match", before)
 
@@ -109,16 +106,16 @@ def test_shape_mismatch_between_inputs(files):
          "cannot read"),
     ],
 )
-def test_bad_arguments(files, args, message):
+def test_bad_arguments(files, args, message, cli):
     d, _ = files
     (d / "junk.tif").write_bytes(b"this is no tiff")
     (d / "scene.xyz").write_bytes(b"?")
     (d / "notenvi.hdr").write_text("this is no ENVI header\n")
     before = sorted(p.name for p in d.iterdir())
-    _assert_clean_failure(run(*args, cwd=d), d, message, before)
+    _assert_clean_failure(cli("flatfield", *args, cwd=d), d, message, before)
 
 
-def test_unreadable_file(files):
+def test_unreadable_file(files, cli):
     import os
 
     d, _ = files
@@ -129,7 +126,8 @@ def test_unreadable_file(files):
         (d / "locked.nc").write_bytes(b"x")
         (d / "locked.nc").chmod(0)
     before = sorted(p.name for p in d.iterdir())
-    res = run("locked.nc", "--dark", "dark.hdr", "--white", "white.tif", "--out", "o.nc", cwd=d)
+    res = cli("flatfield", "locked.nc", "--dark", "dark.hdr", "--white", "white.tif", "--out",
+              "o.nc", cwd=d)
     _assert_clean_failure(res, d, "locked.nc", before)
 
 

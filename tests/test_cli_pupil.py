@@ -6,15 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import spectralsim as sim
-from flatsim import LensTruth
+from conftest import PAPER_TRUTH
 
 from snapcorr import Lens
-from snapcorr.cli import main
 from snapcorr.cube import Sensor, make_cube, write_cube
 
 PITCH_UM, SHAPE = 44.0, (96, 120)
 CWL = np.arange(500.0, 849.0, 12.0)
-TRUTH = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3)
+TRUTH = PAPER_TRUTH
 
 
 @pytest.fixture(scope="module")
@@ -43,15 +42,15 @@ def snapshot(folder):
     return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
 
 
-def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, capsys):
+def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, cli):
     out, plot = files / "lens_x.toml", files / "lens_x.png"
     sensor_out = files / "sensor_fitted.toml"
-    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}",
-                 "--cube", f"f/8={files / 'glass_f8.nc'}", "--sensor", str(files / "sensor.toml"),
-                 "--lens", str(files / "lens_ph.toml"), "--fit-n-eff", "--out", str(out),
-                 "--plot", str(plot), "--sensor-out", str(sensor_out)])
-    text = capsys.readouterr().out
-    assert code == 0, text
+    res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}",
+              "--cube", f"f/8={files / 'glass_f8.nc'}", "--sensor", files / "sensor.toml",
+              "--lens", files / "lens_ph.toml", "--fit-n-eff", "--out", out,
+              "--plot", plot, "--sensor-out", sensor_out)
+    text = res.stdout
+    assert res.returncode == 0, text
     lens = Lens.load(out)
     assert abs(lens.exit_pupil_mm - 21.0) < 0.25
     assert lens.vignetting == TRUTH.circles  # P and h copied from --lens
@@ -71,13 +70,13 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, capsys):
     assert str(sensor_out) in text
 
 
-def test_a_known_spectrum_from_a_file(files, capsys):
+def test_a_known_spectrum_from_a_file(files, cli):
     out = files / "lens_known.toml"
-    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
-                 str(files / "sensor.toml"), "--target-spectrum", str(files / "glass.csv"),
-                 "--magnification", "0.06", "--pupil-magnification", "1.3",
-                 "--center-px", "61,46.5", "--out", str(out)])
-    assert code == 0, capsys.readouterr()
+    res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
+              files / "sensor.toml", "--target-spectrum", files / "glass.csv",
+              "--magnification", "0.06", "--pupil-magnification", "1.3",
+              "--center-px", "61,46.5", "--out", out)
+    assert res.returncode == 0, res
     lens = Lens.load(out)
     assert abs(lens.exit_pupil_mm - 21.0) < 0.21
     assert "given" in lens.calibration["target_spectrum"]
@@ -96,13 +95,13 @@ def test_a_known_spectrum_from_a_file(files, capsys):
     (["--cube", "2={d}/glass_f2.nc", "--fit-n-eff", "--sensor-out", "{d}/sensor_never.toml"],
      "two or more f-numbers"),
 ])
-def test_mistakes_are_one_line_and_write_nothing(files, capsys, args, message):
+def test_mistakes_are_one_line_and_write_nothing(files, cli, args, message):
     before = snapshot(files)
     out = files / "never.toml"
-    code = main(["pupil", *[a.format(d=files) for a in args], "--sensor",
-                 str(files / "sensor.toml"), "--out", str(out)])
-    err = capsys.readouterr().err
-    assert code != 0
+    res = cli("pupil", *[a.format(d=files) for a in args], "--sensor", files / "sensor.toml",
+              "--out", out)
+    err = res.stderr
+    assert res.returncode != 0
     errors = [line for line in err.splitlines() if "error" in line]
     assert len(errors) == 1 and message in errors[0], err
     assert "Traceback" not in err and "warning" not in err
@@ -110,30 +109,29 @@ def test_mistakes_are_one_line_and_write_nothing(files, capsys, args, message):
     assert snapshot(files) == before
 
 
-def test_an_input_is_never_the_output(files, capsys):
+def test_an_input_is_never_the_output(files, cli):
     before = snapshot(files)
-    code = main(["pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
-                 str(files / "sensor.toml"), "--out", str(files / "sensor.toml"),
-                 "--overwrite"])
-    assert code == 1
-    assert "also an input" in capsys.readouterr().err
+    res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
+              files / "sensor.toml", "--out", files / "sensor.toml", "--overwrite")
+    assert res.returncode == 1
+    assert "also an input" in res.stderr
     assert snapshot(files) == before
 
 
-def test_predict_ranks_the_targets(files, capsys):
-    code = main(["pupil", "--predict", "--sensor", str(files / "sensor.toml"), "--f-number", "2",
-                 "--f-number", "8", "--noise-pct", "2", "--target-spectrum",
-                 str(files / "glass.csv")])
-    text = capsys.readouterr().out
-    assert code == 0
+def test_predict_ranks_the_targets(files, cli):
+    res = cli("pupil", "--predict", "--sensor", files / "sensor.toml", "--f-number", "2",
+              "--f-number", "8", "--noise-pct", "2", "--target-spectrum", files / "glass.csv")
+    text = res.stdout
+    assert res.returncode == 0
     rows = {line.split("  ")[0].strip(): line for line in text.splitlines()[2:]}
     assert "no information" in rows["white tile"]
     assert "mm (" in rows["rare-earth glass"]
     assert any("glass.csv" in k for k in rows)
 
 
-def test_help_shows_the_two_step_workflow(capsys):
-    assert main(["pupil", "--help"]) == 0
-    text = capsys.readouterr().out
+def test_help_shows_the_two_step_workflow(cli):
+    res = cli("pupil", "--help")
+    assert res.returncode == 0
+    text = res.stdout
     assert "--predict" in text and "snapcorr calibrate" in text and "--lens lens_x.toml" in text
     assert "--sensor-out" in text

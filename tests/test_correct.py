@@ -1,18 +1,21 @@
 """Per-pixel corrected wavelengths (Goossens 2019 Eq. 8, 23), checked from outside."""
 
+from dataclasses import replace
+
 import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
-from conftest import brute_force_mean
+from conftest import PAPER_LENS, brute_force_mean
 
 from snapcorr import Lens, mean_shift
-from snapcorr.correct import PlacementError, choose_method, correct_cube, cube_cra_deg
+from snapcorr.correct import PlacementError, correct_cube, cube_cra_deg
 from snapcorr.correct.resample import resample_to_nominal
 from snapcorr.cube import Sensor, make_cube, mosaic_to_cube
 from snapcorr.data import sensor_path
+from snapcorr.optics import choose_model
 
-PAPER = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
+PAPER = PAPER_LENS
 H_GE_X = Lens(21.0, [(6.5, 27.0)], 0.06, 1.3, name="long tube")
 
 
@@ -28,34 +31,34 @@ def _cube(sensor, ny=40, nx=50, seed=0):
 def test_cra_map_by_hand():
     s = _sensor(pitch=40.0)
     cube = _cube(s)
-    cra, centre, source = cube_cra_deg(cube, PAPER, s, center_px=(10.0, -5.0))
+    cra, center, source = cube_cra_deg(cube, s, PAPER, center_px=(10.0, -5.0))
     assert source == "given" and cra.shape == (40, 50, 1)
     y, x = 33, 47
     d_mm = np.hypot(x - 10.0, y + 5.0) * 0.040
     assert cra[y, x, 0] == pytest.approx(np.degrees(np.arctan(d_mm / 21.0)), rel=1e-12)
     # default: the centre of the area the cube covers
-    _, centre, source = cube_cra_deg(cube, PAPER, s)
-    assert centre == (24.5, 19.5) and source == "image centre"
+    _, center, source = cube_cra_deg(cube, s, PAPER)
+    assert center == (24.5, 19.5) and source == "image centre"
 
 
-def test_centre_from_the_lens_calibration_only_for_the_same_pitch():
+def test_center_from_the_lens_calibration_only_for_the_same_pitch():
     s = _sensor(pitch=40.0)
     cube = _cube(s)
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="cal",
-                calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 40.0})
-    assert cube_cra_deg(cube, lens, s)[1:] == ((3.0, 4.0), "lens calibration")
-    other = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="cal",
-                 calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
+    lens = replace(PAPER_LENS, name="cal",
+                   calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 40.0})
+    assert cube_cra_deg(cube, s, lens)[1:] == ((3.0, 4.0), "lens calibration")
+    other = replace(PAPER_LENS, name="cal",
+                    calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
     # another pitch and no image size to match the areas: refused, never the image centre
     with pytest.raises(PlacementError, match="--center-px"):
-        cube_cra_deg(cube, other, s)
+        cube_cra_deg(cube, s, other)
 
 
 def test_mosaic_bands_get_their_own_positions():
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     raw = np.arange(16 * 24, dtype=np.float32).reshape(16, 24)
     cube = mosaic_to_cube(raw, sensor, origin_px=(40, 80))
-    cra = cube_cra_deg(cube, PAPER, sensor, center_px=(0.0, 0.0))[0]
+    cra = cube_cra_deg(cube, sensor, PAPER, center_px=(0.0, 0.0))[0]
     assert cra.shape == (4, 6, sensor.n_bands)
     b = 5
     row = cube["sensor_row"].values[2, b]
@@ -69,7 +72,7 @@ def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
     s = _sensor(n=4, pitch=80.0, n_eff=[1.7, 1.7, 2.0, 2.0])
     cube = _cube(s, ny=60, nx=70)
     f = 1.4
-    ds = correct_cube(cube, lens, s, f, center_px=(-10.0, 5.0), tolerance_nm=0.01)
+    ds = correct_cube(cube, s, f, lens, center_px=(-10.0, 5.0), tolerance_nm=0.01)
     assert ds.attrs["method"] == "vignetted"
     R = float(lens.exit_pupil_radius_mm(f))
     x = lens.exit_pupil_mm
@@ -92,7 +95,7 @@ def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
 def test_output_keeps_the_cube_and_records_provenance():
     s = _sensor()
     cube = _cube(s)
-    ds = correct_cube(cube, PAPER, s, 2.8)
+    ds = correct_cube(cube, s, 2.8, PAPER)
     kept = ds[cube.name].drop_vars(["wavelength_corrected", "fwhm_corrected"])
     xr.testing.assert_equal(kept, cube)  # values and coordinates unchanged
     assert kept.attrs == {**cube.attrs, "long_name": "radiance"}  # CF name added, nothing lost
@@ -115,18 +118,18 @@ def test_output_keeps_the_cube_and_records_provenance():
 def test_auto_picks_the_cheapest_model_that_meets_the_tolerance():
     cwl, n = np.array([500.0, 900.0]), np.array([1.7, 1.7])
     # below the onset at f/8 (19.95 deg): no vignetting model needed
-    m, why = choose_method(PAPER, 8.0, 10.0, cwl, n, 0.01)
+    m, why = choose_model(cwl, n, 8.0, 10.0, PAPER, tolerance_nm=0.01)
     assert m in ("asymptotic", "ideal") and "below the onset" in why
-    m, _ = choose_method(PAPER, 1.4, 10.0, cwl, n, 0.01)
+    m, _ = choose_model(cwl, n, 1.4, 10.0, PAPER, tolerance_nm=0.01)
     assert m == "vignetted"
     # a nearly collimated beam on axis: nothing moves by more than the tolerance
-    m, _ = choose_method(PAPER, 500.0, 0.01, cwl, n, 0.01)
+    m, _ = choose_model(cwl, n, 500.0, 0.01, PAPER, tolerance_nm=0.01)
     assert m == "none"
     # and the choice is right: its error against the exact model is within the tolerance
     s = _sensor(pitch=40.0)
     cube = _cube(s)
-    auto = correct_cube(cube, PAPER, s, 8.0, tolerance_nm=0.01)
-    exact = correct_cube(cube, PAPER, s, 8.0, method="vignetted", tolerance_nm=1e-4)
+    auto = correct_cube(cube, s, 8.0, PAPER, tolerance_nm=0.01)
+    exact = correct_cube(cube, s, 8.0, PAPER, method="vignetted", tolerance_nm=1e-4)
     diff = np.abs(auto["wavelength_corrected"].values.astype(float)
                   - exact["wavelength_corrected"].values.astype(float))
     assert diff.max() < 0.01 + 1e-4
@@ -135,8 +138,8 @@ def test_auto_picks_the_cheapest_model_that_meets_the_tolerance():
 def test_dask_cube_gives_identical_results():
     s = _sensor()
     cube = _cube(s)
-    a = correct_cube(cube, PAPER, s, 1.4, resample=True)
-    b = correct_cube(cube.chunk({"y": 16, "x": 20}), PAPER, s, 1.4, resample=True)
+    a = correct_cube(cube, s, 1.4, PAPER, resample=True)
+    b = correct_cube(cube.chunk({"y": 16, "x": 20}), s, 1.4, PAPER, resample=True)
     assert b["wavelength_corrected"].chunks is not None
     xr.testing.assert_identical(a.compute(), b.compute())
 
@@ -144,7 +147,7 @@ def test_dask_cube_gives_identical_results():
 def test_resampling_against_numpy_interp_marks_extrapolation():
     s = _sensor(n=12)
     cube = _cube(s)
-    ds = correct_cube(cube, PAPER, s, 1.4, resample=True)
+    ds = correct_cube(cube, s, 1.4, PAPER, resample=True)
     lam = ds["wavelength_corrected"].values
     out = ds["resampled"].values
     for yy, xx in ((0, 0), (20, 25), (39, 49)):
@@ -168,16 +171,16 @@ def test_bad_arguments_are_clear_errors(change, message):
     kw = {"f_number": 2.0, **change}
     f = kw.pop("f_number")
     with pytest.raises(ValueError, match=message):
-        correct_cube(_cube(s), PAPER, s, f, **kw)
+        correct_cube(_cube(s), s, f, PAPER, **kw)
 
 
 def test_band_count_and_wavelengths_must_match_the_sensor():
     s = _sensor(n=6)
     with pytest.raises(ValueError, match="bands"):
-        correct_cube(_cube(_sensor(n=5)), PAPER, s, 2.0)
+        correct_cube(_cube(_sensor(n=5)), s, 2.0, PAPER)
     shifted = make_cube(_cube(s).values, np.asarray(s.cwl_nm) + 3.0)
     with pytest.raises(ValueError, match="wavelengths differ"):
-        correct_cube(shifted, PAPER, s, 2.0)
+        correct_cube(shifted, s, 2.0, PAPER)
 
 
 def test_uniform_grid_fast_path_equals_the_general_pass():
@@ -206,43 +209,43 @@ def _by_hand(rows, cols, cx, cy, pitch_mm=5.5e-3, x_mm=21.0):
 def test_a_crop_of_unknown_place_is_refused_and_placed_by_its_origin():
     crop = _cube(FULL, ny=256, nx=256)
     with pytest.raises(PlacementError, match="--sensor-origin-px"):
-        correct_cube(crop, PAPER, FULL, 2.8)
-    cra, centre, source = cube_cra_deg(crop, PAPER, FULL, sensor_origin_px=(1500, 100))
-    assert source == "sensor centre" and centre == (1023.5, 1023.5)
+        correct_cube(crop, FULL, 2.8, PAPER)
+    cra, center, source = cube_cra_deg(crop, FULL, PAPER, sensor_origin_px=(1500, 100))
+    assert source == "sensor centre" and center == (1023.5, 1023.5)
     expected = _by_hand(1500 + np.arange(256.0), 100 + np.arange(256.0), 1023.5, 1023.5)
     np.testing.assert_allclose(cra[:, :, 0], expected, rtol=1e-12)
     # the full frame needs no origin; the crop's angles are the full frame's at that place
-    full = cube_cra_deg(_cube(FULL, ny=2048, nx=2048), PAPER, FULL)[0]
+    full = cube_cra_deg(_cube(FULL, ny=2048, nx=2048), FULL, PAPER)[0]
     np.testing.assert_allclose(cra[:, :, 0], full[1500:1756, 100:356, 0], rtol=1e-12)
-    ds = correct_cube(crop, PAPER, FULL, 2.8, sensor_origin_px=(1500, 100))
+    ds = correct_cube(crop, FULL, 2.8, PAPER, sensor_origin_px=(1500, 100))
     assert float(ds["cra_deg"].max()) == pytest.approx(expected.max(), rel=1e-12)
 
 
 def test_an_origin_that_contradicts_the_cube_is_refused():
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     cube = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
-    cube_cra_deg(cube, PAPER, sensor, sensor_origin_px=(40, 80))  # agrees: fine
+    cube_cra_deg(cube, sensor, PAPER, sensor_origin_px=(40, 80))  # agrees: fine
     with pytest.raises(PlacementError, match="first pixel"):
-        cube_cra_deg(cube, PAPER, sensor, sensor_origin_px=(0, 0))
+        cube_cra_deg(cube, sensor, PAPER, sensor_origin_px=(0, 0))
 
 
 def test_a_mosaic_cube_without_positions_is_refused_not_put_at_one_place():
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     bare = make_cube(np.zeros((4, 6, 16), np.float32), sensor.cwl_nm)
     with pytest.raises(PlacementError, match="no sensor positions"):
-        correct_cube(bare, PAPER, sensor, 1.4)
+        correct_cube(bare, sensor, 1.4, PAPER)
     # with the tile origin stated, the bands get the tile layout's positions
     placed = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
     np.testing.assert_array_equal(
-        cube_cra_deg(bare, PAPER, sensor, sensor_origin_px=(40, 80))[0],
-        cube_cra_deg(placed, PAPER, sensor)[0])
+        cube_cra_deg(bare, sensor, PAPER, sensor_origin_px=(40, 80))[0],
+        cube_cra_deg(placed, sensor, PAPER)[0])
 
 
-def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres():
+def test_the_calibrated_center_is_carried_to_binned_pixels_through_millimetres():
     cal = {"center_px": [1047.3, 998.6], "pixel_pitch_um": 5.5, "image_size_px": [2048, 2048]}
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, calibration=cal, name="cal")
+    lens = replace(PAPER_LENS, name="cal", calibration=cal)
     binned = Sensor("binned", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
-    cra, (cx, cy), source = cube_cra_deg(_cube(binned, ny=1024, nx=1024), lens, binned)
+    cra, (cx, cy), source = cube_cra_deg(_cube(binned, ny=1024, nx=1024), binned, lens)
     # pixel i spans [i, i + 1) pitches: the centre 1047.3 px of 5.5 um is at 5.76290 mm,
     # which is 523.9 px of 11 um counted the same way (523.9 + 0.5 = 5.7629 / 0.011)
     assert (cx, cy) == pytest.approx((5.7629 / 0.011 - 0.5, 5.49505 / 0.011 - 0.5), abs=1e-9)
@@ -254,15 +257,15 @@ def test_the_calibrated_centre_is_carried_to_binned_pixels_through_millimetres()
     # a sensor of another physical size: the areas cannot be matched
     other = Sensor("other", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1000, 1024))
     with pytest.raises(PlacementError, match="--center-px"):
-        cube_cra_deg(_cube(other, ny=1000, nx=1024), lens, other)
+        cube_cra_deg(_cube(other, ny=1000, nx=1024), other, lens)
     # ... also at the same pitch: a smaller sensor is not the calibration's pixel grid
     small = Sensor("small", "snapscan", 5.5, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
     with pytest.raises(PlacementError, match="--center-px"):
-        cube_cra_deg(_cube(small, ny=1024, nx=1024), lens, small)
+        cube_cra_deg(_cube(small, ny=1024, nx=1024), small, lens)
     # a crop of the calibrated sensor (placed by its origin) keeps the calibrated centre
-    cra, centre, _ = cube_cra_deg(_cube(FULL, ny=64, nx=64), lens, FULL,
+    cra, center, _ = cube_cra_deg(_cube(FULL, ny=64, nx=64), FULL, lens,
                                   sensor_origin_px=(900, 1000))
-    assert centre == (1047.3, 998.6)
+    assert center == (1047.3, 998.6)
     assert cra[0, 0, 0] == pytest.approx(_by_hand(np.array([900.0]), np.array([1000.0]),
                                                   1047.3, 998.6)[0, 0], rel=1e-12)
 
@@ -275,7 +278,7 @@ def test_every_variable_and_coordinate_of_a_result_has_cf_units_and_long_name(tm
     raw = mosaic_to_cube(frame, sensor, origin_px=(40, 80))
     dark, white = mosaic_to_cube(frame * 0 + 100, sensor), mosaic_to_cube(frame * 0 + 1e3, sensor)
     ff = flatfield(raw, dark, white)
-    ds = correct_cube(ff["reflectance"], PAPER, sensor, 1.4, resample=True, mask=ff["mask"])
+    ds = correct_cube(ff["reflectance"], sensor, 1.4, PAPER, resample=True, mask=ff["mask"])
     for name, result in (("ff", ff), ("c", ds)):
         for path in (tmp_path / f"{name}.nc", tmp_path / f"{name}.zarr"):
             write_dataset(result, path)

@@ -74,10 +74,10 @@ def brute_force_bound(truth, f_numbers, scn, noise):
     fs = [float(f) for f in f_numbers]
     _, clean, exposures = make_flats(truth, fs, noise=noise, return_truth_maps=True, **scn)
     e = np.array([exposures[f] for f in fs])
-    centre = np.array(scn["center_px"], float)
+    center = np.array(scn["center_px"], float)
     circ = circle_values(truth)
     nc = circ.size
-    signal = clean_signal(truth, fs, scn, centre, e)
+    signal = clean_signal(truth, fs, scn, center, e)
     model_error = max(float(np.max(np.abs(signal[j] / clean[f].ravel() - 1.0)))
                       for j, f in enumerate(fs))
 
@@ -86,7 +86,7 @@ def brute_force_bound(truth, f_numbers, scn, noise):
         exps = np.append(np.exp(theta[nc + 2:]), e[-1])
         return clean_signal(lens, fs, scn, theta[nc:nc + 2], exps).ravel()
 
-    theta = np.concatenate([circ, centre, np.log(e[:-1])])
+    theta = np.concatenate([circ, center, np.log(e[:-1])])
     steps = np.concatenate([1e-5 * np.abs(circ), [1e-4, 1e-4], np.full(len(fs) - 1, 1e-5)])
     cols = []
     for q, dq in enumerate(steps):
@@ -100,7 +100,7 @@ def brute_force_bound(truth, f_numbers, scn, noise):
         gains[j * n_pix + np.arange(n_pix), np.arange(n_pix)] = signal[j]
     J = np.column_stack([*cols, gains])
 
-    _, tan = cra_map_deg(scn["shape"], scn["pitch_um"], centre, truth.exit_pupil_mm)
+    _, tan = cra_map_deg(scn["shape"], scn["pitch_um"], center, truth.exit_pupil_mm)
     lit = np.concatenate([(relative_illumination(truth, f, tan) > LIT_MIN).ravel() for f in fs])
     G = J[lit] / signal.ravel()[lit, None]
     G = G[:, np.any(G != 0.0, axis=0)]  # a pixel lit in no flat has no gain to estimate
@@ -152,19 +152,19 @@ class ProfiledFit:
         self.lit = np.stack([relative_illumination(truth, f, t) > LIT_MIN for f in self.fs])
         self.count = np.maximum(self.lit.sum(axis=0), 1)
         unit = np.eye(len(self.fs))
-        E = np.stack([self._centred(np.repeat(unit[j][:, None], t.size, axis=1))[self.lit]
+        E = np.stack([self._centerd(np.repeat(unit[j][:, None], t.size, axis=1))[self.lit]
                       for j in range(len(self.fs) - 1)], axis=1)
         self.Q = np.linalg.qr(E)[0]
 
     def tan(self, cx, cy):
         return self.k * np.hypot(self.x - cx, self.y - cy)
 
-    def _centred(self, v):
+    def _centerd(self, v):
         v = np.where(self.lit, v, 0.0)
         return np.where(self.lit, v - v.sum(axis=0) / self.count, 0.0)
 
     def project(self, v):
-        u = self._centred(v)[self.lit]
+        u = self._centerd(v)[self.lit]
         return u - self.Q @ (self.Q.T @ u)
 
     def tables(self, P, h):

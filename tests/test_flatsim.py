@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import PAPER_TRUTH
 from flatsim import (
     LensTruth,
     common_area_mm2,
@@ -10,17 +11,17 @@ from flatsim import (
     relative_illumination,
 )
 
-PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3)
+PAPER = PAPER_TRUTH
 
 
-def grid_area(radii, centres, n=2001):
+def grid_area(radii, centers, n=2001):
     """Midpoint count of a fine grid over the first disc's bounding square."""
-    R, c0 = radii[0], centres[0]
+    R, c0 = radii[0], centers[0]
     step = 2 * R / n
     g = (np.arange(n) + 0.5) * step - R
     X, Y = np.meshgrid(g + c0, g, indexing="ij")
     inside = np.ones(X.shape, bool)
-    for r, c in zip(radii, centres, strict=True):
+    for r, c in zip(radii, centers, strict=True):
         inside &= (X - c) ** 2 + Y**2 <= r * r
     return inside.sum() * step * step, step
 
@@ -51,15 +52,15 @@ def test_two_disc_area_vectorised_over_the_field():
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.parametrize("radii, centres", [
+@pytest.mark.parametrize("radii, centers", [
     ([5.0, 7.4], [0.0, 3.5]),
     ([5.0, 7.4, 6.0], [0.0, 3.5, -1.5]),  # front and rear circle both cutting
     ([3.0, 7.4, 3.2], [0.0, 2.0, 2.9]),  # circle plus pixel vignetting (h = x)
     ([5.0, 6.0, 6.5, 5.5], [0.0, 2.0, -2.5, 0.8]),  # pupil and three circles
 ])
-def test_area_matches_grid_count(radii, centres):
-    got = common_area_mm2(radii, centres)
-    want, step = grid_area(radii, centres)
+def test_area_matches_grid_count(radii, centers):
+    got = common_area_mm2(radii, centers)
+    want, step = grid_area(radii, centers)
     # the count's error is about the boundary length times half a cell
     assert got == pytest.approx(want, abs=2 * np.pi * radii[0] * step * 0.05 + 1e-9)
 
@@ -126,7 +127,7 @@ def test_noise_level_and_brightness():
 
 
 def test_deterministic_by_seed_and_integer_output():
-    truth = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3)
+    truth = PAPER_TRUTH
     kw = dict(shape=(64, 80), pitch_um=60.0, center_px=(45.0, 30.0), noise=0.01,
               source_amplitude=0.05, dark_dn=100.0, poisson_gain=1.0)
     a = make_flats(truth, seed=7, **kw)

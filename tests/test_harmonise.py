@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import spectralsim as sim
 import xarray as xr
+from conftest import PAPER_TRUTH
 from flatsim import LensTruth
 
 from snapcorr import Lens
@@ -18,7 +19,7 @@ from snapcorr.correct import correct_cube
 from snapcorr.correct.harmonise import harmonise_spectra
 from snapcorr.cube import Sensor, make_cube
 
-PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3, name="paper lens")
+PAPER = PAPER_TRUTH
 PLAIN = LensTruth(21.0, (), 0.06, 1.3, name="no vignetting")
 CWL = np.arange(470.0, 901.0, 5.0)  # 87 bands of 12 nm every 5 nm
 SHAPE, PITCH, CENTER = (6, 160), 44.0, (2.0, 3.0)  # CRA 0-18.3 deg along a row
@@ -56,7 +57,7 @@ def test_harmonised_spectra_agree_across_the_field(target, profile, lens, f_numb
                             center_px=CENTER, profile=profile)
     noisy = clean + np.random.default_rng(0).normal(0, 0.002 * clean.max(), clean.shape)
     sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8, profile=profile)
-    ds = correct_cube(make_cube(noisy.astype(np.float32), CWL), as_lens(truth), sensor, f_number,
+    ds = correct_cube(make_cube(noisy.astype(np.float32), CWL), sensor, f_number, as_lens(truth),
                       center_px=CENTER, resample=True, harmonise=True)
     resampled = spread_at_paper_angles(ds, ds["resampled"].values)
     harmonised = spread_at_paper_angles(ds, ds["harmonised"].values)
@@ -103,20 +104,20 @@ def test_blocks_give_identical_values_and_the_target_is_checked():
     data = np.random.default_rng(2).random((24, 40, CWL.size)).astype(np.float32)
     cube = make_cube(data, CWL)
     lens = as_lens(PAPER)
-    a = correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0))
-    b = correct_cube(cube.chunk({"y": 7, "x": 9}), lens, sensor, 1.4, harmonise=True,
+    a = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0))
+    b = correct_cube(cube.chunk({"y": 7, "x": 9}), sensor, 1.4, lens, harmonise=True,
                      center_px=(3.0, 2.0))
     xr.testing.assert_identical(a["harmonised"], b["harmonised"].compute())
     widest = float(a["fwhm_harmonised"].max())
-    wide = correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0),
+    wide = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0),
                         target_fwhm_nm=widest + 2.0)
     assert np.all(wide["fwhm_harmonised"].values == widest + 2.0)
     assert "asked for" in wide["harmonised"].attrs["common_response"]
     with pytest.raises(ValueError, match="only widens"):
-        correct_cube(cube, lens, sensor, 1.4, harmonise=True, center_px=(3.0, 2.0),
+        correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0),
                      target_fwhm_nm=12.0)
     with pytest.raises(ValueError, match="harmonise=True"):
-        correct_cube(cube, lens, sensor, 1.4, target_fwhm_nm=20.0)
+        correct_cube(cube, sensor, 1.4, lens, target_fwhm_nm=20.0)
 
 
 def test_a_mosaic_is_harmonised_band_by_band():
@@ -125,7 +126,7 @@ def test_a_mosaic_is_harmonised_band_by_band():
 
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     cube = mosaic_to_cube(np.ones((64, 96), np.float32), sensor, origin_px=(400, 800))
-    ds = correct_cube(cube, as_lens(PAPER), sensor, 1.4, center_px=(0.0, 0.0),
+    ds = correct_cube(cube, sensor, 1.4, as_lens(PAPER), center_px=(0.0, 0.0),
                       harmonise=True, resample=True)
     h = ds["harmonised"].values
     # a flat spectrum stays flat: the weights of every output sum to one
@@ -140,11 +141,11 @@ def test_bands_listed_out_of_order_give_the_same_spectra():
     perm = np.random.default_rng(4).permutation(cwl.size)
     data = np.random.default_rng(5).random((12, 20, cwl.size)).astype(np.float32)
     lens = as_lens(PAPER)
-    ref = correct_cube(make_cube(data, cwl), lens, Sensor("a", "snapscan", PITCH, cwl, 12.0,
-                                                          1.8), 1.4, harmonise=True,
+    ref = correct_cube(make_cube(data, cwl), Sensor("a", "snapscan", PITCH, cwl, 12.0,
+                                                          1.8), 1.4, lens, harmonise=True,
                        center_px=(1.0, 2.0))
-    got = correct_cube(make_cube(data[..., perm], cwl[perm]), lens,
-                       Sensor("b", "snapscan", PITCH, cwl[perm], 12.0, 1.8), 1.4,
+    got = correct_cube(make_cube(data[..., perm], cwl[perm]),
+                       Sensor("b", "snapscan", PITCH, cwl[perm], 12.0, 1.8), 1.4, lens,
                        harmonise=True, center_px=(1.0, 2.0))
     np.testing.assert_array_equal(got["harmonised"].values, ref["harmonised"].values[..., perm])
     np.testing.assert_array_equal(got["fwhm_harmonised"].values,

@@ -55,7 +55,8 @@ def _one_line(err):
 
 @contextlib.contextmanager
 def _deadline(seconds):
-    """Fail instead of hanging: an alarm interrupts a blocked open() of a FIFO."""
+    """Fail instead of hanging: an alarm interrupts a blocked open() of a FIFO. Only a guard
+    (generous: a first call may import readers on a busy machine), no duration asserted."""
     def fire(signum, frame):
         raise TimeoutError(f"still blocked after {seconds} s")
 
@@ -77,7 +78,7 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path, reader, ext):
     if reader == "read_dataset" and ext != ".nc":
         pytest.skip("results are .nc or .zarr")
     os.mkfifo(tmp_path / f"pipe{ext}")
-    with _deadline(5), pytest.raises(ValueError, match=r"is a FIFO \(named pipe\), not a "
+    with _deadline(60), pytest.raises(ValueError, match=r"is a FIFO \(named pipe\), not a "
                                                        "regular file") as err:
         READERS[reader](tmp_path / f"pipe{ext}")
     _one_line(err)
@@ -88,7 +89,7 @@ def test_an_envi_data_file_that_is_a_fifo_is_refused(tmp_path, reader):
     write_cube(_cube(shape=(5, 6, 1)), tmp_path / "e.hdr")
     (tmp_path / "e.raw").unlink()
     os.mkfifo(tmp_path / "e.raw")
-    with _deadline(5), pytest.raises(ValueError, match=r"e\.raw is a FIFO") as err:
+    with _deadline(60), pytest.raises(ValueError, match=r"e\.raw is a FIFO") as err:
         READERS[reader](tmp_path / "e.hdr")
     _one_line(err)
 
@@ -383,7 +384,7 @@ def test_overwrite_never_replaces_what_snapcorr_did_not_write(tmp_path, kind, wr
     if writer == "write_dataset" and target.suffix not in (".nc", ".zarr"):
         pytest.skip("write_dataset writes .nc and .zarr")
     before = _snapshot(tmp_path)
-    with _deadline(5), pytest.raises(ValueError, match=message) as err:
+    with _deadline(60), pytest.raises(ValueError, match=message) as err:
         if writer == "write_cube":
             write_cube(_cube(), target, overwrite=True)
         else:
@@ -574,14 +575,14 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path, ext, signum):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=_sigint_default)
     try:
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 120  # a guard only: the machine may be busy
         while not any(p.name.startswith(".") for p in out.iterdir()):
             assert proc.poll() is None, proc.communicate()[1].decode()[-2000:]
             assert time.monotonic() < deadline, "no temporary appeared"
             time.sleep(0.01)
         time.sleep(0.3)  # well into the write
         proc.send_signal(signum)
-        _, err = proc.communicate(timeout=30)
+        _, err = proc.communicate(timeout=120)
     finally:
         proc.kill()
         proc.wait()

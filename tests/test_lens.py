@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 from numpy.testing import assert_allclose
 
 from snapcorr import Lens
@@ -102,7 +103,7 @@ def test_overlap_of_two_discs_is_eq33_and_relative_illumination_uses_it():
                                atol=1e-12)
     assert overlap_area_mm2([1.0, 1.0], [0.0, 0.0]) == pytest.approx(np.pi)
     assert overlap_area_mm2([1.0, 1.0], [0.0, 2.5]) == 0.0
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="E")
+    lens = PAPER_LENS
     cra = np.linspace(0, 40, 81)
     R14 = lens.exit_pupil_radius_mm(1.4)
     direct = vignetted_area_mm2(R14, 7.4236, 16.991 * np.tan(np.deg2rad(cra))) / (np.pi * R14**2)

@@ -1,10 +1,11 @@
 """Kernel-mean shift (Goossens 2019 Eq. 22) against evidence we did not compute the same way."""
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import brute_force_mean, load_reference_csv
+from conftest import PAPER_LENS, brute_force_mean, load_reference_csv
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -154,7 +155,7 @@ def test_table_is_used_for_large_groups_and_meets_tolerance(edmund):
 @pytest.mark.filterwarnings("ignore::snapcorr.EffectiveIndexWarning")
 @pytest.mark.parametrize(
     "lens",
-    [Lens(X, [(7.4236, 16.991)], 0.06, 1.3, name="h<x"),
+    [replace(PAPER_LENS, name="h<x"),
      Lens(X, [(6.5, 27.0)], 0.06, 1.3, name="h>=x"),
      Lens(X, magnification=0.06, pupil_magnification=1.3, name="ideal")],
     ids=lambda lens: lens.name,

@@ -1,8 +1,11 @@
 """The rules that choose the vignetting model (snapcorr.calibrate.choice), each shown failing
 the model it is there to stop, on flats from the independent simulator tests/flatsim.py."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from conftest import PAPER_CIRCLE, PAPER_LENS
 from flatsim import LensTruth, make_flats
 
 from snapcorr import Lens, mean_shift
@@ -31,10 +34,10 @@ def _data(flats):
 def test_a_stop_like_second_circle_is_refused(user_flats):
     data, base = _data(user_flats)
     R_fast = float(base.exit_pupil_radius_mm(FS[0]))
-    centre = SCENE["center_px"]
-    one = fit_model(data, "one", [[9.5, 26.0, *centre]])
+    center = SCENE["center_px"]
+    one = fit_model(data, "one", [[9.5, 26.0, *center]])
     # the spurious solution seen on a user's flats: a stop at the fastest pupil's radius
-    stop = fit_model(data, "two", [[9.5, 26.0, *centre, R_fast, 0.03]], max_nfev=5)
+    stop = fit_model(data, "two", [[9.5, 26.0, *center, R_fast, 0.03]], max_nfev=5)
     problems = check_circles(stop, base, FS, 16.66)
     assert any("circle 2" in p for p in problems), problems
     bic = {"one": 0.0, "two": -1e9}  # even an overwhelming criterion gain does not admit it
@@ -48,8 +51,8 @@ def test_the_rules_are_each_decisive():
     on = lens.circle_onsets_cra_deg(np.array(FS))[0]
     assert np.sum(on < 14.0) == 1 and np.sum(on < 16.66) == 2
     # the functional test: identical lenses differ by nothing, a moved circle by nanometres
-    a = Lens(X, [(7.4236, 16.991)], 0.06, 1.3)
-    b = Lens(X, [(7.4236, 16.991), (200.0, 30.0)], 0.06, 1.3)  # never cuts in the field
+    a = PAPER_LENS
+    b = replace(a, vignetting=[PAPER_CIRCLE, (200.0, 30.0)])  # never cuts in the field
     c = Lens(X, [(7.0, 16.991)], 0.06, 1.3)
     assert np.nanmax(shift_difference_nm(a, b, FS, 16.0)) < 1e-9
     assert np.nanmax(shift_difference_nm(a, c, FS, 16.0)) > 0.1
@@ -90,7 +93,7 @@ KW = dict(exit_pupil_mm=X, pixel_pitch_um=SCENE["pitch_um"], magnification=0.06,
           pupil_magnification=1.3)
 
 
-def test_without_vignetting_the_centre_is_not_taken_from_a_refused_fit():
+def test_without_vignetting_the_center_is_not_taken_from_a_refused_fit():
     truth = LensTruth(X, (), 0.06, 1.3)
     res = calibrate_lens(make_flats(truth, FS, noise=0.005, seed=4, **SCENE), **KW)
     assert res.model == "none" and res.center_source == "contours"

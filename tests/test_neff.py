@@ -84,9 +84,9 @@ def test_kernel_mean_tracks_centroid_not_peak():
     avg = sum(wk * np.array([_T("2H", v, a) for v in lam]) for wk, a in zip(w, aoi, strict=True))
     base = np.array([_T("2H", v, 0.0) for v in lam])
 
-    def centroid(t, centre):
+    def centroid(t, center):
         # Airy-like tails: compare centroids over equal +-30 nm windows about each centre.
-        m = np.abs(lam - centre) < 30
+        m = np.abs(lam - center) < 30
         return np.trapezoid(lam[m] * t[m], lam[m]) / np.trapezoid(t[m], lam[m])
 
     shift = centroid(avg, DESIGN + expected) - centroid(base, DESIGN)

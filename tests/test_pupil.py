@@ -14,6 +14,7 @@ import functools
 import numpy as np
 import pytest
 import spectralsim as sim
+from conftest import PAPER_TRUTH
 from flatsim import LensTruth
 
 from snapcorr import Lens
@@ -33,7 +34,7 @@ FWHM = 12.0
 N_EFF = 1.7
 CENTER = (82.3, 61.6)  # (column, row): off the image centre
 
-PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3, name="paper lens")
+PAPER = PAPER_TRUTH
 PLAIN = LensTruth(16.0, (), 0.0, 1.0, name="no vignetting")
 LENSES = {"paper": PAPER, "plain": PLAIN}
 
@@ -164,7 +165,7 @@ def test_a_white_target_is_refused():
                      lens=as_lens(PAPER))
 
 
-def test_known_spectrum_and_given_centre():
+def test_known_spectrum_and_given_center():
     got = locate_pupil(cubes("colour_filter", "paper", (2.0,), noise=0.01, seed=5), sensor(),
                        lens=as_lens(PAPER), target_spectrum=sim.colour_filter,
                        center_px=CENTER)
@@ -182,10 +183,10 @@ def test_precision_predicts_the_reported_error():
                              center=((SHAPE[1] - 1) / 2, (SHAPE[0] - 1) / 2)),
                        sens, lens=as_lens(PAPER), center_px=((SHAPE[1] - 1) / 2,
                                                               (SHAPE[0] - 1) / 2))
-    pred = pupil_precision(sim.colour_filter, sens, as_lens(PAPER), (2.0, 8.0), noise=0.01,
+    pred = pupil_precision(sim.colour_filter, sens, (2.0, 8.0), as_lens(PAPER), noise=0.01,
                            absolute_noise=True)
     assert pred.x_stderr_mm == pytest.approx(got.exit_pupil_stderr_mm, rel=0.25)
-    white = pupil_precision(sim.white, sens, as_lens(PAPER), (2.0, 8.0), noise=0.01)
+    white = pupil_precision(sim.white, sens, (2.0, 8.0), as_lens(PAPER), noise=0.01)
     assert not white.informative
 
 
@@ -208,7 +209,7 @@ def test_a_target_with_one_feature_only():
     assert abs(err) < 0.02 * PLAIN.exit_pupil_mm
 
 
-def test_a_crop_off_centre_with_its_origin():
+def test_a_crop_off_center_with_its_origin():
     """A 64 x 80 crop of the sensor's lower right, the optical axis outside it: the crop says
     where it sits, the centre is given."""
     origin = (60, 75)
@@ -267,6 +268,6 @@ def test_z_scores_over_seeds(fit_n_eff):
 def test_precision_on_a_small_sensor_with_empty_annuli():
     """64 x 80 pixels in 64 annuli leave some empty: they enter no row (no division by 0)."""
     small = Sensor("test", "snapscan", PITCH_UM, CWL, FWHM, N_EFF, size_px=(64, 80))
-    pred = pupil_precision(sim.colour_filter, small, as_lens(PAPER), (2.0, 8.0), noise=0.01,
+    pred = pupil_precision(sim.colour_filter, small, (2.0, 8.0), as_lens(PAPER), noise=0.01,
                            n_bins=64)
     assert pred.informative and pred.x_stderr_mm > 0

@@ -3,16 +3,16 @@
 import dask
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 from dask.callbacks import Callback
 from matplotlib.image import imread
 
-import snapcorr
 from snapcorr import quicklook
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, flatfield, make_cube
 from snapcorr.quicklook import plot_correction, plot_flatfield
 
-LENS = snapcorr.Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund")
+LENS = PAPER_LENS
 SENSOR = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
 NY, NX, NB = 24, 32, 5
 
@@ -43,7 +43,7 @@ def flat():
 
 @pytest.fixture(scope="module")
 def corrected():
-    return correct_cube(make_cube(_scene(), SENSOR.cwl_nm), LENS, SENSOR, 1.4, resample=True)
+    return correct_cube(make_cube(_scene(), SENSOR.cwl_nm), SENSOR, 1.4, LENS, resample=True)
 
 
 @pytest.fixture
@@ -195,7 +195,7 @@ def test_tiny_cubes(figures, tmp_path):
     raw = np.array([[[100.0, 300.0]]], np.float32)
     plot_flatfield(_flat(raw), tmp_path / "ff.png")
     sensor = Sensor("two", "snapscan", 40.0, [500.0, 900.0], 10.0, 1.7)
-    ds = correct_cube(make_cube(raw, sensor.cwl_nm), LENS, sensor, 2.8)
+    ds = correct_cube(make_cube(raw, sensor.cwl_nm), sensor, 2.8, LENS)
     ds.attrs = {}  # and without provenance: a plain title
     plot_correction(ds, tmp_path / "corr.png")
     assert "(y, x) = (0, 0)" in _texts(figures[0])
@@ -223,7 +223,7 @@ def test_all_masked_and_all_nan_bands(figures, tmp_path):
     assert len(figures[1].axes[2].get_legend().get_texts()) == 5  # other bands still shown
 
     cube = make_cube(np.full((NY, NX, NB), np.nan, np.float32), SENSOR.cwl_nm)
-    plot_correction(correct_cube(cube, LENS, SENSOR, 1.4), tmp_path / "nan.png")
+    plot_correction(correct_cube(cube, SENSOR, 1.4, LENS), tmp_path / "nan.png")
     text = _texts(figures[2])
     assert "no finite values" in text and "no spectrum to show" in text
     for name in ("all.png", "band.png", "nan.png"):

@@ -4,26 +4,28 @@ import math
 
 import numpy as np
 import pytest
+from conftest import PAPER_LENS
 
 from snapcorr import Lens
+from snapcorr.optics.chief_ray import cra_map
 from snapcorr.simulate import (
     METHODS,
+    Detector,
     LampPlaque,
-    cra_map,
-    flat_field,
+    flat_frame,
     relative_illumination_map,
 )
 
-EDMUND = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")  # h < x
+EDMUND = PAPER_LENS  # h < x
 H_GE_X = Lens(21.0, [(9.0, 30.0)], 0.0, 1.0, name="h>=x")
 NO_VIGNETTING = Lens(21.0, name="no vignetting")
 PITCH_UM = 5.5  # 2048 pixels: an 11.3 mm wide sensor
 
 
-def own_cra_deg(i, j, shape, pitch_um, x_mm, centre=None):
+def own_cra_deg(i, j, shape, pitch_um, x_mm, center=None):
     """Chief-ray angle of pixel (row i, column j), Goossens 2019 Eq. (8), by hand."""
     ny, nx = shape
-    cx, cy = centre if centre is not None else ((nx - 1) / 2, (ny - 1) / 2)
+    cx, cy = center if center is not None else ((nx - 1) / 2, (ny - 1) / 2)
     d_mm = pitch_um / 1000 * math.sqrt((j - cx) ** 2 + (i - cy) ** 2)
     return math.degrees(math.atan(d_mm / x_mm))
 
@@ -38,18 +40,18 @@ def sample_pixels(shape, n=40, seed=3):
 
 
 # -- chief-ray angle -------------------------------------------------------------------------
-@pytest.mark.parametrize("centre", [None, (10.0, 3.0), (4.25, -7.5), (100.0, 40.0)])
-def test_cra_map_matches_hand_arithmetic(centre):
+@pytest.mark.parametrize("center", [None, (10.0, 3.0), (4.25, -7.5), (100.0, 40.0)])
+def test_cra_map_matches_hand_arithmetic(center):
     shape = (13, 17)
-    cra = cra_map(shape, 250.0, 21.0, centre)
+    cra = cra_map(shape, 250.0, 21.0, center)
     assert cra.shape == shape and cra.dtype == np.float64
     for i in range(shape[0]):
         for j in range(shape[1]):
-            assert cra[i, j] == pytest.approx(own_cra_deg(i, j, shape, 250.0, 21.0, centre),
+            assert cra[i, j] == pytest.approx(own_cra_deg(i, j, shape, 250.0, 21.0, center),
                                               abs=1e-12)
 
 
-def test_cra_map_is_zero_at_an_integer_centre_and_symmetric_about_the_image_centre():
+def test_cra_map_is_zero_at_an_integer_center_and_symmetric_about_the_image_center():
     cra = cra_map((7, 9), 5.5, 21.0, center_px=(4, 3))
     assert cra[3, 4] == 0.0
     sym = cra_map((6, 8), 5.5, 21.0)
@@ -63,8 +65,8 @@ def test_cra_map_is_zero_at_an_integer_centre_and_symmetric_about_the_image_cent
 def test_noise_free_flat_is_optical_vignetting_times_cos4(lens, f_number):
     shape = (544, 1024)
     pitch = 2 * PITCH_UM  # the field of a 1088 x 2048 sensor
-    flat = flat_field(lens, f_number, shape, pitch, noise=False, signal_electrons=1.0,
-                      dtype=np.float64)
+    flat = flat_frame(shape, pitch, f_number, lens, noise=False,
+                      detector=Detector(signal_electrons=1.0), dtype=np.float64)
     assert flat.dtype == np.float64
     for i, j in sample_pixels(shape):
         cra = own_cra_deg(i, j, shape, pitch, lens.exit_pupil_mm)
@@ -75,17 +77,17 @@ def test_noise_free_flat_is_optical_vignetting_times_cos4(lens, f_number):
         assert flat[0, 0] < 0.6
 
 
-def test_signal_electrons_is_the_mean_at_the_optical_centre():
-    flat = flat_field(EDMUND, 2.0, (101, 101), PITCH_UM, signal_electrons=2500.0, noise=False,
-                      dtype=np.float64)
+def test_signal_electrons_is_the_mean_at_the_optical_center():
+    flat = flat_frame((101, 101), PITCH_UM, 2.0, EDMUND,
+                      detector=Detector(signal_electrons=2500.0), noise=False, dtype=np.float64)
     assert flat[50, 50] == 2500.0
     assert flat.max() == 2500.0
 
 
 def test_natural_vignetting_can_be_switched_off():
     shape = (9, 11)
-    a = relative_illumination_map(H_GE_X, 2.0, shape, 400.0, method="exact")
-    b = relative_illumination_map(H_GE_X, 2.0, shape, 400.0, method="exact",
+    a = relative_illumination_map(shape, 400.0, 2.0, H_GE_X, method="exact")
+    b = relative_illumination_map(shape, 400.0, 2.0, H_GE_X, method="exact",
                                   natural_vignetting=False)
     cos4 = np.cos(np.deg2rad(cra_map(shape, 400.0, 21.0))) ** 4
     np.testing.assert_allclose(a, b * cos4, rtol=1e-12, atol=1e-15)
@@ -115,9 +117,9 @@ def three_disc_grid_count(R, P, dv, rho, dp, n=800):
 def test_pixel_vignetting_area_against_a_grid_count(lens, f_number, acceptance_deg):
     # Pixel j of a one-row image with its optical centre on pixel 0 is 0.7 j mm off axis.
     n, pitch_mm = 13, 0.7
-    v = relative_illumination_map(lens, f_number, (1, n), pitch_mm * 1000, center_px=(0, 0),
+    v = relative_illumination_map((1, n), pitch_mm * 1000, f_number, lens, center_px=(0, 0),
                                   natural_vignetting=False, pixel_acceptance_deg=acceptance_deg)
-    v_lens_only = relative_illumination_map(lens, f_number, (1, n), pitch_mm * 1000,
+    v_lens_only = relative_illumination_map((1, n), pitch_mm * 1000, f_number, lens,
                                             center_px=(0, 0), natural_vignetting=False)
     x = lens.exit_pupil_mm
     R = float(lens.exit_pupil_radius_mm(f_number))
@@ -147,15 +149,15 @@ def test_radial_interpolation_is_within_1e_6_of_the_exact_per_pixel_value(lens):
         for acceptance in (None, 8.0, near):
             kw = dict(center_px=(31.3, -8.6), pixel_acceptance_deg=acceptance)
             # 100 um pixels reach CRA ~ 35 deg, past the cut-off of every lens here
-            fast = relative_illumination_map(lens, f_number, shape, 100.0, **kw)
-            exact = relative_illumination_map(lens, f_number, shape, 100.0, method="exact", **kw)
+            fast = relative_illumination_map(shape, 100.0, f_number, lens, **kw)
+            exact = relative_illumination_map(shape, 100.0, f_number, lens, method="exact", **kw)
             worst = max(worst, float(np.max(np.abs(fast - exact))))
     assert worst < 1e-6
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_gives_finite_values_in_0_1(method):
-    v = relative_illumination_map(EDMUND, 1.4, (20, 30), 300.0, method=method,
+    v = relative_illumination_map((20, 30), 300.0, 1.4, EDMUND, method=method,
                                   pixel_acceptance_deg=20.0)
     assert v.shape == (20, 30) and v.dtype == np.float64
     assert np.all(np.isfinite(v)) and np.all((v >= 0) & (v <= 1))
@@ -163,12 +165,12 @@ def test_every_method_gives_finite_values_in_0_1(method):
 
 # -- off-centre optical axis -----------------------------------------------------------------
 @pytest.mark.parametrize(
-    ("centre", "brightest"),
+    ("center", "brightest"),
     [((300.0, 100.0), (100, 300)), ((300.4, 100.6), (101, 300)), ((-50.0, 20.0), (20, 0)),
      ((600.0, 300.0), (255, 511))],
 )
-def test_brightest_pixel_is_at_the_optical_centre(centre, brightest):
-    flat = flat_field(EDMUND, 1.4, (256, 512), PITCH_UM, center_px=centre, noise=False,
+def test_brightest_pixel_is_at_the_optical_center(center, brightest):
+    flat = flat_frame((256, 512), PITCH_UM, 1.4, EDMUND, center_px=center, noise=False,
                       dtype=np.float64)
     assert np.unravel_index(np.argmax(flat), flat.shape) == brightest
 
@@ -176,33 +178,34 @@ def test_brightest_pixel_is_at_the_optical_centre(centre, brightest):
 # -- noise -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("signal", [400.0, 1e4, 1e5])
 def test_shot_noise_is_poisson(signal):
-    frame = flat_field(NO_VIGNETTING, 2.8, (512, 512), PITCH_UM, natural_vignetting=False,
-                       signal_electrons=signal, rng=11, dtype=np.float64)
+    frame = flat_frame((512, 512), PITCH_UM, 2.8, NO_VIGNETTING, natural_vignetting=False,
+                       detector=Detector(signal_electrons=signal), rng=11, dtype=np.float64)
     assert frame.mean() == pytest.approx(signal, rel=1e-3)
     assert frame.std() / frame.mean() == pytest.approx(1 / math.sqrt(signal), rel=0.02)
 
 
-def test_shot_noise_at_the_centre_of_a_vignetted_flat():
-    frame = flat_field(EDMUND, 2.0, (1024, 1024), PITCH_UM, rng=2)
-    centre = frame[448:576, 448:576].astype(np.float64)  # within 0.5 mm: V > 0.99
-    assert centre.std() / 1e4 == pytest.approx(0.01, rel=0.03)
+def test_shot_noise_at_the_center_of_a_vignetted_flat():
+    frame = flat_frame((1024, 1024), PITCH_UM, 2.0, EDMUND, rng=2)
+    center = frame[448:576, 448:576].astype(np.float64)  # within 0.5 mm: V > 0.99
+    assert center.std() / 1e4 == pytest.approx(0.01, rel=0.03)
 
 
 def test_read_noise_adds_in_quadrature_then_gain_and_dark():
     signal, read, gain, dark = 1e4, 100.0, 2.0, 50.0
-    frame = flat_field(NO_VIGNETTING, 2.8, (512, 512), PITCH_UM, natural_vignetting=False,
-                       signal_electrons=signal, read_noise_electrons=read,
-                       gain_electrons_per_dn=gain, dark_dn=dark, rng=5, dtype=np.float64)
+    frame = flat_frame((512, 512), PITCH_UM, 2.8, NO_VIGNETTING, natural_vignetting=False,
+                       detector=Detector(signal_electrons=signal, read_noise_electrons=read,
+                                         gain_electrons_per_dn=gain, dark_dn=dark),
+                       rng=5, dtype=np.float64)
     assert frame.mean() == pytest.approx(signal / gain + dark, rel=1e-3)
     assert frame.std() == pytest.approx(math.sqrt(signal + read**2) / gain, rel=0.02)
 
 
 def test_same_seed_same_frame_different_seeds_differ():
-    kw = dict(read_noise_electrons=5.0)
-    a = flat_field(EDMUND, 2.0, (64, 80), PITCH_UM, rng=42, **kw)
-    b = flat_field(EDMUND, 2.0, (64, 80), PITCH_UM, rng=42, **kw)
-    c = flat_field(EDMUND, 2.0, (64, 80), PITCH_UM, rng=43, **kw)
-    d = flat_field(EDMUND, 2.0, (64, 80), PITCH_UM, rng=np.random.default_rng(42), **kw)
+    kw = dict(detector=Detector(read_noise_electrons=5.0))
+    a = flat_frame((64, 80), PITCH_UM, 2.0, EDMUND, rng=42, **kw)
+    b = flat_frame((64, 80), PITCH_UM, 2.0, EDMUND, rng=42, **kw)
+    c = flat_frame((64, 80), PITCH_UM, 2.0, EDMUND, rng=43, **kw)
+    d = flat_frame((64, 80), PITCH_UM, 2.0, EDMUND, rng=np.random.default_rng(42), **kw)
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(a, d)
     assert np.mean(a != c) > 0.9
@@ -211,45 +214,47 @@ def test_same_seed_same_frame_different_seeds_differ():
 def test_noise_free_frame_is_the_expectation_and_draws_nothing():
     gen = np.random.default_rng(0)
     state = gen.bit_generator.state
-    a = flat_field(EDMUND, 2.0, (32, 48), PITCH_UM, noise=False, rng=gen, dark_dn=10.0,
-                   gain_electrons_per_dn=4.0)
+    a = flat_frame((32, 48), PITCH_UM, 2.0, EDMUND, noise=False, rng=gen,
+                   detector=Detector(dark_dn=10.0, gain_electrons_per_dn=4.0))
     assert gen.bit_generator.state == state
-    v = relative_illumination_map(EDMUND, 2.0, (32, 48), PITCH_UM)
+    v = relative_illumination_map((32, 48), PITCH_UM, 2.0, EDMUND)
     np.testing.assert_allclose(a, (1e4 * v / 4.0 + 10.0).astype(np.float32), rtol=0)
     assert a.dtype == np.float32
 
 
 def test_integer_dtype_rounds_and_clips():
     kw = dict(natural_vignetting=False, noise=False)
-    rounded = flat_field(NO_VIGNETTING, 2.8, (4, 5), PITCH_UM, signal_electrons=100.4,
-                         dtype=np.uint8, **kw)
+    rounded = flat_frame((4, 5), PITCH_UM, 2.8, NO_VIGNETTING,
+                         detector=Detector(signal_electrons=100.4), dtype=np.uint8, **kw)
     assert rounded.dtype == np.uint8 and np.all(rounded == 100)
-    up = flat_field(NO_VIGNETTING, 2.8, (4, 5), PITCH_UM, signal_electrons=100.6,
-                    dtype=np.int32, **kw)
+    up = flat_frame((4, 5), PITCH_UM, 2.8, NO_VIGNETTING,
+                    detector=Detector(signal_electrons=100.6), dtype=np.int32, **kw)
     assert np.all(up == 101)
-    high = flat_field(NO_VIGNETTING, 2.8, (4, 5), PITCH_UM, signal_electrons=300.0,
-                      dtype=np.uint8, **kw)
+    high = flat_frame((4, 5), PITCH_UM, 2.8, NO_VIGNETTING,
+                      detector=Detector(signal_electrons=300.0), dtype=np.uint8, **kw)
     assert np.all(high == 255)
-    low = flat_field(NO_VIGNETTING, 2.8, (4, 5), PITCH_UM, signal_electrons=1.0,
-                     dark_dn=-40000.0, dtype=np.int16, **kw)
+    low = flat_frame((4, 5), PITCH_UM, 2.8, NO_VIGNETTING,
+                     detector=Detector(signal_electrons=1.0, dark_dn=-40000.0), dtype=np.int16,
+                     **kw)
     assert np.all(low == -32768)
     # read noise on a faint signal goes negative: an unsigned frame is clipped at 0
-    faint = flat_field(NO_VIGNETTING, 2.8, (64, 64), PITCH_UM, signal_electrons=4.0,
-                       read_noise_electrons=20.0, dtype=np.uint16, rng=1)
+    faint = flat_frame((64, 64), PITCH_UM, 2.8, NO_VIGNETTING, detector=Detector(
+        signal_electrons=4.0, read_noise_electrons=20.0), dtype=np.uint16, rng=1)
     assert faint.dtype == np.uint16 and faint.min() == 0 and np.mean(faint == 0) > 0.3
-    huge = flat_field(NO_VIGNETTING, 2.8, (2, 2), PITCH_UM, signal_electrons=1e19, noise=False,
-                      dtype=np.int64, natural_vignetting=False)
+    huge = flat_frame((2, 2), PITCH_UM, 2.8, NO_VIGNETTING,
+                      detector=Detector(signal_electrons=1e19), noise=False, dtype=np.int64,
+                      natural_vignetting=False)
     assert np.all(huge == np.iinfo(np.int64).max - 1023)  # the largest float below 2**63
 
 
 def test_saturation_clips():
-    frame = flat_field(NO_VIGNETTING, 2.8, (128, 128), PITCH_UM, natural_vignetting=False,
-                       saturation_dn=9900.0, rng=3)
+    frame = flat_frame((128, 128), PITCH_UM, 2.8, NO_VIGNETTING, natural_vignetting=False,
+                       detector=Detector(saturation_dn=9900.0), rng=3)
     assert frame.max() == 9900.0
     assert np.mean(frame == 9900.0) == pytest.approx(0.84, abs=0.03)  # P(N >= 9900), N ~ 1e4
-    free = flat_field(EDMUND, 1.4, (64, 96), 100.0, noise=False, dtype=np.float64)
-    clipped = flat_field(EDMUND, 1.4, (64, 96), 100.0, noise=False, dtype=np.float64,
-                         saturation_dn=7000.0)
+    free = flat_frame((64, 96), 100.0, 1.4, EDMUND, noise=False, dtype=np.float64)
+    clipped = flat_frame((64, 96), 100.0, 1.4, EDMUND, noise=False, dtype=np.float64,
+                         detector=Detector(saturation_dn=7000.0))
     np.testing.assert_array_equal(clipped, np.minimum(free, 7000.0))
     assert np.any(free > 7000.0) and np.any(free < 7000.0)
 
@@ -366,7 +371,7 @@ def test_lamp_plaque_flat_is_asymmetric_and_varies_by_several_percent():
     # a 2048 x 2048, 5.5 um sensor (11.3 mm) sampled every 8th pixel
     source = LampPlaque()
     shape, pitch = (256, 256), 8 * PITCH_UM
-    flat = relative_illumination_map(NO_VIGNETTING, 2.8, shape, pitch, natural_vignetting=False,
+    flat = relative_illumination_map(shape, pitch, 2.8, NO_VIGNETTING, natural_vignetting=False,
                                      source=source)
     left, right = flat[128, 0], flat[128, 255]
     top, bottom = flat[0, 128], flat[255, 128]
@@ -375,9 +380,9 @@ def test_lamp_plaque_flat_is_asymmetric_and_varies_by_several_percent():
     assert top == pytest.approx(bottom, rel=1e-12)  # mirror symmetry in y
     assert abs(top / right - 1) > 0.01  # not radially symmetric
     assert flat.max() / flat.min() - 1 > 0.05
-    # flat_field multiplies the lens terms by the source, pixel by pitch
-    lens_only = flat_field(EDMUND, 2.0, shape, pitch, noise=False, dtype=np.float64)
-    with_source = flat_field(EDMUND, 2.0, shape, pitch, noise=False, dtype=np.float64,
+    # flat_frame multiplies the lens terms by the source, pixel by pitch
+    lens_only = flat_frame(shape, pitch, 2.0, EDMUND, noise=False, dtype=np.float64)
+    with_source = flat_frame(shape, pitch, 2.0, EDMUND, noise=False, dtype=np.float64,
                              source=source)
     i, j = 40, 201
     tx = (j - 127.5) * pitch / 1000 / EDMUND.exit_pupil_mm
@@ -426,10 +431,6 @@ def test_lamp_plaque_rejects_lines_of_sight_that_miss_the_plaque():
         (((4,), PITCH_UM), {}, "shape"),
         (((4, 5), 0.0), {}, "pixel_pitch_um"),
         (((4, 5), -5.5), {}, "pixel_pitch_um"),
-        (((4, 5), PITCH_UM), dict(signal_electrons=0.0), "signal_electrons"),
-        (((4, 5), PITCH_UM), dict(read_noise_electrons=-1.0), "read_noise_electrons"),
-        (((4, 5), PITCH_UM), dict(gain_electrons_per_dn=0.0), "gain"),
-        (((4, 5), PITCH_UM), dict(saturation_dn=-3.0), "saturation_dn"),
         (((4, 5), PITCH_UM), dict(pixel_acceptance_deg=0.0), r"\(0, 90\)"),
         (((4, 5), PITCH_UM), dict(pixel_acceptance_deg=90.0), r"\(0, 90\)"),
         (((4, 5), PITCH_UM), dict(center_px=(1.0, np.nan)), "center_px"),
@@ -437,19 +438,36 @@ def test_lamp_plaque_rejects_lines_of_sight_that_miss_the_plaque():
         (((4, 5), PITCH_UM), dict(dtype=bool), "dtype"),
     ],
 )
-def test_flat_field_rejects_bad_input(args, kwargs, match):
+def test_flat_frame_rejects_bad_input(args, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        flat_field(EDMUND, 2.0, *args, **kwargs)
+        flat_frame(*args, 2.0, EDMUND, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        (dict(signal_electrons=0.0), "signal_electrons"),
+        (dict(read_noise_electrons=-1.0), "read_noise_electrons"),
+        (dict(gain_electrons_per_dn=0.0), "gain"),
+        (dict(saturation_dn=-3.0), "saturation_dn"),
+        (dict(dark_dn=np.inf), "dark_dn"),
+    ],
+)
+def test_detector_rejects_bad_settings(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        Detector(**kwargs)
+    with pytest.raises(TypeError, match="Detector"):
+        flat_frame((4, 5), PITCH_UM, 2.0, EDMUND, detector=kwargs)
 
 
 @pytest.mark.parametrize("f_number", [0.0, -2.0, np.nan])
 def test_flat_field_rejects_bad_f_number(f_number):
     with pytest.raises(ValueError, match="f_number"):
-        flat_field(EDMUND, f_number, (4, 5), PITCH_UM)
+        flat_frame((4, 5), PITCH_UM, f_number, EDMUND)
 
 
 def test_relative_illumination_map_rejects_unknown_method_and_source():
     with pytest.raises(ValueError, match="'radial', 'exact'"):
-        relative_illumination_map(EDMUND, 2.0, (4, 5), PITCH_UM, method="spline")
+        relative_illumination_map((4, 5), PITCH_UM, 2.0, EDMUND, method="spline")
     with pytest.raises(TypeError, match="relative_signal"):
-        relative_illumination_map(EDMUND, 2.0, (4, 5), PITCH_UM, source=1.0)
+        relative_illumination_map((4, 5), PITCH_UM, 2.0, EDMUND, source=1.0)

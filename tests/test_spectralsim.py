@@ -7,11 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import spectralsim as ss
+from conftest import PAPER_TRUTH
 from flatsim import LensTruth, common_area_mm2, mean_shift_nm
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-PAPER = LensTruth(21.0, ((7.4236, 16.991),), 0.06, 1.3)  # Goossens 2019, Eq. 31
+PAPER = PAPER_TRUTH  # Goossens 2019, Eq. 31
 IDEAL = LensTruth(21.0, (), 0.06, 1.3)
 X = 21.0
 HERE = Path(__file__).resolve().parent
@@ -97,8 +98,8 @@ def test_pupil_area_and_mean_shift_match_flatsim(lens, f_number):
         d = lens.exit_pupil_mm * t
         u, v, w = ss.pupil_samples(lens, f_number, d)
         radii = [R] + [P for P, _ in lens.circles]
-        centres = [0.0] + [h * t for _, h in lens.circles]
-        area = common_area_mm2(radii, centres)
+        centers = [0.0] + [h * t for _, h in lens.circles]
+        area = common_area_mm2(radii, centers)
         if area == 0:
             assert w.size == 0
             continue
@@ -106,7 +107,7 @@ def test_pupil_area_and_mean_shift_match_flatsim(lens, f_number):
         assert np.all(v >= 0) and np.all(w > 0)
         assert w.sum() == pytest.approx(area, rel=1e-9)
         # every node inside every disc
-        for r, c in zip(radii, centres, strict=True):
+        for r, c in zip(radii, centers, strict=True):
             assert np.all((u - c) ** 2 + v**2 <= r * r * (1 + 1e-9))
         x = lens.exit_pupil_mm
         rho2 = (u - d) ** 2 + v * v
@@ -283,15 +284,15 @@ def test_radial_interpolation_matches_band_values():
     f/1.4 on the paper's lens: the circle starts to cut the pupil at d = 0.3145 mm (57 px of
     5.5 um), where the value is not smooth; the cube is cut there. Measured: < 1e-8.
     """
-    f, pitch, centre = 1.4, 5.5, (-40.3, 20.6)
+    f, pitch, center = 1.4, 5.5, (-40.3, 20.6)
     shape = (40, 120)
     cube = ss.target_cube(ss.rare_earth_glass, cwl_nm=CWL, fwhm_nm=6.0, n_eff=1.7,
                           f_number=f, lens=PAPER, shape=shape, pixel_pitch_um=pitch,
-                          center_px=centre)
+                          center_px=center)
     onset = ss.tangency_radii_mm(PAPER, f)[0][0]
     assert onset == pytest.approx(X * (7.4236 - ss.pupil_radius_mm(PAPER, f)) / 16.991)
     ii, jj = np.mgrid[0:shape[0], 0:shape[1]]
-    d = np.hypot(jj - centre[0], ii - centre[1]) * pitch * 1e-3
+    d = np.hypot(jj - center[0], ii - center[1]) * pitch * 1e-3
     near = np.argsort(np.abs(d - onset).ravel())[:6]
     rng = np.random.default_rng(3)
     pick = np.concatenate([near, rng.choice(d.size, 10, replace=False),
@@ -322,11 +323,11 @@ def test_cube_against_flatsim_cra_convention():
     """Pixel (i, j) of the cube sits at sensor (origin + (i, j)), centre (cx, cy) = (col, row)."""
     from flatsim import cra_map_deg
 
-    shape, origin, centre, pitch = (7, 9), (30, 40), (44.0, 32.0), 500.0
+    shape, origin, center, pitch = (7, 9), (30, 40), (44.0, 32.0), 500.0
     cube = ss.target_cube(ss.single_feature, cwl_nm=[545.0], fwhm_nm=12.0, n_eff=1.7,
                           f_number=1.4, lens=PAPER, shape=shape, pixel_pitch_um=pitch,
-                          center_px=centre, origin_px=origin)
-    _, tan = cra_map_deg((40, 50), pitch, centre, X)
+                          center_px=center, origin_px=origin)
+    _, tan = cra_map_deg((40, 50), pitch, center, X)
     d = X * tan[origin[0]:origin[0] + shape[0], origin[1]:origin[1] + shape[1]]
     direct = ss.band_values(ss.single_feature, 545.0, 12.0, 1.7, 1.4, d.ravel(), PAPER)
     np.testing.assert_allclose(cube[..., 0].ravel(), direct[:, 0], atol=1e-7)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import PAPER_CIRCLE, PAPER_M, PAPER_M_P, PAPER_X_MM
 
 import snapcorr
 from snapcorr import Lens, mean_shift
@@ -584,7 +585,7 @@ def test_one_circle_as_before_all_cases(one_circle):
 # 7. Degenerate circles
 # ------------------------------------------------------------------------------------------
 
-ONE = (21.0, ((7.4236, 16.991),), 0.06, 1.3)  # the paper's Edmund 16 mm lens
+ONE = (PAPER_X_MM, (PAPER_CIRCLE,), PAPER_M, PAPER_M_P)  # the paper's Edmund 16 mm lens
 
 
 def _cra(f):

@@ -13,7 +13,6 @@ from .exit_pupil import (
 from .flats import (
     RadialProfile,
     clean_flat,
-    cra_deg_map,
     estimate_center,
     noise_model,
     radial_profile,
@@ -38,7 +37,6 @@ __all__ = [
     "RadialProfile",
     "calibrate_lens",
     "clean_flat",
-    "cra_deg_map",
     "detect_onset",
     "estimate_center",
     "estimate_target_center",

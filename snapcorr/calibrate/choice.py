@@ -115,8 +115,7 @@ def _finite(v):
 def lens_of(fit: ModelFit, base: Lens) -> Lens:
     """``base`` (exit pupil, magnifications) with the fit's circles."""
     p = [fit.params[k] for k in fit.names]
-    return Lens(base.exit_pupil_mm, circles_of(fit.model, p), base.magnification,
-                base.pupil_magnification, name=base.name)
+    return replace(base, vignetting=circles_of(fit.model, p), calibration={})
 
 
 def effective_onsets_deg(lens: Lens, f_numbers, max_cra_deg, samples=_ONSET_SAMPLES):
@@ -126,6 +125,23 @@ def effective_onsets_deg(lens: Lens, f_numbers, max_cra_deg, samples=_ONSET_SAMP
     ``max_cra_deg`` (``inf``: not inside the field). A circle hidden behind another until a
     CRA that does not depend on the f-number (two circles touching inside each other) tells
     nothing about its own P and h there, unlike its onset against the bare pupil (Eq. 24-25).
+
+    Parameters
+    ----------
+    lens : Lens
+        Exit pupil and vignetting circles.
+    f_numbers : array_like
+        Nominal f-numbers (1-D).
+    max_cra_deg : float
+        Largest chief-ray angle of the field, degrees.
+    samples : int
+        Number of CRAs on the grid.
+
+    Returns
+    -------
+    ndarray
+        ``(n_circles, n_f)``: the last grid CRA before the circle cuts, degrees; ``inf`` where
+        it cuts nothing up to ``max_cra_deg``.
     """
     fs = np.asarray(f_numbers, float)
     cra = np.linspace(0.0, max_cra_deg, samples)
@@ -133,8 +149,7 @@ def effective_onsets_deg(lens: Lens, f_numbers, max_cra_deg, samples=_ONSET_SAMP
     for j, f in enumerate(fs):
         with_all = lens.relative_illumination(f, cra)
         for i in range(len(lens.vignetting)):
-            others = Lens(lens.exit_pupil_mm, lens.vignetting[:i] + lens.vignetting[i + 1:],
-                          lens.magnification, lens.pupil_magnification)
+            others = replace(lens, vignetting=lens.vignetting[:i] + lens.vignetting[i + 1:])
             without = others.relative_illumination(f, cra)
             cut = np.flatnonzero(without - with_all > 1e-9 * np.maximum(without, 1e-300))
             if cut.size:
@@ -143,8 +158,26 @@ def effective_onsets_deg(lens: Lens, f_numbers, max_cra_deg, samples=_ONSET_SAMP
 
 
 def check_circles(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *, h_given=False):
-    """Reasons (a list of sentences) why the fit's circles are not identifiable; empty: all
-    are. With ``h`` given (one circle), one onset inside the field suffices."""
+    """Reasons (a list of sentences) why the fit's circles are not identifiable (rule 1 of the
+    module's description); empty: all are.
+
+    Parameters
+    ----------
+    fit : ModelFit
+        The fit of one model (:func:`~snapcorr.calibrate.joint_fit.fit_model`).
+    base : Lens
+        Exit pupil and magnifications; its circles are replaced by the fit's.
+    f_numbers : array_like
+        Nominal f-numbers of the flats (1-D).
+    max_cra_deg : float
+        Largest chief-ray angle of the field, degrees.
+    h_given : bool
+        ``h`` was given rather than fitted (one circle): one onset inside the field suffices.
+
+    Returns
+    -------
+    list of str
+    """
     problems = []
     p = [fit.params[k] for k in fit.names]
     err = [fit.stderr[k] for k in fit.names]
@@ -182,7 +215,27 @@ def shift_difference_nm(lens_a: Lens, lens_b: Lens, f_numbers, max_cra_deg, *,
                         cwl_nm=REFERENCE_CWL_NM, n_eff=REFERENCE_N_EFF):
     """Largest difference of the predicted mean shift (nm) between two lenses over the field
     (CRA 0 to ``max_cra_deg``), for each f-number; CRAs past either lens's full cut-off are
-    left out (no light, no shift). NaN where no CRA is left."""
+    left out (no light, no shift).
+
+    Parameters
+    ----------
+    lens_a, lens_b : Lens
+        The two lenses (usually the same pupil with different circles).
+    f_numbers : array_like
+        Nominal f-numbers (1-D).
+    max_cra_deg : float
+        Largest chief-ray angle of the field, degrees (97 CRAs are compared).
+    cwl_nm : float
+        Central wavelength of the reference filter, nm.
+    n_eff : float
+        Its effective index.
+
+    Returns
+    -------
+    ndarray
+        One difference per f-number, nm (``"vignetted"`` mean shift); NaN where no CRA is left
+        or the pupil is cut off.
+    """
     out = []
     for f in np.asarray(f_numbers, float):
         top = min(max_cra_deg, 0.999 * float(lens_a.cutoff_cra_deg(f)),
@@ -213,6 +266,28 @@ def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
     noise allows; scaling as a whole keeps the shape, so the result is never below the
     fit's. It is carried through the mean shift by finite differences:
     ``sqrt(diag(J C J^T))`` on a grid of CRAs.
+
+    Parameters
+    ----------
+    fit : ModelFit
+        The fit of one model, with its covariance and standard errors.
+    base : Lens
+        Exit pupil and magnifications; its circles are replaced by the fit's.
+    f_numbers : array_like
+        Nominal f-numbers (1-D).
+    max_cra_deg : float
+        Largest chief-ray angle of the field, degrees (49 CRAs up to it or the cut-off).
+    cwl_nm : float
+        Central wavelength of the reference filter, nm.
+    n_eff : float
+        Its effective index.
+
+    Returns
+    -------
+    ndarray
+        One standard error per f-number, nm: NaN for all without circles or covariance, or
+        where the shift cannot be computed; ``inf`` for all when a reported standard error is
+        not finite.
     """
     names = [k for k in fit.names if k.endswith("_mm")]
     fs = np.asarray(f_numbers, float)
@@ -268,6 +343,31 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
 
     Models are taken in order of their number of circles; each step up must pass all three
     rules of the module's description against the model chosen so far.
+
+    Parameters
+    ----------
+    fits : dict
+        Model name (``"none"``, ``"one"``, ``"two"``, ``"three"``) -> its :class:`ModelFit`.
+    bic_floor : dict
+        Model name -> its BIC with the systematic floor
+        (:func:`~snapcorr.calibrate.joint_fit.floor_chi2`).
+    base : Lens
+        Exit pupil and magnifications; its circles are replaced by each fit's.
+    f_numbers : array_like
+        Nominal f-numbers of the flats (1-D).
+    max_cra_deg : float
+        Largest chief-ray angle of the field, degrees.
+    tolerance_nm : float
+        Rule 3: a further circle must move the mean shift by more than this, nm.
+    h_given : bool
+        ``h`` was given rather than fitted (see :func:`check_circles`).
+
+    Returns
+    -------
+    chosen : str
+        The model chosen.
+    verdicts : dict
+        Model name -> :class:`ModelVerdict`, for every model in ``fits``.
     """
     order = sorted(fits, key=lambda m: N_CIRCLES[m])
     chosen = order[0]

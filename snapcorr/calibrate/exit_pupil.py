@@ -34,6 +34,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .. import __version__
+from .._validation import check_center, check_positive
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
 from .target_model import PRIOR_SD, RadialBins, TargetModel, radial_bins, rebin
@@ -167,6 +168,25 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
     Every band's image is a function of the distance to the centre only; the centre is where
     a polynomial in ``d^2`` (per band, solved for) fits the most informative bands best
     (``scipy.optimize.least_squares`` on ``(cx, cy)``; the images block-averaged).
+
+    Parameters
+    ----------
+    band_image : callable
+        ``band_image(b)`` -> the cube's 2-D image of band ``b``.
+    n_bands : int
+        Number of bands.
+    rows, cols : ndarray, shape (ny, nb or 1) and (nx, nb or 1)
+        Sensor row and column of the cube's pixels
+        (:func:`snapcorr.correct.geometry.cube_positions`).
+    start : (cx, cy), optional
+        Where the search starts (default: the middle of the cube's sensor positions).
+    n_use : int
+        How many bands are fitted: those whose spread over the field is largest against their
+        noise.
+    block : int
+        Side of the blocks averaged before the fit, pixels.
+    degree : int
+        Degree of each band's polynomial in ``d^2``.
 
     Returns
     -------
@@ -544,80 +564,33 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     FeaturelessTargetError
         The target's signal does not change over the field above the noise.
     """
-    from ..correct.geometry import cube_positions
-
     cubes = _check_cubes(cubes, sensor)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)
     spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
-    pitch = sensor.pixel_pitch_mm
-    positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
     nb = sensor.n_bands
-
-    def reader(cube):
-        cube = cube.transpose("y", "x", "band")
-        if cube.nbytes <= IN_MEMORY_BYTES:  # one read of the file, not one per band
-            data = np.asarray(cube.values)
-            return lambda b: data[:, :, b].astype(float)
-        return lambda b: np.asarray(cube.isel(band=b).values, float)
-
-    notes = []
-    if center_px is not None:
-        center, center_source = (float(center_px[0]), float(center_px[1])), "given"
-    else:
-        f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
-        rows, cols = positions[f0]
-        center, err = estimate_target_center(reader(cubes[f0]), nb, rows, cols)
-        center_source = f"found from the f/{f0:g} cube (+- {err[0]:.2g}, {err[1]:.2g} px)"
-    bins = [radial_bins(reader(c), nb, *positions[f], center, pitch, f_number=f, n_bins=n_bins)
-            for f, c in cubes.items()]
+    bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
+                                          n_bins)
     r_max = _field_radius(bins)
     n_design = np.asarray(sensor.n_eff, float)
-    # trial range: chief-ray angles at the field's edge from EDGE_CRA_DEG down to ~1 degree
-    x_lo = r_max / math.tan(math.radians(EDGE_CRA_DEG[1]))
-    x_hi = r_max / math.tan(math.radians(EDGE_CRA_DEG[0]))
-    phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(
-        base.working_f_number(min(cubes)))))
-    max_rel = 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
-                                       / (0.6 * n_design.min()) ** 2, 0.05)))
-    common = dict(spectrum=spectrum, profile=profile, n_eff_design=n_design,
-                  max_shift_rel=max_rel)
-    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, base, **common)
+    x_lo, x_hi = _trial_range(r_max)
+    max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
+    model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel)
     problem = _Problem(model, n_design)
     several = len(cubes) >= 2
     fit_k = bool(fit_n_eff) and several
-    # the start: a scan of a coarse copy (four annuli in one), its minima refined
-    coarse = _Problem(TargetModel([rebin(b, 4) for b in bins], sensor.cwl_nm, sensor.fwhm_nm,
-                                  base, **common), n_design)
-    grid = _scan_grid(r_max, x_lo, x_hi, float(np.mean(n_design)),
-                      float(np.mean(sensor.cwl_nm)), float(np.min(sensor.fwhm_nm)) / 8)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", EffectiveIndexWarning)  # trials beyond 40 degrees
-        x0 = _start(coarse, grid)
-        p, cov, r, s, rank = _fit(problem, x0, fit_k, x_lo, x_hi)
+    p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k)
     x, k = float(p[0]), float(p[1]) if fit_k else 1.0
     chi2 = float(r @ r)
     dof = max(round(model.n_rows - rank - len(p)), 1)
     chi2_red = chi2 / dof
     scale = max(1.0, chi2_red)
     err = np.sqrt(np.clip(np.diag(cov), 0, None) * scale)
-    r_flat, _, rank_flat = problem.residuals(x, k, field=False, rank=True)
-    flat = float(r_flat @ r_flat)
-    # a field without shift is the nested model: the field must beat it by more than the
-    # parameters it adds (the target seen at more wavelengths, x) could win from noise alone
-    extra = max(rank - rank_flat, 0.0) + len(p)
-    if (flat - chi2 - extra * scale < math.sqrt(MIN_DELTA_CHI2) * math.sqrt(2 * extra) * scale
-            or flat - chi2 < MIN_DELTA_CHI2 * scale or not err[0] < MAX_REL_STDERR * x):
-        raise FeaturelessTargetError(
-            f"the target shows no spectral shift over the field above the noise (a field "
-            f"without any shift fits within chi-square {max(flat - chi2, 0):.3g} of the best, "
-            f"where noise alone gives about {extra * scale:.3g}): its spectrum has no features "
-            "inside the "
-            "bands (a white tile?). Use a target whose spectrum changes within the bands: a "
-            "colour filter, a rare-earth glass or a line lamp (see pupil_precision)")
+    _check_shift_seen(problem, x, k, chi2, rank, len(p), scale, err[0])
     n = n_design * k
     n_err = n_design * err[1] if fit_k else None
     mode = "one" if fit_k else ("product" if fit_n_eff else "no")
+    notes = []
     if fit_n_eff and not several:
         notes.append("one f-number: the field fixes only x * n_eff; x assumes the sensor's "
                      "n_eff. A cube at a second f-number (far apart, e.g. f/2 and f/8) "
@@ -627,23 +600,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                                                             n_err, chi2, scale, notes)
         if mode != "one":
             err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
-    xn = x * float(np.mean(n))
-    if fit_k and mode == "one":
-        c = cov * scale
-        g = np.array([k, x]) * float(np.mean(n_design))
-        xn_err = float(np.sqrt(max(g @ c @ g, 0.0)))
-    else:
-        xn_err = float(err[0]) * float(np.mean(n))
-    aoi = math.degrees(math.atan(r_max / x) + math.atan(
-        1.0 / (2.0 * float(base.working_f_number(min(cubes))))))
-    if aoi > AOI_VALIDITY_DEG:
-        notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
-                     f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "
-                     "2.2): x rests on its extrapolation")
-    if chi2_red > 2.0:
-        notes.append(f"reduced chi-square {chi2_red:.3g}: the model misses something (a target "
-                     "that is not uniform, stray light, another filter shape); the errors are "
-                     "scaled by it")
+    xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
+    notes += _validity_notes(r_max, x, base.working_f_number(min(cubes)), chi2_red)
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
                             inputs, name)
@@ -653,29 +611,125 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                     notes, cov * scale)
 
 
+def _band_reader(cube):
+    """``band -> 2-D float image`` of a cube, read into memory once where it is small enough."""
+    cube = cube.transpose("y", "x", "band")
+    if cube.nbytes <= IN_MEMORY_BYTES:  # one read of the file, not one per band
+        data = np.asarray(cube.values)
+        return lambda b: data[:, :, b].astype(float)
+    return lambda b: np.asarray(cube.isel(band=b).values, float)
+
+
+def _annuli(cubes, sensor, lens, sensor_origin_px, center_px, n_bins):
+    """Every cube's radial annuli about the optical centre (given or found), and the centre."""
+    from ..correct.geometry import cube_positions
+
+    pitch = sensor.pixel_pitch_mm
+    positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
+    nb = sensor.n_bands
+    if center_px is not None:
+        center, center_source = check_center(center_px), "given"
+    else:
+        f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
+        rows, cols = positions[f0]
+        center, err = estimate_target_center(_band_reader(cubes[f0]), nb, rows, cols)
+        center_source = f"found from the f/{f0:g} cube (+- {err[0]:.2g}, {err[1]:.2g} px)"
+    bins = [radial_bins(_band_reader(c), nb, *positions[f], center, pitch, f_number=f,
+                        n_bins=n_bins)
+            for f, c in cubes.items()]
+    return bins, center, center_source
+
+
+def _trial_range(r_max):
+    """The smallest and largest trial ``x``, mm."""
+    # trial range: chief-ray angles at the field's edge from EDGE_CRA_DEG down to ~1 degree
+    x_lo = r_max / math.tan(math.radians(EDGE_CRA_DEG[1]))
+    x_hi = r_max / math.tan(math.radians(EDGE_CRA_DEG[0]))
+    return x_lo, x_hi
+
+
+def _max_shift_rel(r_max, x_lo, n_design, working_f_number):
+    """The largest relative shift a trial may give: the edge's chief ray and the cone."""
+    phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(working_f_number)))
+    return 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
+                                    / (0.6 * n_design.min()) ** 2, 0.05)))
+
+
+def _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel):
+    """The target model of the annuli, and a coarse copy (four annuli in one) for the scan."""
+    common = dict(spectrum=spectrum, profile=profile, n_eff_design=n_design,
+                  max_shift_rel=max_rel)
+    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, base, **common)
+    coarse = TargetModel([rebin(b, 4) for b in bins], sensor.cwl_nm, sensor.fwhm_nm, base,
+                         **common)
+    return model, coarse
+
+
+def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k):
+    """Least squares in ``x`` (and the index scale) from the best minimum of a coarse scan."""
+    n_design = problem.n_design
+    # the start: a scan of a coarse copy (four annuli in one), its minima refined
+    coarse = _Problem(coarse_model, n_design)
+    grid = _scan_grid(r_max, x_lo, x_hi, float(np.mean(n_design)),
+                      float(np.mean(sensor.cwl_nm)), float(np.min(sensor.fwhm_nm)) / 8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EffectiveIndexWarning)  # trials beyond 40 degrees
+        x0 = _start(coarse, grid)
+        return _fit(problem, x0, fit_k, x_lo, x_hi)
+
+
+def _check_shift_seen(problem, x, k, chi2, rank, n_params, scale, x_err):
+    """Refuse a target whose field explains the data no better than a field without shift."""
+    r_flat, _, rank_flat = problem.residuals(x, k, field=False, rank=True)
+    flat = float(r_flat @ r_flat)
+    # a field without shift is the nested model: the field must beat it by more than the
+    # parameters it adds (the target seen at more wavelengths, x) could win from noise alone
+    extra = max(rank - rank_flat, 0.0) + n_params
+    if (flat - chi2 - extra * scale < math.sqrt(MIN_DELTA_CHI2) * math.sqrt(2 * extra) * scale
+            or flat - chi2 < MIN_DELTA_CHI2 * scale or not x_err < MAX_REL_STDERR * x):
+        raise FeaturelessTargetError(
+            f"the target shows no spectral shift over the field above the noise (a field "
+            f"without any shift fits within chi-square {max(flat - chi2, 0):.3g} of the best, "
+            f"where noise alone gives about {extra * scale:.3g}): its spectrum has no features "
+            "inside the "
+            "bands (a white tile?). Use a target whose spectrum changes within the bands: a "
+            "colour filter, a rare-earth glass or a line lamp (see pupil_precision)")
+
+
+def _x_n_eff(x, n, err, cov, k, n_design, one_k):
+    """The product ``x * mean(n_eff)`` and its standard error (``cov`` scaled)."""
+    xn = x * float(np.mean(n))
+    if one_k:
+        g = np.array([k, x]) * float(np.mean(n_design))
+        xn_err = float(np.sqrt(max(g @ cov @ g, 0.0)))
+    else:
+        xn_err = float(err[0]) * float(np.mean(n))
+    return xn, xn_err
+
+
+def _validity_notes(r_max, x, working_f_number, chi2_red):
+    """Notes where rays pass the index law's validated angle, or the model misfits."""
+    notes = []
+    aoi = math.degrees(math.atan(r_max / x) + math.atan(1.0 / (2.0 * float(working_f_number))))
+    if aoi > AOI_VALIDITY_DEG:
+        notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
+                     f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "
+                     "2.2): x rests on its extrapolation")
+    if chi2_red > 2.0:
+        notes.append(f"reduced chi-square {chi2_red:.3g}: the model misses something (a target "
+                     "that is not uniform, stray light, another filter shape); the errors are "
+                     "scaled by it")
+    return notes
+
 def _check_cubes(cubes, sensor):
     if not cubes:
         raise ValueError("give at least one cube")
     out = {}
     for f, cube in cubes.items():
-        fv = float(f)
-        if not (math.isfinite(fv) and fv > 0):
-            raise ValueError(f"f-number must be finite and > 0, got {f!r}")
+        fv = check_positive("f-number", f)
         if fv in out:
             raise ValueError(f"f/{fv:g} given twice")
-        nbands = cube.sizes.get("band")
-        if nbands != sensor.n_bands:
-            raise ValueError(f"the f/{fv:g} cube has {nbands} bands, the sensor "
-                             f"{sensor.name!r} {sensor.n_bands}; use the sensor the cubes were "
-                             "taken with")
-        if "wavelength" in cube.coords:
-            nominal = np.asarray(cube["wavelength"].values, float)
-            cwl = np.asarray(sensor.cwl_nm, float)
-            if np.max(np.abs(nominal - cwl)) > 0.5:
-                raise ValueError(f"the f/{fv:g} cube's wavelengths differ from the sensor "
-                                 f"{sensor.name!r}'s (by up to "
-                                 f"{np.max(np.abs(nominal - cwl)):.3g} nm); use the matching "
-                                 "sensor")
+        sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
         out[fv] = cube
     return dict(sorted(out.items()))
 
@@ -848,7 +902,7 @@ def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
 
 
 @_one_blas_thread
-def pupil_precision(spectrum, sensor, lens: Lens, f_numbers, *, noise=0.01, fit_n_eff=False,
+def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_eff=False,
                     spectrum_known=False, size_px=None, n_bins=64, profile="gaussian",
                     absolute_noise=False):
     """Predicted standard error of ``x`` (and ``n_eff``) from cubes of a target.
@@ -865,9 +919,10 @@ def pupil_precision(spectrum, sensor, lens: Lens, f_numbers, *, noise=0.01, fit_
         ``S(lambda_nm)``.
     sensor : Sensor
         Needs ``size_px`` unless ``size_px`` is given.
+    f_numbers : sequence of float
+        The f-numbers of the cubes.
     lens : Lens
         The true lens (x, circles, magnifications).
-    f_numbers : sequence of float
     noise : float
     fit_n_eff : bool
         Count ``n_eff`` as unknown (one common value).

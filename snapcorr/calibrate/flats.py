@@ -15,7 +15,6 @@ import numpy as np
 __all__ = [
     "RadialProfile",
     "clean_flat",
-    "cra_deg_map",
     "estimate_center",
     "noise_model",
     "radial_profile",
@@ -122,6 +121,15 @@ def clean_flat(image, *, dark=None, saturation=None):
     pixels kept is untouched. Dark areas (a reference cut off by vignetting, an image circle
     smaller than the sensor) get their own, smaller noise, not the image's.
 
+    Parameters
+    ----------
+    image : array_like
+        The flat field, 2-D (y, x), real numbers (counts).
+    dark : array_like, optional
+        Dark frame of the same shape, subtracted; pixels where it is not finite are masked.
+    saturation : float, optional
+        Raw values at or above this (before the dark is subtracted) are masked as saturated.
+
     Returns
     -------
     image : ndarray, float32, dark subtracted (masked pixels hold 0)
@@ -157,18 +165,6 @@ def clean_flat(image, *, dark=None, saturation=None):
     return img, valid, var
 
 
-def cra_deg_map(shape, center_px, pixel_pitch_um, exit_pupil_mm):
-    """Chief-ray angle (deg) of every pixel: ``tan CRA = d / x`` (Goossens 2019, Eq. 8).
-
-    Pixel (row i, column j) is centred at image coordinates (x=j, y=i).
-    """
-    ny, nx = shape
-    cx, cy = center_px
-    yy, xx = np.ogrid[:ny, :nx]
-    d = np.hypot(xx - cx, yy - cy) * (pixel_pitch_um * 1e-3)
-    return np.rad2deg(np.arctan(d / exit_pupil_mm))
-
-
 def estimate_center(images, valids=None, *, levels=12):
     """Optical centre (cx, cy) in pixels from iso-illumination contours.
 
@@ -178,6 +174,15 @@ def estimate_center(images, valids=None, *, levels=12):
     robustly (``CircleModel`` inside ``ransac``); the centre is the median of the circles'
     centres, weighted by the arc each contour covers. Images are best given as ratios to a
     reference flat, which cancels non-uniform sources.
+
+    Parameters
+    ----------
+    images : sequence of array_like
+        2-D images (y, x).
+    valids : sequence of array_like of bool, optional
+        A mask per image, True where the pixel is usable (default: every pixel).
+    levels : int
+        Contour levels per image, evenly spaced between its 3rd and 97th percentiles.
 
     Returns
     -------
@@ -189,7 +194,7 @@ def estimate_center(images, valids=None, *, levels=12):
     import cv2
     from skimage.measure import CircleModel, find_contours, ransac
 
-    centres, weights = [], []
+    centers, weights = [], []
     for k, img in enumerate(images):
         img = np.asarray(img, dtype=np.float32)
         valid = np.ones(img.shape, bool) if valids is None else np.asarray(valids[k], bool)
@@ -221,11 +226,11 @@ def estimate_center(images, valids=None, *, levels=12):
                 span = 2 * np.pi - np.diff(np.append(ang, ang[0] + 2 * np.pi)).max()
                 if span < np.pi / 3 or not np.isfinite(r) or r > 20 * max(img.shape):
                     continue
-                centres.append((xc, yc))
+                centers.append((xc, yc))
                 weights.append(span * inliers.sum())
-    if not centres:
+    if not centers:
         return None, np.inf
-    c = np.asarray(centres)
+    c = np.asarray(centers)
     w = np.asarray(weights)
     center = tuple(float(_weighted_median(c[:, i], w)) for i in range(2))
     spread = float(np.median(np.hypot(c[:, 0] - center[0], c[:, 1] - center[1])))
@@ -264,6 +269,24 @@ def radial_profile(image, valid, cra_deg, *, bin_deg=0.1, denominator=None):
     With a ``denominator`` the value is the ratio of the bin sums (so a source that varies
     around the ring cancels exactly, as it multiplies both images alike) and the uncertainty
     comes from the scatter of the pixel-by-pixel ratio.
+
+    Parameters
+    ----------
+    image : ndarray
+        2-D image (y, x).
+    valid : array_like of bool
+        Same shape; True where a pixel is used (with a denominator, also only where it is > 0).
+    cra_deg : array_like
+        Chief-ray angle of every pixel, degrees (>= 0), same shape.
+    bin_deg : float
+        Bin width, degrees; bins start at 0.
+    denominator : ndarray, optional
+        Image of the same shape to divide by (a reference flat).
+
+    Returns
+    -------
+    RadialProfile
+        Only the bins with at least 4 valid pixels.
     """
     valid = np.asarray(valid, bool)
     if denominator is not None:

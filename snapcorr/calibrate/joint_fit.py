@@ -119,6 +119,25 @@ def block_average(images, valids, variances, block):
     """Masked block means of several images and the variance of each mean.
 
     Block sums come from OpenCV's area resampling (exact block means for an integer factor).
+
+    Parameters
+    ----------
+    images : sequence of 2-D arrays
+        The images, all of one shape; rows and columns past the last whole block are left out.
+    valids : sequence of 2-D bool arrays
+        Which pixels of each image are used.
+    variances : sequence of 2-D arrays
+        Each pixel's variance.
+    block : int
+        Side of the square blocks, pixels.
+
+    Returns
+    -------
+    means, variances, counts : lists of 2-D arrays
+        Per image: each block's mean over its valid pixels and the variance of that mean (NaN
+        where no pixel is valid), and the number of valid pixels.
+    x, y : 2-D arrays
+        Block centres, full-resolution pixel coordinates.
     """
     import cv2
 
@@ -151,8 +170,8 @@ def _area_fraction(R, circles, t):
     if not circles:
         return np.ones_like(t)
     radii = [R] + [P for P, _ in circles]
-    centres = [0.0] + [h * t for _, h in circles]
-    return overlap_area_mm2(radii, centres) / (np.pi * R * R)
+    centers = [0.0] + [h * t for _, h in circles]
+    return overlap_area_mm2(radii, centers) / (np.pi * R * R)
 
 
 def param_names(model):
@@ -340,10 +359,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     # Starts are screened and run on every k-th block (about SCREEN_BLOCKS of them); the best
     # is then polished on all blocks. The minimum barely moves with the subset, and this is
     # where the time goes.
-    step = max(1, int(np.ceil(data.q.shape[1] / SCREEN_BLOCKS)))
-    screen = data if step == 1 else replace(
-        data, q=data.q[:, ::step], sigma=data.sigma[:, ::step], xpix=data.xpix[::step],
-        ypix=data.ypix[::step], warm={})
+    step, screen = _screening_subset(data)
     margin = np.where(np.isfinite(lo_all), 1e-4 * np.maximum(np.abs(lo_all), 1.0), 0.0)
     bases = []
     for start in starts:
@@ -380,14 +396,31 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     r, s = _residuals(data, model, p, center)
     chi2 = float(r @ r)
     k = len(free) + data.n_nuisance
-    J = res.jac
+    cov, err = _covariance(res.jac, p, free, names, chi2 / max(n - k, 1))
+    params = dict(zip(names, map(float, p), strict=True))
+    stderr = dict(zip(names, map(float, err), strict=True))
+    return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
+                    str(res.message))
+
+
+def _screening_subset(data: BlockData):
+    """The step between the blocks screened, and those blocks (``data`` itself for step 1)."""
+    step = max(1, int(np.ceil(data.q.shape[1] / SCREEN_BLOCKS)))
+    screen = data if step == 1 else replace(
+        data, q=data.q[:, ::step], sigma=data.sigma[:, ::step], xpix=data.xpix[::step],
+        ypix=data.ypix[::step], warm={})
+    return step, screen
+
+
+def _covariance(J, p, free, names, reduced_chi2):
+    """Covariance of all parameters (zero for the fixed ones) and their standard errors."""
     # Covariance from the SVD of the Jacobian in relative units (a change of each parameter by
     # its own size), so that no parameter's scale decides what counts as constrained.
     scale = np.maximum(np.abs(p[free]), 1e-3)
     _, sv, vt = np.linalg.svd(J * scale, full_matrices=False)
     strong = sv > 1e-9 * max(sv.max(), 1e-300)
     inv = (vt[strong].T / sv[strong] ** 2) @ vt[strong]
-    cov_free = inv * np.outer(scale, scale) * max(chi2 / max(n - k, 1), 1.0)
+    cov_free = inv * np.outer(scale, scale) * max(reduced_chi2, 1.0)
     cov = np.full((len(names), len(names)), 0.0)
     cov[np.ix_(free, free)] = cov_free
     err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -402,7 +435,4 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     for j, nm in enumerate(names):
         if nm.endswith("_mm") and j in free:
             err[j] = np.hypot(err[j], SYSTEMATIC_REL * p[j])
-    params = dict(zip(names, map(float, p), strict=True))
-    stderr = dict(zip(names, map(float, err), strict=True))
-    return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
-                    str(res.message))
+    return cov, err

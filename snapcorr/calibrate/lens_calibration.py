@@ -26,18 +26,20 @@ The stages are in :mod:`snapcorr.calibrate.stages`; the summary and the picture 
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import __version__
-from .._validation import check_positive
+from .._validation import check_center, check_positive
+from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
 from . import choice, report, stages
-from .flats import cra_deg_map
 from .joint_fit import N_CIRCLES
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
@@ -180,15 +182,25 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
     if vignetting_distance_mm is not None:
         vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
     if center_px is not None:
-        try:
-            cx, cy = (float(v) for v in center_px)
-        except (TypeError, ValueError):
-            raise ValueError(f"center_px must be two numbers (cx, cy), got {center_px!r}") \
-                from None
-        if not (math.isfinite(cx) and math.isfinite(cy)):
-            raise ValueError(f"center_px must be finite, got {center_px!r}")
-        center_px = (cx, cy)
+        center_px = check_center(center_px)
     return exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px
+
+
+def _check_choice_args(tolerance_nm, max_circles):
+    """``tolerance_nm`` as a float; refuse it unless > 0, and ``max_circles`` unless 0 to 3."""
+    tolerance_nm = check_positive("tolerance_nm", tolerance_nm)
+    if max_circles not in (0, 1, 2, 3):
+        raise ValueError(f"max_circles must be 0, 1, 2 or 3, got {max_circles!r}")
+    return tolerance_nm
+
+
+def _check_enough_flats(items, vignetting_distance_mm):
+    """Refuse a single flat without h: one f-number cannot tell P from h."""
+    if len(items) == 1 and vignetting_distance_mm is None:
+        raise ValueError(
+            f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
+            "from its distance h (Eq. 26 needs two or more onsets): give flats at two or more "
+            "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
 
 
 def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
@@ -237,73 +249,28 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     """
     exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px = _check_args(
         method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px)
-    tolerance_nm = check_positive("tolerance_nm", tolerance_nm)
-    if max_circles not in (0, 1, 2, 3):
-        raise ValueError(f"max_circles must be 0, 1, 2 or 3, got {max_circles!r}")
+    tolerance_nm = _check_choice_args(tolerance_nm, max_circles)
     items = _check_inputs(flats, dark)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name)
-    if len(items) == 1 and vignetting_distance_mm is None:
-        raise ValueError(
-            f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
-            "from its distance h (Eq. 26 needs two or more onsets): give flats at two or more "
-            "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
-    fl = stages.clean_flats(items, dark, saturation)
-    notes = list(fl.notes)
-    ratios = stages.ratio_images(fl)
-    center, center_source, note = stages.optical_centre(fl, ratios, center_px)
-    if note:
-        notes.append(note)
-    profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
-        fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
-    if fl.single:
-        notes.append("one flat: nothing cancels the source's non-uniformity or other fall-off "
-                     "(cos^4 is divided out); use an integrating sphere, or flats at several "
-                     "f-numbers")
-    onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
-                  for det in onsets}
+    _check_enough_flats(items, vignetting_distance_mm)
+    fl, ratios, center, center_source, notes = _prepare_flats(items, dark, saturation, center_px)
+    ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
+    max_cra = ons.max_cra_deg
     fs = fl.f_numbers
-    data = stages.block_data(fl, ratios, base, pixel_pitch_um)
     fix_center = center if (center_px is not None or fl.single) else None
-    centers = [center]
-    if fix_center is None:  # should the contours have misled: the image centre too
-        centers.append(((fl.shape[1] - 1) / 2.0, (fl.shape[0] - 1) / 2.0))
-
-    def decide(fits, bic):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", EffectiveIndexWarning)
-            return choice.choose(fits, bic, base, fs, max_cra, tolerance_nm=tolerance_nm,
-                                 h_given=vignetting_distance_mm is not None)
-
-    def keep_going(fits, bic):  # only a chosen model can be the base of a better one
-        return decide(fits, bic)[0] == list(fits)[-1]
-
-    fits, bic = stages.joint_fits(
-        data, base, fs, onset_fits.values(), centers, fix_center, max_cra,
-        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going)
-    if vignetting_distance_mm is not None and max_circles > 1:
-        notes.append("h given: one circle fitted (a further circle's h would be unknown)")
-    model, verdicts = decide(fits, bic)
+    decide = functools.partial(_choose, base=base, fs=fs, tolerance_nm=tolerance_nm,
+                               h_given=vignetting_distance_mm is not None)
+    fits, bic, fit_notes = _fit_joint_models(
+        fl, ratios, base, pixel_pitch_um, center, fix_center, ons.fits, max_cra,
+        vignetting_distance_mm, max_circles, decide)
+    model, verdicts = decide(fits, bic, max_cra)
     if model != "none" and fix_center is None:
-        # The chosen model's centre; where it moved from the contours' centre, the field's
-        # extent, the profiles and the paper's onsets are taken again about it, and the
-        # choice is made again over that field.
-        contour_centre, contour_source = center, center_source
-        center, center_source = _fitted_centre(fits[model]), "joint fit"
-        if np.hypot(center[0] - contour_centre[0], center[1] - contour_centre[1]) > 2.0:
-            profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
-                fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
-            onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
-                          for det in onsets}
-            model, verdicts = decide(fits, bic)
-            if model == "none":  # no circle after all: the contours' centre stands
-                center, center_source = contour_centre, contour_source
-            else:
-                center = _fitted_centre(fits[model])
-        max_cra = float(cra_deg_map(fl.shape, center, pixel_pitch_um, exit_pupil_mm).max())
-    notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
-              for k, v in fits.items() if not v.success]
+        center, center_source, model, verdicts, ons, max_cra = _recenter_on_fit(
+            fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
+            pixel_pitch_um, vignetting_distance_mm, decide)
+    notes += fit_notes
     used, reason, circles, misfit_note = _decide_method(
-        method, model, fits, verdicts, onsets, onset_fits, max_cra, base.exit_pupil_mm)
+        method, model, fits, verdicts, ons.onsets, ons.fits, max_cra, base.exit_pupil_mm)
     if misfit_note:
         notes.append(misfit_note)
     if used != "joint":
@@ -313,6 +280,109 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
+    shift_err = (choice.shift_stderr_nm(fits[model], base, fs, max_cra)
+                 if used == "joint" and model != "none" else np.zeros(0))
+    notes += _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_nm)
+    result = LensCalibration(
+        lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
+        reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
+        center_source=center_source, max_cra_deg=max_cra, onsets=ons.onsets,
+        onset_fits=ons.fits, fits=fits, profiles=ons.profiles,
+        ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
+        shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
+        shift_difference_nm=diff, shift_stderr_nm=shift_err,
+        tolerance_nm=tolerance_nm, notes=notes)
+    result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
+                       calibration=_calibration_table(result, inputs))
+    return result
+
+
+class _Onsets(NamedTuple):
+    """The radial profiles, onsets and Eq. (26) fits about one optical centre."""
+
+    profiles: dict
+    ratio_profiles: dict
+    onsets: dict
+    max_cra_deg: float
+    fits: dict
+
+
+def _prepare_flats(items, dark, saturation, center_px):
+    """Clean the flats, take their ratio images and find the optical centre; with notes."""
+    fl = stages.clean_flats(items, dark, saturation)
+    notes = list(fl.notes)
+    ratios = stages.ratio_images(fl)
+    center, center_source, note = stages.optical_center(fl, ratios, center_px)
+    if note:
+        notes.append(note)
+    if fl.single:
+        notes.append("one flat: nothing cancels the source's non-uniformity or other fall-off "
+                     "(cos^4 is divided out); use an integrating sphere, or flats at several "
+                     "f-numbers")
+    return fl, ratios, center, center_source, notes
+
+
+def _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm):
+    """Profiles and onsets about ``center``, and Eq. (26) over each detector's onsets."""
+    profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
+        fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
+    onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
+                  for det in onsets}
+    return _Onsets(profiles, ratio_profiles, onsets, max_cra, onset_fits)
+
+
+def _choose(fits, bic, max_cra, *, base, fs, tolerance_nm, h_given):
+    """The joint-fit model chosen over a field up to ``max_cra``, and every model's verdict."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EffectiveIndexWarning)
+        return choice.choose(fits, bic, base, fs, max_cra, tolerance_nm=tolerance_nm,
+                             h_given=h_given)
+
+
+def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onset_fits,
+                      max_cra, vignetting_distance_mm, max_circles, decide):
+    """The joint fits, one more circle while the last is chosen; their BICs and notes."""
+    data = stages.block_data(fl, ratios, base, pixel_pitch_um)
+    centers = [center]
+    if fix_center is None:  # should the contours have misled: the image centre too
+        centers.append(((fl.shape[1] - 1) / 2.0, (fl.shape[0] - 1) / 2.0))
+
+    def keep_going(fits, bic):  # only a chosen model can be the base of a better one
+        return decide(fits, bic, max_cra)[0] == list(fits)[-1]
+
+    fits, bic = stages.joint_fits(
+        data, base, fl.f_numbers, onset_fits.values(), centers, fix_center, max_cra,
+        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going)
+    notes = []
+    if vignetting_distance_mm is not None and max_circles > 1:
+        notes.append("h given: one circle fitted (a further circle's h would be unknown)")
+    notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
+              for k, v in fits.items() if not v.success]
+    return fits, bic, notes
+
+
+def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
+                     pixel_pitch_um, vignetting_distance_mm, decide):
+    """Re-centre on the chosen model's centre: the onsets, the choice and the field about it."""
+    # The chosen model's centre; where it moved from the contours' centre, the field's
+    # extent, the profiles and the paper's onsets are taken again about it, and the
+    # choice is made again over that field.
+    contour_center, contour_source = center, center_source
+    center, center_source = _fitted_center(fits[model]), "joint fit"
+    if np.hypot(center[0] - contour_center[0], center[1] - contour_center[1]) > 2.0:
+        ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
+        model, verdicts = decide(fits, bic, ons.max_cra_deg)
+        if model == "none":  # no circle after all: the contours' centre stands
+            center, center_source = contour_center, contour_source
+        else:
+            center = _fitted_center(fits[model])
+    max_cra = float(cra_map(fl.shape, pixel_pitch_um, base.exit_pupil_mm, center).max())
+    return center, center_source, model, verdicts, ons, max_cra
+
+
+def _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_nm):
+    """Notes where the flats are too noisy to settle the model or to pin the mean shift."""
+    notes = []
     rival = verdicts.get(next_best) if next_best is not None else None
     if (rival is not None and not rival.problems and N_CIRCLES[next_best] > N_CIRCLES[model]
             and np.nanmax(diff, initial=0.0) > tolerance_nm):
@@ -321,8 +391,6 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             f"model was rejected ({rival.why}), yet it would move the mean shift by up to "
             f"{np.nanmax(diff):.3g} nm; flats with less noise (more frames averaged) would "
             "decide")
-    shift_err = (choice.shift_stderr_nm(fits[model], base, fs, max_cra)
-                 if used == "joint" and model != "none" else np.zeros(0))
     if shift_err.size and np.nanmax(shift_err, initial=0.0) > tolerance_nm:
         worst = int(np.nanargmax(shift_err))
         notes.append(
@@ -330,21 +398,10 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
             f"error, at f/{fs[worst]:g} for a {choice.REFERENCE_CWL_NM:g} nm filter), more "
             f"than the {tolerance_nm:g} nm tolerance: averaging k frames at every f-number "
             "divides it by sqrt(k)")
-    result = LensCalibration(
-        lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
-        reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
-        center_source=center_source, max_cra_deg=max_cra, onsets=onsets,
-        onset_fits=onset_fits, fits=fits, profiles=profiles, ratio_profiles=ratio_profiles,
-        pixel_pitch_um=float(pixel_pitch_um), shape=fl.shape, bic_floor=bic,
-        verdicts=verdicts, next_best=next_best, shift_difference_nm=diff,
-        shift_stderr_nm=shift_err,
-        tolerance_nm=tolerance_nm, notes=notes)
-    result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
-                       calibration=_calibration_table(result, inputs))
-    return result
+    return notes
 
 
-def _fitted_centre(fit):
+def _fitted_center(fit):
     return (fit.params["cx_px"], fit.params["cy_px"])
 
 

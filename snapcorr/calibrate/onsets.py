@@ -64,6 +64,8 @@ def detect_onset(cra_deg, value, stderr, *, window_deg=WINDOW_DEG):
     cra_deg, value, stderr : array_like
         The profile (e.g. :func:`~snapcorr.calibrate.radial_profile` of a flat divided by the
         flat at the highest f-number).
+    window_deg : float
+        The refining fit uses the bins up to this far past the scan's best onset, degrees.
 
     Returns
     -------

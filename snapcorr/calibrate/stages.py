@@ -1,6 +1,6 @@
 """The stages of a lens calibration, each a function of the one before.
 
-:func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_centre` ->
+:func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_center` ->
 :func:`profiles_and_onsets` (and :func:`solve_onsets`, Eq. 26) -> :func:`block_data` ->
 :func:`joint_fits`; :mod:`snapcorr.calibrate.choice` then picks the model and
 :func:`snapcorr.calibrate.calibrate_lens` strings them together.
@@ -13,8 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validation import check_center
+from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
-from .flats import clean_flat, cra_deg_map, estimate_center, radial_profile
+from .flats import clean_flat, estimate_center, radial_profile
 from .joint_fit import MODELS, BlockData, ModelFit, block_average, fit_model, floor_chi2
 from .onset_fit import OnsetFit, solve_vignetting_circle
 from .onsets import Onset, detect_onset
@@ -25,7 +27,7 @@ __all__ = [
     "block_data",
     "clean_flats",
     "joint_fits",
-    "optical_centre",
+    "optical_center",
     "profiles_and_onsets",
     "ratio_images",
     "solve_onsets",
@@ -76,7 +78,23 @@ class Ratios:
 
 def clean_flats(items, dark, saturation) -> Flats:
     """Dark-subtract and mask each flat (:func:`~snapcorr.calibrate.clean_flat`); refuse flats
-    with too few usable pixels or no signal."""
+    with too few usable pixels (< 20 %) or no signal.
+
+    Parameters
+    ----------
+    items : sequence of (float, ndarray)
+        ``(f_number, image)`` pairs, 2-D images of one shape, in increasing f-number (the
+        last is the reference of the ratios; they are not sorted here).
+    dark : ndarray, optional
+        Dark frame subtracted from every flat (None: none).
+    saturation : float or dict, optional
+        Raw value at or above which a pixel is saturated; a dict gives it per f-number
+        (missing or None: no saturation test).
+
+    Returns
+    -------
+    Flats
+    """
     sat = saturation if isinstance(saturation, dict) else {f: saturation for f, _ in items}
     notes = []
     images, valids, variances = [], [], []
@@ -124,10 +142,28 @@ def ratio_images(flats: Flats) -> Ratios:
     return Ratios(block, bimgs, bvars, enough, bx, by, ratios, rvars, rok, ref_peak)
 
 
-def optical_centre(flats: Flats, ratios: Ratios, center_px=None):
-    """The optical centre (pixels), how it was found, and a note if it could not be."""
+def optical_center(flats: Flats, ratios: Ratios, center_px=None):
+    """The optical centre (pixels), how it was found, and a note if it could not be.
+
+    Parameters
+    ----------
+    flats : Flats
+    ratios : Ratios
+        The flats' block means and ratios (:func:`ratio_images`); contours are traced in the
+        ratios, else in the block means.
+    center_px : (cx, cy), optional
+        A given centre, full-resolution pixels (column, row); returned as it is.
+
+    Returns
+    -------
+    center : (float, float)
+        ``(cx, cy)`` in full-resolution pixels.
+    source : {"given", "contours", "image centre"}
+    note : str or None
+        Set when no fall-off was found and the image centre is used.
+    """
     if center_px is not None:
-        return (float(center_px[0]), float(center_px[1])), "given", None
+        return check_center(center_px), "given", None
     c = None
     if not flats.single:
         c, _ = estimate_center(ratios.ratios, ratios.ratio_ok)
@@ -146,7 +182,31 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_
     """Radial profiles of every flat and of every ratio, and the onsets found in them by the
     paper's discontinuity (``"ratio"``) and by the area model per profile (``"model"``).
 
-    Returns ``(profiles, ratio_profiles, onsets, max_cra_deg)``.
+    Parameters
+    ----------
+    flats : Flats
+    ratios : Ratios
+        From :func:`ratio_images` (its reference peak sets which pixels are lit).
+    center : (float, float)
+        Optical centre ``(cx, cy)``, full-resolution pixels.
+    base : Lens
+        Its exit-pupil distance turns pixels into chief-ray angles.
+    pixel_pitch_um : float
+        Pixel pitch, micrometres.
+    fixed_h : float, optional
+        The circle's ``h`` held fixed in the model-based detection, mm.
+
+    Returns
+    -------
+    profiles : dict
+        f-number -> :class:`~snapcorr.calibrate.RadialProfile` of the flat.
+    ratio_profiles : dict
+        f-number -> profile of its ratio to the reference flat (empty for a single flat).
+    onsets : dict
+        ``{"ratio": {f: Onset}, "model": {f: Onset}}``, for every flat but the reference (for
+        a single flat: that flat, its profile divided by ``cos^4``).
+    max_cra_deg : float
+        Largest chief-ray angle on the sensor, degrees.
     """
     shape, x = flats.shape, base.exit_pupil_mm
     # from pixels binned k x k on large sensors (k <= PROFILE_SIZE / side keeps a binned pixel
@@ -156,11 +216,11 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_
         pimgs, _, pcnt, _, _ = block_average(flats.images, flats.valids, flats.variances, k)
         pvalid = [c >= 0.5 * k * k for c in pcnt]
         pimgs = [np.where(ok, im, 0.0) for im, ok in zip(pimgs, pvalid, strict=True)]
-        pcentre = ((center[0] - (k - 1) / 2.0) / k, (center[1] - (k - 1) / 2.0) / k)
+        pcenter = ((center[0] - (k - 1) / 2.0) / k, (center[1] - (k - 1) / 2.0) / k)
     else:
-        pimgs, pvalid, pcentre = flats.images, flats.valids, center
-    cra = cra_deg_map(pimgs[0].shape, pcentre, pixel_pitch_um * k, x)
-    max_cra = float(cra_deg_map(shape, center, pixel_pitch_um, x).max())
+        pimgs, pvalid, pcenter = flats.images, flats.valids, center
+    cra = cra_map(pimgs[0].shape, pixel_pitch_um * k, x, pcenter)
+    max_cra = float(cra_map(shape, pixel_pitch_um, x, center).max())
     fs = flats.f_numbers
     profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
                 for i, f in enumerate(fs)}
@@ -218,7 +278,24 @@ def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False):
 
 
 def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
-    """Eq. (26) over the onsets found (None with fewer than two, or one without h)."""
+    """Eq. (26) over the onsets found (None with fewer than two, or one without h).
+
+    Only onsets found at a CRA > 0 with a finite standard error are used.
+
+    Parameters
+    ----------
+    onsets : dict
+        f-number -> :class:`~snapcorr.calibrate.onsets.Onset`.
+    base : Lens
+        Gives the exit-pupil radius at each f-number (Eq. 27-28).
+    h_given : float, optional
+        Known ``h``, mm: then each onset gives ``P = R + h tan(onset)`` and ``P`` is their
+        weighted mean (one onset suffices).
+
+    Returns
+    -------
+    OnsetFit or None
+    """
     # An onset at 0 means the circle cuts the pupil already on axis (P < R): that is an
     # inequality, not an equation of Eq. (26).
     # An onset without a finite error (at the start of the profile) cannot be weighted.
@@ -246,7 +323,23 @@ def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
 def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> BlockData:
     """The blocks to fit, ready for :func:`fit_model`: every flat's block means where the
     reference (highest f-number) flat is lit, each block's gain to be solved for; a single
-    flat as it is (its fall-off taken as ``cos^4``)."""
+    flat as it is (its fall-off taken as ``cos^4``).
+
+    Parameters
+    ----------
+    flats : Flats
+    ratios : Ratios
+        From :func:`ratio_images`.
+    base : Lens
+        Exit-pupil distance and radius at each f-number.
+    pixel_pitch_um : float
+        Pixel pitch, micrometres.
+
+    Returns
+    -------
+    BlockData
+        Blocks used by at least two flats, the reference among them.
+    """
     R = base.exit_pupil_radius_mm(flats.f_numbers)
     common = dict(pitch_mm=pixel_pitch_um * 1e-3, x_mm=base.exit_pupil_mm)
     if flats.single:
@@ -301,11 +394,11 @@ def _starts_more(fit: ModelFit, R, x, max_cra):
     t = np.linspace(0.0, math.tan(math.radians(max_cra)), 64)[:, None]
     Rs = np.asarray(R, float)[None, :]
     radii = [Rs] + [P for P, _ in circles]
-    centres = [0.0 * t] + [h * t for _, h in circles]
+    centers = [0.0 * t] + [h * t for _, h in circles]
     starts = []
     for hf in (-1.0, -0.5, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0):
         h = hf * x
-        _, rmax = extreme_radii(h * t, radii, centres)
+        _, rmax = extreme_radii(h * t, radii, centers)
         P_crit = float(np.max(rmax))
         starts += [[*p, P_crit * (1.0 - d), h] for d in (0.002, 0.01, 0.03, 0.1)]
     return starts
@@ -315,12 +408,41 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
                *, fixed_h=None, max_circles=3, keep_going=None):
     """Fit the area model with no circle, then one, two, three circles, each from the last.
 
-    ``centers`` are the starting optical centres (the first is the no-circle model's);
-    ``fix_center`` keeps it fixed. A model with one more circle is fitted only while
-    ``keep_going(fits, bic)`` says the one with most circles so far is chosen (one that is not
-    cannot be the base of a better one). Returns ``(fits, bic)``: the fits by model name and
-    each one's information criterion with the systematic floor
-    (:data:`~snapcorr.calibrate.choice.FLOOR_REL`).
+    A model with one more circle is fitted only while ``keep_going(fits, bic)`` says the one
+    with most circles so far is chosen (one that is not cannot be the base of a better one).
+
+    Parameters
+    ----------
+    data : BlockData
+        From :func:`block_data`; without gains (a single flat) at most one circle is fitted.
+    base : Lens
+        Exit-pupil distance and radius at each f-number.
+    fs : array_like
+        f-numbers of the flats, in the order of ``data``.
+    onset_fits : iterable of (OnsetFit or None)
+        Eq. (26) solutions used as starts for the first circle (those with ``P, h > 0``).
+    centers : list of (float, float)
+        Starting optical centres ``(cx, cy)``, pixels; the first is the no-circle model's
+        (and the one its floored criterion is taken at when the centre is fixed).
+    fix_center : (float, float) or None
+        Centre held fixed in the fits with circles (the caller passes ``centers[0]``);
+        None: fitted.
+    max_cra : float
+        Largest chief-ray angle of the field, degrees.
+    fixed_h : float, optional
+        The circle's ``h`` held fixed, mm; then at most one circle is fitted.
+    max_circles : int
+        Most circles to fit (0-3).
+    keep_going : callable, optional
+        ``keep_going(fits, bic) -> bool``; None: always go on.
+
+    Returns
+    -------
+    fits : dict
+        Model name -> :class:`ModelFit`.
+    bic : dict
+        Model name -> its information criterion with the systematic floor
+        (:data:`~snapcorr.calibrate.choice.FLOOR_REL`).
     """
     from .choice import FLOOR_REL
 

@@ -412,6 +412,20 @@ class TargetModel:
 
         ``s`` is the target's hat coefficients (unknown spectrum) or one scale per cube (known
         spectrum). Rows of bins no light reaches are zero.
+
+        Parameters
+        ----------
+        x : float
+            Trial exit-pupil distance, mm (replaces the lens's).
+        n_eff : float or array_like
+            Trial effective index, one or one per band (shape ``(n_bands,)``).
+        field : bool
+            False: every bin on the axis (see :meth:`kernels`).
+
+        Returns
+        -------
+        scipy.sparse.csr_array
+            Shape ``(n_rows, n_columns)``.
         """
         from scipy import sparse
 

@@ -1,13 +1,11 @@
 """Per-pixel wavelength correction of cubes (Goossens et al. 2019, Eq. 8 and 23)."""
 
-from .core import METHODS, choose_method, correct_cube, relative_shift
+from .core import correct_cube, relative_shift
 from .geometry import PlacementError, cube_cra_deg, cube_positions, optical_center
 from .resample import resample_to_nominal
 
 __all__ = [
-    "METHODS",
     "PlacementError",
-    "choose_method",
     "correct_cube",
     "cube_cra_deg",
     "cube_positions",

@@ -9,99 +9,90 @@ exact models, Eq. (6) directly for the asymptotic one. The cube itself is not to
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import xarray as xr
 
 from .. import __version__
-from .._validation import check_positive
+from .._validation import check_positive, validate_method
 from ..cube.derived import corrected_fwhm, corrected_wavelength
 from ..cube.flatfield import cf_attrs
 from ..cube.model import check_cube
-from ..optics import ShiftTable, mean_shift
-from ..optics import goossens2019 as g19
+from ..cube.sensor import Sensor
+from ..optics import MODELS, ShiftTable, choose_model, mean_shift
 from ..optics.lens import Lens
-from ..optics.mean import ASYMPTOTIC_SAFETY
 from .geometry import cube_cra_deg
 
-__all__ = ["METHODS", "choose_method", "correct_cube", "relative_shift"]
+__all__ = ["correct_cube", "relative_shift"]
 
-#: Models of the filter shift, cheapest first; ``"auto"`` picks among them.
-METHODS = ("auto", "none", "asymptotic", "ideal", "vignetted")
 DEFAULT_TOLERANCE_NM = 0.01
 
 
-def _ideal_lens(lens):
-    return Lens(lens.exit_pupil_mm, (), lens.magnification, lens.pupil_magnification,
-                name=lens.name)
+def relative_shift(n_eff, f_number, cra_deg, lens, *, model, tolerance_nm, cwl_max_nm):
+    """``mean_shift / cwl`` at ``cra_deg`` for one effective index, by ``model``.
 
+    The shift law scales every wavelength alike, so this one curve serves every band of the
+    index: ``wavelength_corrected = cwl * (1 + relative_shift)`` (Eq. 23).
 
-def choose_method(lens, f_number, cra_max_deg, cwl_nm, n_eff, tolerance_nm):
-    """The cheapest model whose error is below ``tolerance_nm`` over CRA 0..``cra_max_deg``.
-
-    ``"none"`` when no band moves by more than the tolerance anywhere; ``"asymptotic"``
-    (Eq. 6) when no pixel is vignetted and its fourth-order error estimate (times a safety
-    factor) is below the tolerance at the largest CRA and wavelength; ``"ideal"`` when no
-    pixel is vignetted (before the onset the vignetted and ideal kernels are the same);
-    ``"vignetted"`` otherwise.
+    Parameters
+    ----------
+    n_eff : float
+        Effective refractive index.
+    f_number : float
+        Nominal f-number.
+    cra_deg : array_like
+        Chief-ray angles, degrees.
+    lens : Lens
+    model : str
+        One of :data:`snapcorr.optics.MODELS`; ``"harmonised"`` shifts as ``"vignetted"``.
+    tolerance_nm : float
+        Largest interpolation error of the exact models' table at ``cwl_max_nm``, nm.
+    cwl_max_nm : float
+        The largest central wavelength the curve will be scaled to, nm.
 
     Returns
     -------
-    method, reason : str
+    ndarray
+        Same shape as ``cra_deg``; negative (towards the blue).
     """
-    cwl = np.asarray(cwl_nm, float)
-    n = np.asarray(n_eff, float)
-    onset = float(np.min(lens.onset_cra_deg(f_number)))
-    vignetted = lens.has_vignetting and cra_max_deg > onset
-    # the largest shift over the field: at the largest wavelength, lowest index, largest CRA
-    # and on axis (the kernel mean is monotonic in neither alone near the onset)
-    worst = 0.0
-    for c in (0.0, cra_max_deg):
-        s = mean_shift(cwl, n, f_number, c, lens, method="vignetted" if vignetted else "ideal")
-        worst = max(worst, float(np.max(np.abs(s))))
-    if worst <= tolerance_nm:
-        return "none", (f"no band moves by more than {worst:.3g} nm <= tolerance "
-                        f"{tolerance_nm:g} nm at f/{f_number:g} up to CRA {cra_max_deg:.2f} deg")
-    if vignetted:
-        return "vignetted", (f"CRAs up to {cra_max_deg:.2f} deg pass the onset of optical "
-                             f"vignetting at f/{f_number:g} ({onset:.2f} deg)")
-    tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f_number)))
-    err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone,
-                                           math.tan(math.radians(cra_max_deg)))
-    err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
-    where = ("no vignetting circle" if not lens.has_vignetting else
-             f"every CRA (<= {cra_max_deg:.2f} deg) is below the onset ({onset:.2f} deg)")
-    if err <= tolerance_nm:
-        return "asymptotic", (f"{where}, and Eq. 6 is within {err:.2g} nm <= {tolerance_nm:g} nm")
-    return "ideal", f"{where}; Eq. 6 would be off by up to {err:.2g} nm"
-
-
-def relative_shift(method, lens, f_number, n_eff, cra_deg, *, tolerance_nm, cwl_max_nm):
-    """``mean_shift / cwl`` at ``cra_deg`` for one effective index, by ``method``."""
+    validate_method(model, MODELS, "model")
     cra = np.asarray(cra_deg, float)
-    if method == "none":
+    if model == "none":
         return np.zeros(cra.shape)
-    if method == "asymptotic":
+    if model == "asymptotic":
         return mean_shift(1.0, n_eff, f_number, cra, lens, method="asymptotic")
-    use = lens if method == "vignetted" else _ideal_lens(lens)
+    use = lens if model in ("vignetted", "harmonised") else dataclasses.replace(lens,
+                                                                               vignetting=())
     table = ShiftTable.build(n_eff, f_number, use, cra_max_deg=max(float(cra.max()), 1e-6),
                              tolerance_nm=tolerance_nm, cwl_max_nm=cwl_max_nm)
     return np.interp(cra, table.cra_deg, table.relative_shift)
 
 
-def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_px=None,
-                 method="auto", tolerance_nm=DEFAULT_TOLERANCE_NM, resample=False, source=None,
-                 tolerance_pct=0.5, mask=None, harmonise=False, target_fwhm_nm=None):
+def correct_cube(cube, sensor, f_number, lens, *, method="auto",
+                 tolerance_nm=DEFAULT_TOLERANCE_NM, center_px=None, sensor_origin_px=None,
+                 resample=False, harmonise=False, target_fwhm_nm=None, mask=None):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
     ----------
     cube : xarray.DataArray
         (y, x, band), numpy- or dask-backed; its bands must match the sensor's.
-    lens : Lens
     sensor : Sensor
+        The camera the cube was taken with (its filters).
     f_number : float
+        The nominal f-number the cube was taken at.
+    lens : Lens
+    method : {"auto", "none", "asymptotic", "ideal", "vignetted", "harmonised"}
+        The model (:data:`snapcorr.optics.MODELS`). ``"auto"``: the cheapest whose wavelength
+        error stays below ``tolerance_nm`` over the cube's field
+        (:func:`snapcorr.optics.choose_model`); the scene budget's choice for a spectrum is
+        :func:`snapcorr.budget.recommend_model`'s. ``"harmonised"``: ``"vignetted"`` and
+        ``harmonise=True``.
+    tolerance_nm : float
+        Largest error allowed in the corrected wavelengths (model choice and table
+        interpolation), nm.
     center_px : (cx, cy), optional
         Optical centre in sensor pixels (default: from the lens calibration, converted through
         millimetres when its pixel pitch differs, else the sensor's centre, else the centre of
@@ -110,23 +101,9 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         Sensor row and column of the cube's first pixel, for a crop that does not carry its
         positions (``sensor_row``/``sensor_col``); :func:`~snapcorr.correct.cube_positions`
         refuses a crop of unknown place and a mosaic cube without positions.
-    method : {"auto", "none", "asymptotic", "ideal", "vignetted"}
-    tolerance_nm : float
-        Largest error allowed in the corrected wavelengths (model choice and table
-        interpolation), nm.
     resample : bool
         Also interpolate each pixel's spectrum onto the nominal wavelengths (``resampled``),
         NaN where that would need extrapolation.
-    source : snapcorr.budget.Spectrum or str, optional
-        The scene's spectrum (or ``"solar"``, ``"tungsten:T"``, ``"cube"`` for the cube's own
-        mean spectrum, or a file; :func:`snapcorr.budget.parse_source`). With ``"auto"`` the
-        model is then the cheapest whose *signal* error for this scene stays below
-        ``tolerance_pct`` (:meth:`snapcorr.budget.Budget.recommend`) instead of the cheapest
-        whose wavelength error stays below ``tolerance_nm``.
-    tolerance_pct : float
-        Radiometric tolerance for ``source``, percent of the signal.
-    mask : xarray.DataArray, optional
-        The flat-field mask (True where a value is not meaningful), kept in the output.
     harmonise : bool
         Also give ``harmonised``: every pixel's spectrum on the nominal wavelengths with one
         common response per band (:mod:`snapcorr.correct.harmonise`), so the same material
@@ -135,44 +112,68 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
         The common response's FWHM for every band (default: the widest response in the
         cube's field at each band). It must be at least that widest response: harmonising
         only widens.
+    mask : xarray.DataArray, optional
+        The flat-field mask (True where a value is not meaningful), kept in the output.
 
     Returns
     -------
     xarray.Dataset
         The input cube's values unchanged (under its own name); ``wavelength_scale(y, x,
-        scale)`` and ``scale_index(band)``, the compact form of the corrected wavelengths, and
-        the coordinate ``wavelength_corrected(y, x, band)`` (float32, nm) computed from them
-        lazily, block by block (``wavelength * wavelength_scale[..., scale_index]``, see
-        :mod:`snapcorr.cube.derived`): for a Snapscan it is one factor per pixel and effective
-        index, so it never doubles the memory or the file; ``cra_deg(y, x[, band])``;
+        scale)`` and ``scale_index(band)``, the compact form of the corrected wavelengths
+        (one factor per pixel and effective index for a Snapscan), and the coordinate
+        ``wavelength_corrected(y, x, band)`` (float32, nm) rebuilt from them lazily, block by
+        block (:mod:`snapcorr.cube.derived`); ``cra_deg(y, x[, band])``;
         ``fwhm_corrected(y, x, band)`` (float32, nm; each pixel's response FWHM, rebuilt
         lazily from ``fwhm_table(band, fwhm_cra)``); ``resampled`` and ``harmonised`` (with
         ``fwhm_harmonised(band)``, the common response) on request; ``mask`` when given;
         provenance in attrs.
     """
-    check_cube(cube)
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    f = check_positive("f_number", f_number)
-    check_positive("tolerance_nm", tolerance_nm)
-    if source is not None:
-        if method != "auto":
-            raise ValueError(f"a source chooses the model: use it with method='auto', not "
-                             f"{method!r}")
-        check_positive("tolerance_pct", tolerance_pct)
-    nb = cube.sizes["band"]
-    if nb != sensor.n_bands:
-        raise ValueError(f"the cube has {nb} bands, the sensor {sensor.name!r} "
-                         f"{sensor.n_bands}; use the sensor the cube was taken with")
+    f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
+                      harmonise, mask)
     cwl = np.asarray(sensor.cwl_nm, float)
-    nominal = np.asarray(cube["wavelength"].values, float)
-    if not np.allclose(nominal, cwl, rtol=0, atol=0.05):
-        raise ValueError(f"the cube's wavelengths differ from the sensor {sensor.name!r}'s "
-                         "(by up to "
-                         f"{np.max(np.abs(nominal - cwl)):.3g} nm); use the matching sensor")
     n_eff = np.asarray(sensor.n_eff, float)
-    cra, center, center_source = cube_cra_deg(cube, lens, sensor, center_px,
+    cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
                                               sensor_origin_px=sensor_origin_px)
+    cra_max = _field_max_deg(cra, f, lens)
+    if method == "auto":
+        used, reason = choose_model(cwl, n_eff, f, cra_max, lens, tolerance_nm=tolerance_nm)
+    else:
+        used, reason = method, "asked for"
+
+    def scale_at(c, n):
+        return 1.0 + relative_shift(n, f, c, lens, model=used, tolerance_nm=tolerance_nm,
+                                    cwl_max_nm=float(cwl[n_eff == n].max()))
+
+    scale, column = _scales(cra, n_eff, scale_at)
+    ds = _dataset(cube, sensor, lens, cra, scale, column,
+                  source=f"1 + mean shift / cwl by the "
+                         f"{'vignetted' if used == 'harmonised' else used} model at f/{f:g}, "
+                         f"lens {lens.name}, tolerance {float(tolerance_nm):g} nm",
+                  center_source=center_source)
+    ds, table = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
+    if mask is not None:
+        ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
+        ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
+    if resample:
+        ds["resampled"] = _resampled(cube, scale, column, cwl)
+    if harmonise or used == "harmonised":
+        ds = _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm,
+                         scale_at, n_eff)
+    ds.attrs.update({
+        "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
+        "source": f"snapcorr {__version__} correct", "Conventions": "CF-1.10",
+        "lens": lens.name, "lens_vignetting_mm": [list(c) for c in lens.vignetting] or "none",
+        "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
+        "method_requested": method, "tolerance_nm": float(tolerance_nm),
+        "optical_center_px": [float(center[0]), float(center[1])],
+        "optical_center_source": center_source, "cra_max_deg": cra_max,
+        "snapcorr_version": __version__,
+    })
+    return ds
+
+
+def _field_max_deg(cra, f, lens):
+    """The cube's largest CRA, refused where the lens passes no light at all."""
     cra_max = float(cra.max())
     cutoff = float(lens.cutoff_cra_deg(f))
     if cra_max >= cutoff:
@@ -180,49 +181,19 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
                          f"from CRA {cutoff:.2f} deg, and this cube reaches {cra_max:.2f} deg: "
                          "those pixels saw no light through the lens model; check the lens "
                          "profile, f-number and optical centre")
-    budget_attrs = {}
-    if method == "auto" and source is not None:
-        from ..budget import parse_source, scene_budget
+    return cra_max
 
-        spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
-        budget = scene_budget(sensor, lens, f, spectrum, cra_max_deg=cra_max,
-                              tolerance_pct=tolerance_pct)
-        used, reason = budget.recommend()
-        if used == "harmonised":  # the shift is not enough for this scene: widen too
-            used, harmonise = "vignetted", True
-            reason += "; harmonised (one response per band), as the budget needs"
-        budget_attrs = {"budget_source": spectrum.name, "tolerance_pct": float(tolerance_pct),
-                        "budget_worst_pct": [budget.worst_pct(m) for m in budget.models],
-                        "budget_models": list(budget.models)}
-    elif method == "auto":
-        used, reason = choose_method(lens, f, cra_max, cwl, n_eff, tolerance_nm)
-    else:
-        used, reason = method, "asked for"
 
-    # one relative-shift map per distinct effective index
-    groups, column = np.unique(n_eff, return_inverse=True)
-    per_band = cra.shape[2] > 1
-    scale = np.empty(cra.shape[:2] + ((nb,) if per_band else (groups.size,)))
-    if per_band:
-        for g, n in enumerate(groups):
-            bands = np.flatnonzero(column == g)
-            scale[:, :, bands] = 1.0 + relative_shift(
-                used, lens, f, n, cra[:, :, bands], tolerance_nm=tolerance_nm,
-                cwl_max_nm=float(cwl[bands].max()))
-        column = np.arange(nb)
-    else:
-        for g, n in enumerate(groups):
-            scale[:, :, g] = 1.0 + relative_shift(
-                used, lens, f, n, cra[:, :, 0], tolerance_nm=tolerance_nm,
-                cwl_max_nm=float(cwl[column == g].max()))
-
+def _dataset(cube, sensor, lens, cra, scale, column, *, source, center_source):
+    """The cube (unchanged), its CRA map and the compact corrected wavelengths."""
     name = cube.name or "radiance"
     data = cube.copy(deep=False)
     data.attrs = {**cf_attrs(name), **cube.attrs}
-    cra_dims = ("y", "x", "band") if per_band else ("y", "x")
+    per_band = cra.shape[2] > 1
     ds = xr.Dataset({
         name: data,
-        "cra_deg": (cra_dims, cra if per_band else cra[:, :, 0],
+        "cra_deg": (("y", "x", "band") if per_band else ("y", "x"),
+                    cra if per_band else cra[:, :, 0],
                     {"units": "degree", "long_name": "chief-ray angle",
                      "source": f"Goossens et al. 2019 Eq. 8: sensor position, pitch "
                                f"{sensor.pixel_pitch_um:g} um, optical centre ({center_source})"
@@ -231,8 +202,7 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
             "units": "1", "long_name": "corrected / nominal central wavelength",
             "comment": "wavelength_corrected = wavelength * wavelength_scale[y, x, "
                        "scale_index[band]] (Goossens et al. 2019, Eq. 23)",
-            "source": f"1 + mean shift / cwl by the {used} model at f/{f:g}, lens "
-                      f"{lens.name}, tolerance {float(tolerance_nm):g} nm"}),
+            "source": source}),
         "scale_index": ("band", column.astype(np.int32),
                         {"long_name": "index into wavelength_scale's scale dimension",
                          "units": "1"}),
@@ -240,40 +210,41 @@ def correct_cube(cube, lens, sensor, f_number, *, center_px=None, sensor_origin_
     ds["wavelength"].attrs = {"units": "nm", "long_name": "nominal central wavelength",
                               **ds["wavelength"].attrs}
     # in the cube's blocks when it has them, so a block of the coordinate matches one of data
-    ds = ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
-    ds, table = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
-    if mask is not None:
-        if tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape:
-            raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
-        ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
-        ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
-    if resample:
-        ds["resampled"] = _resampled(cube, scale, column, cwl)
-        ds["resampled"].attrs.update(
-            {"units": data.attrs.get("units", "1"),
-             "long_name": f"{data.attrs.get('long_name', name)} on the nominal wavelengths",
-             "source": f"{name} interpolated linearly from wavelength_corrected onto "
-                       "wavelength"})
-    if harmonise:
-        ds = _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm,
-                         lambda c, n: 1.0 + relative_shift(
-                             used, lens, f, n, c, tolerance_nm=tolerance_nm,
-                             cwl_max_nm=float(cwl.max())), n_eff)
-    elif target_fwhm_nm is not None:
+    return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
+
+
+def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
+                  harmonise, mask=None):
+    """The checks every correction makes first; returns the f-number as a float."""
+    check_cube(cube)
+    if not isinstance(sensor, Sensor) or not isinstance(lens, Lens):
+        raise TypeError(f"correct_cube(cube, sensor, f_number, lens) takes a Sensor and a Lens,"
+                        f" got {type(sensor).__name__} and {type(lens).__name__}")
+    validate_method(method, ("auto", *MODELS))
+    f = check_positive("f_number", f_number)
+    check_positive("tolerance_nm", tolerance_nm)
+    if target_fwhm_nm is not None and not (harmonise or method == "harmonised"):
         raise ValueError("target_fwhm_nm sets the common response of harmonise=True")
-    ds.attrs.update({
-        "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
-        "source": f"snapcorr {__version__} correct",
-        "Conventions": "CF-1.10",
-        "lens": lens.name,
-        "lens_vignetting_mm": [list(c) for c in lens.vignetting] or "none",
-        "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
-        "method_requested": method, "tolerance_nm": float(tolerance_nm),
-        "optical_center_px": [float(center[0]), float(center[1])],
-        "optical_center_source": center_source, "cra_max_deg": cra_max,
-        "snapcorr_version": __version__, **budget_attrs,
-    })
-    return ds
+    sensor.check_cube(cube)
+    if mask is not None and (tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape):
+        raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
+    return f
+
+
+def _scales(cra, n_eff, scale_at):
+    """``wavelength_scale`` and ``scale_index``: one factor map per distinct effective index
+    (Snapscan: every band at one place), else one per band (mosaic)."""
+    groups, column = np.unique(n_eff, return_inverse=True)
+    if cra.shape[2] > 1:
+        scale = np.empty(cra.shape)
+        for n in groups:
+            bands = np.flatnonzero(n_eff == n)
+            scale[:, :, bands] = scale_at(cra[:, :, bands], n)
+        return scale, np.arange(n_eff.size)
+    scale = np.empty((*cra.shape[:2], groups.size))
+    for g, n in enumerate(groups):
+        scale[:, :, g] = scale_at(cra[:, :, 0], n)
+    return scale, column
 
 
 #: The finest interpolation tolerance of the FWHM table, nm: a wavelength tolerance below it
@@ -431,7 +402,12 @@ def _resampled(cube, scale, column, cwl):
                          output_core_dims=[["band"]], dask="parallelized",
                          output_dtypes=[dtype])
     out = out.transpose("y", "x", "band")
-    out.attrs = {"long_name": "spectrum interpolated onto the nominal wavelengths",
+    name = cube.name or "radiance"
+    attrs = {**cf_attrs(name), **cube.attrs}
+    out.attrs = {"units": attrs.get("units", "1"),
+                 "long_name": f"{attrs.get('long_name', name)} on the nominal wavelengths",
+                 "source": f"{name} interpolated linearly from wavelength_corrected onto "
+                           "wavelength",
                  "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
                          "range (extrapolation is not done)"}
     return out

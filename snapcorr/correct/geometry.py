@@ -13,11 +13,11 @@ optical centre measured on another pixel grid is carried over through millimetre
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from .._validation import check_center, check_pair
 from ..cube.mosaic import sensor_positions
+from ..optics.chief_ray import cra_deg
 
 __all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
 
@@ -27,16 +27,6 @@ _SAME_AREA_PX = 1.0
 
 class PlacementError(ValueError):
     """Where the cube or the optical axis sits on the sensor is not known well enough."""
-
-
-def _parse_pair(name, value):
-    try:
-        a, b = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be two numbers, got {value!r}") from None
-    if not (math.isfinite(a) and math.isfinite(b)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return a, b
 
 
 def _full_frame(lens, sensor):
@@ -62,6 +52,26 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
     tile holding it) and the sensor's layout; else, for a Snapscan cube as large as the full
     image known from the sensor's ``size_px`` or the lens calibration, from (0, 0).
 
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        Dimensions ``y``, ``x``, ``band``; optionally coordinates ``sensor_row(y, band)`` and
+        ``sensor_col(x, band)``.
+    sensor : Sensor
+        Its layout, band offsets, pixel pitch and ``size_px`` (when known; positions outside
+        it are refused).
+    lens : Lens, optional
+        Its calibration's image size gives the full image when the sensor has no ``size_px``.
+    sensor_origin_px : (row, col), optional
+        Sensor row and column of the cube's first pixel, whole pixels; checked against the
+        cube's own positions when it has them.
+
+    Returns
+    -------
+    rows : ndarray, float, shape (ny, nb) or (ny, 1)
+    cols : ndarray, float, shape (nx, nb) or (nx, 1)
+        Sensor pixel indices; one column when every band sits at the same position.
+
     Raises
     ------
     PlacementError
@@ -76,7 +86,7 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
         rows = np.asarray(cube["sensor_row"].transpose("y", "band").values, float)
         cols = np.asarray(cube["sensor_col"].transpose("x", "band").values, float)
         if sensor_origin_px is not None:
-            r0, c0 = _parse_pair("sensor_origin_px", sensor_origin_px)
+            r0, c0 = check_pair("sensor_origin_px", sensor_origin_px, "two numbers (row, col)")
             if sensor.layout == "mosaic":
                 r0, c0 = r0 + sensor.band_offset[0][0], c0 + sensor.band_offset[0][1]
             if (r0, c0) != (rows[0, 0], cols[0, 0]):
@@ -85,7 +95,7 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
                     f"{cols[0, 0]:g}, but the origin given is ({r0:g}, {c0:g}); leave out "
                     "--sensor-origin-px (sensor_origin_px) or fix it")
     elif sensor_origin_px is not None:
-        r0, c0 = _parse_pair("sensor_origin_px", sensor_origin_px)
+        r0, c0 = check_pair("sensor_origin_px", sensor_origin_px, "two numbers (row, col)")
         if r0 != round(r0) or c0 != round(c0):
             raise ValueError(f"sensor_origin_px must be whole pixels, got {sensor_origin_px!r}")
         rows, cols = (a.astype(float) for a in
@@ -121,13 +131,35 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
     return rows, cols
 
 
-def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
+def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     """The optical centre in sensor pixels (column, row), and where it came from.
 
     Given explicitly; else the lens profile's ``[calibration] center_px``, converted through
     millimetres when the calibration's pixel pitch differs from the sensor's (binned pixels,
     another pixel grid over the same image area); else the centre of the sensor (``size_px``);
     else the centre of the area the cube covers.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        Used only for the last fallback (:func:`cube_positions`).
+    sensor : Sensor
+        Its pixel pitch (um) and ``size_px``.
+    lens : Lens
+        Its ``calibration`` table (``center_px``, ``pixel_pitch_um``, ``image_size_px``); the
+        calibration's centre is used only when it records its pixel pitch.
+    center_px : (cx, cy), optional
+        Optical centre given explicitly, sensor pixels (column, row).
+    positions : (rows, cols), optional
+        The cube's sensor positions if already known (as :func:`cube_positions` returns).
+
+    Returns
+    -------
+    center : (float, float)
+        ``(cx, cy)``, sensor pixels (column, row).
+    source : str
+        ``"given"``, ``"lens calibration"`` (possibly with the conversion noted),
+        ``"sensor centre"`` or ``"image centre"``.
 
     Raises
     ------
@@ -137,10 +169,10 @@ def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
         different physical sizes): pass ``center_px`` (``--center-px``).
     """
     if center_px is not None:
-        return _parse_pair("center_px", center_px), "given"
+        return check_center(center_px), "given"
     cal = getattr(lens, "calibration", {}) or {}
     if "center_px" in cal and cal.get("pixel_pitch_um") is not None:
-        cx, cy = _parse_pair("the lens calibration's center_px", cal["center_px"])
+        cx, cy = check_center(cal["center_px"], "the lens calibration's center_px")
         p_cal, p = float(cal["pixel_pitch_um"]), sensor.pixel_pitch_um
         size = cal.get("image_size_px")
         same_pitch = abs(p_cal - p) < 1e-9 * p
@@ -177,14 +209,14 @@ def optical_center(cube, lens, sensor, center_px=None, *, positions=None):
             (float(rows.min()) + float(rows.max())) / 2.0), "image centre"
 
 
-def cube_cra_deg(cube, lens, sensor, center_px=None, *, sensor_origin_px=None):
+def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     """Chief-ray angle of every pixel (and band, for mosaics), degrees.
 
     Parameters
     ----------
     cube : xarray.DataArray
-    lens : Lens
     sensor : Sensor
+    lens : Lens
     center_px : (cx, cy), optional
         Optical centre in sensor pixels (column, row); see :func:`optical_center`.
     sensor_origin_px : (row, col), optional
@@ -199,9 +231,8 @@ def cube_cra_deg(cube, lens, sensor, center_px=None, *, sensor_origin_px=None):
     center_source : str
     """
     rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
-    (cx, cy), source = optical_center(cube, lens, sensor, center_px, positions=(rows, cols))
-    pitch_mm = sensor.pixel_pitch_um * 1e-3
-    dy = (rows - cy)[:, None, :] * pitch_mm  # (ny, 1, nb)
-    dx = (cols - cx)[None, :, :] * pitch_mm  # (1, nx, nb)
-    d = np.hypot(dy, dx)
-    return np.rad2deg(np.arctan(d / lens.exit_pupil_mm)), (cx, cy), source
+    center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
+    # rows (ny, 1, nb) against columns (1, nx, nb)
+    cra = cra_deg(rows[:, None, :], cols[None, :, :], center, sensor.pixel_pitch_um,
+                  lens.exit_pupil_mm)
+    return cra, center, source

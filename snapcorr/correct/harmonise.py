@@ -237,6 +237,13 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     column : ndarray of int, shape (nb,)
     cwl_nm : ndarray, shape (nb,)
         Nominal wavelengths, increasing.
+    sigma : array_like, optional
+        The direct path's widening (above), nm; broadcast to ``(ny, nx, nb)``.
+    cra, nodes, node_scale, node_sigma : ndarray, optional
+        The Snapscan path's tables (above); ``nodes`` evenly spaced, degrees; ``node_sigma``
+        in nm.
+    out : ndarray, shape (ny, nx, nb), optional
+        Array to write the result into (default: a new one).
 
     Returns
     -------

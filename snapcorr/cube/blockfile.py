@@ -81,7 +81,27 @@ class RowBlockFile:
 
 
 def lazy_file_array(path, dtype, shape, *, offset=0, interleave="bip", rows_per_block):
-    """A dask array over a raw file, one task per block of ``rows_per_block`` rows."""
+    """A dask array over a raw file, one task per block of ``rows_per_block`` rows.
+
+    Parameters
+    ----------
+    path : str or Path
+    dtype : numpy dtype
+        As stored, with its byte order; the array is in native byte order.
+    shape : (ny, nx, nb)
+        The cube's shape, whatever the layout on disk.
+    offset : int
+        Bytes before the first value (a header).
+    interleave : {"bip", "bil", "bsq"}
+        Layout on disk (:data:`INTERLEAVES`).
+    rows_per_block : int
+        Rows of ``y`` per chunk; each chunk spans all ``x`` and bands.
+
+    Returns
+    -------
+    dask.array.Array
+        Shape ``(ny, nx, nb)``.
+    """
     import dask.array as da
 
     source = RowBlockFile(path, dtype, shape, offset, interleave)

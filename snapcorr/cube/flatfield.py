@@ -77,6 +77,46 @@ def _frames(frames, what):
     return frames
 
 
+def _check_dtypes(dtype, raw, dark, white):
+    """The result's numpy type; refuse any other, and inputs that are not numbers."""
+    if str(np.dtype(dtype)) not in _DTYPES:
+        raise ValueError(f"dtype must be float32 or float64, got {dtype!r}")
+    dtype = _DTYPES[str(np.dtype(dtype))]
+    for what, kind in (("raw", raw.dtype), ("dark", dark.dtype), ("white", white.dtype)):
+        if not (np.issubdtype(kind, np.integer) or np.issubdtype(kind, np.floating)):
+            raise TypeError(f"the {what} cube is {kind}; flat-fielding needs integer or real "
+                            "digital numbers")
+    return dtype
+
+
+def _average_reference(label, frames, raw, dtype, saturation):
+    """A reference's frames averaged (a line-scan strip over its rows too), and its flags."""
+    ref = frames[0]
+    if ref.sizes["x"] != raw.sizes["x"] or ref.sizes["band"] != raw.sizes["band"]:
+        raise ValueError(
+            f"{label} has shape {ref.shape} but the cube {raw.shape}: x and band must match"
+        )
+    if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
+        raise ValueError(f"{label} and the cube have different wavelengths; they must come "
+                         "from the same sensor and band set")
+    stack = xr.concat([f.astype(dtype) for f in frames], dim="frame")
+    stack = stack.drop_vars([c for c in stack.coords if c not in ("wavelength", "fwhm")])
+    # Flags are taken per frame and per row before averaging, so a saturated or missing
+    # value in any frame (or any row of a line-scan strip) masks the pixel.
+    bad = ~np.isfinite(stack)
+    if saturation is not None and label == "white":
+        bad = bad | (stack >= saturation)
+    ref, bad = stack.mean("frame", skipna=False), bad.any("frame")
+    if ref.sizes["y"] > raw.sizes["y"]:
+        raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
+                         f"{raw.sizes['y']}: a reference is a frame of the cube's size or "
+                         "a strip of fewer rows (line scan), never larger; crop it to the "
+                         "cube's area")
+    if ref.sizes["y"] != raw.sizes["y"]:  # a line-scan strip: broadcast along the scan axis
+        ref, bad = ref.mean("y", skipna=False), bad.any("y")
+    return ref, bad
+
+
 def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32"):
     """Flat-field a cube: ``(raw - dark) / (white - dark)`` (Goossens 2019 Eq. 29).
 
@@ -109,46 +149,14 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     """
     raw = check_cube(raw)
     darks, whites = _frames(dark, "dark"), _frames(white, "white")
-    if str(np.dtype(dtype)) not in _DTYPES:
-        raise ValueError(f"dtype must be float32 or float64, got {dtype!r}")
-    dtype = _DTYPES[str(np.dtype(dtype))]
-    for what, kind in (("raw", raw.dtype), ("dark", darks[0].dtype), ("white", whites[0].dtype)):
-        if not (np.issubdtype(kind, np.integer) or np.issubdtype(kind, np.floating)):
-            raise TypeError(f"the {what} cube is {kind}; flat-fielding needs integer or real "
-                            "digital numbers")
+    dtype = _check_dtypes(dtype, raw, darks[0], whites[0])
     if saturation is not None:
         saturation = check_positive("saturation", saturation)
-    refs, flags = [], []
-    for label, frames in (("dark", darks), ("white", whites)):
-        ref = frames[0]
-        if ref.sizes["x"] != raw.sizes["x"] or ref.sizes["band"] != raw.sizes["band"]:
-            raise ValueError(
-                f"{label} has shape {ref.shape} but the cube {raw.shape}: x and band must match"
-            )
-        if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
-            raise ValueError(f"{label} and the cube have different wavelengths; they must come "
-                             "from the same sensor and band set")
-        stack = xr.concat([f.astype(dtype) for f in frames], dim="frame")
-        stack = stack.drop_vars([c for c in stack.coords if c not in ("wavelength", "fwhm")])
-        # Flags are taken per frame and per row before averaging, so a saturated or missing
-        # value in any frame (or any row of a line-scan strip) masks the pixel.
-        bad = ~np.isfinite(stack)
-        if saturation is not None and label == "white":
-            bad = bad | (stack >= saturation)
-        ref, bad = stack.mean("frame", skipna=False), bad.any("frame")
-        if ref.sizes["y"] > raw.sizes["y"]:
-            raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
-                             f"{raw.sizes['y']}: a reference is a frame of the cube's size or "
-                             "a strip of fewer rows (line scan), never larger; crop it to the "
-                             "cube's area")
-        if ref.sizes["y"] != raw.sizes["y"]:  # a line-scan strip: broadcast along the scan axis
-            ref, bad = ref.mean("y", skipna=False), bad.any("y")
-        refs.append(ref)
-        flags.append(bad)
-    d, w = refs
+    d, dark_bad = _average_reference("dark", darks, raw, dtype, saturation)
+    w, white_bad = _average_reference("white", whites, raw, dtype, saturation)
     r = raw.astype(dtype)
     denom = w - d
-    mask = (denom <= 0) | ~np.isfinite(r) | flags[0] | flags[1]
+    mask = (denom <= 0) | ~np.isfinite(r) | dark_bad | white_bad
     if saturation is not None:
         mask = mask | (raw >= saturation)
     ignore = raw.attrs.get("data_ignore_value")

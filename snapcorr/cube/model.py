@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._validation import check_wavelengths_nm
+from .._validation import check_positive_array, check_wavelengths_nm
 
 __all__ = ["DIMS", "POSITION_ATTRS", "POSITION_DIMS", "check_cube", "check_dtype", "make_cube",
            "with_positions"]
@@ -33,7 +33,22 @@ POSITION_ATTRS = {
 
 
 def with_positions(cube, rows, cols):
-    """``cube`` with its sensor positions: ``rows`` ``(y, band)`` and ``cols`` ``(x, band)``."""
+    """``cube`` with its sensor positions: ``rows`` ``(y, band)`` and ``cols`` ``(x, band)``.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        Dims ``(y, x, band)``.
+    rows : array_like, shape (ny, nb)
+        Sensor row of every cube row and band, pixels (coordinate ``sensor_row``).
+    cols : array_like, shape (nx, nb)
+        Sensor column of every cube column and band, pixels (coordinate ``sensor_col``).
+
+    Returns
+    -------
+    xarray.DataArray
+        A new cube; ``cube`` is not changed.
+    """
     return cube.assign_coords(
         sensor_row=(POSITION_DIMS["sensor_row"], rows, POSITION_ATTRS["sensor_row"]),
         sensor_col=(POSITION_DIMS["sensor_col"], cols, POSITION_ATTRS["sensor_col"]))
@@ -104,8 +119,7 @@ def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name="radiance")
             raise ValueError(f"the cube has {wl.size} bands but {fw.size} fwhm values; give "
                              "one per band or a single value")
         fw = np.broadcast_to(fw, wl.shape).copy()
-        if not (np.all(np.isfinite(fw)) and np.all(fw > 0)):
-            raise ValueError(f"fwhm must be finite and > 0 (nm), got {fw.tolist()[:5]}")
+        check_positive_array("fwhm", fw, "nm")
         coords["fwhm"] = ("band", fw, {"units": "nm", "long_name": FWHM_LONG_NAME})
     return xr.DataArray(data, dims=DIMS, coords=coords, attrs=dict(attrs or {}), name=name)
 
@@ -132,8 +146,9 @@ def check_cube(cube):
     check_wavelengths_nm("wavelengths", cube["wavelength"].values)
     if "fwhm" in cube.coords:
         fw = np.asarray(cube["fwhm"].values, dtype=float)
-        if cube["fwhm"].dims != ("band",) or not (np.all(np.isfinite(fw)) and np.all(fw > 0)):
-            raise ValueError("fwhm must be a coordinate along band, finite and > 0 (nm)")
+        if cube["fwhm"].dims != ("band",):
+            raise ValueError("fwhm must be a coordinate along band")
+        check_positive_array("fwhm", fw, "nm")
     for name, dims in POSITION_DIMS.items():
         if name in cube.coords:
             pos = cube[name]

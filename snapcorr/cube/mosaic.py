@@ -26,7 +26,15 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
     sensor : Sensor
         A ``layout = "mosaic"`` sensor.
     origin_px : (int, int)
-        Row and column of the frame's first pixel on the sensor (for crops).
+        Row and column of the frame's first pixel on the sensor (for crops); on a tile
+        boundary.
+    attrs : dict, optional
+        Extra attributes of the cube, merged over ``sensor`` (the sensor's name).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``(y, x, band)`` with ``wavelength``, ``fwhm``, ``sensor_row`` and ``sensor_col``.
     """
     if sensor.layout != "mosaic":
         raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
@@ -66,7 +74,25 @@ def _dask_stack(arrays, axis):
 
 
 def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
-    """Sensor row ``(ny, band)`` and column ``(nx, band)`` of every cube pixel and band."""
+    """Sensor row ``(ny, band)`` and column ``(nx, band)`` of every cube pixel and band.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        Its layout; for a mosaic also its tile shape and ``band_offset``.
+    ny, nx : int
+        Cube rows and columns (tiles, for a mosaic).
+    origin_px : (int, int)
+        Sensor row and column of the cube's first pixel (for a mosaic, the top-left pixel of
+        its first tile).
+
+    Returns
+    -------
+    rows : ndarray of int, shape (ny, n_bands)
+    cols : ndarray of int, shape (nx, n_bands)
+        Sensor pixel indices; every band the same for a Snapscan-like layout, each at its own
+        offset in the tile for a mosaic.
+    """
     r0, c0 = origin_px
     if sensor.layout == "mosaic":
         tr, tc = sensor.mosaic_shape

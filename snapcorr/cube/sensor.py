@@ -155,6 +155,30 @@ class Sensor:
     def pixel_pitch_mm(self) -> float:
         return self.pixel_pitch_um * 1e-3
 
+    def check_cube(self, cube, what="the cube", *, atol_nm=0.05):
+        """Raise a ``ValueError`` unless ``cube`` has this sensor's bands: as many, and its
+        ``wavelength`` coordinate (when it has one) within ``atol_nm`` of ``cwl_nm``.
+
+        Parameters
+        ----------
+        cube : xarray.DataArray or xarray.Dataset
+            Anything with ``sizes["band"]`` and optionally a ``wavelength`` coordinate, nm.
+        what : str
+            What the cube is, for the message.
+        atol_nm : float
+            Largest difference allowed between the cube's and the sensor's wavelengths, nm.
+        """
+        nb = cube.sizes.get("band")
+        if nb != self.n_bands:
+            raise ValueError(f"{what} has {nb} bands, the sensor {self.name!r} {self.n_bands}; "
+                             "use the sensor it was taken with")
+        if "wavelength" in cube.coords:
+            off = np.max(np.abs(np.asarray(cube["wavelength"].values, float)
+                                - np.asarray(self.cwl_nm, float)))
+            if not off <= atol_nm:
+                raise ValueError(f"{what}'s wavelengths differ from the sensor {self.name!r}'s "
+                                 f"(by up to {off:.3g} nm); use the matching sensor")
+
     def to_dict(self) -> dict:
         d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
              "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm),

@@ -4,9 +4,10 @@ Pure numpy, no file I/O beyond lens profiles; every function broadcasts.
 """
 
 from .bandwidth import FWHM_METHODS, FwhmTable, response_fwhm
+from .chief_ray import cra_deg, cra_map
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
-from .mean import METHODS, mean_shift, select_method
+from .mean import METHODS, MODELS, choose_model, mean_shift, select_method
 from .neff import NeffFit, fit_n_eff
 from .profiles import PROFILES, Airy, Gaussian, MultiLorentzian, PiShaped, Tabulated
 from .response import RESPONSE_METHODS, filter_response
@@ -23,6 +24,7 @@ __all__ = [
     "AOI_VALIDITY_DEG",
     "FWHM_METHODS",
     "METHODS",
+    "MODELS",
     "PROFILES",
     "RESPONSE_METHODS",
     "Airy",
@@ -38,6 +40,9 @@ __all__ = [
     "ShiftTable",
     "Tabulated",
     "aoi_from_shift_deg",
+    "choose_model",
+    "cra_deg",
+    "cra_map",
     "filter_response",
     "fit_n_eff",
     "kernel",

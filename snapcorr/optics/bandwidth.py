@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import check_positive, validate_method
+from .._validation import check_positive, check_positive_array, validate_method
 from .lens import Lens
 from .profiles import PROFILES
 from .response import kernel_bins
@@ -47,9 +47,23 @@ _REF_NM = 1000.0  # kernels are computed at this wavelength and scaled (shifts s
 def band_profile(profile, cwl_nm, fwhm_nm, n_eff):
     """The transmission curve of one band at normal incidence: a callable of wavelength (nm).
 
-    ``profile`` is a name of :data:`~snapcorr.optics.PROFILES` (``"gaussian"``, ``"airy"``,
-    ``"multi_lorentzian"``, ``"pi"``) or ``(offset_nm, transmission)``: a measured shape
-    about the band's centre, the same for every band.
+    Parameters
+    ----------
+    profile : str or (offset_nm, transmission)
+        A name of :data:`~snapcorr.optics.PROFILES` (``"gaussian"``, ``"airy"``,
+        ``"multi_lorentzian"``, ``"pi"``), or a measured shape about the band's centre, the
+        same for every band: offsets (nm, increasing) and transmissions, zero outside.
+    cwl_nm : float
+        Central wavelength, nm.
+    fwhm_nm : float
+        FWHM, nm (not used by a measured shape).
+    n_eff : float
+        Effective index (not used by a measured shape).
+
+    Returns
+    -------
+    callable
+        ``curve(wavelength_nm)`` -> transmission.
     """
     if isinstance(profile, str):
         if profile not in PROFILES or profile == "tabulated":
@@ -122,8 +136,8 @@ def response_fwhm(cwl_nm, fwhm_nm, n_eff, f_number, cra_deg, lens: Lens, *, prof
     fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape).astype(float)
     n = np.broadcast_to(np.asarray(check_n_eff(n_eff), float), cwl.shape).astype(float)
     check_positive("f_number", f_number)
-    if np.any(~(fwhm > 0)) or np.any(~(cwl > 0)):
-        raise ValueError("cwl_nm and fwhm_nm must be > 0")
+    check_positive_array("cwl_nm", cwl, "nm")
+    check_positive_array("fwhm_nm", fwhm, "nm")
     cra = np.atleast_1d(np.asarray(cra_deg, float))
     out = np.full((cwl.size, cra.size), np.nan)
     rho = fwhm / cwl
@@ -203,6 +217,27 @@ class FwhmTable:
         interval whose midpoint misses linear interpolation by more than half
         ``tolerance_nm`` (for any band).
 
+        Parameters
+        ----------
+        cwl_nm, fwhm_nm, n_eff : array_like, shape (n_bands,)
+            Each band's central wavelength and FWHM at normal incidence (nm) and effective
+            index, as for :func:`response_fwhm`.
+        f_number : float
+            Nominal f-number.
+        lens : Lens
+        cra_max_deg : float
+            Largest chief-ray angle tabulated, degrees (finite, >= 0).
+        profile : str or (offset_nm, transmission)
+            The filters' shape (see :func:`band_profile`).
+        tolerance_nm : float
+            Largest error of linear interpolation between nodes, nm.
+        max_nodes : int
+            Most nodes allowed.
+
+        Returns
+        -------
+        FwhmTable
+
         Raises
         ------
         ValueError
@@ -239,7 +274,7 @@ class FwhmTable:
                 # always its middle
                 if np.any(miss[np.isfinite(miss)] > 0.5 * tolerance_nm) and b - a > 1e-4:
                     split += [(a, mid[k], va, vm[:, k]), (mid[k], b, vm[:, k], vb)]
-            if len(got_c) + len(split) // 2 > max_nodes:
+            if len(got_c) + len(split) > max_nodes:  # each pending interval adds a midpoint
                 raise ValueError(f"the FWHM table did not reach {tolerance_nm:g} nm with "
                                  f"{max_nodes} nodes; raise the tolerance")
             pending = split

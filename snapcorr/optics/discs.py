@@ -46,11 +46,11 @@ class Boundary(NamedTuple):
     hi: np.ndarray
 
 
-def _stack(radii, centres):
+def _stack(radii, centers):
     k = len(radii)
-    if k < 1 or len(centres) != k:
+    if k < 1 or len(centers) != k:
         raise ValueError("need one centre per radius, for at least one disc")
-    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii, *centres)])
+    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii, *centers)])
     return np.asarray(both[:k]), np.asarray(both[k:])
 
 
@@ -60,7 +60,7 @@ def _half_chord(r, c, u):
     return np.sqrt(np.clip((r - du) * (r + du), 0.0, None))
 
 
-def boundary(radii, centres) -> Boundary:
+def boundary(radii, centers) -> Boundary:
     """The arcs bounding the upper half of the discs' intersection.
 
     Break points are the ends of the region and every pairwise crossing of half-chords inside
@@ -68,7 +68,7 @@ def boundary(radii, centres) -> Boundary:
     in Heron's factored form, which stays accurate up to tangency; every other break point
     takes the smallest half-chord there.
     """
-    r, c = _stack(radii, centres)
+    r, c = _stack(radii, centers)
     k = r.shape[0]
     lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
     points, heights = [lo, hi], [np.zeros_like(lo), np.zeros_like(lo)]
@@ -100,10 +100,25 @@ def boundary(radii, centres) -> Boundary:
     return Boundary(u, y, disc, lo, hi)
 
 
-def arc_angles(b: Boundary, radii, centres):
+def arc_angles(b: Boundary, radii, centers):
     """For each piece: its disc's radius and centre, and the polar angles (about that centre,
-    from the +line direction) of its right and left ends, ``t_right <= t_left`` in [0, pi]."""
-    r, c = _stack(radii, centres)
+    from the +line direction) of its right and left ends, ``t_right <= t_left`` in [0, pi].
+
+    Parameters
+    ----------
+    b : Boundary
+        From :func:`boundary` on the same discs.
+    radii : sequence of array_like
+        Radius of each disc (the pupil ``R``, the projected circles ``P_i``), mm.
+    centers : sequence of array_like
+        Each disc's centre along the line, mm; one per radius, broadcasting with them.
+
+    Returns
+    -------
+    rk, ck, t_right, t_left : ndarray
+        Shape ``(M, ...)``, one per piece of ``b``; lengths as given, angles in radians.
+    """
+    r, c = _stack(radii, centers)
     rk = np.take_along_axis(r, b.disc, 0)
     ck = np.take_along_axis(c, b.disc, 0)
     t_right = np.arctan2(b.y[1:], b.u[1:] - ck)
@@ -126,21 +141,53 @@ def _segment(theta):
 
 def upper_area(b: Boundary, rk, t_right, t_left):
     """Area of the upper half of the intersection: under the chord chain (trapezoids, all
-    positive) plus the circular segment between each chord and its arc."""
+    positive) plus the circular segment between each chord and its arc.
+
+    Parameters
+    ----------
+    b : Boundary
+        From :func:`boundary`.
+    rk : ndarray
+        Radius of each piece's disc, shape ``(M, ...)`` (from :func:`arc_angles`).
+    t_right, t_left : ndarray
+        Polar angles of each piece's ends, radians (from :func:`arc_angles`).
+
+    Returns
+    -------
+    ndarray
+        Area in the square of the length unit (mm^2), the discs' broadcast shape; the full
+        intersection is twice it.
+    """
     trap = 0.5 * (b.u[1:] - b.u[:-1]) * (b.y[1:] + b.y[:-1])
     seg = rk * rk * _segment(0.5 * (t_left - t_right))
     return np.sum(trap + seg, axis=0)
 
 
-def arc_half_angle(r, F, radii, centres):
+def arc_half_angle(r, F, radii, centers):
     """Half-angle of the arc of radius ``r`` about ``F`` that lies inside every disc.
 
     The generalisation of ``eta`` (Eq. 15) and ``gamma`` (Eq. 18) to any number of discs:
     disc ``k`` keeps the angles (from the +line direction, about ``F``) on ``[0, a_k]`` if its
     centre lies beyond ``F`` and on ``[b_k, pi]`` if before it; the arc kept by all is
     ``[max b, min a]``, symmetric about the line.
+
+    Parameters
+    ----------
+    r : array_like
+        Radius of the arc, mm.
+    F : array_like
+        Its centre along the line (the pixel's foot, Eq. 8), mm.
+    radii : sequence of array_like
+        Radius of each disc (the pupil ``R``, the projected circles ``P_i``), mm.
+    centers : sequence of array_like
+        Each disc's centre along the line, mm; one per radius, broadcasting with them.
+
+    Returns
+    -------
+    ndarray
+        ``min a - max b`` in radians, in [0, pi] (0: nothing kept); the broadcast shape.
     """
-    rr, c = _stack(radii, centres)
+    rr, c = _stack(radii, centers)
     r = np.asarray(r, float)
     F = np.asarray(F, float)
     upper = np.pi
@@ -161,14 +208,28 @@ def arc_half_angle(r, F, radii, centres):
     return np.maximum(upper - lower, 0.0)
 
 
-def extreme_radii(F, radii, centres):
+def extreme_radii(F, radii, centers):
     """Smallest and largest distance from ``F`` (on the line) to the intersection.
 
     On a circular arc the distance to a point of the line is monotonic in the polar angle on
     ``[0, pi]``, so both extremes lie at break points; the smallest is 0 where ``F`` is inside.
     Both are 0 where the intersection is empty.
+
+    Parameters
+    ----------
+    F : array_like
+        The point along the line, mm.
+    radii : sequence of array_like
+        Radius of each disc (the pupil ``R``, the projected circles ``P_i``), mm.
+    centers : sequence of array_like
+        Each disc's centre along the line, mm; one per radius, broadcasting with them.
+
+    Returns
+    -------
+    rmin, rmax : ndarray
+        Distances, mm; the broadcast shape.
     """
-    b = boundary(radii, centres)
+    b = boundary(radii, centers)
     F = np.asarray(F, float)
     dist = np.hypot(b.u - F, b.y)
     empty = b.hi < b.lo

@@ -254,9 +254,9 @@ def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes):
     mean = np.empty(F.shape)
     for lo_i in range(0, F.size, _CONTOUR_CHUNK):  # bounded memory for any input size
         sl = slice(lo_i, lo_i + _CONTOUR_CHUNK)
-        radii, centres, Fs, ns = [a[sl] for a in rad], [a[sl] for a in cen], F[sl], n[sl]
-        b = discs.boundary(radii, centres)
-        rk, ck, t_right, t_left = discs.arc_angles(b, radii, centres)
+        radii, centers, Fs, ns = [a[sl] for a in rad], [a[sl] for a in cen], F[sl], n[sl]
+        b = discs.boundary(radii, centers)
+        rk, ck, t_right, t_left = discs.arc_angles(b, radii, centers)
         area = discs.upper_area(b, rk, t_right, t_left)
         if np.any(area <= 0):
             raise _cut_off(int(np.sum(area <= 0)))
@@ -308,6 +308,29 @@ def kernel(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None):
 
     ``K = g(lambda) gamma(Delta^-1(lambda)) x^2 / A``; zero outside the incidence angles that
     reach the pixel. Without a vignetting circle ``gamma = eta`` and ``A = pi R^2`` (Eq. 5).
+
+    Parameters
+    ----------
+    lam_nm : array_like
+        Shift from ``cwl_nm`` at which to evaluate the kernel, nm (<= 0).
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index (> 1).
+    x_mm : array_like
+        Exit-pupil distance, mm.
+    R_mm : array_like
+        Exit-pupil radius (Eq. 28), mm.
+    d_mm : array_like
+        Pixel distance from the axis, ``x tan(CRA)`` (Eq. 8), mm.
+    P_mm, dv_mm : array_like or list of array_like, optional
+        Vignetting-circle radius and centre ``d_v = h tan(CRA)`` (Eq. 9), mm; lists of one
+        entry per circle for several circles. ``None``: ideal aperture.
+
+    Returns
+    -------
+    ndarray
+        ``K`` in 1/nm, the arguments' broadcast shape.
     """
     n2 = check_n_eff(n_eff) ** 2
     lam = np.asarray(lam_nm, float)
@@ -326,7 +349,31 @@ def kernel(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None):
 
 
 def kernel_asymptotic(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None):
-    """Small-shift approximation of the kernel, Eq. (21) (Eq. 5 without vignetting)."""
+    """Small-shift approximation of the kernel, Eq. (21) (Eq. 5 without vignetting).
+
+    Parameters
+    ----------
+    lam_nm : array_like
+        Shift from ``cwl_nm``, nm (<= 0; the kernel is 0 above).
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index (> 1).
+    x_mm : array_like
+        Exit-pupil distance, mm.
+    R_mm : array_like
+        Exit-pupil radius (Eq. 28), mm.
+    d_mm : array_like
+        Pixel distance from the axis, ``x tan(CRA)`` (Eq. 8), mm.
+    P_mm, dv_mm : array_like or list of array_like, optional
+        Vignetting-circle radius and centre ``d_v = h tan(CRA)`` (Eq. 9), mm; lists of one
+        entry per circle for several circles. ``None``: ideal aperture.
+
+    Returns
+    -------
+    ndarray
+        ``K`` in 1/nm, the arguments' broadcast shape.
+    """
     n = check_n_eff(n_eff)
     lam = np.asarray(lam_nm, float)
     x = np.asarray(x_mm, float)
@@ -359,6 +406,36 @@ def mean_shift_riemann(
     ``lambda`` runs from ``lambda_min = Delta(arctan(r_max / x))`` (Eq. 44-45) to 0 in steps of
     ``step_nm``; the mean is ``sum(lambda K) / sum(K)`` (Eq. 22, first line) with ``K`` from
     Eq. (37). The cost grows with the kernel width divided by the step.
+
+    Parameters
+    ----------
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index (> 1).
+    x_mm : array_like
+        Exit-pupil distance, mm.
+    R_mm : array_like
+        Exit-pupil radius (Eq. 28), mm.
+    d_mm : array_like
+        Pixel distance from the axis, ``x tan(CRA)`` (Eq. 8), mm.
+    P_mm, dv_mm : array_like or list of array_like, optional
+        Vignetting-circle radius and centre ``d_v = h tan(CRA)`` (Eq. 9), mm; lists of one
+        entry per circle for several circles. ``None``: ideal aperture.
+    step_nm : float
+        Step of the sum, nm (the paper's 0.01 nm by default).
+    chunk : int
+        Elements summed together (bounds the memory).
+
+    Returns
+    -------
+    ndarray
+        Mean shift in nm (<= 0), the arguments' broadcast shape.
+
+    Raises
+    ------
+    ValueError
+        Where the kernel is narrower than the step (no sample sees it).
     """
     n = check_n_eff(n_eff)
     circles = circle_list(P_mm, dv_mm)
@@ -409,6 +486,22 @@ def mean_shift_asymptotic(cwl_nm, n_eff, cone_rad, cra_rad):
 
     A small-angle formula for the ideal aperture; it ignores vignetting. At f/1.4 and
     CRA 20 deg (n_eff 1.7, 700 nm) it is already 2.7 nm off the exact ideal mean.
+
+    Parameters
+    ----------
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index (> 1).
+    cone_rad : array_like
+        Cone half-angle ``theta_cone = arctan(R / x)``, radians.
+    cra_rad : array_like
+        Chief-ray angle, radians.
+
+    Returns
+    -------
+    ndarray
+        Mean shift in nm (<= 0), the arguments' broadcast shape.
     """
     n2 = check_n_eff(n_eff) ** 2
     return -np.asarray(cwl_nm, float) * (
@@ -426,6 +519,22 @@ def asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, tan_cra):
         err = -cwl [ (rho^4/6 + d^4/3) / n^2 + (1/(8 n^4) - 1/(2 n^2)) E[s^2] ]
 
     Sixth-order terms are neglected, so use it with a safety factor where it is small.
+
+    Parameters
+    ----------
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index (> 1).
+    tan_cone : array_like
+        ``rho = R / x``, the tangent of the cone half-angle.
+    tan_cra : array_like
+        ``tan(CRA) = d / x``.
+
+    Returns
+    -------
+    ndarray
+        The estimated error in nm (signed), the arguments' broadcast shape.
     """
     n2 = check_n_eff(n_eff) ** 2
     rho2 = np.asarray(tan_cone, float) ** 2

@@ -153,8 +153,8 @@ class Lens:
         if not np.all(np.isfinite(t)):
             raise ValueError("cra_deg must be finite and inside (-90, 90) degrees")
         radii = [R] + [P for P, _ in self.vignetting]
-        centres = [np.zeros_like(t)] + [h * t for _, h in self.vignetting]
-        return radii, centres
+        centers = [np.zeros_like(t)] + [h * t for _, h in self.vignetting]
+        return radii, centers
 
     def vignetting_args(self, tan_cra):
         """The circles as the ``P_mm, dv_mm`` arguments of the kernel functions
@@ -225,16 +225,16 @@ class Lens:
         from . import discs
         from .pupil import overlap_area_mm2
 
-        radii, centres = self.pupil_discs(f_number, cra_deg)
+        radii, centers = self.pupil_discs(f_number, cra_deg)
         R = radii[0]
         if not self.has_vignetting:
-            return np.ones(np.broadcast_shapes(np.shape(R), centres[0].shape))[()]
+            return np.ones(np.broadcast_shapes(np.shape(R), centers[0].shape))[()]
         if len(self.vignetting) == 1:
-            return (overlap_area_mm2(radii, centres) / (np.pi * R * R))[()]
+            return (overlap_area_mm2(radii, centers) / (np.pi * R * R))[()]
         # Several circles: trapezoids under the chain of chords plus circular segments, all
         # positive, keep slivers near the cut-off to full relative precision.
-        b = discs.boundary(radii, centres)
-        rk, _, t_right, t_left = discs.arc_angles(b, radii, centres)
+        b = discs.boundary(radii, centers)
+        rk, _, t_right, t_left = discs.arc_angles(b, radii, centers)
         area = np.where(b.hi > b.lo, 2.0 * discs.upper_area(b, rk, t_right, t_left), 0.0)
         return (area / (np.pi * R * R))[()]
 

@@ -11,7 +11,7 @@ import functools
 
 import numpy as np
 
-from .._validation import validate_method
+from .._validation import check_positive, check_positive_array, validate_method
 from . import goossens2019 as g19
 from .lens import Lens
 from .table import ShiftGrid, ShiftTable
@@ -20,7 +20,9 @@ __all__ = [
     "AUTO_GRID_MIN_SIZE",
     "AUTO_TABLE_MIN_SIZE",
     "METHODS",
+    "MODELS",
     "cached_grid",
+    "choose_model",
     "mean_shift",
     "select_method",
 ]
@@ -43,11 +45,30 @@ def _grid(lens, n_eff, f_lo, f_hi, cra_max, tolerance_nm, cwl_max):
                            tolerance_nm=tolerance_nm, cwl_max_nm=cwl_max)
 
 
-def cached_grid(lens, n_eff, f_number, cra_deg, *, tolerance_nm=0.001, cwl_max_nm=1000.0):
+def cached_grid(n_eff, f_number, cra_deg, lens, *, tolerance_nm=0.001, cwl_max_nm=1000.0):
     """A :class:`ShiftGrid` covering these f-numbers and CRAs, from a small cache.
 
     The range is rounded outwards (f-numbers to half stops, CRA to 5 deg, wavelengths to
     100 nm) so that similar calls share a grid.
+
+    Parameters
+    ----------
+    n_eff : float
+        Effective refractive index (> 1).
+    f_number : array_like
+        The nominal f-numbers to cover (> 0).
+    cra_deg : array_like
+        The chief-ray angles to cover, degrees (only the largest |CRA| counts; at most 89).
+    lens : Lens
+        Must be hashable (the cache's key).
+    tolerance_nm : float
+        Largest interpolation error, nm.
+    cwl_max_nm : float
+        Longest central wavelength the tolerance holds for, nm.
+
+    Returns
+    -------
+    ShiftGrid
     """
     f = np.asarray(f_number, float)
     f_lo = 2.0 ** (np.floor(2 * np.log2(f.min())) / 2)
@@ -133,7 +154,7 @@ def _grid_method(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     flat_n, flat_out = n.ravel(), out.reshape(-1)
     for n_i in np.unique(flat_n):
         sel = flat_n == n_i
-        grid = cached_grid(lens, n_i, f.ravel()[sel], cra.ravel()[sel],
+        grid = cached_grid(n_i, f.ravel()[sel], cra.ravel()[sel], lens,
                            tolerance_nm=tolerance_nm,
                            cwl_max_nm=float(np.abs(cwl.ravel()[sel]).max()))
         flat_out[sel] = grid(cwl.ravel()[sel], f.ravel()[sel], cra.ravel()[sel])
@@ -155,7 +176,7 @@ METHODS = {
 def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm=0.001):
     """The method ``"auto"`` uses for each element, as an array of names.
 
-    The rule, cheapest first:
+    The rule, cheapest first (the exact rungs of :data:`MODELS`):
 
     1. ``"asymptotic"`` (Eq. 6) where the pixel is not vignetted (below the onset of Eq. 46,
        or a lens without vignetting circles) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
@@ -165,6 +186,26 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     3. ``"vignetted"`` (exact, the chain of arcs bounding the vignetted pupil) elsewhere.
 
     Before the onset the vignetted and the ideal kernels are identical, so step 2 loses nothing.
+
+    Parameters
+    ----------
+    n_eff : array_like
+        Effective refractive index of each filter.
+    f_number : array_like
+        Nominal f-number.
+    cra_deg : array_like
+        Chief-ray angle, degrees.
+    lens : Lens
+    cwl_nm : array_like
+        Central wavelength, nm (the error of Eq. 6 scales with it).
+    tolerance_nm : float
+        Largest error allowed, nm.
+
+    Returns
+    -------
+    ndarray of str
+        ``"asymptotic"``, ``"ideal"`` or ``"vignetted"`` for each element (the arguments
+        broadcast).
     """
     cra = np.abs(np.asarray(cra_deg, float))
     not_vign = ~lens.is_vignetted(f_number, cra)
@@ -172,6 +213,82 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     err = g19.asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, np.tan(np.deg2rad(cra)))
     asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm)
     return np.where(asym, "asymptotic", np.where(not_vign, "ideal", "vignetted"))
+
+
+#: The correction models, cheapest first: the ladder :func:`choose_model` and the scene budget
+#: (:func:`snapcorr.budget.scene_budget`) climb, and the ``method`` of
+#: :func:`snapcorr.correct.correct_cube`. ``"none"`` keeps the nominal wavelengths;
+#: ``"asymptotic"`` is Eq. (6); ``"ideal"`` the exact kernel mean of the full pupil;
+#: ``"vignetted"`` the exact mean of the vignetted pupil (Eq. 22); ``"harmonised"`` that mean
+#: and one common response per band (:mod:`snapcorr.correct.harmonise`), for scenes where the
+#: widening of the response matters too.
+MODELS = ("none", "asymptotic", "ideal", "vignetted", "harmonised")
+
+
+def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
+    """The cheapest model whose wavelength error is below ``tolerance_nm`` on a whole field.
+
+    ``"none"`` when no band moves by more than the tolerance at any CRA up to
+    ``cra_max_deg``; otherwise the dearest of the models :func:`select_method` picks for the
+    bands at the field's edge (the errors grow with the CRA). ``"harmonised"`` is never
+    chosen here: a wavelength tolerance cannot ask for it; the scene budget can
+    (:meth:`snapcorr.budget.Budget.recommend`).
+
+    Parameters
+    ----------
+    cwl_nm, n_eff : array_like
+        Every band's central wavelength (nm) and effective index.
+    f_number : float
+        Nominal f-number.
+    cra_max_deg : float
+        The field's largest chief-ray angle, degrees.
+    lens : Lens
+    tolerance_nm : float
+        Largest wavelength error allowed, nm.
+
+    Returns
+    -------
+    model, reason : str
+        One of :data:`MODELS`, and a sentence saying why.
+
+    Examples
+    --------
+    >>> from snapcorr import Lens
+    >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3)
+    >>> choose_model([500.0, 900.0], 1.7, 1.4, 20.0, lens, tolerance_nm=0.01)[0]
+    'vignetted'
+    >>> choose_model([500.0, 900.0], 1.7, 16.0, 1.0, lens, tolerance_nm=0.5)[0]
+    'none'
+    """
+    cwl = np.asarray(cwl_nm, float)
+    n = np.asarray(n_eff, float)
+    f = check_positive("f_number", f_number)
+    tol = check_positive("tolerance_nm", tolerance_nm)
+    cra_max = float(cra_max_deg)
+    if not 0 <= cra_max < 90:
+        raise ValueError(f"cra_max_deg must lie in [0, 90), got {cra_max_deg!r}")
+    picks = np.atleast_1d(select_method(n, f, cra_max, lens, cwl_nm=cwl, tolerance_nm=tol))
+    model = max((str(m) for m in picks), key=MODELS.index)
+    # the largest shift over the field: the kernel mean is monotonic in neither the CRA nor
+    # the band alone near the onset, so both ends of the field and every band
+    exact = "vignetted" if model == "vignetted" else "ideal"
+    worst = max(float(np.max(np.abs(mean_shift(cwl, n, f, c, lens, method=exact))))
+                for c in (0.0, cra_max))
+    if worst <= tol:
+        return "none", (f"no band moves by more than {worst:.3g} nm <= tolerance {tol:g} nm "
+                        f"at f/{f:g} up to CRA {cra_max:.2f} deg")
+    onset = float(np.min(lens.onset_cra_deg(f)))
+    if model == "vignetted":
+        return model, (f"CRAs up to {cra_max:.2f} deg pass the onset of optical vignetting "
+                       f"at f/{f:g} ({onset:.2f} deg)")
+    tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f)))
+    err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone, np.tan(np.deg2rad(cra_max)))
+    err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
+    where = ("no vignetting circle" if not lens.has_vignetting else
+             f"every CRA (<= {cra_max:.2f} deg) is below the onset ({onset:.2f} deg)")
+    if model == "asymptotic":
+        return model, f"{where}, and Eq. 6 is within {err:.2g} nm <= {tol:g} nm"
+    return model, f"{where}; Eq. 6 would be off by up to {err:.2g} nm"
 
 
 def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", tolerance_nm=0.001):
@@ -229,13 +346,10 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     array([-6.593, -8.954])
     """
     validate_method(method, METHODS)
-    if not np.isfinite(tolerance_nm) or tolerance_nm <= 0:
-        raise ValueError(f"tolerance_nm must be > 0, got {tolerance_nm!r}")
+    check_positive("tolerance_nm", tolerance_nm)
     args = (cwl_nm, n_eff, f_number, cra_deg)
     # Every method checks the same things first, so none can fail later in its own way.
-    cwl = np.asarray(cwl_nm, dtype=float)
-    if not (np.all(np.isfinite(cwl)) and np.all(cwl > 0)):
-        raise ValueError("cwl_nm must be finite and > 0 (nm)")
+    check_positive_array("cwl_nm", cwl_nm, "nm")
     g19.check_n_eff(n_eff)
     _geometry(f_number, cra_deg, lens)
     # Float policy: float16/32 in -> float32 out; everything else float64.

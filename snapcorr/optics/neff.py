@@ -33,7 +33,7 @@ def _law(aoi_deg, cwl, n):
     return cwl * np.sqrt(1.0 - s * s)
 
 
-def fit_n_eff(aoi_deg, centre_nm, *, sigma_nm=None):
+def fit_n_eff(aoi_deg, center_nm, *, sigma_nm=None):
     """Least-squares ``cwl`` and ``n_eff`` of ``lambda(phi) = cwl sqrt(1 - sin^2 phi / n^2)``.
 
     The law is linear in ``lambda^2`` against ``sin^2 phi`` (intercept ``cwl^2``, slope
@@ -43,7 +43,7 @@ def fit_n_eff(aoi_deg, centre_nm, *, sigma_nm=None):
 
     Parameters
     ----------
-    aoi_deg, centre_nm : array_like
+    aoi_deg, center_nm : array_like
         Angles of incidence (degrees) and the measured centre wavelengths (nm); at least two
         distinct non-zero angles are needed.
     sigma_nm : array_like, optional
@@ -54,7 +54,7 @@ def fit_n_eff(aoi_deg, centre_nm, *, sigma_nm=None):
     NeffFit
     """
     phi = np.asarray(aoi_deg, float).ravel()
-    lam = np.asarray(centre_nm, float).ravel()
+    lam = np.asarray(center_nm, float).ravel()
     if phi.shape != lam.shape or phi.size < 2:
         raise ValueError("aoi_deg and centre_nm must have the same length (>= 2)")
     if np.unique(np.abs(phi)).size < 2:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
-from .._validation import check_curve
+from .._validation import check_curve, check_positive
 from .shift import check_n_eff, shift_nm
 
 __all__ = ["PROFILES", "Airy", "Gaussian", "MultiLorentzian", "PiShaped", "Tabulated", "fwhm_of"]
@@ -56,12 +56,12 @@ class Gaussian:
     peak: float = 1.0
 
     def __post_init__(self):
-        if not (self.fwhm_nm > 0 and self.cwl_nm > 0):
-            raise ValueError("cwl_nm and fwhm_nm must be > 0")
+        check_positive("cwl_nm", self.cwl_nm)
+        check_positive("fwhm_nm", self.fwhm_nm)
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
-        centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
-        u = (np.asarray(wavelength_nm, float) - centre) / self.fwhm_nm
+        center = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
+        u = (np.asarray(wavelength_nm, float) - center) / self.fwhm_nm
         return self.peak * np.exp(-4.0 * np.log(2.0) * u * u)
 
 
@@ -88,7 +88,27 @@ class Airy:
     @classmethod
     def from_passband(cls, cwl_nm, fwhm_nm, n_eff=1.5, order=1, phase=0.0, loss=0.0):
         """The cavity whose order-``order`` peak at normal incidence is ``cwl_nm`` wide
-        ``fwhm_nm`` (the exact FWHM of the Airy peak in wavelength)."""
+        ``fwhm_nm`` (the exact FWHM of the Airy peak in wavelength).
+
+        Parameters
+        ----------
+        cwl_nm : float
+            Peak wavelength at normal incidence, nm.
+        fwhm_nm : float
+            FWHM of that peak, nm.
+        n_eff : float
+            Cavity index ``n`` (> 1); with Eq. (3) it is the effective index.
+        order : int
+            Interference order ``m`` of the peak.
+        phase : float
+            Reflection phase ``phi``, radians.
+        loss : float
+            Mirror absorptance ``A`` (scales the peak by ``1 - A / (1 - R)``).
+
+        Returns
+        -------
+        Airy
+        """
         n = float(check_n_eff(n_eff))
         h = (order - phase / np.pi) * cwl_nm / (2.0 * n)
         # Half maximum where F sin^2(delta/2) = 1, i.e. delta - 2 pi m = +-w with
@@ -126,8 +146,8 @@ class Airy:
         return (1 - self.loss / (1 - self.reflectance)) / (1 + F * np.sin(delta / 2) ** 2)
 
 
-def _lorentz(lam, centre, fwhm):
-    return 1.0 / (1.0 + ((lam - centre) / (0.5 * fwhm)) ** 2)
+def _lorentz(lam, center, fwhm):
+    return 1.0 / (1.0 + ((lam - center) / (0.5 * fwhm)) ** 2)
 
 
 def _multi_lorentzian_shape(lam, k):
@@ -165,8 +185,8 @@ class MultiLorentzian:
     scale: float = field(init=False)
 
     def __post_init__(self):
-        if not (self.fwhm_nm > 0 and self.cwl_nm > 0):
-            raise ValueError("cwl_nm and fwhm_nm must be > 0")
+        check_positive("cwl_nm", self.cwl_nm)
+        check_positive("fwhm_nm", self.fwhm_nm)
         k1, norm = _multi_lorentzian_unit()
         # every length of the shape scales with k, so k is proportional to the FWHM and the
         # maximum does not depend on it
@@ -174,8 +194,8 @@ class MultiLorentzian:
         object.__setattr__(self, "_norm", norm)
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
-        centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
-        u = np.asarray(wavelength_nm, float) - centre
+        center = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
+        u = np.asarray(wavelength_nm, float) - center
         k = self.scale
         t = _lorentz(u, 0, 16 * k) * _lorentz(u, -4 * k, 6 * k) * _lorentz(u, 4 * k, 6 * k)
         t = t / self._norm
@@ -201,10 +221,10 @@ class PiShaped:
         return self.fwhm_nm / np.cos(self.k * np.deg2rad(np.asarray(aoi_deg, float)))
 
     def __call__(self, wavelength_nm, aoi_deg=0.0):
-        centre = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
+        center = self.cwl_nm + shift_nm(self.cwl_nm, self.n_eff, aoi_deg)
         kt = self.k * np.deg2rad(np.asarray(aoi_deg, float))
         half = 0.5 * self.fwhm_nm / np.cos(kt)
-        inside = np.abs(np.asarray(wavelength_nm, float) - centre) <= half
+        inside = np.abs(np.asarray(wavelength_nm, float) - center) <= half
         return np.where(inside, self.peak * np.cos(kt), 0.0)
 
 

@@ -50,6 +50,20 @@ def eta(r_mm, d_mm, R_mm):
 
     ``eta = Re(arccos((d^2 - R^2 + r^2) / (2 d r)))``. On axis (``d = 0``) or at ``r = 0``
     the limit is taken: ``pi`` inside the pupil, 0 outside.
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
     """
     r, d, R = (np.asarray(v, float) for v in (r_mm, d_mm, R_mm))
     return _re_arccos(d * d - R * R + r * r, 2.0 * np.abs(d) * r)
@@ -62,6 +76,22 @@ def nu(r_mm, dr_mm, P_mm, *, h_ge_x=None):
     off, Eq. (16); for ``h < x`` the half-angle kept. At ``d_r = 0`` (CRA = 0, or ``h == x``)
     the value is the limit from the regime's own side, so give ``h_ge_x`` there (default:
     ``d_r <= 0``).
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    dr_mm : array_like
+        ``d_r = d - d_v``, mm.
+    P_mm : array_like
+        Vignetting-circle radius, mm.
+    h_ge_x : array_like of bool, optional
+        The regime, ``h >= x``.
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
     """
     r, dr, P = (np.asarray(v, float) for v in (r_mm, dr_mm, P_mm))
     ge = (dr <= 0) if h_ge_x is None else np.asarray(h_ge_x, bool)
@@ -78,6 +108,26 @@ def gamma(r_mm, d_mm, R_mm, dv_mm=None, P_mm=None, *, h_ge_x=None):
     without a vignetting circle (``P_mm=None``). ``h_ge_x`` defaults to ``d_v >= d``. With
     several circles (``P_mm`` and ``dv_mm`` lists) the arc kept by all of them
     (:func:`~snapcorr.optics.discs.arc_half_angle`).
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+    h_ge_x : array_like of bool, optional
+        The regime, ``h >= x`` (one circle only).
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
         return arc_half_angle(r_mm, d_mm, [R_mm, *P_mm], [0.0, *dv_mm])
@@ -96,6 +146,20 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
     ``A = P^2 (alpha - sin alpha cos alpha) + R^2 (beta - sin beta cos beta)``. With
     ``d_v = 0`` the limits of Eq. (34)-(35) give the smaller disc. With several circles
     (``P_mm`` and ``dv_mm`` lists), :func:`overlap_area_mm2` of all of them.
+
+    Parameters
+    ----------
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    P_mm : array_like or list of array_like
+        Vignetting-circle radius, mm; a list for several circles.
+    dv_mm : array_like or list of array_like
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+
+    Returns
+    -------
+    ndarray
+        Area in mm^2, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
         return overlap_area_mm2([R_mm, *P_mm], [0.0, *dv_mm])
@@ -112,7 +176,7 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
     )
 
 
-def overlap_area_mm2(radii_mm, centres_mm):
+def overlap_area_mm2(radii_mm, centers_mm):
     """Area common to several discs whose centres lie on one line.
 
     The exit pupil, the projected vignetting circle (centre ``h tan(CRA)``) and a pixel's own
@@ -126,7 +190,7 @@ def overlap_area_mm2(radii_mm, centres_mm):
 
     Parameters
     ----------
-    radii_mm, centres_mm : sequence of array_like
+    radii_mm, centers_mm : sequence of array_like
         One radius (> 0) and one signed centre position per disc; arrays broadcast.
 
     Returns
@@ -142,9 +206,9 @@ def overlap_area_mm2(radii_mm, centres_mm):
     0.0
     """
     k = len(radii_mm)
-    if k < 1 or len(centres_mm) != k:
+    if k < 1 or len(centers_mm) != k:
         raise ValueError("need one centre per radius, for at least one disc")
-    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii_mm, *centres_mm)])
+    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii_mm, *centers_mm)])
     r, c = np.asarray(both[:k]), np.asarray(both[k:])
     lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
     points = [lo, hi]
@@ -178,6 +242,22 @@ def max_radius_eq44(d_mm, R_mm, dv_mm=None, P_mm=None):
     cross). It is exact whenever the vignetting circle is not wholly inside the pupil; when it
     is (``P < R`` with ``h >= x``) it over-estimates, which is harmless as an integration limit.
     :func:`max_radius_mm` is exact everywhere.
+
+    Parameters
+    ----------
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    dv_mm : array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm.
+    P_mm : array_like, optional
+        Vignetting-circle radius, mm. ``None``: no circle.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
     """
     d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
     if P_mm is None:
@@ -197,7 +277,22 @@ def max_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     The farthest point lies on the boundary (:func:`lens_boundary_arcs`): on an arc of a circle
     with centre ``c`` and radius ``rho`` the distance ``|c - d + rho e^{it}|`` is monotonic in
     ``t`` on ``[0, pi]``, so it peaks at an end of the arc. Zero where the pupil is cut off.
-    ``P_mm`` and ``dv_mm`` may be lists, one entry per circle.
+
+    Parameters
+    ----------
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
         return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[1]
@@ -223,6 +318,22 @@ def min_radius_mm(d_mm, R_mm, dv_mm=None, P_mm=None):
     The smallest incidence angle reaching the pixel is ``arctan(r_min / x)``. Outside the
     region the nearest point is on its boundary, at an end of an arc (see
     :func:`max_radius_mm`).
+
+    Parameters
+    ----------
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
         return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[0]
@@ -259,6 +370,15 @@ def lens_boundary_arcs(rho1, rho2, v):
     factored form, so the angles stay accurate right up to external or internal tangency, where
     the naive ``sqrt(rho1^2 - a^2)`` loses all its digits.
 
+    Parameters
+    ----------
+    rho1 : array_like
+        Pupil radius.
+    rho2 : array_like
+        Vignetting-disc radius (``inf``: none).
+    v : array_like
+        Distance between the centres (>= 0), in the same unit (mm, or normalised by ``x``).
+
     Returns
     -------
     beta, alpha : ndarray
@@ -284,6 +404,21 @@ def lens_boundary_arcs(rho1, rho2, v):
 
 def lens_area(rho1, rho2, beta, alpha):
     """Area of the vignetted pupil from its arcs: Eq. (33), ``R^2 seg(beta) + P^2 seg(alpha)``
-    with ``seg(t) = t - sin t cos t`` evaluated without cancellation."""
+    with ``seg(t) = t - sin t cos t`` evaluated without cancellation.
+
+    Parameters
+    ----------
+    rho1 : array_like
+        Pupil radius.
+    rho2 : array_like
+        Vignetting-disc radius, same unit (``inf``: none).
+    beta, alpha : array_like
+        The arcs' half-angles from :func:`lens_boundary_arcs`, radians.
+
+    Returns
+    -------
+    ndarray
+        Area in the square of the length unit.
+    """
     r2 = np.where(np.isfinite(rho2), rho2, 0.0)
     return rho1 * rho1 * _segment(beta) + r2 * r2 * _segment(alpha)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import check_curve, validate_method
+from .._validation import check_curve, check_positive, validate_method
 from . import rienstra1998
 from .goossens2019 import _gauss_legendre, kernel, mean_shift_contour
 from .lens import Lens
@@ -32,13 +32,36 @@ def kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0.05, n
     difference between their mean and the exact kernel mean, so the discrete kernel has exactly
     the mean of :func:`~snapcorr.optics.goossens2019.mean_shift_contour`.
 
+    Parameters
+    ----------
+    cwl_nm : float
+        Central wavelength at normal incidence, nm.
+    n_eff : float
+        Effective refractive index (> 1).
+    f_number : float
+        Nominal f-number.
+    cra_deg : float
+        Chief-ray angle, degrees.
+    lens : Lens
+    step_nm : float
+        Largest bin width, nm.
+    nodes : int
+        Gauss-Legendre nodes per bin.
+
+    Returns
+    -------
+    mu : ndarray
+        Bin centroids, shifts in nm (<= 0).
+    w : ndarray
+        Their masses, summing to 1. A single mass at the exact mean when the kernel is too
+        narrow for the nodes to see.
+
     Raises
     ------
     PupilCutOffError
         If no light reaches the pixel.
     """
-    if not (np.isfinite(step_nm) and step_nm > 0):
-        raise ValueError(f"step_nm must be finite and > 0, got {step_nm!r}")
+    check_positive("step_nm", step_nm)
     n_eff = float(check_n_eff(n_eff))
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     exact = float(mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv))  # raises if cut off

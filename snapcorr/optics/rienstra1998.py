@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import check_curve
+from .._validation import check_curve, check_positive
 from .goossens2019 import PupilCutOffError
 from .pupil import gamma, max_radius_mm, vignetted_area_mm2
 from .shift import check_n_eff
@@ -40,6 +40,20 @@ def arc_half_angle(R_j, A, D):
     ``x_j = (A^2 + D^2 - R_j^2) / (2 D)``, ``y_j = sqrt(A^2 - x_j^2)``,
     ``alpha_j = atan(y_j / (D - x_j))`` taken in the right quadrant (``arctan2``), with
     Rienstra's limiting cases: ``pi`` for an arc wholly inside, 0 wholly outside.
+
+    Parameters
+    ----------
+    R_j : array_like
+        Arc radius, ``tan(theta_j)`` in units of the filter height (A-3).
+    A : array_like
+        Bundle-circle radius, ``1 / (2 f#)`` in the same units (A-2).
+    D : array_like
+        Offset of the bundle's centre, ``tan(CRA)`` in the same units (A-5).
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
     """
     R_j, A, D = np.broadcast_arrays(*(np.asarray(v, float) for v in (R_j, A, D)))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -76,10 +90,8 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     -------
     theta_deg, W : ndarray
     """
-    if not (np.isfinite(step_deg) and step_deg > 0):
-        raise ValueError(f"step_deg must be > 0, got {step_deg!r}")
-    if not (np.isfinite(f_number_w) and f_number_w > 0):
-        raise ValueError(f"f_number_w must be finite and > 0, got {f_number_w!r}")
+    check_positive("step_deg", step_deg)
+    check_positive("f_number_w", f_number_w)
     if not (np.isfinite(cra_deg) and abs(cra_deg) < 90):
         raise ValueError(f"cra_deg must be finite and between -90 and 90, got {cra_deg!r}")
     A = 1.0 / (2.0 * float(f_number_w))
@@ -116,7 +128,22 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
 
 
 def shift_factors(theta_deg, n_eff, temperature_factor=1.0):
-    """Eq. (4): ``S_j = temperature_factor * cos(asin(sin(theta_j) / n_eff))``."""
+    """Eq. (4): ``S_j = temperature_factor * cos(asin(sin(theta_j) / n_eff))``.
+
+    Parameters
+    ----------
+    theta_deg : array_like
+        Incidence angles ``theta_j``, degrees.
+    n_eff : float
+        Effective refractive index (> 1).
+    temperature_factor : float
+        Factor for the filter's temperature (1: none).
+
+    Returns
+    -------
+    ndarray
+        ``S_j``, dimensionless: each ring's wavelength scale.
+    """
     n = check_n_eff(n_eff)
     s = np.sin(np.deg2rad(np.asarray(theta_deg, float))) / n
     return float(temperature_factor) * np.sqrt(1.0 - s * s)

@@ -113,7 +113,22 @@ def shift_nm(cwl_nm, n_eff, aoi_deg):
 
 
 def tilted_cwl_nm(cwl_nm, n_eff, aoi_deg):
-    """Central wavelength of a filter tilted by ``aoi_deg``: ``cwl + shift_nm(...)``."""
+    """Central wavelength of a filter tilted by ``aoi_deg``: ``cwl + shift_nm(...)`` (Eq. 3).
+
+    Parameters
+    ----------
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index of the filter (> 1).
+    aoi_deg : array_like
+        Angle of incidence, degrees (the sign is ignored).
+
+    Returns
+    -------
+    ndarray
+        Tilted central wavelength in nm; arguments broadcast.
+    """
     return np.asarray(cwl_nm, dtype=float) + shift_nm(cwl_nm, n_eff, aoi_deg)
 
 
@@ -121,6 +136,25 @@ def aoi_from_shift_deg(shift, cwl_nm, n_eff):
     """Angle of incidence that produces ``shift`` (nm, <= 0): the inverse of Eq. (3), Eq. (40).
 
     ``phi = asin(n_eff * sqrt(-(shift/cwl) * (2 + shift/cwl)))``.
+
+    Parameters
+    ----------
+    shift : array_like
+        Shift of the central wavelength, nm (<= 0, no bluer than grazing incidence gives).
+    cwl_nm : array_like
+        Central wavelength at normal incidence, nm.
+    n_eff : array_like
+        Effective refractive index of the filter (> 1).
+
+    Returns
+    -------
+    ndarray
+        Angle of incidence in degrees, [0, 90]; arguments broadcast.
+
+    Raises
+    ------
+    ValueError
+        A positive shift, or one beyond grazing incidence.
     """
     n = check_n_eff(n_eff)
     u = np.asarray(shift, dtype=float) / np.asarray(cwl_nm, dtype=float)

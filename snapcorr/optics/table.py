@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validation import check_positive
 from . import goossens2019 as g19
 from .lens import Lens
 
@@ -32,8 +33,7 @@ def _check_build(tolerance_nm, cwl_max_nm, cra_max_deg):
     if not (np.isfinite(tolerance_nm) and tolerance_nm >= MIN_TOLERANCE_NM):
         raise ValueError(f"tolerance_nm must be finite and >= {MIN_TOLERANCE_NM} nm, "
                          f"got {tolerance_nm!r}")
-    if not (np.isfinite(cwl_max_nm) and cwl_max_nm > 0):
-        raise ValueError(f"cwl_max_nm must be finite and > 0, got {cwl_max_nm!r}")
+    check_positive("cwl_max_nm", cwl_max_nm)
     if not (np.isfinite(cra_max_deg) and 0 <= cra_max_deg < 90):
         raise ValueError(f"cra_max_deg must lie in [0, 90), got {cra_max_deg!r}")
 
@@ -83,7 +83,38 @@ class ShiftTable:
         cwl_max_nm=1000.0,
         nodes=None,
     ):
-        """Tabulate ``mean_shift / cwl`` from 0 to ``cra_max_deg`` to ``tolerance_nm``."""
+        """Tabulate ``mean_shift / cwl`` from 0 to ``cra_max_deg`` to ``tolerance_nm``.
+
+        Nodes start 0.5 deg apart with every kink (two discs touching inside each other, the
+        onsets of Eq. 46 among them); intervals are halved until linear interpolation holds.
+
+        Parameters
+        ----------
+        n_eff : float
+            Effective refractive index (> 1).
+        f_number : float
+            Nominal f-number.
+        lens : Lens
+        cra_max_deg : float
+            Largest chief-ray angle, degrees, in [0, 90) and below the lens's full cut-off at
+            this f-number; the table reaches at least 1 deg (or just short of the cut-off).
+        tolerance_nm : float
+            Largest interpolation error for any ``cwl <= cwl_max_nm``, nm (>= 1e-8).
+        cwl_max_nm : float
+            Longest central wavelength the tolerance holds for, nm.
+        nodes : int, optional
+            Gauss-Legendre nodes per arc of the exact quadrature (default
+            :data:`~snapcorr.optics.goossens2019.DEFAULT_NODES`).
+
+        Returns
+        -------
+        ShiftTable
+
+        Raises
+        ------
+        PupilCutOffError
+            ``cra_max_deg`` at or beyond the full cut-off.
+        """
         n_eff, f_number = float(n_eff), float(f_number)
         _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
         cutoff = float(lens.cutoff_cra_deg(f_number))
@@ -134,7 +165,8 @@ class ShiftTable:
             a, b = np.concatenate([a[bad], mid[bad]]), np.concatenate([mid[bad], b[bad]])
             fa, fb = np.concatenate([fa[bad], fm[bad]]), np.concatenate([fm[bad], fb[bad]])
         else:
-            raise RuntimeError("ShiftTable did not converge; lower the tolerance or report a bug")
+            raise RuntimeError("ShiftTable did not converge; loosen (raise) tolerance_nm or "
+                               "report a bug")
         cra, order = np.unique(np.concatenate(nodes_c), return_index=True)
         vals = np.concatenate(nodes_v)[order]
         return cls(cra, vals, n_eff, f_number, float(tolerance_nm), float(cwl_max_nm))
@@ -324,7 +356,27 @@ class ShiftGrid:
     @classmethod
     def build(cls, n_eff, lens: Lens, *, f_range=(1.2, 22.0), cra_max_deg=30.0,
               tolerance_nm=0.001, cwl_max_nm=1000.0):
-        """Tabulate ``mean_shift / cwl`` for ``f_range`` and CRA 0-``cra_max_deg``."""
+        """Tabulate ``mean_shift / cwl`` for ``f_range`` and CRA 0-``cra_max_deg``.
+
+        Parameters
+        ----------
+        n_eff : float
+            Effective refractive index (> 1).
+        lens : Lens
+        f_range : (float, float)
+            Smallest and largest nominal f-number (an interval, either order).
+        cra_max_deg : float
+            Largest chief-ray angle of the grid, degrees, in [0, 90); larger CRAs are answered
+            by the exact quadrature.
+        tolerance_nm : float
+            Largest interpolation error for any ``cwl <= cwl_max_nm``, nm (>= 1e-8).
+        cwl_max_nm : float
+            Longest central wavelength the tolerance holds for, nm.
+
+        Returns
+        -------
+        ShiftGrid
+        """
         _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
         f_lo, f_hi = sorted(float(v) for v in f_range)
         if not f_hi > f_lo:
@@ -361,8 +413,8 @@ class ShiftGrid:
                 A_ = np.interp(U_, bnodes.astype(float), breaks)
                 errs.append(np.abs(exact(A_, 2.0 * V_ / (nx - 1))
                                    - cls._interp(vals, U_, V_, bnodes)))
-            centre, edge_a, edge_x = errs
-            ok = ((centre <= tol_rel) & (edge_a[:, 1:] <= tol_rel) & (edge_a[:, :-1] <= tol_rel)
+            center, edge_a, edge_x = errs
+            ok = ((center <= tol_rel) & (edge_a[:, 1:] <= tol_rel) & (edge_a[:, :-1] <= tol_rel)
                   & (edge_x[1:] <= tol_rel) & (edge_x[:-1] <= tol_rel))
             if ok.mean() > 0.995 or (na, nx) == _GRID_MAX:
                 break

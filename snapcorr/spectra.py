@@ -1,0 +1,255 @@
+"""Source spectra: the sun, blackbodies (tungsten lamps), spectrum files and a cube's own.
+
+A :class:`Spectrum` is sampled at increasing wavelengths and interpolated linearly between
+them; asking for it outside its range is an error, never a silent zero. The scene budget
+(:mod:`snapcorr.budget`) weighs a filter's shift by such a spectrum.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ._validation import validate_method
+
+__all__ = [
+    "SOLAR_MODELS",
+    "Spectrum",
+    "blackbody",
+    "cube_spectrum",
+    "parse_source",
+    "read_spectrum",
+    "solar",
+]
+
+#: Tungsten lamps are modelled as blackbodies at their colour temperature (CIE illuminant A,
+#: the incandescent lamp, is defined as Planck's law at 2856 K).
+_C2_NM_K = 1.438776877e7  # second radiation constant, nm K
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """A source spectrum sampled at increasing wavelengths (nm); any linear unit.
+
+    Between samples it is interpolated linearly; outside the sampled range it is undefined, and
+    asking for it raises ``ValueError``.
+    """
+
+    wavelength_nm: np.ndarray
+    values: np.ndarray
+    name: str = "spectrum"
+
+    def __post_init__(self):
+        w = np.asarray(self.wavelength_nm, float)
+        v = np.asarray(self.values, float)
+        if w.ndim != 1 or w.shape != v.shape or w.size < 2:
+            raise ValueError(f"the spectrum {self.name!r} needs wavelengths and values of "
+                             f"equal length (>= 2), got shapes {w.shape} and {v.shape}")
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(v))):
+            raise ValueError(f"the spectrum {self.name!r} holds NaN or infinite values")
+        if np.any(np.diff(w) <= 0):
+            raise ValueError(f"the spectrum {self.name!r} needs strictly increasing "
+                             "wavelengths (no repeats)")
+        if np.any(v < 0) or not np.any(v > 0):
+            raise ValueError(f"the spectrum {self.name!r} must be >= 0 and not all zero")
+        object.__setattr__(self, "wavelength_nm", w)
+        object.__setattr__(self, "values", v)
+
+    @property
+    def step_nm(self) -> float:
+        return float(np.median(np.diff(self.wavelength_nm)))
+
+    def __call__(self, wavelength_nm):
+        lam = np.asarray(wavelength_nm, float)
+        lo, hi = self.wavelength_nm[0], self.wavelength_nm[-1]
+        if lam.size and (lam.min() < lo - 1e-9 or lam.max() > hi + 1e-9):
+            raise ValueError(f"the spectrum {self.name!r} covers {lo:g}-{hi:g} nm; "
+                             f"{lam.min():.4g}-{lam.max():.4g} nm is needed")
+        return np.interp(lam, self.wavelength_nm, self.values)
+
+
+#: Solar spectra :func:`solar` offers, each shipped offline by a maintained package.
+SOLAR_MODELS = ("kurucz", "astm-g173")
+
+
+def solar(model="kurucz", smoothing_nm=0.5, step_nm=0.1, range_nm=(300.0, 1100.0)) -> Spectrum:
+    """The sun's spectrum.
+
+    ``"kurucz"``: the Kurucz solar flux at 1 AU (``rms-solar``), as Flittner & Slater used it:
+    a sliding average over ``smoothing_nm`` sampled every ``step_nm``. It is the sun alone,
+    with the Fraunhofer lines but none of the Earth's oxygen and water-vapour bands.
+    ``"astm-g173"``: the ASTM G173 global tilted irradiance at the ground (``pvlib``; 0.5 nm
+    below 400 nm, 1 nm above, no smoothing), with the O2 and H2O bands (1.42 cm of water)
+    but coarser lines.
+
+    Parameters
+    ----------
+    model : {"kurucz", "astm-g173"}
+        The spectrum (:data:`SOLAR_MODELS`).
+    smoothing_nm : float
+        Width of the sliding average, nm (``"kurucz"`` only; at most one step: none).
+    step_nm : float
+        Sampling step, nm (``"kurucz"`` only).
+    range_nm : (float, float)
+        Wavelengths kept, nm (``"astm-g173"``: its own samples within 1 nm beyond them).
+
+    Returns
+    -------
+    Spectrum
+        In W/m^2/nm.
+    """
+    validate_method(model, SOLAR_MODELS, "solar model")
+    if model == "astm-g173":
+        from pvlib.spectrum import get_reference_spectra
+
+        df = get_reference_spectra(standard="ASTM G173-03")
+        w = np.asarray(df.index, float)
+        keep = (w >= range_nm[0] - 1) & (w <= range_nm[1] + 1)
+        return Spectrum(w[keep], np.asarray(df["global"], float)[keep],
+                        "sun at the ground (ASTM G173 global tilt)")
+    import solar as rms_solar  # the rms-solar package
+    from scipy.ndimage import uniform_filter1d
+
+    tab = rms_solar.flux_density("Kurucz", units="W/m^2/nm", xunits="nm")
+    grid = np.arange(range_nm[0], range_nm[1] + step_nm / 2, step_nm)
+    values = np.interp(grid, np.asarray(tab.x, float), np.asarray(tab.y, float))
+    width = max(1, round(smoothing_nm / step_nm))
+    if width > 1:
+        values = uniform_filter1d(values, width, mode="nearest")
+    return Spectrum(grid, values, f"sun (Kurucz, {smoothing_nm:g} nm sliding average)")
+
+
+def blackbody(temperature_k, wavelength_nm=None) -> Spectrum:
+    """Planck's law at ``temperature_k`` (relative spectral radiance); a tungsten lamp at its
+    colour temperature."""
+    t = float(temperature_k)
+    if not (math.isfinite(t) and t > 0):
+        raise ValueError(f"a temperature must be > 0 K, got {temperature_k!r}")
+    lam = np.arange(250.0, 2500.01, 0.5) if wavelength_nm is None else np.asarray(
+        wavelength_nm, float)
+    with np.errstate(over="ignore"):
+        v = 1.0 / (lam ** 5 * np.expm1(_C2_NM_K / (lam * t)))
+    if not v.max() > 0:
+        raise ValueError(f"a blackbody at {t:g} K emits nothing measurable at "
+                         f"{lam[0]:g}-{lam[-1]:g} nm")
+    return Spectrum(lam, v / v.max(), f"blackbody {t:g} K")
+
+
+def read_spectrum(path) -> Spectrum:
+    """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments;
+    comma, semicolon, tab or space separated; header lines before the numbers are skipped) or
+    an ``.npy`` array of shape (n, 2) or (2, n)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"no spectrum file {str(p)!r}")
+    if p.suffix == ".npy":
+        a = np.load(p)
+    else:
+        rows = []
+        for k, line in enumerate(p.read_text().splitlines(), 1):
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            fields = [f for f in re.split(r"[,;\s]+", line) if f]
+            try:
+                rows.append([float(f) for f in fields])
+            except ValueError:
+                if rows:  # text after the data began
+                    raise ValueError(f"{p}, line {k}: not numbers: {line[:60]!r}") from None
+                continue  # a header line
+        if not rows or any(len(r) != len(rows[0]) for r in rows):
+            raise ValueError(f"{p}: need two columns of numbers (wavelength nm, value), one "
+                             "row per line")
+        a = np.array(rows)
+    a = np.asarray(a, float)
+    if a.ndim == 2 and a.shape[0] == 2 and a.shape[1] != 2:
+        a = a.T
+    if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 2:
+        raise ValueError(f"{p}: need two columns (wavelength nm, value), got shape {a.shape}")
+    order = np.argsort(a[:, 0])
+    try:
+        return Spectrum(a[order, 0], a[order, 1], p.name)
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}") from None
+
+
+def cube_spectrum(cube, y=None, x=None) -> Spectrum:
+    """The spectrum of one pixel of a cube (``y``, ``x``), or its mean over all pixels.
+
+    A cube samples the scene at its bands only: between band centres the spectrum is linear,
+    so structure narrower than the band spacing is not seen; beyond the first and last band it
+    is held at their values (200 nm either side), for the filters' tails.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        Dims ``(y, x, band)`` with a ``wavelength(band)`` coordinate, nm.
+    y, x : int, optional
+        The pixel (indices); both or neither. Neither: the mean over all pixels (NaN skipped).
+
+    Returns
+    -------
+    Spectrum
+        Bands in increasing wavelength; bands whose value is not finite are left out and
+        negative values are clipped to 0.
+
+    Raises
+    ------
+    ValueError
+        No finite value in the spectrum.
+    """
+    da = cube if y is None else cube.isel(y=y, x=x)
+    if y is None:
+        da = da.mean(("y", "x"), skipna=True)
+    v = np.asarray(da.values, float)
+    w = np.asarray(cube["wavelength"].values, float)
+    order = np.argsort(w)
+    ok = np.isfinite(v[order])
+    where = "mean" if y is None else f"pixel ({y}, {x})"
+    w, v = w[order][ok], np.clip(v[order][ok], 0.0, None)
+    if w.size == 0:
+        raise ValueError(f"the cube's {where} spectrum has no finite value")
+    w = np.concatenate([[w[0] - 200.0], w, [w[-1] + 200.0]])
+    v = np.concatenate([[v[0]], v, [v[-1]]])
+    return Spectrum(w, v, f"cube {where}")
+
+
+def parse_source(text, cube=None) -> Spectrum:
+    """``"solar"`` (or ``"solar:astm-g173"``, see :func:`solar`), ``"tungsten:TEMPERATURE_K"``
+    (or ``"blackbody:..."``), ``"cube"`` (the mean spectrum of ``cube``), ``"cube:Y,X"`` (one
+    of its pixels) or the path of a spectrum file."""
+    t = str(text).strip()
+    kind, _, arg = t.partition(":")
+    if kind == "solar":
+        return solar(arg or "kurucz")
+    if kind in ("tungsten", "blackbody") and arg:
+        try:
+            temperature = float(arg)
+        except ValueError:
+            raise ValueError(f"{kind}: needs a temperature in K, e.g. {kind}:2856, "
+                             f"got {arg!r}") from None
+        return blackbody(temperature)
+    if kind == "cube":
+        if cube is None:
+            raise ValueError(f"source {t!r} needs a cube")
+        if not arg:
+            return cube_spectrum(cube)
+        try:
+            y, x = (int(v) for v in arg.split(","))
+        except ValueError:
+            raise ValueError(f"cube:Y,X needs two pixel indices, got {arg!r}") from None
+        if not (0 <= y < cube.sizes["y"] and 0 <= x < cube.sizes["x"]):
+            raise ValueError(f"pixel ({y}, {x}) is outside the {cube.sizes['y']} x "
+                             f"{cube.sizes['x']} cube")
+        return cube_spectrum(cube, y, x)
+    if Path(t).is_file():
+        return read_spectrum(t)
+    if Path(t).suffix or "/" in t or "\\" in t:
+        raise ValueError(f"no spectrum file {t!r}")
+    raise ValueError(f"unknown source {t!r}: use solar, solar:astm-g173, "
+                     "tungsten:TEMPERATURE_K, cube, cube:Y,X or the path of a two-column "
+                     "spectrum file")
