@@ -1,8 +1,11 @@
 """The benchmarks run in CI in their quick mode, so they cannot rot."""
 
 import numpy as np
+import pytest
 
 from benchmarks import mean_shift as bench
+
+pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
 
 
 def test_quick_benchmark_runs_and_reports_sane_numbers():

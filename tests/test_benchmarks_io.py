@@ -8,9 +8,12 @@ runs under an address-space limit) and their numpy references.
 import math
 
 import numpy as np
+import pytest
 import xarray as xr
 
 from benchmarks import io_memory
+
+pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
 
 
 def _finite_positive(*values):

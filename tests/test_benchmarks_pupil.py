@@ -6,7 +6,11 @@ afresh) fit 64 x 80 x 16-band cubes, as the full run fits 256 x 320 x 100.
 
 import math
 
+import pytest
+
 from benchmarks import pupil
+
+pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
 
 
 def _finite(*values):

@@ -6,7 +6,11 @@ LocalClusters of worker processes, as in the full run.
 
 import math
 
+import pytest
+
 from benchmarks import scaling
+
+pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
 
 
 def _finite_positive(*values):

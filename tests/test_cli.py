@@ -86,6 +86,7 @@ def test_every_option_has_help_text():
                 assert action.help, f"snapcorr {name} {action.option_strings or action.dest}"
 
 
+@pytest.mark.examples  # the README's first command, end to end (about 20 s)
 def test_demo_writes_figure_table_and_summary(tmp_path, cli):
     res = cli("demo", "--out", tmp_path / "out")
     assert res.returncode == 0, res.stderr

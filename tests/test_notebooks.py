@@ -55,6 +55,7 @@ def test_notebook_is_paired_and_in_sync(path):
                        f"notebooks/{path.name}`")
 
 
+@pytest.mark.examples
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_notebook_runs(path, monkeypatch):
     monkeypatch.setenv("PYTHONWARNINGS", "error::RuntimeWarning")  # inherited by the kernel

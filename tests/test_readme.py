@@ -101,3 +101,19 @@ def test_unknown_bundled_name_lists_the_bundled_ones(find, kind, name, bundled):
         message = str(err.value)
         assert message.startswith(f"no bundled {kind} named '{name}'; bundled ")
         assert bundled in message and "Path(" not in message
+
+
+def test_ci_runs_exactly_the_readme_test_command():
+    """`.ci/run` is the README's test command, and that command runs the examples too."""
+    ci = (README.parent / ".ci" / "run").read_text().splitlines()
+    command = [ln for ln in ci if "pytest" in ln]
+    assert len(command) == 1
+    tests = [ln for b in blocks("bash") for ln in command_lines(b) if "pip install" in ln
+             and "pytest" in ln]
+    assert tests == command
+    assert "-m examples" in command[0]
+    from tomllib import loads
+
+    addopts = loads((README.parent / "pyproject.toml").read_text())["tool"]["pytest"][
+        "ini_options"]["addopts"]
+    assert "not examples" in addopts and "not slow" in addopts
