@@ -360,9 +360,9 @@ def _cmd_correct(args):
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
         raise ValueError("--tolerance-pct applies to the scene budget: give --source too")
-    if args.target_fwhm_nm is not None and not args.harmonise:
+    if args.target_fwhm_nm is not None and not (args.harmonise or args.method == "harmonised"):
         raise ValueError("--target-fwhm-nm sets the common response of --harmonise: give "
-                         "--harmonise too")
+                         "--harmonise (or --method harmonised) too")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     cube, mask = _correct_input(args, sensor)

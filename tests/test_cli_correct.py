@@ -40,6 +40,22 @@ def test_correct_writes_what_the_library_computes(files, cli):
     assert ds.attrs["cube_file"] == "cube.nc" and ds.attrs["f_number"] == 1.4
 
 
+def test_method_harmonised_is_the_vignetted_shift_and_one_response_per_band(files, cli):
+    d, cube, sensor = files
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--method", "harmonised", "--target-fwhm-nm", "30",
+              "--out", "out.nc", cwd=d)
+    assert res.returncode == 0, res.stderr
+    ds = read_dataset(d / "out.nc")
+    ref = correct_cube(cube, sensor, 1.4, PAPER, method="vignetted", harmonise=True,
+                       target_fwhm_nm=30.0)
+    assert ds.attrs["method"] == "harmonised" and ds.attrs["method_reason"] == "asked for"
+    np.testing.assert_array_equal(ds["wavelength_corrected"].values,
+                                  ref["wavelength_corrected"].values)
+    np.testing.assert_array_equal(ds["harmonised"].values, ref["harmonised"].values)
+    assert np.all(ds["fwhm_harmonised"].values == 30.0)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--f-number", "0"], "--f-number"),
     (["--f-number", "2", "--out", "cube.nc"], "also an input"),
@@ -49,7 +65,7 @@ def test_correct_writes_what_the_library_computes(files, cli):
     (["--f-number", "2", "--out", "out.txt"], ".nc or .zarr"),
     (["--f-number", "2", "--sensor", "badsensor.toml"], "cwl_nm"),
     (["--f-number", "2", "--center-px", "100000,0"], "cuts off the whole pupil"),
-    (["--f-number", "2", "--target-fwhm-nm", "30"], "give --harmonise too"),
+    (["--f-number", "2", "--target-fwhm-nm", "30"], "give --harmonise"),
     (["--f-number", "2", "--harmonise", "--target-fwhm-nm", "5"], "only widens"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, args, message, cli):
