@@ -366,7 +366,6 @@ def _cmd_correct(args):
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     cube, mask = _correct_input(args, sensor)
-    sensor.check_cube(cube, str(args.cube))
     method, provenance = args.method, {}
     if args.source is not None:  # the scene budget chooses the model
         from .budget import recommend_model

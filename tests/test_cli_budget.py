@@ -163,3 +163,7 @@ def test_the_budget_recommends_the_model_correct_cube_takes():
     assert model == "harmonised" and "harmonised leaves at most" in reason
     flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)
     assert budget.recommend_model(flat, sensor, 1.4, PAPER, "cube")[0] == "none"
+    # a cube of another sensor: refused before any budget is worked out for it
+    other = Sensor("other", "snapscan", 40.0, np.linspace(500, 900, 20), 10.0, 1.7)
+    with pytest.raises(ValueError, match="has 21 bands, the sensor 'other' 20"):
+        budget.recommend_model(cube, other, 1.4, PAPER, "cube")

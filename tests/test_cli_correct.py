@@ -40,6 +40,16 @@ def test_correct_writes_what_the_library_computes(files, cli):
     assert ds.attrs["cube_file"] == "cube.nc" and ds.attrs["f_number"] == 1.4
 
 
+@pytest.mark.parametrize("extra", [[], ["--source", "solar"]], ids=["model", "budget"])
+def test_a_cube_of_another_sensor_is_one_line(files, cli, extra):
+    d, _, _ = files
+    Sensor("four", "snapscan", 40.0, np.linspace(500, 900, 4), 10.0, 1.7).save(d / "four.toml")
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "four.toml",
+              "--f-number", "2", "--out", "out.nc", *extra, cwd=d)
+    assert res.returncode == 1 and "has 5 bands, the sensor 'four' 4" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and not (d / "out.nc").exists()
+
+
 def test_method_harmonised_is_the_vignetted_shift_and_one_response_per_band(files, cli):
     d, cube, sensor = files
     res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",

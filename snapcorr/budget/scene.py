@@ -232,6 +232,7 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
     from ..correct.geometry import cube_cra_deg
     from ..spectra import parse_source
 
+    sensor.check_cube(cube)
     spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
     cra = cube_cra_deg(cube, sensor, lens, center_px, sensor_origin_px=sensor_origin_px)[0]
     budget = scene_budget(spectrum, sensor, f_number, lens, cra_max_deg=float(cra.max()),
