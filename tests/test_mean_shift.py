@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from conftest import PAPER_LENS, brute_force_mean, load_reference_csv
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
@@ -428,6 +428,7 @@ def test_gamma_is_the_arc_inside_both_circles(r, f, cra, P, h):
 
 @settings(max_examples=100, deadline=None)
 @given(f=st.floats(1.2, 22), P=st.floats(0.5, 30), h=st.floats(-60, 60))
+@example(f=21.0, P=0.5, h=1.0)  # P = R exactly: onset 0, yet the axis sees the whole pupil
 def test_axis_is_never_vignetted_when_p_covers_the_pupil(f, P, h):
     lens = Lens(X, [(P, h)], name="t")
     if P >= lens.exit_pupil_radius_mm(f):

@@ -206,8 +206,12 @@ class Lens:
         shape = np.broadcast_shapes(np.shape(f_number), cra.shape)
         if not self.has_vignetting:
             return np.zeros(shape, bool)
+        R = np.asarray(self.exit_pupil_radius_mm(f_number))
+        # on axis a circle cuts only if it is smaller than the pupil: one of the same radius
+        # (onset 0) leaves the whole pupil at CRA 0 and cuts from there on
+        on_axis = np.any([P < R for P, _ in self.vignetting], axis=0)
         return np.broadcast_to(cra > self.onset_cra_deg(f_number), shape) | np.broadcast_to(
-            np.asarray(self.onset_cra_deg(f_number)) == 0.0, shape)
+            on_axis, shape)
 
     def relative_illumination(self, f_number, cra_deg):
         """Fraction of the exit pupil left by the vignetting circles (optical vignetting only).
