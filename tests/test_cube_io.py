@@ -248,6 +248,24 @@ def test_sensor_positions_round_trip_exactly(tmp_path, ext, make):
     assert back.name == cube.name
 
 
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+@pytest.mark.parametrize("make", [_mosaic_cube, _snapscan_crop], ids=["mosaic", "snapscan-crop"])
+def test_chunked_cubes_with_positions_are_written_like_any_other(tmp_path, ext, make):
+    """A dask-backed cube is written in a second pass after its coordinates; that pass once
+    gave zarr the positions' encoding again ("variable 'sensor_col' already exists")."""
+    from snapcorr.cube import read_dataset, write_dataset
+
+    cube = make().chunk({"y": 2})
+    write_cube(cube, tmp_path / f"c{ext}")
+    write_dataset(cube.to_dataset(name="reflectance"), tmp_path / f"d{ext}")
+    for back in (read_cube(tmp_path / f"c{ext}"), read_dataset(tmp_path / f"d{ext}")):
+        for name in ("sensor_row", "sensor_col", "wavelength"):
+            assert name in back.coords  # still coordinates, not data variables
+            assert_array_equal(back[name].values, cube[name].values)
+        values = back.values if isinstance(back, xr.DataArray) else back["reflectance"].values
+        assert_array_equal(values, cube.values)
+
+
 def test_envi_header_stores_positions_compactly_when_they_are_regular(tmp_path):
     write_cube(_mosaic_cube(), tmp_path / "m.hdr")
     text = (tmp_path / "m.hdr").read_text()

@@ -1465,8 +1465,13 @@ def _store_dataset(ds, path, fmt):
 
         first.to_zarr(tmp, mode="w", consolidated=False, encoding=_zarr_encoding(first))
         for v in lazy:
-            ds[[v]].to_zarr(tmp, mode="a", consolidated=False,
-                            encoding=_zarr_encoding(ds[[v]]))
+            # the coordinates went in with the first pass (sensor positions, the corrected
+            # wavelengths' compact form): zarr refuses an encoding for a variable that already
+            # exists, so later passes give one for their own variable only
+            part = ds[[v]]
+            part.to_zarr(tmp, mode="a", consolidated=False,
+                         encoding={k: e for k, e in _zarr_encoding(part).items()
+                                   if k not in first.variables})
         # Zarr 3 keeps consolidated metadata in zarr.json as an extension that other readers
         # may ignore ("must_understand": false); it lets xr.open_zarr(path) open the store
         # with its default arguments, quickly and without a warning.
