@@ -12,9 +12,11 @@ __all__ = ["WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers
 
 
 def check_positive(name, value):
-    """``value`` as a float, raising a clear ``ValueError`` unless it is a finite number > 0."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a number, got a boolean ({value!r})")
+    """``value`` as a float, raising a clear ``ValueError`` unless it is a finite number > 0
+    (not a boolean, not text: a command line's strings are converted where they are parsed)."""
+    kind = _not_a_number(value)
+    if kind:
+        raise ValueError(f"{name} must be a number, got {kind} ({value!r})")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -162,21 +164,28 @@ def check_wavelengths_nm(name, values, *, where=""):
     return w
 
 
-def _has_bool(value):
+def _not_a_number(value):
+    """``"a boolean"`` or ``"text"`` if ``value`` (or an element) is one, else None."""
     if isinstance(value, (bool, np.bool_)):
-        return True
+        return "a boolean"
+    if isinstance(value, (str, bytes, np.str_)):
+        return "text"
     if isinstance(value, (list, tuple)):
-        return any(_has_bool(v) for v in value)
+        return next((k for k in map(_not_a_number, value) if k), None)
     if isinstance(value, np.ndarray):
-        return value.dtype == bool
-    return False
+        if value.dtype.kind == "O":
+            return _not_a_number(value.tolist())
+        return {"b": "a boolean", "U": "text", "S": "text"}.get(value.dtype.kind)
+    return None
 
 
 def check_numbers(name, value):
-    """Refuse booleans where numbers are expected (TOML's ``true`` is not 1 mm); return
-    ``value`` unchanged. Works on scalars and nested lists."""
-    if _has_bool(value):
-        raise ValueError(f"{name} must be a number, got a boolean ({value!r})")
+    """Refuse booleans and text where numbers are expected (TOML's ``true`` is not 1 mm, and
+    ``"1.7"`` is text, not an index); return ``value`` unchanged. Works on scalars and nested
+    lists."""
+    kind = _not_a_number(value)
+    if kind:
+        raise ValueError(f"{name} must be a number, got {kind} ({value!r})")
     return value
 
 

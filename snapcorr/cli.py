@@ -107,10 +107,11 @@ def _examples(*commands):
 # -- shared pieces -----------------------------------------------------------------------------
 
 
-def _bundled_or_file(value, load, bundled_path):
-    """A profile from a .toml path, or a bundled one by name (``edmund_optics_16mm``)."""
+def _bundled_or_file(value, load, bundled_path, suffixes=(".toml",)):
+    """A profile from a file (``suffixes``), or a bundled one by name
+    (``edmund_optics_16mm``)."""
     path = Path(value)
-    if path.suffix == ".toml" or path.exists():
+    if path.suffix.lower() in suffixes or path.exists():
         return load(path)
     return load(bundled_path(str(value)))
 
@@ -126,7 +127,7 @@ def _sensor(value):
     from .cube import Sensor
     from .data import sensor_path
 
-    return _bundled_or_file(value, Sensor.load, sensor_path)
+    return _bundled_or_file(value, Sensor.load, sensor_path, (".toml", ".xml"))
 
 
 def _pair_arg(what, names, *, integer=False):
@@ -151,9 +152,17 @@ _center_arg = _pair_arg("centre", "CX,CY")
 _origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
 
 
+def _number(text):
+    """A command-line string as a float (NaN for text that is not one, refused after)."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
 def _positive(value):
     try:
-        return check_positive("value", value)
+        return check_positive("value", _number(value))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {value!r}") \
             from None
@@ -239,10 +248,11 @@ def _read(path, sensor=None, origin=None):
             frame_error = err
         else:
             frame = read_frame(path, chunks={"y": _frame_rows(frame, sensor), "x": -1})
-            if origin is None:
-                _check_full_frame(frame.shape, sensor, path)
-            return mosaic_to_cube(frame.data, sensor, origin_px=origin or (0, 0),
-                                  attrs={**frame.attrs, "source": str(path)})
+            try:
+                return mosaic_to_cube(frame.data, sensor, origin_px=origin,
+                                      attrs={**frame.attrs, "source": str(path)})
+            except ValueError as err:
+                raise ValueError(f"{path}: {err}") from None
     try:
         cube = read_cube(path, wavelength_nm=wl, chunks={})
     except ValueError as err:
@@ -265,16 +275,6 @@ def _frame_rows(frame, sensor):
 
     tr = sensor.mosaic_shape[0]
     return max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
-
-
-def _check_full_frame(shape, sensor, path):
-    from .correct import PlacementError
-
-    if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
-        raise PlacementError(
-            f"{path} is a {shape[0]} x {shape[1]} frame but the sensor {sensor.name!r} is "
-            f"{sensor.size_px[0]} x {sensor.size_px[1]} px: give --sensor-origin-px ROW,COL, "
-            "the sensor row and column of the frame's first pixel")
 
 
 # -- subcommands -------------------------------------------------------------------------------
@@ -422,7 +422,7 @@ def _flat_arg(value):
     f, path = value.split("=", 1)
     f = f.strip().lower().removeprefix("f").removeprefix("/")
     try:
-        fv = check_positive("the f-number", f)
+        fv = check_positive("the f-number", _number(f))
     except ValueError:
         raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number > 0") from None
     if not path:
@@ -725,7 +725,8 @@ def _print_budget(args, b, sensor, lens, source, field, ranges):
 
 # -- the parser --------------------------------------------------------------------------------
 
-SENSOR_HELP = "sensor description (.toml) or a bundled one (snapscan_vnir, mosaic_4x4_vis, ...)"
+SENSOR_HELP = ("sensor description (.toml), the vendor's calibration file (.xml) or a bundled "
+               "sensor (snapscan_vnir, mosaic_4x4_vis, imec_5x5_nir, ...)")
 OVERWRITE_HELP = "replace an existing --out (or --plot) that snapcorr wrote; never an input"
 ORIGIN_HELP = ("sensor row and column of the cube's first pixel (of its tile, for a mosaic), "
                "for a crop that does not record where it sits")

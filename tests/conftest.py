@@ -23,6 +23,13 @@ PAPER_TRUTH = LensTruth(PAPER_X_MM, (PAPER_CIRCLE,), PAPER_M, PAPER_M_P, name="p
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
 DATA = Path(__file__).resolve().parent / "data"
+REPO = Path(__file__).resolve().parents[1]
+#: A real vendor calibration file (the older variant): imec 5x5 NIR mosaic on a CMV2000,
+#: bundled with its licence (BSD-3-Clause).
+VENDOR_XML = REPO / "calibration" / "sensors" / "CMV2K-SSM5x5-600_875-5.5.9.2.xml"
+#: Real measured responses of imec 4x4 VIS and 5x5 NIR mosaic sensors (MIT): SpectralProfiles
+#: (bands x 601, 400-1000 nm at 1 nm, no band-pass applied) and the central wavelengths.
+RESPONSES_MAT = {4: DATA / "imec_responses_4x4.mat", 5: DATA / "imec_responses_5x5.mat"}
 
 
 @pytest.fixture(scope="session")

@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 import xarray as xr
+from numpy.testing import assert_allclose
 
 REPO = Path(__file__).resolve().parents[1]
 LENS = REPO / "calibration" / "lenses" / "edmund_optics_16mm.toml"
@@ -1061,15 +1062,27 @@ def test_raw_mosaic_crop_with_origin_goes_through_flatfield(tmp_path, monkeypatc
                                rtol=0, atol=1e-9)
 
 
-def test_raw_mosaic_crop_off_the_tile_grid_is_refused(tmp_path, monkeypatch, cli):
+def test_raw_mosaic_crop_off_the_tile_grid_follows_the_layout(tmp_path, monkeypatch, cli):
+    """A camera's region of interest may start at any row: the bands are found where the
+    tile grid puts them (they were once refused)."""
     monkeypatch.chdir(tmp_path)
-    for name, value in (("raw", 150.0), ("dark", 10.0), ("white", 400.0)):
-        np.save(tmp_path / f"{name}.npy", np.full((64, 64), value, np.float32))
-    before = snapshot(tmp_path)
+    rng = np.random.default_rng(2)
+    frames = {"raw": rng.uniform(100, 200, (64, 64)), "dark": np.full((64, 64), 10.0),
+              "white": rng.uniform(300, 400, (64, 64))}
+    for name, value in frames.items():
+        np.save(tmp_path / f"{name}.npy", value.astype(np.float32))
     rc, _, err = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
                      "--sensor", MOSAIC, "--sensor-origin-px", "401,802", "--out", "ff.nc")
-    assert_refused(rc, err, "--sensor-origin-px")
-    assert snapshot(tmp_path) == before
+    assert rc == 0, err
+    from snapcorr.cube import read_dataset
+
+    ds = read_dataset(tmp_path / "ff.nc")
+    rows, cols = ds.sensor_row.values, ds.sensor_col.values
+    ff = (frames["raw"] - 10.0) / (frames["white"] - 10.0)
+    for b in range(16):  # the 4 x 4 sensor's band b sits at tile row b // 4, column b % 4
+        assert np.all(rows[:, b] % 4 == b // 4) and np.all(cols[:, b] % 4 == b % 4)
+        assert_allclose(ds["reflectance"].values[:, :, b],
+                        ff[rows[:, b][:, None] - 401, cols[:, b][None, :] - 802], rtol=1e-6)
 
 
 # -- inputs real users have: multi-page TIFF --------------------------------------------------

@@ -4,6 +4,7 @@ import dask.array as da
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import VENDOR_XML
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
@@ -114,12 +115,63 @@ def test_mosaic_extraction_against_a_loop(name):
 
 def test_mosaic_errors():
     s = Sensor.load(sensor_path("mosaic_4x4_vis"))
-    with pytest.raises(ValueError, match="tile boundary"):
-        mosaic_to_cube(np.zeros((8, 8)), s, origin_px=(1, 0))
-    with pytest.raises(ValueError, match="whole number of"):
-        mosaic_to_cube(np.zeros((9, 8)), s)
+    with pytest.raises(ValueError, match="origin_px"):  # not the sensor's size, no origin
+        mosaic_to_cube(np.zeros((8, 8)), s)
+    with pytest.raises(ValueError, match="no whole 4 x 4 tile"):
+        mosaic_to_cube(np.zeros((3, 8)), s, origin_px=(0, 0))
+    with pytest.raises(ValueError, match="already split into bands"):
+        mosaic_to_cube(np.zeros((8, 8, 16)), s, origin_px=(0, 0))
+    with pytest.raises(ValueError, match="whole numbers"):
+        mosaic_to_cube(np.zeros((8, 8)), s, origin_px=(1.5, 0))
     with pytest.raises(ValueError, match="not a mosaic"):
         mosaic_to_cube(np.zeros((8, 8)), Sensor.load(sensor_path("snapscan_vnir")))
+
+
+def _tile_position(sensor, row, col):
+    """The tile position the sensor's grid gives sensor pixel (row, col): written here from
+    the layout's definition, not from snapcorr's window arithmetic."""
+    r0, c0 = sensor.filter_area_px[:2] if sensor.filter_area_px else (0, 0)
+    return (row - r0) % sensor.mosaic_shape[0], (col - c0) % sensor.mosaic_shape[1]
+
+
+@pytest.mark.parametrize("origin", [(100, 200), (101, 202), (3, 7), (0, 1)])
+@pytest.mark.parametrize("name", ["mosaic_4x4_vis", "mosaic_5x5_nir", "vendor"])
+def test_a_frame_may_start_anywhere_and_keeps_the_band_layout(name, origin):
+    s = (Sensor.load(VENDOR_XML) if name == "vendor"
+         else Sensor.load(sensor_path(name)))
+    rows, cols = 23, 37  # not whole tiles either
+    r = origin[0] + np.arange(rows)[:, None]
+    c = origin[1] + np.arange(cols)[None, :]
+    raw = (r * 10_000 + c).astype(np.int64)  # each value says where it was taken
+    cube = mosaic_to_cube(raw, s, origin_px=origin)
+    tr, tc = s.mosaic_shape
+    lo_r, lo_c, n_r, n_c = cube.attrs["mosaic_area_px"]
+    assert cube.shape == (n_r // tr, n_c // tc, s.n_bands)
+    assert n_r // tr == (origin[0] + rows - lo_r) // tr and n_c // tc == (
+        origin[1] + cols - lo_c) // tc
+    for b, off in enumerate(s.band_offset):
+        sr = cube.sensor_row.values[:, b]
+        sc = cube.sensor_col.values[:, b]
+        assert all(_tile_position(s, row, sc[0])[0] == off[0] for row in sr)
+        assert all(_tile_position(s, sr[0], col)[1] == off[1] for col in sc)
+        assert_array_equal(cube.values[:, :, b], sr[:, None] * 10_000 + sc[None, :])
+    # every cube pixel's window holds each band once, inside the frame
+    assert cube.sensor_row.values.min() >= max(origin[0], lo_r)
+    assert cube.sensor_row.values.max() < origin[0] + rows
+
+
+def test_a_whole_sensor_frame_is_cut_to_the_vendor_files_filter_area():
+    s = Sensor.load(VENDOR_XML)
+    assert s.filter_area_px == (3, 0, 1080, 2045)
+    raw = np.zeros(s.size_px, np.uint16)
+    cube = mosaic_to_cube(raw, s)
+    assert cube.shape == (216, 409, 25)
+    assert cube.attrs["mosaic_area_px"] == [3, 0, 1080, 2045]
+    # band i at tile row i // 5, column i % 5 from the area's corner (row 3)
+    assert cube.sensor_row.values[0, 7] == 3 + 1 and cube.sensor_col.values[0, 7] == 2
+    assert cube.sensor_row.values[-1].max() == 1082 and cube.sensor_col.values[-1].max() == 2044
+    lazy = mosaic_to_cube(da.from_array(raw, chunks=(256, -1)), s)
+    xr.testing.assert_identical(lazy.compute(), cube)
 
 
 # -- flat-fielding ---------------------------------------------------------------------------

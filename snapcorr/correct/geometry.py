@@ -88,7 +88,8 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
         if sensor_origin_px is not None:
             r0, c0 = check_pair("sensor_origin_px", sensor_origin_px, "two numbers (row, col)")
             if sensor.layout == "mosaic":
-                r0, c0 = r0 + sensor.band_offset[0][0], c0 + sensor.band_offset[0][1]
+                dr, dc = sensor.band_offsets_at((int(r0), int(c0)))[0]
+                r0, c0 = r0 + dr, c0 + dc
             if (r0, c0) != (rows[0, 0], cols[0, 0]):
                 raise PlacementError(
                     f"the cube records its first pixel at sensor row {rows[0, 0]:g}, column "

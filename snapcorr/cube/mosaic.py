@@ -4,30 +4,36 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validation import check_integers
 from .model import make_cube, with_positions
 from .sensor import Sensor
 
 __all__ = ["mosaic_to_cube", "sensor_positions"]
 
 
-def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
+def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
     """Extract the bands of a raw mosaic frame into a ``(y, x, band)`` cube.
 
-    Cube pixel ``(y, x)`` is tile ``(y, x)``; band ``b`` comes from raw pixel
-    ``(y * rows + row_b, x * cols + col_b)`` (``band_offset``). The cube records every band's
-    sensor row and column (``sensor_row(y, band)``, ``sensor_col(x, band)``, in pixels of the
-    full sensor, ``origin_px`` being the raw frame's top-left corner on the sensor), so the
-    chief-ray angle of each band can be computed exactly.
+    The frame is first cut to the sensor's filter area (``filter_area_px``, e.g. a vendor
+    file's active area), then to whole tiles from the first pixel it keeps. Cube pixel
+    ``(y, x)`` is the tile-sized window whose corner is that pixel plus ``(y, x)`` tiles; the
+    window holds every band once, at the place the tile grid puts it, so a frame may start
+    anywhere, on or off the grid (the band layout follows the offset modulo the tile). Rows
+    and columns that do not fill a whole tile at the far edges are left out. The cube records
+    every band's sensor row and column (``sensor_row(y, band)``, ``sensor_col(x, band)``) and
+    the sensor area it covers (attribute ``mosaic_area_px``: row, column, rows, columns), so
+    the chief-ray angle of each band can be computed exactly.
 
     Parameters
     ----------
     raw : array_like, shape (rows, cols)
-        Raw frame (numpy or dask); its size must be a whole number of tiles.
+        Raw frame (numpy or dask), at least one tile.
     sensor : Sensor
         A ``layout = "mosaic"`` sensor.
-    origin_px : (int, int)
-        Row and column of the frame's first pixel on the sensor (for crops); on a tile
-        boundary.
+    origin_px : (int, int), optional
+        Sensor row and column of the frame's first pixel (a crop or a camera's region of
+        interest). Default: the frame is the whole sensor, and must have the sensor's
+        ``size_px`` when the sensor gives it.
     attrs : dict, optional
         Extra attributes of the cube, merged over ``sensor`` (the sensor's name).
 
@@ -35,36 +41,76 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=(0, 0), attrs=None):
     -------
     xarray.DataArray
         ``(y, x, band)`` with ``wavelength``, ``fwhm``, ``sensor_row`` and ``sensor_col``.
+
+    Raises
+    ------
+    ValueError
+        Not a mosaic sensor, not a 2-D frame, a frame of another size than the sensor's
+        without ``origin_px``, or no whole tile inside the filter area.
     """
     if sensor.layout != "mosaic":
         raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
     if not hasattr(raw, "ndim"):
         raw = np.asarray(raw)
     if raw.ndim != 2:
-        raise ValueError(f"a raw mosaic frame is 2-D, got shape {raw.shape}")
+        hint = (" (a cube is already split into bands: read it with read_cube)"
+                if raw.ndim == 3 else "")
+        raise ValueError(f"a raw mosaic frame is 2-D, got shape {raw.shape}{hint}")
+    r0, c0 = _origin(raw.shape, sensor, origin_px)
     tr, tc = sensor.mosaic_shape
-    if raw.shape[0] % tr or raw.shape[1] % tc:
-        raise ValueError(
-            f"the frame ({raw.shape[0]} x {raw.shape[1]}) is not a whole number of "
-            f"{tr} x {tc} tiles; crop it, e.g. raw[:{raw.shape[0] - raw.shape[0] % tr}, "
-            f":{raw.shape[1] - raw.shape[1] % tc}]"
-        )
-    if origin_px[0] % tr or origin_px[1] % tc:
-        raise ValueError(
-            f"the origin {tuple(origin_px)} (origin_px, --sensor-origin-px) is not on a "
-            f"{tr} x {tc} tile boundary, so the bands' tile offsets would be misread; crop the "
-            "frame to start at a tile (both numbers multiples of the tile's size)"
-        )
-    ny, nx = raw.shape[0] // tr, raw.shape[1] // tc
-    tiles = raw.reshape(ny, tr, nx, tc)
-    off = np.asarray(sensor.band_offset)
-    # (ny, tr, nx, tc) -> (ny, nx, tr, tc) -> pick each band's (row, col) in the tile.
+    (lo_r, lo_c), (ny, nx) = _whole_tiles(raw.shape, sensor, r0, c0)
+    sub = raw[lo_r - r0:lo_r - r0 + ny * tr, lo_c - c0:lo_c - c0 + nx * tc]
+    if not isinstance(sub, np.ndarray):  # blocks of whole tiles, for the reshape below
+        rows = max(tr, sub.chunks[0][0] // tr * tr)
+        sub = sub.rechunk({0: rows})
+    tiles = sub.reshape(ny, tr, nx, tc)
+    off = sensor.band_offsets_at((lo_r, lo_c))
+    # (ny, tr, nx, tc) -> pick each band's (row, col) in the window.
     bands = [tiles[:, r, :, c] for r, c in off]
     stack = (np.stack if isinstance(raw, np.ndarray) else _dask_stack)(bands, axis=-1)
     cube = make_cube(stack, sensor.cwl_nm, fwhm_nm=sensor.fwhm_nm,
-                     attrs={"sensor": sensor.name, **(attrs or {})})
-    rows, cols = sensor_positions(sensor, ny, nx, origin_px)
+                     attrs={"sensor": sensor.name, **(attrs or {}),
+                            "mosaic_area_px": [lo_r, lo_c, ny * tr, nx * tc]})
+    rows, cols = sensor_positions(sensor, ny, nx, (lo_r, lo_c))
     return with_positions(cube, rows, cols)
+
+
+def _origin(shape, sensor, origin_px):
+    """The frame's first pixel on the sensor: given, or (0, 0) for a whole-sensor frame."""
+    if origin_px is not None:
+        o = check_integers("origin_px", origin_px)
+        if o.shape != (2,) or np.any(o < 0):
+            raise ValueError(f"origin_px must be a sensor row and column (whole numbers >= 0), "
+                             f"got {origin_px!r}")
+        return int(o[0]), int(o[1])
+    if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
+        raise ValueError(
+            f"the frame is {shape[0]} x {shape[1]} px but the sensor {sensor.name!r} is "
+            f"{sensor.size_px[0]} x {sensor.size_px[1]} px: for a crop or a region of interest "
+            "give the sensor row and column of its first pixel (origin_px, --sensor-origin-px "
+            "ROW,COL)")
+    return 0, 0
+
+
+def _whole_tiles(shape, sensor, r0, c0):
+    """First sensor pixel kept and the number of whole tiles (rows, columns) of a frame at
+    ``(r0, c0)``, inside the sensor's filter area."""
+    tr, tc = sensor.mosaic_shape
+    lo_r, lo_c, hi_r, hi_c = r0, c0, r0 + shape[0], c0 + shape[1]
+    if sensor.filter_area_px is not None:
+        ar, ac, an, am = sensor.filter_area_px
+        lo_r, lo_c = max(lo_r, ar), max(lo_c, ac)
+        hi_r, hi_c = min(hi_r, ar + an), min(hi_c, ac + am)
+    ny, nx = max(0, hi_r - lo_r) // tr, max(0, hi_c - lo_c) // tc
+    if ny == 0 or nx == 0:
+        where = ("" if sensor.filter_area_px is None else
+                 f" inside the filter area (rows {sensor.filter_area_px[0]}-"
+                 f"{sensor.filter_area_px[0] + sensor.filter_area_px[2] - 1}, columns "
+                 f"{sensor.filter_area_px[1]}-"
+                 f"{sensor.filter_area_px[1] + sensor.filter_area_px[3] - 1})")
+        raise ValueError(f"the frame ({shape[0]} x {shape[1]} px at sensor row {r0}, column "
+                         f"{c0}) holds no whole {tr} x {tc} tile{where}")
+    return (lo_r, lo_c), (ny, nx)
 
 
 def _dask_stack(arrays, axis):
@@ -83,8 +129,8 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
     ny, nx : int
         Cube rows and columns (tiles, for a mosaic).
     origin_px : (int, int)
-        Sensor row and column of the cube's first pixel (for a mosaic, the top-left pixel of
-        its first tile).
+        Sensor row and column of the cube's first pixel (for a mosaic, the corner of its first
+        tile-sized window, on or off the tile grid: :meth:`Sensor.band_offsets_at`).
 
     Returns
     -------
@@ -96,7 +142,7 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
     r0, c0 = origin_px
     if sensor.layout == "mosaic":
         tr, tc = sensor.mosaic_shape
-        off = np.asarray(sensor.band_offset)
+        off = sensor.band_offsets_at((r0, c0))
         rows = r0 + np.arange(ny)[:, None] * tr + off[None, :, 0]
         cols = c0 + np.arange(nx)[:, None] * tc + off[None, :, 1]
         return rows, cols

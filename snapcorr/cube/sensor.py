@@ -1,8 +1,15 @@
-"""Sensor descriptions: band layout, pixel pitch, filter centres and effective indices."""
+"""Sensor descriptions: band layout, pixel pitch, filter centres and effective indices.
+
+A sensor is described by a TOML file (``[sensor]``, see ``calibration/README.md``), by the
+vendor's calibration ``.xml`` (:mod:`snapcorr.cube.vendor_xml`: measured responses, layout,
+active area, correction matrices), or by a TOML that names such a file (``vendor_file``) and
+adds what it lacks (``n_eff``; ``pixel_pitch_um`` where it says 0).
+"""
 
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -10,18 +17,33 @@ import numpy as np
 
 from .._io import read_toml, write_toml
 from .._validation import check_integers, check_numbers, check_positive, check_wavelengths_nm
+from .responses import CorrectionMatrix, FilterResponses
 
-__all__ = ["LAYOUTS", "Sensor"]
+__all__ = ["LAYOUTS", "VENDOR_OVERRIDES", "Sensor"]
 
 #: ``snapscan``: every band of a cube pixel was exposed at the same sensor position (the sensor
 #: moves behind the lens). ``mosaic``: a snapshot mosaic; each band sits at its own offset in a
 #: repeating tile.
 LAYOUTS = ("snapscan", "mosaic")
 _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosaic_shape",
-         "band_offset", "size_px", "profile"}
+         "band_offset", "size_px", "profile", "filter_area_px"}
+#: The keys a sensor TOML naming a ``vendor_file`` may add or override.
+VENDOR_OVERRIDES = ("name", "n_eff", "pixel_pitch_um", "size_px")
 #: Filter shapes a sensor may name (``snapcorr.optics.PROFILES`` at normal incidence); any
-#: other ``profile`` is a file of a measured shape.
+#: other ``profile`` is a file of a measured shape. ``"measured"``: each band's own measured
+#: response (a vendor calibration file).
 PROFILE_NAMES = ("gaussian", "airy", "multi_lorentzian", "pi")
+MEASURED = "measured"
+#: What the refusals say where a value the vendor's file does not give is needed.
+_NEEDS = {
+    "n_eff": ("its filters' effective index n_eff, which vendor calibration files do not give; "
+              "fit it from cubes of a spectral target with `snapcorr pupil --fit-n-eff "
+              "--sensor-out SENSOR.toml`, or give it in a sensor TOML naming the file "
+              "(vendor_file = ..., n_eff = ...)"),
+    "pixel_pitch_um": ("its pixel pitch, which its file gives as 0 (unknown); give "
+                       "pixel_pitch_um in a sensor TOML naming the file (vendor_file = ..., "
+                       "pixel_pitch_um = ...)"),
+}
 
 
 def _per_band(name, value, n_bands, *, minimum=None, strict=True):
@@ -50,14 +72,16 @@ class Sensor:
     ----------
     name : str
     layout : {"snapscan", "mosaic"}
-    pixel_pitch_um : float
-        Pixel pitch on the sensor, micrometres.
+    pixel_pitch_um : float or None
+        Pixel pitch on the sensor, micrometres; None where unknown (what needs it refuses).
     cwl_nm : sequence of float
-        Central wavelength of each band at normal, collimated incidence, nm.
+        Central wavelength of each band at normal, collimated incidence, nm (a vendor file's
+        main peaks).
     fwhm_nm : float or sequence of float
         Band widths, nm (a scalar applies to all bands).
-    n_eff : float or sequence of float
-        Effective refractive index of each band's filter (> 1).
+    n_eff : float or sequence of float or None
+        Effective refractive index of each band's filter (> 1); None where unknown (vendor
+        files do not give it; what needs it refuses, :meth:`require`).
     mosaic_shape : (int, int), mosaic only
         Tile size in pixels (rows, columns).
     band_offset : sequence of (int, int), mosaic only
@@ -70,30 +94,44 @@ class Sensor:
         ``"pi"``, or the path of a two-column file (offset from the band's centre in nm,
         transmission), one measured shape for every band (a relative path in a sensor file is
         relative to that file's folder). It sets each pixel's bandwidth
-        (``fwhm_corrected``).
+        (``fwhm_corrected``). ``"measured"`` for a sensor with ``responses``.
     calibration : dict, optional
         Free-form record of where values came from (the ``[calibration]`` table of the file,
         e.g. an effective index fitted by ``snapcorr pupil``). Not compared.
+    responses : FilterResponses, optional
+        Each band's measured response and the system's (band-pass) in front of them.
+    filter_area_px : (int, int, int, int), optional, mosaic only
+        Row, column, rows and columns of the filtered area on the sensor: the tile grid
+        starts at its corner (default: the sensor's corner, no limit).
+    matrices : tuple of CorrectionMatrix, optional
+        The vendor's correction matrices to virtual bands.
+    vendor_file : str, optional
+        The vendor calibration file these came from (provenance; not compared).
     """
 
     name: str
     layout: str
-    pixel_pitch_um: float
+    pixel_pitch_um: float | None
     cwl_nm: tuple
     fwhm_nm: tuple
-    n_eff: tuple
+    n_eff: tuple | None
     mosaic_shape: tuple | None = None
     band_offset: tuple | None = None
     size_px: tuple | None = None
     profile: str = "gaussian"
     calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
+    responses: FilterResponses | None = field(default=None, repr=False, kw_only=True)
+    filter_area_px: tuple | None = field(default=None, kw_only=True)
+    matrices: tuple = field(default=(), repr=False, kw_only=True)
+    vendor_file: str | None = field(default=None, compare=False, kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
         if self.layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
         set_(self, "name", str(self.name))
-        set_(self, "pixel_pitch_um", check_positive("pixel_pitch_um", self.pixel_pitch_um))
+        if self.pixel_pitch_um is not None:
+            set_(self, "pixel_pitch_um", check_positive("pixel_pitch_um", self.pixel_pitch_um))
         check_numbers("cwl_nm", self.cwl_nm)
         cwl = np.atleast_1d(check_wavelengths_nm("cwl_nm", self.cwl_nm))
         if cwl.ndim != 1 or cwl.size == 0:
@@ -101,7 +139,8 @@ class Sensor:
         n = cwl.size
         set_(self, "cwl_nm", _per_band("cwl_nm", cwl, n, minimum=0))
         set_(self, "fwhm_nm", _per_band("fwhm_nm", self.fwhm_nm, n, minimum=0))
-        set_(self, "n_eff", _per_band("n_eff", self.n_eff, n, minimum=1))
+        if self.n_eff is not None:
+            set_(self, "n_eff", _per_band("n_eff", self.n_eff, n, minimum=1))
         if self.layout == "mosaic":
             if self.mosaic_shape is None or self.band_offset is None:
                 raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")
@@ -127,14 +166,92 @@ class Sensor:
                                  f"{self.size_px!r}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
-        if self.profile not in PROFILE_NAMES:
+        self._check_vendor_parts(n)
+        if self.profile not in (*PROFILE_NAMES, MEASURED):
             _read_shape(self.profile)  # read and checked now: a bad file fails at load
         set_(self, "calibration", dict(self.calibration or {}))
 
+    def _check_vendor_parts(self, n):
+        set_ = object.__setattr__
+        if self.responses is not None:
+            if not isinstance(self.responses, FilterResponses):
+                raise TypeError("responses must be a FilterResponses")
+            if self.responses.n_bands != n:
+                raise ValueError(f"the measured responses have {self.responses.n_bands} bands, "
+                                 f"cwl_nm {n}")
+            set_(self, "profile", MEASURED)
+        elif self.profile == MEASURED:
+            raise ValueError("profile 'measured' needs the bands' measured responses (a vendor "
+                             "calibration file)")
+        matrices = tuple(self.matrices or ())
+        for m in matrices:
+            if not isinstance(m, CorrectionMatrix):
+                raise TypeError("matrices must be CorrectionMatrix objects")
+            if m.coefficients.shape[1] != n:
+                raise ValueError(f"correction matrix {m.name!r} has {m.coefficients.shape[1]} "
+                                 f"columns, the sensor {n} bands")
+        set_(self, "matrices", matrices)
+        if self.filter_area_px is not None:
+            if self.layout != "mosaic":
+                raise ValueError("filter_area_px applies to layout = 'mosaic' only")
+            area = check_integers("filter_area_px", self.filter_area_px)
+            if area.shape != (4,) or np.any(area[:2] < 0) or np.any(area[2:] < 1):
+                raise ValueError(f"filter_area_px must be [row, col, rows, cols] (whole "
+                                 f"numbers, offsets >= 0, sizes >= 1), got "
+                                 f"{self.filter_area_px!r}")
+            if self.size_px is not None and (area[0] + area[2] > self.size_px[0]
+                                             or area[1] + area[3] > self.size_px[1]):
+                raise ValueError(f"filter_area_px {area.tolist()} extends beyond size_px "
+                                 f"{list(self.size_px)}")
+            set_(self, "filter_area_px", tuple(int(v) for v in area))
+
+    def require(self, key, what):
+        """The value of ``key`` (``"n_eff"`` or ``"pixel_pitch_um"``), or a ``ValueError``
+        saying that ``what`` needs it and how to give it.
+
+        Parameters
+        ----------
+        key : {"n_eff", "pixel_pitch_um"}
+        what : str
+            What needs the value, for the message ("the wavelength correction", ...).
+        """
+        value = getattr(self, key)
+        if value is None:
+            raise ValueError(f"{what} needs the sensor {self.name!r} to give {_NEEDS[key]}")
+        return value
+
+    @property
+    def tile_origin_px(self) -> tuple:
+        """Sensor row and column where the mosaic's tile grid starts (the filter area's
+        corner; (0, 0) when the sensor does not say)."""
+        if self.filter_area_px is None:
+            return (0, 0)
+        return self.filter_area_px[:2]
+
+    def band_offsets_at(self, origin_px):
+        """Each band's (row, column) inside a tile-sized window whose corner is the sensor
+        pixel ``origin_px``: the band layout follows the origin modulo the tile.
+
+        Parameters
+        ----------
+        origin_px : (int, int)
+            Sensor row and column of the window's corner, anywhere on or off the tile grid.
+
+        Returns
+        -------
+        ndarray of int, shape (n_bands, 2)
+        """
+        if self.layout != "mosaic":
+            raise ValueError(f"sensor {self.name!r} is not a mosaic (layout {self.layout!r})")
+        tile = np.array(self.mosaic_shape)
+        phase = (np.asarray(origin_px, dtype=np.int64) - np.array(self.tile_origin_px)) % tile
+        return (np.asarray(self.band_offset) - phase) % tile
+
     @property
     def field_radius_mm(self) -> float | None:
-        """Distance from the image centre to its corner (mm), if ``size_px`` is known."""
-        if self.size_px is None:
+        """Distance from the image centre to its corner (mm), if ``size_px`` and the pitch are
+        known."""
+        if self.size_px is None or self.pixel_pitch_um is None:
             return None
         rows, cols = self.size_px
         return 0.5 * float(np.hypot(rows, cols)) * self.pixel_pitch_mm
@@ -142,8 +259,9 @@ class Sensor:
     @property
     def profile_shape(self):
         """The filters' shape as :func:`snapcorr.optics.bandwidth.band_profile` takes it: the
-        name, or ``(offset_nm, transmission)`` read from the file."""
-        if self.profile in PROFILE_NAMES:
+        name, ``(offset_nm, transmission)`` read from the file, or ``"measured"`` (each band's
+        own curve, :attr:`responses`)."""
+        if self.profile in (*PROFILE_NAMES, MEASURED):
             return self.profile
         return _read_shape(self.profile)
 
@@ -153,7 +271,7 @@ class Sensor:
 
     @property
     def pixel_pitch_mm(self) -> float:
-        return self.pixel_pitch_um * 1e-3
+        return self.require("pixel_pitch_um", "a position in millimetres") * 1e-3
 
     def check_cube(self, cube, what="the cube", *, atol_nm=0.05):
         """Raise a ``ValueError`` unless ``cube`` has this sensor's bands: as many, and its
@@ -179,13 +297,33 @@ class Sensor:
                 raise ValueError(f"{what}'s wavelengths differ from the sensor {self.name!r}'s "
                                  f"(by up to {off:.3g} nm); use the matching sensor")
 
-    def to_dict(self) -> dict:
+    def to_dict(self, folder=None) -> dict:
+        """The ``[sensor]`` table: every key, or, for a sensor read from a vendor file, the
+        file (relative to ``folder`` when given) and the keys that add to or override it."""
+        if self.vendor_file is not None:
+            path = self.vendor_file
+            if folder is not None:
+                path = os.path.relpath(os.path.abspath(path), os.path.abspath(folder))
+            d = {"vendor_file": Path(path).as_posix(), "name": self.name}
+            if self.n_eff is not None:
+                d["n_eff"] = (self.n_eff[0] if len(set(self.n_eff)) == 1
+                              else list(self.n_eff))
+            if self.pixel_pitch_um is not None:
+                d["pixel_pitch_um"] = self.pixel_pitch_um
+            if self.size_px is not None:
+                d["size_px"] = list(self.size_px)
+            return d
         d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
-             "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm),
-             "n_eff": list(self.n_eff)}
+             "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm)}
+        if self.pixel_pitch_um is None:
+            del d["pixel_pitch_um"]
+        if self.n_eff is not None:
+            d["n_eff"] = list(self.n_eff)
         if self.layout == "mosaic":
             d["mosaic_shape"] = list(self.mosaic_shape)
             d["band_offset"] = [list(o) for o in self.band_offset]
+            if self.filter_area_px is not None:
+                d["filter_area_px"] = list(self.filter_area_px)
         if self.size_px is not None:
             d["size_px"] = list(self.size_px)
         if self.profile != "gaussian":
@@ -197,28 +335,95 @@ class Sensor:
         unknown = set(table) - _KEYS
         if unknown:
             raise ValueError(f"unknown key(s) in [sensor]: {sorted(unknown)}; valid keys are "
-                             f"{sorted(_KEYS)}")
+                             f"{sorted(_KEYS)} (or vendor_file, naming a vendor calibration "
+                             ".xml)")
         missing = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff"} - set(table)
         if missing:
             raise ValueError(f"[sensor] is missing required key(s) {sorted(missing)}")
         return cls(**table, calibration=calibration or {})
 
     @classmethod
+    def from_vendor(cls, path, *, name=None, n_eff=None, pixel_pitch_um=None, size_px=None,
+                    calibration=None) -> Sensor:
+        """A mosaic sensor from the vendor's calibration ``.xml`` (either variant).
+
+        The bands are the file's, in its index order (band ``i`` at tile row ``i // width``,
+        column ``i % width``); each band's ``cwl_nm`` and ``fwhm_nm`` are its main peak's
+        (:meth:`~snapcorr.cube.responses.FilterResponses.main_peaks`), its profile the
+        measured response times the system's; the tile grid starts at the filter area's
+        corner.
+
+        Parameters
+        ----------
+        path : str or Path
+            The vendor calibration file.
+        name : str, optional
+            Default: the file's stem.
+        n_eff : float or sequence of float, optional
+            The filters' effective index, which the file does not give.
+        pixel_pitch_um : float, optional
+            Replaces the file's pitch (needed where the file gives 0).
+        size_px : (int, int), optional
+            Replaces the file's sensor size.
+        calibration : dict, optional
+            Provenance, as for the TOML's ``[calibration]`` table.
+        """
+        from .vendor_xml import read_vendor_file
+
+        cal = read_vendor_file(path)
+        peaks = cal.responses.main_peaks()
+        ph, pw = cal.mosaic_shape
+        return cls(
+            name=name if name is not None else Path(path).stem, layout="mosaic",
+            pixel_pitch_um=pixel_pitch_um if pixel_pitch_um is not None else cal.pixel_pitch_um,
+            cwl_nm=[p.wavelength_nm for p in peaks], fwhm_nm=[p.fwhm_nm for p in peaks],
+            n_eff=n_eff, mosaic_shape=(ph, pw),
+            band_offset=[(i // pw, i % pw) for i in range(ph * pw)],
+            size_px=size_px if size_px is not None else cal.size_px,
+            calibration=calibration or {}, responses=cal.responses,
+            filter_area_px=cal.filter_area_px, matrices=cal.matrices,
+            vendor_file=str(Path(path).resolve()))
+
+    @classmethod
     def load(cls, path) -> Sensor:
-        """Read a sensor description (TOML with a ``[sensor]`` table)."""
+        """Read a sensor description: a TOML with a ``[sensor]`` table, the vendor's
+        calibration ``.xml``, or a TOML whose ``[sensor]`` names one (``vendor_file``,
+        relative to the TOML) and adds or overrides :data:`VENDOR_OVERRIDES`."""
+        path = Path(path)
+        if path.suffix.lower() == ".xml":
+            return cls.from_vendor(path)
         doc = read_toml(path, "sensor", "sensor description")
         table = dict(doc["sensor"])
-        shape = table.get("profile")
-        if isinstance(shape, str) and shape not in PROFILE_NAMES:
-            table["profile"] = str(Path(path).parent / shape)  # relative to the sensor file
+        extra = sorted(set(doc) - {"sensor", "calibration"})
+        if extra:
+            raise ValueError(f"{path}: unknown top-level table(s) or key(s) {extra}; a sensor "
+                             "file holds [sensor] and optionally [calibration]")
         try:
+            if "vendor_file" in table:
+                return cls._from_vendor_table(path, table, doc.get("calibration"))
+            shape = table.get("profile")
+            if isinstance(shape, str) and shape not in (*PROFILE_NAMES, MEASURED):
+                table["profile"] = str(path.parent / shape)  # relative to the sensor file
             return cls.from_dict(table, calibration=doc.get("calibration"))
         except (TypeError, ValueError) as err:
             raise ValueError(f"{path}: {err}") from None
 
+    @classmethod
+    def _from_vendor_table(cls, path, table, calibration):
+        vendor = table.pop("vendor_file")
+        if not isinstance(vendor, str) or not vendor.strip():
+            raise ValueError("vendor_file must be the path of the vendor's calibration .xml")
+        unknown = sorted(set(table) - set(VENDOR_OVERRIDES))
+        if unknown:
+            raise ValueError(f"a sensor naming vendor_file takes its other keys from that file; "
+                             f"it may add or override only {list(VENDOR_OVERRIDES)}, got "
+                             f"{unknown}")
+        return cls.from_vendor(path.parent / vendor, calibration=calibration, **table)
+
     def save(self, path, *, overwrite=False) -> Path:
-        """Write the description as TOML, atomically; never replaces a file unless asked."""
-        doc = {"sensor": self.to_dict()}
+        """Write the description as TOML, atomically; never replaces a file unless asked.
+        A sensor read from a vendor file is written as a TOML naming that file."""
+        doc = {"sensor": self.to_dict(folder=Path(path).parent)}
         if self.calibration:
             doc["calibration"] = self.calibration
         return write_toml(path, doc, overwrite=overwrite)

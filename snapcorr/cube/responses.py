@@ -1,0 +1,206 @@
+"""What a sensor's calibration file says of its filters: measured responses and correction
+matrices.
+
+A snapshot-mosaic camera ships with each band's response measured on a wavelength grid (every
+peak of the filter, second orders and leaks included), the response of what sits in front of
+every band (a band-pass filter), and the vendor's correction matrices, which turn the physical
+bands into "virtual bands" with the crosstalk removed. :class:`FilterResponses` and
+:class:`CorrectionMatrix` hold them, checked and read-only; :mod:`snapcorr.cube.vendor_xml`
+reads them from the vendor's file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .._validation import check_wavelengths_nm
+
+__all__ = ["MATRIX_KINDS", "CorrectionMatrix", "FilterResponses", "Peak"]
+
+#: What a correction matrix is applied to: flat-fielded values (``"reflectance"``, rows that
+#: leave a flat spectrum flat) or values proportional to the light (``"irradiance"``: dark-
+#: subtracted counts, radiance).
+MATRIX_KINDS = ("reflectance", "irradiance")
+#: A peak counts as inside the system's pass band where the system transmits at least this
+#: fraction of its maximum there (a band's main peak is its strongest inside).
+PASSBAND_FRACTION = 0.5
+
+
+class Peak(NamedTuple):
+    """One peak of a band's response, as the calibration file lists it."""
+
+    wavelength_nm: float
+    fwhm_nm: float
+    qe: float
+    order: int | None = None
+
+
+def _frozen(values, dtype=float):
+    a = np.array(values, dtype=dtype)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class FilterResponses:
+    """Every band's measured response at normal, collimated incidence, on one wavelength grid.
+
+    Parameters
+    ----------
+    wavelength_nm : array_like, shape (n,)
+        The grid, nm, strictly increasing.
+    curves : array_like, shape (n_bands, n)
+        Each band's response (the file's units, e.g. quantum efficiency in percent) without
+        the system's components; all its peaks.
+    system : array_like, shape (n,)
+        Transmission of what is in front of every band (band-pass filter, other optical
+        components multiplied together); ones when the file lists none.
+    peaks : sequence of sequences of Peak
+        Each band's peaks as the file lists them (at least one per band).
+    system_name : str
+        What ``system`` is, for provenance.
+
+    The arrays are copied and read-only; two objects are equal when every value is.
+    """
+
+    wavelength_nm: np.ndarray
+    curves: np.ndarray
+    system: np.ndarray
+    peaks: tuple
+    system_name: str = "none"
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        grid = check_wavelengths_nm("the response grid", self.wavelength_nm)
+        if grid.ndim != 1 or grid.size < 3 or np.any(np.diff(grid) <= 0):
+            raise ValueError("the response grid must list at least 3 increasing wavelengths")
+        curves = np.asarray(self.curves, float)
+        if curves.ndim != 2 or curves.shape[1] != grid.size or curves.shape[0] < 1:
+            raise ValueError(f"the responses must be (bands, {grid.size}) values, got shape "
+                             f"{curves.shape}")
+        system = np.asarray(self.system, float)
+        if system.shape != grid.shape:
+            raise ValueError(f"the system's response must have {grid.size} values, got "
+                             f"{system.size}")
+        for name, a in (("responses", curves), ("system response", system)):
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"the {name} must be finite numbers")
+        peaks = tuple(tuple(Peak(*p) for p in band) for band in self.peaks)
+        if len(peaks) != curves.shape[0] or any(len(p) == 0 for p in peaks):
+            raise ValueError(f"every band needs at least one peak ({curves.shape[0]} bands, "
+                             f"peaks for {len(peaks)})")
+        for band in peaks:
+            for p in band:
+                check_wavelengths_nm("a peak's wavelength", [p.wavelength_nm])
+                if not (np.isfinite(p.fwhm_nm) and p.fwhm_nm > 0 and np.isfinite(p.qe)):
+                    raise ValueError(f"a peak's fwhm_nm must be > 0 and its QE finite, got "
+                                     f"{p}")
+        if not np.any(curves * system > 0, axis=1).all():
+            raise ValueError("a band's response is zero everywhere through the system")
+        set_(self, "wavelength_nm", _frozen(grid))
+        set_(self, "curves", _frozen(curves))
+        set_(self, "system", _frozen(system))
+        set_(self, "peaks", peaks)
+        set_(self, "system_name", str(self.system_name))
+
+    @property
+    def n_bands(self) -> int:
+        return self.curves.shape[0]
+
+    @property
+    def effective(self) -> np.ndarray:
+        """``curves * system``: each band's response as the light reaches the pixel."""
+        return self.curves * self.system
+
+    def main_peaks(self):
+        """Each band's main peak: its strongest (largest QE) inside the system's pass band
+        (where the system transmits at least :data:`PASSBAND_FRACTION` of its maximum), else
+        its strongest.
+
+        Returns
+        -------
+        tuple of Peak
+        """
+        grid, system = self.wavelength_nm, self.system
+        passes = system >= PASSBAND_FRACTION * system.max()
+        out = []
+        for band in self.peaks:
+            inside = [p for p in band if passes[np.clip(np.searchsorted(grid, p.wavelength_nm),
+                                                        0, grid.size - 1)]]
+            out.append(max(inside or band, key=lambda p: p.qe))
+        return tuple(out)
+
+    def __eq__(self, other):
+        if not isinstance(other, FilterResponses):
+            return NotImplemented
+        return (np.array_equal(self.wavelength_nm, other.wavelength_nm)
+                and np.array_equal(self.curves, other.curves)
+                and np.array_equal(self.system, other.system) and self.peaks == other.peaks
+                and self.system_name == other.system_name)
+
+    def __hash__(self):
+        return hash((self.curves.tobytes(), self.system.tobytes(), self.peaks))
+
+
+@dataclass(frozen=True, eq=False)
+class CorrectionMatrix:
+    """A vendor's correction matrix: ``virtual = coefficients @ bands``.
+
+    Parameters
+    ----------
+    name : str
+        As the file names it (``"hsi_reflectance"``; ``"custom"`` for the older format's one).
+    kind : {"reflectance", "irradiance"}
+        What it is applied to (:data:`MATRIX_KINDS`).
+    wavelength_nm : array_like, shape (n_virtual,)
+        Each virtual band's centre, nm.
+    fwhm_nm : array_like, shape (n_virtual,)
+        Each virtual band's width, nm (NaN where the file does not say).
+    coefficients : array_like, shape (n_virtual, n_bands)
+        One row per virtual band; the columns follow the physical bands' index order.
+    """
+
+    name: str
+    kind: str
+    wavelength_nm: np.ndarray
+    fwhm_nm: np.ndarray
+    coefficients: np.ndarray
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        if self.kind not in MATRIX_KINDS:
+            raise ValueError(f"a correction matrix's type must be one of {MATRIX_KINDS}, got "
+                             f"{self.kind!r}")
+        wl = np.atleast_1d(np.asarray(self.wavelength_nm, float))
+        if wl.ndim != 1 or wl.size == 0 or not np.all(np.isfinite(wl)) or np.any(wl <= 0):
+            raise ValueError(f"matrix {self.name!r}: virtual band wavelengths must be finite "
+                             "and > 0")
+        fw = np.broadcast_to(np.asarray(self.fwhm_nm, float), wl.shape)
+        if np.any(fw[np.isfinite(fw)] <= 0) or np.any(np.isinf(fw)):
+            raise ValueError(f"matrix {self.name!r}: virtual band widths must be > 0")
+        c = np.asarray(self.coefficients, float)
+        if c.ndim != 2 or c.shape[0] != wl.size or not np.all(np.isfinite(c)):
+            raise ValueError(f"matrix {self.name!r}: coefficients must be finite, one row per "
+                             f"virtual band ({wl.size}), got shape {c.shape}")
+        set_(self, "name", str(self.name))
+        set_(self, "wavelength_nm", _frozen(wl))
+        set_(self, "fwhm_nm", _frozen(fw))
+        set_(self, "coefficients", _frozen(c))
+
+    @property
+    def n_virtual(self) -> int:
+        return self.coefficients.shape[0]
+
+    def __eq__(self, other):
+        if not isinstance(other, CorrectionMatrix):
+            return NotImplemented
+        return (self.name == other.name and self.kind == other.kind
+                and np.array_equal(self.wavelength_nm, other.wavelength_nm)
+                and np.array_equal(self.fwhm_nm, other.fwhm_nm, equal_nan=True)
+                and np.array_equal(self.coefficients, other.coefficients))
+
+    def __hash__(self):
+        return hash((self.name, self.kind, self.coefficients.tobytes()))

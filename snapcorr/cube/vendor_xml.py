@@ -1,0 +1,423 @@
+"""The vendor's sensor calibration file (``.xml``, root element ``sensor_calibration``).
+
+Snapshot-mosaic sensors (imec's, in XIMEA xiSpec cameras and others) ship with an XML file that
+describes every filter. Two variants exist, both read here:
+
+* **older**: ``filter_info`` holds the layout directly: ``filter_area``, ``pattern_width`` /
+  ``pattern_height``, ``calibration_info`` (the response grid: start, step and count),
+  ``bands/band[@pattern_position_index]`` with ``peaks/peak`` and ``response_composition/data``
+  (comma-separated), ``rejection_filter/filter_response/data`` (the band-pass) and
+  ``spectral_correction_info/virtual_bands/band`` with one row of ``custom_spectral_correction``
+  coefficients per virtual band;
+* **newer**: ``filter_info/filter_zones/filter_zone[@layout]`` holds the layout, the grid is
+  ``filter_info/calibration_info/sample_points_nm[@values]`` (space-separated), each
+  ``band[@index]`` has ``peaks/peak[@order, @shape]`` and ``response[@values]``;
+  ``system_info/optical_components/optical_component`` lists what sits in front of every band
+  (a band-pass filter) and ``system_info/spectral_correction_info/correction_matrices/
+  correction_matrix`` the named matrices (``type`` reflectance or irradiance).
+
+Conventions: band ``i`` sits at tile row ``i // pattern_width``, column ``i % pattern_width``,
+the tile grid starting at the filter area's offset; a matrix's columns follow the band index.
+The older format's one matrix is an irradiance matrix: its rows turn the measured responses
+(band-pass included) into unit-peak Gaussians, and they sum to far less than 1, which a matrix
+for flat-fielded values would not (measured on a real 5x5 NIR file: row sums 0.002-0.07).
+
+Nothing is guessed: a missing element, a count that disagrees, a value that is not a finite
+number, a layout other than MOSAIC, filters larger than a pixel or more than one filter zone
+are refused in one line naming the element. The file is parsed with ``defusedxml`` (no entity
+expansion, no external resources).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._io import check_input
+from .responses import CorrectionMatrix, FilterResponses, Peak
+
+__all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
+
+#: Larger than any calibration file (a 5x5 sensor's is 0.4 MB): a bigger file is refused
+#: before it is parsed.
+MAX_FILE_BYTES = 64 * 2**20
+_SPLIT = re.compile(r"[,\s;]+")
+
+
+@dataclass(frozen=True, eq=False)
+class VendorCalibration:
+    """What a vendor calibration file holds (see the module docstring).
+
+    Attributes
+    ----------
+    path : str
+    variant : {"older", "newer"}
+    size_px : (int, int)
+        The sensor's rows and columns.
+    pixel_pitch_um : float or None
+        None where the file gives 0 (unknown).
+    filter_area_px : (int, int, int, int)
+        Row, column, rows and columns of the filtered area on the sensor.
+    mosaic_shape : (int, int)
+        Tile rows and columns (pattern height, width).
+    responses : FilterResponses
+    matrices : tuple of CorrectionMatrix
+    bit_depth : int or None
+    """
+
+    path: str
+    variant: str
+    size_px: tuple
+    pixel_pitch_um: float | None
+    filter_area_px: tuple
+    mosaic_shape: tuple
+    responses: FilterResponses
+    matrices: tuple
+    bit_depth: int | None = None
+
+
+class _File:
+    """The parsed tree with the file's name, for messages that say where a value is wrong."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+
+    def fail(self, message):
+        raise ValueError(f"{self.path.name}: {message}")
+
+    def child(self, el, where, *tags, required=True):
+        """The first child of ``el`` named one of ``tags``; refused when missing."""
+        for tag in tags:
+            found = el.find(tag)
+            if found is not None:
+                return found
+        if required:
+            self.fail(f"<{where}/{tags[0]}> is missing; is this a complete sensor calibration "
+                      "file?")
+        return None
+
+    def number(self, el, where, *tags, integer=False, minimum=None, required=True,
+               default=None):
+        node = self.child(el, where, *tags, required=required)
+        if node is None:
+            return default
+        text = (node.text or "").strip()
+        try:
+            value = float(text)
+        except ValueError:
+            self.fail(f"<{where}/{tags[0]}> must be a number, got {text[:40]!r}")
+        if not np.isfinite(value):
+            self.fail(f"<{where}/{tags[0]}> must be finite, got {text!r}")
+        if integer:
+            if value != round(value):
+                self.fail(f"<{where}/{tags[0]}> must be a whole number, got {text!r}")
+            value = round(value)
+        if minimum is not None and value < minimum:
+            self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {text!r}")
+        return value
+
+    def numbers(self, node, where, count=None):
+        """The numbers of a ``values`` attribute or of the element's text."""
+        text = node.get("values")
+        if text is None:
+            text = node.text or ""
+        parts = [p for p in _SPLIT.split(text.strip()) if p]
+        try:
+            values = np.array([float(p) for p in parts])
+        except ValueError:
+            bad = next(p for p in parts if not _is_float(p))
+            self.fail(f"<{where}> holds {bad[:40]!r}, not a number")
+        if values.size == 0:
+            self.fail(f"<{where}> holds no numbers")
+        if not np.all(np.isfinite(values)):
+            self.fail(f"<{where}> holds a value that is not finite")
+        if count is not None and values.size != count:
+            self.fail(f"<{where}> holds {values.size} values, expected {count}")
+        return values
+
+
+def _is_float(text):
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def read_vendor_file(path) -> VendorCalibration:
+    """Read a vendor sensor calibration file of either variant.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.xml`` file.
+
+    Returns
+    -------
+    VendorCalibration
+
+    Raises
+    ------
+    FileNotFoundError
+        Nothing at ``path``.
+    ValueError
+        Not a sensor calibration file, or one that is malformed (the message names the
+        element), or a layout other than a mosaic.
+    """
+    from defusedxml import ElementTree
+    from defusedxml.common import DefusedXmlException
+
+    f = _File(path)
+    try:
+        check_input(f.path, what="sensor calibration file")
+        size = f.path.stat().st_size
+    except FileNotFoundError:
+        raise FileNotFoundError(f"sensor calibration file not found: {f.path}") from None
+    if size > MAX_FILE_BYTES:
+        f.fail(f"{size / 2**20:.0f} MiB is larger than any sensor calibration file "
+               f"(limit {MAX_FILE_BYTES / 2**20:.0f} MiB); is this the right file?")
+    try:
+        root = ElementTree.parse(f.path).getroot()
+    except ElementTree.ParseError as err:
+        f.fail(f"not well-formed XML ({err})")
+    except DefusedXmlException as err:
+        f.fail(f"refused: the XML uses {type(err).__name__} (entities or external "
+               "references), which a calibration file never needs")
+    if root.tag != "sensor_calibration":
+        f.fail(f"root element <{root.tag}>, expected <sensor_calibration>: not a sensor "
+               "calibration file")
+    info = f.child(root, "sensor_calibration", "filter_info")
+    if info.find("filter_zones") is not None:
+        return _newer(f, root, info)
+    return _older(f, root, info)
+
+
+def _sensor_info(f, root):
+    si = f.child(root, "sensor_calibration", "sensor_info")
+    rows = f.number(si, "sensor_info", "height_px", "height", integer=True, minimum=1)
+    cols = f.number(si, "sensor_info", "width_px", "width", integer=True, minimum=1)
+    pitch = f.number(si, "sensor_info", "pixel_pitch_um", "pixel_pitch", minimum=0,
+                     required=False, default=0.0)
+    bits = f.number(si, "sensor_info", "bit_depth", "input_bpp", integer=True, minimum=1,
+                    required=False)
+    return (rows, cols), (float(pitch) if pitch > 0 else None), bits
+
+
+def _layout(f, el, where):
+    layout = (el.get("layout") or "MOSAIC").strip().upper()
+    if layout != "MOSAIC":
+        f.fail(f"<{where}> has layout {layout}; only MOSAIC sensors are read for now")
+
+
+def _area_and_tile(f, el, where, size_px):
+    fa = f.child(el, where, "filter_area")
+    a = f"{where}/filter_area"
+    row = f.number(fa, a, "offset_y", integer=True, minimum=0)
+    col = f.number(fa, a, "offset_x", integer=True, minimum=0)
+    rows = f.number(fa, a, "height", integer=True, minimum=1)
+    cols = f.number(fa, a, "width", integer=True, minimum=1)
+    if row + rows > size_px[0] or col + cols > size_px[1]:
+        f.fail(f"<{a}> ({rows} x {cols} px at row {row}, column {col}) extends beyond the "
+               f"{size_px[0]} x {size_px[1]} px sensor")
+    ph = f.number(el, where, "pattern_height", integer=True, minimum=1)
+    pw = f.number(el, where, "pattern_width", integer=True, minimum=1)
+    for tag in ("filter_height", "filter_width"):
+        n = f.number(el, where, tag, integer=True, minimum=1, required=False, default=1)
+        if n != 1:
+            f.fail(f"<{where}/{tag}> is {n}: filters covering several pixels are not read")
+    if rows < ph or cols < pw:
+        f.fail(f"<{a}> ({rows} x {cols} px) is smaller than one {ph} x {pw} tile")
+    return (row, col, rows, cols), (ph, pw)
+
+
+def _peaks(f, band, where):
+    node = f.child(band, where, "peaks")
+    out = []
+    for k, p in enumerate(node.findall("peak")):
+        w = f"{where}/peaks/peak[{k}]"
+        order = p.get("order")
+        out.append(Peak(f.number(p, w, "wavelength_nm"), f.number(p, w, "fwhm_nm"),
+                        f.number(p, w, "QE", "qe", required=False, default=np.nan),
+                        int(order) if order and order.strip().lstrip("-").isdigit() else None))
+    if not out:
+        f.fail(f"<{where}/peaks> lists no peak")
+    for p in out:
+        if not (p.fwhm_nm > 0 and 100 <= p.wavelength_nm <= 1e5):
+            f.fail(f"<{where}/peaks> has a peak at {p.wavelength_nm:g} nm, FWHM "
+                   f"{p.fwhm_nm:g} nm: not a wavelength in nm and a width > 0")
+    return tuple(p._replace(qe=0.0) if not np.isfinite(p.qe) else p for p in out)
+
+
+def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
+    by_index = {}
+    for band in bands_el.findall("band"):
+        raw = next((band.get(a) for a in index_attrs if band.get(a) is not None), None)
+        if raw is None or not raw.strip().isdigit():
+            f.fail(f"a <{where}/band> has no whole-number {index_attrs[0]} attribute "
+                   f"(got {raw!r})")
+        i = int(raw)
+        if i in by_index:
+            f.fail(f"<{where}> lists band {i} twice")
+        by_index[i] = band
+    if sorted(by_index) != list(range(n_bands)):
+        f.fail(f"<{where}> lists bands {sorted(by_index)[:6]}{'...' if len(by_index) > 6 else ''}"
+               f" ({len(by_index)}), but a {n_bands}-band tile needs indices 0-{n_bands - 1}")
+    curves, peaks = [], []
+    for i in range(n_bands):
+        w = f"{where}/band[{i}]"
+        band = by_index[i]
+        peaks.append(_peaks(f, band, w))
+        node = band
+        for tag in response_tag:
+            node = f.child(node, w, tag)
+        curves.append(f.numbers(node, f"{w}/{'/'.join(response_tag)}", count=grid.size))
+    return np.array(curves), tuple(peaks)
+
+
+def _grid_from_range(f, ci, where):
+    start = f.number(ci, where, "measurement_range_start_nm", "wavelength_start_nm")
+    step = f.number(ci, where, "measurement_resolution_nm", "wavelength_resolution_nm")
+    n = f.number(ci, where, "nr_measurements", "nr_data_points", integer=True, minimum=3)
+    if not step > 0:
+        f.fail(f"<{where}> gives a step of {step:g} nm; it must be > 0")
+    grid = start + step * np.arange(n)
+    end = f.number(ci, where, "measurement_range_end_nm", "wavelength_end_nm", required=False)
+    if end is not None and abs(grid[-1] - end) > 1e-6 * max(1.0, abs(end)):
+        f.fail(f"<{where}>: {n} samples from {start:g} nm in steps of {step:g} nm end at "
+               f"{grid[-1]:g} nm, not at the stated {end:g} nm")
+    return grid
+
+
+def _older(f, root, info):
+    size, pitch, bits = _sensor_info(f, root)
+    _layout(f, info, "filter_info")
+    area, tile = _area_and_tile(f, info, "filter_info", size)
+    grid = _grid_from_range(f, f.child(info, "filter_info", "calibration_info"),
+                            "filter_info/calibration_info")
+    n_bands = tile[0] * tile[1]
+    curves, peaks = _bands(f, f.child(info, "filter_info", "bands"), "filter_info/bands",
+                           ("pattern_position_index", "index"), n_bands, grid,
+                           ("response_composition", "data"))
+    system, name = np.ones(grid.size), "none"
+    rej = info.find("rejection_filter")
+    if rej is not None:
+        where = "filter_info/rejection_filter"
+        node = f.child(f.child(rej, where, "filter_response"), where, "data")
+        values = f.numbers(node, f"{where}/filter_response/data")
+        if rej.find("wavelength_start_nm") is not None:
+            own = _grid_from_range(f, rej, where)
+            if values.size != own.size:
+                f.fail(f"<{where}/filter_response/data> holds {values.size} values, its grid "
+                       f"{own.size}")
+            system = _on_grid(f, own, values, grid, where)
+        elif values.size == grid.size:
+            system = values
+        else:
+            f.fail(f"<{where}/filter_response/data> holds {values.size} values, the response "
+                   f"grid {grid.size}")
+        kind = rej.find("type")
+        name = (kind.text or "").strip() if kind is not None and kind.text else "band-pass"
+    responses = FilterResponses(grid, curves, system, peaks, system_name=name)
+    matrices = ()
+    sci = root.find(".//spectral_correction_info")
+    if sci is not None and sci.find("virtual_bands") is not None:
+        fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
+                        required=False, default=np.nan)
+        matrices = (_older_matrix(f, sci, n_bands, fwhm),)
+    return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
+                             matrices, bits)
+
+
+def _older_matrix(f, sci, n_bands, fwhm):
+    where = "spectral_correction_info/virtual_bands"
+    rows, wl = [], []
+    for k, band in enumerate(sci.find("virtual_bands").findall("band")):
+        w = f"{where}/band[{k}]"
+        wl.append(f.number(band, w, "wavelength_nm"))
+        node = f.child(f.child(band, w, "custom_spectral_correction"),
+                       f"{w}/custom_spectral_correction", "data")
+        rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands))
+    if not rows:
+        f.fail(f"<{where}> lists no virtual band")
+    try:
+        return CorrectionMatrix("custom", "irradiance", wl, np.full(len(wl), fwhm), rows)
+    except ValueError as err:
+        f.fail(str(err))
+
+
+def _on_grid(f, own, values, grid, where):
+    """A component's curve on the band grid; refused unless its own grid covers it."""
+    if np.any(np.diff(own) <= 0):
+        f.fail(f"<{where}>: its wavelengths must increase")
+    if own[0] > grid[0] + 1e-9 or own[-1] < grid[-1] - 1e-9:
+        f.fail(f"<{where}> covers {own[0]:g}-{own[-1]:g} nm, not the responses' "
+               f"{grid[0]:g}-{grid[-1]:g} nm")
+    return np.interp(grid, own, values)
+
+
+def _newer(f, root, info):
+    size, pitch, bits = _sensor_info(f, root)
+    grid_node = f.child(f.child(info, "filter_info", "calibration_info"),
+                        "filter_info/calibration_info", "sample_points_nm")
+    grid = f.numbers(grid_node, "filter_info/calibration_info/sample_points_nm")
+    if grid.size < 3 or np.any(np.diff(grid) <= 0):
+        f.fail("<filter_info/calibration_info/sample_points_nm> must list at least 3 "
+               "increasing wavelengths")
+    zones = f.child(info, "filter_info", "filter_zones").findall("filter_zone")
+    if len(zones) != 1:
+        f.fail(f"<filter_info/filter_zones> holds {len(zones)} filter zones; one is read")
+    zone, where = zones[0], "filter_info/filter_zones/filter_zone"
+    _layout(f, zone, where)
+    area, tile = _area_and_tile(f, zone, where, size)
+    n_bands = tile[0] * tile[1]
+    curves, peaks = _bands(f, f.child(zone, where, "bands"), f"{where}/bands",
+                           ("index", "pattern_position_index"), n_bands, grid, ("response",))
+    system, names = np.ones(grid.size), []
+    si = root.find("system_info")
+    if si is None:
+        si = root.find(".//system_info")
+    comps = si.find("optical_components") if si is not None else None
+    for k, comp in enumerate(comps.findall("optical_component") if comps is not None else []):
+        w = f"system_info/optical_components/optical_component[{k}]"
+        own = f.numbers(f.child(comp, w, "sample_points_nm"), f"{w}/sample_points_nm")
+        values = f.numbers(f.child(comp, w, "response"), f"{w}/response", count=own.size)
+        system = system * _on_grid(f, own, values, grid, w)
+        kind = comp.find("type")
+        names.append((kind.text or "").strip() if kind is not None and kind.text else
+                     f"component {k}")
+    responses = FilterResponses(grid, curves, system, peaks,
+                                system_name=" x ".join(names) or "none")
+    matrices = tuple(_newer_matrix(f, m, k, n_bands)
+                     for k, m in enumerate(root.iter("correction_matrix")))
+    names_seen = [m.name for m in matrices]
+    if len(set(names_seen)) != len(names_seen):
+        f.fail(f"two correction matrices share a name ({names_seen})")
+    return VendorCalibration(str(f.path), "newer", size, pitch, area, tile, responses,
+                             matrices, bits)
+
+
+def _newer_matrix(f, m, k, n_bands):
+    where = f"correction_matrices/correction_matrix[{k}]"
+    name_node = f.child(m, where, "name")
+    name = (name_node.text or "").strip() or f"matrix {k}"
+    kind_node = f.child(m, where, "type")
+    kind = (kind_node.text or "").strip().lower()
+    if kind not in ("reflectance", "irradiance"):
+        f.fail(f"<{where}/type> is {kind!r}; expected reflectance or irradiance")
+    rows, wl, fw = [], [], []
+    vbs = f.child(m, where, "virtual_bands").findall("virtual_band")
+    for j, vb in enumerate(vbs):
+        w = f"{where}/virtual_bands/virtual_band[{j}]"
+        wl.append(f.number(vb, w, "wavelength_nm"))
+        fw.append(f.number(vb, w, "fwhm_nm", required=False, default=np.nan))
+        rows.append(f.numbers(f.child(vb, w, "coefficients"), f"{w}/coefficients",
+                              count=n_bands))
+    if not rows:
+        f.fail(f"<{where}/virtual_bands> lists no virtual band")
+    try:
+        return CorrectionMatrix(name, kind, wl, fw, rows)
+    except ValueError as err:
+        f.fail(str(err))
