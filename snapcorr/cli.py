@@ -399,10 +399,11 @@ def _cmd_correct(args):
           f"{tuple(round(c, 1) for c in ds.attrs['optical_center_px'])} px "
           f"({ds.attrs['optical_center_source']})"
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
-    table = ds["fwhm_table"].values
-    print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over the "
-          f"field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):g}-"
-          f"{np.max(sensor.fwhm_nm):g} nm)")
+    if "fwhm_table" in ds:
+        table = ds["fwhm_table"].values
+        print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over "
+              f"the field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):.3g}-"
+              f"{np.max(sensor.fwhm_nm):.3g} nm)")
     if "harmonised" in ds:  # asked for, or chosen by the scene budget
         w = ds["fwhm_harmonised"].values
         print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "

@@ -131,33 +131,30 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask)
     cwl = np.asarray(sensor.cwl_nm, float)
-    n_eff = np.asarray(sensor.n_eff, float)
     cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
                                               sensor_origin_px=sensor_origin_px)
     cra_max = _field_max_deg(cra, f, lens)
-    if method == "auto":
-        used, reason = choose_model(cwl, n_eff, f, cra_max, lens, tolerance_nm=tolerance_nm)
-    else:
-        used, reason = method, "asked for"
-
-    def scale_at(c, n):
-        return 1.0 + relative_shift(n, f, c, lens, model=used, tolerance_nm=tolerance_nm,
-                                    cwl_max_nm=float(cwl[n_eff == n].max()))
-
-    scale, column = _scales(cra, n_eff, scale_at)
+    used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
+    widths = (None if sensor.n_eff is None
+              else _width_table(sensor, lens, f, cra_max, tolerance_nm))
+    scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
+    scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
     ds = _dataset(cube, sensor, lens, cra, scale, column,
-                  source=f"1 + mean shift / cwl by the "
+                  source=f"{how} by the "
                          f"{'vignetted' if used == 'harmonised' else used} model at f/{f:g}, "
                          f"lens {lens.name}, tolerance {float(tolerance_nm):g} nm",
                   center_source=center_source)
-    ds, table = _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm)
+    if widths is not None:
+        ds = _with_fwhm(ds, cube, lens, sensor, f, widths)
     if mask is not None:
         ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
         ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
     if resample:
         ds["resampled"] = _resampled(cube, scale, column, cwl)
     if harmonise or used == "harmonised":
-        ds = _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm,
+        if widths is None:
+            sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
+        ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
                          scale_at, n_eff)
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
@@ -170,6 +167,19 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         "snapcorr_version": __version__,
     })
     return ds
+
+
+def _model(sensor, f, cra_max, lens, method, tolerance_nm):
+    """The model used and why, and the bands' effective indices (ones where unknown, which
+    only the model "none" allows)."""
+    cwl = np.asarray(sensor.cwl_nm, float)
+    if sensor.n_eff is None and method != "none":
+        sensor.require("n_eff", f"the wavelength correction (--method {method}; --method "
+                                "none keeps the nominal wavelengths)")
+    n_eff = np.asarray(sensor.n_eff if sensor.n_eff is not None else np.ones(cwl.size), float)
+    if method == "auto":
+        return (*choose_model(cwl, n_eff, f, cra_max, lens, tolerance_nm=tolerance_nm), n_eff)
+    return method, "asked for", n_eff
 
 
 def _field_max_deg(cra, f, lens):
@@ -231,10 +241,43 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
     return f
 
 
-def _scales(cra, n_eff, scale_at):
+def _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths):
+    """``scale_at(cra, key)``: corrected / nominal wavelength at chief-ray angles ``cra`` for
+    an effective index (modelled filters) or a band (measured ones, ``key`` its index), and
+    what it is, for the provenance."""
+    cwl = np.asarray(sensor.cwl_nm, float)
+    measured = sensor.responses is not None and used not in ("none", "asymptotic")
+    if not measured:
+        n_eff = np.asarray(sensor.n_eff if sensor.n_eff is not None else np.ones(cwl.size))
+
+        def scale_at(c, key):
+            n = n_eff[key] if sensor.responses is not None else key
+            return 1.0 + relative_shift(n, f, c, lens, model=used, tolerance_nm=tolerance_nm,
+                                        cwl_max_nm=float(cwl[n_eff == n].max()))
+
+        return scale_at, "1 + mean shift / cwl"
+    table = widths
+    if used == "ideal" and lens.has_vignetting:  # the table of widths is the vignetted lens's
+        table = _measured_table(sensor, dataclasses.replace(lens, vignetting=()), f, cra_max,
+                                tolerance_nm)
+
+    def scale_at(c, band):
+        return table.scale(c, band)
+
+    return scale_at, ("each band's centre (mean wavenumber of its measured main lobe through "
+                      "the system) behind the lens / at normal incidence")
+
+
+def _scales(cra, n_eff, scale_at, *, per_band=False):
     """``wavelength_scale`` and ``scale_index``: one factor map per distinct effective index
-    (Snapscan: every band at one place), else one per band (mosaic)."""
+    (Snapscan: every band at one place), else one per band (mosaic, or measured filters,
+    whose every band has its own curve)."""
     groups, column = np.unique(n_eff, return_inverse=True)
+    if per_band:
+        scale = np.empty((*cra.shape[:2], n_eff.size))
+        for b in range(n_eff.size):
+            scale[:, :, b] = scale_at(cra[:, :, b if cra.shape[2] > 1 else 0], b)
+        return scale, np.arange(n_eff.size)
     if cra.shape[2] > 1:
         scale = np.empty(cra.shape)
         for n in groups:
@@ -253,26 +296,43 @@ def _scales(cra, n_eff, scale_at):
 FWHM_TOLERANCE_NM = 0.005
 
 
-def _with_fwhm(ds, cube, lens, sensor, f, cra_max, tolerance_nm):
-    """``fwhm_corrected``: each band's whole response (filter shape spread by the kernel,
-    Eq. 13) tabulated over CRA once, interpolated per pixel lazily."""
+def _measured_table(sensor, lens, f, cra_max, tolerance_nm):
+    from ..optics.measured import MeasuredTable
+
+    return MeasuredTable.build(sensor.responses, sensor.n_eff, f, lens, cra_max_deg=cra_max,
+                               tolerance_nm=tolerance_nm,
+                               fwhm_tolerance_nm=max(float(tolerance_nm), FWHM_TOLERANCE_NM))
+
+
+def _width_table(sensor, lens, f, cra_max, tolerance_nm):
+    """Each band's whole response (filter shape spread by the kernel, Eq. 13) tabulated over
+    CRA once: a FwhmTable, or for measured filters a MeasuredTable (centres too)."""
     from ..optics.bandwidth import FwhmTable
 
-    shape = sensor.profile_shape
+    if sensor.responses is not None:
+        return _measured_table(sensor, lens, f, cra_max, tolerance_nm)
     # the widths need no finer table than FWHM_TOLERANCE_NM even when the wavelengths do
     tol = max(float(tolerance_nm), FWHM_TOLERANCE_NM)
-    table = FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
-                            cra_max_deg=cra_max, profile=shape, tolerance_nm=tol)
+    return FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
+                           cra_max_deg=cra_max, profile=sensor.profile_shape, tolerance_nm=tol)
+
+
+def _with_fwhm(ds, cube, lens, sensor, f, table):
+    """``fwhm_corrected``: the width table interpolated per pixel lazily."""
     ds = ds.assign_coords(fwhm_cra_deg=("fwhm_cra", table.cra_deg,
                                         {"units": "degree",
                                          "long_name": "chief-ray angles of fwhm_table"}))
+    if sensor.responses is not None:
+        what = (f"measured responses through the system ({sensor.responses.system_name}), "
+                "each ray scaling the whole curve, FWHM about the main peak,")
+    else:
+        what = f"{sensor.profile} filters (FWHM {_span(sensor.fwhm_nm)} nm at normal incidence)"
     ds["fwhm_table"] = (("band", "fwhm_cra"), table.fwhm_nm, {
         "units": "nm", "long_name": "FWHM of each band's whole response at fwhm_cra_deg",
-        "source": f"{sensor.profile} filters (FWHM {_span(sensor.fwhm_nm)} nm at normal "
-                  f"incidence) spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
+        "source": f"{what} spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
                   "et al. 2019 Eq. 13, 37; each ray scales the curve); linear interpolation "
-                  f"within {tol:g} nm"})
-    return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks)), table
+                  f"within {table.tolerance_nm:g} nm"})
+    return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks))
 
 
 #: Chief-ray-angle step of the Snapscan path's weight tables, between which a pixel's weights

@@ -37,7 +37,8 @@ def _full_frame(lens, sensor):
     cal = getattr(lens, "calibration", {}) or {}
     size, pitch = cal.get("image_size_px"), cal.get("pixel_pitch_um")
     if size is not None and pitch is not None:
-        k = float(pitch) / sensor.pixel_pitch_um  # calibration pixels -> this sensor's
+        k = float(pitch) / sensor.require("pixel_pitch_um", "placing the cube")  # -> this
+        # sensor's pixels
         w, h = (float(v) for v in size)  # recorded as [width, height]
         return (h * k, w * k), (f"the lens calibration's image ({int(w)} x {int(h)} px of "
                                 f"{float(pitch):g} um)")
@@ -174,7 +175,8 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     cal = getattr(lens, "calibration", {}) or {}
     if "center_px" in cal and cal.get("pixel_pitch_um") is not None:
         cx, cy = check_center(cal["center_px"], "the lens calibration's center_px")
-        p_cal, p = float(cal["pixel_pitch_um"]), sensor.pixel_pitch_um
+        p_cal = float(cal["pixel_pitch_um"])
+        p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
         size = cal.get("image_size_px")
         same_pitch = abs(p_cal - p) < 1e-9 * p
         if same_pitch and (size is None or sensor.size_px is None):
@@ -231,9 +233,9 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     center : (float, float)
     center_source : str
     """
+    pitch = sensor.require("pixel_pitch_um", "the chief-ray angle of each pixel")
     rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
     center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
     # rows (ny, 1, nb) against columns (1, nx, nb)
-    cra = cra_deg(rows[:, None, :], cols[None, :, :], center, sensor.pixel_pitch_um,
-                  lens.exit_pupil_mm)
+    cra = cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
     return cra, center, source

@@ -29,6 +29,8 @@ import math
 import numba
 import numpy as np
 
+from .resample import sort_samples
+
 __all__ = ["harmonise_spectra"]
 
 #: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
@@ -124,19 +126,17 @@ def _direct(data, scale, column, cwl, sigma, out):  # pragma: no cover - compile
         lam = np.empty(nb)
         d = np.empty(nb)
         for x in range(nx):
-            ok = True
             for b in range(nb):
                 lam[b] = cwl[b] * scale[y, x, column[b]]
                 d[b] = data[y, x, b]
-                if b > 0 and not lam[b] > lam[b - 1]:
-                    ok = False
+            m = sort_samples(lam, d, nb)
             j = 0
             for k in range(nb):
                 t = cwl[k]
-                if not ok or t < lam[0] or t > lam[nb - 1]:
+                if m < 2 or t < lam[0] or t > lam[m - 1]:
                     out[y, x, k] = np.nan
                     continue
-                out[y, x, k], j = _value(lam, d, t, sigma[y, x, k], j)
+                out[y, x, k], j = _value(lam[:m], d[:m], t, sigma[y, x, k], j)
 
 
 @numba.njit(parallel=True, cache=True, fastmath={"reassoc", "contract"})

@@ -17,7 +17,40 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["resample_to_nominal"]
+__all__ = ["resample_to_nominal", "sort_samples"]
+
+
+@numba.njit(cache=True)
+def sort_samples(lam, d, n):  # pragma: no cover - compiled
+    """Put a pixel's samples ``(lam, d)`` (first ``n``) in increasing wavelength, in place,
+    and merge those at the same wavelength into their mean; returns how many remain.
+
+    Bands whose corrected wavelengths cross (two measured filters a few nm apart that shift
+    differently) are taken in the order the light has them; the usual, already increasing
+    spectrum costs one comparison per band.
+    """
+    for i in range(1, n):  # insertion sort: linear on sorted input
+        li, di = lam[i], d[i]
+        j = i - 1
+        while j >= 0 and lam[j] > li:
+            lam[j + 1] = lam[j]
+            d[j + 1] = d[j]
+            j -= 1
+        lam[j + 1] = li
+        d[j + 1] = di
+    m = 0
+    i = 0
+    while i < n:
+        k = i + 1
+        acc = d[i]
+        while k < n and lam[k] == lam[i]:
+            acc += d[k]
+            k += 1
+        lam[m] = lam[i]
+        d[m] = acc / (k - i)
+        m += 1
+        i = k
+    return m
 
 
 @numba.njit(parallel=True, cache=True, fastmath=False)
@@ -25,26 +58,22 @@ def _resample(data, scale, column, cwl, out):  # pragma: no cover - compiled
     ny, nx, nb = data.shape
     for y in numba.prange(ny):
         lam = np.empty(nb)
+        d = np.empty(nb)
         for x in range(nx):
-            ok = True
             for b in range(nb):
                 lam[b] = cwl[b] * scale[y, x, column[b]]
-                if b > 0 and not lam[b] > lam[b - 1]:
-                    ok = False
-            if not ok:
-                for k in range(nb):
-                    out[y, x, k] = np.nan
-                continue
+                d[b] = data[y, x, b]
+            m = sort_samples(lam, d, nb)
             j = 0
             for k in range(nb):
                 t = cwl[k]
-                if t < lam[0] or t > lam[nb - 1]:
+                if m < 2 or t < lam[0] or t > lam[m - 1]:
                     out[y, x, k] = np.nan
                     continue
-                while j < nb - 2 and lam[j + 1] < t:
+                while j < m - 2 and lam[j + 1] < t:
                     j += 1
                 w = (t - lam[j]) / (lam[j + 1] - lam[j])
-                out[y, x, k] = data[y, x, j] + w * (data[y, x, j + 1] - data[y, x, j])
+                out[y, x, k] = d[j] + w * (d[j + 1] - d[j])
 
 
 @numba.njit(parallel=True, fastmath=True, boundscheck=False, cache=True)
@@ -90,8 +119,9 @@ def resample_to_nominal(data, scale, column, cwl_nm, out=None):
     Returns
     -------
     ndarray
-        NaN where a nominal wavelength lies outside the pixel's corrected range, and for a
-        whole pixel whose corrected wavelengths are not increasing.
+        NaN where a nominal wavelength lies outside the pixel's corrected range. Corrected
+        wavelengths that cross (measured filters a few nm apart shifting differently) are
+        taken in increasing order (:func:`sort_samples`).
 
     Examples
     --------

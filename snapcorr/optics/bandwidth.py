@@ -31,7 +31,7 @@ from .profiles import PROFILES
 from .response import kernel_bins
 from .shift import check_n_eff
 
-__all__ = ["FWHM_METHODS", "FwhmTable", "band_profile", "response_fwhm"]
+__all__ = ["FWHM_METHODS", "FwhmTable", "band_profile", "refine_nodes", "response_fwhm"]
 
 FWHM_METHODS = ("exact", "variance")
 #: Grid step of the exact method, as a fraction of the narrowest band's FWHM: for smooth
@@ -194,6 +194,79 @@ def _exact(curves, u, du, la, w, cwl):
     return cwl * (np.exp(right) - np.exp(left))
 
 
+def refine_nodes(at, f_number, lens: Lens, *, cra_max_deg, tolerance, max_nodes=513,
+                 what="the table", min_step_deg=1e-4):
+    """Chief-ray-angle nodes from 0 to ``cra_max_deg`` at which ``at`` is tabulated, fine
+    enough that linear interpolation between them stays within ``tolerance``.
+
+    Nodes start at most 0.5 deg apart, with every onset of vignetting and three points just
+    after each (where the cut cap grows as depth^(3/2) and a midpoint alone can miss the bend);
+    each interval whose midpoint misses linear interpolation by more than half the tolerance
+    (for any row) is halved.
+
+    Parameters
+    ----------
+    at : callable
+        ``at(cra_deg)`` for an array of angles -> ``(n_rows, n_angles)`` values (NaN allowed
+        where no light arrives).
+    f_number : float
+    lens : Lens
+    cra_max_deg : float
+        Largest chief-ray angle tabulated, degrees (finite, >= 0).
+    tolerance : float or array_like
+        Largest interpolation error, one value or one per row.
+    max_nodes : int
+        Most nodes allowed.
+    what : str
+        The table's name, for the error.
+    min_step_deg : float
+        Intervals this short are not halved again (a width that grows as a square root where
+        a shoulder crosses half the maximum would ask for ever shorter ones).
+
+    Returns
+    -------
+    nodes : ndarray, shape (n_nodes,)
+    values : ndarray, shape (n_rows, n_nodes)
+
+    Raises
+    ------
+    ValueError
+        When ``max_nodes`` cannot reach the tolerance.
+    """
+    cra_max = float(cra_max_deg)
+    if not (np.isfinite(cra_max) and cra_max >= 0):
+        raise ValueError(f"cra_max_deg must be finite and >= 0, got {cra_max_deg!r}")
+    kinks = [float(v) for v in np.atleast_1d(lens.onset_cra_deg(f_number))
+             if 0 < v < cra_max] if lens.has_vignetting else []
+    after = [k + d for k in kinks for d in (0.05, 0.15, 0.3) if k + d < cra_max]
+    start = np.linspace(0.0, cra_max, max(9, int(np.ceil(cra_max / 0.5)) + 1))
+    nodes = np.unique(np.concatenate([start, kinks, after]))
+    values = at(nodes)
+    tol = np.broadcast_to(np.asarray(tolerance, float), values.shape[:1])
+    pending = [(nodes[k], nodes[k + 1], values[:, k], values[:, k + 1])
+               for k in range(nodes.size - 1)]
+    got_c, got_v = list(nodes), list(values.T)
+    while pending:
+        mid = np.array([0.5 * (a + b) for a, b, _, _ in pending])
+        vm = at(mid)
+        split = []
+        for k, (a, b, va, vb) in enumerate(pending):
+            got_c.append(mid[k])
+            got_v.append(vm[:, k])
+            miss = np.abs(vm[:, k] - 0.5 * (va + vb))
+            # half the tolerance at the midpoint: the worst point of an interval is not
+            # always its middle
+            ok = np.isfinite(miss)
+            if np.any(miss[ok] > 0.5 * tol[ok]) and b - a > min_step_deg:
+                split += [(a, mid[k], va, vm[:, k]), (mid[k], b, vm[:, k], vb)]
+        if len(got_c) + len(split) > max_nodes:  # each pending interval adds a midpoint
+            raise ValueError(f"{what} did not reach {float(np.min(tol)):g} nm with "
+                             f"{max_nodes} nodes; raise the tolerance")
+        pending = split
+    order = np.argsort(got_c)
+    return np.asarray(got_c)[order], np.asarray(got_v)[order].T
+
+
 @dataclass(frozen=True)
 class FwhmTable:
     """Every band's response FWHM on chief-ray-angle nodes, fine enough that linear
@@ -244,42 +317,13 @@ class FwhmTable:
             When ``max_nodes`` cannot reach the tolerance.
         """
         check_positive("tolerance_nm", tolerance_nm)
-        cra_max = float(cra_max_deg)
-        if not (np.isfinite(cra_max) and cra_max >= 0):
-            raise ValueError(f"cra_max_deg must be finite and >= 0, got {cra_max_deg!r}")
 
         def at(c):
             return response_fwhm(cwl_nm, fwhm_nm, n_eff, f_number, c, lens, profile=profile)
 
-        kinks = [float(v) for v in np.atleast_1d(lens.onset_cra_deg(f_number))
-                 if 0 < v < cra_max] if lens.has_vignetting else []
-        # at most 0.5 deg apart to start, and close after each onset, where the cut cap
-        # grows as depth^(3/2) and a midpoint alone can miss the bend
-        after = [k + d for k in kinks for d in (0.05, 0.15, 0.3) if k + d < cra_max]
-        start = np.linspace(0.0, cra_max, max(9, int(np.ceil(cra_max / 0.5)) + 1))
-        nodes = np.unique(np.concatenate([start, kinks, after]))
-        values = at(nodes)
-        pending = [(nodes[k], nodes[k + 1], values[:, k], values[:, k + 1])
-                   for k in range(nodes.size - 1)]
-        got_c, got_v = list(nodes), list(values.T)
-        while pending:
-            mid = np.array([0.5 * (a + b) for a, b, _, _ in pending])
-            vm = at(mid)
-            split = []
-            for k, (a, b, va, vb) in enumerate(pending):
-                got_c.append(mid[k])
-                got_v.append(vm[:, k])
-                miss = np.abs(vm[:, k] - 0.5 * (va + vb))
-                # half the tolerance at the midpoint: the worst point of an interval is not
-                # always its middle
-                if np.any(miss[np.isfinite(miss)] > 0.5 * tolerance_nm) and b - a > 1e-4:
-                    split += [(a, mid[k], va, vm[:, k]), (mid[k], b, vm[:, k], vb)]
-            if len(got_c) + len(split) > max_nodes:  # each pending interval adds a midpoint
-                raise ValueError(f"the FWHM table did not reach {tolerance_nm:g} nm with "
-                                 f"{max_nodes} nodes; raise the tolerance")
-            pending = split
-        order = np.argsort(got_c)
-        nodes, values = np.asarray(got_c)[order], np.asarray(got_v)[order].T
+        nodes, values = refine_nodes(at, f_number, lens, cra_max_deg=cra_max_deg,
+                                     tolerance=tolerance_nm, max_nodes=max_nodes,
+                                     what="the FWHM table")
         return cls(nodes, values, float(tolerance_nm), profile)
 
     def __call__(self, cra_deg):
