@@ -3,8 +3,10 @@
 from .core import correct_cube, relative_shift
 from .geometry import PlacementError, cube_cra_deg, cube_positions, optical_center
 from .resample import resample_to_nominal
+from .virtual import VIRTUAL_METHODS, virtual_bands
 
 __all__ = [
+    "VIRTUAL_METHODS",
     "PlacementError",
     "correct_cube",
     "cube_cra_deg",
@@ -12,4 +14,5 @@ __all__ = [
     "optical_center",
     "relative_shift",
     "resample_to_nominal",
+    "virtual_bands",
 ]

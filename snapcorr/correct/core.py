@@ -72,7 +72,9 @@ def relative_shift(n_eff, f_number, cra_deg, lens, *, model, tolerance_nm, cwl_m
 
 def correct_cube(cube, sensor, f_number, lens, *, method="auto",
                  tolerance_nm=DEFAULT_TOLERANCE_NM, center_px=None, sensor_origin_px=None,
-                 resample=False, harmonise=False, target_fwhm_nm=None, mask=None):
+                 resample=False, harmonise=False, target_fwhm_nm=None, mask=None,
+                 virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
+                 virtual_fwhm_nm=None):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
@@ -114,6 +116,14 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         only widens.
     mask : xarray.DataArray, optional
         The flat-field mask (True where a value is not meaningful), kept in the output.
+    virtual_bands : {"vendor", "fitted", "angle-aware"}, optional
+        Also give the virtual bands (:func:`~snapcorr.correct.virtual_bands`): the vendor's
+        matrix, one fitted to the measured responses, or one for each pixel's responses
+        behind the lens.
+    virtual_matrix : str, optional
+        The vendor matrix's name, for ``virtual_bands="vendor"``.
+    virtual_wavelengths_nm, virtual_fwhm_nm : array_like, optional
+        Centres and widths of fitted virtual bands (default: the vendor's).
 
     Returns
     -------
@@ -126,7 +136,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         ``fwhm_corrected(y, x, band)`` (float32, nm; each pixel's response FWHM, rebuilt
         lazily from ``fwhm_table(band, fwhm_cra)``); ``resampled`` and ``harmonised`` (with
         ``fwhm_harmonised(band)``, the common response) on request; ``mask`` when given;
-        provenance in attrs.
+        ``virtual(y, x, virtual_band)`` and the matrix used, on request; provenance in
+        attrs.
     """
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask)
@@ -156,6 +167,12 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
             sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
                          scale_at, n_eff)
+    if virtual_bands is not None:
+        from .virtual import virtual_bands as virtual
+
+        ds = ds.merge(virtual(cube, sensor, virtual_bands, f_number=f, lens=lens,
+                              cra_deg=cra.mean(axis=2), matrix=virtual_matrix,
+                              wavelengths_nm=virtual_wavelengths_nm, fwhm_nm=virtual_fwhm_nm))
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
         "source": f"snapcorr {__version__} correct", "Conventions": "CF-1.10",

@@ -70,9 +70,9 @@ WIDTH_TOLERANCE_FRACTION = 0.01
 #: maximum the width grows as a square root, and the interpolation error over 0.02 deg there is
 #: a few hundredths of a nanometre.
 WIDTH_MIN_STEP_DEG = 0.02
-#: Log-wavelength step of the whole responses (virtual bands): 0.05 nm at 1000 nm, well below
+#: Log-wavelength step of the whole responses (virtual bands): 0.1 nm at 1000 nm, a tenth of
 #: the 1 nm grids of calibration files.
-WHOLE_STEP = 5e-5
+WHOLE_STEP = 1e-4
 _REF_NM = 1000.0
 
 

@@ -1,0 +1,115 @@
+"""Flat-fielded band values of a snapshot-mosaic sensor with measured filters, behind a lens.
+
+An independent forward model for judging virtual bands and the measured-response optics: it
+does not import snapcorr. The sensor is read from a vendor calibration file with the standard
+library (older variant: ``response_composition``, ``rejection_filter``, the virtual bands'
+wavelengths and ``fwhm_virtual_filters_nm``); the lens is a :class:`flatsim.LensTruth` and its
+vignetted pupil is sampled by :func:`spectralsim.pupil_samples`.
+
+Model: a ray at angle ``phi`` sees every band's whole curve scaled, ``T_b(lambda / a)``,
+``a = sqrt(1 - sin^2 phi / n_eff^2)``; the pixel's response is the pupil-weighted sum times
+the band-pass ``S(lambda)`` (which does not move). Equal-energy light: a flat-fielded band
+value is ``sum R_b rho / sum R_b`` on the file's 1 nm grid; a virtual band's true value the same
+with a unit-peak Gaussian of the file's width at its wavelength.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import numpy as np
+from spectralsim import pupil_samples
+
+
+@dataclass(frozen=True)
+class MosaicFile:
+    grid: np.ndarray
+    curves: np.ndarray  # (bands, n)
+    bandpass: np.ndarray  # (n,)
+    coefficients: np.ndarray  # (virtual, bands): the file's irradiance matrix
+    virtual_nm: np.ndarray
+    virtual_fwhm_nm: float
+
+
+def read_older(path):
+    """The older vendor variant, element by element."""
+    fi = ET.parse(path).getroot().find("filter_info")
+    ci = fi.find("calibration_info")
+    start = float(ci.find("measurement_range_start_nm").text)
+    step = float(ci.find("measurement_resolution_nm").text)
+    grid = start + step * np.arange(int(ci.find("nr_measurements").text))
+    bands = sorted(fi.find("bands"), key=lambda b: int(b.get("pattern_position_index")))
+    curves = np.array([[float(v) for v in b.find("response_composition/data").text.split(",")]
+                       for b in bands])
+    bp = np.array([float(v) for v in
+                   fi.find("rejection_filter/filter_response/data").text.split(",")])
+    sci = fi.find("spectral_correction_info")
+    vbs = sci.find("virtual_bands")
+    coeffs = np.array([[float(v) for v in b.find("custom_spectral_correction/data").text.split(
+        ",")] for b in vbs])
+    wl = np.array([float(b.find("wavelength_nm").text) for b in vbs])
+    return MosaicFile(grid, curves, bp, coeffs, wl,
+                      float(sci.find("fwhm_virtual_filters_nm").text))
+
+
+def responses(sensor: MosaicFile, lens, f_number, cra_deg, n_eff, *, nodes=(64, 32)):
+    """Every band's response at a pixel of chief-ray angle ``cra_deg`` (None: normal,
+    collimated incidence), on the file's grid: ``S sum_j w_j T_b(lambda / a_j)``."""
+    if cra_deg is None:
+        a, w = np.ones(1), np.ones(1)
+    else:
+        d = lens.exit_pupil_mm * np.tan(np.deg2rad(cra_deg))
+        u, v, w = pupil_samples(lens, f_number, d, theta_nodes=nodes[0], r_nodes=nodes[1])
+        t2 = ((u - d) ** 2 + v**2) / lens.exit_pupil_mm**2
+        a = np.sqrt(1.0 - t2 / (1.0 + t2) / n_eff**2)
+    out = np.zeros_like(sensor.curves)
+    for ak, wk in zip(a, w / w.sum(), strict=True):
+        x = sensor.grid / ak
+        for b, curve in enumerate(sensor.curves):
+            out[b] += wk * np.interp(x, sensor.grid, curve, left=0.0, right=0.0)
+    return out * sensor.bandpass
+
+
+def band_values(R, spectra):
+    """Flat-fielded band values of reflectance ``spectra`` (k, n) through responses ``R``."""
+    return spectra @ R.T / R.sum(axis=1)
+
+
+def virtual_truth(sensor: MosaicFile, spectra, wavelengths=None, fwhm=None):
+    """The ideal virtual bands' values: Gaussian-weighted means of the spectra."""
+    wl = sensor.virtual_nm if wavelengths is None else np.asarray(wavelengths, float)
+    fw = sensor.virtual_fwhm_nm if fwhm is None else fwhm
+    G = np.exp(-4 * np.log(2) * ((sensor.grid[None] - wl[:, None]) / fw) ** 2)
+    return spectra @ G.T / G.sum(axis=1)
+
+
+# -- reflectance spectra the prior was not fitted to --------------------------------------------
+
+
+def leaves(n, seed):
+    """PROSPECT-D leaf reflectances (prosail), biochemistry drawn over its usual ranges,
+    400-1000 nm at 1 nm."""
+    import prosail
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        _, r, _ = prosail.run_prospect(
+            rng.uniform(1.0, 2.5), rng.uniform(5, 80), rng.uniform(1, 20), rng.uniform(0, 1),
+            rng.uniform(0.004, 0.03), rng.uniform(0.002, 0.015), ant=rng.uniform(0, 5),
+            prospect_version="D")
+        out.append(r[:601])
+    return np.array(out)
+
+
+def soils_and_mixtures(n, seed):
+    """prosail's two soil spectra, scaled, and linear mixtures of them with leaves."""
+    import prosail
+
+    rng = np.random.default_rng(seed)
+    soil = prosail.spectral_library.get_spectra().soil
+    soils = np.array([soil.rsoil1[:601], soil.rsoil2[:601]])
+    veg = leaves(n, seed + 1)
+    frac = rng.uniform(0, 1, (n, 1))
+    return frac * veg + (1 - frac) * soils[rng.integers(0, 2, n)] * rng.uniform(0.5, 1.6, (n, 1))
