@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "mosaic_frames", "sensor_path"]
+__all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "mosaic_frames", "mosaic_target",
+           "sensor_path"]
 
 #: The lens of Goossens et al. 2019, used by ``snapcorr demo``.
 DEFAULT_LENS = "edmund_optics_16mm"
@@ -65,14 +66,18 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), as the camera would
     give them: the white frame is an integrating sphere seen through the bundled lens at
     ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_frame`) times
-    each band's sensitivity; the scene is a uniform target whose reflectance peaks at 550 nm,
-    under the same light; both carry shot noise and a dark offset of 64 DN, which the dark
-    frame holds alone.
+    each band's sensitivity; the scene is a uniform target whose reflectance
+    (:func:`mosaic_target`) peaks in the middle of the sensor's bands, seen through each
+    pixel's filter as the lens shifts and widens it
+    (:func:`snapcorr.simulate.mosaic_reflectance`), so the bands at the edge of the field
+    record it at shorter wavelengths than their nominal ones; both carry shot noise and a dark
+    offset of 64 DN, which the dark frame holds alone.
 
     Parameters
     ----------
     sensor : str
-        A bundled ``layout = "mosaic"`` sensor (``"mosaic_4x4_vis"``, ``"mosaic_5x5_nir"``).
+        A bundled ``layout = "mosaic"`` sensor (``"mosaic_4x4_vis"``, ``"mosaic_5x5_nir"``,
+        ``"imec_5x5_nir"``).
     lens : str
         A bundled lens.
     f_number : float
@@ -89,23 +94,24 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     """
     from .cube import Sensor
     from .optics import Lens
-    from .simulate import Detector, flat_frame
+    from .simulate import Detector, flat_frame, mosaic_reflectance
 
     sens = Sensor.load(sensor_path(sensor))
     if sens.layout != "mosaic":
         raise ValueError(f"sensor {sensor!r} is not a mosaic (layout {sens.layout!r})")
     rng = np.random.default_rng(seed)
     shape = tuple(sens.size_px)
+    the_lens = Lens.load(lens_path(lens))
     cwl = np.asarray(sens.cwl_nm, float)
     center = 0.5 * (cwl.min() + cwl.max())
     sensitivity = 0.75 + 0.25 * np.cos(np.pi * (cwl - center) / (np.ptp(cwl) + 1e-9))
-    reflectance = 0.15 + 0.6 * np.exp(-0.5 * ((cwl - 550.0) / 30.0) ** 2)
     tr, tc = sens.mosaic_shape
-    gain, refl = np.empty(shape), np.empty(shape)
+    r0, c0 = sens.tile_origin_px
+    gain = np.empty(shape)
     for b, (r, c) in enumerate(np.asarray(sens.band_offset)):
-        gain[r::tr, c::tc] = sensitivity[b]
-        refl[r::tr, c::tc] = reflectance[b]
-    light = flat_frame(shape, sens.pixel_pitch_um, f_number, Lens.load(lens_path(lens)),
+        gain[(r + r0) % tr::tr, (c + c0) % tc::tc] = sensitivity[b]
+    refl = mosaic_reflectance(sens, mosaic_target(sens), f_number, the_lens)
+    light = flat_frame(shape, sens.pixel_pitch_um, f_number, the_lens,
                        noise=False, dtype=np.float64,
                        detector=Detector(signal_electrons=3500.0)) * gain
     dark_dn, full_scale = 64.0, 4095
@@ -115,3 +121,27 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
         return np.clip(np.rint(dn), 0, full_scale).astype(np.uint16)
 
     return frame(light * refl), frame(np.zeros(shape)), frame(light)
+
+
+def mosaic_target(sensor):
+    """The reflectance of :func:`mosaic_frames`' target: 0.15 plus a Gaussian of 0.6 peaking
+    in the middle of the sensor's bands, with a standard deviation of a fifth of their span
+    (30 nm for the 4x4 VIS sensor's 470-620 nm).
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    callable
+        ``reflectance(wavelength_nm)``.
+    """
+    cwl = np.asarray(sensor.cwl_nm, float)
+    center, sigma = 0.5 * (cwl.min() + cwl.max()), np.ptp(cwl) / 5.0
+
+    def reflectance(wavelength_nm):
+        return 0.15 + 0.6 * np.exp(-0.5 * ((np.asarray(wavelength_nm, float) - center)
+                                           / sigma) ** 2)
+
+    return reflectance

@@ -58,6 +58,7 @@ __all__ = [
     "Detector",
     "LampPlaque",
     "flat_frame",
+    "mosaic_reflectance",
     "relative_illumination_map",
 ]
 
@@ -585,3 +586,81 @@ class LampPlaque:
         x, y = self.plaque_point(tan_x, tan_y)
         on_axis = self.irradiance_ratio(0.0, 0.0) * self.brdf_ratio(0.0, 0.0)
         return (self.irradiance_ratio(x, y) * self.brdf_ratio(x, y) / on_axis)[()]
+
+
+# -- mosaic frames of a spectral target ---------------------------------------------------------
+
+#: Chief-ray-angle step of the table each pixel's band value is interpolated from (a band's
+#: value changes smoothly with the angle: linear interpolation over 0.25 deg misses by < 1e-4
+#: of a smooth target's reflectance).
+MOSAIC_CRA_STEP_DEG = 0.25
+
+
+def _modelled_responses(sensor):
+    """A sensor's modelled filters (its profile, centres and widths) as sampled responses."""
+    from .cube.responses import FilterResponses, Peak
+    from .optics.bandwidth import band_profile
+
+    cwl, fwhm = np.asarray(sensor.cwl_nm), np.asarray(sensor.fwhm_nm)
+    n = np.broadcast_to(np.asarray(sensor.n_eff, float), cwl.shape)
+    step = float(fwhm.min()) / 40.0
+    grid = np.arange(cwl.min() - 6 * fwhm.max(), cwl.max() + 6 * fwhm.max() + step, step)
+    curves = [band_profile(sensor.profile_shape, c, w, k)(grid)
+              for c, w, k in zip(cwl, fwhm, n, strict=True)]
+    return FilterResponses(grid, curves, np.ones(grid.size),
+                           [[Peak(c, w, 1.0)] for c, w in zip(cwl, fwhm, strict=True)])
+
+
+def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
+    """What every pixel of a mosaic sensor reads of a uniform target, flat-fielded: its band's
+    response behind the lens, averaged over the target's reflectance.
+
+    Each ray of a pixel's cone scales the band's whole curve (measured responses through the
+    system, or the sensor's modelled filters), as in :mod:`snapcorr.optics.measured`; the
+    white reference sees the same response, so the ratio is the response-weighted mean of the
+    reflectance under equal-energy light. Values are tabulated over the chief-ray angle every
+    :data:`MOSAIC_CRA_STEP_DEG` and interpolated to each pixel.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        A mosaic sensor with ``size_px``, its pitch and ``n_eff``.
+    reflectance : callable
+        ``reflectance(wavelength_nm)`` -> values.
+    f_number : float
+    lens : Lens
+    center_px : (cx, cy), optional
+        Optical centre (default: the sensor's centre).
+
+    Returns
+    -------
+    ndarray, shape ``sensor.size_px``
+        The flat-fielded value each pixel records (the band the tile grid puts there).
+    """
+    from .optics.chief_ray import cra_map
+    from .optics.measured import responses_behind_lens
+
+    if sensor.layout != "mosaic" or sensor.size_px is None:
+        raise ValueError("mosaic_reflectance needs a mosaic sensor with size_px")
+    n_eff = sensor.require("n_eff", "simulating a mosaic behind a lens")
+    pitch = sensor.require("pixel_pitch_um", "simulating a mosaic behind a lens")
+    responses = sensor.responses if sensor.responses is not None else _modelled_responses(sensor)
+    ny, nx = sensor.size_px
+    cra = cra_map((ny, nx), pitch, lens.exit_pupil_mm, center_px)
+    nodes = np.arange(0.0, float(cra.max()) + 2 * MOSAIC_CRA_STEP_DEG, MOSAIC_CRA_STEP_DEG)
+    R = responses_behind_lens(responses, n_eff, f_number, nodes, lens)
+    grid = responses.wavelength_nm
+    w = np.gradient(grid)  # quadrature weights of the (possibly uneven) grid
+    rho = np.asarray(reflectance(grid), float)
+    values = (R * rho * w).sum(axis=2) / (R * w).sum(axis=2)  # (nodes, bands)
+    tr, tc = sensor.mosaic_shape
+    r0, c0 = sensor.tile_origin_px
+    index = np.empty((tr, tc), int)
+    for b, (r, c) in enumerate(sensor.band_offset):
+        index[r, c] = b
+    band = index[((np.arange(ny) - r0) % tr)[:, None], ((np.arange(nx) - c0) % tc)[None, :]]
+    out = np.empty((ny, nx))
+    for b in range(sensor.n_bands):
+        at = band == b
+        out[at] = np.interp(cra[at], nodes, values[:, b])
+    return out

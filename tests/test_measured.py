@@ -151,3 +151,25 @@ def test_bands_whose_corrected_wavelengths_cross_are_resampled_in_wavelength_ord
     lam = cwl * scale[0, 0]
     order = np.argsort(lam)
     assert_allclose(out[0, 0], np.interp(cwl, lam[order], data[0, 0][order]))
+
+
+def test_the_bundled_mosaic_frames_are_seen_through_the_shifted_filters():
+    """snapcorr.data.mosaic_frames simulates each pixel's filter behind the lens: at the
+    corner the uncorrected spectrum is off the target, and the corrected wavelengths put it
+    back (it was once simulated without the shift, so correcting it looked harmful)."""
+    from snapcorr.correct import correct_cube
+    from snapcorr.cube import flatfield
+    from snapcorr.data import mosaic_frames, mosaic_target, sensor_path
+
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    raw, dark, white = mosaic_frames("mosaic_4x4_vis", f_number=2.8)
+    ff = flatfield(*(mosaic_to_cube(f, sensor) for f in (raw, dark, white)))
+    ds = correct_cube(ff["reflectance"], sensor, 2.8, PAPER_LENS, method="vignetted")
+    target = mosaic_target(sensor)
+    corner = ds.isel(y=slice(0, 5), x=slice(0, 5))
+    values = corner["reflectance"].values.reshape(-1, 16).mean(axis=0)
+    nominal = np.sqrt(np.mean((values - target(np.asarray(sensor.cwl_nm))) ** 2))
+    moved = corner["wavelength_corrected"].values.reshape(-1, 16).mean(axis=0)
+    corrected = np.sqrt(np.mean((values - target(moved)) ** 2))
+    assert float(corner["cra_deg"].mean()) > 15
+    assert nominal > 0.04 and corrected < 0.25 * nominal
