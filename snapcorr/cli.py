@@ -46,6 +46,16 @@ EXAMPLES = {
           --harmonise --out scene_harmonised.nc
                                           ... and spectra with one response per band, the
                                           same for a material anywhere in the field
+      snapcorr correct mosaic_ff.nc --lens my_lens.toml --sensor imec_5x5_nir --f-number 2 \
+          --virtual-bands angle-aware --out mosaic_corrected.nc
+                                          ... and virtual bands recomputed for each pixel's
+                                          angle behind the lens (or: vendor, fitted)
+    """,
+    "sensor": r"""
+      snapcorr sensor CMV2K-SSM5x5-600_875-5.5.9.2.xml --plot filters.png
+                                          what a vendor calibration file holds, and its curves
+      snapcorr sensor camera.xml --toml my_camera.toml
+                                          ... and a sensor TOML naming it, to add n_eff
     """,
     "calibrate": r"""
       snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
@@ -374,10 +384,24 @@ def _cmd_correct(args):
             cube, sensor, args.f_number, lens, args.source,
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
             center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
+    if args.virtual_bands is None and any(v is not None for v in (
+            args.virtual_matrix, args.virtual_wavelengths, args.virtual_fwhm_nm)):
+        raise ValueError("--virtual-matrix, --virtual-wavelengths and --virtual-fwhm-nm choose "
+                         "the virtual bands: give --virtual-bands too")
+    if args.virtual_matrix is not None and args.virtual_bands != "vendor":
+        raise ValueError("--virtual-matrix names the vendor matrix to apply: use it with "
+                         "--virtual-bands vendor")
+    if args.virtual_bands == "vendor" and (args.virtual_wavelengths is not None
+                                           or args.virtual_fwhm_nm is not None):
+        raise ValueError("the vendor's virtual bands are the file's; --virtual-wavelengths and "
+                         "--virtual-fwhm-nm set fitted or angle-aware ones")
     ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
                       tolerance_nm=args.tolerance_nm, center_px=args.center_px,
                       sensor_origin_px=args.sensor_origin_px, resample=args.resample,
-                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm, mask=mask)
+                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm, mask=mask,
+                      virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
+                      virtual_wavelengths_nm=args.virtual_wavelengths,
+                      virtual_fwhm_nm=args.virtual_fwhm_nm)
     ds.attrs.update({**provenance, "cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
@@ -404,6 +428,12 @@ def _cmd_correct(args):
         print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over "
               f"the field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):.3g}-"
               f"{np.max(sensor.fwhm_nm):.3g} nm)")
+    if "virtual" in ds:
+        wl = ds["virtual_wavelength"].values
+        err = (f"; expected error up to {float(ds['virtual_stderr'].max()):.2g} (virtual_stderr)"
+               if "virtual_stderr" in ds else "")
+        print(f"virtual bands: {wl.size} from {wl.min():.1f} to {wl.max():.1f} nm, "
+              f"{args.virtual_bands}{err}")
     if "harmonised" in ds:  # asked for, or chosen by the scene budget
         w = ds["fwhm_harmonised"].values
         print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
@@ -412,6 +442,42 @@ def _cmd_correct(args):
         from .quicklook import plot_correction
 
         plot_correction(ds, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def _wavelength_list(value):
+    """``NM,NM,...`` or ``START:STOP:STEP`` (inclusive of STOP when it falls on a step)."""
+    try:
+        if ":" in value:
+            start, stop, step = (float(v) for v in value.split(":"))
+            if not step > 0 or not stop >= start:
+                raise ValueError
+            values = np.arange(start, stop + 0.5 * step, step)
+        else:
+            values = np.array([float(v) for v in value.split(",")])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NM,NM,... or START:STOP:STEP in nm, got "
+                                         f"{value!r}") from None
+    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values <= 0):
+        raise argparse.ArgumentTypeError(f"wavelengths must be finite and > 0 nm, got {value!r}")
+    return values
+
+
+def _cmd_sensor(args):
+    inputs = [args.file]
+    _check_outputs([args.toml, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    sensor = _sensor(args.file)
+    print(sensor.describe())
+    if args.toml:
+        sensor.save(args.toml, overwrite=args.overwrite)
+        note = ("" if sensor.n_eff is not None else
+                "; add n_eff to it (snapcorr pupil --fit-n-eff finds it)")
+        print(f"wrote {args.toml}{note}")
+    if args.plot:
+        from .quicklook import plot_sensor
+
+        plot_sensor(sensor, args.plot, overwrite=args.overwrite)
         print(f"wrote {args.plot}")
     return 0
 
@@ -859,6 +925,17 @@ def _add_correct(command):
     p.add_argument("--target-fwhm-nm", type=_positive, default=None, metavar="NM",
                    help="with --harmonise: the common response's FWHM for every band (at "
                    "least the widest in the field)")
+    g = p.add_argument_group("virtual bands (mosaic sensors with a vendor calibration file)")
+    g.add_argument("--virtual-bands", default=None, choices=["vendor", "fitted", "angle-aware"],
+                   help="also give virtual bands: the vendor's matrix, one fitted to the "
+                   "measured responses, or one for each pixel's responses behind the lens")
+    g.add_argument("--virtual-matrix", default=None, metavar="NAME",
+                   help="the vendor matrix to apply (default: the one for flat-fielded values)")
+    g.add_argument("--virtual-wavelengths", type=_wavelength_list, default=None,
+                   metavar="NM,NM,...|START:STOP:STEP",
+                   help="centres of fitted virtual bands (default: the vendor's)")
+    g.add_argument("--virtual-fwhm-nm", type=_positive, default=None, metavar="NM",
+                   help="width of fitted virtual bands (default: the vendor's)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the CRA and shift maps, a few pixels' "
                    "spectra at nominal and corrected wavelengths")
@@ -937,6 +1014,21 @@ def _add_pupil(command):
     p.set_defaults(func=_cmd_pupil)
 
 
+def _add_sensor(command):
+    p = command("sensor", "what a sensor file holds: bands, layout, active area, filter "
+                "responses, correction matrices")
+    p.add_argument("file", help="a vendor calibration file (.xml), a sensor TOML or a bundled "
+                   "sensor's name")
+    p.add_argument("--toml", type=Path, default=None, metavar="OUT.toml",
+                   help="write the equivalent sensor TOML (naming the vendor file, where there "
+                   "is one), to add n_eff or the pixel pitch")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="draw the bands' responses and what each correction matrix makes of "
+                   "them")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    p.set_defaults(func=_cmd_sensor)
+
+
 def _add_budget(command):
     p = command("budget", "which bands and pixels a scene needs corrected, and with which "
                 "model (signal error of the filter shift)")
@@ -988,8 +1080,8 @@ def build_parser():
         return sub.add_parser(name, help=help_, description=help_, epilog=_examples(name),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
-    for add in (_add_demo, _add_flatfield, _add_calibrate, _add_pupil, _add_correct,
-                _add_shift, _add_budget):
+    for add in (_add_demo, _add_sensor, _add_flatfield, _add_calibrate, _add_pupil,
+                _add_correct, _add_shift, _add_budget):
         add(command)
     return parser
 

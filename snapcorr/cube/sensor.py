@@ -297,6 +297,58 @@ class Sensor:
                 raise ValueError(f"{what}'s wavelengths differ from the sensor {self.name!r}'s "
                                  f"(by up to {off:.3g} nm); use the matching sensor")
 
+    def describe(self) -> str:
+        """What the description holds, as text: layout, area, bands (with their main peaks
+        for measured ones), profiles and correction matrices."""
+        lines = [f"{self.name}: {self.layout} sensor, {self.n_bands} bands"
+                 + (f", from {Path(self.vendor_file).name}" if self.vendor_file else "")]
+        size = (f"{self.size_px[1]} x {self.size_px[0]} px" if self.size_px else "size not given")
+        pitch = (f"{self.pixel_pitch_um:g} um pixels" if self.pixel_pitch_um
+                 else "pixel pitch not given (add pixel_pitch_um in a sensor TOML)")
+        lines.append(f"  sensor: {size}, {pitch}")
+        if self.layout == "mosaic":
+            tr, tc = self.mosaic_shape
+            area = "tile grid from the sensor's corner"
+            if self.filter_area_px:
+                r0, c0, nr, nc = self.filter_area_px
+                area = f"filter area rows {r0}-{r0 + nr - 1}, columns {c0}-{c0 + nc - 1}"
+            lines.append(f"  mosaic: {tr} x {tc} tile, {area}")
+        n = ("not given: fit it with snapcorr pupil --fit-n-eff, or add n_eff in a sensor TOML"
+             if self.n_eff is None else
+             f"{min(self.n_eff):g}" + ("" if len(set(self.n_eff)) == 1
+                                       else f"-{max(self.n_eff):g}"))
+        lines.append(f"  n_eff: {n}")
+
+        def span(v, fmt=".3g"):
+            lo, hi = float(np.min(v)), float(np.max(v))
+            return f"{lo:{fmt}}" if lo == hi else f"{lo:{fmt}}-{hi:{fmt}}"
+
+        r = self.responses
+        if r is None:
+            lines.append(f"  filters: {self.profile}, FWHM {span(self.fwhm_nm)} nm")
+        else:
+            on = r.wavelength_nm[r.system >= 0.5 * r.system.max()]
+            lines.append(f"  responses: measured, {r.wavelength_nm[0]:g}-"
+                         f"{r.wavelength_nm[-1]:g} nm ({r.wavelength_nm.size} samples); in "
+                         f"front of every band: {r.system_name}, above half its maximum "
+                         f"{on[0]:g}-{on[-1]:g} nm")
+        lines.append("  band  tile     centre nm  FWHM nm" + ("  peaks" if r is not None else ""))
+        for b in range(self.n_bands):
+            tile = f"({self.band_offset[b][0]},{self.band_offset[b][1]})" if self.band_offset \
+                else "-"
+            peaks = f"  {len(r.peaks[b])}" if r is not None else ""
+            lines.append(f"  {b:4d}  {tile:7s}  {self.cwl_nm[b]:9.2f}  {self.fwhm_nm[b]:7.2f}"
+                         f"{peaks}")
+        for m in self.matrices:
+            fw = ("FWHM not given" if not np.all(np.isfinite(m.fwhm_nm))
+                  else f"FWHM {span(m.fwhm_nm)} nm")
+            lines.append(f"  correction matrix {m.name!r} ({m.kind}): {m.n_virtual} virtual "
+                         f"bands {np.min(m.wavelength_nm):.1f}-{np.max(m.wavelength_nm):.1f} nm, "
+                         f"{fw}")
+        if r is not None and not self.matrices:
+            lines.append("  no correction matrix: use --virtual-bands fitted or angle-aware")
+        return "\n".join(lines)
+
     def to_dict(self, folder=None) -> dict:
         """The ``[sensor]`` table: every key, or, for a sensor read from a vendor file, the
         file (relative to ``folder`` when given) and the keys that add to or override it."""
