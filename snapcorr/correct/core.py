@@ -150,10 +150,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
               else _width_table(sensor, lens, f, cra_max, tolerance_nm))
     scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
     scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-    ds = _dataset(cube, sensor, lens, cra, scale, column,
-                  source=f"{how} by the "
-                         f"{'vignetted' if used == 'harmonised' else used} model at f/{f:g}, "
-                         f"lens {lens.name}, tolerance {float(tolerance_nm):g} nm",
+    ds = _dataset(cube, sensor, lens, cra, scale, column, source=how,
                   center_source=center_source)
     if widths is not None:
         ds = _with_fwhm(ds, cube, lens, sensor, f, widths)
@@ -163,16 +160,18 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     if resample:
         ds["resampled"] = _resampled(cube, scale, column, cwl)
     if harmonise or used == "harmonised":
-        if widths is None:
-            sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
-                         scale_at, n_eff)
+                         scale_at, n_eff, sensor)
     if virtual_bands is not None:
-        from .virtual import virtual_bands as virtual
+        ds = ds.merge(_virtual(cube, sensor, f, lens, cra, virtual_bands, virtual_matrix,
+                               virtual_wavelengths_nm, virtual_fwhm_nm))
+    return _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
+                            center_source, cra_max)
 
-        ds = ds.merge(virtual(cube, sensor, virtual_bands, f_number=f, lens=lens,
-                              cra_deg=cra.mean(axis=2), matrix=virtual_matrix,
-                              wavelengths_nm=virtual_wavelengths_nm, fwhm_nm=virtual_fwhm_nm))
+
+def _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
+                     center_source, cra_max):
+    """``ds`` with the correction's provenance in its attributes."""
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
         "source": f"snapcorr {__version__} correct", "Conventions": "CF-1.10",
@@ -184,6 +183,14 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         "snapcorr_version": __version__,
     })
     return ds
+
+
+def _virtual(cube, sensor, f, lens, cra, method, matrix, wavelengths_nm, fwhm_nm):
+    """The virtual bands, each pixel at the mean chief-ray angle of its bands."""
+    from .virtual import virtual_bands
+
+    return virtual_bands(cube, sensor, method, f_number=f, lens=lens, cra_deg=cra.mean(axis=2),
+                         matrix=matrix, wavelengths_nm=wavelengths_nm, fwhm_nm=fwhm_nm)
 
 
 def _model(sensor, f, cra_max, lens, method, tolerance_nm):
@@ -263,6 +270,8 @@ def _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths):
     an effective index (modelled filters) or a band (measured ones, ``key`` its index), and
     what it is, for the provenance."""
     cwl = np.asarray(sensor.cwl_nm, float)
+    model = (f" by the {'vignetted' if used == 'harmonised' else used} model at f/{f:g}, "
+             f"lens {lens.name}, tolerance {float(tolerance_nm):g} nm")
     measured = sensor.responses is not None and used not in ("none", "asymptotic")
     if not measured:
         n_eff = np.asarray(sensor.n_eff if sensor.n_eff is not None else np.ones(cwl.size))
@@ -272,7 +281,7 @@ def _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths):
             return 1.0 + relative_shift(n, f, c, lens, model=used, tolerance_nm=tolerance_nm,
                                         cwl_max_nm=float(cwl[n_eff == n].max()))
 
-        return scale_at, "1 + mean shift / cwl"
+        return scale_at, f"1 + mean shift / cwl{model}"
     table = widths
     if used == "ideal" and lens.has_vignetting:  # the table of widths is the vignetted lens's
         table = _measured_table(sensor, dataclasses.replace(lens, vignetting=()), f, cra_max,
@@ -282,7 +291,7 @@ def _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths):
         return table.scale(c, band)
 
     return scale_at, ("each band's centre (mean wavenumber of its measured main lobe through "
-                      "the system) behind the lens / at normal incidence")
+                      f"the system) behind the lens / at normal incidence{model}")
 
 
 def _scales(cra, n_eff, scale_at, *, per_band=False):
@@ -358,9 +367,12 @@ def _with_fwhm(ds, cube, lens, sensor, f, table):
 HARMONISE_NODE_STEP_DEG = 0.05
 
 
-def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff):
+def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
+                sensor):
     from .harmonise import harmonise_spectra
 
+    if table is None:  # no widths without n_eff
+        sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
     cra_lo, cra_hi = float(cra.min()), float(cra.max())
     inside = (table.cra_deg >= cra_lo) & (table.cra_deg <= cra_hi)
     field = np.concatenate([table(np.array([cra_lo, cra_hi])).T, table.fwhm_nm[:, inside]],
