@@ -32,6 +32,16 @@ VENDOR_XML = REPO / "calibration" / "sensors" / "CMV2K-SSM5x5-600_875-5.5.9.2.xm
 RESPONSES_MAT = {4: DATA / "imec_responses_4x4.mat", 5: DATA / "imec_responses_5x5.mat"}
 
 
+@pytest.fixture(autouse=True)
+def _numpy_print_options():
+    """numpy's print options as every test found them: libraries the tests import may change
+    them for the whole process (colour-science sets ``legacy="1.13"`` on import), which would
+    make later doctests print arrays differently."""
+    saved = np.get_printoptions()
+    yield
+    np.set_printoptions(**saved)
+
+
 @pytest.fixture(scope="session")
 def edmund():
     """The paper's Edmund Optics 16 mm lens (Goossens 2019, Sec. 3.2, Eq. 31)."""

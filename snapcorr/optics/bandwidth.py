@@ -195,14 +195,14 @@ def _exact(curves, u, du, la, w, cwl):
 
 
 def refine_nodes(at, f_number, lens: Lens, *, cra_max_deg, tolerance, max_nodes=513,
-                 what="the table", min_step_deg=1e-4):
+                 what="the table", min_step_deg=1e-4, start_step_deg=0.5):
     """Chief-ray-angle nodes from 0 to ``cra_max_deg`` at which ``at`` is tabulated, fine
     enough that linear interpolation between them stays within ``tolerance``.
 
-    Nodes start at most 0.5 deg apart, with every onset of vignetting and three points just
-    after each (where the cut cap grows as depth^(3/2) and a midpoint alone can miss the bend);
-    each interval whose midpoint misses linear interpolation by more than half the tolerance
-    (for any row) is halved.
+    Nodes start at most ``start_step_deg`` apart, with every onset of vignetting and three
+    points just after each (where the cut cap grows as depth^(3/2) and a midpoint alone can
+    miss the bend); each interval whose midpoint misses linear interpolation by more than
+    half the tolerance (for any row) is halved.
 
     Parameters
     ----------
@@ -219,6 +219,8 @@ def refine_nodes(at, f_number, lens: Lens, *, cra_max_deg, tolerance, max_nodes=
         Most nodes allowed.
     what : str
         The table's name, for the error.
+    start_step_deg : float
+        Largest spacing of the first nodes, degrees.
     min_step_deg : float
         Intervals this short are not halved again (a width that grows as a square root where
         a shoulder crosses half the maximum would ask for ever shorter ones).
@@ -239,7 +241,7 @@ def refine_nodes(at, f_number, lens: Lens, *, cra_max_deg, tolerance, max_nodes=
     kinks = [float(v) for v in np.atleast_1d(lens.onset_cra_deg(f_number))
              if 0 < v < cra_max] if lens.has_vignetting else []
     after = [k + d for k in kinks for d in (0.05, 0.15, 0.3) if k + d < cra_max]
-    start = np.linspace(0.0, cra_max, max(9, int(np.ceil(cra_max / 0.5)) + 1))
+    start = np.linspace(0.0, cra_max, max(9, int(np.ceil(cra_max / start_step_deg)) + 1))
     nodes = np.unique(np.concatenate([start, kinks, after]))
     values = at(nodes)
     tol = np.broadcast_to(np.asarray(tolerance, float), values.shape[:1])

@@ -164,7 +164,8 @@ def wiener_matrix(weights, targets, prior, alpha):
 def expected_error(matrix, weights, targets, prior, alpha):
     """Each virtual band's expected RMS error for spectra of the prior and band noise of
     variance ``alpha``: ``sqrt(diag((A s - g) Phi (A s - g)^T + alpha A A^T))``, for any
-    linear estimate ``A`` (for the Wiener one it is ``g Phi g^T - A s Phi g^T``).
+    linear estimate ``A`` (for the Wiener one with that ``alpha`` it is
+    ``g Phi g^T - A s Phi g^T``).
 
     Parameters
     ----------
@@ -180,7 +181,7 @@ def expected_error(matrix, weights, targets, prior, alpha):
     ndarray, shape (n_virtual,)
     """
     miss = matrix @ weights - targets
-    var = np.einsum("vi,ij,vj->v", miss, prior, miss) + alpha * np.sum(matrix**2, axis=1)
+    var = np.sum((miss @ prior) * miss, axis=1) + alpha * np.sum(matrix**2, axis=1)
     return np.sqrt(np.clip(var, 0.0, None))
 
 
@@ -261,7 +262,7 @@ class VirtualTable:
 
     @classmethod
     def build(cls, responses, targets, n_eff, f_number, lens: Lens, *, cra_max_deg, alpha,
-              prior=None, tolerance=1e-3, max_nodes=257):
+              prior=None, tolerance=1e-3, max_nodes=257, noise_var=None):
         """Tabulate the angle-aware matrices from 0 to ``cra_max_deg``.
 
         Parameters
@@ -275,19 +276,22 @@ class VirtualTable:
         lens : Lens
         cra_max_deg : float
         alpha : float
-            Band noise variance (:func:`gcv_alpha`).
+            The regularisation (:func:`gcv_alpha`).
         prior : ndarray, optional
             Default: :func:`markov_prior` on the responses' grid.
         tolerance : float
             Largest change of a virtual value of a typical spectrum (reflectance units) that
             interpolating between nodes may make.
         max_nodes : int
+        noise_var : float, optional
+            The band noise variance of the expected errors (default: ``alpha``).
 
         Returns
         -------
         VirtualTable
         """
         grid = responses.wavelength_nm
+        noise_var = alpha if noise_var is None else float(noise_var)
         phi = markov_prior(grid) if prior is None else prior
         nv = targets.shape[0]
         probes = _probes(grid, responses, phi)
@@ -300,13 +304,15 @@ class VirtualTable:
                 if np.all(np.isfinite(R[j])):
                     s = normalised(grid, R[j])
                     A = wiener_matrix(s, targets, phi, alpha)
-                    found[float(cj)] = A, expected_error(A, s, targets, phi, alpha)
+                    found[float(cj)] = A, expected_error(A, s, targets, phi, noise_var)
                     out[j] = (A @ probes.T).ravel()
             return out.T
 
+        # the matrices change slowly with the angle: start 1 deg apart (each interval's
+        # midpoint is still checked against the tolerance)
         nodes, _ = refine_nodes(at, f_number, lens, cra_max_deg=cra_max_deg,
                                 tolerance=float(tolerance), max_nodes=max_nodes,
-                                what="the virtual bands' table")
+                                what="the virtual bands' table", start_step_deg=1.0)
         missing = [float(c) for c in nodes if float(c) not in found]
         if missing:
             raise ValueError(f"no light reaches pixels at CRA {missing[0]:.2f} deg through "
