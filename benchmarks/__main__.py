@@ -17,6 +17,7 @@ from . import (
     scaling,
     speed_accuracy,
     stability,
+    virtual_bands,
 )
 
 parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
@@ -43,5 +44,7 @@ print()
 io_memory.run(quick=args.quick, write=not args.quick)
 print()
 pupil.run(quick=args.quick, write=not args.quick)
+print()
+virtual_bands.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

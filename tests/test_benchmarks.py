@@ -82,3 +82,14 @@ def test_quick_fnumber_sweep_runs():
     rows = calibration.fnumber_sweep(quick=True, echo=lambda *_: None, write=False)
     joint = [r for r in rows if r["estimator"] == "joint"]
     assert joint and all(abs(r["P_error_pct"]) < 1 and abs(r["h_error_pct"]) < 1 for r in joint)
+
+
+def test_quick_virtual_bands_benchmark_runs_and_angle_aware_stays_right_off_axis():
+    from benchmarks import virtual_bands
+
+    lines = []
+    rows, timing = virtual_bands.run(quick=True, echo=lines.append, write=False)
+    by = {(r["method"], r["cra_deg"]): r["rmse"] for r in rows}
+    assert by[("angle-aware", 15.0)] <= 0.85 * by[("vendor", 0.0)]
+    assert timing["angle_aware_s"] > 0 and timing["build25_s"] > 0
+    assert any("np.einsum" in line for line in lines)
