@@ -252,3 +252,21 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
     os.mkfifo(tmp_path / "f.xml")
     with pytest.raises(ValueError, match="not a regular file"):
         Sensor.load(tmp_path / "f.xml")
+
+
+def test_the_sensor_files_documented_in_calibration_readme_load(tmp_path):
+    """Every [sensor] TOML block of calibration/README.md, the template included, loads; the
+    vendor one names the bundled file."""
+    import re
+
+    from conftest import REPO
+
+    text = (REPO / "calibration" / "README.md").read_text()
+    blocks = [b for b in re.findall(r"```toml\n(.*?)```", text, re.S) if "[sensor]" in b]
+    assert len(blocks) == 2
+    for k, block in enumerate(blocks):
+        block = block.replace('vendor_file = "', f'vendor_file = "{VENDOR_XML.parent}/')
+        (tmp_path / f"s{k}.toml").write_text(block)
+        sensor = Sensor.load(tmp_path / f"s{k}.toml")
+        assert sensor.n_eff is not None and sensor.pixel_pitch_um == 5.5
+    assert sensor.responses is not None and sensor.name == "imec-5x5-nir"
