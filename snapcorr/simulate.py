@@ -639,6 +639,7 @@ def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
     """
     from .optics.chief_ray import cra_map
     from .optics.measured import responses_behind_lens
+    from .optics.wiener import trapezoid_weights
 
     if sensor.layout != "mosaic" or sensor.size_px is None:
         raise ValueError("mosaic_reflectance needs a mosaic sensor with size_px")
@@ -650,7 +651,7 @@ def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
     nodes = np.arange(0.0, float(cra.max()) + 2 * MOSAIC_CRA_STEP_DEG, MOSAIC_CRA_STEP_DEG)
     R = responses_behind_lens(responses, n_eff, f_number, nodes, lens)
     grid = responses.wavelength_nm
-    w = np.gradient(grid)  # quadrature weights of the (possibly uneven) grid
+    w = trapezoid_weights(grid)
     rho = np.asarray(reflectance(grid), float)
     values = (R * rho * w).sum(axis=2) / (R * w).sum(axis=2)  # (nodes, bands)
     tr, tc = sensor.mosaic_shape

@@ -30,6 +30,7 @@ class MosaicFile:
     coefficients: np.ndarray  # (virtual, bands): the file's irradiance matrix
     virtual_nm: np.ndarray
     virtual_fwhm_nm: float
+    peaks_nm: np.ndarray  # each band's (first) peak
 
 
 def read_older(path):
@@ -49,8 +50,9 @@ def read_older(path):
     coeffs = np.array([[float(v) for v in b.find("custom_spectral_correction/data").text.split(
         ",")] for b in vbs])
     wl = np.array([float(b.find("wavelength_nm").text) for b in vbs])
+    peaks = np.array([float(b.find("peaks/peak/wavelength_nm").text) for b in bands])
     return MosaicFile(grid, curves, bp, coeffs, wl,
-                      float(sci.find("fwhm_virtual_filters_nm").text))
+                      float(sci.find("fwhm_virtual_filters_nm").text), peaks)
 
 
 def responses(sensor: MosaicFile, lens, f_number, cra_deg, n_eff, *, nodes=(64, 32)):

@@ -173,3 +173,16 @@ def test_the_bundled_mosaic_frames_are_seen_through_the_shifted_filters():
     corrected = np.sqrt(np.mean((values - target(moved)) ** 2))
     assert float(corner["cra_deg"].mean()) > 15
     assert nominal > 0.04 and corrected < 0.25 * nominal
+
+
+def test_eq6_is_not_used_for_measured_responses(vendor):
+    from snapcorr.correct import correct_cube
+
+    sensor = dataclasses.replace(vendor, n_eff=(1.8,) * 25, pixel_pitch_um=5.5)
+    cube = mosaic_to_cube(np.ones((10, 10), np.float32), sensor, origin_px=(540, 1020))
+    with pytest.raises(ValueError, match=r"'asymptotic' is Eq\. 6"):
+        correct_cube(cube, sensor, 8.0, PAPER_LENS, method="asymptotic")
+    # on the axis at f/8 Eq. 6 would meet the tolerance; measured responses take the table
+    ds = correct_cube(cube, sensor, 8.0, PAPER_LENS, tolerance_nm=0.05)
+    assert ds.attrs["method"] == "ideal"
+    assert "measured responses take the ideal aperture's table" in ds.attrs["method_reason"]

@@ -2,11 +2,10 @@
 written from their description, sensor TOMLs that name a file, and malformed or hostile files
 refused in one line."""
 
-import xml.etree.ElementTree as ET
-
 import numpy as np
 import pytest
 from conftest import VENDOR_XML
+from mosaicsim import read_older
 from numpy.testing import assert_array_equal
 from vendorfiles import imec_4x4, write_newer, write_older
 
@@ -14,27 +13,11 @@ from snapcorr.cube import Sensor
 from snapcorr.cube.vendor_xml import read_vendor_file
 
 
-def _plain_parse(path):
-    """The real file read with the standard library, element by element, as its layout reads:
-    no snapcorr code."""
-    root = ET.parse(path).getroot()
-    fi = root.find("filter_info")
-    bands = sorted(fi.find("bands"), key=lambda b: int(b.get("pattern_position_index")))
-    curves = np.array([[float(v) for v in b.find("response_composition/data").text.split(",")]
-                       for b in bands])
-    bp = np.array([float(v) for v in
-                   fi.find("rejection_filter/filter_response/data").text.split(",")])
-    vb = fi.find("spectral_correction_info/virtual_bands")
-    coeffs = np.array([[float(v) for v in b.find("custom_spectral_correction/data").text.split(
-        ",")] for b in vb])
-    wl = np.array([float(b.find("wavelength_nm").text) for b in vb])
-    peaks = [float(b.find("peaks/peak/wavelength_nm").text) for b in bands]
-    return curves, bp, coeffs, wl, peaks
-
-
 def test_the_real_older_file_reads_as_its_elements_say():
     cal = read_vendor_file(VENDOR_XML)
-    curves, bp, coeffs, wl, peaks = _plain_parse(VENDOR_XML)
+    plain = read_older(VENDOR_XML)  # the standard library, element by element
+    curves, bp, coeffs = plain.curves, plain.bandpass, plain.coefficients
+    wl, peaks = plain.virtual_nm, plain.peaks_nm
     assert cal.variant == "older"
     assert cal.size_px == (1088, 2048) and cal.pixel_pitch_um is None  # the file says 0
     assert cal.filter_area_px == (3, 0, 1080, 2045) and cal.mosaic_shape == (5, 5)
@@ -270,3 +253,26 @@ def test_the_sensor_files_documented_in_calibration_readme_load(tmp_path):
         sensor = Sensor.load(tmp_path / f"s{k}.toml")
         assert sensor.n_eff is not None and sensor.pixel_pitch_um == 5.5
     assert sensor.responses is not None and sensor.name == "imec-5x5-nir"
+
+
+def test_measured_responses_leave_no_room_for_a_second_description(tmp_path):
+    import dataclasses
+
+    s = Sensor.load(VENDOR_XML)
+    with pytest.raises(ValueError, match="both say what the filters are"):
+        dataclasses.replace(s, profile="airy")
+    orphan = dataclasses.replace(s, n_eff=1.8, vendor_file=None)
+    with pytest.raises(ValueError, match="no vendor file to name"):
+        orphan.save(tmp_path / "o.toml")
+    fx = imec_4x4()
+    fx.curves[5] = 0.0
+    with pytest.raises(ValueError, match=r"^dead\.xml: .*zero everywhere"):
+        Sensor.load(write_newer(tmp_path / "dead.xml", fx))
+
+
+def test_the_exit_pupil_fit_refuses_measured_responses_it_does_not_model():
+    from snapcorr.calibrate import locate_pupil
+
+    s = Sensor.load(VENDOR_XML)
+    with pytest.raises(ValueError, match="measured responses behind a band-pass"):
+        locate_pupil({2.0: None}, s)

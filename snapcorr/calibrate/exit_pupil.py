@@ -564,6 +564,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     FeaturelessTargetError
         The target's signal does not change over the field above the noise.
     """
+    n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)")
     cubes = _check_cubes(cubes, sensor)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)
@@ -572,7 +573,6 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
                                           n_bins)
     r_max = _field_radius(bins)
-    n_design = np.asarray(sensor.n_eff, float)
     x_lo, x_hi = _trial_range(r_max)
     max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
     model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel)
@@ -720,6 +720,18 @@ def _validity_notes(r_max, x, working_f_number, chi2_red):
                      "that is not uniform, stray light, another filter shape); the errors are "
                      "scaled by it")
     return notes
+
+def check_modelled(sensor, what):
+    """``sensor``'s indices, for a model of filters by their shape about each centre: sensors
+    with measured responses behind a band-pass (vendor files) are not modelled here yet."""
+    if sensor.responses is not None:
+        raise ValueError(f"{what} models each band by the sensor's filter shape about its "
+                         f"centre; the sensor {sensor.name!r} has measured responses behind a "
+                         "band-pass (a vendor file), whose bands move otherwise near the "
+                         "band-pass's edges, and these are not modelled here yet: give n_eff "
+                         "from the vendor's design value in a sensor TOML naming the file")
+    return np.asarray(sensor.require("n_eff", what), float)
+
 
 def _check_cubes(cubes, sensor):
     if not cubes:
@@ -941,8 +953,8 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
         raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
     if not (math.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be > 0, got {noise!r}")
+    n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)")
     bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
-    n_design = np.asarray(sensor.n_eff, float)
     x = float(lens.exit_pupil_mm)
     truth = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens, spectrum=spectrum,
                         profile=profile, n_eff_design=n_design, max_shift_rel=0.15)

@@ -201,9 +201,19 @@ def _model(sensor, f, cra_max, lens, method, tolerance_nm):
         sensor.require("n_eff", f"the wavelength correction (--method {method}; --method "
                                 "none keeps the nominal wavelengths)")
     n_eff = np.asarray(sensor.n_eff if sensor.n_eff is not None else np.ones(cwl.size), float)
-    if method == "auto":
-        return (*choose_model(cwl, n_eff, f, cra_max, lens, tolerance_nm=tolerance_nm), n_eff)
-    return method, "asked for", n_eff
+    measured = sensor.responses is not None
+    if method == "asymptotic" and measured:
+        raise ValueError("method 'asymptotic' is Eq. 6, the kernel mean's small-angle formula; "
+                         "a measured band's centre moves otherwise near its band-pass's edges: "
+                         "use 'ideal' or 'vignetted' (or 'auto')")
+    if method != "auto":
+        return method, "asked for", n_eff
+    used, reason = choose_model(cwl, n_eff, f, cra_max, lens, tolerance_nm=tolerance_nm)
+    if used == "asymptotic" and measured:
+        used, reason = "ideal", (f"{reason}; measured responses take the ideal aperture's "
+                                 "table instead (Eq. 6 is the kernel mean's, which a measured "
+                                 "band's centre leaves near its band-pass's edges)")
+    return used, reason, n_eff
 
 
 def _field_max_deg(cra, f, lens):

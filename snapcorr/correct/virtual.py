@@ -33,7 +33,7 @@ from ..cube.flatfield import cf_attrs
 __all__ = ["VIRTUAL_METHODS", "virtual_bands"]
 
 VIRTUAL_METHODS = ("vendor", "fitted", "angle-aware")
-#: Pixels the regularisation is chosen from (evenly spread over the cube).
+#: Most pixels the regularisation is chosen from and the error bars averaged over.
 GCV_PIXELS = 4096
 #: Interpolation tolerance of the angle-aware table (reflectance units): a tenth of the
 #: estimates' own error on real sensors.
@@ -41,7 +41,6 @@ VIRTUAL_TOLERANCE = 5e-4
 #: Chief-ray-angle nodes spanning the field, among which pixels are grouped to choose the
 #: regularisation and at which the expected errors are evaluated.
 GCV_NODES = 5
-
 
 
 def _is_reflectance(cube):
@@ -70,7 +69,9 @@ def _vendor(sensor, name, reflectance):
         if sensor.responses is None:
             raise ValueError(f"matrix {chosen.name!r} is for irradiance; the cube is "
                              "flat-fielded and the sensor has no responses to fold a white in")
-        white = sensor.responses.effective @ _trapezoid(sensor.responses.wavelength_nm)
+        from ..optics.wiener import trapezoid_weights
+
+        white = sensor.responses.effective @ trapezoid_weights(sensor.responses.wavelength_nm)
         A = A * white / (A @ white)[:, None]
         how += (", its rows weighed by each band's signal from a white under equal-energy "
                 "light and normalised, for flat-fielded values")
@@ -78,14 +79,6 @@ def _vendor(sensor, name, reflectance):
         raise ValueError(f"matrix {chosen.name!r} is for flat-fielded values, and the cube "
                          "holds counts or radiance: flat-field it first (snapcorr flatfield)")
     return chosen, A, how
-
-
-def _trapezoid(grid):
-    w = np.zeros(grid.size)
-    d = np.diff(grid)
-    w[:-1] += 0.5 * d
-    w[1:] += 0.5 * d
-    return w
 
 
 def _targets(sensor, wavelengths_nm, fwhm_nm):
@@ -107,14 +100,33 @@ def _targets(sensor, wavelengths_nm, fwhm_nm):
     return wl, fw
 
 
+#: Rows of the cube read to choose the regularisation and measure the noise: evenly spread
+#: over the field, whole (neighbours along a row give the noise); a few row blocks of a
+#: chunked cube are read, never the whole cube.
+SAMPLE_ROWS = 16
+
+
 def _sample(cube, cra=None):
-    """Up to GCV_PIXELS pixels' band values (and chief-ray angles), evenly strided."""
+    """Band values of whole rows spread over the cube (up to SAMPLE_ROWS; a one-column cube's
+    first GCV_PIXELS rows, taken as one row), with their chief-ray angles: ``(rows, nx,
+    n_bands)`` and ``(rows, nx)`` (None without angles)."""
     ny, nx = cube.sizes["y"], cube.sizes["x"]
-    step = max(1, int(np.ceil(np.sqrt(ny * nx / GCV_PIXELS))))
-    values = np.asarray(cube.isel(y=slice(None, None, step), x=slice(None, None, step)).values,
-                        float).reshape(-1, cube.sizes["band"])
-    angles = None if cra is None else cra[::step, ::step].reshape(-1)
-    return values, angles
+    if nx == 1:
+        rows = np.arange(min(ny, GCV_PIXELS))
+        values = np.asarray(cube.isel(y=rows).values, float).transpose(1, 0, 2)
+        return values, (None if cra is None else np.asarray(cra)[rows, :1].T)
+    rows = np.unique(np.linspace(0, ny - 1, min(ny, SAMPLE_ROWS)).round().astype(int))
+    values = np.asarray(cube.isel(y=rows).values, float)
+    return values, (None if cra is None else np.asarray(cra)[rows])
+
+
+def _pixels(sample):
+    """Up to GCV_PIXELS of the sampled pixels, evenly strided: ``(n, n_bands)`` and their
+    angles ``(n,)`` (None without)."""
+    values, angles = sample
+    flat = values.reshape(-1, values.shape[-1])
+    step = max(1, int(np.ceil(flat.shape[0] / GCV_PIXELS)))
+    return flat[::step], (None if angles is None else angles.reshape(-1)[::step])
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
@@ -257,11 +269,12 @@ def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=Non
                              "cube first (snapcorr flatfield); the vendor's irradiance matrix "
                              "applies to counts (--virtual-bands vendor)")
     geometry = (f_number, lens, cra_deg)
-    noise_model = None
+    noise_model = sample = None
     if reflectance and sensor.responses is not None:  # the band noise, for every estimate
         from ..optics.wiener import markov_prior
 
-        noise_model = _fit_alpha(cube, sensor, markov_prior(sensor.responses.wavelength_nm),
+        sample = _sample(cube, cra_deg)  # a few rows, read once
+        noise_model = _fit_alpha(sample, sensor, markov_prior(sensor.responses.wavelength_nm),
                                  noise, geometry)
     if method == "vendor":
         chosen, A, how = _vendor(sensor, matrix, reflectance)
@@ -269,10 +282,10 @@ def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=Non
         ds = _dataset(cube, _apply(cube, A=A), {"virtual_matrix": A}, wl, fw, method,
                       f"{how}, from {sensor.vendor_file or sensor.name}")
         if noise_model is not None and np.all(np.isfinite(fw)):
-            ds = _with_error(ds, cube, sensor, A, wl, fw, noise_model, geometry)
+            ds = _with_error(ds, sample, sensor, A, wl, fw, noise_model, geometry)
         return ds
-    return _estimated(cube, sensor, method, geometry, wavelengths_nm, fwhm_nm, noise_model,
-                      tolerance)
+    return _estimated(cube, sample, sensor, method, geometry, wavelengths_nm, fwhm_nm,
+                      noise_model, tolerance)
 
 
 def _field_weights(sensor, geometry):
@@ -292,7 +305,7 @@ def _field_weights(sensor, geometry):
             f"at f/{float(f_number):g})")
 
 
-def _with_error(ds, cube, sensor, A, wl, fw, noise_model, geometry, table=None):
+def _with_error(ds, sample, sensor, A, wl, fw, noise_model, geometry, table=None):
     """``virtual_stderr``: each virtual band's expected RMS error, the largest over the
     field.
 
@@ -317,7 +330,7 @@ def _with_error(ds, cube, sensor, A, wl, fw, noise_model, geometry, table=None):
     phi, g = markov_prior(grid), gaussian_targets(grid, wl, fw)
     alpha, noise_var, why = noise_model
     f_number, lens, cra = geometry
-    values, angles = _sample(cube, cra)
+    values, angles = _pixels(sample)
     if table is None and all(v is not None for v in geometry) and sensor.n_eff is not None:
         table = VirtualTable.build(sensor.responses, g, sensor.n_eff, f_number, lens,
                                    cra_max_deg=max(float(np.nanmax(cra)), 1e-6), alpha=alpha,
@@ -352,25 +365,20 @@ def _with_error(ds, cube, sensor, A, wl, fw, noise_model, geometry, table=None):
     return ds
 
 
-def _noise_var(cube, sensor, phi, alpha):
+def _noise_var(values, sensor, phi, alpha):
     """The band values' noise variance, from neighbouring pixels: with ``H`` the Wiener
     smoother of band values (``alpha``), the residuals ``(I - H) y`` of two neighbours differ
     by ``(I - H)`` times their noise difference (the smooth part of any difference in their
     spectra is removed), so the median of ``|r_i - r_j|^2`` is that of ``2 sigma^2`` times a
     weighted chi-square of weights ``eig((I - H)^T (I - H))`` (Satterthwaite's approximation).
-    Neighbours along ``x`` (along ``y`` for a one-column cube), in up to GCV_PIXELS pairs of
-    whole rows."""
+    ``values`` are whole rows ``(rows, nx, n_bands)`` (:func:`_sample`); neighbours along them.
+    """
     from ..optics.wiener import normalised
 
     s = normalised(sensor.responses.wavelength_nm, sensor.responses.effective)
     gram = s @ phi @ s.T
     M = np.eye(gram.shape[0]) - np.linalg.solve(gram + alpha * np.eye(gram.shape[0]), gram).T
-    along = "x" if cube.sizes["x"] > 1 else "y"
-    other = "y" if along == "x" else "x"
-    step = max(1, int(np.ceil(cube.sizes[other] * cube.sizes[along] / GCV_PIXELS)))
-    y = np.asarray(cube.isel({other: slice(None, None, step)}).transpose(
-        other, along, "band").values, float)
-    r = y @ M.T
+    r = values @ M.T
     d = np.sum((r[:, 1:] - r[:, :-1]) ** 2, axis=2).ravel()
     d = d[np.isfinite(d)]
     if d.size < 10:
@@ -380,7 +388,7 @@ def _noise_var(cube, sensor, phi, alpha):
     return float(np.median(d) / (2.0 * np.trace(W) * (1.0 - 2.0 / (9.0 * k)) ** 3))
 
 
-def _fit_alpha(cube, sensor, phi, noise, geometry=(None, None, None)):
+def _fit_alpha(sample, sensor, phi, noise, geometry=(None, None, None)):
     """The regularisation and the band noise variance: both the square of ``noise`` when
     given, else the regularisation by generalised cross-validation on the cube's own values
     (which may take less than the noise where the prior misfits: it minimises the estimate's
@@ -389,22 +397,23 @@ def _fit_alpha(cube, sensor, phi, noise, geometry=(None, None, None)):
 
     if noise is not None:
         return float(noise) ** 2, float(noise) ** 2, f"the stated noise {float(noise):g}"
-    cra = geometry[2]
-    values, angles = _sample(cube, cra)
+    values, angles = _pixels(sample)
     weights, _ = _field_weights(sensor, geometry)
     if len(weights) == 1:
         groups = [values]
     else:
+        cra = geometry[2]
         nodes = np.linspace(float(np.nanmin(cra)), float(np.nanmax(cra)), len(weights))
         near = np.argmin(np.abs(angles[:, None] - nodes[None, :]), axis=1)
         groups = [values[near == k] for k in range(len(weights))]
     alpha, _ = gcv_alpha(weights, groups, phi)
-    return alpha, _noise_var(cube, sensor, phi, alpha), (
+    return alpha, _noise_var(sample[0], sensor, phi, alpha), (
         f"regularisation by generalised cross-validation on {sum(len(g) for g in groups)} of "
         "the cube's pixels, noise from neighbouring pixels")
 
 
-def _estimated(cube, sensor, method, geometry, wavelengths_nm, fwhm_nm, noise_model, tolerance):
+def _estimated(cube, sample, sensor, method, geometry, wavelengths_nm, fwhm_nm, noise_model,
+               tolerance):
     from ..optics.wiener import (
         PRIOR,
         VirtualTable,
@@ -428,7 +437,7 @@ def _estimated(cube, sensor, method, geometry, wavelengths_nm, fwhm_nm, noise_mo
                       f"Wiener estimate (Pratt & Mancill 1976) from the measured responses at "
                       f"normal incidence onto Gaussian bands; {prior}; regularisation "
                       f"{alpha:.3g} ({why})")
-        return _with_error(ds, cube, sensor, A, wl, fw, noise_model, geometry)
+        return _with_error(ds, sample, sensor, A, wl, fw, noise_model, geometry)
     if f_number is None or lens is None or cra is None:
         raise ValueError("--virtual-bands angle-aware needs the lens, the f-number and each "
                          "pixel's chief-ray angle (correct_cube gives them)")
@@ -444,7 +453,7 @@ def _estimated(cube, sensor, method, geometry, wavelengths_nm, fwhm_nm, noise_mo
                   f"curves), tabulated at {table.cra_deg.size} chief-ray angles and "
                   f"interpolated within {tolerance:g}; {prior}; regularisation {alpha:.3g} "
                   f"({why})")
-    return _with_error(ds, cube, sensor, None, wl, fw, noise_model, geometry, table=table)
+    return _with_error(ds, sample, sensor, None, wl, fw, noise_model, geometry, table=table)
 
 
 def _dataset(cube, out, extra, wl, fw, method, source):

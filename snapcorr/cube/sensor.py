@@ -37,9 +37,10 @@ MEASURED = "measured"
 #: What the refusals say where a value the vendor's file does not give is needed.
 _NEEDS = {
     "n_eff": ("its filters' effective index n_eff, which vendor calibration files do not give; "
-              "fit it from cubes of a spectral target with `snapcorr pupil --fit-n-eff "
-              "--sensor-out SENSOR.toml`, or give it in a sensor TOML naming the file "
-              "(vendor_file = ..., n_eff = ...)"),
+              "give it in a sensor TOML naming the file (vendor_file = ..., n_eff = ...), from "
+              "the vendor's design value or a measurement (`snapcorr pupil --fit-n-eff` fits "
+              "it from cubes of a spectral target for sensors with modelled filters; it does "
+              "not model measured responses yet)"),
     "pixel_pitch_um": ("its pixel pitch, which its file gives as 0 (unknown); give "
                        "pixel_pitch_um in a sensor TOML naming the file (vendor_file = ..., "
                        "pixel_pitch_um = ...)"),
@@ -179,6 +180,9 @@ class Sensor:
             if self.responses.n_bands != n:
                 raise ValueError(f"the measured responses have {self.responses.n_bands} bands, "
                                  f"cwl_nm {n}")
+            if self.profile not in ("gaussian", MEASURED):  # gaussian: the default, unset
+                raise ValueError(f"profile {self.profile!r} and measured responses both say "
+                                 "what the filters are; the measured responses are used")
             set_(self, "profile", MEASURED)
         elif self.profile == MEASURED:
             raise ValueError("profile 'measured' needs the bands' measured responses (a vendor "
@@ -365,6 +369,10 @@ class Sensor:
             if self.size_px is not None:
                 d["size_px"] = list(self.size_px)
             return d
+        if self.responses is not None or self.matrices:
+            raise ValueError(f"the sensor {self.name!r} has measured responses or correction "
+                             "matrices but no vendor file to name; a sensor TOML holds them only "
+                             "as the vendor's file it names (vendor_file)")
         d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
              "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm)}
         if self.pixel_pitch_um is None:

@@ -320,7 +320,7 @@ def _older(f, root, info):
                    f"grid {grid.size}")
         kind = rej.find("type")
         name = (kind.text or "").strip() if kind is not None and kind.text else "band-pass"
-    responses = FilterResponses(grid, curves, system, peaks, system_name=name)
+    responses = _responses(f, grid, curves, system, peaks, name)
     matrices = ()
     sci = root.find(".//spectral_correction_info")
     if sci is not None and sci.find("virtual_bands") is not None:
@@ -329,6 +329,14 @@ def _older(f, root, info):
         matrices = (_older_matrix(f, sci, n_bands, fwhm),)
     return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
                              matrices, bits)
+
+
+def _responses(f, grid, curves, system, peaks, name):
+    """The checked responses; what FilterResponses refuses is said with the file's name."""
+    try:
+        return FilterResponses(grid, curves, system, peaks, system_name=name)
+    except ValueError as err:
+        f.fail(str(err))
 
 
 def _older_matrix(f, sci, n_bands, fwhm):
@@ -388,8 +396,7 @@ def _newer(f, root, info):
         kind = comp.find("type")
         names.append((kind.text or "").strip() if kind is not None and kind.text else
                      f"component {k}")
-    responses = FilterResponses(grid, curves, system, peaks,
-                                system_name=" x ".join(names) or "none")
+    responses = _responses(f, grid, curves, system, peaks, " x ".join(names) or "none")
     matrices = tuple(_newer_matrix(f, m, k, n_bands)
                      for k, m in enumerate(root.iter("correction_matrix")))
     names_seen = [m.name for m in matrices]

@@ -55,7 +55,7 @@ from .lens import Lens
 from .measured import responses_behind_lens
 
 __all__ = ["ALPHAS", "PRIOR", "VirtualTable", "expected_error", "gaussian_targets", "gcv_alpha",
-           "markov_prior", "normalised", "wiener_matrix"]
+           "markov_prior", "normalised", "trapezoid_weights", "wiener_matrix"]
 
 #: The prior's mean, standard deviation and correlation length (nm): the maximum-likelihood
 #: fit of a Markov process to 152 public reflectance spectra (module docstring).
@@ -65,8 +65,8 @@ PRIOR = {"mean": 0.325, "sd": 0.293, "length_nm": 3900.0}
 ALPHAS = np.logspace(-7.0, -2.0, 26)
 
 
-def _weights(wavelength_nm):
-    """Trapezoid quadrature weights of a grid, nm."""
+def trapezoid_weights(wavelength_nm):
+    """Trapezoid quadrature weights of a grid, nm: ``weights @ f`` integrates ``f``."""
     w = np.zeros(wavelength_nm.size)
     d = np.diff(wavelength_nm)
     w[:-1] += 0.5 * d
@@ -88,7 +88,7 @@ def normalised(wavelength_nm, responses):
     ndarray, shape (m, n)
     """
     grid = np.asarray(wavelength_nm, float)
-    r = np.asarray(responses, float) * _weights(grid)
+    r = np.asarray(responses, float) * trapezoid_weights(grid)
     total = r.sum(axis=1, keepdims=True)
     if np.any(~(total > 0)):
         raise ValueError("a response has no positive area on the grid")
