@@ -1,5 +1,6 @@
 """Cubes in and out: the data model, sensor layouts and flat-fielding."""
 
+from .demosaicking import DEMOSAIC_METHODS, demosaic
 from .flatfield import flatfield
 from .io import (
     FORMATS,
@@ -15,11 +16,13 @@ from .mosaic import mosaic_to_cube, sensor_positions
 from .sensor import LAYOUTS, Sensor
 
 __all__ = [
+    "DEMOSAIC_METHODS",
     "DIMS",
     "FORMATS",
     "LAYOUTS",
     "Sensor",
     "check_cube",
+    "demosaic",
     "flatfield",
     "make_cube",
     "mosaic_to_cube",

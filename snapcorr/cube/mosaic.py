@@ -8,7 +8,7 @@ from .._validation import check_integers
 from .model import make_cube, with_positions
 from .sensor import Sensor
 
-__all__ = ["mosaic_to_cube", "sensor_positions"]
+__all__ = ["frame_area", "mosaic_to_cube", "sensor_positions"]
 
 
 def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
@@ -90,6 +90,47 @@ def _origin(shape, sensor, origin_px):
             "give the sensor row and column of its first pixel (origin_px, --sensor-origin-px "
             "ROW,COL)")
     return 0, 0
+
+
+def frame_area(shape, sensor, origin_px=None):
+    """Where a frame sits and which part of it carries filters.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        The frame's rows and columns.
+    sensor : Sensor
+        A mosaic sensor.
+    origin_px : (int, int), optional
+        Sensor row and column of the frame's first pixel (default: the frame is the whole
+        sensor, of its ``size_px``).
+
+    Returns
+    -------
+    (r0, c0) : the first sensor pixel kept (inside the filter area)
+    (rows, cols) : how many rows and columns are kept
+    (y0, x0) : ndarray of int, shape (n_bands,)
+        Each band's first sample row and column in the kept part.
+
+    Raises
+    ------
+    ValueError
+        Of another size than the sensor's without ``origin_px``, or holding less than one tile
+        inside the filter area.
+    """
+    r0, c0 = _origin(shape, sensor, origin_px)
+    tr, tc = sensor.mosaic_shape
+    lo_r, lo_c, hi_r, hi_c = r0, c0, r0 + shape[0], c0 + shape[1]
+    if sensor.filter_area_px is not None:
+        ar, ac, an, am = sensor.filter_area_px
+        lo_r, lo_c = max(lo_r, ar), max(lo_c, ac)
+        hi_r, hi_c = min(hi_r, ar + an), min(hi_c, ac + am)
+    if hi_r - lo_r < tr or hi_c - lo_c < tc:
+        raise ValueError(f"the frame ({shape[0]} x {shape[1]} px at sensor row {r0}, column "
+                         f"{c0}) holds no whole {tr} x {tc} tile"
+                         + ("" if sensor.filter_area_px is None else " inside the filter area"))
+    off = sensor.band_offsets_at((lo_r, lo_c))
+    return (lo_r, lo_c), (hi_r - lo_r, hi_c - lo_c), (off[:, 0].copy(), off[:, 1].copy())
 
 
 def _whole_tiles(shape, sensor, r0, c0):

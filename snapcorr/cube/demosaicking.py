@@ -1,0 +1,194 @@
+"""Full-resolution cubes from snapshot-mosaic frames: every band at every pixel.
+
+A mosaic frame holds one band per pixel; :func:`mosaic_to_cube` gives one spectrum per tile.
+:func:`demosaic` estimates every band at every pixel, by a method of
+:data:`DEMOSAIC_METHODS` (:mod:`snapcorr.cube.msfa`, one module per published method):
+
+=============  ====================================================================  ========
+method         what                                                                  source
+=============  ====================================================================  ========
+``nearest``    tile replication: each band's value of the tile holding the pixel    --
+``bilinear``   weighted bilinear: each band from its own samples (WB)               [1]_
+``ppid``       each band's difference from the pseudo-panchromatic image (PPI)      [2]_
+``ri``         residual interpolation: a local linear model of each band against    [3]_ [4]_
+               the PPI, its residuals interpolated (the default, the most accurate)
+=============  ====================================================================  ========
+
+The band layout is the sensor's (its tile, band offsets and filter area), wherever the frame
+starts; the frame is cut to the filter area. Every method keeps each measured value where it
+was measured; a missing (NaN) value is left out of every estimate and stays NaN in its own
+band (the ``mask``), and at the frame's edges the samples that exist are used. The cube
+records each pixel's sensor position (the same for every band), so :func:`correct_cube`
+computes every pixel's own chief-ray angle.
+
+References
+----------
+.. [1] J. Brauers, T. Aach, "A color filter array based multispectral camera", 12. Workshop
+   Farbbildverarbeitung, Ilmenau (2006).
+.. [2] S. Mihoubi, O. Losson, B. Mathon, L. Macaire, "Multispectral demosaicing using
+   pseudo-panchromatic image", IEEE Trans. Comput. Imaging 3, 982-995 (2017).
+.. [3] D. Kiku, Y. Monno, M. Tanaka, M. Okutomi, "Residual interpolation for color image
+   demosaicking", Proc. IEEE ICIP, 2304-2308 (2013).
+.. [4] Y. Monno, D. Kiku, M. Tanaka, M. Okutomi, "Adaptive residual interpolation for color
+   and multispectral image demosaicking", Sensors 17, 2787 (2017).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._validation import validate_method
+from . import msfa
+from .model import make_cube, with_positions
+from .mosaic import frame_area
+from .sensor import Sensor
+
+__all__ = ["DEMOSAIC_METHODS", "DEMOSAIC_REACH_TILES", "demosaic", "demosaic_array"]
+
+#: The methods by name: ``f(frame, y0, x0, n, m) -> (rows, cols, bands)``.
+DEMOSAIC_METHODS = {
+    "nearest": msfa.tile_replication,
+    "bilinear": msfa.weighted_bilinear,
+    "ppid": msfa.ppid,
+    "ri": msfa.residual_interpolation,
+}
+#: How far (in tiles) a pixel's estimate reaches into the frame, by method: the halo a block
+#: of a chunked frame needs from its neighbours for the same result as the whole frame. Two
+#: tiles for a sample and the next one where it is missing; two more for the
+#: pseudo-panchromatic image; and the guided filter's two windows.
+DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 4,
+                        "ri": 4 + 2 * msfa.monno2017.RADIUS}
+
+
+def _dtype(dtype):
+    return np.float64 if np.dtype(dtype) == np.float64 else np.float32
+
+
+def demosaic_array(frame, y0, x0, n, m, method="ri"):
+    """The numpy core: every band at every pixel of a 2-D frame.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, cols)
+        Real values (counts or flat-fielded); NaN where missing.
+    y0, x0 : array_like of int, shape (n_bands,)
+        Each band's first sample row and column in the frame (``0 <= y0 < n``).
+    n, m : int
+        Tile rows and columns.
+    method : str
+        A name of :data:`DEMOSAIC_METHODS`.
+
+    Returns
+    -------
+    ndarray, shape (rows, cols, n_bands)
+        float32 (float64 for a float64 frame); each band's own samples unchanged, NaN where
+        the frame was.
+    """
+    method = validate_method(method, DEMOSAIC_METHODS)
+    data = np.ascontiguousarray(frame, _dtype(np.asarray(frame).dtype))
+    y0, x0 = np.asarray(y0, np.int64), np.asarray(x0, np.int64)
+    # every method keeps each band's samples as measured (missing ones missing)
+    return DEMOSAIC_METHODS[method](data, y0, x0, int(n), int(m))
+
+
+def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
+    """A full-resolution ``(y, x, band)`` cube from a mosaic frame (module docstring).
+
+    Parameters
+    ----------
+    frame : array_like or xarray.DataArray, shape (rows, cols)
+        A raw or flat-fielded frame (numpy or dask; a DataArray as
+        :func:`~snapcorr.cube.read_frame` or :func:`~snapcorr.cube.flatfield` gives it).
+    sensor : Sensor
+        A mosaic sensor (its layout places the bands).
+    method : str
+        A name of :data:`DEMOSAIC_METHODS` (default ``"ri"``).
+    origin_px : (int, int), optional
+        Sensor row and column of the frame's first pixel (default: the frame is the whole
+        sensor, of its ``size_px``).
+    name : str, optional
+        The cube's name (default: ``reflectance`` for a flat-fielded frame, units "1", else
+        ``radiance``).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``(y, x, band)`` with ``wavelength``, ``fwhm``, ``sensor_row(y, band)`` and
+        ``sensor_col(x, band)`` (every band at the pixel's own position); attrs
+        ``demosaic_method`` and ``mosaic_area_px``. Dask-backed for a dask frame (blocks
+        with a halo of :data:`DEMOSAIC_REACH_TILES` tiles: the same values as in memory).
+
+    Raises
+    ------
+    ValueError
+        Not a mosaic sensor, not a 2-D frame (a cube is already split into bands), smaller
+        than a tile, or of another size than the sensor's without ``origin_px``.
+    """
+    if sensor.layout != "mosaic":
+        raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
+    method = validate_method(method, DEMOSAIC_METHODS, "demosaic method")
+    attrs = dict(frame.attrs) if isinstance(frame, xr.DataArray) else {}
+    data = frame.data if isinstance(frame, xr.DataArray) else frame
+    if not hasattr(data, "ndim"):
+        data = np.asarray(data)
+    if data.ndim != 2:
+        raise ValueError(f"demosaic takes a 2-D mosaic frame, got shape {data.shape}"
+                         + (" (a cube is already split into bands)" if data.ndim == 3 else ""))
+    (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape, sensor, origin_px)
+    o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
+    data = data[r0 - o0[0]:r0 - o0[0] + rows, c0 - o0[1]:c0 - o0[1] + cols]
+    n, m = sensor.mosaic_shape
+    if isinstance(data, np.ndarray):
+        cube_data = demosaic_array(data, y0, x0, n, m, method)
+    else:
+        cube_data = _lazy(data, y0, x0, n, m, method)
+    if name is None:
+        name = "reflectance" if str(attrs.get("units", "")).strip() == "1" else "radiance"
+    cube = make_cube(cube_data, sensor.cwl_nm, fwhm_nm=sensor.fwhm_nm, name=name,
+                     attrs={"sensor": sensor.name, **attrs, "demosaic_method": method,
+                            "mosaic_area_px": [r0, c0, rows, cols]})
+    nb = sensor.n_bands
+    rows_px = np.repeat((r0 + np.arange(rows))[:, None], nb, axis=1)
+    cols_px = np.repeat((c0 + np.arange(cols))[:, None], nb, axis=1)
+    return with_positions(cube, rows_px, cols_px)
+
+
+def _tile_chunks(chunks, tile, size):
+    """Chunks near the given ones, each a whole number of tiles (so every block sees the same
+    tile grid as the whole frame, to the last bit) and at least ``size`` (so it can lend a
+    full halo); the last takes the remainder."""
+    total, prev, out = sum(chunks), 0, []
+    for b in np.cumsum(chunks)[:-1].tolist():
+        b = round(b / tile) * tile
+        if b - prev >= size and total - b >= size:
+            out.append(b - prev)
+            prev = b
+    return (*out, total - prev)
+
+
+def _lazy(data, y0, x0, n, m, method):
+    """Block by block with a halo of the method's reach (the frame's edges stay edges)."""
+    import dask.array as da
+
+    reach = DEMOSAIC_REACH_TILES[method]
+    depth = {0: reach * n, 1: reach * m}
+    dtype = _dtype(data.dtype)
+    data = data.astype(dtype)
+    data = data.rechunk({0: _tile_chunks(data.chunks[0], n, depth[0]),
+                         1: _tile_chunks(data.chunks[1], m, depth[1])})
+    starts = [np.cumsum((0, *c)) for c in data.chunks]
+    last = [len(c) - 1 for c in data.chunks]
+    # no padding beyond the frame: its edges are handled as in memory
+    padded = da.overlap.overlap(data, depth=depth, boundary="none")
+
+    def block(a, block_info=None):
+        i, j = block_info[0]["chunk-location"]
+        top, left = (depth[0] if i else 0), (depth[1] if j else 0)
+        bottom, right = (depth[0] if i < last[0] else 0), (depth[1] if j < last[1] else 0)
+        ys, xs = starts[0][i] - top, starts[1][j] - left  # the padded block's corner
+        out = demosaic_array(a, (y0 - ys) % n, (x0 - xs) % m, n, m, method)
+        return out[top:out.shape[0] - bottom, left:out.shape[1] - right]
+
+    return da.map_blocks(block, padded, new_axis=2, chunks=(*data.chunks, (y0.size,)),
+                         dtype=dtype)
