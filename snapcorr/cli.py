@@ -31,6 +31,11 @@ EXAMPLES = {
       snapcorr flatfield frame.npy --dark dark.npy --white white.npy \
           --sensor mosaic_4x4_vis --out scene_ff.zarr --plot scene_ff.png
                                           ... a raw mosaic frame, split into its 16 bands
+      snapcorr flatfield frame.npy --dark dark.npy --white white.npy \
+          --sensor imec_5x5_nir --demosaic ri --out scene_full.nc
+                                          ... flat-fielded pixel by pixel, then every band at
+                                          every pixel (full resolution; or nearest, bilinear,
+                                          ppid)
       snapcorr flatfield crop.hdr --dark dark.hdr --white white.hdr --sensor snapscan_vnir \
           --sensor-origin-px 512,768 --out crop_ff.nc
                                           ... a crop whose first pixel is sensor row 512, col 768
@@ -310,6 +315,8 @@ def _cmd_flatfield(args):
     def read(path):
         return _read(path, sensor, args.sensor_origin_px)
 
+    if args.demosaic is not None:
+        return _flatfield_demosaic(args, sensor, inputs)
     raw = read(args.raw)
     darks = [read(p) for p in args.dark]
     whites = [read(p) for p in args.white]
@@ -338,6 +345,62 @@ def _cmd_flatfield(args):
           f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, {ds['reflectance'].dtype}), "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
+    if args.plot:
+        from .quicklook import plot_flatfield
+
+        plot_flatfield(ds, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def _read_frame_checked(path, sensor, what, shape=None):
+    """A raw 2-D mosaic frame, lazily in whole-tile row blocks; of ``shape`` when given."""
+    from .cube import read_frame
+
+    frame = read_frame(path, chunks={})
+    frame = read_frame(path, chunks={"y": _frame_rows(frame, sensor), "x": -1})
+    if shape is not None and frame.shape != shape:
+        raise ValueError(f"{what} {path} is {frame.shape[0]} x {frame.shape[1]} px but the raw "
+                         f"frame {shape[0]} x {shape[1]}: a snapshot's references are frames "
+                         "of the same size and place")
+    return frame
+
+
+def _flatfield_demosaic(args, sensor, inputs):
+    """``flatfield --demosaic``: the raw frame flat-fielded pixel by pixel, then demosaicked."""
+    from .cube import demosaic, flatfield, write_dataset
+    from .cube.flatfield import check_masked
+
+    if sensor is None or sensor.layout != "mosaic":
+        raise ValueError("--demosaic needs a mosaic --sensor (its layout places the bands)")
+    origin = args.sensor_origin_px
+    raw = _read_frame_checked(args.raw, sensor, "the raw frame")
+    darks = [_read_frame_checked(p, sensor, "--dark", raw.shape) for p in args.dark]
+    whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
+    ff = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
+    with _StageBar("flat-fielding (checking the mask)"):
+        n_masked, total = check_masked(ff)
+    ds = demosaic(ff, sensor, args.demosaic, origin_px=origin)
+    if args.filter_white:
+        fw = _read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
+        tr = demosaic(flatfield(fw, darks, whites, saturation=args.saturation,
+                                name="transmittance", dtype=args.dtype),
+                      sensor, args.demosaic, origin_px=origin)
+        ds["transmittance"] = tr["transmittance"]
+        ds["filter_white_raw"] = tr["raw"]
+        ds["transmittance_mask"] = tr["mask"].assign_attrs(
+            long_name="transmittance value not meaningful")
+        ds.attrs["filter_white_file"] = str(args.filter_white)
+    ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
+                     "white_files": [str(p) for p in args.white]})
+    cube = ds["reflectance"]
+    with _StageBar(f"demosaicking ({args.demosaic}) and writing {args.out.name}"):
+        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {args.out}: reflectance of {args.raw}, demosaicked ({args.demosaic}) to "
+          f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} ({cube.dtype}), sensor rows "
+          f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
+          f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
+          f"pixels masked ({100 * n_masked / total:.2f} %)")
     if args.plot:
         from .quicklook import plot_flatfield
 
@@ -837,6 +900,13 @@ def _add_flatfield(command):
                    help="digital number at or above which a pixel is saturated")
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="type of the result (default: %(default)s)")
+    p.add_argument("--demosaic", default=None, metavar="METHOD",
+                   choices=["nearest", "bilinear", "ppid", "ri"],
+                   help="a raw mosaic frame (with a mosaic --sensor): flat-field it pixel by "
+                   "pixel, then estimate every band at every pixel by METHOD: nearest (tile "
+                   "replication), bilinear (weighted bilinear), ppid (pseudo-panchromatic "
+                   "difference) or ri (residual interpolation, the most accurate); without "
+                   "it, one spectrum per tile")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the mask and a few pixels' spectra")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)

@@ -35,6 +35,8 @@ References
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import xarray as xr
 
@@ -97,9 +99,12 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
 
     Parameters
     ----------
-    frame : array_like or xarray.DataArray, shape (rows, cols)
+    frame : array_like, xarray.DataArray or xarray.Dataset, shape (rows, cols)
         A raw or flat-fielded frame (numpy or dask; a DataArray as
-        :func:`~snapcorr.cube.read_frame` or :func:`~snapcorr.cube.flatfield` gives it).
+        :func:`~snapcorr.cube.read_frame` gives it); or the Dataset
+        :func:`~snapcorr.cube.flatfield` gives for a frame, whose result is demosaicked and
+        returned as a Dataset with its ``mask`` (where the cube is NaN) and the ``raw`` frame
+        cut to the same area.
     sensor : Sensor
         A mosaic sensor (its layout places the bands).
     method : str
@@ -119,12 +124,20 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
         ``demosaic_method`` and ``mosaic_area_px``. Dask-backed for a dask frame (blocks
         with a halo of :data:`DEMOSAIC_REACH_TILES` tiles: the same values as in memory).
 
+    Warns
+    -----
+    MaskedWarning
+        Missing values left NaN beyond their own samples (a hole wider than a tile), where
+        :func:`numpy.isnan` of the result counts more than the frame's missing values.
+
     Raises
     ------
     ValueError
         Not a mosaic sensor, not a 2-D frame (a cube is already split into bands), smaller
         than a tile, or of another size than the sensor's without ``origin_px``.
     """
+    if isinstance(frame, xr.Dataset):
+        return _demosaic_dataset(frame, sensor, method, origin_px, name)
     if sensor.layout != "mosaic":
         raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
     method = validate_method(method, DEMOSAIC_METHODS, "demosaic method")
@@ -141,6 +154,7 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     n, m = sensor.mosaic_shape
     if isinstance(data, np.ndarray):
         cube_data = demosaic_array(data, y0, x0, n, m, method)
+        _check_spread(data, cube_data)
     else:
         cube_data = _lazy(data, y0, x0, n, m, method)
     if name is None:
@@ -152,6 +166,46 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     rows_px = np.repeat((r0 + np.arange(rows))[:, None], nb, axis=1)
     cols_px = np.repeat((c0 + np.arange(cols))[:, None], nb, axis=1)
     return with_positions(cube, rows_px, cols_px)
+
+
+def _check_spread(frame, cube):
+    """Warn where a missing value's NaN reached beyond its own sample."""
+    missing = int(np.isnan(frame).sum())
+    if missing:
+        found = int(np.isnan(cube).sum())
+        if found > missing:
+            from .flatfield import MaskedWarning
+
+            warnings.warn(f"{missing} missing values in the frame left {found} values NaN in "
+                          "the cube: a hole wider than a tile has no sample of some bands "
+                          "near it", MaskedWarning, stacklevel=3)
+
+
+def _demosaic_dataset(ds, sensor, method, origin_px, name):
+    """A flat-fielded frame's Dataset demosaicked: the cube, its mask and the raw frame."""
+    names = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x") and v not in
+             ("mask", "raw")]
+    if len(names) != 1:
+        raise ValueError("demosaic takes a frame, or flatfield's Dataset of a frame (one "
+                         f"(y, x) variable besides mask and raw); got variables "
+                         f"{list(ds.data_vars)}")
+    var = names[0]
+    frame = ds[var]
+    cube = demosaic(frame, sensor, method, origin_px=origin_px, name=name or var)
+    r0, c0, rows, cols = cube.attrs["mosaic_area_px"]
+    o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
+    cut = {"y": slice(r0 - o0[0], r0 - o0[0] + rows), "x": slice(c0 - o0[1], c0 - o0[1] + cols)}
+    out = xr.Dataset(attrs={**ds.attrs, "demosaic_method": method,
+                            "mosaic_area_px": [r0, c0, rows, cols]})
+    out[cube.name] = cube
+    mask = cube.isnull()
+    mask.attrs = {"units": "1", "long_name": "value not meaningful (masked in the frame, its "
+                  "own sample; or no sample of the band near it)"}
+    out["mask"] = mask
+    if "raw" in ds:
+        out["raw"] = ds["raw"].isel(cut)  # the same pixels as the cube's
+    out["n_masked"] = mask.sum().assign_attrs(long_name="number of masked values", units="1")
+    return out
 
 
 def _tile_chunks(chunks, tile, size):

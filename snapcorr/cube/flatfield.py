@@ -10,7 +10,7 @@ import xarray as xr
 
 from .. import __version__
 from .._validation import check_positive
-from .model import check_cube
+from .model import check_cube, check_dtype
 
 __all__ = ["MASKED_WARN_FRACTION", "MaskedWarning", "cf_attrs", "check_masked", "flatfield"]
 
@@ -123,11 +123,14 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     Parameters
     ----------
     raw : xarray.DataArray
-        The cube to correct, dims ``(y, x, band)`` (numpy- or dask-backed).
+        The cube to correct, dims ``(y, x, band)`` (numpy- or dask-backed); or a raw mosaic
+        frame ``(y, x)`` (as :func:`~snapcorr.cube.read_frame` gives it), or a stream of them
+        ``(frame, y, x)``, flat-fielded pixel by pixel before :func:`~snapcorr.cube.demosaic`.
     dark, white : xarray.DataArray or sequence of them
         Dark and white references; several frames are averaged. A white (or dark) reference
-        with fewer rows than ``raw`` -- a line-scan strip -- is averaged over its rows and
-        broadcast along ``y``, the scan axis; one with more rows is refused.
+        with fewer rows than a cube ``raw`` -- a line-scan strip -- is averaged over its rows
+        and broadcast along ``y``, the scan axis; one with more rows is refused. For a frame,
+        every reference is a frame of its size (a snapshot has no scan axis).
     saturation : float, optional
         Digital number at or above which ``raw`` or any white frame is saturated (> 0).
     name : str
@@ -144,9 +147,12 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
         <= dark, saturated, a NaN or infinite value in any input frame, or the cube's ENVI
         ``data ignore value``), ``n_masked`` and the input ``raw`` kept as it
         was; CF ``units`` and ``long_name`` on each; attrs record the method, the number of
-        frames averaged, the date and the version. For numpy inputs the mask is checked at
+        frames averaged, the date and the version. For a frame (or stream), the same
+        variables with its dims. For numpy inputs the mask is checked at
         once (:func:`check_masked`); for lazy ones call it before writing.
     """
+    if isinstance(raw, xr.DataArray) and tuple(raw.dims[-2:]) == ("y", "x"):
+        return _flatfield_frames(raw, dark, white, saturation, name, dtype)
     raw = check_cube(raw)
     darks, whites = _frames(dark, "dark"), _frames(white, "white")
     dtype = _check_dtypes(dtype, raw, darks[0], whites[0])
@@ -184,6 +190,75 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     kept = raw.copy(deep=False)
     kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin}
     n_masked = mask.sum().assign_attrs(long_name="number of masked values", units="1")
+    ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
+                    attrs={**raw.attrs, **attrs})
+    if ds[name].chunks is None:
+        check_masked(ds)
+    return ds
+
+
+def _flatfield_frames(raw, dark, white, saturation, name, dtype):
+    """:func:`flatfield` of raw mosaic frames ``(..., y, x)``, pixel by pixel."""
+    check_dtype(raw.dtype)
+    refs = {}
+    for label, given in (("dark", dark), ("white", white)):
+        frames = [given] if isinstance(given, xr.DataArray) else list(given)
+        if not frames:
+            raise ValueError(f"no {label} frame given")
+        for f in frames:
+            if not isinstance(f, xr.DataArray) or tuple(f.dims) != ("y", "x"):
+                dims = tuple(f.dims) if isinstance(f, xr.DataArray) else type(f).__name__
+                raise ValueError(f"the {label} reference of a frame is a 2-D (y, x) frame, "
+                                 f"got {dims}")
+            if f.shape != raw.shape[-2:]:
+                raise ValueError(f"the {label} frame is {f.shape[0]} x {f.shape[1]} px but the "
+                                 f"raw frame {raw.shape[-2]} x {raw.shape[-1]}: a snapshot's "
+                                 "references are frames of the same size and place")
+        refs[label] = frames
+    dtype = _check_dtypes(dtype, raw, refs["dark"][0], refs["white"][0])
+    if saturation is not None:
+        saturation = check_positive("saturation", saturation)
+    averaged = {}
+    for label, frames in refs.items():
+        stack = xr.concat([f.drop_vars(list(f.coords)).astype(dtype) for f in frames],
+                          dim="ref")
+        bad = ~np.isfinite(stack)
+        if saturation is not None and label == "white":
+            bad = bad | (stack >= saturation)
+        averaged[label] = (stack.mean("ref", skipna=False), bad.any("ref"))
+    (d, dark_bad), (w, white_bad) = averaged["dark"], averaged["white"]
+    plain = raw.drop_vars(list(raw.coords))
+    r = plain.astype(dtype)
+    denom = w - d
+    mask = (denom <= 0) | ~np.isfinite(r) | dark_bad | white_bad
+    if saturation is not None:
+        mask = mask | (plain >= saturation)
+    ignore = raw.attrs.get("data_ignore_value")
+    if ignore is not None:
+        mask = mask | (plain == ignore)
+    mask = mask.transpose(*raw.dims)
+    out = ((r - d) / denom.where(denom > 0)).where(~mask).astype(dtype).transpose(*raw.dims)
+    origin = raw.attrs.get("source", "the raw frame")
+    out.attrs = {**cf_attrs(name), "source": f"(raw - dark) / (white - dark) of {origin}, "
+                 f"{len(refs['dark'])} dark and {len(refs['white'])} white frame(s) "
+                 "averaged, pixel by pixel"}
+    mask.attrs = {**cf_attrs("mask"), "source": "white <= dark, saturation and non-finite "
+                  "values in the raw, dark and white frames"}
+    kept = plain.copy(deep=False)
+    kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin,
+                  "long_name": "raw frame as read, unchanged"}
+    n_masked = mask.sum().assign_attrs(long_name="number of masked values", units="1")
+    attrs = {
+        "source": f"snapcorr {__version__} flatfield",
+        "method": "Goossens et al. 2019 Eq. 29: (DN - dark) / (white - dark), per pixel of "
+                  "the raw frame",
+        "dark_frames": len(refs["dark"]),
+        "white_frames": len(refs["white"]),
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "snapcorr_version": __version__,
+    }
+    if saturation is not None:
+        attrs["saturation"] = float(saturation)
     ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
                     attrs={**raw.attrs, **attrs})
     if ds[name].chunks is None:
