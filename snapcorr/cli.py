@@ -40,6 +40,15 @@ EXAMPLES = {
           --sensor-origin-px 512,768 --out crop_ff.nc
                                           ... a crop whose first pixel is sensor row 512, col 768
     """,
+    "stream": r"""
+      snapcorr stream frames.zarr --dark dark.npy --white white.npy --sensor imec_5x5_nir \
+          --demosaic ri --lens my_lens.toml --f-number 2 --out stream.zarr
+                                          a film of raw frames (a .zarr, a multi-page .tif or
+                                          a folder of frames), each flat-fielded, demosaicked
+                                          and corrected, frame by frame
+      snapcorr stream frames/ --dark dark.npy --white white.npy --sensor mosaic_4x4_vis \
+          --out stream.zarr               ... flat-fielded and demosaicked only
+    """,
     "correct": r"""
       snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 1.4 \
           --out scene_corrected.nc --resample --plot scene_corrected.png
@@ -406,6 +415,44 @@ def _flatfield_demosaic(args, sensor, inputs):
 
         plot_flatfield(ds, args.plot, overwrite=args.overwrite)
         print(f"wrote {args.plot}")
+    return 0
+
+
+def _cmd_stream(args):
+    from .cube import read_frames, write_dataset
+    from .stream import process_stream
+
+    inputs = [args.frames, *args.dark, *args.white]
+    _check_outputs([args.out], inputs, args.overwrite, [(".zarr", ".nc")])
+    sensor = _sensor(args.sensor)
+    if sensor.layout != "mosaic":
+        raise ValueError(f"stream takes raw mosaic frames: --sensor {args.sensor} is not a "
+                         f"mosaic (layout {sensor.layout!r})")
+    if (args.lens is None) != (args.f_number is None):
+        raise ValueError("correcting a stream needs both --lens and --f-number")
+    if args.resample and args.lens is None:
+        raise ValueError("--resample needs --lens and --f-number")
+    lens = _lens(args.lens) if args.lens is not None else None
+    frames = read_frames(args.frames)
+    darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
+    whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
+    ds = process_stream(frames, darks, whites, sensor, method=args.demosaic, lens=lens,
+                        f_number=args.f_number, origin_px=args.sensor_origin_px,
+                        saturation=args.saturation, dtype=args.dtype, resample=args.resample)
+    ds.attrs.update({"frames_file": str(args.frames), "dark_files": [str(p) for p in args.dark],
+                     "white_files": [str(p) for p in args.white]}
+                    | ({"lens_file": str(args.lens)} if args.lens else {})
+                    | {"sensor_file": str(args.sensor)})
+    cube = ds["reflectance"]
+    with _StageBar(f"{cube.sizes['frame']} frames: flat-fielding, demosaicking "
+                   f"({args.demosaic}){', correcting' if lens else ''}, writing "
+                   f"{args.out.name}"):
+        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    print(f"wrote {args.out}: {cube.sizes['frame']} frames of {args.frames}, each "
+          f"{cube.shape[1]} x {cube.shape[2]} x {cube.shape[3]} ({args.demosaic})"
+          + (f", f/{args.f_number:g}, method {ds.attrs['method']} (CRA up to "
+             f"{ds.attrs['cra_max_deg']:.2f} deg)" if lens else ", not corrected (no --lens)")
+          + ("; resampled onto the nominal wavelengths" if args.resample else ""))
     return 0
 
 
@@ -1087,6 +1134,39 @@ def _add_pupil(command):
     p.set_defaults(func=_cmd_pupil)
 
 
+def _add_stream(command):
+    p = command("stream", "a stream of raw mosaic frames: flat-field, demosaic and correct "
+                "each frame")
+    p.add_argument("frames", type=Path, help="frames (frame, y, x): a .zarr or .nc holding one "
+                   "3-D variable, a multi-page .tif (a frame per page) or a folder of frame "
+                   "files (.npy, .tif, .exr, .hdr; in the order of their names)")
+    p.add_argument("--dark", type=Path, action="append", required=True,
+                   help="dark frame (repeat to average several)")
+    p.add_argument("--white", type=Path, action="append", required=True,
+                   help="white reference frame (repeat to average several)")
+    p.add_argument("--sensor", required=True, help=SENSOR_HELP + " (a mosaic)")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help=ORIGIN_HELP)
+    p.add_argument("--demosaic", default="ri", metavar="METHOD",
+                   choices=["nearest", "bilinear", "ppid", "ri"],
+                   help="nearest, bilinear, ppid or ri (default: %(default)s, the most "
+                   "accurate)")
+    p.add_argument("--lens", default=None,
+                   help="lens profile (.toml) or a bundled one: also the corrected "
+                   "wavelengths (with --f-number)")
+    p.add_argument("--f-number", type=_positive, default=None, metavar="F",
+                   help="the f-number the frames were taken at")
+    p.add_argument("--resample", action="store_true",
+                   help="also every frame's spectra on the nominal wavelengths")
+    p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
+                   help="digital number at or above which a pixel is saturated")
+    p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
+                   help="type of the result (default: %(default)s)")
+    p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    p.set_defaults(func=_cmd_stream)
+
+
 def _add_sensor(command):
     p = command("sensor", "what a sensor file holds: bands, layout, active area, filter "
                 "responses, correction matrices")
@@ -1153,8 +1233,8 @@ def build_parser():
         return sub.add_parser(name, help=help_, description=help_, epilog=_examples(name),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
-    for add in (_add_demo, _add_sensor, _add_flatfield, _add_calibrate, _add_pupil,
-                _add_correct, _add_shift, _add_budget):
+    for add in (_add_demo, _add_sensor, _add_flatfield, _add_stream, _add_calibrate,
+                _add_pupil, _add_correct, _add_shift, _add_budget):
         add(command)
     return parser
 

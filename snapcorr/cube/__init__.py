@@ -2,6 +2,7 @@
 
 from .demosaicking import DEMOSAIC_METHODS, demosaic
 from .flatfield import flatfield
+from .frames import read_frames
 from .io import (
     FORMATS,
     read_cube,
@@ -29,6 +30,7 @@ __all__ = [
     "read_cube",
     "read_dataset",
     "read_frame",
+    "read_frames",
     "row_blocks",
     "sensor_positions",
     "write_cube",

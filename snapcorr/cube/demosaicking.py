@@ -145,27 +145,37 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     data = frame.data if isinstance(frame, xr.DataArray) else frame
     if not hasattr(data, "ndim"):
         data = np.asarray(data)
-    if data.ndim != 2:
+    stream = (isinstance(frame, xr.DataArray) and data.ndim == 3
+              and frame.dims[0] == "frame")
+    if data.ndim != 2 and not stream:
         raise ValueError(f"demosaic takes a 2-D mosaic frame, got shape {data.shape}"
-                         + (" (a cube is already split into bands)" if data.ndim == 3 else ""))
-    (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape, sensor, origin_px)
+                         + (" (a cube is already split into bands; a stream of frames is a "
+                            "DataArray of dims (frame, y, x))" if data.ndim == 3 else ""))
+    (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape[-2:], sensor, origin_px)
     o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
-    data = data[r0 - o0[0]:r0 - o0[0] + rows, c0 - o0[1]:c0 - o0[1] + cols]
+    data = data[..., r0 - o0[0]:r0 - o0[0] + rows, c0 - o0[1]:c0 - o0[1] + cols]
     n, m = sensor.mosaic_shape
     if isinstance(data, np.ndarray):
-        cube_data = demosaic_array(data, y0, x0, n, m, method)
-        _check_spread(data, cube_data)
+        cube_data = np.empty((*data.shape, y0.size), _dtype(data.dtype))
+        for i in np.ndindex(data.shape[:-2]):
+            cube_data[i] = demosaic_array(data[i], y0, x0, n, m, method)
+            _check_spread(data[i], cube_data[i])
     else:
         cube_data = _lazy(data, y0, x0, n, m, method)
     if name is None:
         name = "reflectance" if str(attrs.get("units", "")).strip() == "1" else "radiance"
-    cube = make_cube(cube_data, sensor.cwl_nm, fwhm_nm=sensor.fwhm_nm, name=name,
+    first = cube_data[0] if stream else cube_data
+    cube = make_cube(first, sensor.cwl_nm, fwhm_nm=sensor.fwhm_nm, name=name,
                      attrs={"sensor": sensor.name, **attrs, "demosaic_method": method,
                             "mosaic_area_px": [r0, c0, rows, cols]})
     nb = sensor.n_bands
     rows_px = np.repeat((r0 + np.arange(rows))[:, None], nb, axis=1)
     cols_px = np.repeat((c0 + np.arange(cols))[:, None], nb, axis=1)
-    return with_positions(cube, rows_px, cols_px)
+    cube = with_positions(cube, rows_px, cols_px)
+    if stream:  # the same coordinates, each frame a cube
+        cube = xr.DataArray(cube_data, dims=("frame", *cube.dims), coords=cube.coords,
+                            attrs=cube.attrs, name=cube.name)
+    return cube
 
 
 def _check_spread(frame, cube):
@@ -183,8 +193,8 @@ def _check_spread(frame, cube):
 
 def _demosaic_dataset(ds, sensor, method, origin_px, name):
     """A flat-fielded frame's Dataset demosaicked: the cube, its mask and the raw frame."""
-    names = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x") and v not in
-             ("mask", "raw")]
+    names = [v for v in ds.data_vars if tuple(ds[v].dims)[-2:] == ("y", "x")
+             and ds[v].ndim <= 3 and v not in ("mask", "raw")]
     if len(names) != 1:
         raise ValueError("demosaic takes a frame, or flatfield's Dataset of a frame (one "
                          f"(y, x) variable besides mask and raw); got variables "
@@ -198,10 +208,21 @@ def _demosaic_dataset(ds, sensor, method, origin_px, name):
     out = xr.Dataset(attrs={**ds.attrs, "demosaic_method": method,
                             "mosaic_area_px": [r0, c0, rows, cols]})
     out[cube.name] = cube
-    mask = cube.isnull()
-    mask.attrs = {"units": "1", "long_name": "value not meaningful (masked in the frame, its "
-                  "own sample; or no sample of the band near it)"}
-    out["mask"] = mask
+    if "mask" in ds:  # each masked pixel's own band (cheap: no second pass over the cube)
+        (_, _), (_, _), (y0, x0) = frame_area(frame.shape[-2:], sensor, origin_px)
+        n, m = sensor.mosaic_shape
+        table = np.full((n, m), -1, np.int16)
+        table[y0, x0] = np.arange(y0.size)
+        own = xr.DataArray(table[np.arange(rows)[:, None] % n, np.arange(cols)[None, :] % m],
+                           dims=("y", "x"))
+        mask = ds["mask"].isel(cut) & (own == xr.DataArray(np.arange(y0.size, dtype=np.int16),
+                                                            dims="band"))
+        mask = mask.transpose(*cube.dims)
+    else:
+        mask = cube.isnull()
+    mask.attrs = {"units": "1", "long_name": "value not meaningful (masked in the frame: its "
+                  "own band; the cube is NaN there)"}
+    out["mask"] = mask.drop_vars([c for c in mask.coords if c not in cube.coords])
     if "raw" in ds:
         out["raw"] = ds["raw"].isel(cut)  # the same pixels as the cube's
     out["n_masked"] = mask.sum().assign_attrs(long_name="number of masked values", units="1")
@@ -226,23 +247,28 @@ def _lazy(data, y0, x0, n, m, method):
     import dask.array as da
 
     reach = DEMOSAIC_REACH_TILES[method]
-    depth = {0: reach * n, 1: reach * m}
+    ay, ax = data.ndim - 2, data.ndim - 1  # after any leading (frame) axes
+    depth = {a: 0 for a in range(ay)} | {ay: reach * n, ax: reach * m}
     dtype = _dtype(data.dtype)
     data = data.astype(dtype)
-    data = data.rechunk({0: _tile_chunks(data.chunks[0], n, depth[0]),
-                         1: _tile_chunks(data.chunks[1], m, depth[1])})
-    starts = [np.cumsum((0, *c)) for c in data.chunks]
-    last = [len(c) - 1 for c in data.chunks]
+    data = data.rechunk({ay: _tile_chunks(data.chunks[ay], n, depth[ay]),
+                         ax: _tile_chunks(data.chunks[ax], m, depth[ax])})
+    starts = [np.cumsum((0, *c)) for c in data.chunks[-2:]]
+    last = [len(c) - 1 for c in data.chunks[-2:]]
     # no padding beyond the frame: its edges are handled as in memory
     padded = da.overlap.overlap(data, depth=depth, boundary="none")
 
     def block(a, block_info=None):
-        i, j = block_info[0]["chunk-location"]
-        top, left = (depth[0] if i else 0), (depth[1] if j else 0)
-        bottom, right = (depth[0] if i < last[0] else 0), (depth[1] if j < last[1] else 0)
+        i, j = block_info[0]["chunk-location"][-2:]
+        top, left = (depth[ay] if i else 0), (depth[ax] if j else 0)
+        bottom, right = (depth[ay] if i < last[0] else 0), (depth[ax] if j < last[1] else 0)
         ys, xs = starts[0][i] - top, starts[1][j] - left  # the padded block's corner
-        out = demosaic_array(a, (y0 - ys) % n, (x0 - xs) % m, n, m, method)
-        return out[top:out.shape[0] - bottom, left:out.shape[1] - right]
+        rows, cols = a.shape[-2] - top - bottom, a.shape[-1] - left - right
+        out = np.empty((*a.shape[:-2], rows, cols, y0.size), dtype)
+        for k in np.ndindex(a.shape[:-2]):
+            cube = demosaic_array(a[k], (y0 - ys) % n, (x0 - xs) % m, n, m, method)
+            out[k] = cube[top:top + rows, left:left + cols]
+        return out
 
-    return da.map_blocks(block, padded, new_axis=2, chunks=(*data.chunks, (y0.size,)),
-                         dtype=dtype)
+    return da.map_blocks(block, padded, new_axis=data.ndim,
+                         chunks=(*data.chunks, (y0.size,)), dtype=dtype)

@@ -1,0 +1,177 @@
+"""Streams of raw frames: a snapshot camera films, so its data are stacks ``(frame, y, x)``.
+
+:func:`read_frames` opens a stack lazily, one frame per dask block, from
+
+- a ``.zarr`` store or ``.nc`` file holding a 3-D variable (frames first; a plain Zarr array
+  without xarray's dimension names too);
+- a multi-page TIFF, one frame per page (read through OpenImageIO page by page);
+- a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
+  taken in the order of their names (numbers in names compared as numbers).
+
+Nothing is read until computed, so memory does not grow with the number of frames.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .._io import check_input
+from .io import FORMATS, read_frame
+
+__all__ = ["read_frames"]
+
+#: Files a folder of frames may hold (others, such as ENVI's data files, are passed over).
+FRAME_SUFFIXES = (".npy", ".tif", ".tiff", ".exr", ".hdr")
+
+
+def _natural(path):
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
+
+
+def read_frames(path, *, frames_per_chunk=1):
+    """A stack of raw 2-D frames, lazily (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.zarr`` or ``.nc`` holding a 3-D variable, a multi-page TIFF, or a folder of frame
+        files.
+    frames_per_chunk : int
+        Frames per dask block (each block holds whole frames).
+
+    Returns
+    -------
+    xarray.DataArray
+        Dims ``("frame", "y", "x")``, dask-backed, named ``"frames"``; attrs ``source`` and
+        ``frame_files`` (for a folder).
+
+    Raises
+    ------
+    ValueError
+        No frames, frames of different sizes or types, a variable that is not 3-D, a page with
+        more than one channel, or what the readers refuse.
+    """
+    import dask.array as da
+
+    path = Path(path)
+    per = int(frames_per_chunk)
+    if per < 1:
+        raise ValueError(f"frames_per_chunk must be at least 1, got {frames_per_chunk!r}")
+    attrs = {"source": str(path)}
+    if path.is_dir() and path.suffix.lower() != ".zarr":
+        check_input(path, directory=True, what="folder of frames")
+        files = sorted((p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES
+                        and p.is_file()), key=_natural)
+        if not files:
+            raise ValueError(f"{path} holds no frame files ({', '.join(FRAME_SUFFIXES)})")
+        arrays = []
+        for f in files:
+            frame = read_frame(f, chunks={})
+            arrays.append(frame.data.rechunk(-1))
+            if arrays[-1].shape != arrays[0].shape or arrays[-1].dtype != arrays[0].dtype:
+                raise ValueError(f"{f} is {arrays[-1].shape[0]} x {arrays[-1].shape[1]} "
+                                 f"{arrays[-1].dtype} but {files[0].name} is "
+                                 f"{arrays[0].shape[0]} x {arrays[0].shape[1]} "
+                                 f"{arrays[0].dtype}: every frame must match")
+        data = da.stack(arrays)
+        attrs["frame_files"] = [p.name for p in files]
+    else:
+        fmt = FORMATS.get(path.suffix.lower())
+        if fmt in ("zarr", "netcdf"):
+            data = _xarray_stack(path, fmt)
+        elif fmt == "tiff":
+            data = _tiff_pages(path)
+        else:
+            raise ValueError(f"{path}: a stream of frames is a .zarr, .nc, multi-page .tif or "
+                             "a folder of frames")
+    data = data.rechunk({0: per, 1: -1, 2: -1})
+    return xr.DataArray(data, dims=("frame", "y", "x"), attrs=attrs, name="frames")
+
+
+def _xarray_stack(path, fmt):
+    check_input(path, directory=fmt == "zarr", what="stream")
+    try:
+        ds = (xr.open_zarr(path, chunks={}) if fmt == "zarr"
+              else xr.open_dataset(path, chunks={}, engine="h5netcdf"))
+    except Exception as err:  # the libraries' own types: perhaps a plain zarr array
+        if fmt != "zarr":
+            raise ValueError(f"{path}: cannot read it as netcdf: {type(err).__name__}") \
+                from None
+        return _plain_zarr(path, err)
+    stacks = [v for v in ds.data_vars if ds[v].ndim == 3 and ds[v].dims[-2:] == ("y", "x")]
+    stacks = stacks or [v for v in ds.data_vars if ds[v].ndim == 3]
+    if len(stacks) != 1:
+        raise ValueError(f"{path} holds {len(stacks)} 3-D variables "
+                         f"({', '.join(map(str, stacks)) or 'none'}); a stream holds one, "
+                         "(frame, y, x)")
+    var = ds[stacks[0]]
+    if var.dtype.kind not in "iuf":
+        raise ValueError(f"{path}: {stacks[0]} holds {var.dtype}, not numbers")
+    return var.data
+
+
+def _plain_zarr(path, first_error):
+    """A Zarr array without xarray's dimension names."""
+    import dask.array as da
+    import zarr
+
+    try:
+        arr = zarr.open_array(str(path), mode="r")
+    except Exception:  # the libraries' own types: neither a dataset nor an array
+        raise ValueError(f"{path}: cannot read it as zarr: {type(first_error).__name__}: "
+                         f"{str(first_error).splitlines()[0] if str(first_error) else ''}") \
+            from None
+    if arr.ndim != 3:
+        raise ValueError(f"{path} holds a {arr.ndim}-D array; a stream is (frame, y, x)")
+    return da.from_zarr(arr)
+
+
+def _page(path, index, shape, dtype):
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None or not inp.seek_subimage(index, 0):
+        raise ValueError(f"{path}: cannot read page {index + 1}")
+    try:
+        pixels = inp.read_image(index, 0, 0, 1, "unknown")
+    finally:
+        inp.close()
+    if pixels is None:
+        raise ValueError(f"{path}: cannot read page {index + 1}")
+    return np.asarray(pixels, dtype=dtype).reshape(shape)
+
+
+def _tiff_pages(path):
+    """Every page of a TIFF as a lazily read frame (one channel each, all alike)."""
+    import dask
+    import dask.array as da
+    import OpenImageIO as oiio
+
+    check_input(path, what="stream")
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise ValueError(f"{path}: cannot read it as tiff: {oiio.geterror() or 'no image'}")
+    specs = []
+    try:
+        while inp.seek_subimage(len(specs), 0):
+            spec = inp.spec()
+            specs.append((spec.height, spec.width, spec.nchannels, str(spec.format)))
+    finally:
+        inp.close()
+    if not specs:
+        raise ValueError(f"{path} holds no page")
+    for i, s in enumerate(specs, start=1):
+        if s[2] != 1:
+            raise ValueError(f"{path}: page {i} has {s[2]} channels; a frame is one channel")
+        if s != specs[0]:
+            raise ValueError(f"{path}: page {i} is {s[1]} x {s[0]} {s[3]} but page 1 is "
+                             f"{specs[0][1]} x {specs[0][0]} {specs[0][3]}: every frame must "
+                             "match")
+    shape = specs[0][:2]
+    dtype = _page(path, 0, shape, None).dtype
+    return da.stack([da.from_delayed(dask.delayed(_page)(path, i, shape, dtype), shape, dtype)
+                     for i in range(len(specs))])

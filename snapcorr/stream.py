@@ -1,0 +1,83 @@
+"""A stream of raw mosaic frames through the whole pipeline, lazily: flat-field each frame
+pixel by pixel, demosaic it, and correct it.
+
+Every step is a dask graph over whole frames (the demosaicking kernel's halo comes from
+:func:`dask.array.overlap.overlap` where a frame is split into blocks), so a stream larger than
+memory is written frame by frame, to a ``.zarr`` store for instance, whatever scheduler runs
+it (threads, processes or :mod:`dask.distributed`): the values are the same as frame by frame
+in memory. The geometry (each pixel's chief-ray angle and corrected wavelengths) is the same
+for every frame of a stream and is computed once.
+"""
+
+from __future__ import annotations
+
+import xarray as xr
+
+from .cube import demosaic, flatfield
+
+__all__ = ["process_stream"]
+
+
+def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_number=None,
+                   origin_px=None, saturation=None, dtype="float32", resample=False,
+                   **correct_options):
+    """Flat-field, demosaic and (with a lens) correct a stream of raw mosaic frames.
+
+    Parameters
+    ----------
+    frames : xarray.DataArray
+        Dims ``(frame, y, x)``, numpy- or dask-backed (:func:`~snapcorr.cube.read_frames`).
+    dark, white : xarray.DataArray or sequence of them
+        Reference frames ``(y, x)`` of the frames' size, averaged (:func:`~snapcorr.cube.
+        flatfield`).
+    sensor : Sensor
+        The mosaic sensor.
+    method : str
+        A name of :data:`~snapcorr.cube.DEMOSAIC_METHODS`.
+    lens : Lens, optional
+        With ``f_number``: add the per-pixel corrected wavelengths
+        (:func:`~snapcorr.correct.correct_cube`, computed once for the stream).
+    f_number : float, optional
+    origin_px : (int, int), optional
+        Sensor row and column of the frames' first pixel.
+    saturation : float, optional
+    dtype : {"float32", "float64"}
+    resample : bool
+        Also every frame's spectra on the nominal wavelengths (``resampled``).
+    **correct_options
+        Passed to :func:`~snapcorr.correct.correct_cube` (``method``, ``tolerance_nm``,
+        ``center_px``, ...).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``reflectance(frame, y, x, band)``, ``mask`` of the same dims, the ``raw`` frames cut
+        to the filter area, ``n_masked``; with a lens the correction's variables
+        (``wavelength_corrected(y, x, band)``, ``cra_deg``, ...) and its provenance. Lazy for
+        dask frames.
+    """
+    if not isinstance(frames, xr.DataArray) or tuple(frames.dims) != ("frame", "y", "x"):
+        dims = tuple(frames.dims) if isinstance(frames, xr.DataArray) else type(frames).__name__
+        raise ValueError(f"a stream is a DataArray of dims (frame, y, x), got {dims}")
+    if (lens is None) != (f_number is None):
+        raise ValueError("correcting a stream needs both a lens and an f-number")
+    ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
+    ds = demosaic(ff, sensor, method, origin_px=origin_px)
+    if lens is None:
+        if resample:
+            raise ValueError("resampling a stream needs a lens and an f-number")
+        return ds
+    from .correct import correct_cube
+    from .correct.core import _resampled
+
+    cube = ds["reflectance"]
+    geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **correct_options)
+    out = ds.merge(geometry.drop_vars(["reflectance"]), compat="override")
+    out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
+    if resample:
+        cwl = sensor.cwl_nm
+        scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
+        out["resampled"] = xr.concat(
+            [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
+                "frame"])], dim="frame")
+    return out
