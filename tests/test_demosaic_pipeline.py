@@ -1,0 +1,296 @@
+"""Raw mosaic frames through the pipeline at full resolution: flat-fielded pixel by pixel,
+demosaicked, corrected with each pixel's own chief-ray angle, virtual bands; streams of frames
+from .zarr, multi-page TIFF and folders, the same with numpy, dask and dask.distributed; and
+the command line (``flatfield --demosaic``, ``stream``)."""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+from numpy.testing import assert_allclose, assert_array_equal
+
+from snapcorr import data
+from snapcorr.correct import correct_cube
+from snapcorr.cube import (
+    Sensor,
+    demosaic,
+    flatfield,
+    mosaic_to_cube,
+    read_dataset,
+    read_frames,
+)
+from snapcorr.optics import Lens
+from snapcorr.stream import process_stream
+
+ORIGIN = (401, 802)  # a region of interest starting off the tile grid
+ROI = (64, 96)
+
+
+@pytest.fixture(scope="module")
+def vis():
+    return Sensor.load(data.sensor_path("mosaic_4x4_vis"))
+
+
+@pytest.fixture(scope="module")
+def lens():
+    return Lens.load(data.lens_path("edmund_optics_16mm"))
+
+
+def _frames(shape, n=1, seed=0):
+    """Raw uint16 frames, their dark and white (DataArrays), and the true reflectance."""
+    rng = np.random.default_rng(seed)
+    dark = rng.normal(64, 2, shape).astype(np.float32)
+    white = rng.normal(3000, 40, shape).astype(np.float32)  # a vignetted, uneven white
+    refl = rng.uniform(0.1, 0.9, (n, *shape))
+    raw = np.round(dark + refl * (white - dark)).astype(np.uint16)
+    da = lambda a: xr.DataArray(a, dims=("y", "x"))  # noqa: E731
+    return (xr.DataArray(raw, dims=("frame", "y", "x")), da(dark), da(white))
+
+
+# -- flat-fielding frames pixel by pixel ---------------------------------------------------------
+
+
+def test_a_frame_is_flat_fielded_pixel_by_pixel_and_its_mask_reaches_only_its_own_band(vis):
+    raw, dark, white = _frames(ROI)
+    frame = raw[0].copy()
+    frame[10, 21] = 4000  # saturated
+    ff = flatfield(frame, dark, white, saturation=3900)
+    expected = (frame.values - dark.values) / (white.values - dark.values)
+    expected[10, 21] = np.nan
+    assert_allclose(ff["reflectance"].values, expected, rtol=1e-6)
+    assert ff["mask"].values.sum() == 1 and ff["mask"].values[10, 21]
+    assert_array_equal(ff["raw"].values, frame.values)  # kept as read
+    ds = demosaic(ff, vis, "ri", origin_px=ORIGIN)
+    cube = ds["reflectance"].values
+    assert np.isnan(cube).sum() == 1  # masked, never spread to the neighbours
+    yy, xx, bb = np.argwhere(np.isnan(cube))[0]
+    assert (yy, xx) == (10, 21)
+    # its band is the one the 4x4 tile puts at sensor pixel (411, 823)
+    off = vis.band_offsets_at(ORIGIN)
+    assert tuple(off[bb] % 4) == (10 % 4, 21 % 4)
+    assert_array_equal(ds["mask"].values, np.isnan(cube))
+    assert int(ds["n_masked"]) == 1
+    assert_array_equal(ds["raw"].values, frame.values)  # the same pixels as the cube
+    assert ds.attrs["demosaic_method"] == "ri"
+
+
+def test_references_of_another_size_are_refused(vis):
+    raw, dark, white = _frames(ROI)
+    with pytest.raises(ValueError, match="same size and place"):
+        flatfield(raw[0], dark[:-4], white)
+    with pytest.raises(ValueError, match=r"2-D \(y, x\) frame"):
+        flatfield(raw[0], dark.expand_dims("band", 2), white)
+
+
+# -- correct: each pixel's own chief-ray angle ----------------------------------------------------
+
+
+def test_correct_gives_every_pixel_of_a_demosaicked_cube_its_own_angle(vis, lens):
+    """The corrected wavelength of band b at a pixel equals the one the tile cube gives band b
+    at the tile whose sample of b is that pixel: both at the same sensor position."""
+    raw, dark, white = _frames((96, 128), seed=3)
+    ff = flatfield(raw[0], dark, white)
+    full = correct_cube(demosaic(ff, vis, "bilinear", origin_px=ORIGIN)["reflectance"], vis,
+                        1.4, lens)
+    tiles = correct_cube(mosaic_to_cube(ff["reflectance"].values, vis, origin_px=ORIGIN),
+                         vis, 1.4, lens)
+    wl_full = full["wavelength_corrected"].values
+    wl_tile = tiles["wavelength_corrected"].values
+    rows_t, cols_t = tiles["sensor_row"].values, tiles["sensor_col"].values
+    rows_f, cols_f = full["sensor_row"].values[:, 0], full["sensor_col"].values[:, 0]
+    assert_array_equal(full["sensor_row"].values, rows_f[:, None].repeat(16, 1))
+    checked = 0
+    for b in range(16):
+        for ty in (0, 7, 23):
+            for tx in (0, 11, 31):
+                y = int(np.flatnonzero(rows_f == rows_t[ty, b])[0])
+                x = int(np.flatnonzero(cols_f == cols_t[tx, b])[0])
+                assert wl_full[y, x, b] == pytest.approx(wl_tile[ty, tx, b], abs=2e-4)
+                checked += 1
+    assert checked == 16 * 9
+    # and within one tile, one band's corrected wavelength differs from pixel to pixel
+    assert np.ptp(wl_full[40:44, 0:4, 0]) > 1e-3
+
+
+def test_virtual_bands_on_a_demosaicked_cube_are_the_matrix_at_every_pixel():
+    nir = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    rows, cols = 40, 60
+    raw, dark, white = _frames((rows, cols), seed=5)
+    ds = demosaic(flatfield(raw[0], dark, white), nir, "ppid", origin_px=(500, 1000))
+    cube = ds["reflectance"]
+    res = correct_cube(cube, nir, 2.0, Lens.load(data.lens_path("edmund_optics_16mm")),
+                       virtual_bands="vendor")
+    A = res["virtual_matrix"].values
+    assert res["virtual"].shape == (rows, cols, 25)
+    ref = np.einsum("vb,yxb->yxv", A, cube.values.astype(float))
+    assert_allclose(res["virtual"].values, ref, rtol=1e-5, atol=1e-6)
+    assert np.isfinite(res["virtual"].values).all()
+
+
+# -- streams ------------------------------------------------------------------------------------
+
+
+def _tiff_pages(path, pages):
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(str(path))
+    specs = [oiio.ImageSpec(p.shape[1], p.shape[0], 1, "uint16") for p in pages]
+    assert out.open(str(path), specs)
+    for i, p in enumerate(pages):
+        if i:
+            assert out.open(str(path), specs[i], "AppendSubimage")
+        assert out.write_image(np.ascontiguousarray(p[:, :, None]))
+    out.close()
+
+
+def test_a_stream_reads_the_same_from_zarr_tiff_and_a_folder(tmp_path):
+    import zarr
+
+    raw, _, _ = _frames(ROI, n=4, seed=7)
+    stack = raw.values
+    zarr.save_array(str(tmp_path / "plain.zarr"), stack)  # no dimension names
+    raw.to_dataset(name="frames").to_zarr(tmp_path / "named.zarr", consolidated=False)
+    _tiff_pages(tmp_path / "pages.tif", list(stack))
+    (tmp_path / "folder").mkdir()
+    for i, f in enumerate(stack):  # names in numeric order, not text order
+        np.save(tmp_path / "folder" / f"f{[0, 2, 10, 11][i]}.npy", f)
+    for src in ("plain.zarr", "named.zarr", "pages.tif", "folder"):
+        got = read_frames(tmp_path / src)
+        assert got.dims == ("frame", "y", "x") and got.chunks[0] == (1, 1, 1, 1)
+        assert_array_equal(got.values, stack, err_msg=src)
+    assert read_frames(tmp_path / "folder").attrs["frame_files"] == [
+        "f0.npy", "f2.npy", "f10.npy", "f11.npy"]
+
+
+def test_streams_that_are_not_refused_clearly(tmp_path):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="holds no frame files"):
+        read_frames(tmp_path / "empty")
+    (tmp_path / "mixed").mkdir()
+    np.save(tmp_path / "mixed" / "a.npy", np.zeros((8, 8), np.uint16))
+    np.save(tmp_path / "mixed" / "b.npy", np.zeros((8, 12), np.uint16))
+    with pytest.raises(ValueError, match="every frame must match"):
+        read_frames(tmp_path / "mixed")
+    with pytest.raises(ValueError, match="a stream is a DataArray of dims"):
+        process_stream(xr.DataArray(np.zeros((8, 8)), dims=("y", "x")), None, None, None)
+
+
+def test_a_stream_is_the_frames_in_memory_with_numpy_dask_and_distributed(vis, lens):
+    raw, dark, white = _frames(ROI, n=3, seed=11)
+    raw[1, 5, 5] = 0  # white <= ... no: a dark pixel; and one saturated
+    raw[2, 30, 40] = 65535
+    kw = dict(method="ri", lens=lens, f_number=2.0, origin_px=ORIGIN, saturation=60000,
+              resample=True)
+    eager = process_stream(raw, dark, white, vis, **kw)
+    lazy = process_stream(raw.chunk({"frame": 1, "y": 24}), dark, white, vis, **kw)
+    assert lazy["reflectance"].chunks is not None
+    one = [correct_cube(demosaic(flatfield(raw[i], dark, white, saturation=60000), vis, "ri",
+                                 origin_px=ORIGIN)["reflectance"], vis, 2.0, lens,
+                        resample=True) for i in range(3)]
+    from dask.distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                      dashboard_address=None) as cluster, Client(cluster):
+        distributed = lazy.compute()
+    for name in ("reflectance", "resampled", "mask"):
+        ref = np.stack([o[name].values if name in o else np.isnan(o["reflectance"].values)
+                        for o in one])
+        for got in (eager, lazy, distributed):
+            assert_array_equal(got[name].values, ref, err_msg=name)
+    assert_array_equal(eager["wavelength_corrected"].values,
+                       one[0]["wavelength_corrected"].values)
+    assert int(eager["n_masked"]) == 1 and eager.attrs["flatfield_method"].startswith("Goossens")
+
+
+# -- the command line ---------------------------------------------------------------------------
+
+
+@pytest.fixture
+def frame_files(tmp_path):
+    raw, dark, white = _frames(ROI, n=3, seed=13)
+    np.save(tmp_path / "raw.npy", raw.values[0])
+    np.save(tmp_path / "dark.npy", dark.values)
+    np.save(tmp_path / "white.npy", white.values)
+    np.save(tmp_path / "dark_small.npy", dark.values[:-4])
+    import zarr
+
+    zarr.save_array(str(tmp_path / "frames.zarr"), raw.values)
+    return tmp_path, raw, dark, white
+
+
+def test_flatfield_demosaic_from_the_command_line(frame_files, cli, vis):
+    d, raw, dark, white = frame_files
+    res = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+              "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--demosaic", "ppid", "--out",
+              "full.nc", cwd=d)
+    assert res.returncode == 0, res.stderr
+    assert "demosaicked (ppid) to 64 x 96 x 16" in res.stdout
+    ds = read_dataset(d / "full.nc")
+    ref = demosaic(flatfield(raw[0], dark, white), vis, "ppid", origin_px=ORIGIN)
+    assert_array_equal(ds["reflectance"].values, ref["reflectance"].values)
+    assert_array_equal(ds["raw"].values, raw.values[0])  # the raw data next to the result
+    assert ds.attrs["demosaic_method"] == "ppid" and ds.attrs["raw_file"] == "raw.npy"
+    assert list(ds.attrs["mosaic_area_px"]) == [401, 802, 64, 96]
+    assert_array_equal(ds["sensor_row"].values[:, 3], 401 + np.arange(64))
+    out = cli("correct", "full.nc", "--lens", "edmund_optics_16mm", "--sensor",
+              "mosaic_4x4_vis", "--f-number", "2", "--out", "corr.nc", cwd=d)
+    assert out.returncode == 0, out.stderr
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--demosaic", "ri"], "--demosaic needs a mosaic --sensor"),
+    (["--demosaic", "ri", "--sensor", "snapscan_vnir"], "--demosaic needs a mosaic --sensor"),
+    (["--demosaic", "cubic", "--sensor", "mosaic_4x4_vis"], "invalid choice"),
+    (["--demosaic", "ri", "--sensor", "mosaic_4x4_vis"], "not the sensor's|1088 x 2048"),
+    (["--demosaic", "ri", "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "401,802",
+      "--dark", "dark_small.npy"], "same size and place"),
+])
+def test_flatfield_demosaic_refusals_are_one_line(frame_files, cli, args, message):
+    d = frame_files[0]
+    base = ["flatfield", "raw.npy", "--white", "white.npy", "--out", "x.nc"]
+    if "--dark" not in args:
+        base += ["--dark", "dark.npy"]
+    res = cli(*base, *args, cwd=d)
+    assert res.returncode != 0
+    assert re.search(message, res.stderr), res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not (d / "x.nc").exists()
+
+
+def test_stream_from_the_command_line(frame_files, cli, vis, lens):
+    d, raw, dark, white = frame_files
+    res = cli("stream", "frames.zarr", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+              "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--lens", "edmund_optics_16mm",
+              "--f-number", "2", "--out", "s.zarr", cwd=d)
+    assert res.returncode == 0, res.stderr
+    ds = read_dataset(d / "s.zarr")
+    ref = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN)
+    assert_array_equal(ds["reflectance"].values, ref["reflectance"].values)
+    assert_array_equal(ds["raw"].values, raw.values)
+    assert ds.attrs["frames_file"] == "frames.zarr" and ds.attrs["demosaic_method"] == "ri"
+    assert_allclose(ds["wavelength_corrected"].values, ref["wavelength_corrected"].values)
+    bad = cli("stream", "frames.zarr", "--dark", "dark.npy", "--white", "white.npy",
+              "--sensor", "snapscan_vnir", "--out", "t.zarr", cwd=d)
+    assert bad.returncode == 1 and "not a mosaic" in bad.stderr
+    half = cli("stream", "frames.zarr", "--dark", "dark.npy", "--white", "white.npy",
+               "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--lens",
+               "edmund_optics_16mm", "--out", "t.zarr", cwd=d)
+    assert half.returncode == 1 and "both --lens and --f-number" in half.stderr
+
+
+def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):
+    raw, dark, white = _frames(ROI, seed=17)
+    frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
+    frame[20:34, 30:44] = np.nan  # wider than three tiles
+    with pytest.warns(UserWarning, match="hole wider than a tile"):
+        demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
+    frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
+    frame[20, 30] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
+
