@@ -1138,8 +1138,8 @@ def _add_stream(command):
     p = command("stream", "a stream of raw mosaic frames: flat-field, demosaic and correct "
                 "each frame")
     p.add_argument("frames", type=Path, help="frames (frame, y, x): a .zarr or .nc holding one "
-                   "3-D variable, a multi-page .tif (a frame per page) or a folder of frame "
-                   "files (.npy, .tif, .exr, .hdr; in the order of their names)")
+                   "3-D variable, a 3-D .npy, a multi-page .tif (a frame per page) or a folder "
+                   "of frame files (.npy, .tif, .exr, .hdr; in the order of their names)")
     p.add_argument("--dark", type=Path, action="append", required=True,
                    help="dark frame (repeat to average several)")
     p.add_argument("--white", type=Path, action="append", required=True,

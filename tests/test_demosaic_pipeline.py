@@ -155,10 +155,12 @@ def test_a_stream_reads_the_same_from_zarr_tiff_and_a_folder(tmp_path):
     zarr.save_array(str(tmp_path / "plain.zarr"), stack)  # no dimension names
     raw.to_dataset(name="frames").to_zarr(tmp_path / "named.zarr", consolidated=False)
     _tiff_pages(tmp_path / "pages.tif", list(stack))
+    np.save(tmp_path / "stack.npy", stack)
+    np.save(tmp_path / "fortran.npy", np.asfortranarray(stack))
     (tmp_path / "folder").mkdir()
     for i, f in enumerate(stack):  # names in numeric order, not text order
         np.save(tmp_path / "folder" / f"f{[0, 2, 10, 11][i]}.npy", f)
-    for src in ("plain.zarr", "named.zarr", "pages.tif", "folder"):
+    for src in ("plain.zarr", "named.zarr", "pages.tif", "folder", "stack.npy", "fortran.npy"):
         got = read_frames(tmp_path / src)
         assert got.dims == ("frame", "y", "x") and got.chunks[0] == (1, 1, 1, 1)
         assert_array_equal(got.values, stack, err_msg=src)

@@ -124,7 +124,8 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     ----------
     raw : xarray.DataArray
         The cube to correct, dims ``(y, x, band)`` (numpy- or dask-backed); or a raw mosaic
-        frame ``(y, x)`` (as :func:`~snapcorr.cube.read_frame` gives it), or a stream of them
+        frame ``(y, x)`` (as :func:`~snapcorr.cube.read_frame` gives it, or a 2-D array), or
+        a stream of them
         ``(frame, y, x)``, flat-fielded pixel by pixel before :func:`~snapcorr.cube.demosaic`.
     dark, white : xarray.DataArray or sequence of them
         Dark and white references; several frames are averaged. A white (or dark) reference
@@ -151,6 +152,9 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
         variables with its dims. For numpy inputs the mask is checked at
         once (:func:`check_masked`); for lazy ones call it before writing.
     """
+    if not isinstance(raw, xr.DataArray) and getattr(raw, "ndim", None) == 2:
+        raw = xr.DataArray(raw, dims=("y", "x"))  # a frame as numpy or dask
+        dark, white = _as_frames(dark), _as_frames(white)
     if isinstance(raw, xr.DataArray) and tuple(raw.dims[-2:]) == ("y", "x"):
         return _flatfield_frames(raw, dark, white, saturation, name, dtype)
     raw = check_cube(raw)
@@ -195,6 +199,14 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     if ds[name].chunks is None:
         check_masked(ds)
     return ds
+
+
+def _as_frames(refs):
+    """2-D arrays among the references as (y, x) DataArrays."""
+    one = not isinstance(refs, (list, tuple))
+    out = [xr.DataArray(r, dims=("y", "x")) if not isinstance(r, xr.DataArray)
+           and getattr(r, "ndim", None) == 2 else r for r in ([refs] if one else refs)]
+    return out[0] if one else out
 
 
 def _flatfield_frames(raw, dark, white, saturation, name, dtype):

@@ -3,7 +3,7 @@
 :func:`read_frames` opens a stack lazily, one frame per dask block, from
 
 - a ``.zarr`` store or ``.nc`` file holding a 3-D variable (frames first; a plain Zarr array
-  without xarray's dimension names too);
+  without xarray's dimension names too), or a 3-D ``.npy``;
 - a multi-page TIFF, one frame per page (read through OpenImageIO page by page);
 - a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
   taken in the order of their names (numbers in names compared as numbers).
@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from .._io import check_input
-from .io import FORMATS, read_frame
+from .io import FORMATS, _open_dataset, read_frame
 
 __all__ = ["read_frames"]
 
@@ -38,8 +38,8 @@ def read_frames(path, *, frames_per_chunk=1):
     Parameters
     ----------
     path : str or Path
-        A ``.zarr`` or ``.nc`` holding a 3-D variable, a multi-page TIFF, or a folder of frame
-        files.
+        A ``.zarr`` or ``.nc`` holding a 3-D variable, a 3-D ``.npy``, a multi-page TIFF, or a
+        folder of frame files.
     frames_per_chunk : int
         Frames per dask block (each block holds whole frames).
 
@@ -85,9 +85,11 @@ def read_frames(path, *, frames_per_chunk=1):
             data = _xarray_stack(path, fmt)
         elif fmt == "tiff":
             data = _tiff_pages(path)
+        elif fmt == "npy":
+            data = _npy_stack(path)
         else:
-            raise ValueError(f"{path}: a stream of frames is a .zarr, .nc, multi-page .tif or "
-                             "a folder of frames")
+            raise ValueError(f"{path}: a stream of frames is a .zarr, .nc, .npy, multi-page "
+                             ".tif or a folder of frames")
     data = data.rechunk({0: per, 1: -1, 2: -1})
     return xr.DataArray(data, dims=("frame", "y", "x"), attrs=attrs, name="frames")
 
@@ -95,8 +97,7 @@ def read_frames(path, *, frames_per_chunk=1):
 def _xarray_stack(path, fmt):
     check_input(path, directory=fmt == "zarr", what="stream")
     try:
-        ds = (xr.open_zarr(path, chunks={}) if fmt == "zarr"
-              else xr.open_dataset(path, chunks={}, engine="h5netcdf"))
+        ds = _open_dataset(path, fmt, {})
     except Exception as err:  # the libraries' own types: perhaps a plain zarr array
         if fmt != "zarr":
             raise ValueError(f"{path}: cannot read it as netcdf: {type(err).__name__}") \
@@ -112,6 +113,30 @@ def _xarray_stack(path, fmt):
     if var.dtype.kind not in "iuf":
         raise ValueError(f"{path}: {stacks[0]} holds {var.dtype}, not numbers")
     return var.data
+
+
+def _npy_stack(path):
+    """A 3-D ``.npy`` (frame, y, x) read a frame at a time, never whole (a 2-D one: a stream
+    of one frame)."""
+    from .io import _from_file, _lazy_or_loaded, _npy_layout
+
+    check_input(path, what="stream")
+    layout = _npy_layout(path)
+    if layout is not None:
+        shape, dtype, offset = layout
+        if len(shape) not in (2, 3):
+            raise ValueError(f"{path} holds a {len(shape)}-D array; a stream is (frame, y, x)")
+        shape = shape if len(shape) == 3 else (1, *shape)
+        return _from_file(path, dtype, shape, offset, "bip", {"y": 1, "x": -1, "band": -1})
+    try:
+        data = np.load(path, mmap_mode="r", allow_pickle=False)
+    except Exception as err:  # numpy raises several types for a bad or empty file
+        raise ValueError(f"{path}: not a numpy array file ({type(err).__name__})") from None
+    if not isinstance(data, np.ndarray) or data.ndim not in (2, 3) or data.dtype.kind not in \
+            "iuf":
+        raise ValueError(f"{path}: a stream is a 3-D (frame, y, x) array of numbers")
+    data = data if data.ndim == 3 else data[None]
+    return _lazy_or_loaded(data, {"y": 1}, ("y", "x", "band"), source=path)
 
 
 def _plain_zarr(path, first_error):
