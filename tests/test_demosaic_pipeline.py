@@ -282,6 +282,9 @@ def test_stream_from_the_command_line(frame_files, cli, vis, lens):
                "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--lens",
                "edmund_optics_16mm", "--out", "t.zarr", cwd=d)
     assert half.returncode == 1 and "both --lens and --f-number" in half.stderr
+    again = cli("correct", "s.zarr", "--lens", "edmund_optics_16mm", "--sensor",
+                "mosaic_4x4_vis", "--f-number", "2", "--out", "c.nc", cwd=d)
+    assert again.returncode == 1 and "holds a stream of cubes" in again.stderr
 
 
 def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):

@@ -127,7 +127,7 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     Warns
     -----
     MaskedWarning
-        Missing values left NaN beyond their own samples (a hole wider than a tile), where
+        In memory: missing values left NaN beyond their own samples (a hole wider than a tile), where
         :func:`numpy.isnan` of the result counts more than the frame's missing values.
 
     Raises

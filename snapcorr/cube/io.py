@@ -961,6 +961,10 @@ def _read_xarray(path, fmt, chunks):
         var = ds[(preferred or cubes)[0]]
     else:
         frames = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x")]
+        if any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars):
+            raise ValueError(f"{path} holds a stream of cubes (frame, y, x, band): open it with "
+                             "read_dataset; snapcorr stream --lens LENS --f-number F corrects "
+                             "a stream")
         if not frames:
             raise ValueError(f"{path} holds no (y, x, band) variable")
         var = ds[frames[0]].expand_dims("band", axis=2)
