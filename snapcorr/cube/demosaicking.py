@@ -57,10 +57,11 @@ DEMOSAIC_METHODS = {
 }
 #: How far (in tiles) a pixel's estimate reaches into the frame, by method: the halo a block
 #: of a chunked frame needs from its neighbours for the same result as the whole frame. Two
-#: tiles for a sample and the next one where it is missing; two more for the
-#: pseudo-panchromatic image; and the guided filter's two windows.
-DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 4,
-                        "ri": 4 + 2 * msfa.monno2017.RADIUS}
+#: tiles for a sample and the next one where it is missing; five for the pseudo-panchromatic
+#: image (its average, widened over a hole, and the sharpening a tile away); and the guided
+#: filter's two windows.
+DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 7,
+                        "ri": 7 + 2 * msfa.monno2017.RADIUS}
 
 
 def _dtype(dtype):
@@ -127,8 +128,9 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     Warns
     -----
     MaskedWarning
-        In memory: missing values left NaN beyond their own samples (a hole wider than a tile), where
-        :func:`numpy.isnan` of the result counts more than the frame's missing values.
+        In memory: missing values left NaN beyond their own samples (a hole wider than a few
+        tiles), where :func:`numpy.isnan` of the result counts more than the frame's missing
+        values.
 
     Raises
     ------

@@ -10,7 +10,11 @@ interpolate each band's difference from it, which is far smoother than the band 
   mean, over the eight same-band neighbours ``q`` one tile away, of ``PPI0(q) - I(q)``, with
   weights ``1 / (eps + sum (2 - u)(2 - |v|) |I(a) - I(a + step_q)|)`` over the six pixels
   ``a = p + u dir_q + v perp_q`` (``u`` in {0, 1}, ``v`` in {-1, 0, 1}): large across an edge,
-  so the neighbours on the pixel's own side count. The paper's constant 1 in the weight assumes
+  so the neighbours on the pixel's own side count (at the frame's edges, pairs beyond it are
+  left out, and the ``u = 1`` pairs wholly where the end of their middle pair away from ``p``
+  lies beyond it). Where the whole
+  averaging window of Eq. 24 is missing (a hole), a wider window's plain mean stands in
+  (:data:`WIDEN_TILES`). The paper's constant 1 in the weight assumes
   8-bit values; here ``eps`` is 1/100 of the local average ``|PPI0(p)|``, so the result does
   not depend on the units, and a pixel's value depends on its neighbourhood only (a block of
   a larger frame gives the same values as the frame).
@@ -30,6 +34,9 @@ import numpy as np
 
 from ._grid import interpolate, sub_grids
 
+#: Where a pixel's whole averaging window is missing, the window is widened by up to this
+#: many kernel widths on every side (a hole larger than that stays NaN in the PPI).
+WIDEN_TILES = 2
 #: The weights' floor, as a fraction of the local average (the paper's constant 1 for 8-bit
 #: values, made independent of the units).
 EPS_FRACTION = 0.01
@@ -93,7 +100,26 @@ def _average_kernel(frame, tn, tm, out):  # pragma: no cover - compiled
                         w = tn[ky] * tm[kx]
                         sv += w * v
                         sw += w
-            out[y, x] = sv / sw if sw > 1e-6 else np.nan
+            if sw > 1e-6:
+                out[y, x] = sv / sw
+                continue
+            # the whole window is missing (a hole of a tile or so, or one at a corner): the
+            # plain mean of a window wider by a tile on every side, then by two
+            out[y, x] = np.nan
+            for k in range(1, WIDEN_TILES + 1):
+                sv = 0.0
+                cnt = 0
+                for yy in range(max(y - hn - k * tn.size, 0), min(y + hn + k * tn.size + 1,
+                                                                   rows)):
+                    for xx in range(max(x - hm - k * tm.size, 0),
+                                    min(x + hm + k * tm.size + 1, cols)):
+                        v = frame[yy, xx]
+                        if v == v:
+                            sv += v
+                            cnt += 1
+                if cnt:
+                    out[y, x] = sv / cnt
+                    break
 
 
 def _average(frame, n, m):
