@@ -11,12 +11,14 @@ from . import (
     calibration,
     calibration_circles,
     correct,
+    demosaic,
     io_memory,
     mean_shift,
     pupil,
     scaling,
     speed_accuracy,
     stability,
+    stream,
     virtual_bands,
 )
 
@@ -46,5 +48,9 @@ print()
 pupil.run(quick=args.quick, write=not args.quick)
 print()
 virtual_bands.run(quick=args.quick, write=not args.quick)
+print()
+demosaic.run(quick=args.quick, write=not args.quick)
+print()
+stream.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

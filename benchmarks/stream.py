@@ -195,3 +195,12 @@ def run(*, quick=False, echo=print, write=True, workdir=None):
     if write:
         write_csv(HERE / "stream.csv", rows)
     return rows
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.stream", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="small frames: a smoke run")
+    args = parser.parse_args()
+    run(quick=args.quick, write=not args.quick)

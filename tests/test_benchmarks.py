@@ -93,3 +93,29 @@ def test_quick_virtual_bands_benchmark_runs_and_angle_aware_stays_right_off_axis
     assert by[("angle-aware", 15.0)] <= 0.85 * by[("vendor", 0.0)]
     assert timing["angle_aware_s"] > 0 and timing["build25_s"] > 0
     assert any("np.einsum" in line for line in lines)
+
+
+def test_quick_demosaic_benchmark_runs_and_ranks_the_methods():
+    from benchmarks import demosaic
+
+    lines = []
+    rows = demosaic.run(quick=True, echo=lines.append, write=False)
+    for tile in ("4x4", "5x5"):
+        psnr = {r["method"]: r["psnr_db"] for r in rows if r["tile"] == tile}
+        assert psnr["nearest"] < psnr["bilinear"] < psnr["ppid"] < psnr["ri"]
+    for r in rows:
+        for key in ("x_copy", "rss_growth_x", "tracemalloc_x", "peak_x"):
+            assert np.isfinite(r[key]) and r[key] > 0
+    assert any("target <= 5 x" in line for line in lines)
+
+
+def test_quick_stream_benchmark_runs_zarr_to_zarr():
+    from benchmarks import stream
+
+    lines = []
+    rows = stream.run(quick=True, echo=lines.append, write=False)
+    assert [r["frames"] for r in rows] == [3, 6]
+    for r in rows:
+        assert r["rc"] == 0, r["error"]
+        assert np.isfinite(r["x_single_frame"]) and r["peak_mib"] > 0
+    assert any("peak memory" in line for line in lines)

@@ -291,7 +291,7 @@ def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):
     raw, dark, white = _frames(ROI, seed=17)
     frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
     frame[20:34, 30:44] = np.nan  # wider than three tiles
-    with pytest.warns(UserWarning, match="hole wider than a tile"):
+    with pytest.warns(UserWarning, match="hole several tiles wide"):
         demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
     frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
     frame[20, 30] = np.nan

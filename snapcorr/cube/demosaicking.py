@@ -147,8 +147,13 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     data = frame.data if isinstance(frame, xr.DataArray) else frame
     if not hasattr(data, "ndim"):
         data = np.asarray(data)
-    stream = (isinstance(frame, xr.DataArray) and data.ndim == 3
-              and frame.dims[0] == "frame")
+    if isinstance(frame, xr.DataArray) and tuple(frame.dims) not in (("y", "x"),
+                                                                     ("frame", "y", "x")):
+        raise ValueError(f"demosaic takes a frame of dims (y, x), or a stream (frame, y, x); "
+                         f"got dims {tuple(frame.dims)}"
+                         + (" (a cube is already split into bands)" if "band" in frame.dims
+                            else ""))
+    stream = isinstance(frame, xr.DataArray) and data.ndim == 3
     if data.ndim != 2 and not stream:
         raise ValueError(f"demosaic takes a 2-D mosaic frame, got shape {data.shape}"
                          + (" (a cube is already split into bands; a stream of frames is a "
@@ -189,8 +194,8 @@ def _check_spread(frame, cube):
             from .flatfield import MaskedWarning
 
             warnings.warn(f"{missing} missing values in the frame left {found} values NaN in "
-                          "the cube: a hole wider than a tile has no sample of some bands "
-                          "near it", MaskedWarning, stacklevel=3)
+                          "the cube: a hole several tiles wide leaves some bands without a "
+                          "sample near it", MaskedWarning, stacklevel=3)
 
 
 def _demosaic_dataset(ds, sensor, method, origin_px, name):
@@ -207,6 +212,7 @@ def _demosaic_dataset(ds, sensor, method, origin_px, name):
     r0, c0, rows, cols = cube.attrs["mosaic_area_px"]
     o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
     cut = {"y": slice(r0 - o0[0], r0 - o0[0] + rows), "x": slice(c0 - o0[1], c0 - o0[1] + cols)}
+    method = cube.attrs["demosaic_method"]
     out = xr.Dataset(attrs={**ds.attrs, "demosaic_method": method,
                             "mosaic_area_px": [r0, c0, rows, cols]})
     out[cube.name] = cube
