@@ -113,6 +113,16 @@ def _column_weights(x0, m):
     return w
 
 
+@numba.njit(cache=True, fastmath={"reassoc"})
+def _any_nan(v):  # pragma: no cover - compiled
+    """Whether ``v`` holds a NaN (or an infinity): a sum that vectorises (reassociation only;
+    NaN is not assumed away)."""
+    acc = v.dtype.type(0)
+    for k in range(v.size):
+        acc += v[k] - v[k]
+    return acc != acc
+
+
 @numba.njit(parallel=True, cache=True)
 def _compose(gain, offset, base, frame, y0, x0, n, m, mode, wx, out):  # pragma: no cover
     rows, cols, nb = out.shape
@@ -145,16 +155,23 @@ def _compose(gain, offset, base, frame, y0, x0, n, m, mode, wx, out):  # pragma:
                 else:
                     for b in range(nb):
                         o[b] = w0[b] * r0[b] + w1[b] * r1[b] + w2[b] * r2[b]
-        # a missing sample or the frame's edge met a zero weight as NaN: recompute those
-        for x in range(cols):
-            for b in range(nb):
-                if out[y, x, b] != out[y, x, b]:
-                    s = base[y, x] if mode != 0 else 0.0
-                    c = bilinear_at(offset[b], y, x, y0[b], x0[b], n, m)
-                    if mode == 2:
-                        out[y, x, b] = s * bilinear_at(gain[b], y, x, y0[b], x0[b], n, m) + c
-                    else:
-                        out[y, x, b] = s + c
+        # a missing sample or the frame's edge met a zero weight as NaN: recompute those,
+        # looking pixel by pixel only in the tiles that hold one
+        flat = orow.reshape(-1)
+        for t in range(-(-cols // m)):
+            lo, hi = t * m, min((t + 1) * m, cols)
+            if not _any_nan(flat[lo * nb:hi * nb]):
+                continue
+            for x in range(lo, hi):
+                o = orow[x]
+                for b in range(nb):
+                    if o[b] != o[b]:
+                        s = base[y, x] if mode != 0 else 0.0
+                        c = bilinear_at(offset[b], y, x, y0[b], x0[b], n, m)
+                        if mode == 2:
+                            o[b] = s * bilinear_at(gain[b], y, x, y0[b], x0[b], n, m) + c
+                        else:
+                            o[b] = s + c
         # each band's own samples as measured (missing ones stay missing)
         for b in range(nb):
             if (y - y0[b]) % n == 0:
