@@ -42,7 +42,8 @@ import xarray as xr
 
 from .._validation import validate_method
 from . import msfa
-from .model import make_cube, with_positions
+from .io import COMPUTED_WITH
+from .model import check_dtype, make_cube, with_positions
 from .mosaic import frame_area
 from .sensor import Sensor
 
@@ -65,7 +66,11 @@ DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 7,
 
 
 def _dtype(dtype):
-    return np.float64 if np.dtype(dtype) == np.float64 else np.float32
+    """float32 for float32 and integers of up to 16 bits (exact there); float64 otherwise."""
+    dtype = np.dtype(dtype)
+    exact = dtype == np.float32 or dtype == np.float16 or (dtype.kind in "iu"
+                                                           and dtype.itemsize <= 2)
+    return np.float32 if exact else np.float64
 
 
 def demosaic_array(frame, y0, x0, n, m, method="ri"):
@@ -85,12 +90,27 @@ def demosaic_array(frame, y0, x0, n, m, method="ri"):
     Returns
     -------
     ndarray, shape (rows, cols, n_bands)
-        float32 (float64 for a float64 frame); each band's own samples unchanged, NaN where
-        the frame was.
+        float32 (float64 for a float64 frame or integers wider than 16 bits, which float32
+        would round); each band's own samples unchanged, NaN where the frame was NaN or
+        infinite.
+
+    Raises
+    ------
+    TypeError
+        Not real numbers (complex, boolean, text).
+    ValueError
+        ``ppid`` or ``ri`` on a tile with positions that hold no band.
     """
     method = validate_method(method, DEMOSAIC_METHODS)
+    check_dtype(np.asarray(frame).dtype, "a mosaic frame")
     data = np.ascontiguousarray(frame, _dtype(np.asarray(frame).dtype))
+    if np.isinf(data).any():  # an infinity means nothing: missing, as NaN is
+        data = np.where(np.isinf(data), np.nan, data)
     y0, x0 = np.asarray(y0, np.int64), np.asarray(x0, np.int64)
+    if method in ("ppid", "ri") and y0.size != int(n) * int(m):
+        raise ValueError(f"{method} needs every position of the {n} x {m} tile to hold a band "
+                         f"(the pseudo-panchromatic image averages them), got {y0.size} bands; "
+                         "use bilinear or nearest")
     # every method keeps each band's samples as measured (missing ones missing)
     return DEMOSAIC_METHODS[method](data, y0, x0, int(n), int(m))
 
@@ -158,10 +178,15 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
         raise ValueError(f"demosaic takes a 2-D mosaic frame, got shape {data.shape}"
                          + (" (a cube is already split into bands; a stream of frames is a "
                             "DataArray of dims (frame, y, x))" if data.ndim == 3 else ""))
+    check_dtype(data.dtype, "a mosaic frame")
+    n, m = sensor.mosaic_shape
+    if method in ("ppid", "ri") and sensor.n_bands != n * m:
+        raise ValueError(f"{method} needs every position of the {n} x {m} tile to hold a band "
+                         f"(the pseudo-panchromatic image averages them); sensor "
+                         f"{sensor.name!r} has {sensor.n_bands}: use bilinear or nearest")
     (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape[-2:], sensor, origin_px)
     o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
     data = data[..., r0 - o0[0]:r0 - o0[0] + rows, c0 - o0[1]:c0 - o0[1] + cols]
-    n, m = sensor.mosaic_shape
     if isinstance(data, np.ndarray):
         cube_data = np.empty((*data.shape, y0.size), _dtype(data.dtype))
         for i in np.ndindex(data.shape[:-2]):
@@ -216,24 +241,26 @@ def _demosaic_dataset(ds, sensor, method, origin_px, name):
     out = xr.Dataset(attrs={**ds.attrs, "demosaic_method": method,
                             "mosaic_area_px": [r0, c0, rows, cols]})
     out[cube.name] = cube
-    if "mask" in ds:  # each masked pixel's own band (cheap: no second pass over the cube)
+    mask = cube.isnull()  # where a missing value left no estimate
+    if "mask" in ds:  # and each value masked in the frame, in its own band
         (_, _), (_, _), (y0, x0) = frame_area(frame.shape[-2:], sensor, origin_px)
         n, m = sensor.mosaic_shape
         table = np.full((n, m), -1, np.int16)
         table[y0, x0] = np.arange(y0.size)
         own = xr.DataArray(table[np.arange(rows)[:, None] % n, np.arange(cols)[None, :] % m],
                            dims=("y", "x"))
-        mask = ds["mask"].isel(cut) & (own == xr.DataArray(np.arange(y0.size, dtype=np.int16),
-                                                            dims="band"))
-        mask = mask.transpose(*cube.dims)
-    else:
-        mask = cube.isnull()
-    mask.attrs = {"units": "1", "long_name": "value not meaningful (masked in the frame: its "
-                  "own band; the cube is NaN there)"}
+        frame_mask = ds["mask"].isel(cut).drop_vars(list(ds["mask"].coords))
+        mask = mask | (frame_mask & (own == xr.DataArray(np.arange(y0.size, dtype=np.int16),
+                                                         dims="band"))).transpose(*cube.dims)
+    # written in the cube's pass (COMPUTED_WITH): the cube is computed once
+    mask.attrs = {"units": "1", "long_name": "value not meaningful (masked in the frame, in its "
+                  "own band; or no sample of the band near it): the cube is NaN there",
+                  COMPUTED_WITH: cube.name}
     out["mask"] = mask.drop_vars([c for c in mask.coords if c not in cube.coords])
     if "raw" in ds:
         out["raw"] = ds["raw"].isel(cut)  # the same pixels as the cube's
-    out["n_masked"] = mask.sum().assign_attrs(long_name="number of masked values", units="1")
+    out["n_masked"] = mask.sum().assign_attrs(long_name="number of masked values", units="1",
+                                              **{COMPUTED_WITH: cube.name})
     return out
 
 
@@ -261,6 +288,9 @@ def _lazy(data, y0, x0, n, m, method):
     data = data.astype(dtype)
     data = data.rechunk({ay: _tile_chunks(data.chunks[ay], n, depth[ay]),
                          ax: _tile_chunks(data.chunks[ax], m, depth[ax])})
+    for a in (ay, ax):  # an axis in one block needs no halo (and a small frame has none)
+        if len(data.chunks[a]) == 1:
+            depth[a] = 0
     starts = [np.cumsum((0, *c)) for c in data.chunks[-2:]]
     last = [len(c) - 1 for c in data.chunks[-2:]]
     # no padding beyond the frame: its edges are handled as in memory

@@ -1449,17 +1449,37 @@ def _zarr_encoding(ds):
             and "compressor" not in v.encoding}
 
 
+#: A lazy variable whose attrs name another in this key (``mask`` computed from
+#: ``reflectance``, say) is written in the same pass as that one: both come from one
+#: computation, which would otherwise run twice. The key itself is not written.
+COMPUTED_WITH = "computed_with"
+
+
+def _write_groups(ds, lazy):
+    """The lazy variables in writing passes: each alone, or with those computed with it."""
+    groups = {v: [v] for v in lazy}
+    for v in lazy:
+        host = ds[v].attrs.get(COMPUTED_WITH)
+        if host in groups and host != v and v in groups:
+            groups[host].extend(groups.pop(v))
+    return list(groups.values())
+
+
 def _store_dataset(ds, path, fmt):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
     # which can hold the whole cube. Apart, each streams through in bounded memory.
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
+    groups = _write_groups(ds, lazy)
+    ds = ds.copy()
+    for v in lazy:
+        ds[v].attrs.pop(COMPUTED_WITH, None)
     first = ds.drop_vars(lazy)
     if fmt == "netcdf":
         def write(tmp):
             first.to_netcdf(tmp, engine="h5netcdf")
-            for v in lazy:
-                ds[[v]].to_netcdf(tmp, mode="a", engine="h5netcdf")
+            for group in groups:
+                ds[group].to_netcdf(tmp, mode="a", engine="h5netcdf")
 
         atomic_write(path, write)
         return path
@@ -1468,11 +1488,11 @@ def _store_dataset(ds, path, fmt):
         import zarr
 
         first.to_zarr(tmp, mode="w", consolidated=False, encoding=_zarr_encoding(first))
-        for v in lazy:
+        for group in groups:
             # the coordinates went in with the first pass (sensor positions, the corrected
             # wavelengths' compact form): zarr refuses an encoding for a variable that already
-            # exists, so later passes give one for their own variable only
-            part = ds[[v]]
+            # exists, so later passes give one for their own variables only
+            part = ds[group]
             part.to_zarr(tmp, mode="a", consolidated=False,
                          encoding={k: e for k, e in _zarr_encoding(part).items()
                                    if k not in first.variables})

@@ -82,7 +82,15 @@ def _origin(shape, sensor, origin_px):
         if o.shape != (2,) or np.any(o < 0):
             raise ValueError(f"origin_px must be a sensor row and column (whole numbers >= 0), "
                              f"got {origin_px!r}")
-        return int(o[0]), int(o[1])
+        r0, c0 = int(o[0]), int(o[1])
+        if sensor.size_px is not None and (r0 + shape[0] > sensor.size_px[0]
+                                           or c0 + shape[1] > sensor.size_px[1]):
+            raise ValueError(
+                f"a frame of {shape[0]} x {shape[1]} px at sensor row {r0}, column {c0} reaches "
+                f"beyond the sensor {sensor.name!r} ({sensor.size_px[0]} x "
+                f"{sensor.size_px[1]} px): check origin_px (--sensor-origin-px ROW,COL, row "
+                "first) and the sensor")
+        return r0, c0
     if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
         raise ValueError(
             f"the frame is {shape[0]} x {shape[1]} px but the sensor {sensor.name!r} is "
@@ -186,7 +194,14 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
         off = sensor.band_offsets_at((r0, c0))
         rows = r0 + np.arange(ny)[:, None] * tr + off[None, :, 0]
         cols = c0 + np.arange(nx)[:, None] * tc + off[None, :, 1]
-        return rows, cols
-    rows = np.repeat((r0 + np.arange(ny))[:, None], sensor.n_bands, axis=1)
-    cols = np.repeat((c0 + np.arange(nx))[:, None], sensor.n_bands, axis=1)
+    else:
+        rows = np.repeat((r0 + np.arange(ny))[:, None], sensor.n_bands, axis=1)
+        cols = np.repeat((c0 + np.arange(nx))[:, None], sensor.n_bands, axis=1)
+    size = sensor.size_px
+    if min(r0, c0) < 0 or (size is not None and (rows.max() >= size[0]
+                                                  or cols.max() >= size[1])):
+        raise ValueError(f"a cube at sensor row {r0}, column {c0} reaches beyond the sensor "
+                         f"{sensor.name!r}" + (f" ({size[0]} x {size[1]} px)" if size else "")
+                         + ": check the origin (--sensor-origin-px ROW,COL, row first) and the "
+                         "sensor")
     return rows, cols

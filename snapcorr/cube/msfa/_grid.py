@@ -27,8 +27,6 @@ def bilinear_at(grid, y, x, y0, x0, n, m):  # pragma: no cover - compiled
     j0 = (x - x0) // m
     ty = ((y - y0) - i0 * n) / n
     tx = ((x - x0) - j0 * m) / m
-    fy = i0 + ty
-    fx = j0 + tx
     acc = 0.0
     wsum = 0.0
     for di in range(2):
@@ -58,7 +56,7 @@ def bilinear_at(grid, y, x, y0, x0, n, m):  # pragma: no cover - compiled
                 continue
             v = grid[i, j]
             if v == v:
-                w = 1.0 / ((fy - i) ** 2 + (fx - j) ** 2)
+                w = 1.0 / (((i0 - i) + ty) ** 2 + ((j0 - j) + tx) ** 2)
                 acc += w * v
                 wsum += w
     if wsum > 0.0:
