@@ -375,6 +375,14 @@ def _read_frame_checked(path, sensor, what, shape=None):
     return frame
 
 
+def _masked_in(path):
+    """``n_masked`` of a result just written (counted in the writing pass)."""
+    from .cube import read_dataset
+
+    with read_dataset(path, chunks={}) as ds:
+        return int(ds["n_masked"])
+
+
 def _flatfield_demosaic(args, sensor, inputs):
     """``flatfield --demosaic``: the raw frame flat-fielded pixel by pixel, then demosaicked."""
     from .cube import demosaic, flatfield, write_dataset
@@ -388,7 +396,7 @@ def _flatfield_demosaic(args, sensor, inputs):
     whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
     ff = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
     with _StageBar("flat-fielding (checking the mask)"):
-        n_masked, total = check_masked(ff)
+        check_masked(ff)
     ds = demosaic(ff, sensor, args.demosaic, origin_px=origin)
     if args.filter_white:
         fw = _read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
@@ -405,11 +413,12 @@ def _flatfield_demosaic(args, sensor, inputs):
     cube = ds["reflectance"]
     with _StageBar(f"demosaicking ({args.demosaic}) and writing {args.out.name}"):
         write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    n_masked, total = _masked_in(args.out), cube.size
     print(f"wrote {args.out}: reflectance of {args.raw}, demosaicked ({args.demosaic}) to "
           f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} ({cube.dtype}), sensor rows "
           f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
-          f"pixels masked ({100 * n_masked / total:.2f} %)")
+          f"values masked ({100 * n_masked / total:.2f} %)")
     if args.plot:
         from .quicklook import plot_flatfield
 
@@ -436,7 +445,7 @@ def _cmd_stream(args):
     frames = read_frames(args.frames)
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
-    ds = process_stream(frames, darks, whites, sensor, method=args.demosaic, lens=lens,
+    ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, origin_px=args.sensor_origin_px,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample)
     ds.attrs.update({"frames_file": str(args.frames), "dark_files": [str(p) for p in args.dark],
@@ -448,8 +457,10 @@ def _cmd_stream(args):
                    f"({args.demosaic}){', correcting' if lens else ''}, writing "
                    f"{args.out.name}"):
         write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+    n_masked = _masked_in(args.out)
     print(f"wrote {args.out}: {cube.sizes['frame']} frames of {args.frames}, each "
-          f"{cube.shape[1]} x {cube.shape[2]} x {cube.shape[3]} ({args.demosaic})"
+          f"{cube.shape[1]} x {cube.shape[2]} x {cube.shape[3]} ({args.demosaic}); "
+          f"{n_masked} of {cube.size} values masked ({100 * n_masked / cube.size:.2f} %)"
           + (f", f/{args.f_number:g}, method {ds.attrs['method']} (CRA up to "
              f"{ds.attrs['cra_max_deg']:.2f} deg)" if lens else ", not corrected (no --lens)")
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))

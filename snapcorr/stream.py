@@ -18,9 +18,9 @@ from .cube import demosaic, flatfield
 __all__ = ["process_stream"]
 
 
-def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_number=None,
-                   origin_px=None, saturation=None, dtype="float32", resample=False,
-                   **correct_options):
+def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=None,
+                   f_number=None, origin_px=None, saturation=None, dtype="float32",
+                   resample=False, method="auto", tolerance_nm=None, center_px=None):
     """Flat-field, demosaic and (with a lens) correct a stream of raw mosaic frames.
 
     Parameters
@@ -32,7 +32,7 @@ def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_num
         flatfield`).
     sensor : Sensor
         The mosaic sensor.
-    method : str
+    demosaic_method : str
         A name of :data:`~snapcorr.cube.DEMOSAIC_METHODS`.
     lens : Lens, optional
         With ``f_number``: add the per-pixel corrected wavelengths
@@ -44,9 +44,10 @@ def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_num
     dtype : {"float32", "float64"}
     resample : bool
         Also every frame's spectra on the nominal wavelengths (``resampled``).
-    **correct_options
-        Passed to :func:`~snapcorr.correct.correct_cube` (``method``, ``tolerance_nm``,
-        ``center_px``, ...).
+    method, tolerance_nm, center_px
+        The correction's model, tolerance and optical centre
+        (:func:`~snapcorr.correct.correct_cube`; harmonised spectra and virtual bands are
+        not offered for streams).
 
     Returns
     -------
@@ -62,7 +63,7 @@ def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_num
     if (lens is None) != (f_number is None):
         raise ValueError("correcting a stream needs both a lens and an f-number")
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
-    ds = demosaic(ff, sensor, method, origin_px=origin_px)
+    ds = demosaic(ff, sensor, demosaic_method, origin_px=origin_px)
     if lens is None:
         if resample:
             raise ValueError("resampling a stream needs a lens and an f-number")
@@ -71,13 +72,20 @@ def process_stream(frames, dark, white, sensor, *, method="ri", lens=None, f_num
     from .correct.core import _resampled
 
     cube = ds["reflectance"]
-    geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **correct_options)
+    if method in ("harmonised",):
+        raise ValueError("a stream's correction gives corrected wavelengths (and resampled "
+                         "spectra); harmonised spectra are made cube by cube with "
+                         "correct_cube")
+    options = {"method": method, "center_px": center_px}
+    if tolerance_nm is not None:
+        options["tolerance_nm"] = tolerance_nm
+    geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **options)
     out = ds.merge(geometry.drop_vars(["reflectance"]), compat="override")
     out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
     if resample:
         cwl = sensor.cwl_nm
         scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
-        out["resampled"] = xr.concat(
+        out["resampled"] = xr.concat(  # frame by frame: each a cube of its own
             [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
                 "frame"])], dim="frame")
     return out

@@ -168,7 +168,7 @@ def test_a_stream_reads_the_same_from_zarr_tiff_and_a_folder(tmp_path):
         "f0.npy", "f2.npy", "f10.npy", "f11.npy"]
 
 
-def test_streams_that_are_not_refused_clearly(tmp_path):
+def test_streams_that_cannot_be_read_are_refused_clearly(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="holds no frame files"):
         read_frames(tmp_path / "empty")
@@ -183,9 +183,9 @@ def test_streams_that_are_not_refused_clearly(tmp_path):
 
 def test_a_stream_is_the_frames_in_memory_with_numpy_dask_and_distributed(vis, lens):
     raw, dark, white = _frames(ROI, n=3, seed=11)
-    raw[1, 5, 5] = 0  # white <= ... no: a dark pixel; and one saturated
+    raw[1, 5, 5] = 0  # a value below the dark: kept (negative), not masked
     raw[2, 30, 40] = 65535
-    kw = dict(method="ri", lens=lens, f_number=2.0, origin_px=ORIGIN, saturation=60000,
+    kw = dict(demosaic_method="ri", lens=lens, f_number=2.0, origin_px=ORIGIN, saturation=60000,
               resample=True)
     eager = process_stream(raw, dark, white, vis, **kw)
     lazy = process_stream(raw.chunk({"frame": 1, "y": 24}), dark, white, vis, **kw)
@@ -299,3 +299,118 @@ def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):
         warnings.simplefilter("error")
         demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
 
+
+
+# -- what a careful reading found: each checked here -------------------------------------------
+
+
+def test_the_mask_is_every_nan_of_the_cube_numpy_or_dask(vis):
+    raw, dark, white = _frames(ROI, n=2, seed=19)
+    raw[1, 20:40, 30:50] = 65535  # a saturated blob of five tiles
+    for frames in (raw, raw.chunk({"frame": 1, "y": 32})):
+        ff = flatfield(frames, dark, white, saturation=60000)
+        for method in ("nearest", "bilinear", "ppid", "ri"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                ds = demosaic(ff, vis, method, origin_px=ORIGIN).compute()
+            nan = np.isnan(ds["reflectance"].values)
+            assert nan.sum() >= 400  # the blob's own values at least
+            assert_array_equal(ds["mask"].values, nan, err_msg=method)
+            assert int(ds["n_masked"]) == nan.sum()
+
+
+def test_a_small_region_of_interest_through_dask_is_the_same_as_in_memory(vis):
+    import dask.array as dsk
+
+    for shape in ((4, 96), (35, 200), (200, 20)):
+        f = np.random.default_rng(1).uniform(0.1, 1, shape).astype(np.float32)
+        for method in ("nearest", "bilinear", "ppid", "ri"):
+            a = demosaic(f, vis, method, origin_px=ORIGIN).values
+            b = demosaic(dsk.from_array(f, chunks=(16, 16)), vis, method,
+                         origin_px=ORIGIN).values
+            assert_array_equal(a, b, err_msg=f"{shape} {method}")
+
+
+def test_a_wide_hole_on_the_5x5_sensor_is_the_same_through_dask():
+    import dask.array as dsk
+
+    nir = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    f = np.random.default_rng(2).uniform(0.1, 1, (300, 400))
+    f[100:114, 200:214] = np.nan
+    for method in ("nearest", "bilinear", "ppid", "ri"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            a = demosaic(f, nir, method, origin_px=(500, 1000)).values
+            b = demosaic(dsk.from_array(f, chunks=(50, 50)), nir, method,
+                         origin_px=(500, 1000)).values
+        assert_array_equal(a, b, err_msg=method)
+
+
+def test_frames_keep_their_times_and_streams_are_refused_when_empty_or_not_frames(tmp_path, vis,
+                                                                                   lens):
+    raw, dark, white = _frames(ROI, n=3, seed=23)
+    times = np.array(["2026-01-01T00:00:00", "2026-01-01T00:00:01", "2026-01-01T00:00:02"],
+                     dtype="datetime64[ns]")
+    raw.assign_coords(frame=times).to_dataset(name="frames").to_zarr(
+        tmp_path / "timed.zarr", consolidated=False)
+    frames = read_frames(tmp_path / "timed.zarr")
+    assert_array_equal(frames["frame"].values, times)
+    ds = process_stream(frames, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN)
+    assert_array_equal(ds["reflectance"]["frame"].values, times)
+    np.save(tmp_path / "empty.npy", np.zeros((0, 64, 96), np.uint16))
+    with pytest.raises(ValueError, match="holds no frame"):
+        read_frames(tmp_path / "empty.npy")
+    cube = xr.DataArray(np.zeros((4, 8, 8), np.float32), dims=("band", "y", "x"))
+    cube.to_dataset(name="radiance").to_zarr(tmp_path / "bands.zarr", consolidated=False)
+    with pytest.raises(ValueError, match="a cube's bands are not frames"):
+        read_frames(tmp_path / "bands.zarr")
+    (tmp_path / "broken").mkdir()
+    np.save(tmp_path / "broken" / "f0.npy", raw.values[0])
+    (tmp_path / "broken" / "f1.npy").symlink_to(tmp_path / "nowhere.npy")
+    with pytest.raises(ValueError, match="not a regular file"):
+        read_frames(tmp_path / "broken")
+    with pytest.raises(ValueError, match="harmonised spectra are made cube by cube"):
+        process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN,
+                       method="harmonised")
+    ideal = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN,
+                           method="ideal")
+    assert ideal.attrs["method"] == "ideal"
+
+
+def test_stream_refuses_swapped_references_and_an_origin_beyond_the_sensor(frame_files, cli):
+    d = frame_files[0]
+    swapped = cli("stream", "frames.zarr", "--dark", "white.npy", "--white", "dark.npy",
+                  "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--out",
+                  "s.zarr", cwd=d)
+    assert swapped.returncode == 1 and "every pixel is masked" in swapped.stderr
+    beyond = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
+                 "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "5000,9000", "--demosaic",
+                 "nearest", "--out", "x.nc", cwd=d)
+    assert beyond.returncode == 1 and "beyond the sensor" in beyond.stderr
+    assert not (d / "s.zarr").exists() and not (d / "x.nc").exists()
+
+
+def test_what_a_frame_holds_is_checked(vis):
+    f = np.random.default_rng(3).uniform(0.1, 1, ROI)
+    f[10, 10] = np.inf  # an infinity is missing, as NaN is
+    cube = demosaic(f, vis, "ri", origin_px=ORIGIN).values
+    assert np.isnan(cube).sum() == 1 and np.isfinite(cube).sum() == cube.size - 1
+    with pytest.raises(TypeError, match="complex"):
+        demosaic(f.astype(complex), vis, "bilinear", origin_px=ORIGIN)
+    counts = np.full(ROI, 2**24 + 1, np.int64)  # float32 would round these
+    cube = demosaic(counts, vis, "nearest", origin_px=ORIGIN)
+    assert cube.dtype == np.float64 and (cube.values == 2**24 + 1).all()
+    with pytest.raises(ValueError, match=r"use cube.transpose"):
+        flatfield(xr.DataArray(np.ones((4, *ROI)), dims=("band", "y", "x")),
+                  np.zeros(ROI), np.ones(ROI))
+
+
+def test_the_command_line_offers_every_method():
+    from snapcorr.cli import build_parser
+    from snapcorr.cube import DEMOSAIC_METHODS
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    for name in ("flatfield", "stream"):
+        opt = next(a for a in sub.choices[name]._actions if a.dest == "demosaic")
+        assert list(opt.choices) == list(DEMOSAIC_METHODS)

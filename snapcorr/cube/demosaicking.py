@@ -204,9 +204,10 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     rows_px = np.repeat((r0 + np.arange(rows))[:, None], nb, axis=1)
     cols_px = np.repeat((c0 + np.arange(cols))[:, None], nb, axis=1)
     cube = with_positions(cube, rows_px, cols_px)
-    if stream:  # the same coordinates, each frame a cube
-        cube = xr.DataArray(cube_data, dims=("frame", *cube.dims), coords=cube.coords,
-                            attrs=cube.attrs, name=cube.name)
+    if stream:  # the same coordinates, each frame a cube, and the frames' own (times, ...)
+        along = {c: frame[c] for c in frame.coords if frame[c].dims == ("frame",)}
+        cube = xr.DataArray(cube_data, dims=("frame", *cube.dims),
+                            coords={**cube.coords, **along}, attrs=cube.attrs, name=cube.name)
     return cube
 
 

@@ -154,9 +154,9 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     """
     if not isinstance(raw, xr.DataArray) and getattr(raw, "ndim", None) == 2:
         raw = xr.DataArray(raw, dims=("y", "x"))  # a frame as numpy or dask
-        dark, white = _as_frames(dark), _as_frames(white)
-    if isinstance(raw, xr.DataArray) and tuple(raw.dims[-2:]) == ("y", "x"):
-        return _flatfield_frames(raw, dark, white, saturation, name, dtype)
+    if isinstance(raw, xr.DataArray) and tuple(raw.dims) in (("y", "x"), ("frame", "y", "x")):
+        return _flatfield_frames(raw, _as_frames(dark), _as_frames(white), saturation, name,
+                                 dtype)
     raw = check_cube(raw)
     darks, whites = _frames(dark, "dark"), _frames(white, "white")
     dtype = _check_dtypes(dtype, raw, darks[0], whites[0])
@@ -239,10 +239,17 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
             bad = bad | (stack >= saturation)
         averaged[label] = (stack.mean("ref", skipna=False), bad.any("ref"))
     (d, dark_bad), (w, white_bad) = averaged["dark"], averaged["white"]
-    plain = raw.drop_vars(list(raw.coords))
+    # the frame's own coordinates (a stream's times, say) are kept, along frame only
+    plain = raw.drop_vars([c for c in raw.coords if set(raw[c].dims) - {"frame"}])
     r = plain.astype(dtype)
     denom = w - d
-    mask = (denom <= 0) | ~np.isfinite(r) | dark_bad | white_bad
+    reference_bad = (denom <= 0) | dark_bad | white_bad
+    if bool(reference_bad.all()):  # refused before any work on the frames
+        raise ValueError("every pixel is masked: the white frame is nowhere above the dark "
+                         "(swapped, or not a white?), or the references hold no finite value"
+                         + (" below the saturation level" if saturation is not None else "")
+                         + "; check the dark and white files")
+    mask = reference_bad | ~np.isfinite(r)
     if saturation is not None:
         mask = mask | (plain >= saturation)
     ignore = raw.attrs.get("data_ignore_value")

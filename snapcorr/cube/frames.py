@@ -8,7 +8,8 @@
 - a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
   taken in the order of their names (numbers in names compared as numbers).
 
-Nothing is read until computed, so memory does not grow with the number of frames.
+Nothing is read until computed (only the files' headers), so memory does not grow with the
+number of frames. A ``frame`` coordinate (times, say) of a ``.zarr`` or ``.nc`` is kept.
 """
 
 from __future__ import annotations
@@ -62,10 +63,15 @@ def read_frames(path, *, frames_per_chunk=1):
     if per < 1:
         raise ValueError(f"frames_per_chunk must be at least 1, got {frames_per_chunk!r}")
     attrs = {"source": str(path)}
+    coords = {}
     if path.is_dir() and path.suffix.lower() != ".zarr":
         check_input(path, directory=True, what="folder of frames")
-        files = sorted((p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES
-                        and p.is_file()), key=_natural)
+        files = sorted((p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES),
+                       key=lambda p: (_natural(p), p.name))
+        for p in files:  # a frame that cannot be read is an error, never left out
+            if not p.is_file():
+                raise ValueError(f"{p} is not a regular file (a broken link, a folder or a "
+                                 "pipe?); a folder of frames holds frame files only")
         if not files:
             raise ValueError(f"{path} holds no frame files ({', '.join(FRAME_SUFFIXES)})")
         arrays = []
@@ -82,7 +88,7 @@ def read_frames(path, *, frames_per_chunk=1):
     else:
         fmt = FORMATS.get(path.suffix.lower())
         if fmt in ("zarr", "netcdf"):
-            data = _xarray_stack(path, fmt)
+            data, coords = _xarray_stack(path, fmt)
         elif fmt == "tiff":
             data = _tiff_pages(path)
         elif fmt == "npy":
@@ -90,8 +96,14 @@ def read_frames(path, *, frames_per_chunk=1):
         else:
             raise ValueError(f"{path}: a stream of frames is a .zarr, .nc, .npy, multi-page "
                              ".tif or a folder of frames")
+    if 0 in data.shape:
+        raise ValueError(f"{path} holds no frame ({data.shape[0]} frames of {data.shape[1]} x "
+                         f"{data.shape[2]} px)")
+    if data.dtype.kind not in "iuf":
+        raise ValueError(f"{path} holds {data.dtype} values; frames are numbers (counts)")
     data = data.rechunk({0: per, 1: -1, 2: -1})
-    return xr.DataArray(data, dims=("frame", "y", "x"), attrs=attrs, name="frames")
+    return xr.DataArray(data, dims=("frame", "y", "x"), coords=coords, attrs=attrs,
+                        name="frames")
 
 
 def _xarray_stack(path, fmt):
@@ -102,17 +114,20 @@ def _xarray_stack(path, fmt):
         if fmt != "zarr":
             raise ValueError(f"{path}: cannot read it as netcdf: {type(err).__name__}") \
                 from None
-        return _plain_zarr(path, err)
-    stacks = [v for v in ds.data_vars if ds[v].ndim == 3 and ds[v].dims[-2:] == ("y", "x")]
-    stacks = stacks or [v for v in ds.data_vars if ds[v].ndim == 3]
+        return _plain_zarr(path, err), {}
+    stacks = [v for v in ds.data_vars if ds[v].ndim == 3]
     if len(stacks) != 1:
         raise ValueError(f"{path} holds {len(stacks)} 3-D variables "
                          f"({', '.join(map(str, stacks)) or 'none'}); a stream holds one, "
                          "(frame, y, x)")
     var = ds[stacks[0]]
-    if var.dtype.kind not in "iuf":
-        raise ValueError(f"{path}: {stacks[0]} holds {var.dtype}, not numbers")
-    return var.data
+    first, *last = var.dims
+    if tuple(last) != ("y", "x") or first in ("band", "wavelength", "y", "x"):
+        raise ValueError(f"{path}: {stacks[0]} has dims {var.dims}; a stream of frames has "
+                         "dims (frame, y, x) (a cube's bands are not frames)")
+    coords = {c: ("frame", var[c].values, var[c].attrs) for c in var.coords
+              if var[c].dims == (first,)}
+    return var.data, coords
 
 
 def _npy_stack(path):
@@ -170,6 +185,13 @@ def _page(path, index, shape, dtype):
     return np.asarray(pixels, dtype=dtype).reshape(shape)
 
 
+#: OpenImageIO's pixel types as numpy's.
+_OIIO_TYPES = {"uint8": np.uint8, "int8": np.int8, "uint16": np.uint16, "int16": np.int16,
+               "uint": np.uint32, "int": np.int32, "uint32": np.uint32, "int32": np.int32,
+               "half": np.float16, "float": np.float32,
+               "double": np.float64}
+
+
 def _tiff_pages(path):
     """Every page of a TIFF as a lazily read frame (one channel each, all alike)."""
     import dask
@@ -197,6 +219,8 @@ def _tiff_pages(path):
                              f"{specs[0][1]} x {specs[0][0]} {specs[0][3]}: every frame must "
                              "match")
     shape = specs[0][:2]
-    dtype = _page(path, 0, shape, None).dtype
+    dtype = _OIIO_TYPES.get(specs[0][3])
+    if dtype is None:
+        raise ValueError(f"{path}: pages of {specs[0][3]} values; frames are integers or floats")
     return da.stack([da.from_delayed(dask.delayed(_page)(path, i, shape, dtype), shape, dtype)
                      for i in range(len(specs))])
