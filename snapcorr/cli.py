@@ -339,11 +339,7 @@ def _cmd_flatfield(args):
     if args.filter_white:
         tr = flatfield(read(args.filter_white), darks, whites,
                        saturation=args.saturation, name="transmittance", dtype=args.dtype)
-        ds["transmittance"] = tr["transmittance"]
-        ds["filter_white_raw"] = tr["raw"]
-        ds["transmittance_mask"] = tr["mask"].assign_attrs(
-            long_name="transmittance value not meaningful")
-        ds.attrs["filter_white_file"] = str(args.filter_white)
+        _with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})
     with _StageBar("flat-fielding (checking the mask)"):
@@ -375,6 +371,15 @@ def _read_frame_checked(path, sensor, what, shape=None):
     return frame
 
 
+def _with_transmittance(ds, tr, path):
+    """The filter's transmittance (``--filter-white``) added to a flat-field result."""
+    ds["transmittance"] = tr["transmittance"]
+    ds["filter_white_raw"] = tr["raw"]
+    ds["transmittance_mask"] = tr["mask"].assign_attrs(
+        long_name="transmittance value not meaningful")
+    ds.attrs["filter_white_file"] = str(path)
+
+
 def _masked_in(path):
     """``n_masked`` of a result just written (counted in the writing pass)."""
     from .cube import read_dataset
@@ -403,11 +408,7 @@ def _flatfield_demosaic(args, sensor, inputs):
         tr = demosaic(flatfield(fw, darks, whites, saturation=args.saturation,
                                 name="transmittance", dtype=args.dtype),
                       sensor, args.demosaic, origin_px=origin)
-        ds["transmittance"] = tr["transmittance"]
-        ds["filter_white_raw"] = tr["raw"]
-        ds["transmittance_mask"] = tr["mask"].assign_attrs(
-            long_name="transmittance value not meaningful")
-        ds.attrs["filter_white_file"] = str(args.filter_white)
+        _with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})
     cube = ds["reflectance"]

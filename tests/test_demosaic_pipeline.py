@@ -414,3 +414,18 @@ def test_the_command_line_offers_every_method():
     for name in ("flatfield", "stream"):
         opt = next(a for a in sub.choices[name]._actions if a.dest == "demosaic")
         assert list(opt.choices) == list(DEMOSAIC_METHODS)
+
+
+def test_flatfield_demosaic_with_a_filter_white(frame_files, cli, vis):
+    d, raw, dark, white = frame_files
+    np.save(d / "fw.npy", raw.values[1])
+    res = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+              "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--demosaic", "bilinear",
+              "--filter-white", "fw.npy", "--out", "tr.zarr", cwd=d)
+    assert res.returncode == 0, res.stderr
+    ds = read_dataset(d / "tr.zarr")
+    ref = demosaic(flatfield(raw[1], dark, white, name="transmittance"), vis, "bilinear",
+                   origin_px=ORIGIN)
+    assert_array_equal(ds["transmittance"].values, ref["transmittance"].values)
+    assert_array_equal(ds["filter_white_raw"].values, raw.values[1])
+    assert ds.attrs["filter_white_file"] == "fw.npy"

@@ -164,21 +164,28 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
         saturation = check_positive("saturation", saturation)
     d, dark_bad = _average_reference("dark", darks, raw, dtype, saturation)
     w, white_bad = _average_reference("white", whites, raw, dtype, saturation)
-    r = raw.astype(dtype)
+    return _result(raw, raw, d, w, dark_bad | white_bad, saturation, name, dtype,
+                   (len(darks), len(whites)), frame=False)
+
+
+def _result(raw, plain, d, w, reference_bad, saturation, name, dtype, counts, *, frame):
+    """``(plain - d) / (w - d)`` with its mask, the raw values kept and the provenance: the
+    Dataset :func:`flatfield` returns, for a cube or for frames (``frame``)."""
+    r = plain.astype(dtype)
     denom = w - d
-    mask = (denom <= 0) | ~np.isfinite(r) | dark_bad | white_bad
+    mask = (denom <= 0) | ~np.isfinite(r) | reference_bad
     if saturation is not None:
-        mask = mask | (raw >= saturation)
+        mask = mask | (plain >= saturation)
     ignore = raw.attrs.get("data_ignore_value")
     if ignore is not None:
-        mask = mask | (raw == ignore)
-    mask = mask.transpose("y", "x", "band")
-    out = ((r - d) / denom.where(denom > 0)).where(~mask).astype(dtype)
-    out = out.transpose("y", "x", "band")
-    n_dark, n_white = len(darks), len(whites)
+        mask = mask | (plain == ignore)
+    mask = mask.transpose(*raw.dims)
+    out = ((r - d) / denom.where(denom > 0)).where(~mask).astype(dtype).transpose(*raw.dims)
+    n_dark, n_white = counts
+    how = ", per pixel of the raw frame" if frame else ""
     attrs = {
         "source": f"snapcorr {__version__} flatfield",
-        "method": "Goossens et al. 2019 Eq. 29: (DN - dark) / (white - dark)",
+        "method": f"Goossens et al. 2019 Eq. 29: (DN - dark) / (white - dark){how}",
         "dark_frames": n_dark,
         "white_frames": n_white,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -186,13 +193,15 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     }
     if saturation is not None:
         attrs["saturation"] = float(saturation)
-    origin = raw.attrs.get("source", "the raw cube")
+    origin = raw.attrs.get("source", "the raw frame" if frame else "the raw cube")
     out.attrs = {**cf_attrs(name), "source": f"(raw - dark) / (white - dark) of {origin}, "
-                 f"{len(darks)} dark and {len(whites)} white frame(s) averaged"}
+                 f"{n_dark} dark and {n_white} white frame(s) averaged{how}"}
     mask.attrs = {**cf_attrs("mask"), "source": "white <= dark, saturation and non-finite "
                   "values in the raw, dark and white frames"}
-    kept = raw.copy(deep=False)
+    kept = plain.copy(deep=False)
     kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin}
+    if frame:
+        kept.attrs["long_name"] = "raw frame as read, unchanged"
     n_masked = mask.sum().assign_attrs(long_name="number of masked values", units="1")
     ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
                     attrs={**raw.attrs, **attrs})
@@ -241,45 +250,11 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
     (d, dark_bad), (w, white_bad) = averaged["dark"], averaged["white"]
     # the frame's own coordinates (a stream's times, say) are kept, along frame only
     plain = raw.drop_vars([c for c in raw.coords if set(raw[c].dims) - {"frame"}])
-    r = plain.astype(dtype)
-    denom = w - d
-    reference_bad = (denom <= 0) | dark_bad | white_bad
+    reference_bad = ((w - d) <= 0) | dark_bad | white_bad
     if bool(reference_bad.all()):  # refused before any work on the frames
         raise ValueError("every pixel is masked: the white frame is nowhere above the dark "
                          "(swapped, or not a white?), or the references hold no finite value"
                          + (" below the saturation level" if saturation is not None else "")
                          + "; check the dark and white files")
-    mask = reference_bad | ~np.isfinite(r)
-    if saturation is not None:
-        mask = mask | (plain >= saturation)
-    ignore = raw.attrs.get("data_ignore_value")
-    if ignore is not None:
-        mask = mask | (plain == ignore)
-    mask = mask.transpose(*raw.dims)
-    out = ((r - d) / denom.where(denom > 0)).where(~mask).astype(dtype).transpose(*raw.dims)
-    origin = raw.attrs.get("source", "the raw frame")
-    out.attrs = {**cf_attrs(name), "source": f"(raw - dark) / (white - dark) of {origin}, "
-                 f"{len(refs['dark'])} dark and {len(refs['white'])} white frame(s) "
-                 "averaged, pixel by pixel"}
-    mask.attrs = {**cf_attrs("mask"), "source": "white <= dark, saturation and non-finite "
-                  "values in the raw, dark and white frames"}
-    kept = plain.copy(deep=False)
-    kept.attrs = {**cf_attrs("raw"), **raw.attrs, "source": origin,
-                  "long_name": "raw frame as read, unchanged"}
-    n_masked = mask.sum().assign_attrs(long_name="number of masked values", units="1")
-    attrs = {
-        "source": f"snapcorr {__version__} flatfield",
-        "method": "Goossens et al. 2019 Eq. 29: (DN - dark) / (white - dark), per pixel of "
-                  "the raw frame",
-        "dark_frames": len(refs["dark"]),
-        "white_frames": len(refs["white"]),
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "snapcorr_version": __version__,
-    }
-    if saturation is not None:
-        attrs["saturation"] = float(saturation)
-    ds = xr.Dataset({name: out, "mask": mask, "raw": kept, "n_masked": n_masked},
-                    attrs={**raw.attrs, **attrs})
-    if ds[name].chunks is None:
-        check_masked(ds)
-    return ds
+    return _result(raw, plain, d, w, reference_bad, saturation, name, dtype,
+                   (len(refs["dark"]), len(refs["white"])), frame=True)
