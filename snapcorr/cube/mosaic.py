@@ -127,6 +127,14 @@ def frame_area(shape, sensor, origin_px=None):
         inside the filter area.
     """
     r0, c0 = _origin(shape, sensor, origin_px)
+    (lo_r, lo_c), (hi_r, hi_c) = _filter_part(shape, sensor, r0, c0)
+    off = sensor.band_offsets_at((lo_r, lo_c))
+    return (lo_r, lo_c), (hi_r - lo_r, hi_c - lo_c), (off[:, 0].copy(), off[:, 1].copy())
+
+
+def _filter_part(shape, sensor, r0, c0):
+    """First and last-plus-one sensor row and column of a frame at ``(r0, c0)`` that lie in
+    the sensor's filter area; refused unless they hold a whole tile."""
     tr, tc = sensor.mosaic_shape
     lo_r, lo_c, hi_r, hi_c = r0, c0, r0 + shape[0], c0 + shape[1]
     if sensor.filter_area_px is not None:
@@ -134,24 +142,6 @@ def frame_area(shape, sensor, origin_px=None):
         lo_r, lo_c = max(lo_r, ar), max(lo_c, ac)
         hi_r, hi_c = min(hi_r, ar + an), min(hi_c, ac + am)
     if hi_r - lo_r < tr or hi_c - lo_c < tc:
-        raise ValueError(f"the frame ({shape[0]} x {shape[1]} px at sensor row {r0}, column "
-                         f"{c0}) holds no whole {tr} x {tc} tile"
-                         + ("" if sensor.filter_area_px is None else " inside the filter area"))
-    off = sensor.band_offsets_at((lo_r, lo_c))
-    return (lo_r, lo_c), (hi_r - lo_r, hi_c - lo_c), (off[:, 0].copy(), off[:, 1].copy())
-
-
-def _whole_tiles(shape, sensor, r0, c0):
-    """First sensor pixel kept and the number of whole tiles (rows, columns) of a frame at
-    ``(r0, c0)``, inside the sensor's filter area."""
-    tr, tc = sensor.mosaic_shape
-    lo_r, lo_c, hi_r, hi_c = r0, c0, r0 + shape[0], c0 + shape[1]
-    if sensor.filter_area_px is not None:
-        ar, ac, an, am = sensor.filter_area_px
-        lo_r, lo_c = max(lo_r, ar), max(lo_c, ac)
-        hi_r, hi_c = min(hi_r, ar + an), min(hi_c, ac + am)
-    ny, nx = max(0, hi_r - lo_r) // tr, max(0, hi_c - lo_c) // tc
-    if ny == 0 or nx == 0:
         where = ("" if sensor.filter_area_px is None else
                  f" inside the filter area (rows {sensor.filter_area_px[0]}-"
                  f"{sensor.filter_area_px[0] + sensor.filter_area_px[2] - 1}, columns "
@@ -159,7 +149,15 @@ def _whole_tiles(shape, sensor, r0, c0):
                  f"{sensor.filter_area_px[1] + sensor.filter_area_px[3] - 1})")
         raise ValueError(f"the frame ({shape[0]} x {shape[1]} px at sensor row {r0}, column "
                          f"{c0}) holds no whole {tr} x {tc} tile{where}")
-    return (lo_r, lo_c), (ny, nx)
+    return (lo_r, lo_c), (hi_r, hi_c)
+
+
+def _whole_tiles(shape, sensor, r0, c0):
+    """First sensor pixel kept and the number of whole tiles (rows, columns) of a frame at
+    ``(r0, c0)``, inside the sensor's filter area."""
+    (lo_r, lo_c), (hi_r, hi_c) = _filter_part(shape, sensor, r0, c0)
+    tr, tc = sensor.mosaic_shape
+    return (lo_r, lo_c), ((hi_r - lo_r) // tr, (hi_c - lo_c) // tc)
 
 
 def _dask_stack(arrays, axis):
