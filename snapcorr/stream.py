@@ -62,6 +62,12 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         raise ValueError(f"a stream is a DataArray of dims (frame, y, x), got {dims}")
     if (lens is None) != (f_number is None):
         raise ValueError("correcting a stream needs both a lens and an f-number")
+    if lens is None and (method != "auto" or tolerance_nm is not None or center_px is not None):
+        raise ValueError("method, tolerance_nm and center_px choose the correction: give a "
+                         "lens and an f-number too (the demosaicking method is "
+                         "demosaic_method)")
+    if 0 in frames.shape:
+        raise ValueError(f"the stream holds no frame (shape {frames.shape})")
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
     ds = demosaic(ff, sensor, demosaic_method, origin_px=origin_px)
     if lens is None:

@@ -382,7 +382,7 @@ def test_stream_refuses_swapped_references_and_an_origin_beyond_the_sensor(frame
     swapped = cli("stream", "frames.zarr", "--dark", "white.npy", "--white", "dark.npy",
                   "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "401,802", "--out",
                   "s.zarr", cwd=d)
-    assert swapped.returncode == 1 and "every pixel is masked" in swapped.stderr
+    assert swapped.returncode == 1 and "masked by the references alone" in swapped.stderr
     beyond = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
                  "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "5000,9000", "--demosaic",
                  "nearest", "--out", "x.nc", cwd=d)
@@ -429,3 +429,32 @@ def test_flatfield_demosaic_with_a_filter_white(frame_files, cli, vis):
     assert_array_equal(ds["transmittance"].values, ref["transmittance"].values)
     assert_array_equal(ds["filter_white_raw"].values, raw.values[1])
     assert ds.attrs["filter_white_file"] == "fw.npy"
+
+
+def test_second_reading_refusals_and_what_files_hold(tmp_path, vis, lens):
+    raw, dark, white = _frames(ROI, n=2, seed=29)
+    nearly = dark.copy()
+    nearly[7, 7] = white[7, 7] + 1  # swapped, but for one pixel
+    with pytest.raises(ValueError, match="masked by the references alone"):
+        flatfield(raw, white, nearly)
+    with pytest.raises(ValueError, match="demosaic_method"):
+        process_stream(raw, dark, white, vis, method="nearest", origin_px=ORIGIN)
+    with pytest.raises(ValueError, match="holds no frame"):
+        process_stream(raw[:0], dark, white, vis, origin_px=ORIGIN)
+    # the writing instruction computed_with stays out of files, from memory or from dask
+    from snapcorr.cube import write_dataset
+
+    for ds, name in ((demosaic(flatfield(raw[0], dark, white), vis, "bilinear",
+                               origin_px=ORIGIN), "mem.nc"),
+                     (process_stream(raw.chunk({"frame": 1}), dark, white, vis,
+                                     origin_px=ORIGIN), "lazy.zarr")):
+        write_dataset(ds, tmp_path / name)
+        back = read_dataset(tmp_path / name)
+        assert all("computed_with" not in back[v].attrs for v in back.data_vars), name
+        assert_array_equal(back["mask"].values, np.isnan(back["reflectance"].values))
+    # a snapcorr stream's own output reads back as its raw frames; other 3-D variables beside
+    # a stack of frames do not stop it
+    assert_array_equal(read_frames(tmp_path / "lazy.zarr").values, raw.values)
+    xr.Dataset({"frames": raw, "lut": (("gain", "adc", "k"), np.zeros((2, 3, 4)))}).to_netcdf(
+        tmp_path / "aux.nc", engine="h5netcdf")
+    assert_array_equal(read_frames(tmp_path / "aux.nc").values, raw.values)

@@ -251,9 +251,11 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
     # the frame's own coordinates (a stream's times, say) are kept, along frame only
     plain = raw.drop_vars([c for c in raw.coords if set(raw[c].dims) - {"frame"}])
     reference_bad = ((w - d) <= 0) | dark_bad | white_bad
-    if bool(reference_bad.all()):  # refused before any work on the frames
-        raise ValueError("every pixel is masked: the white frame is nowhere above the dark "
-                         "(swapped, or not a white?), or the references hold no finite value"
+    share = float(reference_bad.mean())
+    if share > MASKED_WARN_FRACTION:  # refused before any work on the frames
+        raise ValueError(f"{100 * share:.1f} % of the pixels are masked by the references "
+                         "alone: the white frame is mostly not above the dark (swapped, or "
+                         "not a white?), or the references hold no finite value"
                          + (" below the saturation level" if saturation is not None else "")
                          + "; check the dark and white files")
     return _result(raw, plain, d, w, reference_bad, saturation, name, dtype,

@@ -115,16 +115,22 @@ def _xarray_stack(path, fmt):
             raise ValueError(f"{path}: cannot read it as netcdf: {type(err).__name__}") \
                 from None
         return _plain_zarr(path, err), {}
-    stacks = [v for v in ds.data_vars if ds[v].ndim == 3]
-    if len(stacks) != 1:
-        raise ValueError(f"{path} holds {len(stacks)} 3-D variables "
-                         f"({', '.join(map(str, stacks)) or 'none'}); a stream holds one, "
-                         "(frame, y, x)")
+    not_frames = ("band", "wavelength", "y", "x")
+    three = [v for v in ds.data_vars if ds[v].ndim == 3]
+    stacks = [v for v in three if ds[v].dims[-2:] == ("y", "x")
+              and ds[v].dims[0] not in not_frames]
+    if len(stacks) > 1:
+        raise ValueError(f"{path} holds {len(stacks)} stacks of frames ({', '.join(stacks)}); "
+                         "a stream holds one (frame, y, x) variable")
+    if not stacks:
+        if len(three) == 1 and not set(ds[three[0]].dims) & set(not_frames):
+            stacks = three  # dims of other names: frames first, then rows and columns
+        else:
+            found = ", ".join(f"{v} {ds[v].dims}" for v in three) or "no 3-D variable"
+            raise ValueError(f"{path} holds {found}; a stream of frames is one variable of "
+                             "dims (frame, y, x) (a cube's bands are not frames)")
     var = ds[stacks[0]]
-    first, *last = var.dims
-    if tuple(last) != ("y", "x") or first in ("band", "wavelength", "y", "x"):
-        raise ValueError(f"{path}: {stacks[0]} has dims {var.dims}; a stream of frames has "
-                         "dims (frame, y, x) (a cube's bands are not frames)")
+    first = var.dims[0]
     coords = {c: ("frame", var[c].values, var[c].attrs) for c in var.coords
               if var[c].dims == (first,)}
     return var.data, coords

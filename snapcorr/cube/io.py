@@ -1472,7 +1472,7 @@ def _store_dataset(ds, path, fmt):
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()
-    for v in lazy:
+    for v in ds.data_vars:  # a writing instruction, not a property of the data
         ds[v].attrs.pop(COMPUTED_WITH, None)
     first = ds.drop_vars(lazy)
     if fmt == "netcdf":

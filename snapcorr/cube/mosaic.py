@@ -195,11 +195,4 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
     else:
         rows = np.repeat((r0 + np.arange(ny))[:, None], sensor.n_bands, axis=1)
         cols = np.repeat((c0 + np.arange(nx))[:, None], sensor.n_bands, axis=1)
-    size = sensor.size_px
-    if min(r0, c0) < 0 or (size is not None and (rows.max() >= size[0]
-                                                  or cols.max() >= size[1])):
-        raise ValueError(f"a cube at sensor row {r0}, column {c0} reaches beyond the sensor "
-                         f"{sensor.name!r}" + (f" ({size[0]} x {size[1]} px)" if size else "")
-                         + ": check the origin (--sensor-origin-px ROW,COL, row first) and the "
-                         "sensor")
     return rows, cols
