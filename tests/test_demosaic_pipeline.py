@@ -458,3 +458,17 @@ def test_second_reading_refusals_and_what_files_hold(tmp_path, vis, lens):
     xr.Dataset({"frames": raw, "lut": (("gain", "adc", "k"), np.zeros((2, 3, 4)))}).to_netcdf(
         tmp_path / "aux.nc", engine="h5netcdf")
     assert_array_equal(read_frames(tmp_path / "aux.nc").values, raw.values)
+
+
+def test_snapcorr_cube_loads_without_numba_and_the_reach_follows_the_window():
+    import subprocess
+    import sys
+
+    code = "import sys, snapcorr.cube; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
+    from snapcorr.cube.demosaicking import DEMOSAIC_REACH_TILES
+    from snapcorr.cube.msfa import monno2017
+
+    assert DEMOSAIC_REACH_TILES["ri"] == DEMOSAIC_REACH_TILES["ppid"] + 2 * monno2017.RADIUS

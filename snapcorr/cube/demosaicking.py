@@ -41,7 +41,6 @@ import numpy as np
 import xarray as xr
 
 from .._validation import validate_method
-from . import msfa
 from .io import COMPUTED_WITH
 from .model import check_dtype, make_cube, with_positions
 from .mosaic import frame_area
@@ -49,20 +48,32 @@ from .sensor import Sensor
 
 __all__ = ["DEMOSAIC_METHODS", "DEMOSAIC_REACH_TILES", "demosaic", "demosaic_array"]
 
+def _method(name):
+    """The kernel ``snapcorr.cube.msfa.<name>``, imported at its first call (numba loads then,
+    not with ``snapcorr.cube``)."""
+    def run(frame, y0, x0, n, m):
+        from . import msfa
+
+        return getattr(msfa, name)(frame, y0, x0, n, m)
+
+    run.__name__ = run.__qualname__ = name
+    run.__doc__ = f"snapcorr.cube.msfa.{name}, imported at its first call."
+    return run
+
+
 #: The methods by name: ``f(frame, y0, x0, n, m) -> (rows, cols, bands)``.
 DEMOSAIC_METHODS = {
-    "nearest": msfa.tile_replication,
-    "bilinear": msfa.weighted_bilinear,
-    "ppid": msfa.ppid,
-    "ri": msfa.residual_interpolation,
+    "nearest": _method("tile_replication"),
+    "bilinear": _method("weighted_bilinear"),
+    "ppid": _method("ppid"),
+    "ri": _method("residual_interpolation"),
 }
 #: How far (in tiles) a pixel's estimate reaches into the frame, by method: the halo a block
 #: of a chunked frame needs from its neighbours for the same result as the whole frame. Two
 #: tiles for a sample and the next one where it is missing; five for the pseudo-panchromatic
 #: image (its average, widened over a hole, and the sharpening a tile away); and the guided
-#: filter's two windows.
-DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 7,
-                        "ri": 7 + 2 * msfa.monno2017.RADIUS}
+#: filter's two windows of ``msfa.monno2017.RADIUS`` (1) samples each (a test checks it).
+DEMOSAIC_REACH_TILES = {"nearest": 2, "bilinear": 2, "ppid": 7, "ri": 7 + 2 * 1}
 
 
 def _dtype(dtype):
