@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from . import pyplot, write_csv
+from .io_memory import _status
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
@@ -187,18 +188,6 @@ def speed(*, quick=False, echo=print):
 
 
 # -- peak memory, in a fresh process ------------------------------------------------------------
-
-
-def _status(key):
-    """``key`` of /proc/self/status in bytes, or None."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
 
 
 def _reset_peak():
