@@ -350,11 +350,7 @@ def _cmd_flatfield(args):
           f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, {ds['reflectance'].dtype}), "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
-    if args.plot:
-        from .quicklook import plot_flatfield
-
-        plot_flatfield(ds, args.plot, overwrite=args.overwrite)
-        print(f"wrote {args.plot}")
+    _quicklook(args, "plot_flatfield", ds)
     return 0
 
 
@@ -378,6 +374,15 @@ def _with_transmittance(ds, tr, path):
     ds["transmittance_mask"] = tr["mask"].assign_attrs(
         long_name="transmittance value not meaningful")
     ds.attrs["filter_white_file"] = str(path)
+
+
+def _quicklook(args, draw, what):
+    """``--plot``: the quick look ``snapcorr.quicklook.<draw>`` of ``what``, if asked for."""
+    if args.plot:
+        from . import quicklook
+
+        getattr(quicklook, draw)(what, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
 
 
 def _masked_in(path):
@@ -420,11 +425,7 @@ def _flatfield_demosaic(args, sensor, inputs):
           f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
-    if args.plot:
-        from .quicklook import plot_flatfield
-
-        plot_flatfield(ds, args.plot, overwrite=args.overwrite)
-        print(f"wrote {args.plot}")
+    _quicklook(args, "plot_flatfield", ds)
     return 0
 
 
@@ -560,11 +561,7 @@ def _cmd_correct(args):
         w = ds["fwhm_harmonised"].values
         print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
               f"({ds['fwhm_harmonised'].attrs['source']})")
-    if args.plot:
-        from .quicklook import plot_correction
-
-        plot_correction(ds, args.plot, overwrite=args.overwrite)
-        print(f"wrote {args.plot}")
+    _quicklook(args, "plot_correction", ds)
     return 0
 
 
@@ -596,11 +593,7 @@ def _cmd_sensor(args):
         note = ("" if sensor.n_eff is not None else
                 "; add n_eff to it (snapcorr pupil --fit-n-eff finds it)")
         print(f"wrote {args.toml}{note}")
-    if args.plot:
-        from .quicklook import plot_sensor
-
-        plot_sensor(sensor, args.plot, overwrite=args.overwrite)
-        print(f"wrote {args.plot}")
+    _quicklook(args, "plot_sensor", sensor)
     return 0
 
 
