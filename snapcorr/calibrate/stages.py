@@ -17,7 +17,15 @@ from .._validation import check_center
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
 from .flats import clean_flat, estimate_center, radial_profile
-from .joint_fit import MODELS, BlockData, ModelFit, block_average, fit_model, floor_chi2
+from .joint_fit import (
+    MODELS,
+    BlockData,
+    ModelFit,
+    block_average,
+    block_centroids,
+    fit_model,
+    floor_chi2,
+)
 from .onset_fit import OnsetFit, solve_vignetting_circle
 from .onsets import Onset, detect_onset
 
@@ -74,6 +82,7 @@ class Ratios:
     ratio_variances: list
     ratio_ok: list
     ref_peak: float | None
+    centroids: list = None  # per flat: (dx, dy, sx, sy) of its valid pixels in each block
 
 
 def clean_flats(items, dark, saturation) -> Flats:
@@ -126,7 +135,8 @@ def ratio_images(flats: Flats) -> Ratios:
                                                block)
     enough = [c >= 0.5 * block * block for c in bcnt]
     if flats.single:
-        return Ratios(block, bimgs, bvars, enough, bx, by, bimgs, bvars, enough, None)
+        return Ratios(block, bimgs, bvars, enough, bx, by, bimgs, bvars, enough, None,
+                      block_centroids(flats.valids, block))
     ref = len(bimgs) - 1
     ref_peak = float(np.nanpercentile(np.where(enough[ref], bimgs[ref], np.nan), 99))
     with np.errstate(invalid="ignore"):
@@ -139,7 +149,8 @@ def ratio_images(flats: Flats) -> Ratios:
         ratios.append(q)
         rvars.append(v)
         rok.append(enough[i] & enough[ref] & np.isfinite(q) & lit & (v > 0))
-    return Ratios(block, bimgs, bvars, enough, bx, by, ratios, rvars, rok, ref_peak)
+    return Ratios(block, bimgs, bvars, enough, bx, by, ratios, rvars, rok, ref_peak,
+                  block_centroids(flats.valids, block))
 
 
 def optical_center(flats: Flats, ratios: Ratios, center_px=None):
@@ -310,7 +321,8 @@ def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
                          1e-12)
         w = 1.0 / err**2
         P = float(np.sum(w * P_i) / np.sum(w))
-        return OnsetFit(P, float(h_given), float(1.0 / np.sqrt(np.sum(w))), 0.0, P_i - P)
+        sP = float(1.0 / np.sqrt(np.sum(w)))
+        return OnsetFit(P, float(h_given), sP, 0.0, P_i - P, np.diag([sP * sP, 0.0]))
     if len(found) < 2:
         return None
     t = np.array([o.cra_deg for _, o in found])
@@ -347,7 +359,10 @@ def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> Bloc
         return BlockData(q=ratios.ratios[0][None, ok],
                          sigma=np.sqrt(ratios.ratio_variances[0])[None, ok],
                          xpix=ratios.bx[ok], ypix=ratios.by[ok], R_mm=R, R_ref_mm=None,
-                         natural=True, **common)
+                         natural=True, block_px=ratios.block,
+                         **{k: ratios.centroids[0][i][None, ok]
+                            for i, k in enumerate(("xoff", "yoff", "xsd", "ysd"))},
+                         **common)
     imgs = np.stack(ratios.images)
     var = np.stack(ratios.variances)
     with np.errstate(invalid="ignore"):
@@ -359,7 +374,10 @@ def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> Bloc
     return BlockData(q=np.where(used, imgs[:, keep], 0.0),
                      sigma=np.where(used, np.sqrt(np.where(used, var[:, keep], 1.0)), np.inf),
                      xpix=ratios.bx[keep], ypix=ratios.by[keep], R_mm=R, R_ref_mm=None,
-                     gains=True, **common)
+                     gains=True, block_px=ratios.block,
+                     **{k: np.stack([c[i][keep] for c in ratios.centroids])
+                        for i, k in enumerate(("xoff", "yoff", "xsd", "ysd"))},
+                     **common)
 
 
 def _starts_one(onset_fits, R, x, centers, max_cra, h_given):
@@ -405,7 +423,7 @@ def _starts_more(fit: ModelFit, R, x, max_cra):
 
 
 def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center, max_cra,
-               *, fixed_h=None, max_circles=3, keep_going=None):
+               *, fixed_h=None, max_circles=3, keep_going=None, progress=None):
     """Fit the area model with no circle, then one, two, three circles, each from the last.
 
     A model with one more circle is fitted only while ``keep_going(fits, bic)`` says the one
@@ -435,6 +453,8 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         Most circles to fit (0-3).
     keep_going : callable, optional
         ``keep_going(fits, bic) -> bool``; None: always go on.
+    progress : callable, optional
+        ``progress(step)`` before each model is fitted.
 
     Returns
     -------
@@ -455,9 +475,14 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         c = centers[0] if name == "none" or fix_center is not None else None
         bic[name] = floor_chi2(data, fit, FLOOR_REL, center=c) + fit.k * math.log(fit.n)
 
+    def step(what):
+        if progress is not None:
+            progress(what)
+
     add("none", fit_model(data, "none", [], center=centers[0]))
     if max_circles < 1:
         return fits, bic
+    step("joint fit, one circle")
     add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers, max_cra, fixed_h),
                          center=fix_center, fixed_h=fixed_h))
     single = not data.gains
@@ -466,6 +491,7 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
                                              and not keep_going(fits, bic)):
             break
         prev = fits[MODELS[n - 1]]
+        step(f"joint fit, {n} circles")
         # two runs for a second circle; one for a third, which rarely matters
         add(MODELS[n], fit_model(data, MODELS[n], _starts_more(prev, R, x, max_cra),
                                  center=fix_center, keep=2 if n == 2 else 1))
