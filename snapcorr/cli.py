@@ -255,6 +255,32 @@ class _StageBar:
         self.bar.close()
 
 
+class _StepBar:
+    """A progress bar (tqdm, on stderr, on a terminal only) over the named steps of a long
+    computation: ``step(description)`` is called before each one."""
+
+    def __init__(self, desc, total=None):
+        self.desc, self.total = desc, total
+
+    def __enter__(self):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, desc=self.desc, unit="step", file=sys.stderr,
+                        delay=_StageBar.DELAY_S, leave=False, dynamic_ncols=True,
+                        disable=None)
+        self.started = False
+        return self
+
+    def step(self, what=""):
+        if self.started:
+            self.bar.update(1)
+        self.started = True
+        self.bar.set_postfix_str(what, refresh=True)
+
+    def __exit__(self, *exc):
+        self.bar.close()
+
+
 def _read(path, sensor=None, origin=None):
     """A cube (or a raw mosaic frame split into bands) from any format, in row blocks.
 
@@ -634,6 +660,8 @@ def _cmd_calibrate(args):
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     x = given.exit_pupil_mm if given else args.exit_pupil_mm
+    sx = given.calibration.get("exit_pupil_stderr_mm") if given else None
+    sx = sx if isinstance(sx, (int, float)) and not isinstance(sx, bool) and sx > 0 else None
     m = args.magnification if args.magnification is not None else (
         given.magnification if given else 0.0)
     mp = args.pupil_magnification if args.pupil_magnification is not None else (
@@ -648,13 +676,14 @@ def _cmd_calibrate(args):
               + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
               file=sys.stderr)
     dark = read_flat(args.dark)[0] if args.dark else None
-    res = calibrate_lens(
-        flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
-        magnification=m, pupil_magnification=mp,
-        dark=dark, center_px=args.center_px, saturation=sat,
-        vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
-        name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
-        tolerance_nm=args.tolerance_nm, max_circles=args.max_circles)
+    with _StepBar("calibrating") as bar:
+        res = calibrate_lens(
+            flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
+            exit_pupil_stderr_mm=sx, magnification=m, pupil_magnification=mp,
+            dark=dark, center_px=args.center_px, saturation=sat,
+            vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
+            name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
+            tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step)
     cal = dict(res.lens.calibration)
     cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
                     else "single-band flats")
@@ -775,10 +804,11 @@ def _pupil_predict(args):
           "band per pixel" + (", n_eff fitted too" if args.fit_n_eff else ""))
     print(f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
           + (f" {'n_eff':>12s}" if args.fit_n_eff else ""))
-    with _StageBar("bounds for each target"):
+    with _StepBar("bounds for each target", total=2 * len(targets)) as bar:
         for name, S in targets.items():
             row = []
             for known in (False, True):
+                bar.step(f"{name[:24]}, spectrum {'known' if known else 'unknown'}")
                 p = pupil_precision(S, sensor, fs, lens, noise=noise,
                                     fit_n_eff=args.fit_n_eff and len(fs) > 1,
                                     spectrum_known=known)

@@ -245,8 +245,9 @@ def test_radial_profile_against_a_direct_average():
 def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     # A fall-off that changes with the aperture (Goossens 2019, Sec. 3.2: natural vignetting
     # changing with aperture size, pupil aberrations) is not in the area model: the joint fit
-    # is biased by a few percent and says so by its chi-square, and auto falls back to the
-    # onsets of the ratio profiles, which only need to know where the fall-off starts.
+    # is biased by a few percent, predicts flats it has not seen worse than the onsets of
+    # the ratio profiles (which only need to know where the fall-off starts), and auto uses
+    # the onsets.
     flats = _flats(PAPER, seed=11)
     t = np.tan(np.deg2rad(cra_map(SHAPE, PITCH, 21.0, CENTER)))
     for f in flats:
@@ -254,7 +255,11 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     res = _calibrate(flats, PAPER)
     one = res.fits["one"]
     assert one.reduced_chi2 > 2.0 and abs(one.params["h_mm"] / 16.991 - 1) > 0.02
-    assert res.method == "onset-ratio" and "misfits" in res.reason
+    assert res.method == "onset-ratio" and "predict the flats left out" in res.reason
+    assert res.predictive["onset-ratio"].total < res.predictive["joint"].total - 10
+    # the onsets' own error bar on the shift, from their covariance
+    assert res.shift_stderr_nm.size == len(flats) and np.all(res.shift_stderr_nm > 0)
+    assert np.all(np.isfinite(res.shift_stderr_nm))
     assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.01
     assert abs(res.lens.vignetting[0][1] / 16.991 - 1) < 0.01
 

@@ -107,16 +107,25 @@ def test_max_circles_zero_tries_no_circle_and_says_so(user_flats):
     assert "no vignetting circle tried" in res.reason
 
 
-def test_a_misfit_keeps_a_two_circle_joint_fit(monkeypatch):
-    # the paper's onsets see one circle: falling back to them would drop the other
-    from snapcorr.calibrate import lens_calibration
-
+def test_two_circles_predict_left_out_flats_better_than_the_onsets():
+    # the paper's onsets see one circle: they predict a flat they did not see worse than the
+    # two-circle joint fit, so auto keeps the joint fit and says by how much
     truth = LensTruth(X, ((6.2, 12.0), (10.0, 30.0)), 0.0, 1.0)
     flats = make_flats(truth, FS, noise=0.005, seed=2, **SCENE)
-    monkeypatch.setattr(lens_calibration, "MISFIT_CHI2", 0.1)
-    res = calibrate_lens(flats, **{**KW, "magnification": 0.0, "pupil_magnification": 1.0})
+    steps = []
+    res = calibrate_lens(flats, **{**KW, "magnification": 0.0, "pupil_magnification": 1.0},
+                         progress=steps.append)
     assert res.method == "joint" and len(res.lens.vignetting) == 2
-    assert any("joint fit is kept" in n for n in res.notes)
+    # every long step is announced, for a progress bar
+    assert steps[:2] == ["joint fit, one circle", "joint fit, 2 circles"]
+    assert [s for s in steps if s.startswith("predicting")] == [
+        f"predicting f/{f:g} left out" for f in FS[:-1]]
+    joint, onsets = res.predictive["joint"], res.predictive["onset-ratio"]
+    assert list(joint.chi2) == list(onsets.chi2) and len(joint.chi2) >= 2
+    assert joint.total < onsets.total
+    assert "predicts the flats left out" in res.reason
+    table = res.lens.calibration["estimator_choice"]
+    assert table["joint"]["total_chi2"] == pytest.approx(joint.total, abs=0.01)
 
 
 def test_an_onset_method_leaves_no_joint_model_marked_chosen(user_flats):
@@ -145,3 +154,27 @@ def test_the_reported_shift_uncertainty_is_honest_over_seeds():
     ratios = np.array(ratios)
     assert np.all(ratios < 4.0), ratios
     assert 0.3 < np.sqrt(np.mean(ratios ** 2)) < 2.0, ratios
+
+
+def test_a_wrong_x_fits_as_well_and_moves_p_and_h_as_the_profile_says(user_flats):
+    # the flats fix P / x and h / x^2: a 10 % wrong x is invisible in them, P moves by 10 %
+    # and h by 21 %, and the profile states how (dP/dx, dh/dx) and says x was not checked
+    kw = {**KW, "max_circles": 1}
+    right = calibrate_lens(user_flats, **kw)
+    wrong = calibrate_lens(user_flats, **{**kw, "exit_pupil_mm": 1.1 * X})
+    assert wrong.fits["one"].reduced_chi2 == pytest.approx(right.fits["one"].reduced_chi2,
+                                                           rel=1e-3)
+    (P0, h0), (P1, h1) = right.lens.vignetting[0], wrong.lens.vignetting[0]
+    assert P1 / P0 == pytest.approx(1.1, rel=2e-4) and h1 / h0 == pytest.approx(1.21, rel=2e-4)
+    scaling = right.lens.calibration["exit_pupil_scaling"]
+    # the finite difference between the two calibrations against the stated derivatives
+    assert (P1 - P0) / (0.1 * X) == pytest.approx(scaling["dP_dx"][0], rel=1e-3)
+    assert (h1 - h0) / (0.1 * X) == pytest.approx(scaling["dh_dx"][0], rel=0.06)  # h ~ x^2
+    assert scaling["exit_pupil_stderr_mm"] == "not given"
+    assert any("without an error" in n and "cannot check it" in n for n in right.notes)
+    # with x's error, P's and h's errors carry it
+    known = calibrate_lens(user_flats, **{**kw, "exit_pupil_stderr_mm": 0.2})
+    sc = known.lens.calibration["exit_pupil_scaling"]
+    P, h = known.lens.vignetting[0]
+    assert sc["P_stderr_with_x_mm"][0] >= P / X * 0.2
+    assert sc["h_stderr_with_x_mm"][0] >= 2 * h / X * 0.2

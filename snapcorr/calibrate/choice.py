@@ -25,7 +25,7 @@ say, which only rescales one flat. The choice here therefore has three parts.
 2. **A criterion that allows for model error** (:func:`~snapcorr.calibrate.joint_fit.floor_chi2`).
    The Bayesian information criterion is computed with each block's variance raised by a
    systematic floor, ``(FLOOR_REL * q)^2``: a relative 0.1 % that no area model describes
-   (source, pupil aberrations, the model taken at block centres). A model with more circles
+   (source, pupil aberrations, the block model's approximations). A model with more circles
    must lower that criterion by more than ``MIN_BIC_GAIN``.
 3. **Function, not parameters** (:func:`shift_difference_nm`). The profile serves the
    wavelength correction, so a further circle is kept only where it moves the predicted mean

@@ -17,9 +17,13 @@ Two estimators of the vignetting circles are run on the same flats and both are 
     never chosen, the criterion allows for model error, and a further circle must change the
     predicted mean shift by more than a tolerance.
 
-``method="auto"`` keeps the joint fit when its reduced chi-square says the area model
-describes the flats (below ``MISFIT_CHI2``) and falls back to the paper's onsets otherwise.
-The stages are in :mod:`snapcorr.calibrate.stages`; the summary and the picture in
+``method="auto"`` keeps the joint fit unless the paper's onsets are shown to predict better:
+each flat but the reference is left out in turn, both estimators are fitted without it and
+predict it, and the onsets are used only where their summed chi-square is lower by more than
+``predictive.MIN_PREDICTIVE_GAIN`` (:mod:`snapcorr.calibrate.predictive`). A chi-square
+threshold cannot make this choice: with millions of pixels a harmless misfit is significant.
+Whichever is used reports the standard error of the mean shift it predicts. The stages
+are in :mod:`snapcorr.calibrate.stages`; the summary and the picture in
 :mod:`snapcorr.calibrate.report`.
 """
 
@@ -39,14 +43,14 @@ from .._validation import check_center, check_positive
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
-from . import choice, report, stages
-from .joint_fit import N_CIRCLES
+from . import choice, predictive, report, stages
+from .joint_fit import N_CIRCLES, ModelFit, param_names
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
 
 METHODS = ("auto", "joint", "onset-ratio", "onset-model")
-#: Reduced chi-square above which the joint fit's area model is taken not to describe the
-#: flats (then ``auto`` uses the onset method).
+#: Reduced chi-square above which a note says the area model leaves a misfit (the estimator
+#: is chosen by prediction, not by this).
 MISFIT_CHI2 = 1.5
 
 
@@ -85,7 +89,12 @@ class LensCalibration:
         predicted mean shift between it and the chosen one at each f-number.
     shift_stderr_nm : ndarray
         The largest standard error of the predicted mean shift over the field that the
-        uncertainty of P and h leaves, at each f-number (joint fit with circles only).
+        uncertainty of P and h leaves, at each f-number, for the estimator used (empty
+        without circles), for a filter at ``choice.REFERENCE_CWL_NM`` with
+        ``choice.REFERENCE_N_EFF``.
+    predictive : dict
+        Estimator -> :class:`~snapcorr.calibrate.predictive.Prediction`: how well each
+        predicted the flats left out (``auto`` with circles only).
     profiles, ratio_profiles : dict
         f-number -> :class:`RadialProfile` of each flat and of its ratio to the reference.
     """
@@ -113,6 +122,8 @@ class LensCalibration:
     shift_stderr_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     tolerance_nm: float = choice.TOLERANCE_NM
     notes: list = field(default_factory=list)
+    predictive: dict = field(default_factory=dict)
+    exit_pupil_stderr_mm: float | None = None
 
     def model_onsets_deg(self):
         """First onset at each f-number predicted by the chosen circles (NaN past the field)."""
@@ -203,10 +214,12 @@ def _check_enough_flats(items, vignetting_distance_mm):
             "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
 
 
-def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
+def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm=None,
+                   magnification=0.0,
                    pupil_magnification=1.0, dark=None, center_px=None, saturation=None,
                    vignetting_distance_mm=None, method="auto", name="calibrated lens",
-                   inputs=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3):
+                   inputs=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
+                   progress=None):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -216,6 +229,12 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     exit_pupil_mm : float
         Distance x from the sensor to the exit pupil.
     pixel_pitch_um : float
+    exit_pupil_stderr_mm : float, optional
+        Standard error of x, if known (from :func:`locate_pupil`). The flats cannot check x:
+        they fix ``P / x`` and ``h / x^2`` exactly (scaling x scales the pupil, every circle
+        and every chief ray alike), so P and h move with x as ``dP/dx = P / x`` and
+        ``dh/dx = 2 h / x``. The profile records these; with this error, also the standard
+        errors of P and h that include it.
     magnification, pupil_magnification : float
         m and m_P of the working f-number, Eq. (27).
     dark : 2-D array, optional
@@ -231,8 +250,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     method : {"auto", "joint", "onset-ratio", "onset-model"}
         ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
         the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from
-        the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, or the
-        paper's onsets when the joint fit's reduced chi-square exceeds ``MISFIT_CHI2``.
+        the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, unless
+        the paper's onsets predict flats left out of the fit better
+        (:mod:`snapcorr.calibrate.predictive`).
     name : str
         Lens name for the profile.
     inputs : mapping, optional
@@ -242,6 +262,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         somewhere in the field (:mod:`snapcorr.calibrate.choice`).
     max_circles : int
         Most vignetting circles tried (0 to 3).
+    progress : callable, optional
+        ``progress(step)`` is called with a short description before each long step (every
+        model fitted, every flat left out and predicted), for a progress bar.
 
     Returns
     -------
@@ -250,6 +273,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px = _check_args(
         method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px)
     tolerance_nm = _check_choice_args(tolerance_nm, max_circles)
+    if exit_pupil_stderr_mm is not None:
+        exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
     items = _check_inputs(flats, dark)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name)
     _check_enough_flats(items, vignetting_distance_mm)
@@ -260,19 +285,29 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     fix_center = center if (center_px is not None or fl.single) else None
     decide = functools.partial(_choose, base=base, fs=fs, tolerance_nm=tolerance_nm,
                                h_given=vignetting_distance_mm is not None)
-    fits, bic, fit_notes = _fit_joint_models(
+    fits, bic, fit_notes, data = _fit_joint_models(
         fl, ratios, base, pixel_pitch_um, center, fix_center, ons.fits, max_cra,
-        vignetting_distance_mm, max_circles, decide)
+        vignetting_distance_mm, max_circles, decide, progress)
     model, verdicts = decide(fits, bic, max_cra)
     if model != "none" and fix_center is None:
         center, center_source, model, verdicts, ons, max_cra = _recenter_on_fit(
             fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
             pixel_pitch_um, vignetting_distance_mm, decide)
     notes += fit_notes
-    used, reason, circles, misfit_note = _decide_method(
-        method, model, fits, verdicts, ons.onsets, ons.fits, max_cra, base.exit_pupil_mm)
-    if misfit_note:
-        notes.append(misfit_note)
+
+    def predict():
+        def solver(f):
+            others = {g: o for g, o in ons.onsets["ratio"].items() if g != f}
+            of = stages.solve_onsets(others, base, vignetting_distance_mm)
+            return (of.P_mm, of.h_mm) if _sane(of, base.exit_pupil_mm) else None
+
+        return predictive.compare_estimators(
+            data, fs, fits[model], solver, center, fix_center=fix_center,
+            fixed_h=vignetting_distance_mm, progress=progress)
+
+    used, reason, circles, method_notes, scores = _decide_method(
+        method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
+    notes += method_notes
     if used != "joint":
         verdicts[model].chosen = False
         verdicts[model].why = f"the joint fit's choice, not used ({used}): {verdicts[model].why}"
@@ -280,8 +315,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
-    shift_err = (choice.shift_stderr_nm(fits[model], base, fs, max_cra)
-                 if used == "joint" and model != "none" else np.zeros(0))
+    shift_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
     notes += _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_nm)
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
@@ -291,7 +325,10 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, magnification=0.0,
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
         shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
         shift_difference_nm=diff, shift_stderr_nm=shift_err,
-        tolerance_nm=tolerance_nm, notes=notes)
+        tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm)
+    if circles:
+        notes.append(_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles))
     result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
                        calibration=_calibration_table(result, inputs))
     return result
@@ -340,7 +377,7 @@ def _choose(fits, bic, max_cra, *, base, fs, tolerance_nm, h_given):
 
 
 def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onset_fits,
-                      max_cra, vignetting_distance_mm, max_circles, decide):
+                      max_cra, vignetting_distance_mm, max_circles, decide, progress=None):
     """The joint fits, one more circle while the last is chosen; their BICs and notes."""
     data = stages.block_data(fl, ratios, base, pixel_pitch_um)
     centers = [center]
@@ -352,13 +389,14 @@ def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onse
 
     fits, bic = stages.joint_fits(
         data, base, fl.f_numbers, onset_fits.values(), centers, fix_center, max_cra,
-        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going)
+        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going,
+        progress=progress)
     notes = []
     if vignetting_distance_mm is not None and max_circles > 1:
         notes.append("h given: one circle fitted (a further circle's h would be unknown)")
     notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
               for k, v in fits.items() if not v.success]
-    return fits, bic, notes
+    return fits, bic, notes, data
 
 
 def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
@@ -405,15 +443,18 @@ def _fitted_center(fit):
     return (fit.params["cx_px"], fit.params["cy_px"])
 
 
-def _decide_method(method, model, fits, verdicts, onsets, onset_fits, max_cra, x):
-    """The estimator used, why, and the circles of the profile."""
+def _decide_method(method, model, fits, verdicts, ons, max_cra, x, predict):
+    """The estimator used, why, the circles of the profile, notes, and the predictive scores
+    (``{estimator: Prediction}``, empty where none were compared)."""
     chosen = fits[model]
-    misfit = model != "none" and chosen.reduced_chi2 > MISFIT_CHI2
-    note = None
+    notes, scores = [], {}
     if model == "none" and fits["none"].reduced_chi2 > MISFIT_CHI2:
-        note = (f"no model describes these flats well (reduced chi2 without a circle "
-                f"{fits['none'].reduced_chi2:.1f}); check the optical centre, the f-numbers "
-                "and the files")
+        notes.append(f"no model describes these flats well (reduced chi2 without a circle "
+                     f"{fits['none'].reduced_chi2:.1f}); check the optical centre, the "
+                     "f-numbers and the files")
+    elif model != "none" and chosen.reduced_chi2 > MISFIT_CHI2:
+        notes.append(f"the area model leaves a misfit (reduced chi2 {chosen.reduced_chi2:.2f}): "
+                     "the standard errors are scaled up by it")
     if method == "auto":
         if model == "none" and len(fits) == 1:
             used = "joint"
@@ -422,37 +463,85 @@ def _decide_method(method, model, fits, verdicts, onsets, onset_fits, max_cra, x
             used = "joint"
             reason = (f"no optical vignetting inside the field up to {max_cra:.1f} deg: "
                       f"{verdicts['none'].why}; the ideal-aperture model suffices")
-        elif misfit and N_CIRCLES[model] == 1 and _sane(onset_fits["ratio"], x):
-            used = "onset-ratio"
-            reason = (f"the area model misfits the flats (reduced chi2 "
-                      f"{chosen.reduced_chi2:.1f} > {MISFIT_CHI2}), so only where the fall-off "
-                      "starts is trusted: Eq. (26) over the onsets of the ratio profiles")
         else:
-            used = "joint"
-            if misfit:
-                note = (f"the joint fit misfits (reduced chi2 {chosen.reduced_chi2:.1f}) but "
-                        + ("the paper's onsets give no usable P and h to fall back to"
-                           if N_CIRCLES[model] == 1 else
-                           f"the paper's onsets see one circle, not {N_CIRCLES[model]}: the "
-                           "joint fit is kept"))
-            reason = (f"{report.CIRCLES[model]}: {verdicts[model].why}; the joint fit uses "
-                      f"every pixel (reduced chi2 {chosen.reduced_chi2:.2f})")
+            used, reason, scores, note = _by_prediction(model, verdicts, ons, x, predict)
+            if note:
+                notes.append(note)
     else:
         used = method
         reason = f"method {method!r} asked for"
     if used == "joint":
-        return used, reason, choice.lens_of(chosen, Lens(x)).vignetting, note
+        return used, reason, choice.lens_of(chosen, Lens(x)).vignetting, notes, scores
     det = used.split("-")[1]
-    of = onset_fits[det]
+    of = ons.fits[det]
     if of is None:
-        n_found = sum(o.found for o in onsets[det].values())
+        n_found = sum(o.found for o in ons.onsets[det].values())
         raise ValueError(f"the {used} method needs onsets at two or more f-numbers (found "
                          f"{n_found} inside the field, up to {max_cra:.1f} deg); use the "
                          "joint fit")
     if not _sane(of, x):
         raise ValueError(f"the {used} method gives P = {of.P_mm:.4g} mm, h = "
                          f"{of.h_mm:.4g} mm, which is not a lens; use the joint fit")
-    return used, reason, [(of.P_mm, of.h_mm)], note
+    return used, reason, [(of.P_mm, of.h_mm)], notes, scores
+
+
+def _by_prediction(model, verdicts, ons, x, predict):
+    """``auto`` with circles: the joint fit unless the paper's onsets predict left-out flats
+    better (:mod:`snapcorr.calibrate.predictive`); (used, reason, scores, note)."""
+    why = f"{report.CIRCLES[model]}: {verdicts[model].why}"
+    if not _sane(ons.fits["ratio"], x):
+        return ("joint", why + "; the paper's onsets give no usable P and h to compare "
+                "with", {}, None)
+    joint, onsets = predict()
+    if not joint.chi2:
+        return ("joint", why + "; no flat could be left out and predicted by both "
+                "estimators (too few onsets): the joint fit is kept", {}, None)
+    scores = {"joint": joint, "onset-ratio": onsets}
+    left = ", ".join(f"f/{f:g}" for f in joint.chi2)
+    gain = joint.total - onsets.total
+    if gain > predictive.MIN_PREDICTIVE_GAIN:
+        return ("onset-ratio",
+                f"the paper's onsets predict the flats left out ({left}) better than the "
+                f"joint fit ({report.CIRCLES[model]}): chi2 {onsets.total:.1f} against "
+                f"{joint.total:.1f}, a gain of {gain:.1f} > {predictive.MIN_PREDICTIVE_GAIN:g}; "
+                "Eq. (26) over the onsets of the ratio profiles", scores,
+                "the joint fit predicts left-out flats worse than the onsets: the area model "
+                "misses something in these flats (pupil aberrations, a fall-off that changes "
+                "with the f-number)")
+    return ("joint",
+            f"{why}; it predicts the flats left out ({left}) with chi2 {joint.total:.1f} "
+            f"against {onsets.total:.1f} for the paper's onsets", scores, None)
+
+
+def _x_note(x, sx, circles):
+    """What x given without (or with) an error means for P and h."""
+    P, h = circles[0]
+    if sx is None:
+        return (f"x = {x:g} mm was given without an error, and the flats cannot check it: "
+                f"P and h scale with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g}; 1 % "
+                "in x is 1 % in P and 2 % in h). Measure x with `snapcorr pupil`, or "
+                "calibrate with --target-cube")
+    return (f"x = {x:g} +- {sx:.2g} mm: its error is in the standard errors of P and h "
+            f"recorded with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g})")
+
+
+def _shift_stderr(used, fit, onset_fits, center, base, fs, max_cra):
+    """Standard error of the predicted mean shift for the estimator used, per f-number."""
+    if used == "joint":
+        if fit.model == "none":
+            return np.zeros(0)
+        return choice.shift_stderr_nm(fit, base, fs, max_cra)
+    of = onset_fits[used.split("-")[1]]
+    cov = np.zeros((4, 4))
+    cov[:2, :2] = of.covariance if of.covariance is not None else np.nan
+    names = tuple(param_names("one"))
+    params = dict(zip(names, (of.P_mm, of.h_mm, *center), strict=True))
+    stderr = dict(zip(names, (*np.sqrt(np.clip(np.diag(cov[:2, :2]), 0, None)), 0.0, 0.0),
+                      strict=True))
+    if not np.all(np.isfinite(cov)):
+        return np.full(len(fs), np.inf)
+    as_fit = ModelFit("one", params, stderr, cov, names, math.nan, 0, 0, np.zeros(0), True)
+    return choice.shift_stderr_nm(as_fit, base, fs, max_cra)
 
 
 def _next_best(model, fits, bic, lens, base, fs, max_cra):
@@ -479,6 +568,17 @@ def _clean(v):
     return v if math.isfinite(v) else ("nan" if math.isnan(v) else "inf")
 
 
+def _circle_stderrs(res: LensCalibration):
+    """Standard errors of every circle's P and of its h, for the estimator used."""
+    if res.method == "joint":
+        fit = res.fits[res.model]
+        n = len(res.lens.vignetting)
+        names = [("P_mm", "h_mm")] + [(f"P{i}_mm", f"h{i}_mm") for i in range(2, n + 1)]
+        return ([fit.stderr[a] for a, _ in names], [fit.stderr[b] for _, b in names])
+    of = res.onset_fits[res.method.split("-")[1]]
+    return [of.P_stderr_mm], [of.h_stderr_mm]
+
+
 def _calibration_table(res: LensCalibration, inputs):
     fs = [float(f) for f in res.f_numbers]
     table = {
@@ -497,6 +597,32 @@ def _calibration_table(res: LensCalibration, inputs):
     }
     if res.lens.has_vignetting:
         table["onset_cra_deg"] = [_clean(v) for v in res.model_onsets_deg()]
+    if res.lens.has_vignetting:
+        x = res.lens.exit_pupil_mm
+        circles = res.lens.vignetting
+        scaling = {"dP_dx": [_clean(P / x) for P, _ in circles],
+                   "dh_dx": [_clean(2 * h / x) for _, h in circles],
+                   "rule": "the flats fix P / x and h / x^2: P and h scale with x",
+                   "exit_pupil_stderr_mm": ("not given" if res.exit_pupil_stderr_mm is None
+                                            else _clean(res.exit_pupil_stderr_mm))}
+        if res.exit_pupil_stderr_mm is not None:
+            sP, sh = _circle_stderrs(res)
+            sx = res.exit_pupil_stderr_mm
+            scaling["P_stderr_with_x_mm"] = [_clean(math.hypot(e, P / x * sx))
+                                             for e, (P, _) in zip(sP, circles, strict=True)]
+            scaling["h_stderr_with_x_mm"] = [_clean(math.hypot(e, 2 * h / x * sx))
+                                             for e, (_, h) in zip(sh, circles, strict=True)]
+        table["exit_pupil_scaling"] = scaling
+    if res.shift_stderr_nm.size:
+        table["shift_stderr_nm"] = [_clean(v) for v in res.shift_stderr_nm]
+        table["shift_stderr_filter"] = [choice.REFERENCE_CWL_NM, choice.REFERENCE_N_EFF]
+    if res.predictive:
+        table["estimator_choice"] = {
+            "rule": ("each flat but the reference is left out in turn and predicted by each "
+                     "estimator fitted without it; the paper's onsets are used only where "
+                     "their summed chi2 is lower than the joint fit's by more than "
+                     f"{predictive.MIN_PREDICTIVE_GAIN:g}"),
+            **{name: pred.as_table() for name, pred in res.predictive.items()}}
     for det, found in res.onsets.items():
         entry = {}
         got = [found.get(f) for f in fs]
@@ -542,8 +668,6 @@ def _calibration_table(res: LensCalibration, inputs):
     check = res.onset_check_deg()
     if check is not None:
         table["model_choice"]["paper_onsets_vs_chosen_max_deg"] = _clean(check)
-    if res.shift_stderr_nm.size:
-        table["model_choice"]["shift_stderr_nm"] = [_clean(v) for v in res.shift_stderr_nm]
     if inputs:
         table["inputs"] = {f"f/{float(k):g}": str(v) for k, v in inputs.items()}
     if res.notes:

@@ -35,6 +35,8 @@ class OnsetFit:
     P_stderr_mm: float
     h_stderr_mm: float
     residuals_mm: np.ndarray
+    #: 2 x 2 covariance of (P, h), scaled as the standard errors (NaN with two equations)
+    covariance: np.ndarray | None = None
 
 
 def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_deg=None):
@@ -88,11 +90,11 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_de
     if onset_stderr_deg is None:
         residuals = A @ np.array([P, h]) - R
         if dof > 0:
-            P_err, h_err = np.sqrt(np.diag(np.linalg.inv(A.T @ A) * (residuals @ residuals)
-                                           / dof))
+            cov = np.linalg.inv(A.T @ A) * (residuals @ residuals) / dof
         else:
-            P_err = h_err = np.nan
-        return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals)
+            cov = np.full((2, 2), np.nan)
+        P_err, h_err = np.sqrt(np.diag(cov))
+        return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals, cov)
     e = np.asarray(onset_stderr_deg, float).ravel()
     if e.shape != t.shape or not np.all(e > 0):
         raise ValueError("need one positive onset standard error per onset angle")
@@ -103,5 +105,6 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_de
     residuals = A @ np.array([P, h]) - R
     cov = np.linalg.inv(Aw.T @ Aw)
     chi2 = float(np.sum((residuals / sig_R) ** 2)) / dof if dof > 0 else 1.0
-    P_err, h_err = np.sqrt(np.diag(cov) * max(chi2, 1.0))
-    return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals)
+    cov = cov * max(chi2, 1.0)
+    P_err, h_err = np.sqrt(np.diag(cov))
+    return OnsetFit(float(P), float(h), float(P_err), float(h_err), residuals, cov)

@@ -68,6 +68,13 @@ def summary(res) -> str:
                         zip(res.f_numbers, res.shift_stderr_nm, strict=True))
         lines.append(f"mean-shift standard error from P and h (largest over the field), nm, "
                      f"same filter: {err}")
+    if res.predictive:
+        per = " | ".join(
+            f"{name}: " + ", ".join(f"f/{f:g} {c:.0f}" for f, c in pred.chi2.items())
+            + f" (total {pred.total:.0f})" for name, pred in res.predictive.items())
+        blocks = next(iter(res.predictive.values())).n
+        lines.append(f"each flat left out and predicted by the estimators fitted without it, "
+                     f"chi2 over {max(blocks.values(), default=0)} blocks each: {per}")
     lines.append(f"why: {res.reason}")
     lines.extend(f"note: {n}" for n in res.notes)
     return "\n".join(lines)
