@@ -123,14 +123,18 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
 
 
 def _widening(cwl, fwhm, n_eff, f, cra, lens, profile):
-    """Each pixel's harmonising Gaussian: its variance (band, CRA), nm^2, widening the
-    pixel's response to the widest of its band in the field; and where that widest is."""
-    from ..optics.bandwidth import response_fwhm
+    """Each pixel's harmonising Gaussian: its variance (band, CRA), nm^2, the kernel variance
+    it lacks against the pixel of the largest in the field (as ``correct_cube`` widens); and
+    where that pixel is."""
+    from ..optics.bandwidth import kernel_log_variance
 
-    width = response_fwhm(cwl, fwhm, n_eff, f, cra, lens, profile=profile)
-    var = np.clip(np.nanmax(width, axis=1, keepdims=True) ** 2 - width**2, 0, None) / (
-        8 * math.log(2))
-    return var, np.nanargmax(width, axis=1)
+    kv = np.empty((cwl.size, np.size(cra)))
+    for n in np.unique(n_eff):
+        kv[n_eff == n] = kernel_log_variance(n, f, cra, lens)[None, :]
+    kv *= np.asarray(cwl, float)[:, None] ** 2
+    kv = np.where(np.isnan(kv), -np.inf, kv)
+    var = np.clip(np.max(kv, axis=1, keepdims=True) - kv, 0, None)
+    return np.where(np.isfinite(kv), var, np.nan), np.argmax(kv, axis=1)
 
 
 def _band_residuals(source, prof, kernel, means, models, widening, d, lattice):

@@ -161,7 +161,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         ds["resampled"] = _resampled(cube, scale, column, cwl)
     if harmonise or used == "harmonised":
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
-                         scale_at, n_eff, sensor)
+                         scale_at, n_eff, sensor, f, lens)
     if virtual_bands is not None:
         ds = ds.merge(_virtual(cube, sensor, f, lens, cra, virtual_bands, virtual_matrix,
                                virtual_wavelengths_nm, virtual_fwhm_nm))
@@ -377,17 +377,42 @@ def _with_fwhm(ds, cube, lens, sensor, f, table):
 HARMONISE_NODE_STEP_DEG = 0.05
 
 
+def _kernel_variance(nodes, n_eff, cwl, f, lens):
+    """``(n_bands, n_nodes)``: each band's kernel variance at ``nodes`` (CRA), nm^2."""
+    from ..optics.bandwidth import kernel_log_variance
+
+    n_eff = np.broadcast_to(np.asarray(n_eff, float), cwl.shape)
+    out = np.empty((cwl.size, np.size(nodes)))
+    for value in np.unique(n_eff):
+        bands = n_eff == value
+        out[bands] = kernel_log_variance(value, f, np.asarray(nodes, float), lens)[None, :]
+    return out * cwl[:, None] ** 2
+
+
 def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
-                sensor):
+                sensor, f, lens):
     from .harmonise import harmonise_spectra
 
     if table is None:  # no widths without n_eff
         sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
     cra_lo, cra_hi = float(cra.min()), float(cra.max())
     inside = (table.cra_deg >= cra_lo) & (table.cra_deg <= cra_hi)
-    field = np.concatenate([table(np.array([cra_lo, cra_hi])).T, table.fwhm_nm[:, inside]],
-                           axis=1)
+    ends = np.array([cra_lo, cra_hi])
+    field = np.concatenate([table(ends).T, table.fwhm_nm[:, inside]], axis=1)
     widest = np.nanmax(field, axis=1)
+    # The widening is set by the kernels' variances, not by the FWHMs: the responses are the
+    # filter convolved with each pixel's kernel, so their variances differ by the kernels'
+    # exactly, whatever the shapes, while FWHMs add in quadrature only for Gaussians (the
+    # kernel is box-like: at f/1.4 the quadrature rule widened the pixels near the axis by
+    # ~30 % too much in variance, and more for Airy filters, whose width is in the wings).
+    # The reference is the pixel of the largest kernel variance in the field; a wider
+    # target adds to it (target^2 - its FWHM^2) / (8 ln 2).
+    kv = _kernel_variance(table.cra_deg, n_eff, cwl, f, lens)
+    kv_field = np.concatenate([_kernel_variance(ends, n_eff, cwl, f, lens), kv[:, inside]],
+                              axis=1)
+    ref = np.nanargmax(np.where(np.isnan(kv_field), -np.inf, kv_field), axis=1)
+    kv_ref = kv_field[np.arange(cwl.size), ref]
+    fwhm_ref = field[np.arange(cwl.size), ref]
     if target_fwhm_nm is None:
         target = widest
         how = "the widest response in the field at each band"
@@ -401,7 +426,8 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
                              "only widens; ask for at least that")
         target = np.full(cwl.size, F)
         how = f"{F:g} nm at every band (asked for)"
-    var_table = np.clip(target[:, None] ** 2 - table.fwhm_nm ** 2, 0.0, None) / (8 * math.log(2))
+    extra = np.clip(target ** 2 - fwhm_ref ** 2, 0.0, None) / (8 * math.log(2))
+    var_table = np.clip((extra + kv_ref)[:, None] - kv, 0.0, None)
     # the spectra are walked in increasing wavelength; bands listed otherwise are put in order
     # for the pass and back after it
     order = np.argsort(cwl, kind="stable")
@@ -457,9 +483,11 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
                  "long_name": f"{cube.attrs.get('long_name', name)} on the nominal wavelengths, "
                               "one response per band",
                  "source": "each pixel's spectrum (straight lines between its corrected "
-                           "wavelengths) averaged with a Gaussian of variance (fwhm_harmonised"
-                           "^2 - fwhm_corrected^2) / (8 ln 2), at the nominal wavelengths",
-                 "common_response": f"the band's filter spread to fwhm_harmonised: {how}",
+                           "wavelengths) averaged with a Gaussian of the variance its response "
+                           "lacks against the common one (the difference of the kernels' "
+                           "variances), at the nominal wavelengths",
+                 "common_response": "the response of the pixel of the largest kernel variance"
+                                    f", spread to fwhm_harmonised: {how}",
                  "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
                          "range (extrapolation is not done)"}
     ds["harmonised"] = out

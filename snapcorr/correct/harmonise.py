@@ -5,9 +5,18 @@ curve spread by the pixel's kernel (:mod:`snapcorr.optics.bandwidth`), wider at 
 chief-ray angles and faster f-numbers, narrower where vignetting cuts the oblique rays. The
 same material then gives different spectra at different places. Harmonising adds to every
 pixel the widening it lacks against a common response (by default the widest in the field at
-each band): a Gaussian of variance ``(W_b^2 - FWHM_b(y, x)^2) / (8 ln 2)`` (the variance a
-Gaussian response would need to grow from the pixel's FWHM to ``W_b``), applied to the
-pixel's spectrum as sampled at its corrected wavelengths.
+each band: the response of the pixel whose kernel has the largest variance): a Gaussian of
+the variance its response lacks, ``cwl_b^2 (v_ref - v(y, x))`` with ``v`` the kernel's
+variance in ``log(lambda)`` (:func:`snapcorr.optics.bandwidth.kernel_log_variance`), applied
+to the pixel's spectrum as sampled at its corrected wavelengths. The response is the filter
+convolved with the kernel in ``log(lambda)``, so response variances differ by exactly the
+kernels' whatever the filter's shape; FWHMs add in quadrature only for Gaussians, and at
+f/1.4 (a box-like kernel, flat-topped responses at the field's edge) the rule
+``(W_b^2 - FWHM_b^2) / (8 ln 2)`` gave a pixel near the axis twice the variance it lacks at
+805 nm (its response ~30 % too wide in variance; Airy filters alike): spectra of a didymium
+glass then disagreed most at its 794-806 nm bands, where the kernel is wide and the
+absorption sharp. A common response wider than the reference (``target_fwhm_nm``)
+adds ``(W_b^2 - FWHM_ref^2) / (8 ln 2)`` to every pixel's variance.
 
 The spectrum between samples is taken as the straight line through them (what ``resampled``
 assumes), and the Gaussian is applied to that line exactly: segment by segment, with the

@@ -31,7 +31,8 @@ from .profiles import PROFILES
 from .response import kernel_bins
 from .shift import check_n_eff
 
-__all__ = ["FWHM_METHODS", "FwhmTable", "band_profile", "refine_nodes", "response_fwhm"]
+__all__ = ["FWHM_METHODS", "FwhmTable", "band_profile", "kernel_log_variance", "refine_nodes",
+           "response_fwhm"]
 
 FWHM_METHODS = ("exact", "variance")
 #: Grid step of the exact method, as a fraction of the narrowest band's FWHM: for smooth
@@ -81,6 +82,35 @@ def _kernel_log(n_eff, f_number, cra_deg, lens):
     """The kernel as log-scale factors ``log a_k`` and weights (scaled from ``_REF_NM``)."""
     mu, w = kernel_bins(_REF_NM, n_eff, f_number, cra_deg, lens, step_nm=0.005)
     return np.log1p(mu / _REF_NM), w
+
+
+def kernel_log_variance(n_eff, f_number, cra_deg, lens: Lens):
+    """The kernel's variance in ``log(lambda)`` at each chief-ray angle (NaN where no light).
+
+    A band's response is its filter curve convolved with the kernel in ``log(lambda)`` (each
+    ray scales the whole curve), so the response's variance there is the filter's plus this,
+    whatever the filter's shape: two pixels' responses differ in variance by exactly the
+    difference of their kernels' (times ``cwl^2`` in nm^2), which is what a Gaussian
+    widening must add (:mod:`snapcorr.correct.harmonise`). Their FWHMs do not add so: the
+    kernel is a box-like spread of shifts, and an Airy filter's core is no Gaussian.
+
+    Examples
+    --------
+    >>> from snapcorr import Lens
+    >>> v = kernel_log_variance(1.7, 1.4, [0.0, 10.0], Lens(21.0))
+    >>> bool(0 < v[0] < v[1])
+    True
+    """
+    cra = np.atleast_1d(np.asarray(cra_deg, float))
+    out = np.full(cra.shape, np.nan)
+    for j, c in enumerate(cra.flat):
+        try:
+            mu, w = kernel_bins(_REF_NM, n_eff, f_number, float(c), lens, step_nm=0.05)
+        except ValueError:  # the pupil is cut off: no light
+            continue
+        la = np.log1p(mu / _REF_NM)
+        out.flat[j] = w @ (la - la @ w) ** 2
+    return out
 
 
 def _fwhm_rows(u, R):
