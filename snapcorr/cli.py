@@ -735,13 +735,14 @@ def _cmd_pupil(args):
         print(f"read f/{f:g}: {seen[f]} ({cube.sizes['y']} x {cube.sizes['x']} x "
               f"{cube.sizes['band']})", file=sys.stderr)
     try:
-        with _StageBar("fitting the exit pupil"):
+        with _StepBar("fitting the exit pupil") as bar:
             fit = locate_pupil(cubes, sensor, lens=lens, fit_n_eff=args.fit_n_eff,
                                center_px=args.center_px, target_spectrum=spectrum,
                                sensor_origin_px=args.sensor_origin_px,
                                magnification=args.magnification,
                                pupil_magnification=args.pupil_magnification,
-                               inputs=seen, name=args.name or args.out.stem)
+                               inputs=seen, name=args.name or args.out.stem,
+                               progress=bar.step)
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     fit.lens.save(args.out, overwrite=args.overwrite)
@@ -1026,7 +1027,7 @@ def _add_calibrate(command):
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
     p.add_argument("--method", default="auto", choices=list(CAL_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "
-                   "its area model misfits)")
+                   "the paper's onsets predict flats left out of the fit better)")
     p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
                    help="h, when known (needed with a single f-number)")
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",

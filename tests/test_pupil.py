@@ -166,9 +166,12 @@ def test_a_white_target_is_refused():
 
 
 def test_known_spectrum_and_given_center():
+    steps = []
     got = locate_pupil(cubes("colour_filter", "paper", (2.0,), noise=0.01, seed=5), sensor(),
                        lens=as_lens(PAPER), target_spectrum=sim.colour_filter,
-                       center_px=CENTER)
+                       center_px=CENTER, progress=steps.append)
+    # every evaluation of the model is announced, for a progress bar
+    assert len(steps) > 5 and all(s.startswith("model at x = ") for s in steps)
     assert got.center_source == "given"
     assert got.center_px == CENTER
     assert abs(got.exit_pupil_mm - 21.0) < 0.01 * 21.0

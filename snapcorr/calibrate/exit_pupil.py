@@ -316,11 +316,14 @@ class _Problem:
     """``x`` (and a common scale of ``n_eff``, or one index per band) -> whitened residuals,
     the target's coefficients profiled out."""
 
-    def __init__(self, model, n_design):
+    def __init__(self, model, n_design, progress=None):
         self.model = model
         self.n_design = np.asarray(n_design, float)
+        self.progress = progress
 
     def residuals(self, x, k=1.0, *, field=True, rank=False):
+        if self.progress is not None:
+            self.progress(f"model at x = {float(x):.3f} mm")
         A = self.model.design(x, self.n_design * k, field=field)
         s, r, used = _solve(self.model, A, rank=rank)
         return r, s, used
@@ -523,7 +526,7 @@ def _one_blas_thread(func):
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
-                 name=None) -> PupilFit:
+                 name=None, progress=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -554,6 +557,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         The filters' shape (a name in :data:`snapcorr.optics.PROFILES`).
     n_bins : int
         Annuli per cube.
+    progress : callable, optional
+        ``progress(step)`` before every evaluation of the model, for a progress bar.
 
     Returns
     -------
@@ -576,7 +581,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     x_lo, x_hi = _trial_range(r_max)
     max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
     model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel)
-    problem = _Problem(model, n_design)
+    problem = _Problem(model, n_design, progress)
     several = len(cubes) >= 2
     fit_k = bool(fit_n_eff) and several
     p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k)
@@ -669,7 +674,7 @@ def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k):
     """Least squares in ``x`` (and the index scale) from the best minimum of a coarse scan."""
     n_design = problem.n_design
     # the start: a scan of a coarse copy (four annuli in one), its minima refined
-    coarse = _Problem(coarse_model, n_design)
+    coarse = _Problem(coarse_model, n_design, problem.progress)
     grid = _scan_grid(r_max, x_lo, x_hi, float(np.mean(n_design)),
                       float(np.mean(sensor.cwl_nm)), float(np.min(sensor.fwhm_nm)) / 8)
     with warnings.catch_warnings():
