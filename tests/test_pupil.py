@@ -274,3 +274,35 @@ def test_precision_on_a_small_sensor_with_empty_annuli():
     pred = pupil_precision(sim.colour_filter, small, (2.0, 8.0), as_lens(PAPER), noise=0.01,
                            n_bins=64)
     assert pred.informative and pred.x_stderr_mm > 0
+
+
+def test_flats_at_a_guessed_x_then_the_target_give_a_consistent_profile_in_one_run():
+    """An unknown lens: flats calibrated with x guessed 14 % wrong (P and h then come out
+    14 % and 31 % off, fitting just as well), then the target cubes with that profile. The
+    circles scale with every trial x as the flats fix them (P / x, h / x^2), so one run gives
+    x, n_eff, P and h together: x within 0.5 %, P, h and n_eff within 1 %."""
+    from flatsim import make_flats
+
+    from snapcorr.calibrate import calibrate_lens
+
+    truth = PAPER
+    flats = make_flats(truth, (1.4, 2.0, 2.8, 4.0, 8.0), shape=(256, 320),
+                       pitch_um=PITCH_UM / 2, center_px=(CENTER[0] * 2 + 0.5,
+                                                          CENTER[1] * 2 + 0.5),
+                       noise=0.005, seed=1)
+    guess = 24.0
+    cal = calibrate_lens(flats, exit_pupil_mm=guess, pixel_pitch_um=PITCH_UM / 2,
+                         magnification=truth.magnification,
+                         pupil_magnification=truth.pupil_magnification, max_circles=1)
+    (P0, h0), = cal.lens.vignetting
+    assert abs(P0 / truth.circles[0][0] - guess / 21.0) < 0.01  # off as the scaling says
+    got = locate_pupil(cubes("colour_filter", "paper", (2.0, 8.0), noise=0.002, seed=11),
+                       sensor(), lens=cal.lens, fit_n_eff=True)
+    assert abs(got.exit_pupil_mm / 21.0 - 1) < 0.005, got.summary()
+    assert abs(got.exit_pupil_mm - 21.0) < 3 * got.exit_pupil_stderr_mm, got.summary()
+    assert abs(got.n_eff[0] / N_EFF - 1) < 0.01, got.summary()
+    (P, h), = got.lens.vignetting
+    assert abs(P / truth.circles[0][0] - 1) < 0.01 and abs(h / truth.circles[0][1] - 1) < 0.01
+    scaled = got.lens.calibration["vignetting_scaled"]
+    assert scaled["from_x_mm"] == guess
+    assert scaled["circles_at_that_x_mm"] == [[P0, h0]]

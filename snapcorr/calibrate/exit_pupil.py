@@ -37,7 +37,14 @@ from .. import __version__
 from .._validation import check_center, check_positive
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
-from .target_model import PRIOR_SD, RadialBins, TargetModel, radial_bins, rebin
+from .target_model import (
+    PRIOR_SD,
+    RadialBins,
+    TargetModel,
+    radial_bins,
+    rebin,
+    scaled_circles,
+)
 
 __all__ = [
     "CANDIDATE_TARGETS",
@@ -526,7 +533,7 @@ def _one_blas_thread(func):
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
-                 name=None, progress=None) -> PupilFit:
+                 name=None, progress=None, scale_circles=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -559,6 +566,12 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         Annuli per cube.
     progress : callable, optional
         ``progress(step)`` before every evaluation of the model, for a progress bar.
+    scale_circles : bool, optional
+        The lens's circles came from flat fields at its ``x`` (``calibrate_lens``): flats fix
+        ``P / x`` and ``h / x^2``, so at every trial ``x`` the circles are scaled to it, and
+        the profile written holds them at the ``x`` found: one run gives a consistent
+        profile. Default: when the lens's calibration says it came from flats
+        (``exit_pupil_scaling``).
 
     Returns
     -------
@@ -580,7 +593,11 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     r_max = _field_radius(bins)
     x_lo, x_hi = _trial_range(r_max)
     max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
-    model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel)
+    if scale_circles is None:
+        scale_circles = lens is not None and "exit_pupil_scaling" in lens.calibration
+    circles_at = base.exit_pupil_mm if scale_circles and base.has_vignetting else None
+    model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
+                                   circles_at)
     problem = _Problem(model, n_design, progress)
     several = len(cubes) >= 2
     fit_k = bool(fit_n_eff) and several
@@ -609,7 +626,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     notes += _validity_notes(r_max, x, base.working_f_number(min(cubes)), chi2_red)
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
-                            inputs, name)
+                            inputs, name, circles_at)
     return PupilFit(x, float(err[0]), np.asarray(n, float),
                     None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
                     chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
@@ -660,10 +677,11 @@ def _max_shift_rel(r_max, x_lo, n_design, working_f_number):
                                     / (0.6 * n_design.min()) ** 2, 0.05)))
 
 
-def _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel):
+def _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
+                   circles_at_mm=None):
     """The target model of the annuli, and a coarse copy (four annuli in one) for the scan."""
     common = dict(spectrum=spectrum, profile=profile, n_eff_design=n_design,
-                  max_shift_rel=max_rel)
+                  max_shift_rel=max_rel, circles_at_mm=circles_at_mm)
     model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, base, **common)
     coarse = TargetModel([rebin(b, 4) for b in bins], sensor.cwl_nm, sensor.fwhm_nm, base,
                          **common)
@@ -779,7 +797,8 @@ def _spectrum(target, sensor):
 
 
 def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof, center,
-                 center_source, sensor, cubes, spectrum_desc, profile, inputs, name):
+                 center_source, sensor, cubes, spectrum_desc, profile, inputs, name,
+                 circles_at=None):
     def r(v, d=6):
         return float(f"{float(v):.{d}g}")
 
@@ -815,11 +834,18 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
         cal["image_size_px"] = [int(sensor.size_px[1]), int(sensor.size_px[0])]
     if inputs:
         cal["inputs"] = {f"f{float(f):g}": str(p) for f, p in inputs.items()}
+    circles = base.vignetting
     if lens is not None:
         cal["vignetting_from"] = lens.name or "the lens given"
         if lens.calibration.get("method"):
             cal["vignetting_method"] = str(lens.calibration["method"])
-    return Lens(x, base.vignetting, base.magnification, base.pupil_magnification,
+    if circles_at is not None:
+        circles = scaled_circles(base.vignetting, circles_at, x)
+        cal["vignetting_scaled"] = {
+            "from_x_mm": float(circles_at),
+            "circles_at_that_x_mm": [[float(P), float(h)] for P, h in base.vignetting],
+            "rule": "the flats fix P / x and h / x^2: P scaled as x, h as x^2, to the x found"}
+    return Lens(x, circles, base.magnification, base.pupil_magnification,
                 name=name or (lens.name if lens is not None else "lens (exit pupil from a target)"),
                 calibration=cal)
 

@@ -237,6 +237,20 @@ def _profile_shape(profile, cwl, fwhm, n_eff):
     return lambda t: np.asarray(curve(peak + t), float)
 
 
+def scaled_circles(circles, x_from, x_to):
+    """Vignetting circles found from flat fields at ``x_from``, at ``x_to``.
+
+    Flats fix ``P / x`` and ``h / x^2`` exactly (scaling ``x`` scales the pupil, every circle
+    and every chief ray alike), so ``P`` scales as ``x`` and ``h`` as ``x^2``
+    (:func:`snapcorr.calibrate.calibrate_lens` records these derivatives).
+
+    >>> scaled_circles([(7.0, 17.0)], 21.0, 23.1)
+    [(7.7, 20.57)]
+    """
+    k = float(x_to) / float(x_from)
+    return [(round(P * k, 12), round(h * k * k, 12)) for P, h in circles]
+
+
 class TargetModel:
     """The binned cubes of a uniform target as a function of ``x`` and ``n_eff``.
 
@@ -261,6 +275,10 @@ class TargetModel:
         Largest relative blue shift any trial may produce (sizes the target's grid).
     transform : {"scale", "shift"}
         How each ray changes the filter (:data:`TRANSFORMS`).
+    circles_at_mm : float, optional
+        The lens's circles were found from flat fields at this ``x``: at each trial ``x``
+        they are scaled as the flats fix them (:func:`scaled_circles`). None: kept as they
+        are.
     basis_step_nm, grid_step_nm : float, optional
         Spacing of the hat functions (default FWHM / 6) and of the fine grid on which kernels
         and filters meet (default FWHM / 200; the smallest FWHM).
@@ -268,7 +286,7 @@ class TargetModel:
 
     def __init__(self, bins, cwl_nm, fwhm_nm, lens: Lens, *, spectrum=None, profile="gaussian",
                  n_eff_design=1.7, max_shift_rel=0.1, basis_step_nm=None, grid_step_nm=None,
-                 transform="scale"):
+                 transform="scale", circles_at_mm=None):
         if transform not in TRANSFORMS:
             raise ValueError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
         self.transform = transform
@@ -277,6 +295,7 @@ class TargetModel:
         self.fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), self.cwl.shape).copy()
         nd = np.broadcast_to(np.asarray(n_eff_design, float), self.cwl.shape)
         self.lens = lens
+        self.circles_at_mm = circles_at_mm
         self.known = spectrum is not None
         self.h = float(grid_step_nm or self.fwhm.min() / 200.0)
         q = max(1, round((basis_step_nm or self.fwhm.min() / 6.0) / self.h))
@@ -360,7 +379,9 @@ class TargetModel:
     # -- kernels ---------------------------------------------------------------------------
     def _lens(self, x):
         L = self.lens
-        return Lens(x, L.vignetting, L.magnification, L.pupil_magnification)
+        circles = (L.vignetting if self.circles_at_mm is None
+                   else scaled_circles(L.vignetting, self.circles_at_mm, x))
+        return Lens(x, circles, L.magnification, L.pupil_magnification)
 
     def kernels(self, x, *, field=True):
         """Per cube: the kernels of every bin as masses ``w`` at ``sin^2(phi) = u``,
