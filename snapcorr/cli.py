@@ -85,6 +85,9 @@ EXAMPLES = {
       snapcorr calibrate --flat 2=f2.tif --flat 8=f8.tif --dark dark.tif --lens lens_x.toml \
           --pixel-pitch-um 5.5 --out my_lens.toml
                                           x (and m, m_P) from the profile snapcorr pupil wrote
+      x unknown: calibrate with a guessed --exit-pupil-mm, then snapcorr pupil --lens with
+      this profile: the flats fix P / x and h / x^2, and pupil scales the circles to the x
+      it finds
     """,
     "pupil": r"""
       snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
@@ -99,7 +102,7 @@ EXAMPLES = {
       snapcorr pupil --predict --sensor snapscan_vnir --lens edmund_optics_16mm \
           --f-number 2 --f-number 8 --noise-pct 1
                                           which target pins x best (Cramer-Rao bound)
-      then: snapcorr calibrate --flat ... --lens lens_x.toml (the x found) for P and h
+      with --lens from snapcorr calibrate (x guessed), the circles are scaled to the x found
     """,
     "shift": r"""
       snapcorr shift --f-number 1.4 --cra 0 10 20
