@@ -29,7 +29,7 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from flatsim import LensTruth, make_flats  # noqa: E402
-from test_calibrate_circles import FULL, TRUTHS, calibrate, cramer_rao  # noqa: E402
+from test_calibrate_circles import FULL, HALF, TRUTHS, calibrate, cramer_rao  # noqa: E402
 
 from snapcorr.calibrate import calibrate_lens  # noqa: E402
 
@@ -153,8 +153,109 @@ def full_size_time(*, quick=False, echo=print):
     return out
 
 
+#: Truths, noise levels and seeds of the coverage sweep.
+COVERAGE_CASES = ("one_h_lt_x", "one_h_gt_x", "two_front_rear", "circle_pixel", "no_circle")
+COVERAGE_NOISES = (0.005, 0.02, 0.05)
+COVERAGE_SEEDS = tuple(range(8))
+
+
+def shift_errors_nm(truth, res, scene, f_numbers, n=121):
+    """Largest |mean-shift error| over the field at each f-number (1000 nm, n_eff 1.5),
+    the calibrated lens against the truth, where both pass light."""
+    from flatsim import relative_illumination
+    from test_calibrate_circles import CWL, N_EFF, field_cra_deg, make_lens
+
+    import snapcorr
+
+    field = field_cra_deg(scene, truth.exit_pupil_mm)
+    cra = np.linspace(0.0, field, n)
+    t = np.tan(np.deg2rad(cra))
+    true_lens = make_lens(truth)
+    out = []
+    for f in f_numbers:
+        lit = ((relative_illumination(truth, f, t) > 1e-6)
+               & (res.lens.relative_illumination(f, cra) > 1e-6))
+        c = cra[lit]
+        if not c.size:
+            out.append(0.0)
+            continue
+        want = snapcorr.mean_shift(CWL, N_EFF, f, c, true_lens, method="vignetted")
+        got = snapcorr.mean_shift(CWL, N_EFF, f, c, res.lens, method="vignetted")
+        out.append(float(np.max(np.abs(np.asarray(got) - np.asarray(want)))))
+    return np.array(out)
+
+
+def _coverage_one(job):
+    import warnings
+
+    key, noise, seed, scene = job
+    warnings.simplefilter("ignore")
+    t0 = time.perf_counter()
+    out = calibrate(TRUTHS[key], noise=noise, seed=seed, scene=scene)
+    res = out.res
+    err = shift_errors_nm(out.truth, res, scene, res.f_numbers)
+    sd = np.asarray(res.shift_stderr_nm, float)
+    # the z-score where the reported error is largest (the f-number that matters most)
+    if sd.size and np.isfinite(sd).any() and np.nanmax(sd) > 0:
+        k = int(np.nanargmax(sd))
+        z = float(err[k] / sd[k])
+    else:
+        z = float("nan")
+    return {"truth": key, "noise": noise, "seed": seed, "method": res.method,
+            "model": res.model, "circles": len(res.lens.vignetting),
+            "shift_error_nm": float(err.max()), "reported_sd_nm": float(np.nanmax(sd))
+            if sd.size else float("nan"), "z": z,
+            "reduced_chi2": float(res.fits[res.model].reduced_chi2),
+            "cramer_rao_sd_nm": cramer_rao(out)[0] if seed == 0 else float("nan"),
+            "seconds": round(time.perf_counter() - t0, 2)}
+
+
+def coverage_sweep(*, quick=False, echo=print, write=True, workers=2):
+    """Do the reported shift errors cover? Over seeds, for every truth and noise level: the
+    largest shift error, the error over the reported standard error (z) and its RMS, which
+    should be near 1 (a range of [0.5, 2] is asked for), the estimator and model chosen."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    if quick:
+        cases, noises, seeds = ("one_h_gt_x",), (0.02,), (0, 1)
+        scene = dict(shape=(128, 160), pitch_um=56.8, center_px=(87.5, 60.0))
+    else:
+        cases, noises, seeds = COVERAGE_CASES, COVERAGE_NOISES, COVERAGE_SEEDS
+        scene = HALF
+    jobs = [(k, n, s, scene) for k in cases for n in noises for s in seeds]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            rows = list(pool.map(_coverage_one, jobs))
+    else:
+        rows = [_coverage_one(j) for j in jobs]
+    echo(f"coverage of the reported shift error: {scene['shape'][1]} x {scene['shape'][0]} "
+         f"flats, f/2-f/11, {len(seeds)} seeds; z = error / reported error at the f-number "
+         "where it is largest")
+    echo(f"{'truth':<16} {'noise':>6}  {'estimator, model':<24} {'max error nm':>12} "
+         f"{'reported sd':>11} {'bound sd':>9} {'RMS z':>6}")
+    for key in cases:
+        for noise in noises:
+            sel = [r for r in rows if r["truth"] == key and r["noise"] == noise]
+            z = np.array([r["z"] for r in sel])
+            z = z[np.isfinite(z)]
+            chosen = {}
+            for r in sel:
+                label = f"{r['method']} {r['model']}"
+                chosen[label] = chosen.get(label, 0) + 1
+            rms = f"{np.sqrt(np.mean(z * z)):.2f}" if z.size else "-"
+            echo(f"{key:<16} {100 * noise:>5.1f}%  "
+                 f"{', '.join(f'{k} x{v}' for k, v in chosen.items()):<24} "
+                 f"{max(r['shift_error_nm'] for r in sel):>12.4f} "
+                 f"{np.nanmedian([r['reported_sd_nm'] for r in sel]):>11.4f} "
+                 f"{sel[0]['cramer_rao_sd_nm']:>9.4f} {rms:>6}")
+    if write:
+        write_csv(HERE / "calibration_coverage.csv", rows)
+    return rows
+
+
 def main(quick=False):
     noise_sweep(quick=quick, write=not quick)
+    coverage_sweep(quick=quick, write=not quick)
     full_size_time(quick=quick)
 
 

@@ -40,6 +40,17 @@ def test_quick_circle_calibration_benchmark_runs():
     assert all(r["model"] == "one" for r in rows)
 
 
+def test_quick_coverage_benchmark_runs_and_reports_z_scores():
+    from benchmarks import calibration_circles
+
+    lines = []
+    rows = calibration_circles.coverage_sweep(quick=True, echo=lines.append, write=False,
+                                              workers=1)
+    assert len(rows) == 2 and all(np.isfinite(r["z"]) and r["z"] >= 0 for r in rows)
+    assert all(r["reported_sd_nm"] > 0 for r in rows)
+    assert "RMS z" in lines[1] and lines[-1].startswith("one_h_gt_x")
+
+
 def test_quick_correction_benchmark_runs():
     from benchmarks import correct
 

@@ -133,5 +133,6 @@ def test_help_shows_the_two_step_workflow(cli):
     res = cli("pupil", "--help")
     assert res.returncode == 0
     text = res.stdout
-    assert "--predict" in text and "snapcorr calibrate" in text and "--lens lens_x.toml" in text
+    assert "--predict" in text and "snapcorr calibrate" in text
+    assert "circles are scaled to the x found" in text
     assert "--sensor-out" in text
