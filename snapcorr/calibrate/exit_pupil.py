@@ -593,9 +593,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     r_max = _field_radius(bins)
     x_lo, x_hi = _trial_range(r_max)
     max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
-    if scale_circles is None:
-        scale_circles = lens is not None and "exit_pupil_scaling" in lens.calibration
-    circles_at = base.exit_pupil_mm if scale_circles and base.has_vignetting else None
+    circles_at = _circles_at(lens, base, scale_circles)
     model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
                                    circles_at)
     problem = _Problem(model, n_design, progress)
@@ -675,6 +673,13 @@ def _max_shift_rel(r_max, x_lo, n_design, working_f_number):
     phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(working_f_number)))
     return 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
                                     / (0.6 * n_design.min()) ** 2, 0.05)))
+
+
+def _circles_at(lens, base, scale_circles):
+    """The x the lens's circles were found at, when they are to scale with x (else None)."""
+    if scale_circles is None:  # a profile from flats says so
+        scale_circles = lens is not None and "exit_pupil_scaling" in lens.calibration
+    return base.exit_pupil_mm if scale_circles and base.has_vignetting else None
 
 
 def _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,

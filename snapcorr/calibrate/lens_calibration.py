@@ -189,7 +189,8 @@ def _check_inputs(flats, dark):
     return sorted(items)
 
 
-def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px):
+def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+                exit_pupil_stderr_mm=None):
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
@@ -198,7 +199,9 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
         vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
     if center_px is not None:
         center_px = check_center(center_px)
-    return exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px
+    if exit_pupil_stderr_mm is not None:
+        exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
+    return exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm
 
 
 def _check_choice_args(tolerance_nm, max_circles):
@@ -234,11 +237,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         Distance x from the sensor to the exit pupil.
     pixel_pitch_um : float
     exit_pupil_stderr_mm : float, optional
-        Standard error of x, if known (from :func:`locate_pupil`). The flats cannot check x:
-        they fix ``P / x`` and ``h / x^2`` exactly (scaling x scales the pupil, every circle
-        and every chief ray alike), so P and h move with x as ``dP/dx = P / x`` and
-        ``dh/dx = 2 h / x``. The profile records these; with this error, also the standard
-        errors of P and h that include it.
+        Standard error of x, if known. The flats fix ``P / x`` and ``h / x^2`` exactly, so P
+        and h move with x (``dP/dx = P / x``, ``dh/dx = 2 h / x``; recorded in the profile,
+        with P's and h's errors including this one).
     magnification, pupil_magnification : float
         m and m_P of the working f-number, Eq. (27).
     dark : 2-D array, optional
@@ -255,8 +256,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
         the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from
         the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, unless
-        the paper's onsets predict flats left out of the fit better
-        (:mod:`snapcorr.calibrate.predictive`).
+        the onsets predict left-out flats better (:mod:`snapcorr.calibrate.predictive`).
     name : str
         Lens name for the profile.
     inputs : mapping, optional
@@ -267,18 +267,16 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
     max_circles : int
         Most vignetting circles tried (0 to 3).
     progress : callable, optional
-        ``progress(step)`` is called with a short description before each long step (every
-        model fitted, every flat left out and predicted), for a progress bar.
+        ``progress(step)`` before each long step (a model fitted, a flat left out).
 
     Returns
     -------
     LensCalibration
     """
-    exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px = _check_args(
-        method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px)
+    exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm = \
+        _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+                    exit_pupil_stderr_mm)
     tolerance_nm = _check_choice_args(tolerance_nm, max_circles)
-    if exit_pupil_stderr_mm is not None:
-        exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
     items = _check_inputs(flats, dark)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name)
     _check_enough_flats(items, vignetting_distance_mm)
@@ -298,32 +296,19 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
             fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
             pixel_pitch_um, vignetting_distance_mm, decide)
     notes += fit_notes
-
-    def predict():
-        def solver(f):
-            others = {g: o for g, o in ons.onsets["ratio"].items() if g != f}
-            of = stages.solve_onsets(others, base, vignetting_distance_mm)
-            return (of.P_mm, of.h_mm) if _sane(of, base.exit_pupil_mm) else None
-
-        return predictive.compare_estimators(
-            data, fs, fits[model], solver, center, fix_center=fix_center,
-            fixed_h=vignetting_distance_mm, progress=progress)
-
+    predict = functools.partial(_predict, data, fs, fits[model], ons, base, center, fix_center,
+                                vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
     notes += method_notes
-    if used != "joint":
-        verdicts[model].chosen = False
-        verdicts[model].why = f"the joint fit's choice, not used ({used}): {verdicts[model].why}"
-        model = "one"
+    model = _unless_joint(used, verdicts, model)
     lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
-    fit_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
-    model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra)
-                 if used == "joint" else np.zeros(0))
-    shift_err = _combine(fit_err, model_err)
-    notes += _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_nm)
+    errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra)
+    notes += _precision_notes(verdicts, model, next_best, diff, errs["shift_stderr_nm"], fs,
+                              tolerance_nm)
+    notes += [_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles)] if circles else []
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -331,15 +316,43 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         onset_fits=ons.fits, fits=fits, profiles=ons.profiles,
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
         shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
-        shift_difference_nm=diff, shift_stderr_nm=shift_err,
-        tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
-        exit_pupil_stderr_mm=exit_pupil_stderr_mm, shift_stderr_fit_nm=fit_err,
-        shift_stderr_model_nm=model_err)
-    if circles:
-        notes.append(_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles))
+        shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm, **errs)
     result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
                        calibration=_calibration_table(result, inputs))
     return result
+
+
+def _predict(data, fs, fit, ons, base, center, fix_center, h_given, progress):
+    """Predictive scores of the joint fit and of the paper's onsets
+    (:func:`~snapcorr.calibrate.predictive.compare_estimators`)."""
+    def solver(f):
+        others = {g: o for g, o in ons.onsets["ratio"].items() if g != f}
+        of = stages.solve_onsets(others, base, h_given)
+        return (of.P_mm, of.h_mm) if _sane(of, base.exit_pupil_mm) else None
+
+    return predictive.compare_estimators(data, fs, fit, solver, center, fix_center=fix_center,
+                                         fixed_h=h_given, progress=progress)
+
+
+def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra):
+    """The shift's standard error per f-number: the fit's part, the model choice's part, and
+    both in quadrature (as :class:`LensCalibration` fields)."""
+    fit_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
+    model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra)
+                 if used == "joint" else np.zeros(0))
+    return {"shift_stderr_fit_nm": fit_err, "shift_stderr_model_nm": model_err,
+            "shift_stderr_nm": _combine(fit_err, model_err)}
+
+
+def _unless_joint(used, verdicts, model):
+    """The model of the profile: the joint fit's choice, or one circle where an onset
+    method was used (then the joint fit's choice is marked as not used)."""
+    if used == "joint":
+        return model
+    verdicts[model].chosen = False
+    verdicts[model].why = f"the joint fit's choice, not used ({used}): {verdicts[model].why}"
+    return "one"
 
 
 class _Onsets(NamedTuple):

@@ -67,9 +67,29 @@ def without_flat(data: BlockData, k: int) -> BlockData:
 
 
 def predict_left_out(data: BlockData, model: str, p, center, k: int):
-    """Chi-square and number of blocks of flat ``k`` predicted by the model with parameters
-    ``p`` (circles and centre, :func:`~snapcorr.calibrate.joint_fit.param_names`) from the
-    other flats: their gains, and the left-out flat's exposure fitted to it."""
+    """Chi-square and number of blocks of flat ``k`` predicted from the other flats: their
+    gains, the model's area fractions, and the left-out flat's exposure fitted to it.
+
+    Parameters
+    ----------
+    data : BlockData
+        The flats as fitted (with gains).
+    model : str
+        ``"one"``, ``"two"`` or ``"three"`` circles.
+    p : sequence of float
+        The model's parameters (:func:`~snapcorr.calibrate.joint_fit.param_names`).
+    center : (float, float) or None
+        Optical centre, pixels; None: the one in ``p``.
+    k : int
+        The flat predicted (its row in ``data``).
+
+    Returns
+    -------
+    chi2 : float
+        NaN where nothing can be predicted.
+    n : int
+        Blocks predicted.
+    """
     cx, cy = center if center is not None else (p[2], p[3])
     A = _block_model(data, model, p, cx, cy)
     others = [i for i in range(data.q.shape[0]) if i != k]

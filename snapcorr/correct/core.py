@@ -389,6 +389,26 @@ def _kernel_variance(nodes, n_eff, cwl, f, lens):
     return out * cwl[:, None] ** 2
 
 
+def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
+    """Kernel variances over the table's CRAs (band, node), nm^2, and the reference pixel's
+    kernel variance and FWHM per band.
+
+    The widening is set by the kernels' variances, not by the FWHMs: the responses are the
+    filter convolved with each pixel's kernel, so their variances differ by the kernels'
+    exactly, whatever the shapes, while FWHMs add in quadrature only for Gaussians (the
+    kernel is box-like: at f/1.4 the quadrature rule widened the pixels near the axis by
+    ~30 % too much in variance, and more for Airy filters, whose width is in the wings).
+    The reference is the pixel of the largest kernel variance in the field; a wider target
+    adds to it (target^2 - its FWHM^2) / (8 ln 2).
+    """
+    kv = _kernel_variance(table.cra_deg, n_eff, cwl, f, lens)
+    kv_field = np.concatenate([_kernel_variance(ends, n_eff, cwl, f, lens), kv[:, inside]],
+                              axis=1)
+    ref = np.nanargmax(np.where(np.isnan(kv_field), -np.inf, kv_field), axis=1)
+    rows = np.arange(cwl.size)
+    return kv, kv_field[rows, ref], field[rows, ref]
+
+
 def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
                 sensor, f, lens):
     from .harmonise import harmonise_spectra
@@ -400,19 +420,7 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
     ends = np.array([cra_lo, cra_hi])
     field = np.concatenate([table(ends).T, table.fwhm_nm[:, inside]], axis=1)
     widest = np.nanmax(field, axis=1)
-    # The widening is set by the kernels' variances, not by the FWHMs: the responses are the
-    # filter convolved with each pixel's kernel, so their variances differ by the kernels'
-    # exactly, whatever the shapes, while FWHMs add in quadrature only for Gaussians (the
-    # kernel is box-like: at f/1.4 the quadrature rule widened the pixels near the axis by
-    # ~30 % too much in variance, and more for Airy filters, whose width is in the wings).
-    # The reference is the pixel of the largest kernel variance in the field; a wider
-    # target adds to it (target^2 - its FWHM^2) / (8 ln 2).
-    kv = _kernel_variance(table.cra_deg, n_eff, cwl, f, lens)
-    kv_field = np.concatenate([_kernel_variance(ends, n_eff, cwl, f, lens), kv[:, inside]],
-                              axis=1)
-    ref = np.nanargmax(np.where(np.isnan(kv_field), -np.inf, kv_field), axis=1)
-    kv_ref = kv_field[np.arange(cwl.size), ref]
-    fwhm_ref = field[np.arange(cwl.size), ref]
+    kv, kv_ref, fwhm_ref = _reference_response(table, inside, ends, field, n_eff, cwl, f, lens)
     if target_fwhm_nm is None:
         target = widest
         how = "the widest response in the field at each band"

@@ -94,6 +94,22 @@ def kernel_log_variance(n_eff, f_number, cra_deg, lens: Lens):
     widening must add (:mod:`snapcorr.correct.harmonise`). Their FWHMs do not add so: the
     kernel is a box-like spread of shifts, and an Airy filter's core is no Gaussian.
 
+    Parameters
+    ----------
+    n_eff : float
+        The filters' effective index.
+    f_number : float
+        Nominal f-number.
+    cra_deg : array_like
+        Chief-ray angles, degrees.
+    lens : Lens
+        Exit pupil, circles and magnifications.
+
+    Returns
+    -------
+    ndarray
+        One variance per angle (dimensionless, in ``log(lambda)``).
+
     Examples
     --------
     >>> from snapcorr import Lens
