@@ -14,6 +14,7 @@ from snapcorr.cube import Sensor, make_cube, write_cube
 PITCH_UM, SHAPE = 44.0, (96, 120)
 CWL = np.arange(500.0, 849.0, 12.0)
 TRUTH = PAPER_TRUTH
+WHITE_SHAPE, WHITE_CWL = (64, 80), np.arange(500.0, 644.0, 12.0)
 
 
 @pytest.fixture(scope="module")
@@ -24,13 +25,21 @@ def files(tmp_path_factory):
     Lens(30.0, TRUTH.circles, TRUTH.magnification, TRUTH.pupil_magnification,
          name="circles known").save(d / "lens_ph.toml")
     rng = np.random.default_rng(7)
-    for name, target in (("glass", sim.rare_earth_glass), ("white", sim.white)):
-        for f in (2.0, 8.0):
-            data = sim.target_cube(target, cwl_nm=CWL, fwhm_nm=12.0, n_eff=1.7, f_number=f,
-                                   lens=TRUTH, shape=SHAPE, pixel_pitch_um=PITCH_UM,
-                                   center_px=(61.0, 46.5))
-            data = (data + rng.normal(0, 0.01, data.shape)).astype(np.float32)
-            write_cube(make_cube(data, CWL), d / f"{name}_f{f:g}.nc")
+    for f in (2.0, 8.0):
+        data = sim.target_cube(sim.rare_earth_glass, cwl_nm=CWL, fwhm_nm=12.0, n_eff=1.7,
+                               f_number=f, lens=TRUTH, shape=SHAPE, pixel_pitch_um=PITCH_UM,
+                               center_px=(61.0, 46.5))
+        data = (data + rng.normal(0, 0.01, data.shape)).astype(np.float32)
+        write_cube(make_cube(data, CWL), d / f"glass_f{f:g}.nc")
+    # the white tile on a smaller sensor (its refusal refits the search twice)
+    Sensor("test", "snapscan", PITCH_UM, WHITE_CWL, 12.0, 1.7, size_px=WHITE_SHAPE).save(
+        d / "sensor_white.toml")
+    for f in (2.0, 8.0):
+        data = sim.target_cube(sim.white, cwl_nm=WHITE_CWL, fwhm_nm=12.0, n_eff=1.7,
+                               f_number=f, lens=TRUTH, shape=WHITE_SHAPE,
+                               pixel_pitch_um=PITCH_UM, center_px=(40.0, 31.5))
+        data = (data + rng.normal(0, 0.01, data.shape)).astype(np.float32)
+        write_cube(make_cube(data, WHITE_CWL), d / f"white_f{f:g}.nc")
     np.savetxt(d / "glass.csv", np.column_stack([np.arange(400.0, 950.0, 0.25),
                                                  sim.rare_earth_glass(np.arange(400.0, 950.0,
                                                                                 0.25))]),
@@ -84,7 +93,8 @@ def test_a_known_spectrum_from_a_file(files, cli):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--cube", "2={d}/white_f2.nc", "--cube", "8={d}/white_f8.nc"], "no spectral shift"),
+    (["--cube", "2={d}/white_f2.nc", "--cube", "8={d}/white_f8.nc", "--sensor",
+      "{d}/sensor_white.toml"], "fitted on every other annulus"),
     (["--cube", "2={d}/glass_f2.nc", "--cube", "2={d}/glass_f8.nc"], "given twice"),
     (["--cube", "2={d}/missing.nc"], "missing.nc"),
     ([], "give --cube"),
@@ -98,8 +108,8 @@ def test_a_known_spectrum_from_a_file(files, cli):
 def test_mistakes_are_one_line_and_write_nothing(files, cli, args, message):
     before = snapshot(files)
     out = files / "never.toml"
-    res = cli("pupil", *[a.format(d=files) for a in args], "--sensor", files / "sensor.toml",
-              "--out", out)
+    sensor = [] if "--sensor" in args else ["--sensor", files / "sensor.toml"]
+    res = cli("pupil", *[a.format(d=files) for a in args], *sensor, "--out", out)
     err = res.stderr
     assert res.returncode != 0
     errors = [line for line in err.splitlines() if "error" in line]
