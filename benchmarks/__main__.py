@@ -15,10 +15,12 @@ from . import (
     io_memory,
     mean_shift,
     pupil,
+    pupil_model,
     scaling,
     speed_accuracy,
     stability,
     stream,
+    unknown_lens,
     virtual_bands,
 )
 
@@ -35,6 +37,8 @@ calibration.fnumber_sweep(quick=args.quick, write=not args.quick)
 calibration_circles.noise_sweep(quick=args.quick, write=not args.quick)
 calibration_circles.coverage_sweep(quick=args.quick, write=not args.quick)
 calibration_circles.full_size_time(quick=args.quick)
+unknown_lens.coverage(quick=args.quick, write=not args.quick)
+pupil_model.run(quick=args.quick, write=not args.quick)
 print()
 correct.run(quick=args.quick)
 print()

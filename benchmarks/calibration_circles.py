@@ -161,28 +161,12 @@ COVERAGE_SEEDS = tuple(range(8))
 
 def shift_errors_nm(truth, res, scene, f_numbers, n=121):
     """Largest |mean-shift error| over the field at each f-number (1000 nm, n_eff 1.5),
-    the calibrated lens against the truth, where both pass light."""
-    from flatsim import relative_illumination
-    from test_calibrate_circles import CWL, N_EFF, field_cra_deg, make_lens
-
-    import snapcorr
+    the calibrated lens against the truth, where both pass light
+    (``test_calibrate_circles.shift_errors_by_f``, the tests' own judge)."""
+    from test_calibrate_circles import field_cra_deg, shift_errors_by_f
 
     field = field_cra_deg(scene, truth.exit_pupil_mm)
-    cra = np.linspace(0.0, field, n)
-    t = np.tan(np.deg2rad(cra))
-    true_lens = make_lens(truth)
-    out = []
-    for f in f_numbers:
-        lit = ((relative_illumination(truth, f, t) > 1e-6)
-               & (res.lens.relative_illumination(f, cra) > 1e-6))
-        c = cra[lit]
-        if not c.size:
-            out.append(0.0)
-            continue
-        want = snapcorr.mean_shift(CWL, N_EFF, f, c, true_lens, method="vignetted")
-        got = snapcorr.mean_shift(CWL, N_EFF, f, c, res.lens, method="vignetted")
-        out.append(float(np.max(np.abs(np.asarray(got) - np.asarray(want)))))
-    return np.array(out)
+    return np.array([e for e, _ in shift_errors_by_f(truth, res.lens, f_numbers, field, n)])
 
 
 def _coverage_one(job):

@@ -85,9 +85,12 @@ EXAMPLES = {
       snapcorr calibrate --flat 2=f2.tif --flat 8=f8.tif --dark dark.tif --lens lens_x.toml \
           --pixel-pitch-um 5.5 --out my_lens.toml
                                           x (and m, m_P) from the profile snapcorr pupil wrote
-      x unknown: calibrate with a guessed --exit-pupil-mm, then snapcorr pupil --lens with
-      this profile: the flats fix P / x and h / x^2, and pupil scales the circles to the x
-      it finds
+      snapcorr calibrate --flat 2=f2.tif --flat 4=f4.tif --flat 8=f8.tif --flat 11=f11.tif \
+          --target-cube 2=target_f2_ff.nc --target-cube 8=target_f8_ff.nc \
+          --sensor snapscan_vnir --fit-n-eff --pixel-pitch-um 5.5 \
+          --magnification 0.06 --pupil-magnification 1.3 --out my_lens.toml
+                                          x unknown: x, n_eff, P, h and the centre in one run,
+                                          with their covariance, from flats and a target
     """,
     "pupil": r"""
       snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
@@ -656,9 +659,16 @@ def _one_per_f_number(pairs, what):
 def _cmd_calibrate(args):
     import dataclasses
 
-    from .calibrate import calibrate_lens, read_flat
+    from .calibrate import calibrate_lens
 
     _one_per_f_number(args.flat, "flat")
+    if args.target_cube:
+        return _calibrate_with_target(args)
+    _no_target_options(args)
+    if args.exit_pupil_mm is None and args.lens is None:
+        raise ValueError("give the exit pupil distance: --exit-pupil-mm X, --lens LENS.toml "
+                         "(from snapcorr pupil), or --target-cube F_NUMBER=PATH (repeat) with "
+                         "--sensor to fit it from a spectral target in the same run")
     inputs = [p for _, p in args.flat] + [args.dark, args.lens]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
@@ -669,16 +679,7 @@ def _cmd_calibrate(args):
         given.magnification if given else 0.0)
     mp = args.pupil_magnification if args.pupil_magnification is not None else (
         given.pupil_magnification if given else 1.0)
-    flats, bands, sat = {}, set(), {}
-    for f, path in sorted(args.flat):
-        image, info = read_flat(path)
-        flats[f] = image
-        bands.add(info["bands"])
-        sat[f] = args.saturation if args.saturation is not None else info["saturation"]
-        print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
-              + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
-              file=sys.stderr)
-    dark = read_flat(args.dark)[0] if args.dark else None
+    flats, bands, sat, dark = _read_flats(args)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
             flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
@@ -687,13 +688,7 @@ def _cmd_calibrate(args):
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step)
-    cal = dict(res.lens.calibration)
-    cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
-                    else "single-band flats")
-    if args.dark:
-        cal["dark"] = str(args.dark)
-    else:
-        cal["dark"] = "none given: the flats were taken as already dark-subtracted"
+    cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     if given is not None:
         cal["exit_pupil_from"] = str(args.lens)
         for key in ("exit_pupil_stderr_mm", "n_eff", "n_eff_stderr", "n_eff_fitted"):
@@ -705,10 +700,113 @@ def _cmd_calibrate(args):
     if args.plot:
         res.save_plot(args.plot)
     print(res.summary())
+    _no_dark_note(args)
+    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+    return 0
+
+
+_TARGET_OPTIONS = ("sensor", "fit_n_eff", "sensor_out", "target_spectrum", "sensor_origin_px")
+
+
+def _no_target_options(args):
+    """Options that only mean something with --target-cube are refused without it."""
+    given = [o for o in _TARGET_OPTIONS if getattr(args, o) not in (None, False)]
+    if given:
+        raise ValueError(f"--{given[0].replace('_', '-')} goes with --target-cube (fitting x "
+                         "from a spectral target); leave it out or add the target's cubes")
+
+
+def _read_flats(args):
+    """Every flat (mean of its bands), the saturation levels and the dark."""
+    from .calibrate import read_flat
+
+    flats, bands, sat = {}, set(), {}
+    for f, path in sorted(args.flat):
+        image, info = read_flat(path)
+        flats[f] = image
+        bands.add(info["bands"])
+        sat[f] = args.saturation if args.saturation is not None else info["saturation"]
+        print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
+              + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
+              file=sys.stderr)
+    dark = read_flat(args.dark)[0] if args.dark else None
+    return flats, bands, sat, dark
+
+
+def _flats_provenance(cal, args, bands):
+    cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
+                    else "single-band flats")
+    cal["dark"] = (str(args.dark) if args.dark else
+                   "none given: the flats were taken as already dark-subtracted")
+    return cal
+
+
+def _no_dark_note(args):
     if not args.dark:
         print("note: no --dark: the flats were taken as already dark-subtracted; an offset left "
               "in them is read as light and biases P and h (it can even add a circle)")
-    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+
+
+def _calibrate_with_target(args):
+    """``calibrate --target-cube``: flats and a target's cubes give x, n_eff, P, h and the
+    centre in one run (:func:`snapcorr.calibrate.calibrate_with_target`)."""
+    import dataclasses
+
+    from .calibrate import FeaturelessTargetError, calibrate_with_target
+
+    if args.exit_pupil_mm is not None or args.lens is not None:
+        raise ValueError("--target-cube fits x: leave out --exit-pupil-mm and --lens (give "
+                         "--magnification and --pupil-magnification directly)")
+    if args.sensor is None:
+        raise ValueError("--target-cube needs --sensor SENSOR (the camera of the cubes: its "
+                         "bands, filters and pixel pitch)")
+    seen = _one_per_f_number(args.target_cube, "target cube")
+    if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
+        raise ValueError("--sensor-out needs --fit-n-eff and target cubes at two or more "
+                         "f-numbers (one f-number fixes only x * n_eff)")
+    inputs = ([p for _, p in args.flat] + [p for _, p in args.target_cube]
+              + [args.dark, args.sensor, args.target_spectrum])
+    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
+                   [(".toml",), (".png",), (".toml",)])
+    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
+            args.out):
+        raise ValueError("--sensor-out and --out are the same file; choose two paths")
+    sensor = _sensor(args.sensor)
+    spectrum = _target_spectrum(args.target_spectrum)
+    flats, bands, sat, dark = _read_flats(args)
+    cubes = {f: _read(path, sensor, args.sensor_origin_px)
+             for f, path in sorted(args.target_cube)}
+    for f, cube in cubes.items():
+        print(f"read target f/{f:g}: {seen[f]} ({cube.sizes['y']} x {cube.sizes['x']} x "
+              f"{cube.sizes['band']})", file=sys.stderr)
+    try:
+        with _StepBar("calibrating the flats, fitting x to the target") as bar:
+            res = calibrate_with_target(
+                flats, cubes, sensor, pixel_pitch_um=args.pixel_pitch_um,
+                fit_n_eff=args.fit_n_eff, magnification=args.magnification or 0.0,
+                pupil_magnification=(args.pupil_magnification
+                                     if args.pupil_magnification is not None else 1.0),
+                dark=dark, center_px=args.center_px, saturation=sat, method=args.method,
+                max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
+                target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
+                name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
+                target_inputs=seen, progress=bar.step)
+    except FeaturelessTargetError as err:
+        raise ValueError(f"nothing written: {err}") from None
+    cal = _flats_provenance(dict(res.lens.calibration), args, bands)
+    lens = dataclasses.replace(res.lens, calibration=cal)
+    lens.save(args.out, overwrite=args.overwrite)
+    written = [args.out]
+    if args.sensor_out is not None:
+        _fitted_sensor(sensor, res.pupil, args).save(args.sensor_out,
+                                                     overwrite=args.overwrite)
+        written.append(args.sensor_out)
+    if args.plot:
+        res.calibration.save_plot(args.plot)
+        written.append(args.plot)
+    print(res.summary())
+    _no_dark_note(args)
+    print("wrote " + ", ".join(str(w) for w in written))
     return 0
 
 
@@ -1009,12 +1107,30 @@ def _add_calibrate(command):
                    help="flat field at an f-number (.npy, .tif, .exr, ENVI .hdr, .nc, .zarr; "
                    "several bands or TIFF pages in a file are averaged); repeat for each "
                    "f-number")
-    x = p.add_mutually_exclusive_group(required=True)
+    x = p.add_mutually_exclusive_group()
     x.add_argument("--exit-pupil-mm", type=_positive, metavar="X",
-                   help="distance x from the sensor to the exit pupil, mm")
+                   help="distance x from the sensor to the exit pupil, mm, when known")
     x.add_argument("--lens", default=None, metavar="LENS.toml",
                    help="take x (and m, m_P unless given) from this lens profile, e.g. the "
                    "output of snapcorr pupil; its provenance is recorded")
+    t = p.add_argument_group("x unknown: fit it from a spectral target as well (one run)")
+    t.add_argument("--target-cube", type=_flat_arg, action="append", default=[],
+                   metavar="F_NUMBER=PATH",
+                   help="flat-fielded cube of a uniform target with spectral features at an "
+                   "f-number; repeat (two far apart, e.g. f/2 and f/8, with --fit-n-eff). x, "
+                   "n_eff, P, h and the centre are then fitted together, with their "
+                   "covariance; instead of --exit-pupil-mm / --lens")
+    t.add_argument("--sensor", default=None, metavar="SENSOR",
+                   help="with --target-cube: the camera of the cubes (bundled name or .toml)")
+    t.add_argument("--fit-n-eff", action="store_true",
+                   help="with --target-cube: fit the effective index too")
+    t.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
+                   help="with --fit-n-eff: also write the sensor with the fitted n_eff")
+    t.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
+                   help="with --target-cube: the target's spectrum, two columns (default: "
+                   "unknown, solved for)")
+    t.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help="with --target-cube: sensor row and column of the cubes' first pixel")
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
                    help="pixel pitch of the flats, micrometres")
     p.add_argument("--magnification", type=float, default=None,

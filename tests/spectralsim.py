@@ -19,6 +19,10 @@ Model (Goossens et al. 2019 [1]_, Sec. 2, Eq. 3, 8-10, 27-28):
   with ``s(phi) = sqrt(1 - sin^2(phi) / n_eff^2)`` (the factor of Eq. 3 in [1]_). The pixel's
   transmission ``T_hat`` is the area-weighted mean of ``T_phi`` over the vignetted pupil
   (Eq. 10, uniform weight per unit area of the pupil plane).
+* Another pupil, to measure what the paper's assumptions are worth: a lens whose
+  ``meta["pupil"]`` is ``"sine"`` has its marginal ray at ``sin(theta) = 1 / (2 f_W)`` (the
+  sine condition) instead of Eq. 28's ``tan``, and each ray weighted by ``cos^4(phi)`` per unit
+  area (a Lambertian pupil: uniform in direction cosines).
 * Value. ``int S T_hat dlambda / int T_hat dlambda``: the target's reflectance ``S`` after
   flat-fielding with a white reference (``S = 1``) seen through the same ``T_hat`` (Eq. 29).
 
@@ -202,6 +206,9 @@ def pupil_radius_mm(lens, f_number):
         Radius in mm.
     """
     f_w = (1.0 + lens.magnification / lens.pupil_magnification) * float(f_number)
+    if lens.meta.get("pupil", "paper") == "sine":  # sin(theta) = 1 / (2 f_W)
+        na = 1.0 / (2.0 * f_w)
+        return lens.exit_pupil_mm * na / np.sqrt(1.0 - na * na)
     return lens.exit_pupil_mm / (2.0 * f_w)
 
 
@@ -304,7 +311,10 @@ def _sin2_phi(lens, f_number, d_mm):
     u, v, w = pupil_samples(lens, f_number, d_mm)
     x = float(lens.exit_pupil_mm)
     rho2 = (u - d_mm) ** 2 + v * v  # tan(phi) = rho / x
-    return rho2 / (rho2 + x * x), w
+    q = rho2 / (rho2 + x * x)
+    if lens.meta.get("pupil", "paper") == "sine":  # a Lambertian pupil: cos^4(phi) per area
+        w = w * (1.0 - q) ** 2
+    return q, w
 
 
 def tangency_radii_mm(lens, f_number):

@@ -130,3 +130,23 @@ def test_quick_stream_benchmark_runs_zarr_to_zarr():
         assert r["rc"] == 0, r["error"]
         assert np.isfinite(r["x_single_frame"]) and r["peak_mib"] > 0
     assert any("peak memory" in line for line in lines)
+
+
+def test_quick_unknown_lens_benchmark_runs_and_reports_every_parameter():
+    from benchmarks import unknown_lens
+
+    lines = []
+    rows = unknown_lens.coverage(quick=True, echo=lines.append, write=False, workers=1)
+    assert len(rows) == 1 and abs(rows[0]["exit_pupil_mm_rel_error"]) < 0.005
+    assert all(np.isfinite(rows[0][f"{p}_z"]) for p in ("exit_pupil_mm", "n_eff", "P_mm",
+                                                         "h_mm", "cx_px", "cy_px"))
+    assert lines[-1].startswith("paper lens")
+
+
+def test_quick_pupil_model_benchmark_runs():
+    from benchmarks import pupil_model
+
+    lines = []
+    rows = pupil_model.run(quick=True, echo=lines.append, write=False, workers=1)
+    assert len(rows) == 1 and np.isfinite(rows[0]["x_rel_error"])
+    assert lines[-1].startswith("sine")

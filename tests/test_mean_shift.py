@@ -468,3 +468,21 @@ def test_auto_builds_no_grid_for_a_few_scattered_pixels_of_a_two_circle_lens():
     assert mean_mod._grid.cache_info().currsize == 0
     exact = mean_shift(700.0, 1.7, f[:2000], cra[:2000], lens, method="vignetted")
     assert np.max(np.abs(got[:2000] - exact)) < 1e-3
+
+
+@pytest.mark.parametrize("f, diff_nm", [(1.4, 1.123), (2.0, 0.279), (2.8, 0.074), (4.0, 0.018),
+                                        (5.6, 0.0047), (8.0, 0.0011)])
+def test_the_cone_convention_is_the_papers_and_its_distance_to_the_sine_condition(f, diff_nm):
+    """snapcorr's pupil is the paper's: a flat disc of radius x tan(theta) = x / (2 f_W)
+    (Eq. 28), rays uniform over its area. A lens obeying the sine condition fills sin(theta)
+    <= 1 / (2 f_W) uniformly in direction cosines instead. On axis, for a 1000 nm filter of
+    n_eff 1.5, the two mean shifts differ by the amounts the README states; both are computed
+    here by brute force over the pupil's area fraction."""
+    cwl, n = 1000.0, 1.5
+    u = (np.arange(400_000) + 0.5) / 400_000  # equal-area rings of the pupil
+    na = 1.0 / (2.0 * f)
+    paper = cwl * np.mean(np.sqrt(1 - na**2 * u / (1 + na**2 * u) / n**2)) - cwl
+    sine = cwl * np.mean(np.sqrt(1 - na**2 * u / n**2)) - cwl
+    got = float(mean_shift(cwl, n, f, 0.0, Lens(X, ()), method="vignetted"))
+    assert got == pytest.approx(paper, abs=1e-6)
+    assert paper - sine == pytest.approx(diff_nm, rel=0.01, abs=2e-4)

@@ -22,11 +22,13 @@ from .joint_fit import ModelFit
 from .lens_calibration import METHODS, LensCalibration, calibrate_lens
 from .onset_fit import OnsetFit, solve_vignetting_circle
 from .onsets import Onset, detect_onset
+from .unknown_lens import LensAndPupil, calibrate_with_target
 
 __all__ = [
     "CANDIDATE_TARGETS",
     "METHODS",
     "FeaturelessTargetError",
+    "LensAndPupil",
     "LensCalibration",
     "ModelFit",
     "ModelVerdict",
@@ -36,6 +38,7 @@ __all__ = [
     "PupilFit",
     "RadialProfile",
     "calibrate_lens",
+    "calibrate_with_target",
     "clean_flat",
     "detect_onset",
     "estimate_center",

@@ -1,0 +1,342 @@
+"""An unknown lens in one run: flats and target cubes together give x, n_eff, P, h and the centre.
+
+Flat fields alone fix the vignetting circles only relative to the exit pupil distance: the
+overlap of the pupil (radius ``x tan theta_cone``, Goossens et al. 2019, Eq. 28) and the
+projected circle (radius ``P``, offset ``h tan CRA = h d / x``, Eq. 9) scales as a whole with
+``x`` when ``P / x`` and ``h / x^2`` are held, so every flat is fitted equally well at any ``x``.
+Cubes of a target with spectral features fix ``x`` (and ``n_eff``) through the chief-ray
+angles (Goossens et al., OSA Continuum 2019), but need the circles where the fastest cube is
+vignetted.
+
+The two data sets are independent and the likelihood factorises: the flats determine
+``u = P / x``, ``v = h / x^2`` and the optical centre; the target determines ``x`` (and the
+index) with the circles held at ``(u x, v x^2)`` for every trial ``x``
+(:func:`~snapcorr.calibrate.locate_pupil` with ``scale_circles``). So
+:func:`calibrate_with_target` runs
+
+1. :func:`~snapcorr.calibrate.calibrate_lens` at a provisional ``x`` (any value: only ``u``,
+   ``v`` and the centre are kept),
+2. :func:`~snapcorr.calibrate.locate_pupil` with those circles scaled at every trial ``x`` and
+   the flats' centre,
+3. :func:`~snapcorr.calibrate.calibrate_lens` again at the ``x`` found, with its error, so that
+   every angle, onset and shift error in the profile belongs to that ``x``.
+
+The joint covariance of ``x``, the index, every ``P`` and ``h`` and the centre follows from the
+two fits' covariances by the chain rule (``P = u x``, ``h = v x^2``). It leaves out how an error
+of the circles moves the fitted ``x`` (second order: the target's x depends on the circles only
+where the fastest cube is vignetted); the evidence over seeds in the tests checks that the
+errors cover all the same.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..optics.lens import Lens
+from . import choice
+from .exit_pupil import PupilFit, locate_pupil
+from .lens_calibration import LensCalibration, calibrate_lens
+
+__all__ = ["LensAndPupil", "calibrate_with_target"]
+
+#: The two calibrations (at the provisional and at the fitted x) must agree on ``P / x`` and
+#: ``h / x^2`` to this relative difference; they differ only by rounding when they do.
+SCALE_CONSISTENCY = 1e-4
+#: Chief-ray positions at which the shift's dependence on x is evaluated, per f-number.
+_N_FIELD = 48
+
+
+@dataclass
+class LensAndPupil:
+    """What :func:`calibrate_with_target` found.
+
+    Attributes
+    ----------
+    lens : Lens
+        The profile: ``x`` from the target, the circles at that ``x``, the calibration tables
+        of both fits and the joint covariance (``[calibration.joint]``).
+    calibration : LensCalibration
+        The flats' calibration at the ``x`` found (with its error).
+    pupil : PupilFit
+        The target's fit, with the circles scaled at every trial ``x``.
+    names : tuple of str
+        Parameters of :attr:`covariance`: ``exit_pupil_mm``, ``n_eff`` (or ``n_eff_factor``,
+        the factor on the sensor's design values) when one index was fitted, ``P_mm``,
+        ``h_mm`` (``P2_mm``, ``h2_mm``, ... for further circles) and ``cx_px``, ``cy_px``
+        (the flats' pixels) when the joint fit gave them.
+    values, stderr : ndarray
+    covariance : ndarray
+    shift_stderr_nm : ndarray
+        The predicted mean shift's standard error per f-number, largest over the field, for a
+        filter at ``choice.REFERENCE_CWL_NM`` with ``choice.REFERENCE_N_EFF``: the flats' part
+        (fit and model choice) and ``shift_stderr_exit_pupil_nm`` (x's error: every pixel's
+        chief-ray angle and the scaled circles move with it) in quadrature.
+    notes : list of str
+    """
+
+    lens: Lens
+    calibration: LensCalibration
+    pupil: PupilFit
+    names: tuple
+    values: np.ndarray
+    stderr: np.ndarray
+    covariance: np.ndarray
+    shift_stderr_nm: np.ndarray
+    shift_stderr_exit_pupil_nm: np.ndarray
+    provisional_x_mm: float
+    notes: list = field(default_factory=list)
+
+    def correlation(self) -> np.ndarray:
+        """The correlation matrix of :attr:`names`."""
+        s = np.where(self.stderr > 0, self.stderr, np.inf)
+        return self.covariance / np.outer(s, s)
+
+    def summary(self) -> str:
+        """A few lines for a person: the flats' summary, the target's, and the joint result."""
+        lines = [self.calibration.summary(), "", self.pupil.summary(), "",
+                 f"jointly (flats + target, provisional x {self.provisional_x_mm:.4g} mm):"]
+        for name, v, e in zip(self.names, self.values, self.stderr, strict=True):
+            lines.append(f"  {name:14s} {v:12.6g} +- {e:.2g}")
+        rho = self.correlation()
+        i = self.names.index("exit_pupil_mm")
+        big = [f"{n} {rho[i, j]:+.2f}" for j, n in enumerate(self.names)
+               if j != i and abs(rho[i, j]) > 0.5]
+        if big:
+            lines.append("  correlated with x: " + ", ".join(big))
+        fs = self.calibration.f_numbers
+        if self.shift_stderr_nm.size:
+            lines.append("  mean-shift standard error with x's (largest over the field, "
+                         f"{choice.REFERENCE_CWL_NM:g} nm filter, n_eff "
+                         f"{choice.REFERENCE_N_EFF:g}): " + ", ".join(
+                             f"f/{f:g} {e:.2g} nm" for f, e in
+                             zip(fs, self.shift_stderr_nm, strict=True)))
+        lines.extend(f"note: {t}" for t in self.notes)
+        return "\n".join(lines)
+
+
+def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=False,
+                          provisional_x_mm=None, magnification=0.0, pupil_magnification=1.0,
+                          dark=None, center_px=None, saturation=None, method="auto",
+                          max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
+                          target_spectrum=None, sensor_origin_px=None, profile="gaussian",
+                          name="calibrated lens", inputs=None, target_inputs=None,
+                          progress=None) -> LensAndPupil:
+    """Characterise a lens whose exit pupil distance is unknown: flats plus target cubes.
+
+    Parameters
+    ----------
+    flats : mapping
+        f-number -> 2-D flat field (as :func:`~snapcorr.calibrate.calibrate_lens`).
+    cubes : mapping
+        f-number -> flat-fielded cube of a uniform target with spectral features (as
+        :func:`~snapcorr.calibrate.locate_pupil`); two f-numbers far apart to fit ``n_eff``.
+    sensor : Sensor
+        The camera of the cubes (bands, filters, index, pixel pitch).
+    pixel_pitch_um : float
+        Pixel pitch of the flats.
+    fit_n_eff : bool
+        Fit the effective index too.
+    provisional_x_mm : float, optional
+        Any positive x for the first calibration; only ``P / x``, ``h / x^2`` and the centre are
+        kept from it. Default: the x at which the flats' corner sits at 20 degrees.
+    magnification, pupil_magnification, dark, center_px, saturation, method, max_circles, \
+tolerance_nm
+        As :func:`~snapcorr.calibrate.calibrate_lens` (``center_px`` in the flats' pixels).
+    target_spectrum, sensor_origin_px, profile
+        As :func:`~snapcorr.calibrate.locate_pupil`.
+    name : str
+    inputs, target_inputs : mapping, optional
+        f-number -> path of each flat and cube, recorded in the profile.
+    progress : callable, optional
+        ``progress(step)`` before each long step.
+
+    Returns
+    -------
+    LensAndPupil
+
+    Raises
+    ------
+    FeaturelessTargetError
+        The target carries no information about x.
+    """
+    flats = dict(flats)
+    if not flats or not cubes:
+        raise ValueError("give flat fields and target cubes (one of each at least)")
+    shape = np.shape(next(iter(flats.values())))
+    if provisional_x_mm is None:
+        half_diag_mm = 0.5 * math.hypot(*shape[:2]) * float(pixel_pitch_um) * 1e-3
+        provisional_x_mm = half_diag_mm / math.tan(math.radians(20.0))
+    common = dict(pixel_pitch_um=pixel_pitch_um, magnification=magnification,
+                  pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
+                  saturation=saturation, method=method, max_circles=max_circles,
+                  tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress)
+    first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
+    notes = []
+    centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
+    pupil = locate_pupil(cubes, sensor, lens=first.lens, fit_n_eff=fit_n_eff,
+                         center_px=centre, target_spectrum=target_spectrum,
+                         sensor_origin_px=sensor_origin_px, profile=profile,
+                         inputs=target_inputs, name=name, progress=progress,
+                         scale_circles=True)
+    x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
+    final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
+    notes += _consistency(first, final, provisional_x_mm, x)
+    names, values, cov = _joint_covariance(final, pupil, sensor)
+    x_part = _shift_stderr_from_x(final, x, sx)
+    own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
+    total = np.hypot(own, x_part) if x_part.size else own
+    lens = _profile(final, pupil, names, values, cov, total, x_part, provisional_x_mm)
+    return LensAndPupil(lens, final, pupil, names, values,
+                        np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
+                        float(provisional_x_mm), notes)
+
+
+def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
+    """The flats' optical centre in the cubes' sensor pixels, or None (found from the cubes)."""
+    from ..correct.geometry import PlacementError, optical_center
+
+    try:
+        centre, _ = optical_center(next(iter(cubes.values())), sensor, lens)
+    except PlacementError as err:
+        notes.append(f"the flats' optical centre could not be carried to the cubes ({err}); "
+                     "the target's fit found its own")
+        return None
+    return centre
+
+
+def _consistency(first, final, x0, x):
+    """Both calibrations must give the same ``P / x`` and ``h / x^2``."""
+    a, b = first.lens.vignetting, final.lens.vignetting
+    if first.model != final.model or len(a) != len(b):
+        return [f"the flats chose {first.model!r} circles at the provisional x = {x0:.4g} mm "
+                f"and {final.model!r} at x = {x:.4g} mm; the second is used"]
+    worst = max((max(abs(P1 / x - P0 / x0) / (P0 / x0), abs(h1 / x**2 - h0 / x0**2)
+                     / max(abs(h0) / x0**2, 1e-12))
+                 for (P0, h0), (P1, h1) in zip(a, b, strict=True)), default=0.0)
+    if worst > SCALE_CONSISTENCY:
+        return [f"P / x and h / x^2 differ by {100 * worst:.2g} % between the calibration at the "
+                f"provisional x = {x0:.4g} mm and at x = {x:.4g} mm (expected: equal)"]
+    return []
+
+
+def _flat_block(cal: LensCalibration):
+    """Names, values and covariance of the circles (and centre) the flats gave at their x,
+    scaled by the fit's misfit as its standard errors are."""
+    if cal.method == "joint":
+        fit = cal.fits[cal.model]  # without a circle: the centre alone, if it was fitted
+        names = list(fit.names)
+        if not names or fit.covariance is None:
+            return [], np.zeros(0), np.zeros((0, 0))
+        values = np.array([fit.params[k] for k in names], float)
+        cov = np.asarray(fit.covariance, float)
+        raw = np.sqrt(np.clip(np.diag(cov), 0, None))
+        want = np.array([fit.stderr[k] for k in names], float)
+        d = np.divide(want, raw, out=np.ones_like(want), where=raw > 0)
+        return names, values, cov * np.outer(d, d)
+    of = cal.onset_fits[cal.method.split("-")[1]]
+    cov = (np.asarray(of.covariance, float) if of.covariance is not None else
+           np.diag([of.P_stderr_mm ** 2, of.h_stderr_mm ** 2]))
+    return ["P_mm", "h_mm"], np.array([of.P_mm, of.h_mm], float), cov
+
+
+def _joint_covariance(cal: LensCalibration, pupil: PupilFit, sensor):
+    """``(names, values, covariance)`` of x, the index, the circles and the centre.
+
+    The flats' circles at the fitted ``x`` are ``P = u x``, ``h = v x^2`` with ``u``, ``v``
+    known from the flats alone: their covariance there, plus ``dP/dx = P / x`` and
+    ``dh/dx = 2 h / x`` times x's variance (and its covariance with the index)."""
+    x = pupil.exit_pupil_mm
+    pnames = ["exit_pupil_mm"]
+    pvals = [x]
+    pcov = np.array([[pupil.exit_pupil_stderr_mm ** 2]])
+    if pupil.n_eff_fitted == "one":
+        design = np.asarray(sensor.n_eff, float)
+        k_cov = np.asarray(pupil.covariance, float)[:2, :2]
+        if np.ptp(design) == 0:
+            pnames.append("n_eff")
+            pvals.append(float(pupil.n_eff[0]))
+            scale = np.diag([1.0, float(design[0])])
+        else:
+            pnames.append("n_eff_factor")
+            pvals.append(float(pupil.n_eff[0] / design[0]))
+            scale = np.eye(2)
+        pcov = scale @ k_cov @ scale
+        pcov[0, 0] = pupil.exit_pupil_stderr_mm ** 2  # as reported (any index model)
+    fnames, fvals, fcov = _flat_block(cal)
+    names = pnames + fnames
+    n, m = len(pnames), len(fnames)
+    # the Jacobian of (x, index, flats' params at fixed x) -> the same at the fitted x
+    J = np.zeros((n + m, n + m))
+    J[:n, :n] = np.eye(n)
+    J[n:, n:] = np.eye(m)
+    for j, name in enumerate(fnames):
+        if name.startswith("P"):
+            J[n + j, 0] = fvals[j] / x
+        elif name.startswith("h"):
+            J[n + j, 0] = 2.0 * fvals[j] / x
+    block = np.zeros((n + m, n + m))
+    block[:n, :n] = pcov
+    block[n:, n:] = fcov
+    return tuple(names), np.array(pvals + list(fvals), float), J @ block @ J.T
+
+
+def _shift_stderr_from_x(cal: LensCalibration, x, sx):
+    """Largest change over the field of the predicted mean shift when x moves by its error,
+    with the circles scaled as the flats fix them and every pixel's chief-ray angle moving."""
+    from ..optics.mean import mean_shift
+    from .target_model import scaled_circles
+
+    lens = cal.lens
+    if not sx or not math.isfinite(sx):
+        return np.zeros(0)
+    d = np.linspace(0.0, x * math.tan(math.radians(cal.max_cra_deg)), _N_FIELD)
+    out = []
+    for f in cal.f_numbers:
+        shifts = []
+        for xi in (x - sx, x + sx):
+            li = Lens(xi, scaled_circles(lens.vignetting, x, xi), lens.magnification,
+                      lens.pupil_magnification)
+            cra = np.degrees(np.arctan(d / xi))
+            cut = float(li.cutoff_cra_deg(f)) if li.has_vignetting else 90.0
+            cra = np.where(cra < cut, cra, np.nan)
+            shifts.append(mean_shift(choice.REFERENCE_CWL_NM, choice.REFERENCE_N_EFF, f, cra,
+                                     li, method="vignetted"))
+        diff = np.abs(shifts[1] - shifts[0]) / 2.0
+        out.append(float(np.nanmax(diff)) if np.any(np.isfinite(diff)) else 0.0)
+    return np.array(out)
+
+
+def _profile(cal, pupil, names, values, cov, total, x_part, x0):
+    """The lens profile: the flats' calibration at the fitted x, the target's fit, the joint
+    covariance."""
+    def r(v, d=6):
+        return float(f"{float(v):.{d}g}")
+
+    table = dict(cal.lens.calibration)
+    pc = pupil.lens.calibration
+    for key in ("n_eff", "n_eff_stderr", "n_eff_fitted", "n_eff_source"):
+        if key in pc:
+            table[key] = pc[key]
+    table["exit_pupil_from"] = "the target cubes, fitted with the flats' circles scaled"
+    table["exit_pupil_fit"] = {k: v for k, v in pc.items()
+                               if k not in ("vignetting_scaled", "snapcorr_version", "date")}
+    if total.size:
+        table["shift_stderr_nm"] = [r(v, 4) for v in total]
+        table["shift_stderr_exit_pupil_nm"] = [r(v, 4) for v in x_part]
+    stderr = np.sqrt(np.clip(np.diag(cov), 0, None))
+    table["joint"] = {
+        "rule": ("the flats fix P / x, h / x^2 and the centre, the target x (and n_eff) with "
+                 "the circles scaled at every trial x; covariance by the chain rule, the two "
+                 "data sets independent"),
+        "provisional_x_mm": r(x0),
+        "names": list(names),
+        "values": [r(v, 8) for v in values],
+        "stderr": [r(v, 4) for v in stderr],
+        "covariance": [[r(v, 6) for v in row] for row in cov],
+    }
+    lens = cal.lens
+    return Lens(lens.exit_pupil_mm, lens.vignetting, lens.magnification,
+                lens.pupil_magnification, name=lens.name, calibration=table)

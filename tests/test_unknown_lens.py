@@ -1,0 +1,162 @@
+"""An unknown lens in one run: flats and a spectral target give x, n_eff, P, h and the centre.
+
+The flats come from ``tests/flatsim.py`` and the target cubes from ``tests/spectralsim.py``,
+two simulators that share no code with snapcorr. The flats alone fit equally well at any x
+(they fix P / x and h / x^2); the target alone needs the circles. Neither the API nor the
+command is given x.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import spectralsim as sim
+from flatsim import make_flats
+from test_pupil import CENTER, N_EFF, PAPER, PITCH_UM, SHAPE, cubes, sensor
+
+from snapcorr import Lens
+from snapcorr.calibrate import calibrate_with_target
+from snapcorr.cube import Sensor, make_cube, write_cube
+
+FLAT_F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
+TRUTH = {"exit_pupil_mm": PAPER.exit_pupil_mm, "n_eff": N_EFF, "P_mm": PAPER.circles[0][0],
+         "h_mm": PAPER.circles[0][1], "cx_px": CENTER[0], "cy_px": CENTER[1]}
+
+
+def one_run(seed, fit_n_eff=True, noise=0.002):
+    flats = make_flats(PAPER, FLAT_F_NUMBERS, shape=SHAPE, pitch_um=PITCH_UM,
+                       center_px=CENTER, noise=0.005, seed=seed)
+    return calibrate_with_target(
+        flats, cubes("colour_filter", "paper", (2.0, 8.0), noise=noise, seed=100 + seed),
+        sensor(), pixel_pitch_um=PITCH_UM, fit_n_eff=fit_n_eff,
+        magnification=PAPER.magnification, pupil_magnification=PAPER.pupil_magnification,
+        max_circles=1)
+
+
+def z_scores(got):
+    return {n: (v - TRUTH[n]) / e for n, v, e in zip(got.names, got.values, got.stderr,
+                                                      strict=True)}
+
+
+def test_one_run_recovers_x_n_eff_p_h_and_the_centre_without_x():
+    """x within 0.5 %, P, h and n_eff within 1 %, each within 3 of its standard error; the
+    profile holds the joint covariance and the circles at the x found."""
+    got = one_run(1)
+    assert got.names == ("exit_pupil_mm", "n_eff", "P_mm", "h_mm", "cx_px", "cy_px")
+    rel = {n: v / TRUTH[n] - 1 for n, v in zip(got.names, got.values, strict=True)}
+    assert abs(rel["exit_pupil_mm"]) < 0.005, got.summary()
+    for n in ("n_eff", "P_mm", "h_mm"):
+        assert abs(rel[n]) < 0.01, (n, got.summary())
+    z = z_scores(got)
+    assert all(abs(v) < 3 for v in z.values()), z
+    # the covariance: symmetric, positive definite, and P's error carries x's (dP/dx = P/x)
+    cov = got.covariance
+    assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
+    i, p = got.names.index("exit_pupil_mm"), got.names.index("P_mm")
+    P, x = got.values[p], got.values[i]
+    assert cov[p, i] == pytest.approx(P / x * cov[i, i], rel=1e-9)
+    assert got.stderr[p] > P / x * got.stderr[i]
+    # the profile: the circles at the x found, and everything to rebuild the covariance
+    lens = got.lens
+    assert lens.exit_pupil_mm == pytest.approx(x)
+    assert lens.vignetting[0] == pytest.approx((P, got.values[got.names.index("h_mm")]),
+                                               rel=1e-6)
+    joint = lens.calibration["joint"]
+    assert joint["names"] == list(got.names)
+    assert np.allclose(joint["covariance"], cov, rtol=1e-5, atol=0)
+    assert lens.calibration["exit_pupil_scaling"]["exit_pupil_stderr_mm"] == pytest.approx(
+        got.stderr[i])
+    # x's error moves every pixel's angle: the shift's error is larger with it, at every f
+    own = got.calibration.shift_stderr_nm
+    assert np.all(got.shift_stderr_nm >= own) and np.all(got.shift_stderr_exit_pupil_nm > 0)
+    assert not got.notes, got.notes  # both calibrations agree on P / x and h / x^2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fit_n_eff", [True, False])
+def test_the_joint_errors_cover_over_seeds(fit_n_eff):
+    """Over 8 seeds of independent flats and target cubes: every error within 0.5 % (x) or
+    1 % (the rest), every |z| < 3.5, and the RMS z of each parameter in [0.5, 2]."""
+    zs = []
+    for seed in range(8):
+        got = one_run(10 + seed, fit_n_eff)
+        rel = {n: v / TRUTH[n] - 1 for n, v in zip(got.names, got.values, strict=True)}
+        assert abs(rel["exit_pupil_mm"]) < 0.005 and all(
+            abs(rel[n]) < 0.01 for n in rel), got.summary()
+        zs.append(list(z_scores(got).values()))
+    zs = np.asarray(zs)
+    assert np.all(np.abs(zs) < 3.5), zs
+    rms = np.sqrt(np.mean(zs**2, axis=0))
+    assert np.all((rms > 0.5) & (rms < 2.0)), (got.names, rms)
+
+
+# -- the command -------------------------------------------------------------------------------
+CLI_SHAPE = (96, 120)
+CLI_CENTER = (61.0, 46.5)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("unknown_lens")
+    cwl = np.arange(500.0, 849.0, 12.0)
+    Sensor("test", "snapscan", PITCH_UM, cwl, 12.0, 1.7, size_px=CLI_SHAPE).save(
+        d / "sensor.toml")
+    flats = make_flats(PAPER, FLAT_F_NUMBERS, shape=CLI_SHAPE, pitch_um=PITCH_UM,
+                       center_px=CLI_CENTER, noise=0.005, seed=3)
+    for f, img in flats.items():
+        np.save(d / f"flat_f{f:g}.npy", img.astype(np.float32))
+    rng = np.random.default_rng(8)
+    for f in (2.0, 8.0):
+        data = sim.target_cube(sim.colour_filter, cwl_nm=cwl, fwhm_nm=12.0, n_eff=1.7,
+                               f_number=f, lens=PAPER, shape=CLI_SHAPE,
+                               pixel_pitch_um=PITCH_UM, center_px=CLI_CENTER)
+        data = (data + rng.normal(0, 0.003, data.shape)).astype(np.float32)
+        write_cube(make_cube(data, cwl), d / f"target_f{f:g}.nc")
+    return d
+
+
+def _args(d):
+    flats = [a for f in FLAT_F_NUMBERS for a in ("--flat", f"{f:g}={d / f'flat_f{f:g}.npy'}")]
+    return [*flats, "--target-cube", f"2={d / 'target_f2.nc'}", "--target-cube",
+            f"8={d / 'target_f8.nc'}", "--sensor", d / "sensor.toml",
+            "--pixel-pitch-um", str(PITCH_UM), "--magnification", "0.06",
+            "--pupil-magnification", "1.3", "--max-circles", "1"]
+
+
+def test_calibrate_with_target_cubes_writes_one_consistent_profile(files, cli):
+    out, sensor_out = files / "lens.toml", files / "sensor_fitted.toml"
+    res = cli("calibrate", *_args(files), "--fit-n-eff", "--out", out,
+              "--sensor-out", sensor_out)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "jointly (flats + target" in res.stdout
+    lens = Lens.load(out)
+    assert abs(lens.exit_pupil_mm / 21.0 - 1) < 0.005
+    (P, h), = lens.vignetting
+    assert abs(P / PAPER.circles[0][0] - 1) < 0.01 and abs(h / PAPER.circles[0][1] - 1) < 0.01
+    cal = lens.calibration
+    assert abs(cal["n_eff"] / 1.7 - 1) < 0.01
+    assert cal["joint"]["names"][:2] == ["exit_pupil_mm", "n_eff"]
+    assert "shift_stderr_exit_pupil_nm" in cal and "exit_pupil_fit" in cal
+    assert cal["dark"].startswith("none given")
+    assert Sensor.load(sensor_out).n_eff[0] == pytest.approx(cal["n_eff"], rel=1e-5)
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--exit-pupil-mm", "21"], "leave out --exit-pupil-mm"),
+    (["--sensor-out", "s.toml"], "--sensor-out needs --fit-n-eff"),
+])
+def test_calibrate_with_target_cubes_refuses_contradictions(files, cli, extra, words, tmp_path):
+    res = cli("calibrate", *_args(files), *extra, "--out", tmp_path / "l.toml")
+    assert res.returncode == 1 and words in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and not (tmp_path / "l.toml").exists()
+
+
+def test_calibrate_without_x_says_the_three_ways(files, cli, tmp_path):
+    res = cli("calibrate", "--flat", f"2={files / 'flat_f2.npy'}", "--flat",
+              f"8={files / 'flat_f8.npy'}", "--pixel-pitch-um", "44", "--out",
+              tmp_path / "l.toml")
+    assert res.returncode == 1 and "--target-cube" in res.stderr, res.stderr
+    res = cli("calibrate", "--flat", f"2={files / 'flat_f2.npy'}", "--flat",
+              f"8={files / 'flat_f8.npy'}", "--pixel-pitch-um", "44", "--exit-pupil-mm", "21",
+              "--fit-n-eff", "--out", tmp_path / "l.toml")
+    assert res.returncode == 1 and "goes with --target-cube" in res.stderr, res.stderr
