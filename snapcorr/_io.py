@@ -7,11 +7,14 @@ Reading
 
 Writing
     Every output is written under a hidden temporary name next to its target (``.name.XXXX``)
-    and moved in only when complete, so a crash never leaves half a file. A target that
-    already exists is replaced without a moment where neither the old nor the new one is
-    whole: a single file by an atomic rename; a folder, or a group of files that belong
-    together (an ENVI header and its data), by moving the old ones aside, moving the new ones
-    in and only then deleting the old ones (a failure puts the old ones back).
+    and moved in only when complete, so a crash never leaves half a file. The final move
+    replaces only what was there when the write began (and was checked then): a target that
+    did not exist is moved in without replacing anything (a hard link, or a reserved empty
+    folder renamed over), so a file or folder that appears there during the write, or a
+    second writer of the same output, is never replaced: the write fails and the result is
+    discarded. A target that existed is moved aside, compared with the one checked (device,
+    inode and modification time) and put back if it is not the same; the new one is moved in
+    and only then is the old one deleted (a failure puts the old ones back).
     :func:`refuse_inputs` refuses a target that is, contains or lies inside an input.
 
 Interruptions
@@ -273,39 +276,96 @@ def _usual_permissions(path, directory=False):
     os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
 
 
-def _replace(moves):
-    """Move each ``(new, target)`` into place.
+def _identity(path):
+    """``(device, inode, mtime)`` of what is at ``path`` (a link itself), or None if nothing
+    is. The modification time tells a new file from an old one whose inode number was reused;
+    a rename keeps it."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    return st.st_dev, st.st_ino, st.st_mtime_ns
 
-    A single file replaces its target by one atomic rename. Otherwise existing targets are
-    moved aside first and deleted only once every new path is in place; on any failure
-    (an interruption too) the new paths are taken out and the old ones put back.
+
+class OutputChangedError(FileExistsError):
+    """The output path changed while the output was written: nothing was replaced."""
+
+
+def _changed(target, now):
+    what = "appeared" if now else "changed"
+    return OutputChangedError(
+        errno.EEXIST, f"{target} {what} while the output was written (another program, or a "
+        "second snapcorr writing the same output?); nothing there was replaced and the new "
+        "output was discarded: write again, or choose another name", str(target))
+
+
+def _move_in_new(new, target):
+    """Move ``new`` to ``target`` where nothing may be replaced (FileExistsError otherwise)."""
+    if new.is_dir():
+        try:
+            os.mkdir(target)  # the reservation: atomic, fails if anything is there
+        except FileExistsError:
+            raise _changed(target, True) from None
+        try:
+            os.rename(new, target)  # over our own empty folder
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.rmdir(target)  # only while still empty: ours
+            raise _changed(target, True) from None
+        return
+    try:
+        os.link(new, target)
+    except FileExistsError:
+        raise _changed(target, True) from None
+    except OSError as err:  # a file system without hard links: reserve the name, then rename
+        if err.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV,
+                             errno.EMLINK):
+            raise
+        try:
+            os.close(os.open(target, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        except FileExistsError:
+            raise _changed(target, True) from None
+        os.replace(new, target)
+        return
+    os.unlink(new)
+
+
+def _replace(moves, expected):
+    """Move each ``(new, target)`` into place, replacing only what ``expected`` says.
+
+    ``expected`` holds, for each target, the :func:`_identity` of what was there when the
+    write began (None: nothing, and nothing may be replaced). Existing targets are moved aside
+    and checked against it; the old ones are deleted only once every new path is in place; on
+    any failure (an interruption too) the new paths are taken out and the old ones put back.
     """
     moves = [(Path(new), Path(target)) for new, target in moves]
     for new, target in moves:
         _check_kind(target, directory=new.is_dir())
-    if len(moves) == 1 and not moves[0][0].is_dir() and not moves[0][1].is_dir():
-        new, target = moves[0]
-        os.replace(new, target)
-        _unregister(new)
-        return
     # The old paths moved aside are not registered as temporaries: if anything goes wrong
     # they are put back, and a crash leaves them recoverable rather than deleted.
     asides, placed = [], []
     try:
-        for new, target in moves:
-            if os.path.lexists(target):
+        for (new, target), exp in zip(moves, expected, strict=True):
+            if exp is None:
+                _move_in_new(new, target)
+            else:
+                if _identity(target) is None:
+                    raise _changed(target, False)
                 aside = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old."))
                 os.rename(target, aside / target.name)
                 asides.append((aside, target))
-            os.rename(new, target)
+                if _identity(aside / target.name) != exp:
+                    raise _changed(target, False)
+                os.rename(new, target)
             _unregister(new)
             placed.append(target)
     except BaseException:
         for target in placed:  # the new ones out, the old ones back
             remove_path(target, settle_s=0)
         for aside, target in asides:
-            os.rename(aside / target.name, target)
-            os.rmdir(aside)
+            with contextlib.suppress(OSError):
+                os.rename(aside / target.name, target)
+                os.rmdir(aside)
         raise
     for aside, _ in asides:
         shutil.rmtree(aside, ignore_errors=True)
@@ -357,11 +417,12 @@ def atomic_write_dir(path, write):
 
 def _write_and_move(path, write, *, directory):
     _check_kind(path, directory=directory)
+    before = _identity(path)  # what was checked: only this may be replaced
     tmp = _make_temporary(path, directory=directory)
     try:
         write(tmp)
         _usual_permissions(tmp, directory=directory)
-        _replace([(tmp, path)])
+        _replace([(tmp, path)], [before])
     except BaseException:
         remove_path(tmp)
         raise
@@ -380,13 +441,14 @@ def atomic_write_files(paths, write):
         raise ValueError("files written together must share a folder")
     for p in paths:
         _check_kind(p, directory=False)
+    before = [_identity(p) for p in paths]
     tmp = _make_temporary(paths[0], directory=True)
     try:
         write(tmp)
         for p in paths:
             if not (tmp / p.name).is_file():
                 raise ValueError(f"the writer did not produce {p.name}")
-        _replace([(tmp / p.name, p) for p in paths])
+        _replace([(tmp / p.name, p) for p in paths], before)
     finally:
         remove_path(tmp, settle_s=0)
     return paths

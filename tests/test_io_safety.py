@@ -499,6 +499,83 @@ def test_atomic_writes_never_replace_a_folder_by_a_file_or_a_file_by_a_folder(tm
     assert _snapshot(tmp_path) == before
 
 
+def test_what_appears_at_the_output_during_the_write_is_never_replaced(tmp_path):
+    """The final move replaces only what was there when the write began: a file, a folder or
+    a group member that appears meanwhile (another program, a second writer) is kept, the new
+    output is discarded, and no temporary is left."""
+    def appears(target, make):
+        def write(tmp):
+            make(target)
+            if tmp.is_dir():
+                (tmp / "zarr.json").write_text("{}")
+            else:
+                tmp.write_text("new")
+        return write
+
+    def folder(t):
+        t.mkdir()
+        (t / "thesis.tex").write_text("years of work")
+
+    def file(t):
+        t.write_text("someone else's")
+
+    cases = [(_io.atomic_write, "out.png", file), (_io.atomic_write, "out.png", folder),
+             (_io.atomic_write_dir, "out.zarr", folder), (_io.atomic_write_dir, "out.zarr", file)]
+    for i, (writer, name, make) in enumerate(cases):
+        target = tmp_path / str(i) / name
+        target.parent.mkdir()
+        with pytest.raises((FileExistsError, ValueError), match="out"):
+            writer(target, appears(target, make))
+        kept = (target / "thesis.tex").read_text() if target.is_dir() else target.read_text()
+        assert kept in ("years of work", "someone else's")
+        assert sorted(p.name for p in target.parent.iterdir()) == [name]  # no temporary
+    # a header and its data: the data file appears during the write
+    hdr, raw = tmp_path / "g.hdr", tmp_path / "g.raw"
+
+    def write_group(folder):
+        raw.write_text("someone else's data")
+        (folder / "g.hdr").write_text("ENVI")
+        (folder / "g.raw").write_text("ours")
+
+    with pytest.raises(FileExistsError, match="appeared while the output was written"):
+        _io.atomic_write_files([raw, hdr], write_group)
+    assert raw.read_text() == "someone else's data" and not hdr.exists()
+
+
+def test_a_checked_output_swapped_during_the_write_is_put_back(tmp_path):
+    """An output that existed (and was checked) is replaced only if it is still the same file:
+    swapped for another one meanwhile, the other one is put back untouched."""
+    target = tmp_path / "plot.png"
+    target.write_text("old plot")
+
+    def write(tmp):
+        target.unlink()
+        target.write_text("a new file the user put there")
+        tmp.write_text("new plot")
+
+    with pytest.raises(FileExistsError, match="changed while the output was written"):
+        _io.atomic_write(target, write)
+    assert target.read_text() == "a new file the user put there"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plot.png"]
+    # unchanged, it is replaced as before
+    _io.atomic_write(target, lambda tmp: tmp.write_text("new plot"))
+    assert target.read_text() == "new plot"
+
+
+def test_two_writers_of_one_output_never_both_succeed(tmp_path):
+    """The second writer to finish finds the first one's output and fails; the first stays."""
+    cube = _cube()
+    out = tmp_path / "c.nc"
+
+    def slow_second(tmp):  # the first writer finishes while the second is still writing
+        write_cube(cube, out)
+        tmp.write_text("second")
+
+    with pytest.raises(FileExistsError, match="second snapcorr writing the same output"):
+        _io.atomic_write(out, slow_second)
+    assert np.array_equal(read_cube(out).values, cube.values)
+
+
 # -- 9. temporary files on signals -----------------------------------------------------------
 
 
