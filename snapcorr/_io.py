@@ -276,7 +276,7 @@ def _usual_permissions(path, directory=False):
     os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
 
 
-def _identity(path):
+def _state(path):
     """``(device, inode, mtime)`` of what is at ``path`` (a link itself), or None if nothing
     is. The modification time tells a new file from an old one whose inode number was reused;
     a rename keeps it."""
@@ -333,7 +333,7 @@ def _move_in_new(new, target):
 def _replace(moves, expected):
     """Move each ``(new, target)`` into place, replacing only what ``expected`` says.
 
-    ``expected`` holds, for each target, the :func:`_identity` of what was there when the
+    ``expected`` holds, for each target, the :func:`_state` of what was there when the
     write began (None: nothing, and nothing may be replaced). Existing targets are moved aside
     and checked against it; the old ones are deleted only once every new path is in place; on
     any failure (an interruption too) the new paths are taken out and the old ones put back.
@@ -349,12 +349,12 @@ def _replace(moves, expected):
             if exp is None:
                 _move_in_new(new, target)
             else:
-                if _identity(target) is None:
+                if _state(target) is None:
                     raise _changed(target, False)
                 aside = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old."))
                 os.rename(target, aside / target.name)
                 asides.append((aside, target))
-                if _identity(aside / target.name) != exp:
+                if _state(aside / target.name) != exp:
                     raise _changed(target, False)
                 os.rename(new, target)
             _unregister(new)
@@ -417,7 +417,7 @@ def atomic_write_dir(path, write):
 
 def _write_and_move(path, write, *, directory):
     _check_kind(path, directory=directory)
-    before = _identity(path)  # what was checked: only this may be replaced
+    before = _state(path)  # what was checked: only this may be replaced
     tmp = _make_temporary(path, directory=directory)
     try:
         write(tmp)
@@ -441,7 +441,7 @@ def atomic_write_files(paths, write):
         raise ValueError("files written together must share a folder")
     for p in paths:
         _check_kind(p, directory=False)
-    before = [_identity(p) for p in paths]
+    before = [_state(p) for p in paths]
     tmp = _make_temporary(paths[0], directory=True)
     try:
         write(tmp)
