@@ -106,6 +106,7 @@ def check_input(path, *, directory=False, what="file"):
         if not stat.S_ISDIR(mode):
             raise ValueError(f"{path} is {file_kind(mode)}, but a {path.suffix or what} store "
                              "is a folder; give the store's folder")
+        _check_store_entries(path, what)
         return path
     if stat.S_ISDIR(mode):
         raise ValueError(f"{path} is a folder, but a {what} in this format is a single file "
@@ -114,6 +115,24 @@ def check_input(path, *, directory=False, what="file"):
         raise ValueError(f"{path} is {file_kind(mode)}, not a regular file; snapcorr reads "
                          f"a {what} only from a regular file (copy the data into one first)")
     return path
+
+
+def _check_store_entries(path, what):
+    """Every entry of a store, at any depth, must be a regular file or a folder (a symbolic
+    link is judged by what it points to): reading a FIFO would wait forever, a device would
+    read without end."""
+    for root, dirs, files in os.walk(path):
+        for name in dirs + files:
+            entry = os.path.join(root, name)
+            try:
+                mode = os.stat(entry).st_mode
+            except OSError as err:
+                raise ValueError(f"{entry} (inside the {what} store {path}): cannot examine "
+                                 f"it: {err.strerror}") from None
+            if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                raise ValueError(f"{entry} (inside the {what} store {path}) is "
+                                 f"{file_kind(mode)}, not a regular file; a store holds only "
+                                 "files and folders: remove it or copy the store")
 
 
 # -- outputs and inputs ----------------------------------------------------------------------

@@ -84,6 +84,28 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path, reader, ext):
     _one_line(err)
 
 
+@pytest.mark.parametrize("reader", ["read_cube", "read_flat", "read_frame", "read_dataset",
+                                    "read_frames"])
+def test_a_fifo_at_any_depth_of_a_zarr_store_is_refused_before_it_is_opened(tmp_path, reader):
+    """Special files are refused wherever they sit in a store, before zarr opens it (a FIFO
+    among the chunks hung flatfield, beyond the reach of SIGTERM)."""
+    from snapcorr.cube import read_frames
+
+    if reader == "read_dataset":
+        write_dataset(xr.Dataset({"radiance": _cube()}), tmp_path / "s.zarr")
+    else:
+        write_cube(_cube(), tmp_path / "s.zarr")
+    chunk = max((p for p in (tmp_path / "s.zarr").rglob("*") if p.is_file()),
+                key=lambda p: len(p.parts))
+    chunk.unlink()
+    os.mkfifo(chunk)
+    readers = {**READERS, "read_frames": read_frames}
+    with _deadline(60), pytest.raises(ValueError, match=r"inside the .* store .* is a FIFO "
+                                                       r"\(named pipe\)") as err:
+        readers[reader](tmp_path / "s.zarr")
+    _one_line(err)
+
+
 @pytest.mark.parametrize("reader", ["read_cube", "read_flat", "read_frame"])
 def test_an_envi_data_file_that_is_a_fifo_is_refused(tmp_path, reader):
     write_cube(_cube(shape=(5, 6, 1)), tmp_path / "e.hdr")
