@@ -525,8 +525,9 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
 # -- TOML ------------------------------------------------------------------------------------
 
 
-def read_toml(path, table, what):
-    """The parsed TOML document at ``path``, which must hold ``[table]``; clear errors.
+def read_toml(path, table, what, *, others=("calibration",)):
+    """The parsed TOML document at ``path``, which must hold ``[table]`` and nothing else at
+    the top level but ``others``; clear errors.
 
     Parameters
     ----------
@@ -536,6 +537,10 @@ def read_toml(path, table, what):
         Name of the top-level table the document must hold.
     what : str
         What the file holds, for the messages ("lens calibration", ...).
+    others : tuple of str
+        The other top-level tables allowed. Anything else (a misspelled table, a table meant
+        to sit inside ``[table]``, a key outside it) is refused: read leniently, a
+        ``[[vignetting]]`` written at the top level gave a lens without vignetting.
 
     Returns
     -------
@@ -562,6 +567,13 @@ def read_toml(path, table, what):
         raise ValueError(f"{path} is not valid TOML: not UTF-8 text") from None
     if table not in doc:
         raise ValueError(f"{path} has no [{table}] table")
+    extra = sorted(set(doc) - {table, *others})
+    if extra:
+        hint = "".join(f" ([[{k}]] inside it is written [[{table}.{k}]])" for k in extra
+                       if isinstance(doc[k], list))
+        raise ValueError(f"{path}: unknown top-level table(s) or key(s) {extra}; a {what} "
+                         f"holds [{table}]{hint}"
+                         + "".join(f" and optionally [{o}]" for o in others))
     return doc
 
 

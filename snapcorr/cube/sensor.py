@@ -454,10 +454,6 @@ class Sensor:
             return cls.from_vendor(path)
         doc = read_toml(path, "sensor", "sensor description")
         table = dict(doc["sensor"])
-        extra = sorted(set(doc) - {"sensor", "calibration"})
-        if extra:
-            raise ValueError(f"{path}: unknown top-level table(s) or key(s) {extra}; a sensor "
-                             "file holds [sensor] and optionally [calibration]")
         try:
             if "vendor_file" in table:
                 return cls._from_vendor_table(path, table, doc.get("calibration"))
