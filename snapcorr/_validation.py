@@ -26,6 +26,22 @@ def check_positive(name, value):
     return v
 
 
+#: No thin-film filter's effective index reaches this (its layers' indices stay below about 4.5).
+N_EFF_MAX = 5.0
+#: Pixel pitches outside this range (micrometres) are no camera's: a typo or a unit slip.
+PIXEL_PITCH_RANGE_UM = (0.1, 1000.0)
+
+
+def check_pixel_pitch_um(name, value):
+    """A pixel pitch in micrometres: a finite number inside :data:`PIXEL_PITCH_RANGE_UM`."""
+    v = check_positive(name, value)
+    lo, hi = PIXEL_PITCH_RANGE_UM
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} = {v:g} um is no camera's pixel pitch (expected {lo:g}-{hi:g} "
+                         "um, binned pixels included); check the unit")
+    return v
+
+
 def check_positive_array(name, values, unit=""):
     """``values`` as a float array, raising a clear ``ValueError`` unless every element is a
     finite number > 0 (the array form of :func:`check_positive`).

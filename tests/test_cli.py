@@ -160,3 +160,27 @@ def test_warning_is_one_line(tmp_path, cli):
     res = cli("shift", "--lens", str(lens), "--f-number", "1.2", "--cra", "30")
     assert res.returncode == 0
     assert "warning" in res.stderr and "Traceback" not in res.stderr
+
+
+@pytest.mark.parametrize("f", ["0.3", "1e-80", "1e-300"])
+def test_f_numbers_below_the_physical_limit_are_one_line(cli, f):
+    """f/1e-80 gave a shift of -700 nm, f/1e-300 NaN with exit 0: a working f-number below
+    0.5 (a numerical aperture above 1) is refused wherever an f-number enters."""
+    res = cli("shift", "--f-number", f, "--cra", "0", "10")
+    assert res.returncode == 1 and "below the physical limit" in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("pixel_pitch_um", "1e300", "no camera's pixel pitch"),
+    ("pixel_pitch_um", "0.001", "no camera's pixel pitch"),
+    ("n_eff", "7.0", "n_eff must be below 5"),
+])
+def test_sensor_numbers_outside_the_physics_are_refused(cli, tmp_path, key, value, words):
+    table = {"name": '"t"', "layout": '"snapscan"', "pixel_pitch_um": "5.5",
+             "cwl_nm": "[500.0, 600.0]", "fwhm_nm": "10.0", "n_eff": "1.7", key: value}
+    path = tmp_path / "s.toml"
+    path.write_text("[sensor]\n" + "".join(f"{k} = {v}\n" for k, v in table.items()))
+    res = cli("sensor", path)
+    assert res.returncode == 1 and words in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1

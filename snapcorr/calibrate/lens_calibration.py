@@ -39,7 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import __version__
-from .._validation import check_center, check_positive
+from .._validation import check_center, check_pixel_pitch_um, check_positive
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
@@ -194,7 +194,7 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
-    pixel_pitch_um = check_positive("pixel_pitch_um", pixel_pitch_um)
+    pixel_pitch_um = check_pixel_pitch_um("pixel_pitch_um", pixel_pitch_um)
     if vignetting_distance_mm is not None:
         vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
     if center_px is not None:

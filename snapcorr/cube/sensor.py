@@ -16,7 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from .._io import read_toml, write_toml
-from .._validation import check_integers, check_numbers, check_positive, check_wavelengths_nm
+from .._validation import (
+    N_EFF_MAX,
+    check_integers,
+    check_numbers,
+    check_pixel_pitch_um,
+    check_wavelengths_nm,
+)
 from .responses import CorrectionMatrix, FilterResponses
 
 __all__ = ["LAYOUTS", "VENDOR_OVERRIDES", "Sensor"]
@@ -132,7 +138,8 @@ class Sensor:
             raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
         set_(self, "name", str(self.name))
         if self.pixel_pitch_um is not None:
-            set_(self, "pixel_pitch_um", check_positive("pixel_pitch_um", self.pixel_pitch_um))
+            set_(self, "pixel_pitch_um", check_pixel_pitch_um("pixel_pitch_um",
+                                                           self.pixel_pitch_um))
         check_numbers("cwl_nm", self.cwl_nm)
         cwl = np.atleast_1d(check_wavelengths_nm("cwl_nm", self.cwl_nm))
         if cwl.ndim != 1 or cwl.size == 0:
@@ -142,6 +149,9 @@ class Sensor:
         set_(self, "fwhm_nm", _per_band("fwhm_nm", self.fwhm_nm, n, minimum=0))
         if self.n_eff is not None:
             set_(self, "n_eff", _per_band("n_eff", self.n_eff, n, minimum=1))
+            if max(self.n_eff) >= N_EFF_MAX:
+                raise ValueError(f"n_eff must be below {N_EFF_MAX:g} (a thin-film filter's "
+                                 f"effective index), got {max(self.n_eff):g}")
         if self.layout == "mosaic":
             if self.mosaic_shape is None or self.band_offset is None:
                 raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")

@@ -62,6 +62,11 @@ def _circles(vignetting):
     return tuple(out)
 
 
+#: No lens in air focuses a cone wider than a numerical aperture of 1: a working f-number of
+#: 1 / (2 NA) = 0.5 at least.
+MIN_WORKING_F_NUMBER = 0.5
+
+
 @dataclass(frozen=True)
 class Lens:
     """An objective lens as its filters see it: exit pupil and projected vignetting circles.
@@ -130,11 +135,19 @@ class Lens:
         return bool(self.vignetting)
 
     def working_f_number(self, f_number):
-        """Working f-number, Eq. (27): ``(1 + m / m_P) * f_number``."""
+        """Working f-number, Eq. (27): ``(1 + m / m_P) * f_number``; at least
+        :data:`MIN_WORKING_F_NUMBER` (a numerical aperture of 1 in air)."""
         f = np.asarray(f_number, dtype=float)
         if not np.all(np.isfinite(f)) or np.any(f <= 0):
             raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
-        return (1.0 + self.magnification / self.pupil_magnification) * f
+        fw = (1.0 + self.magnification / self.pupil_magnification) * f
+        if np.any(fw < MIN_WORKING_F_NUMBER):
+            bad = float(np.min(f))
+            raise ValueError(f"f/{bad:g} is below the physical limit: the working f-number "
+                             f"(1 + m / m_P) f = {float(np.min(fw)):g} must be at least "
+                             f"{MIN_WORKING_F_NUMBER:g} (a numerical aperture of 1 in air); "
+                             "check the f-number (--f-number)")
+        return fw
 
     def exit_pupil_radius_mm(self, f_number):
         """Exit-pupil radius R, Eq. (28): ``x / (2 f_W)``."""

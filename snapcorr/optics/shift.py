@@ -17,6 +17,8 @@ import warnings
 
 import numpy as np
 
+from .._validation import N_EFF_MAX
+
 __all__ = [
     "AOI_VALIDITY_DEG",
     "EffectiveIndexWarning",
@@ -39,11 +41,13 @@ class EffectiveIndexWarning(UserWarning):
 def check_n_eff(n_eff):
     """Return ``n_eff`` as float array, raising if any value is not a finite index > 1."""
     n = np.asarray(n_eff, dtype=float)
-    if not np.all(np.isfinite(n)) or np.any(n <= 1.0):
-        bad = n[~(np.isfinite(n) & (n > 1.0))].ravel()[:3]
+    ok = np.isfinite(n) & (n > 1.0) & (n < N_EFF_MAX)
+    if not np.all(ok):
+        bad = n[~ok].ravel()[:3]
         raise ValueError(
-            f"n_eff must be a finite effective refractive index > 1 (got {bad.tolist()}); "
-            "typical thin-film Fabry-Perot filters have n_eff between 1.4 and 2.4."
+            f"n_eff must be a finite effective refractive index in (1, {N_EFF_MAX:g}) (got "
+            f"{bad.tolist()}); typical thin-film Fabry-Perot filters have n_eff between 1.4 "
+            "and 2.4."
         )
     return n
 
