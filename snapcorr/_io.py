@@ -106,7 +106,7 @@ def check_input(path, *, directory=False, what="file"):
         if not stat.S_ISDIR(mode):
             raise ValueError(f"{path} is {file_kind(mode)}, but a {path.suffix or what} store "
                              "is a folder; give the store's folder")
-        _check_store_entries(path, what)
+        _check_store_entries(path, what if "folder" in what else f"{what} store")
         return path
     if stat.S_ISDIR(mode):
         raise ValueError(f"{path} is a folder, but a {what} in this format is a single file "
@@ -127,10 +127,14 @@ def _check_store_entries(path, what):
             try:
                 mode = os.stat(entry).st_mode
             except OSError as err:
-                raise ValueError(f"{entry} (inside the {what} store {path}): cannot examine "
+                if os.path.islink(entry):
+                    raise ValueError(f"{entry} (inside the {what} {path}) is a symbolic link "
+                                     f"to {os.readlink(entry)}, which does not exist: not a "
+                                     "regular file") from None
+                raise ValueError(f"{entry} (inside the {what} {path}): cannot examine "
                                  f"it: {err.strerror}") from None
             if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
-                raise ValueError(f"{entry} (inside the {what} store {path}) is "
+                raise ValueError(f"{entry} (inside the {what} {path}) is "
                                  f"{file_kind(mode)}, not a regular file; a store holds only "
                                  "files and folders: remove it or copy the store")
 

@@ -564,3 +564,80 @@ def test_zarr_has_consolidated_metadata_and_both_kinds_are_read(tmp_path):
         for name in ("c.zarr", "plain.zarr"):
             assert_array_equal(read_cube(tmp_path / name).values, cube.values)
             assert_array_equal(read_dataset(tmp_path / name)["radiance"].values, cube.values)
+
+
+# -- readers never alter values ---------------------------------------------------------------
+
+
+def test_an_unassociated_alpha_leaves_the_other_bands_as_stored(tmp_path):
+    """PIL writes RGBA (and LA) TIFFs with an unassociated alpha; OpenImageIO by default
+    multiplies every other channel by it. The bands come back as stored."""
+    from PIL import Image
+
+    from snapcorr.cube import read_frame
+
+    a = np.zeros((4, 5, 4), np.uint8)
+    a[..., 0], a[..., 1], a[..., 2], a[..., 3] = 200, 100, 50, 128
+    Image.fromarray(a, "RGBA").save(tmp_path / "rgba.tif")
+    cube = read_cube(tmp_path / "rgba.tif", wavelength_nm=[500.0, 600.0, 700.0, 800.0])
+    np.testing.assert_array_equal(cube.values, a)
+    Image.fromarray(a[..., [0, 3]], "LA").save(tmp_path / "la.tif")
+    frame = read_frame(tmp_path / "la.tif")
+    np.testing.assert_array_equal(np.asarray(frame.values), a[..., 0])
+
+
+def _exr(path, names):
+    import OpenImageIO as oiio
+
+    img = np.zeros((3, 4, len(names)), np.float32)
+    img[...] = np.arange(len(names), dtype=np.float32)  # each channel holds its written index
+    spec = oiio.ImageSpec(4, 3, len(names), "float")
+    spec.channelnames = tuple(names)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec) and out.write_image(img)
+    out.close()
+
+
+def test_exr_channels_come_back_in_the_bands_order_or_are_refused(tmp_path):
+    """OpenEXR keeps channels sorted by name: band1, band10, band11, band2, ... came back in
+    that order with the wavelengths assigned to it. Numbered channels are put in their
+    numbers' order; names that say no order are refused."""
+    _exr(tmp_path / "b.exr", [f"band{i + 1}" for i in range(12)])
+    cube = read_cube(tmp_path / "b.exr", wavelength_nm=500.0 + 10 * np.arange(12))
+    np.testing.assert_array_equal(cube.values[0, 0], np.arange(12))
+    _exr(tmp_path / "c.exr", ["red", "green", "blue"])
+    with pytest.raises(ValueError, match="do not say the bands' order"):
+        read_cube(tmp_path / "c.exr", wavelength_nm=[600.0, 550.0, 450.0])
+
+
+def _envi(tmp_path, extra, name="e"):
+    cube = make_cube(np.arange(2 * 3 * 4, dtype=np.uint16).reshape(2, 3, 4) * 100,
+                     [500.0, 600.0, 700.0, 800.0])
+    hdr = tmp_path / f"{name}.hdr"
+    write_cube(cube, hdr)
+    hdr.write_text(hdr.read_text() + extra)
+    return hdr, cube.values
+
+
+def test_an_envi_key_given_twice_is_refused(tmp_path):
+    """Spectral Python keeps the last of a repeated key, and the data were read scrambled."""
+    hdr, _ = _envi(tmp_path, "samples = 2\n")
+    with pytest.raises(ValueError, match="gives 'samples' more than once"):
+        read_cube(hdr)
+
+
+@pytest.mark.parametrize("chunks", [None, {"y": 1}])
+def test_envi_gains_offsets_scale_and_bad_bands_are_applied(tmp_path, chunks):
+    """value = (stored * gain + offset) / reflectance scale factor; bbl 0 bands and pixels at
+    the data ignore value (in stored units) are NaN. They were ignored."""
+    hdr, raw = _envi(tmp_path, "data gain values = {2, 2, 3, 3}\ndata offset values = "
+                               "{1, 1, 1, 0}\nreflectance scale factor = 10000\n"
+                               "bbl = {1, 0, 1, 1}\ndata ignore value = 0\n")
+    got = np.asarray(read_cube(hdr, chunks=chunks).values, float)
+    want = (raw * np.array([2, 2, 3, 3]) + np.array([1, 1, 1, 0])) / 10000.0
+    want[..., 1] = np.nan
+    want[raw == 0] = np.nan
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    bad, _ = _envi(tmp_path, "data gain values = {2, 2}\n", name="bad")
+    with pytest.raises(ValueError, match="'data gain values' has 2 values for 4 bands"):
+        read_cube(bad)

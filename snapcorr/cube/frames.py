@@ -21,7 +21,7 @@ import numpy as np
 import xarray as xr
 
 from .._io import check_input
-from .io import FORMATS, _open_dataset, read_frame
+from .io import FORMATS, _open_dataset, open_image, read_frame
 
 __all__ = ["read_frames"]
 
@@ -177,9 +177,7 @@ def _plain_zarr(path, first_error):
 
 
 def _page(path, index, shape, dtype):
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
+    inp = open_image(path)
     if inp is None or not inp.seek_subimage(index, 0):
         raise ValueError(f"{path}: cannot read page {index + 1}")
     try:
@@ -205,7 +203,7 @@ def _tiff_pages(path):
     import OpenImageIO as oiio
 
     check_input(path, what="stream")
-    inp = oiio.ImageInput.open(str(path))
+    inp = open_image(path)
     if inp is None:
         raise ValueError(f"{path}: cannot read it as tiff: {oiio.geterror() or 'no image'}")
     specs = []

@@ -578,6 +578,10 @@ def _envi_header(hdr):
         raise ValueError(f"{hdr}: cannot read it as ENVI: {msg}") from None
     if h.get("file type", "").strip().lower() == "envi spectral library":
         raise ValueError(f"{hdr} is an ENVI spectral library, not an image cube")
+    twice = _envi_repeated_keys(hdr)
+    if twice:
+        raise ValueError(f"{hdr}: the header gives {', '.join(repr(k) for k in twice)} more "
+                         "than once, and readers disagree on which holds; keep one of each")
     lines = _envi_int(h, "lines", hdr, minimum=1, what="a whole number > 0")
     samples = _envi_int(h, "samples", hdr, minimum=1, what="a whole number > 0")
     bands = _envi_int(h, "bands", hdr, minimum=1, what="a whole number > 0")
@@ -611,6 +615,66 @@ def _envi_header(hdr):
     dtype = np.dtype(_ENVI_DTYPES[code]).newbyteorder(">" if order else "<")
     return {"header": h, "lines": lines, "samples": samples, "bands": bands, "offset": offset,
             "dtype": dtype, "interleave": interleave}
+
+
+def _envi_repeated_keys(hdr):
+    """Keys the header's text gives more than once (at the top level, case-insensitive)."""
+    try:
+        text = Path(hdr).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return []
+    keys, depth = [], 0
+    for line in text.splitlines()[1:]:  # the first line is "ENVI"
+        if depth == 0 and "=" in line:
+            keys.append(line.split("=", 1)[0].strip().lower())
+        depth = max(depth + line.count("{") - line.count("}"), 0)
+    return sorted({k for k in keys if k and keys.count(k) > 1})
+
+
+def _envi_values(h, hdr, bands):
+    """What the header says the stored numbers mean, per band: ``(gain, offset, scale, bad)``
+    (value = (stored * gain + offset) / scale; ``bad`` the bands ``bbl`` marks 0), or None
+    when it says nothing (the stored numbers are the values)."""
+    def per_band(key, default):
+        v = _envi_list(h, key, hdr)
+        if v is None:
+            return np.full(bands, default)
+        if v.size == 1:
+            return np.full(bands, float(v[0]))
+        if v.size != bands:
+            raise ValueError(f"{hdr}: '{key}' has {v.size} values for {bands} bands; fix the "
+                             "header")
+        return v
+
+    keys = ("data gain values", "data offset values", "reflectance scale factor", "bbl")
+    if not any(k in h for k in keys):
+        return None
+    gain, offset = per_band("data gain values", 1.0), per_band("data offset values", 0.0)
+    scale = _envi_list(h, "reflectance scale factor", hdr)
+    scale = 1.0 if scale is None or scale.size == 0 else float(scale[0])
+    bbl = per_band("bbl", 1.0)
+    if not (np.all(np.isfinite(gain)) and np.all(np.isfinite(offset))
+            and math.isfinite(scale) and scale > 0 and np.all(np.isin(bbl, (0.0, 1.0)))):
+        raise ValueError(f"{hdr}: the data gain / offset values, reflectance scale factor or "
+                         "bbl are not finite numbers (gains and offsets), a number > 0 (the "
+                         "scale factor) and 0 or 1 per band (bbl); fix the header")
+    return gain, offset, scale, bbl == 0
+
+
+def _apply_envi_values(data, values, ignore):
+    """The stored numbers as the header says to read them: ``(stored * gain + offset) /
+    scale``, bad bands (bbl 0) and pixels equal to the data ignore value (in stored units) NaN.
+    ``data`` is a numpy or dask array, ``(y, x, band)``."""
+    import dask.array as da
+
+    gain, offset, scale, bad = values
+    kind = np.result_type(data.dtype, np.float32)
+    out = (data.astype(kind) * gain.astype(kind) + offset.astype(kind)) / kind.type(scale)
+    if not np.any(bad) and ignore is None:
+        return out
+    drop = bad if ignore is None else (data == ignore) | bad
+    where = da.where if isinstance(out, da.Array) else np.where
+    return where(drop, kind.type(np.nan), out)
 
 
 def _envi_data_file(hdr, interleave):
@@ -667,16 +731,25 @@ def _read_envi(hdr, data_file, chunks):
     # blocks with plain file reads (blockfile), never through a whole-file memory map
     data = _from_file(data_file, dtype, (rows, cols, bands), p["offset"], p["interleave"],
                       chunks)
-    found = _File(hdr, "envi", data, wavelength=_envi_list(h, "wavelength", hdr),
-                  units=h.get("wavelength units"), fwhm=_envi_list(h, "fwhm", hdr),
-                  fwhm_units=h.get("wavelength units"), name=h.get("snapcorr name"))
-    attrs = {"source": str(hdr), "envi_interleave": p["interleave"]}
+    ignore = None
     if "data ignore value" in h:
         try:
-            attrs["data_ignore_value"] = float(h["data ignore value"])
+            ignore = float(h["data ignore value"])
         except (TypeError, ValueError):
             raise ValueError(f"{hdr}: 'data ignore value = {h['data ignore value']}' is not a "
                              "number; fix the header") from None
+    values = _envi_values(h, hdr, bands)
+    attrs = {"source": str(hdr), "envi_interleave": p["interleave"]}
+    if values is not None:  # applied as the header says, the ignored pixels NaN
+        data = _apply_envi_values(data, values, ignore)
+        attrs["envi_values_applied"] = ("(stored * data gain values + data offset values) / "
+                                        "reflectance scale factor; bbl 0 bands and the data "
+                                        "ignore value NaN")
+    elif ignore is not None:
+        attrs["data_ignore_value"] = ignore
+    found = _File(hdr, "envi", data, wavelength=_envi_list(h, "wavelength", hdr),
+                  units=h.get("wavelength units"), fwhm=_envi_list(h, "fwhm", hdr),
+                  fwhm_units=h.get("wavelength units"), name=h.get("snapcorr name"))
     stored = h.get("snapcorr attrs")
     if isinstance(stored, str) and stored.startswith(JSON_PREFIX):
         try:
@@ -717,10 +790,42 @@ def _envi_numbers(h, key, hdr, scalar=False):
 # TIFF, OpenEXR -----------------------------------------------------------------------------
 
 
+_NUMBERED = re.compile(r"^(.*?)(\d+)$")
+
+
+def _exr_channel_order(path, names):
+    """The bands' order of EXR channels not named by wavelength. OpenEXR keeps channels sorted
+    by name (band1, band10, band11, band2, ...), not as written: channels named by one prefix
+    and a number are put in the number's order, R, G, B (A) stay so (OpenImageIO's own order);
+    any other naming is refused, as no order can be read from it."""
+    if names == ["R", "G", "B", "A"][:len(names)]:  # OpenImageIO puts these first, in order
+        return list(range(len(names)))
+    parts = [_NUMBERED.match(n) for n in names]
+    if all(parts) and len({m.group(1) for m in parts}) == 1:
+        numbers = [int(m.group(2)) for m in parts]
+        if len(set(numbers)) == len(numbers):
+            return list(np.argsort(numbers, kind="stable"))
+    shown = ", ".join(names[:6]) + (", ..." if len(names) > 6 else "")
+    raise ValueError(f"{path}: OpenEXR keeps channels sorted by name, and these ({shown}) do "
+                     "not say the bands' order; name them by wavelength (e.g. 'S0.550nm' or "
+                     "'550nm') or by one prefix and the band's number (band1, band2, ...)")
+
+
+def open_image(path):
+    """``OpenImageIO.ImageInput`` open on ``path`` with the values as stored: an unassociated
+    alpha channel (PIL's RGBA and LA TIFFs) is kept as it is, where OpenImageIO by default
+    multiplies every other channel by it. None if it cannot be opened (``oiio.geterror()``)."""
+    import OpenImageIO as oiio
+
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    return oiio.ImageInput.open(str(path), config)
+
+
 def _read_oiio(path, fmt, drop_alpha):
     import OpenImageIO as oiio
 
-    inp = oiio.ImageInput.open(str(path))
+    inp = open_image(path)
     if inp is None:
         raise ValueError(f"{path}: cannot read it as {fmt}: "
                          f"{_one_line(oiio.geterror()) or 'OpenImageIO cannot open it'}")
@@ -773,6 +878,8 @@ def _read_oiio(path, fmt, drop_alpha):
             keep, wl = [keep[i] for i in order], wl[order]
     elif wl is None and names and all(_PLAIN_CHANNEL.match(n) for n in names):
         wl = np.array([float(_PLAIN_CHANNEL.match(n).group(1)) for n in names])
+    elif wl is None and fmt == "exr" and len(keep) > 1:
+        keep = [keep[i] for i in _exr_channel_order(path, [names[i] for i in keep])]
     data = data[..., keep]
     dtype = meta.get("dtype")
     if dtype is not None:
@@ -1095,7 +1202,7 @@ def _written_by_snapcorr(target, role):
     if role in ("tiff", "exr"):
         import OpenImageIO as oiio
 
-        inp = oiio.ImageInput.open(str(target))
+        inp = open_image(target)
         if inp is None:
             oiio.geterror()
             return False, f"a file that is not {role.upper()}"
