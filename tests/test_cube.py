@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
 from snapcorr.cube import Sensor, flatfield, make_cube, mosaic_to_cube
+from snapcorr.cube.model import with_positions
 from snapcorr.data import sensor_path
 
 # -- sensors ---------------------------------------------------------------------------------
@@ -350,3 +351,46 @@ def test_outputs_carry_cf_units_and_long_names():
     assert ds["reflectance"].attrs["source"].startswith("(raw - dark) / (white - dark) of "
                                                         "scene.hdr")
     assert "flatfield" in ds.attrs["source"] and "white <= dark" in ds["mask"].attrs["source"]
+
+
+def _placed(values, row0=0, col0=0, wl=None):
+    cube = make_cube(np.asarray(values, float), wl if wl is not None else
+                     np.linspace(500.0, 700.0, np.shape(values)[2]))
+    ny, nx, nb = cube.shape
+    rows = np.repeat(np.arange(row0, row0 + ny)[:, None], nb, axis=1)
+    cols = np.repeat(np.arange(col0, col0 + nx)[:, None], nb, axis=1)
+    return with_positions(cube, rows, cols)
+
+
+def test_references_from_another_part_of_the_sensor_are_refused():
+    """A dark or white whose recorded positions differ from the cube's was accepted:
+    reflectance up to 33 % wrong. The same columns always, the same rows unless a strip."""
+    raw = _placed(np.full((6, 4, 3), 500.0), 100, 200)
+    dark = _placed(np.zeros((6, 4, 3)), 100, 200)
+    with pytest.raises(ValueError, match="other sensor columns than the cube"):
+        flatfield(raw, dark, _placed(np.full((6, 4, 3), 1000.0), 100, 240))
+    with pytest.raises(ValueError, match="other sensor rows than the cube"):
+        flatfield(raw, dark, _placed(np.full((6, 4, 3), 1000.0), 300, 200))
+    # a line-scan strip may come from any rows of the scan, never other columns
+    ds = flatfield(raw, dark, _placed(np.full((2, 4, 3), 1000.0), 900, 200))
+    assert float(ds["reflectance"].mean()) == pytest.approx(0.5)
+
+
+def test_a_snapshot_has_no_scan_axis_and_references_keep_their_ignore_value():
+    """A mosaic white one tile row short was averaged over y as if it were a line-scan strip
+    (11.9 % wrong); a reference's ENVI data ignore value was not honoured (0.917 for 0.474)."""
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    rng = np.random.default_rng(0)
+    frame = rng.uniform(100, 200, (32, 32))
+    raw = mosaic_to_cube(frame, sensor, origin_px=(64, 64))
+    white = mosaic_to_cube(np.full((28, 32), 400.0), sensor, origin_px=(64, 64))
+    dark = mosaic_to_cube(np.zeros((32, 32)), sensor, origin_px=(64, 64))
+    with pytest.raises(ValueError, match="a snapshot has no scan axis"):
+        flatfield(raw, dark, white)
+    raw = _placed(np.full((4, 3, 2), 500.0))
+    white = _placed(np.full((4, 3, 2), 1000.0))
+    white[0, 0, 0] = -1.0
+    white.attrs["data_ignore_value"] = -1.0
+    ds = flatfield(raw, _placed(np.zeros((4, 3, 2))), white)
+    assert bool(ds["mask"][0, 0, 0]) and np.isnan(float(ds["reflectance"][0, 0, 0]))
+    assert float(ds["reflectance"][1, 1, 1]) == pytest.approx(0.5)

@@ -99,11 +99,26 @@ def _average_reference(label, frames, raw, dtype, saturation):
     if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
         raise ValueError(f"{label} and the cube have different wavelengths; they must come "
                          "from the same sensor and band set")
+    snapshot = _is_snapshot(raw)
+    if snapshot and ref.sizes["y"] != raw.sizes["y"]:
+        raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
+                         f"{raw.sizes['y']}, and the cube is a snapshot (its bands sit at "
+                         "different rows of a mosaic tile): a snapshot has no scan axis, so "
+                         "its references are cubes of the same size and place")
+    for f in frames:
+        _check_same_place(label, f, raw, snapshot)
     stack = xr.concat([f.astype(dtype) for f in frames], dim="frame")
     stack = stack.drop_vars([c for c in stack.coords if c not in ("wavelength", "fwhm")])
     # Flags are taken per frame and per row before averaging, so a saturated or missing
-    # value in any frame (or any row of a line-scan strip) masks the pixel.
+    # value in any frame (or any row of a line-scan strip), or a reference's own ENVI data
+    # ignore value, masks the pixel.
     bad = ~np.isfinite(stack)
+    ignores = [f.attrs.get("data_ignore_value") for f in frames]
+    if any(v is not None for v in ignores):
+        ignored = xr.concat([(f == v) if v is not None else xr.zeros_like(f, bool)
+                             for f, v in zip(frames, ignores, strict=True)], dim="frame")
+        bad = bad | ignored.drop_vars([c for c in ignored.coords
+                                       if c not in ("wavelength", "fwhm")])
     if saturation is not None and label == "white":
         bad = bad | (stack >= saturation)
     ref, bad = stack.mean("frame", skipna=False), bad.any("frame")
@@ -115,6 +130,32 @@ def _average_reference(label, frames, raw, dtype, saturation):
     if ref.sizes["y"] != raw.sizes["y"]:  # a line-scan strip: broadcast along the scan axis
         ref, bad = ref.mean("y", skipna=False), bad.any("y")
     return ref, bad
+
+
+def _is_snapshot(cube):
+    """A cube from a mosaic (snapshot) sensor: its bands sit at different sensor rows."""
+    if "sensor_row" not in cube.coords or "band" not in cube["sensor_row"].dims:
+        return False
+    rows = np.asarray(cube["sensor_row"].transpose("y", "band").values)
+    return bool(rows.shape[1] > 1 and np.any(rows != rows[:, :1]))
+
+
+def _check_same_place(label, ref, raw, snapshot):
+    """A reference must come from the cube's part of the sensor where both record it: the same
+    columns always, the same rows unless it is a line-scan strip."""
+    for coord, dim in (("sensor_col", "x"), ("sensor_row", "y")):
+        if coord not in ref.coords or coord not in raw.coords:
+            continue
+        if dim == "y" and ref.sizes["y"] != raw.sizes["y"] and not snapshot:
+            continue  # a strip: any rows of the scan
+        a, b = (np.asarray(c[coord].transpose(dim, "band").values) for c in (ref, raw))
+        if a.shape != b.shape or not np.array_equal(a, b):
+            first = (f"{a.ravel()[0]:g}" if a.size else "-", f"{b.ravel()[0]:g}")
+            raise ValueError(
+                f"the {label} reference was taken on other sensor "
+                f"{'columns' if dim == 'x' else 'rows'} than the cube (its first at "
+                f"{first[0]}, the cube's at {first[1]}): a reference must cover the cube's "
+                "own pixels; crop it to the cube's area (or give the one taken with it)")
 
 
 def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32"):
@@ -130,8 +171,11 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     dark, white : xarray.DataArray or sequence of them
         Dark and white references; several frames are averaged. A white (or dark) reference
         with fewer rows than a cube ``raw`` -- a line-scan strip -- is averaged over its rows
-        and broadcast along ``y``, the scan axis; one with more rows is refused. For a frame,
-        every reference is a frame of its size (a snapshot has no scan axis).
+        and broadcast along ``y``, the scan axis; one with more rows is refused. A snapshot
+        (a frame, or a cube whose bands sit at different rows of a mosaic tile) has no scan
+        axis: every reference is of its size. Where a reference and the cube both record
+        their sensor positions, they must be the same pixels (columns always, rows unless a
+        strip). A reference's own ``data_ignore_value`` masks its pixels.
     saturation : float, optional
         Digital number at or above which ``raw`` or any white frame is saturated (> 0).
     name : str
