@@ -610,7 +610,7 @@ def test_exr_channels_come_back_in_the_bands_order_or_are_refused(tmp_path):
         read_cube(tmp_path / "c.exr", wavelength_nm=[600.0, 550.0, 450.0])
 
 
-def _envi(tmp_path, extra, name="e"):
+def _envi_with(tmp_path, extra, name="e"):
     cube = make_cube(np.arange(2 * 3 * 4, dtype=np.uint16).reshape(2, 3, 4) * 100,
                      [500.0, 600.0, 700.0, 800.0])
     hdr = tmp_path / f"{name}.hdr"
@@ -621,7 +621,7 @@ def _envi(tmp_path, extra, name="e"):
 
 def test_an_envi_key_given_twice_is_refused(tmp_path):
     """Spectral Python keeps the last of a repeated key, and the data were read scrambled."""
-    hdr, _ = _envi(tmp_path, "samples = 2\n")
+    hdr, _ = _envi_with(tmp_path, "samples = 2\n")
     with pytest.raises(ValueError, match="gives 'samples' more than once"):
         read_cube(hdr)
 
@@ -630,7 +630,7 @@ def test_an_envi_key_given_twice_is_refused(tmp_path):
 def test_envi_gains_offsets_scale_and_bad_bands_are_applied(tmp_path, chunks):
     """value = (stored * gain + offset) / reflectance scale factor; bbl 0 bands and pixels at
     the data ignore value (in stored units) are NaN. They were ignored."""
-    hdr, raw = _envi(tmp_path, "data gain values = {2, 2, 3, 3}\ndata offset values = "
+    hdr, raw = _envi_with(tmp_path, "data gain values = {2, 2, 3, 3}\ndata offset values = "
                                "{1, 1, 1, 0}\nreflectance scale factor = 10000\n"
                                "bbl = {1, 0, 1, 1}\ndata ignore value = 0\n")
     got = np.asarray(read_cube(hdr, chunks=chunks).values, float)
@@ -638,6 +638,26 @@ def test_envi_gains_offsets_scale_and_bad_bands_are_applied(tmp_path, chunks):
     want[..., 1] = np.nan
     want[raw == 0] = np.nan
     np.testing.assert_allclose(got, want, rtol=1e-6)
-    bad, _ = _envi(tmp_path, "data gain values = {2, 2}\n", name="bad")
+    bad, _ = _envi_with(tmp_path, "data gain values = {2, 2}\n", name="bad")
     with pytest.raises(ValueError, match="'data gain values' has 2 values for 4 bands"):
         read_cube(bad)
+
+
+@pytest.mark.filterwarnings("ignore:<tifffile.TiffWriter.write> data with shape")
+def test_a_tifffile_array_whose_band_axis_cannot_be_told_is_refused(tmp_path):
+    """tifffile stores a (4, 5, 6) array as 4 planes of 5 x 6 and records the shape it was
+    given; read by the file's layout it came back as 5 x 6 pixels of 4 bands, although the
+    writer meant 4 x 5 pixels of 6. Contiguous samples read as written."""
+    import tifffile
+
+    a = np.arange(4 * 5 * 6, dtype=np.uint16).reshape(4, 5, 6)
+    tifffile.imwrite(tmp_path / "planes.tif", a)
+    with pytest.raises(ValueError, match=r"shape \(4, 5, 6\) and stored it as 4 planes"):
+        read_cube(tmp_path / "planes.tif", wavelength_nm=500.0 + 10 * np.arange(4))
+    tifffile.imwrite(tmp_path / "pages.tif", a, photometric="minisblack")  # 4 pages of 5 x 6
+    with pytest.raises(ValueError, match=r"shape \(4, 5, 6\) and stored it as 4 planes"):
+        read_cube(tmp_path / "pages.tif", wavelength_nm=500.0 + 10 * np.arange(4))
+    tifffile.imwrite(tmp_path / "contig.tif", a, photometric="minisblack",
+                     planarconfig="contig")
+    cube = read_cube(tmp_path / "contig.tif", wavelength_nm=500.0 + 10 * np.arange(6))
+    assert_array_equal(cube.values, a)

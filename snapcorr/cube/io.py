@@ -322,7 +322,7 @@ def _read_file(path, *, chunks=None, what="cube", drop_alpha=False):
         if fmt == "envi":
             found = _read_envi(path, data_file, chunks)
         elif fmt in ("tiff", "exr"):
-            found = _read_oiio(path, fmt, drop_alpha)
+            found = _read_oiio(path, fmt, drop_alpha, what)
         elif fmt == "npy":
             found = _read_npy(path, chunks)
         else:
@@ -790,6 +790,36 @@ def _envi_numbers(h, key, hdr, scalar=False):
 # TIFF, OpenEXR -----------------------------------------------------------------------------
 
 
+def _description(attrs):
+    """The JSON a TIFF's ImageDescription (or an EXR's ``snapcorr`` attribute) holds, or {}."""
+    desc = attrs.get("ImageDescription") or attrs.get("snapcorr")
+    if not (isinstance(desc, str) and desc.startswith("{")):
+        return {}
+    try:
+        meta = json.loads(desc)
+    except ValueError:
+        return {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def _check_tifffile_shape(path, meta, shape):
+    """tifffile records the array it was given (``{"shape": [...]}``) and stores a 3-D one
+    whose last axis is long as planes of its last two axes: ``(4, 5, 6)`` becomes 4 planes of
+    5 x 6. Read as the file's own layout that is 5 x 6 pixels of 4 bands, where the writer may
+    have meant 4 x 5 pixels of 6 bands. Which it meant cannot be told: refused."""
+    given = meta.get("shape") if "written_by" not in meta else None
+    if not (isinstance(given, list) and len(given) == 3):
+        return
+    given = tuple(int(v) for v in given)
+    if given != tuple(shape) and given == (shape[2], shape[0], shape[1]):
+        raise ValueError(
+            f"{path}: tifffile was given an array of shape {given} and stored it as {given[0]} "
+            f"planes of {given[1]} x {given[2]}; whether its bands are the first axis or the "
+            "last cannot be told from the file. Write the cube (y, x, band) with "
+            "tifffile.imwrite(path, cube, photometric='minisblack', planarconfig='contig'), or "
+            "as .npy or .nc")
+
+
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
 
 
@@ -822,7 +852,7 @@ def open_image(path):
     return oiio.ImageInput.open(str(path), config)
 
 
-def _read_oiio(path, fmt, drop_alpha):
+def _read_oiio(path, fmt, drop_alpha, what="cube"):
     import OpenImageIO as oiio
 
     inp = open_image(path)
@@ -849,7 +879,7 @@ def _read_oiio(path, fmt, drop_alpha):
     finally:
         inp.close()
     if len(pages) > 1:
-        return _oiio_pages(path, fmt, pages)
+        return _oiio_pages(path, fmt, pages, what)
     data, names, attrs = pages[0]
     wl, keep, name = None, list(range(len(names))), None
     parsed = [_CHANNEL.match(n) for n in names]
@@ -859,14 +889,9 @@ def _read_oiio(path, fmt, drop_alpha):
         name = "reflectance" if parsed[keep[0]].group(1) == "T" else "radiance"
         order = np.argsort(wl, kind="stable")  # EXR stores channels sorted by name
         keep, wl = [keep[i] for i in order], wl[order]
-    meta = {}
-    desc = attrs.get("ImageDescription") or attrs.get("snapcorr")
-    if isinstance(desc, str) and desc.startswith("{"):
-        try:
-            meta = json.loads(desc)
-        except ValueError:
-            meta = {}
-        meta = meta if isinstance(meta, dict) else {}
+    meta = _description(attrs)
+    if what == "cube":
+        _check_tifffile_shape(path, meta, data.shape)
     written = meta.get("wavelength_nm")
     if isinstance(written, list) and len(written) == len(keep):
         written = np.asarray(written, dtype=float)
@@ -900,7 +925,7 @@ def _read_oiio(path, fmt, drop_alpha):
     return found
 
 
-def _oiio_pages(path, fmt, pages):
+def _oiio_pages(path, fmt, pages, what):
     """A multi-page file: every page one channel (one band), all the same size and type."""
     first = pages[0][0]
     for i, (pixels, _, _) in enumerate(pages, start=1):
@@ -912,6 +937,8 @@ def _oiio_pages(path, fmt, pages):
                              f"{pixels.dtype} but page 1 is {first.shape[1]} x {first.shape[0]} "
                              f"{first.dtype}; every page (band) must match")
     data = np.concatenate([p[0] for p in pages], axis=2)
+    if what == "cube":  # a stack of frames or flats: pages are pages
+        _check_tifffile_shape(path, _description(pages[0][2]), data.shape)
     names = [p[1][0] for p in pages]
     wl = None
     if all(_PLAIN_CHANNEL.match(n) for n in names):
