@@ -354,6 +354,9 @@ def test_bad_library_inputs_are_value_errors():
         calibrate_lens({2.0: np.zeros((64, 64)), 4.0: np.zeros((64, 64))}, **kw)
     with pytest.raises(ValueError, match="chief-ray angle"):
         calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
+                       pixel_pitch_um=0.1)
+    with pytest.raises(ValueError, match="no camera's pixel pitch"):
+        calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
                        pixel_pitch_um=0.01)
 
 
