@@ -15,7 +15,7 @@ import operator
 
 import numpy as np
 
-from .._validation import check_center, check_pixel_pitch_um, check_positive
+from .._validation import check_center, check_positive
 
 __all__ = ["cra_deg", "cra_map", "image_shape", "pixel_tangents"]
 
@@ -114,7 +114,7 @@ def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
 
 
 def _tan_per_pixel(pixel_pitch_um, exit_pupil_mm):
-    return check_pixel_pitch_um("pixel_pitch_um", pixel_pitch_um) * 1e-3 / check_positive(
+    return check_positive("pixel_pitch_um", pixel_pitch_um) * 1e-3 / check_positive(
         "exit_pupil_mm", exit_pupil_mm)
 
 
