@@ -369,7 +369,13 @@ def _cmd_flatfield(args):
                                  f"{raw.shape[2]}: x and band must match")
     ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
     if args.filter_white:
-        tr = flatfield(read(args.filter_white), darks, whites,
+        fw = read(args.filter_white)
+        if fw.shape != raw.shape:
+            sizes = [" x ".join(map(str, c.shape)) for c in (fw, raw)]
+            raise ValueError(f"--filter-white {args.filter_white} is {sizes[0]} but {args.raw} "
+                             f"is {sizes[1]}: the white seen through the filter is a cube of "
+                             "the same size and place")
+        tr = flatfield(fw, darks, whites,
                        saturation=args.saturation, name="transmittance", dtype=args.dtype)
         _with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],

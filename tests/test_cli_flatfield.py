@@ -158,3 +158,19 @@ def test_each_stage_shows_one_labelled_progress_bar(tmp_path, monkeypatch):
     assert cli.main(["flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",
                      "--sensor", "s.toml", "--out", "p.zarr"]) == 0
     assert "block" not in sys.stderr.getvalue()
+
+
+def test_a_filter_white_of_another_size_is_one_line(cli, tmp_path):
+    """It gave xarray's alignment error."""
+    from snapcorr.cube import make_cube, write_cube
+
+    wl = [500.0, 600.0, 700.0]
+    for name, rows, value in (("raw", 6, 500.0), ("dark", 6, 0.0), ("white", 6, 1000.0),
+                              ("fw", 5, 400.0)):
+        write_cube(make_cube(np.full((rows, 4, 3), value, np.float32), wl),
+                   tmp_path / f"{name}.nc")
+    res = cli("flatfield", tmp_path / "raw.nc", "--dark", tmp_path / "dark.nc", "--white",
+              tmp_path / "white.nc", "--filter-white", tmp_path / "fw.nc", "--out",
+              tmp_path / "out.nc")
+    assert res.returncode == 1 and "--filter-white" in res.stderr and "5 x 4 x 3" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1 and not (tmp_path / "out.nc").exists()

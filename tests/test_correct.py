@@ -287,3 +287,12 @@ def test_every_variable_and_coordinate_of_a_result_has_cf_units_and_long_name(tm
                 if v in ("y", "x", "band", "scale"):
                     continue  # bare dimensions without values of their own
                 assert "long_name" in back[v].attrs and "units" in back[v].attrs, (path, v)
+
+
+@pytest.mark.parametrize("what", ["resample", "harmonise"])
+def test_a_one_band_cube_cannot_be_resampled_or_harmonised(what):
+    """A one-band --resample said the wavelengths must be "increasing"."""
+    sensor = Sensor("one", "snapscan", 5.5, [600.0], 10.0, 1.7)
+    cube = make_cube(np.ones((4, 5, 1)), [600.0])
+    with pytest.raises(ValueError, match=f"one-band cube has none: leave out {what}=True"):
+        correct_cube(cube, sensor, 2.0, Lens(21.0, ()), **{what: True})

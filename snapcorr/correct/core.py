@@ -141,6 +141,10 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     """
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask)
+    if (resample or harmonise) and cube.sizes["band"] < 2:
+        what = "resample" if resample else "harmonise"
+        raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "
+                         f"cube has none: leave out {what}=True (--{what})")
     cwl = np.asarray(sensor.cwl_nm, float)
     cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
                                               sensor_origin_px=sensor_origin_px)
