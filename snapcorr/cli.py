@@ -1001,6 +1001,14 @@ def _cmd_budget(args):
         sensor.check_cube(cube, f"--cube {args.cube}")
     source = parse_source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
+    if args.profile is None:
+        from .budget.signal import PROFILES
+
+        if sensor.profile not in PROFILES:
+            raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
+                             f"the budget does not model; give --profile "
+                             f"({'|'.join(PROFILES)})")
+        args.profile = sensor.profile
     b = scene_budget(source, sensor, args.f_number, lens, cra_max_deg=cra_max,
                      profile=args.profile, tolerance_pct=args.tolerance_pct)
     ranges = []
@@ -1017,6 +1025,10 @@ def _cmd_budget(args):
     return 0
 
 
+#: Bands ``budget`` prints unless --all-bands.
+_BUDGET_ROWS = 10
+
+
 def _print_budget(args, b, sensor, lens, source, field, ranges):
     def fmt(r):
         if isinstance(r, str):
@@ -1029,8 +1041,16 @@ def _print_budget(args, b, sensor, lens, source, field, ranges):
     print("worst |signal error| over the field, percent, left by each model; last columns: "
           "centre positions where +-1 nm stays < 0.5 % and +-5 nm < 2 % (Flittner & Slater)")
     table = b.table().splitlines()
+    rows = list(zip(table[1:-1], ranges, strict=True))
+    shown = range(len(rows))
+    if not args.all_bands and len(rows) > _BUDGET_ROWS:
+        worst = np.abs(b.data["residual"]).max("cra").sel(model=b.models[0]).values
+        shown = sorted(np.argsort(-worst, kind="stable")[:_BUDGET_ROWS])
+        print(f"the {_BUDGET_ROWS} of {len(rows)} bands the {b.models[0]!r} model leaves worst "
+              "(--all-bands for every one):")
     print(f"{table[0]}  {'+-1nm<0.5%':>13} {'+-5nm<2%':>13}")
-    for line, rr in zip(table[1:-1], ranges, strict=True):
+    for i in shown:
+        line, rr = rows[i]
         print(f"{line}  {fmt(rr[0]):>13} {fmt(rr[1]):>13}")
     print(table[-1])
     radius = b.radius_mm()
@@ -1366,8 +1386,11 @@ def _add_budget(command):
                    "from the lens calibration, else the sensor's centre)")
     p.add_argument("--cra-max", type=_positive, default=None, metavar="DEG",
                    help="the field to cover (default: the sensor's size_px, or the cube)")
-    p.add_argument("--profile", default="multi_lorentzian", choices=["multi_lorentzian", "pi"],
-                   help="filter shape (default: Flittner & Slater's multi-Lorentzian)")
+    p.add_argument("--profile", default=None, choices=["gaussian", "multi_lorentzian", "pi"],
+                   help="filter shape (default: the sensor's; Flittner & Slater's "
+                   "multi-Lorentzian or Mishev & Bakalova's Pi-shaped to compare)")
+    p.add_argument("--all-bands", action="store_true",
+                   help="print every band (default: the ten the uncorrected model leaves worst)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --plot")
     p.set_defaults(func=_cmd_budget)
 

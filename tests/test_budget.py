@@ -187,7 +187,8 @@ def test_pixel_signal_matches_brute_force_pupil_sampling(cra):
     src = _line_spectrum()
     cwls, fwhm, n, f = np.array([450.0, 700.0]), 10.0, 1.7, 1.4
     sensor = Sensor("two", "snapscan", 5.5, cwls, fwhm, n)
-    b = budget.scene_budget(src, sensor, f, PAPER, cra_max_deg=cra, n_cra=2)
+    b = budget.scene_budget(src, sensor, f, PAPER, cra_max_deg=cra, n_cra=2,
+                            profile="multi_lorentzian")
     # every ray through the (vignetted) pupil shifts the whole filter by Eq. 3 at its angle
     x, R = PAPER.exit_pupil_mm, float(PAPER.exit_pupil_radius_mm(f))
     t = np.tan(np.deg2rad(cra))

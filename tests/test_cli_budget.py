@@ -48,7 +48,8 @@ def test_budget_table_says_na_where_the_source_ends_near_a_band(files, cli):
     lam = np.arange(400.0, 910.6, 0.5)  # reaches the 900 nm band, not its 5 nm shifts
     np.savetxt(files / "short.csv", np.c_[lam, 1 + 0.001 * lam], delimiter=",")
     res = cli("budget", "--sensor", "sensor.toml", "--lens", "lens.toml", "--f-number", "4",
-              "--source", "short.csv", "--cra-max", "10", cwd=files)
+              "--source", "short.csv", "--cra-max", "10", "--profile", "multi_lorentzian",
+              cwd=files)
     assert res.returncode == 0, res.stderr
     (row,) = [line for line in res.stdout.splitlines() if line.startswith("   4 ")]
     assert "n/a" in row

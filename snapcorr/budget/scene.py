@@ -26,7 +26,7 @@ _HERMITE_NODES = 12
 
 
 def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
-                 profile="multi_lorentzian", n_cra=33, models=MODELS, tolerance_pct=0.5,
+                 profile=None, n_cra=33, models=MODELS, tolerance_pct=0.5,
                  kernel_step_nm=0.05, shift_step_nm=0.02):
     """The residual of each correction model for every band of ``sensor`` over CRA
     0..``cra_max_deg`` behind ``lens`` at ``f_number``, for the ``source`` spectrum.
@@ -50,8 +50,8 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     lens : Lens
     cra_max_deg : float
         The field's largest chief-ray angle, degrees (below the lens's cut-off).
-    profile : {"multi_lorentzian", "pi"}
-        The filters' shape.
+    profile : {"gaussian", "multi_lorentzian", "pi"}, optional
+        The filters' shape (default: the sensor's own, which must be one of these).
     n_cra : int
         Chief-ray angles tabulated, 0..``cra_max_deg``.
     models : sequence of str
@@ -65,6 +65,12 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     -------
     Budget
     """
+    if profile is None:
+        if sensor.profile not in PROFILES:
+            raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
+                             f"the budget does not model; pass profile= "
+                             f"({', '.join(PROFILES)})")
+        profile = sensor.profile
     validate_method(profile, PROFILES, "profile")
     for m in models:
         validate_method(m, MODELS, "model")

@@ -20,12 +20,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..optics.profiles import MultiLorentzian, PiShaped
+from ..optics.profiles import Gaussian, MultiLorentzian, PiShaped
 
 __all__ = ["PROFILES", "band_signal", "relative_signal", "shift_error"]
 
-#: Filter-profile models for a band of given centre and FWHM.
-PROFILES = {"multi_lorentzian": MultiLorentzian, "pi": PiShaped}
+#: Transmission below this fraction of the peak is left out of a profile's support (a
+#: Gaussian's tails beyond 2.7 FWHM from its centre: 1e-9 of the signal at most).
+_NEGLIGIBLE = 1e-9
+#: Filter-profile models for a band of given centre and FWHM (a sensor's ``gaussian`` filters
+#: are the default shape of its bands, Flittner & Slater's multi-Lorentzian and Mishev &
+#: Bakalova's Pi-shaped the papers').
+PROFILES = {"gaussian": Gaussian, "multi_lorentzian": MultiLorentzian, "pi": PiShaped}
 
 
 @dataclass(frozen=True)
@@ -56,7 +61,7 @@ class _FilterMoments:
         h = fwhm / (5000.0 * fine)
         u = np.arange(-8.0 * fwhm, 8.0 * fwhm + h / 2, h)
         t = np.asarray(profile(profile.cwl_nm + u), float)
-        nz = np.flatnonzero(t > 0)
+        nz = np.flatnonzero(t > _NEGLIGIBLE * t.max())  # a Gaussian's tails: none to speak of
         if nz.size == 0:
             raise ValueError("the filter profile is zero everywhere")
         a = max((nz[0] - 1) // fine * fine, 0)
