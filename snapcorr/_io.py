@@ -8,13 +8,15 @@ Reading
 Writing
     Every output is written under a hidden temporary name next to its target (``.name.XXXX``)
     and moved in only when complete, so a crash never leaves half a file. The final move
-    replaces only what was there when the write began (and was checked then): a target that
+    replaces only what was there when the write began (and checked then: a PNG or TOML only
+    if snapcorr wrote it): a target that
     did not exist is moved in without replacing anything (a hard link, or a reserved empty
     folder renamed over), so a file or folder that appears there during the write, or a
     second writer of the same output, is never replaced: the write fails and the result is
     discarded. A target that existed is moved aside, compared with the one checked (device,
     inode and modification time) and put back if it is not the same; the new one is moved in
-    and only then is the old one deleted (a failure puts the old ones back).
+    and only then is the old one deleted (a failure puts the old ones back). Between the two
+    renames the path is briefly absent: a replacement is safe, not atomic.
     :func:`refuse_inputs` refuses a target that is, contains or lies inside an input.
 
 Interruptions
@@ -48,6 +50,7 @@ __all__ = [
     "read_toml",
     "refuse_inputs",
     "remove_path",
+    "save_png",
     "temporary_paths",
     "write_toml",
 ]
@@ -323,7 +326,10 @@ def _changed(target, now):
 
 
 def _move_in_new(new, target):
-    """Move ``new`` to ``target`` where nothing may be replaced (FileExistsError otherwise)."""
+    """Move ``new`` to ``target`` where nothing may be replaced (FileExistsError otherwise).
+    A file is hard-linked (``new`` is then unlinked by the caller); a folder is moved over an
+    empty folder reserved first. Whatever fails or is interrupted, a reservation is removed
+    while it is still empty (ours)."""
     if new.is_dir():
         try:
             os.mkdir(target)  # the reservation: atomic, fails if anything is there
@@ -331,10 +337,12 @@ def _move_in_new(new, target):
             raise _changed(target, True) from None
         try:
             os.rename(new, target)  # over our own empty folder
-        except OSError:
+        except BaseException as err:
             with contextlib.suppress(OSError):
                 os.rmdir(target)  # only while still empty: ours
-            raise _changed(target, True) from None
+            if isinstance(err, OSError) and err.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                raise _changed(target, True) from None
+            raise
         return
     try:
         os.link(new, target)
@@ -348,9 +356,13 @@ def _move_in_new(new, target):
             os.close(os.open(target, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
         except FileExistsError:
             raise _changed(target, True) from None
-        os.replace(new, target)
-        return
-    os.unlink(new)
+        try:
+            os.replace(new, target)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                if os.path.getsize(target) == 0:
+                    os.unlink(target)  # our empty reservation
+            raise
 
 
 def _replace(moves, expected):
@@ -371,23 +383,30 @@ def _replace(moves, expected):
         for (new, target), exp in zip(moves, expected, strict=True):
             if exp is None:
                 _move_in_new(new, target)
+                placed.append(target)  # ours from here: taken out again on any failure
+                if os.path.lexists(new):  # a hard link: the temporary name goes
+                    os.unlink(new)
             else:
                 if _state(target) is None:
                     raise _changed(target, False)
                 aside = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old."))
-                os.rename(target, aside / target.name)
                 asides.append((aside, target))
+                try:
+                    os.rename(target, aside / target.name)
+                except FileNotFoundError:  # gone since it was looked at
+                    raise _changed(target, False) from None
                 if _state(aside / target.name) != exp:
                     raise _changed(target, False)
                 os.rename(new, target)
+                placed.append(target)
             _unregister(new)
-            placed.append(target)
     except BaseException:
         for target in placed:  # the new ones out, the old ones back
             remove_path(target, settle_s=0)
         for aside, target in asides:
             with contextlib.suppress(OSError):
-                os.rename(aside / target.name, target)
+                if os.path.lexists(aside / target.name):
+                    os.rename(aside / target.name, target)
                 os.rmdir(aside)
         raise
     for aside, _ in asides:
@@ -440,7 +459,8 @@ def atomic_write_dir(path, write):
 
 def _write_and_move(path, write, *, directory):
     _check_kind(path, directory=directory)
-    before = _state(path)  # what was checked: only this may be replaced
+    check_replaceable(path)  # again now: what may be replaced is what is there at this moment
+    before = _state(path)  # only this may be replaced
     tmp = _make_temporary(path, directory=directory)
     try:
         write(tmp)
@@ -464,6 +484,7 @@ def atomic_write_files(paths, write):
         raise ValueError("files written together must share a folder")
     for p in paths:
         _check_kind(p, directory=False)
+        check_replaceable(p)
     before = [_state(p) for p in paths]
     tmp = _make_temporary(paths[0], directory=True)
     try:
@@ -581,6 +602,75 @@ def read_toml(path, table, what, *, others=("calibration",)):
     return doc
 
 
+#: What snapcorr writes into its own PNGs (``Software``) and TOMLs (the first line), so that
+#: ``overwrite`` can tell them from a user's files.
+_MARK = "snapcorr"
+
+
+def save_png(fig, path, *, dpi=120, inputs=()):
+    """Write a matplotlib figure as PNG atomically, marked as snapcorr's (``Software``).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : str or Path
+        The PNG to write; one that exists is replaced only if snapcorr wrote it.
+    dpi : int
+    inputs : iterable of str or Path
+        Input paths the PNG must not be, contain or lie inside.
+
+    Returns
+    -------
+    Path
+    """
+    from . import __version__
+
+    return atomic_write(path, lambda tmp: fig.savefig(
+        tmp, format="png", dpi=dpi, metadata={"Software": f"{_MARK} {__version__}"}),
+        inputs=inputs)
+
+
+def written_by_snapcorr(path):
+    """``(True, "")`` if the PNG or TOML at ``path`` carries snapcorr's mark (a lens profile
+    from an earlier version: its ``[calibration] snapcorr_version``), else ``(False, what it
+    is)``. Other kinds: ``(False, "a file of a kind snapcorr does not mark")``."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".png":
+            from PIL import Image
+
+            with Image.open(path) as im:
+                software = str(im.info.get("Software", ""))
+            if software.startswith(_MARK):
+                return True, ""
+            return False, "a PNG that snapcorr did not write (no 'snapcorr' Software mark)"
+        if suffix == ".toml":
+            text = path.read_text(encoding="utf-8", errors="replace")
+            if text.startswith(f"# written by {_MARK}"):
+                return True, ""
+            with contextlib.suppress(tomllib.TOMLDecodeError):
+                cal = tomllib.loads(text).get("calibration", {})
+                if isinstance(cal, dict) and "snapcorr_version" in cal:
+                    return True, ""
+            return False, "a TOML file that snapcorr did not write"
+    except OSError as err:
+        return False, f"a file that cannot be read ({err.strerror or err})"
+    except Exception:  # PIL's many errors for a file that is not an image
+        return False, "a file that is not a PNG image"
+    return False, "a file of a kind snapcorr does not mark"
+
+
+def check_replaceable(path):
+    """Refuse to replace (with ``overwrite``) a PNG or TOML that snapcorr did not write."""
+    if not os.path.lexists(path) or Path(path).suffix.lower() not in (".png", ".toml"):
+        return
+    ours, found = written_by_snapcorr(path)
+    if not ours:
+        raise ValueError(f"{path} exists and is {found}; overwrite replaces only what "
+                         "snapcorr wrote: move it away or choose another name")
+
+
 def write_toml(path, doc, *, overwrite=False):
     """Write ``doc`` as TOML atomically, refusing to replace a file unless ``overwrite``.
 
@@ -595,7 +685,8 @@ def write_toml(path, doc, *, overwrite=False):
     doc : dict or list of (dict or str)
         The document, or its parts in order.
     overwrite : bool
-        Replace an existing file (else ``FileExistsError``).
+        Replace an existing file that snapcorr wrote (else ``FileExistsError``; a file it
+        did not write is never replaced).
 
     Returns
     -------
@@ -604,9 +695,13 @@ def write_toml(path, doc, *, overwrite=False):
     """
     import tomli_w
 
+    from . import __version__
+
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+    check_replaceable(path)
     parts = doc if isinstance(doc, list) else [doc]
-    text = "\n".join(p if isinstance(p, str) else tomli_w.dumps(p) for p in parts)
+    text = f"# written by {_MARK} {__version__}\n" + "\n".join(
+        p if isinstance(p, str) else tomli_w.dumps(p) for p in parts)
     return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))

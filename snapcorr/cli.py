@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from ._io import check_replaceable
 from ._validation import check_positive
 
 #: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
@@ -222,6 +223,8 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
                              "it is never replaced: choose another output path")
         if out.exists() and not overwrite:
             raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+        if out.exists():
+            check_replaceable(out)  # a PNG or TOML snapcorr did not write is never replaced
         if not res.parent.is_dir():
             raise ValueError(f"{out.parent} is not a folder; create it first")
 
@@ -1001,14 +1004,9 @@ def _cmd_budget(args):
         sensor.check_cube(cube, f"--cube {args.cube}")
     source = parse_source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
-    if args.profile is None:
-        from .budget.signal import PROFILES
+    from .budget.scene import _profile_of
 
-        if sensor.profile not in PROFILES:
-            raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
-                             f"the budget does not model; give --profile "
-                             f"({'|'.join(PROFILES)})")
-        args.profile = sensor.profile
+    args.profile = _profile_of(sensor, args.profile)
     b = scene_budget(source, sensor, args.f_number, lens, cra_max_deg=cra_max,
                      profile=args.profile, tolerance_pct=args.tolerance_pct)
     ranges = []
@@ -1184,7 +1182,7 @@ def _add_calibrate(command):
                    help="a further circle is kept only if it moves the predicted mean shift "
                    "(1000 nm filter, n_eff 1.5) by more than this (default: %(default)s)")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_calibrate)
 
 
@@ -1303,7 +1301,7 @@ def _add_pupil(command):
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the target over the field and chi-square in x")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     g = p.add_argument_group("choosing a target (--predict)")
     g.add_argument("--predict", action="store_true",
                    help="print the predicted standard error of x for candidate targets (and "

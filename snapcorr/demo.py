@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._io import atomic_write
+from ._io import atomic_write, save_png
 from .data import lens_path
 from .optics import METHODS, Lens, mean_shift
 from .optics import MODELS as LADDER
@@ -135,7 +135,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     (out / MARKER).write_text(f"written by snapcorr {__version__} demo\n", encoding="utf-8")
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
-    figure = atomic_write(out / "mean_shift.png", lambda p: fig.savefig(p, dpi=120, format="png"))
+    figure = save_png(fig, out / "mean_shift.png", dpi=120)
     header = "f_number,cra_deg,asymptotic_nm,ideal_nm,vignetted_nm,relative_illumination"
 
     def write_csv(p):

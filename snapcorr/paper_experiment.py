@@ -238,7 +238,7 @@ def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
     """Plot the spots' spectra to ``path``, add the metrics to ``results``, return lines."""
     from matplotlib.figure import Figure
 
-    from ._io import atomic_write
+    from ._io import save_png
 
     common = np.arange(500.0, 880.0, 1.0)
     fig = Figure(figsize=(12, 2.3 * len(f_numbers)), layout="constrained")
@@ -272,7 +272,7 @@ def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
     for ax in axes[:, 0]:
         ax.set_ylabel("transmittance")
     axes[0, 0].legend(fontsize=8)
-    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))
+    save_png(fig, path, dpi=110)
     return lines
 
 
@@ -280,7 +280,7 @@ def _draw_maps(path, vig, cwl):
     """The chief-ray angle and one band's shift of the vignetted model's result, to ``path``."""
     from matplotlib.figure import Figure
 
-    from ._io import atomic_write
+    from ._io import save_png
 
     band = int(np.argmin(np.abs(cwl - 700.0)))
     fig = Figure(figsize=(11, 3.6), layout="constrained")
@@ -291,4 +291,4 @@ def _draw_maps(path, vig, cwl):
     im = a2.imshow(vig["wavelength_corrected"].values[..., band] - cwl[band], cmap="magma")
     fig.colorbar(im, ax=a2, label="nm")
     a2.set_title(f"shift of the {cwl[band]:.0f} nm band at f/1.4 (vignetted model)")
-    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))
+    save_png(fig, path, dpi=110)

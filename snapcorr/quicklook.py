@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ._io import atomic_write
+from ._io import save_png
 
 __all__ = ["MAX_PX", "plot_correction", "plot_flatfield", "plot_sensor"]
 
@@ -44,7 +44,7 @@ def _check_path(path, overwrite):
 
 
 def _save(fig, path):
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=_DPI))
+    return save_png(fig, path, dpi=_DPI)
 
 
 def _stride(ny, nx):

@@ -184,3 +184,29 @@ def test_sensor_numbers_outside_the_physics_are_refused(cli, tmp_path, key, valu
     res = cli("sensor", path)
     assert res.returncode == 1 and words in res.stderr, res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_overwrite_replaces_only_pngs_and_tomls_snapcorr_wrote(cli, tmp_path):
+    """--plot PNGs and TOMLs that snapcorr did not write were replaced by --overwrite, against
+    the help text. Its own are marked (PNG Software, the TOML's first line) and replaced."""
+    from PIL import Image
+
+    from snapcorr.data import sensor_path
+
+    png, toml = tmp_path / "filters.png", tmp_path / "camera.toml"
+    Image.new("RGB", (4, 4)).save(png)
+    toml.write_text('[camera]\nnotes = "mine"\n')
+    before = (png.read_bytes(), toml.read_text())
+    res = cli("sensor", sensor_path("snapscan_vnir"), "--toml", toml, "--plot", png,
+              "--overwrite")
+    assert res.returncode == 1 and "snapcorr did not write" in res.stderr, res.stderr
+    assert (png.read_bytes(), toml.read_text()) == before
+    png.unlink()
+    toml.unlink()
+    for _ in range(2):  # written, then replaced: snapcorr's own
+        res = cli("sensor", sensor_path("snapscan_vnir"), "--toml", toml, "--plot", png,
+                  "--overwrite")
+        assert res.returncode == 0, res.stderr
+    assert toml.read_text().startswith("# written by snapcorr")
+    with Image.open(png) as im:
+        assert im.info["Software"].startswith("snapcorr")

@@ -394,3 +394,13 @@ def test_a_snapshot_has_no_scan_axis_and_references_keep_their_ignore_value():
     ds = flatfield(raw, _placed(np.zeros((4, 3, 2))), white)
     assert bool(ds["mask"][0, 0, 0]) and np.isnan(float(ds["reflectance"][0, 0, 0]))
     assert float(ds["reflectance"][1, 1, 1]) == pytest.approx(0.5)
+
+
+def test_a_frame_reference_keeps_its_ignore_value():
+    raw = xr.DataArray(np.full((4, 5), 500.0), dims=("y", "x"))
+    white = xr.DataArray(np.full((4, 5), 1000.0), dims=("y", "x"))
+    white[1, 1] = -1.0
+    white.attrs["data_ignore_value"] = -1.0
+    ds = flatfield(raw, xr.DataArray(np.zeros((4, 5)), dims=("y", "x")), white)
+    assert bool(ds["mask"][1, 1]) and int(ds["mask"].sum()) == 1
+    assert float(ds["reflectance"][0, 0]) == pytest.approx(0.5)

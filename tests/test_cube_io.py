@@ -641,6 +641,13 @@ def test_envi_gains_offsets_scale_and_bad_bands_are_applied(tmp_path, chunks):
     bad, _ = _envi_with(tmp_path, "data gain values = {2, 2}\n", name="bad")
     with pytest.raises(ValueError, match="'data gain values' has 2 values for 4 bands"):
         read_cube(bad)
+    # a flat or a frame is used as stored: such a header is refused there, not half applied
+    from snapcorr.calibrate import read_flat
+
+    with pytest.raises(ValueError, match="a flat field is used as stored"):
+        read_flat(hdr)
+    same, _ = _envi_with(tmp_path, "bbl = {1, 1, 1, 1}\ndata gain values = 1\n", name="same")
+    assert read_flat(same)[0].shape == (2, 3)  # identity: nothing to apply
 
 
 @pytest.mark.filterwarnings("ignore:<tifffile.TiffWriter.write> data with shape")

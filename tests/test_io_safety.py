@@ -567,21 +567,40 @@ def test_what_appears_at_the_output_during_the_write_is_never_replaced(tmp_path)
 def test_a_checked_output_swapped_during_the_write_is_put_back(tmp_path):
     """An output that existed (and was checked) is replaced only if it is still the same file:
     swapped for another one meanwhile, the other one is put back untouched."""
-    target = tmp_path / "plot.png"
-    target.write_text("old plot")
+    target = tmp_path / "table.csv"
+    target.write_text("old table")
 
     def write(tmp):
         target.unlink()
         target.write_text("a new file the user put there")
-        tmp.write_text("new plot")
+        tmp.write_text("new table")
 
     with pytest.raises(FileExistsError, match="changed while the output was written"):
         _io.atomic_write(target, write)
     assert target.read_text() == "a new file the user put there"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["plot.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
     # unchanged, it is replaced as before
-    _io.atomic_write(target, lambda tmp: tmp.write_text("new plot"))
-    assert target.read_text() == "new plot"
+    _io.atomic_write(target, lambda tmp: tmp.write_text("new table"))
+    assert target.read_text() == "new table"
+
+
+def test_an_interrupted_final_move_leaves_neither_reservation_nor_temporary(tmp_path,
+                                                                          monkeypatch):
+    """Interrupted between reserving a store's name and moving the store in: the empty
+    reservation is removed with the temporary, and nothing is left."""
+    real = os.rename
+
+    def rename(src, dst):
+        if Path(dst).name == "out.zarr":
+            raise KeyboardInterrupt
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "rename", rename)
+    with pytest.raises(KeyboardInterrupt):
+        _io.atomic_write_dir(tmp_path / "out.zarr", lambda tmp: (tmp / "zarr.json").write_text(
+            "{}"))
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_two_writers_of_one_output_never_both_succeed(tmp_path):

@@ -201,8 +201,7 @@ class Budget:
         fig.suptitle(f"Signal error from the filter shift: {d.attrs['source']}, "
                      f"{d.attrs['lens']} at f/{d.attrs['f_number']:g}")
         if path is not None:
-            from .._io import atomic_write
+            from .._io import save_png
 
-            atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
-                         inputs=[i for i in inputs if i is not None])
+            save_png(fig, path, dpi=110, inputs=[i for i in inputs if i is not None])
         return fig

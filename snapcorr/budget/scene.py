@@ -65,13 +65,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     -------
     Budget
     """
-    if profile is None:
-        if sensor.profile not in PROFILES:
-            raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
-                             f"the budget does not model; pass profile= "
-                             f"({', '.join(PROFILES)})")
-        profile = sensor.profile
-    validate_method(profile, PROFILES, "profile")
+    profile = _profile_of(sensor, profile)
     for m in models:
         validate_method(m, MODELS, "model")
     # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
@@ -126,6 +120,18 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
                "sensor": sensor.name, "profile": profile, "kernel_step_nm": kernel_step_nm},
     )
     return Budget(ds, tolerance_pct=tolerance_pct)
+
+
+def _profile_of(sensor, profile):
+    """The filters' shape: the one given, else the sensor's own if the budget models it."""
+    if profile is None:
+        if sensor.profile not in PROFILES:
+            raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
+                             f"the budget does not model; pass profile= (--profile "
+                             f"{'|'.join(PROFILES)})")
+        profile = sensor.profile
+    validate_method(profile, PROFILES, "profile")
+    return profile
 
 
 def _widening(cwl, fwhm, n_eff, f, cra, lens, profile):

@@ -158,11 +158,11 @@ class PupilFit:
         """Write :meth:`plot` to ``path`` (PNG), atomically."""
         import matplotlib.pyplot as plt
 
-        from .._io import atomic_write
+        from .._io import save_png
 
         fig = self.plot()
         try:
-            atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+            save_png(fig, path, dpi=120)
         finally:
             plt.close(fig)
 

@@ -175,10 +175,10 @@ def save_plot(res, path):
     """Write :func:`plot` to ``path`` (PNG), atomically."""
     import matplotlib.pyplot as plt
 
-    from .._io import atomic_write
+    from .._io import save_png
 
     fig = plot(res)
     try:
-        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+        save_png(fig, path, dpi=120)
     finally:
         plt.close(fig)

@@ -184,6 +184,15 @@ tolerance_nm
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
     final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
     notes += _consistency(first, final, provisional_x_mm, x)
+    if final.model != first.model:  # x was fitted with other circles: fit it with these
+        pupil = locate_pupil(cubes, sensor, lens=final.lens, fit_n_eff=fit_n_eff,
+                             center_px=centre, target_spectrum=target_spectrum,
+                             sensor_origin_px=sensor_origin_px, profile=profile,
+                             inputs=target_inputs, name=name, progress=progress,
+                             scale_circles=True)
+        x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
+        final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
+        notes.append(f"x was fitted again with the {final.model!r} circles: {x:.4g} mm")
     names, values, cov = _joint_covariance(final, pupil, sensor)
     x_part = _shift_stderr_from_x(final, x, sx)
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
@@ -224,7 +233,8 @@ def _consistency(first, final, x0, x):
 
 def _flat_block(cal: LensCalibration):
     """Names, values and covariance of the circles (and centre) the flats gave at their x,
-    scaled by the fit's misfit as its standard errors are."""
+    rescaled to the standard errors the calibration reports (which add its systematic floor
+    to the fit's misfit-scaled covariance). Refused if the flats' fit has no finite one."""
     if cal.method == "joint":
         fit = cal.fits[cal.model]  # without a circle: the centre alone, if it was fitted
         names = list(fit.names)
@@ -234,6 +244,10 @@ def _flat_block(cal: LensCalibration):
         cov = np.asarray(fit.covariance, float)
         raw = np.sqrt(np.clip(np.diag(cov), 0, None))
         want = np.array([fit.stderr[k] for k in names], float)
+        if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(want))):
+            raise ValueError("the flats' joint fit has no finite covariance (P, h or the "
+                             "centre undetermined): no joint errors can be given; add flats at "
+                             "more f-numbers or give --center-px")
         d = np.divide(want, raw, out=np.ones_like(want), where=raw > 0)
         return names, values, cov * np.outer(d, d)
     of = cal.onset_fits[cal.method.split("-")[1]]

@@ -140,11 +140,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         attrs.
     """
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
-                      harmonise, mask)
-    if (resample or harmonise) and cube.sizes["band"] < 2:
-        what = "resample" if resample else "harmonise"
-        raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "
-                         f"cube has none: leave out {what}=True (--{what})")
+                      harmonise, mask, resample)
     cwl = np.asarray(sensor.cwl_nm, float)
     cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
                                               sensor_origin_px=sensor_origin_px)
@@ -262,9 +258,13 @@ def _dataset(cube, sensor, lens, cra, scale, column, *, source, center_source):
 
 
 def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
-                  harmonise, mask=None):
+                  harmonise, mask=None, resample=False):
     """The checks every correction makes first; returns the f-number as a float."""
     check_cube(cube)
+    if (resample or harmonise) and cube.sizes["band"] < 2:
+        what = "resample" if resample else "harmonise"
+        raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "
+                         f"cube has none: leave out {what}=True (--{what})")
     if not isinstance(sensor, Sensor) or not isinstance(lens, Lens):
         raise TypeError(f"correct_cube(cube, sensor, f_number, lens) takes a Sensor and a Lens,"
                         f" got {type(sensor).__name__} and {type(lens).__name__}")

@@ -133,11 +133,14 @@ def _average_reference(label, frames, raw, dtype, saturation):
 
 
 def _is_snapshot(cube):
-    """A cube from a mosaic (snapshot) sensor: its bands sit at different sensor rows."""
-    if "sensor_row" not in cube.coords or "band" not in cube["sensor_row"].dims:
-        return False
-    rows = np.asarray(cube["sensor_row"].transpose("y", "band").values)
-    return bool(rows.shape[1] > 1 and np.any(rows != rows[:, :1]))
+    """A cube from a mosaic (snapshot) sensor: its bands sit at different sensor rows or
+    columns."""
+    for coord, dim in (("sensor_row", "y"), ("sensor_col", "x")):
+        if coord in cube.coords and "band" in cube[coord].dims:
+            pos = np.asarray(cube[coord].transpose(dim, "band").values)
+            if pos.shape[1] > 1 and np.any(pos != pos[:, :1]):
+                return True
+    return False
 
 
 def _check_same_place(label, ref, raw, snapshot):
@@ -150,12 +153,14 @@ def _check_same_place(label, ref, raw, snapshot):
             continue  # a strip: any rows of the scan
         a, b = (np.asarray(c[coord].transpose(dim, "band").values) for c in (ref, raw))
         if a.shape != b.shape or not np.array_equal(a, b):
-            first = (f"{a.ravel()[0]:g}" if a.size else "-", f"{b.ravel()[0]:g}")
+            where = ("" if a.shape != b.shape else
+                     " (its {:g}, the cube's {:g})".format(*(v.ravel()[np.argmax(
+                         (a != b).ravel())] for v in (a, b))))
             raise ValueError(
                 f"the {label} reference was taken on other sensor "
-                f"{'columns' if dim == 'x' else 'rows'} than the cube (its first at "
-                f"{first[0]}, the cube's at {first[1]}): a reference must cover the cube's "
-                "own pixels; crop it to the cube's area (or give the one taken with it)")
+                f"{'columns' if dim == 'x' else 'rows'} than the cube{where}: a reference "
+                "must cover the cube's own pixels; crop it to the cube's area (or give the one "
+                "taken with it)")
 
 
 def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32"):
@@ -288,6 +293,11 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
         stack = xr.concat([f.drop_vars(list(f.coords)).astype(dtype) for f in frames],
                           dim="ref")
         bad = ~np.isfinite(stack)
+        for i, f in enumerate(frames):  # a reference's own ENVI data ignore value
+            ignore = f.attrs.get("data_ignore_value")
+            if ignore is not None:
+                hit = (f.drop_vars(list(f.coords)) == ignore).expand_dims(ref=[i])
+                bad = bad | hit.reindex(ref=range(len(frames)), fill_value=False)
         if saturation is not None and label == "white":
             bad = bad | (stack >= saturation)
         averaged[label] = (stack.mean("ref", skipna=False), bad.any("ref"))

@@ -320,7 +320,7 @@ def _read_file(path, *, chunks=None, what="cube", drop_alpha=False):
     check_input(path, directory=fmt == "zarr", what=what)
     try:
         if fmt == "envi":
-            found = _read_envi(path, data_file, chunks)
+            found = _read_envi(path, data_file, chunks, what)
         elif fmt in ("tiff", "exr"):
             found = _read_oiio(path, fmt, drop_alpha, what)
         elif fmt == "npy":
@@ -658,6 +658,8 @@ def _envi_values(h, hdr, bands):
         raise ValueError(f"{hdr}: the data gain / offset values, reflectance scale factor or "
                          "bbl are not finite numbers (gains and offsets), a number > 0 (the "
                          "scale factor) and 0 or 1 per band (bbl); fix the header")
+    if np.all(gain == 1) and np.all(offset == 0) and scale == 1 and np.all(bbl == 1):
+        return None  # as stored
     return gain, offset, scale, bbl == 0
 
 
@@ -701,7 +703,7 @@ def _envi_list(h, key, hdr):
                          f"{', '.join(map(str, items))[:80]}") from None
 
 
-def _read_envi(hdr, data_file, chunks):
+def _read_envi(hdr, data_file, chunks, what="cube"):
 
     p = _envi_header(hdr)
     h = p["header"]
@@ -739,6 +741,11 @@ def _read_envi(hdr, data_file, chunks):
             raise ValueError(f"{hdr}: 'data ignore value = {h['data ignore value']}' is not a "
                              "number; fix the header") from None
     values = _envi_values(h, hdr, bands)
+    if values is not None and what != "cube":
+        raise ValueError(f"{hdr}: its data gain / offset values, reflectance scale factor or "
+                         f"bbl change the stored numbers, and a {what} is used as stored (its "
+                         "saturation is in stored numbers; flat-fielding cancels a gain and "
+                         "offset shared with the references): remove them from the header")
     attrs = {"source": str(hdr), "envi_interleave": p["interleave"]}
     if values is not None:  # applied as the header says, the ignored pixels NaN
         data = _apply_envi_values(data, values, ignore)
