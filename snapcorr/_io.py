@@ -638,10 +638,13 @@ def written_by_snapcorr(path):
     suffix = path.suffix.lower()
     try:
         if suffix == ".png":
-            from PIL import Image
+            from PIL import Image, UnidentifiedImageError
 
-            with Image.open(path) as im:
-                software = str(im.info.get("Software", ""))
+            try:
+                with Image.open(path) as im:
+                    software = str(im.info.get("Software", ""))
+            except (UnidentifiedImageError, SyntaxError, ValueError):
+                return False, "a file that is not a PNG image"
             if software.startswith(_MARK):
                 return True, ""
             return False, "a PNG that snapcorr did not write (no 'snapcorr' Software mark)"

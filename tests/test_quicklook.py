@@ -134,8 +134,13 @@ def test_refusals(plot, flat, corrected, tmp_path):
     target.write_bytes(b"keep me")
     with pytest.raises(FileExistsError, match="overwrite"):
         plot(ds, target)
+    with pytest.raises(ValueError, match="not a PNG image; overwrite replaces only what "
+                                         "snapcorr wrote"):
+        plot(ds, target, overwrite=True)  # not snapcorr's: never replaced
     assert target.read_bytes() == b"keep me"
-    assert plot(ds, target, overwrite=True) == target
+    target.unlink()
+    assert plot(ds, target) == target
+    assert plot(ds, target, overwrite=True) == target  # its own: replaced
     assert imread(target).ndim == 3
     assert [p.name for p in tmp_path.iterdir()] == ["out.png"]
 
