@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import spectralsim as sim
-from flatsim import make_flats
+from flatsim import LensTruth, make_flats, mean_shift_nm
 from test_pupil import CENTER, N_EFF, PAPER, PITCH_UM, SHAPE, cubes, sensor
 
 from snapcorr import Lens
@@ -66,9 +66,19 @@ def test_one_run_recovers_x_n_eff_p_h_and_the_centre_without_x():
     assert np.allclose(joint["covariance"], cov, rtol=1e-5, atol=0)
     assert lens.calibration["exit_pupil_scaling"]["exit_pupil_stderr_mm"] == pytest.approx(
         got.stderr[i])
-    # x's error moves every pixel's angle: the shift's error is larger with it, at every f
-    own = got.calibration.shift_stderr_nm
-    assert np.all(got.shift_stderr_nm >= own) and np.all(got.shift_stderr_exit_pupil_nm > 0)
+    # x's error moves every pixel's angle and the scaled circles: its part of the shift's
+    # error, against the independent simulator's pupil quadrature at x -+ its error
+    sx = got.stderr[i]
+    d = np.linspace(0.0, x * np.tan(np.radians(got.calibration.max_cra_deg)), 25)
+    for f, part in zip(FLAT_F_NUMBERS, got.shift_stderr_exit_pupil_nm, strict=True):
+        shifts = []
+        for xi in (x - sx, x + sx):
+            k = xi / x
+            truth = LensTruth(xi, [(P * k, got.values[got.names.index("h_mm")] * k * k)],
+                              PAPER.magnification, PAPER.pupil_magnification)
+            shifts.append(mean_shift_nm(truth, 1000.0, 1.5, f, np.degrees(np.arctan(d / xi))))
+        want = np.nanmax(np.abs(shifts[1] - shifts[0])) / 2
+        assert part == pytest.approx(want, rel=0.05, abs=2e-5), (f, part, want)
     assert not got.notes, got.notes  # both calibrations agree on P / x and h / x^2
 
 
