@@ -28,8 +28,9 @@ def check_positive(name, value):
 
 #: No thin-film filter's effective index reaches this (its layers' indices stay below about 4.5).
 N_EFF_MAX = 5.0
-#: Pixel pitches outside this range (micrometres) are no camera's: a typo or a unit slip.
-PIXEL_PITCH_RANGE_UM = (0.1, 1000.0)
+#: Pixel pitches outside this range (micrometres) are no camera's, nor a coarse grid standing
+#: for one (a 2048-pixel sensor sampled 8 x 8): a typo or a unit slip.
+PIXEL_PITCH_RANGE_UM = (0.1, 10000.0)
 
 
 def check_pixel_pitch_um(name, value):
@@ -38,7 +39,7 @@ def check_pixel_pitch_um(name, value):
     lo, hi = PIXEL_PITCH_RANGE_UM
     if not lo <= v <= hi:
         raise ValueError(f"{name} = {v:g} um is no camera's pixel pitch (expected {lo:g}-{hi:g} "
-                         "um, binned pixels included); check the unit")
+                         "um, binned pixels and coarse grids included); check the unit")
     return v
 
 
