@@ -176,20 +176,19 @@ tolerance_nm
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
-    pupil = locate_pupil(cubes, sensor, lens=first.lens, fit_n_eff=fit_n_eff,
-                         center_px=centre, target_spectrum=target_spectrum,
-                         sensor_origin_px=sensor_origin_px, profile=profile,
-                         inputs=target_inputs, name=name, progress=progress,
-                         scale_circles=True)
+
+    def fit_x(lens):  # the target with these circles scaled to every trial x
+        return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_px=centre,
+                            target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
+                            profile=profile, inputs=target_inputs, name=name,
+                            progress=progress, scale_circles=True)
+
+    pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
     final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
     notes += _consistency(first, final, provisional_x_mm, x)
     if final.model != first.model:  # x was fitted with other circles: fit it with these
-        pupil = locate_pupil(cubes, sensor, lens=final.lens, fit_n_eff=fit_n_eff,
-                             center_px=centre, target_spectrum=target_spectrum,
-                             sensor_origin_px=sensor_origin_px, profile=profile,
-                             inputs=target_inputs, name=name, progress=progress,
-                             scale_circles=True)
+        pupil = fit_x(final.lens)
         x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
         final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
         notes.append(f"x was fitted again with the {final.model!r} circles: {x:.4g} mm")
