@@ -164,7 +164,7 @@ def test_one_f_number_gives_only_the_product():
 def test_a_white_target_is_refused_in_every_mode(fit_n_eff, noise, seed):
     """A white tile carries no information about x, with the index fitted or known, at any
     noise: fitted on every other annulus, its field predicts the annuli in between no better
-    than a field without shift (the gain was -41 to -99 against 96-102 needed). In sample
+    than a field without shift (the gain was -41 to -99 against 90-100 needed). In sample
     alone the search over x fitted enough noise to pass: x = 22.6 +- 0.45 mm with n_eff
     fitted, 34.5 +- 1.2 mm with it known, chi-square 1.01-1.02."""
     with pytest.raises(FeaturelessTargetError, match="fitted on every other annulus"):
