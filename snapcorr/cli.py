@@ -1146,15 +1146,7 @@ def _add_calibrate(command):
                    "covariance; instead of --exit-pupil-mm / --lens")
     t.add_argument("--sensor", default=None, metavar="SENSOR",
                    help="with --target-cube: the camera of the cubes (bundled name or .toml)")
-    t.add_argument("--fit-n-eff", action="store_true",
-                   help="with --target-cube: fit the effective index too")
-    t.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
-                   help="with --fit-n-eff: also write the sensor with the fitted n_eff")
-    t.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
-                   help="with --target-cube: the target's spectrum, two columns (default: "
-                   "unknown, solved for)")
-    t.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
-                   help="with --target-cube: sensor row and column of the cubes' first pixel")
+    _add_target_fit_options(t, "with --target-cube: ")
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
                    help="pixel pitch of the flats, micrometres")
     p.add_argument("--magnification", type=float, default=None,
@@ -1268,6 +1260,22 @@ def _add_shift(command):
     p.set_defaults(func=_cmd_shift)
 
 
+def _add_target_fit_options(group, when=""):
+    """The options of a fit to a target's cubes, shared by ``pupil`` and ``calibrate
+    --target-cube`` (``when`` says which option they go with)."""
+    group.add_argument("--fit-n-eff", action="store_true",
+                       help=f"{when}fit the effective index too (needs two f-numbers to "
+                       "separate it from x; one gives x * n_eff)")
+    group.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
+                       help="with --fit-n-eff and two or more f-numbers: also write the "
+                       "sensor description with the fitted n_eff, for snapcorr correct")
+    group.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
+                       help=f"{when}the target's spectrum, two columns (wavelength nm, "
+                       "value); default: unknown, solved for")
+    group.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                       help=f"{when}sensor row and column of the cubes' first pixel (crops)")
+
+
 def _add_pupil(command):
     p = command("pupil", "exit pupil distance x (and n_eff) from flat-fielded cubes of a "
                 "spectral target (Goossens et al., OSA Continuum 2019)")
@@ -1281,19 +1289,9 @@ def _add_pupil(command):
     p.add_argument("--lens", type=str, default=None, metavar="LENS",
                    help="lens profile whose vignetting circles (P, h) and magnifications are "
                    "used and copied (bundled name or .toml)")
-    p.add_argument("--fit-n-eff", action="store_true",
-                   help="fit the effective index too (needs two f-numbers to separate it from "
-                   "x; one gives x * n_eff)")
-    p.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
-                   help="with --fit-n-eff and two or more f-numbers: also write the sensor "
-                   "description with the fitted n_eff, for snapcorr correct")
+    _add_target_fit_options(p)
     p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
                    help="optical centre in sensor pixels (default: found from the cubes)")
-    p.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
-                   help="the target's spectrum, two columns (wavelength nm, value); default: "
-                   "unknown, solved for")
-    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
-                   help="sensor row and column of the cubes' first pixel (crops)")
     p.add_argument("--magnification", type=float, default=None,
                    help="linear magnification m without --lens (default 0)")
     p.add_argument("--pupil-magnification", type=_positive, default=None,
