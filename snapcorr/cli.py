@@ -1268,7 +1268,8 @@ def _add_target_fit_options(group, when=""):
                        "separate it from x; one gives x * n_eff)")
     group.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
                        help="with --fit-n-eff and two or more f-numbers: also write the "
-                       "sensor description with the fitted n_eff, for the correction (correct --sensor)")
+                       "sensor description with the fitted n_eff, for the correction "
+                       "(correct --sensor)")
     group.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
                        help=f"{when}the target's spectrum, two columns (wavelength nm, "
                        "value); default: unknown, solved for")
