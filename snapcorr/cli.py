@@ -347,7 +347,7 @@ def _cmd_demo(args):
 
 
 def _cmd_flatfield(args):
-    from .cube import flatfield, write_dataset
+    from .cube import flatfield
     from .cube.flatfield import check_masked
 
     inputs = [p for p in (args.raw, *args.dark, *args.white, args.filter_white) if p]
@@ -386,7 +386,7 @@ def _cmd_flatfield(args):
     with _StageBar("flat-fielding (checking the mask)"):
         n_masked, total = check_masked(ds)
     with _StageBar(f"writing {args.out.name}"):
-        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+        _write_result(args, ds, inputs, RAW_COPIES, args.raw)
     print(f"wrote {args.out}: {ds.attrs.get('name', 'reflectance')} of {args.raw} "
           f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, {ds['reflectance'].dtype}), "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
@@ -436,7 +436,7 @@ def _masked_in(path):
 
 def _flatfield_demosaic(args, sensor, inputs):
     """``flatfield --demosaic``: the raw frame flat-fielded pixel by pixel, then demosaicked."""
-    from .cube import demosaic, flatfield, write_dataset
+    from .cube import demosaic, flatfield
     from .cube.flatfield import check_masked
 
     if sensor is None or sensor.layout != "mosaic":
@@ -459,7 +459,7 @@ def _flatfield_demosaic(args, sensor, inputs):
                      "white_files": [str(p) for p in args.white]})
     cube = ds["reflectance"]
     with _StageBar(f"demosaicking ({args.demosaic}) and writing {args.out.name}"):
-        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+        _write_result(args, ds, inputs, RAW_COPIES, args.raw)
     n_masked, total = _masked_in(args.out), cube.size
     print(f"wrote {args.out}: reflectance of {args.raw}, demosaicked ({args.demosaic}) to "
           f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} ({cube.dtype}), sensor rows "
@@ -471,7 +471,7 @@ def _flatfield_demosaic(args, sensor, inputs):
 
 
 def _cmd_stream(args):
-    from .cube import read_frames, write_dataset
+    from .cube import read_frames
     from .stream import process_stream
 
     inputs = [args.frames, *args.dark, *args.white]
@@ -499,7 +499,7 @@ def _cmd_stream(args):
     with _StageBar(f"{cube.sizes['frame']} frames: flat-fielding, demosaicking "
                    f"({args.demosaic}){', correcting' if lens else ''}, writing "
                    f"{args.out.name}"):
-        write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+        _write_result(args, ds, inputs, RAW_COPIES, args.frames)
     n_masked = _masked_in(args.out)
     print(f"wrote {args.out}: {cube.sizes['frame']} frames of {args.frames}, each "
           f"{cube.shape[1]} x {cube.shape[2]} x {cube.shape[3]} ({args.demosaic}); "
@@ -524,12 +524,24 @@ def _correct_input(args, sensor):
     return cube, mask
 
 
+def _write_correction(args, ds, inputs, cube_name):
+    """``correct``'s result as ``--out`` asks: a .nc or .zarr, or ENVI pairs; the paths."""
+    if args.out.suffix.lower() == ".hdr":
+        from .cube.envi_result import write_envi_result
+
+        if args.no_input:
+            ds.attrs["input_left_out"] = f"{cube_name} (--no-input); the input is {args.cube}"
+        return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
+                                 include_input=not args.no_input)
+    return [_write_result(args, ds, inputs, [cube_name], args.cube)]
+
+
 def _cmd_correct(args):
     from .correct import correct_cube
-    from .cube import write_dataset
 
     inputs = [args.cube, args.lens, args.sensor]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
+    _check_outputs([args.out, args.plot], inputs, args.overwrite,
+                   [(".nc", ".zarr", ".hdr"), (".png",)])
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
@@ -577,10 +589,13 @@ def _cmd_correct(args):
             raise ValueError(f"cannot reach the dask scheduler at {args.scheduler}: {err}") \
                 from None
         with client:  # progress: the cluster's dashboard
-            write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+            written = _write_correction(args, ds, inputs, cube.name)
     else:
         with _StageBar(f"correcting, writing {args.out.name}"):
-            write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs)
+            written = _write_correction(args, ds, inputs, cube.name)
+    if len(written) > 1:
+        print("ENVI pairs (header and .raw) in " + f"{args.out.parent}: "
+              + ", ".join(p.name for p in written))
     print(f"wrote {args.out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
           f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
           f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre "
@@ -1073,6 +1088,47 @@ ORIGIN_HELP = ("sensor row and column of the cube's first pixel (of its tile, fo
                "for a crop that does not record where it sits")
 
 
+def _add_output_options(p, *, input_name, derived=False):
+    """``--compression`` and ``--no-input`` (and ``--store-derived``) for a result."""
+    g = p.add_argument_group("output")
+    g.add_argument("--compression", default="auto", choices=["auto", "all", "none"],
+                   help="auto (default): where it pays (every variable of .zarr, fast LZ4; in "
+                   ".nc, integers, masks and stored derived variables, as noisy floats "
+                   "shrink to about 3/4 for 6 x the writing time); all; none")
+    g.add_argument("--no-input", action="store_true",
+                   help=f"leave out the copy of {input_name} (by default kept next to the "
+                   "result); its path stays in the attributes")
+    if derived:
+        g.add_argument("--store-derived", action="store_true",
+                       help="store wavelength_corrected and fwhm_corrected whole (about one "
+                       "cube each), for readers without snapcorr; by default they are "
+                       "rebuilt on reading from a compact form")
+
+
+def _without_input(ds, names, source):
+    """``--no-input``: ``ds`` without the input's copy, saying where the input is."""
+    present = [n for n in names if n in ds.variables]
+    ds = ds.drop_vars(present)
+    ds.attrs["input_left_out"] = f"{', '.join(present)} (--no-input); the input is {source}"
+    return ds
+
+
+#: The copies of the input a flat-field result keeps (``--no-input`` leaves them out).
+RAW_COPIES = ("raw", "filter_white_raw")
+
+
+def _write_result(args, ds, inputs, input_names, source):
+    """Write ``ds`` to ``--out`` as the output options say; ``input_names`` are the input's
+    copy, left out with ``--no-input``."""
+    from .cube import write_dataset
+
+    if args.no_input:
+        ds = _without_input(ds, input_names, source)
+    return write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs,
+                         compression=args.compression,
+                         store_derived=getattr(args, "store_derived", False))
+
+
 def _add_demo(command):
     p = command("demo", "the main job on a bundled default: calibrate the paper's lens, "
                 "correct a simulated cube, write figures")
@@ -1117,6 +1173,7 @@ def _add_flatfield(command):
                    "it, one spectrum per tile")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the mask and a few pixels' spectra")
+    _add_output_options(p, input_name="the raw data (raw, filter_white_raw)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_flatfield)
 
@@ -1189,7 +1246,10 @@ def _add_correct(command):
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
     p.add_argument("--f-number", type=_positive, required=True, metavar="F",
                    help="the f-number the cube was taken at")
-    p.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    p.add_argument("--out", type=Path, required=True,
+                   help="result: .nc or .zarr (everything, provenance in the attributes), or "
+                   "STEM.hdr for ENVI pairs (STEM.hdr the input's values, "
+                   "STEM_wavelength_corrected.hdr, STEM_resampled.hdr, ...)")
     p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
                    help="optical centre in sensor pixels (default: the lens profile's, "
                    "converted to this pixel pitch, else the sensor's centre)")
@@ -1233,6 +1293,7 @@ def _add_correct(command):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
                    "(default: in-process threads)")
+    _add_output_options(p, input_name="the input cube", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_correct)
 
@@ -1341,6 +1402,7 @@ def _add_stream(command):
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="type of the result (default: %(default)s)")
     p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
+    _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_stream)
 

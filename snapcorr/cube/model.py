@@ -73,7 +73,11 @@ def _check_sizes(shape):
                          f"{tuple(shape)} (no {', '.join(empty)}); an empty cube holds nothing")
 
 
-def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name="radiance"):
+#: Units and name of integer data that nobody named: a camera's raw counts, not a ratio.
+RAW_ATTRS = {"units": "count", "long_name": "raw digital numbers (DN)"}
+
+
+def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name=None):
     """Wrap a ``(y, x, band)`` array (numpy or dask) as a cube.
 
     Parameters
@@ -86,7 +90,9 @@ def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name="radiance")
         Band widths, nm, a scalar or one per band.
     attrs : dict, optional
         Acquisition metadata (f-number, exposure, sensor name, ...).
-    name : str
+    name : str, optional
+        Default: ``"raw"`` (with units "count", unless ``attrs`` give others) for integer
+        data, a camera's digital numbers; ``"radiance"`` otherwise.
 
     Returns
     -------
@@ -121,7 +127,12 @@ def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name="radiance")
         fw = np.broadcast_to(fw, wl.shape).copy()
         check_positive_array("fwhm", fw, "nm")
         coords["fwhm"] = ("band", fw, {"units": "nm", "long_name": FWHM_LONG_NAME})
-    return xr.DataArray(data, dims=DIMS, coords=coords, attrs=dict(attrs or {}), name=name)
+    attrs = dict(attrs or {})
+    if name is None:
+        name = "raw" if np.dtype(data.dtype).kind in "iu" else "radiance"
+        if name == "raw":
+            attrs = {**RAW_ATTRS, **attrs}
+    return xr.DataArray(data, dims=DIMS, coords=coords, attrs=attrs, name=name)
 
 
 def check_cube(cube):
