@@ -3,8 +3,8 @@
 :func:`plot_flatfield` shows a result of :func:`snapcorr.cube.flatfield`: one band, the
 masked fraction of every band and a few pixels' spectra. :func:`plot_correction` shows a
 result of :func:`snapcorr.correct.correct_cube`: one band of the cube, the chief-ray angle,
-the shift of the band that moves most and three pixels' spectra at their nominal and
-corrected wavelengths.
+the shift of the band that moves most and mean spectra around three pixels at their nominal
+and corrected wavelengths.
 
 Both read only what they draw: images are subsampled with a stride to at most
 :data:`MAX_PX` pixels a side and selected before they are loaded, so a dask-backed cube
@@ -22,10 +22,21 @@ import xarray as xr
 
 from ._io import save_png
 
-__all__ = ["MAX_PX", "plot_correction", "plot_flatfield", "plot_sensor"]
+__all__ = ["MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRUM_WINDOW_PX", "plot_correction",
+           "plot_flatfield", "plot_sensor"]
 
 #: Largest number of pixels drawn along either side of an image.
 MAX_PX = 1024
+#: Side (pixels) of the square window whose mean spectrum :func:`plot_correction` draws
+#: around each chosen pixel; the image's stride when that is larger (made odd, so the window
+#: is centred), clipped to the image.
+SPECTRUM_WINDOW_PX = 5
+#: :func:`plot_correction` calls a pixel "on axis" only when its chief-ray angle is below
+#: this (degrees); the pixel of lowest angle in a crop away from the axis is "lowest CRA".
+ON_AXIS_DEG = 0.5
+#: :func:`plot_correction` marks every band on the spectra only up to this many bands; with
+#: more, the spectra are drawn as lines alone.
+MARKER_MAX_BANDS = 40
 #: Colour of masked (or non-finite) pixels in the images.
 MASKED_COLOUR = "#ff00ff"
 _DPI = 110
@@ -272,7 +283,8 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
 
 def _draw_masked_fraction(ax, wl, order, frac, n_masked_band, n_values, s):
     """The panel of the percentage of masked values in every band."""
-    ax.plot(wl[order], frac[order], "o-", ms=3, lw=1, color="C3")
+    ax.plot(wl[order], frac[order], "o-" if wl.size <= MARKER_MAX_BANDS else "-", ms=3, lw=1,
+            color="C3")
     top = float(frac.max()) if frac.size else 0.0
     top = 100.0 if top > 20.0 else max(1.0, 1.25 * top)  # small fractions stay readable
     ax.set_ylim(-0.03 * top, 1.03 * top)
@@ -301,7 +313,8 @@ def _draw_flat_spectra(a_spec, a_img, result, name, valid, s, wl, order, all_mas
         if not np.any(np.isfinite(spec)):
             continue
         label = ("centre " if k == 0 else "") + f"(y, x) = ({y}, {x})"
-        a_spec.plot(wl[order], spec, "o-", ms=3, lw=1.2, color=f"C{k}", label=label)
+        a_spec.plot(wl[order], spec, "o-" if wl.size <= MARKER_MAX_BANDS else "-", ms=3,
+                    lw=1.2, color=f"C{k}", label=label)
         a_img.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
         shown += 1
     if shown:
@@ -350,9 +363,20 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     Four panels: the band of the input cube nearest the middle wavelength (colour limits from
     the 1st and 99th percentiles of its finite values); the chief-ray angle (deg; the first
     band's when it differs per band); the shift ``wavelength_corrected - wavelength`` (nm) of
-    the band that moves most; and the spectra of three pixels chosen by their chief-ray angle
-    (on axis, mid-field, edge) against the nominal wavelengths (dashed) and against their
-    corrected wavelengths (solid), with the ``resampled`` spectra (dotted) when present.
+    the band that moves most; and spectra at three pixels chosen by their chief-ray angle
+    (lowest, halfway between lowest and highest, highest) against the nominal wavelengths
+    (dashed) and against their corrected wavelengths (solid), with the ``resampled`` spectra
+    (dotted) when present.
+
+    Each spectrum is the mean over a window of :data:`SPECTRUM_WINDOW_PX` pixels a side (the
+    stride when that is larger) around the chosen pixel, clipped to the image, of the values
+    that are finite and not masked (``mask``); its corrected wavelengths are the mean of
+    ``wavelength_corrected`` over the same values, and ``resampled`` is averaged likewise
+    (its finite values). The legend gives each window's size and centre and the centre's
+    chief-ray angle. The pixels are called "on axis", "mid-field" and "edge" only when the
+    lowest angle is below :data:`ON_AXIS_DEG` (the optical axis is in the image); otherwise
+    "lowest CRA", "middle CRA" and "highest CRA". Every band is marked on the spectra only
+    up to :data:`MARKER_MAX_BANDS` bands; with more they are drawn as lines.
 
     Parameters
     ----------
@@ -360,9 +384,10 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
         A result of :func:`snapcorr.correct.correct_cube`: the input cube ``(y, x, band)``,
         ``wavelength_corrected(y, x, band)`` (a variable or a coordinate, nm), the chief-ray
         angle ``cra`` (or ``cra_deg``) ``(y, x)`` or ``(y, x, band)`` in degrees, optionally
-        ``resampled``; numpy- or dask-backed. Only
-        what is drawn is read: one band of the cube and of the corrected wavelengths (every
-        ``stride``-th pixel, at most :data:`MAX_PX` a side) and three pixels' spectra.
+        ``resampled`` and ``mask`` ``(y, x, band)``; numpy- or dask-backed. Only what is
+        drawn is read: one band of the cube and of the corrected wavelengths (every
+        ``stride``-th pixel, at most :data:`MAX_PX` a side) and the three small windows
+        whose spectra are averaged.
         ``lens``, ``f_number`` and ``method`` in its attrs go into the title.
     path : str or os.PathLike
         The PNG to write (the suffix must be ``.png``).
@@ -401,11 +426,13 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
 
     picked, roles = _pick_by_cra(img, cra_img)
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
-    lazy = [_points(cube, ys, xs), _points(corrected, ys, xs)]
+    boxes = _windows(ys, xs, ny, nx, _window_half(s))
     has_resampled = "resampled" in ds.variables
-    if has_resampled:
-        lazy.append(_points(ds["resampled"].transpose("y", "x", "band"), ys, xs))
-    spectra = [np.asarray(v, float) for v in _load(*lazy)] if picked else []
+    spectra = _window_means(cube, corrected,
+                            ds["resampled"].transpose("y", "x", "band") if has_resampled
+                            else None,
+                            ds["mask"].transpose("y", "x", "band") if _has_mask(ds, cube)
+                            else None, boxes) if picked else []
 
     b_shift = _band_moving_most(spectra, wl, b)
     (shift_img,) = _load(_image(corrected, s, b_shift))
@@ -425,7 +452,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
 
-    _draw_corrected_spectra(a_spec, ys, xs, spectra, wl, order, roles,
+    _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles,
                             [cra_img[rc] for rc in picked], has_resampled, _label(cube, name))
 
     head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
@@ -446,8 +473,9 @@ def _check_correction(ds):
 
 
 def _pick_by_cra(img, cra_img):
-    """Up to three grid pixels, on axis, mid-field and at the edge, and their roles."""
-    # three pixels by chief-ray angle: smallest, halfway, largest (among finite ones)
+    """Up to three grid pixels by chief-ray angle (lowest, halfway, highest) and their roles:
+    "on axis", "mid-field", "edge" when the lowest angle is below :data:`ON_AXIS_DEG`, else
+    "lowest CRA", "middle CRA", "highest CRA"."""
     valid = np.isfinite(cra_img) & np.isfinite(np.asarray(img, float))
     if not valid.any():
         valid = np.isfinite(cra_img)
@@ -456,14 +484,69 @@ def _pick_by_cra(img, cra_img):
         rows, cols = np.nonzero(valid)
         angles = cra_img[rows, cols]
         lo, hi = float(angles.min()), float(angles.max())
-        for role, k in (("on axis", int(np.argmin(angles))),
-                        ("mid-field", int(np.argmin(np.abs(angles - 0.5 * (lo + hi))))),
-                        ("edge", int(np.argmax(angles)))):
+        names = (("on axis", "mid-field", "edge") if lo < ON_AXIS_DEG
+                 else ("lowest CRA", "middle CRA", "highest CRA"))
+        for role, k in zip(names, (int(np.argmin(angles)),
+                                   int(np.argmin(np.abs(angles - 0.5 * (lo + hi)))),
+                                   int(np.argmax(angles))), strict=True):
             rc = (int(rows[k]), int(cols[k]))
             if rc not in picked:
                 picked.append(rc)
                 roles.append(role)
     return picked, roles
+
+
+def _window_half(stride):
+    """Half the side of the averaging window: :data:`SPECTRUM_WINDOW_PX` or the stride."""
+    return max(SPECTRUM_WINDOW_PX, stride) // 2
+
+
+def _windows(ys, xs, ny, nx, half):
+    """The ``(y0, y1, x0, x1)`` of a window ``2 half + 1`` pixels a side around each pixel
+    ``(ys[i], xs[i])``, clipped to an image of ``ny`` by ``nx`` pixels."""
+    return [(max(0, y - half), min(ny, y + half + 1), max(0, x - half), min(nx, x + half + 1))
+            for y, x in zip(ys, xs, strict=True)]
+
+
+def _has_mask(ds, cube):
+    """``ds`` has a ``mask`` of the cube's shape (``cube``: dims ``(y, x, band)``)."""
+    return ("mask" in ds.variables and set(ds["mask"].dims) == {"y", "x", "band"}
+            and ds["mask"].transpose("y", "x", "band").shape == cube.shape)
+
+
+def _nanmean(a, where):
+    """The mean over the first two axes of ``a`` where ``where`` (NaN where nowhere)."""
+    a = np.asarray(a, float)
+    ok = where & np.isfinite(a)
+    n = ok.sum(axis=(0, 1))
+    total = np.where(ok, a, 0.0).sum(axis=(0, 1))
+    return np.where(n > 0, total / np.maximum(n, 1), np.nan)
+
+
+def _window_means(cube, corrected, resampled, mask, boxes):
+    """Mean spectra over the windows ``boxes`` (:func:`_windows`), reading only those.
+
+    Returns ``[values, wavelengths]`` (and ``resampled`` when given), each ``(window,
+    band)``: the mean of the cube's finite, unmasked values per band; the mean of the
+    corrected wavelengths over the same values; the mean of the finite resampled values.
+    """
+    named = {n: a for n, a in (("cube", cube), ("corrected", corrected),
+                               ("resampled", resampled), ("mask", mask)) if a is not None}
+    loaded = _load(*[a.isel(y=slice(y0, y1), x=slice(x0, x1))
+                     for y0, y1, x0, x1 in boxes for a in named.values()])
+    out = [[] for _ in range(2 + (resampled is not None))]
+    for i in range(len(boxes)):
+        got = dict(zip(named, loaded[i * len(named):(i + 1) * len(named)], strict=True))
+        values = np.asarray(got["cube"], float)
+        valid = np.isfinite(values)
+        if mask is not None:
+            valid &= ~np.asarray(got["mask"], bool)
+        out[0].append(_nanmean(values, valid))
+        out[1].append(_nanmean(got["corrected"], valid))
+        if resampled is not None:
+            out[2].append(_nanmean(got["resampled"], True))
+    nb = cube.sizes["band"]
+    return [np.asarray(o, float).reshape(len(boxes), nb) for o in out]
 
 
 def _band_moving_most(spectra, wl, b):
@@ -476,11 +559,23 @@ def _band_moving_most(spectra, wl, b):
     return b
 
 
-def _draw_corrected_spectra(a_spec, ys, xs, spectra, wl, order, roles, cra_deg, has_resampled,
-                            ylabel):
-    """The panel of the pixels' spectra at nominal and corrected wavelengths (and resampled)."""
+def _where(box, y, x):
+    """A legend's words for the window ``box`` around the pixel ``(y, x)``."""
+    h, w = box[1] - box[0], box[3] - box[2]
+    if h * w == 1:
+        return f"(y, x) = ({y}, {x})"
+    return f"mean of {h} x {w} px around (y, x) = ({y}, {x})"
+
+
+def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cra_deg,
+                            has_resampled, ylabel):
+    """The panel of the windows' mean spectra at nominal and corrected wavelengths (and
+    resampled); every band marked only up to :data:`MARKER_MAX_BANDS` bands."""
     from matplotlib.lines import Line2D
 
+    few = wl.size <= MARKER_MAX_BANDS
+    nominal, corrected, resampled = (({"marker": m, "ms": ms} if few else {"marker": "None"})
+                                     for m, ms in ((".", 4), ("o", 3), ("x", 4)))
     handles = []
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         values = spectra[0][k]
@@ -488,29 +583,29 @@ def _draw_corrected_spectra(a_spec, ys, xs, spectra, wl, order, roles, cra_deg, 
             continue
         c = f"C{k}"
         lam = spectra[1][k]
-        a_spec.plot(wl[order], values[order], "--", color=c, lw=1, marker=".", ms=4)
+        a_spec.plot(wl[order], values[order], "--", color=c, lw=1, **nominal)
         o = np.argsort(np.where(np.isfinite(lam), lam, np.inf), kind="stable")
-        a_spec.plot(lam[o], values[o], "-", color=c, lw=1.4, marker="o", ms=3)
+        a_spec.plot(lam[o], values[o], "-", color=c, lw=1.4, **corrected)
         if has_resampled:
-            a_spec.plot(wl[order], spectra[2][k][order], ":", color=c, lw=1.4, marker="x",
-                        ms=4)
+            a_spec.plot(wl[order], spectra[2][k][order], ":", color=c, lw=1.4, **resampled)
         handles.append(Line2D([], [], color=c, lw=2,
-                              label=f"{roles[k]}: (y, x) = ({y}, {x}), "
+                              label=f"{roles[k]}: {_where(boxes[k], y, x)}, "
                                     f"CRA {cra_deg[k]:.2f} deg"))
     if handles:
         styles = [Line2D([], [], color="0.3", ls="--", label="at nominal wavelengths"),
                   Line2D([], [], color="0.3", ls="-", label="at corrected wavelengths")]
         if has_resampled:
-            styles.append(Line2D([], [], color="0.3", ls=":", marker="x",
-                                 label="resampled onto nominal"))
+            styles.append(Line2D([], [], color="0.3", ls=":", label="resampled onto nominal",
+                                 **({"marker": "x"} if few else {})))
         # below the panel, so it never hides a spectrum
-        a_spec.legend(handles=handles + styles, fontsize=8, ncols=2, loc="upper center",
+        a_spec.legend(handles=handles + styles, fontsize=8, ncols=1, loc="upper center",
                       bbox_to_anchor=(0.5, -0.12))
     else:
-        _note(a_spec, "no finite values at these pixels:\nno spectrum to show")
+        _note(a_spec, "no finite values around these pixels:\nno spectrum to show")
     a_spec.set_xlabel("wavelength (nm)")
     a_spec.set_ylabel(ylabel)
-    a_spec.set_title("spectra by chief-ray angle", fontsize=10)
+    a_spec.set_title("spectra by chief-ray angle (CRA): means over small windows\n"
+                     "of the finite, unmasked values", fontsize=10)
     a_spec.grid(alpha=0.3)
 
 

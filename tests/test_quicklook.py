@@ -233,3 +233,122 @@ def test_all_masked_and_all_nan_bands(figures, tmp_path):
     assert "no finite values" in text and "no spectrum to show" in text
     for name in ("all.png", "band.png", "nan.png"):
         assert imread(tmp_path / name).ndim == 3
+
+
+# -- the spectra panel of plot_correction: window means, honest roles, markers --------------
+
+def _spectra_axes(fig):
+    return next(ax for ax in fig.axes if ax.get_title().startswith("spectra by chief-ray"))
+
+
+def _windows_in_legend(ax):
+    """(role, (y0, y1, x0, x1), (y, x)) of every pixel entry in the spectra panel's legend."""
+    out = []
+    for entry in (t.get_text() for t in ax.get_legend().get_texts()):
+        if "(y, x)" not in entry:
+            continue
+        role, rest = entry.split(": ", 1)
+        y, x = (int(v) for v in rest.split("= (")[1].split(")")[0].split(", "))
+        h = w = 1
+        if rest.startswith("mean of "):
+            h, w = (int(v) for v in rest[len("mean of "):].split(" px")[0].split(" x "))
+        out.append((role, (y, x), (h, w)))
+    return out
+
+
+def _window(y, x, ny, nx, half=2):
+    return slice(max(0, y - half), min(ny, y + half + 1)), slice(max(0, x - half),
+                                                                   min(nx, x + half + 1))
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_correction_spectra_are_means_over_windows(corrected, figures, tmp_path, lazy):
+    cra = corrected["cra_deg"].values
+    cy, cx = np.unravel_index(np.argmin(cra), cra.shape)  # the pixel on axis
+    cube = corrected["radiance"].values.astype(float)
+    cube[cy + 1, cx, :] = np.nan  # a missing pixel in its window: left out
+    cube[cy, cx + 1, :] = 1e6  # a masked one: left out too
+    mask = np.zeros(cube.shape, bool)
+    mask[cy, cx + 1, :] = True
+    ds = corrected.assign(radiance=(corrected["radiance"].dims, cube),
+                          mask=(corrected["radiance"].dims, mask))
+    if lazy:
+        ds = ds.chunk({"y": 8, "band": 1})
+    plot_correction(ds, tmp_path / "corr.png")
+    ax = _spectra_axes(figures[0])
+    entries = _windows_in_legend(ax)
+    assert [e[0] for e in entries] == ["on axis", "mid-field", "edge"]
+    assert entries[0][1:] == ((cy, cx), (5, 5))
+    assert entries[2][2] == (3, 3)  # the edge pixel is a corner: its window is clipped
+    assert "mean of 5 x 5 px around (y, x) = " in _texts(figures[0])
+    lines = ax.get_lines()
+    assert len(lines) == 3 * len(entries)  # nominal, corrected, resampled for each
+    wl_corr = corrected["wavelength_corrected"].values.astype(float)
+    resampled = corrected["resampled"].values.astype(float)
+    for k, (_, (y, x), (h, w)) in enumerate(entries):
+        sy, sx = _window(y, x, NY, NX)
+        assert (sy.stop - sy.start, sx.stop - sx.start) == (h, w)
+        valid = np.isfinite(cube[sy, sx]) & ~mask[sy, sx]
+        n = valid.sum(axis=(0, 1))
+        want = np.where(valid, cube[sy, sx], 0).sum(axis=(0, 1)) / n
+        want_wl = np.where(valid, wl_corr[sy, sx], 0).sum(axis=(0, 1)) / n
+        nominal, at_corrected, at_resampled = lines[3 * k:3 * k + 3]
+        np.testing.assert_allclose(nominal.get_xdata(), SENSOR.cwl_nm)
+        np.testing.assert_allclose(nominal.get_ydata(), want, rtol=1e-6)
+        o = np.argsort(want_wl)
+        np.testing.assert_allclose(at_corrected.get_xdata(), want_wl[o], rtol=1e-9)
+        np.testing.assert_allclose(at_corrected.get_ydata(), want[o], rtol=1e-6)
+        r = resampled[sy, sx]
+        n_r = np.isfinite(r).sum(axis=(0, 1))
+        want_r = np.where(n_r > 0, np.nansum(r, axis=(0, 1)) / np.maximum(n_r, 1), np.nan)
+        assert np.isfinite(want_r).any()
+        np.testing.assert_allclose(at_resampled.get_ydata(), want_r, rtol=1e-6)
+        # not the single pixel's noisy spectrum
+        assert not np.allclose(nominal.get_ydata(), cube[y, x], rtol=1e-4)
+    if lazy:
+        assert ds["radiance"].chunks is not None
+
+
+def test_window_follows_the_stride():
+    assert quicklook._window_half(1) == 2 and quicklook._window_half(5) == 2
+    assert quicklook._window_half(6) == 3 and quicklook._window_half(11) == 5
+    assert quicklook._windows([0, 10, 23], [31, 10, 0], NY, NX, 2) == [
+        (0, 3, 29, 32), (8, 13, 8, 13), (21, 24, 0, 3)]
+
+
+def _shifted_cra(ds, by):
+    return ds.assign(cra_deg=ds["cra_deg"] + by)
+
+
+@pytest.mark.parametrize(("shift", "roles"), [
+    (0.0, ["on axis", "mid-field", "edge"]),
+    (3.8, ["lowest CRA", "middle CRA", "highest CRA"]),  # a crop away from the axis
+    ("just below", ["on axis", "mid-field", "edge"]),
+    ("at", ["lowest CRA", "middle CRA", "highest CRA"]),
+])
+def test_on_axis_only_near_the_axis(corrected, figures, tmp_path, shift, roles):
+    low = float(corrected["cra_deg"].min())
+    by = {"just below": quicklook.ON_AXIS_DEG - low - 1e-3,
+          "at": quicklook.ON_AXIS_DEG - low}.get(shift, shift)
+    ds = _shifted_cra(corrected, by)
+    plot_correction(ds, tmp_path / "corr.png")
+    entries = _windows_in_legend(_spectra_axes(figures[0]))
+    assert [e[0] for e in entries] == roles
+    text = _texts(figures[0])
+    assert f"CRA {float(ds['cra_deg'].min()):.2f} deg" in text
+    if roles[0] != "on axis":
+        for word in ("on axis", "mid-field", "edge"):
+            assert word not in text, word
+
+
+@pytest.mark.parametrize(("nb", "marked"), [(NB, True), (40, True), (41, False), (150, False)])
+def test_markers_only_for_few_bands(figures, tmp_path, nb, marked):
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, nb), 10.0, 1.7)
+    ds = correct_cube(make_cube(_scene(8, 10, nb), sensor.cwl_nm), sensor, 1.4, LENS,
+                      resample=True)
+    plot_correction(ds, tmp_path / "corr.png")
+    ax = _spectra_axes(figures[0])
+    markers = {line.get_marker() for line in ax.get_lines()}
+    assert markers == ({".", "o", "x"} if marked else {"None"})
+    legend_markers = {h.get_marker() for h in ax.get_legend().legend_handles}
+    assert ("x" in legend_markers) == marked

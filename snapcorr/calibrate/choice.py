@@ -385,14 +385,14 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
         gain = bic_floor[chosen] - bic_floor[model]
         if gain <= MIN_BIC_GAIN:
             v.why = (f"no better than {chosen} once a {100 * FLOOR_REL:g} % systematic floor is "
-                     f"allowed for (BIC gain {gain:.1f} <= {MIN_BIC_GAIN:g})")
+                     f"allowed for (BIC gain {gain:.4g} <= {MIN_BIC_GAIN:g})")
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EffectiveIndexWarning)
             diff = shift_difference_nm(lens_of(fit, base), lens_of(fits[chosen], base),
                                        f_numbers, max_cra_deg)
         if not np.nanmax(diff, initial=0.0) > tolerance_nm:
-            v.why = (f"changes the predicted mean shift by at most {np.nanmax(diff):.4f} nm "
+            v.why = (f"changes the predicted mean shift by at most {np.nanmax(diff):.4g} nm "
                      f"(<= {tolerance_nm:g} nm) from {chosen}: {chosen} suffices")
             continue
         with warnings.catch_warnings():
@@ -400,16 +400,16 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
             sd = shift_stderr_nm(fit, base, f_numbers, max_cra_deg)
         z = _significance(diff, sd)
         if not z > MIN_SHIFT_SIGMAS:
-            v.why = (f"changes the predicted mean shift by up to {np.nanmax(diff):.4f} nm from "
-                     f"{chosen}, but that is only {z:.1f} of its own standard errors "
+            v.why = (f"changes the predicted mean shift by up to {np.nanmax(diff):.4g} nm from "
+                     f"{chosen}, but that is only {z:.3g} of its own standard errors "
                      f"(<= {MIN_SHIFT_SIGMAS:g}): the flats cannot tell them apart")
             continue
         verdicts[chosen].chosen = False
         verdicts[chosen].why = f"{model} describes the flats better and it matters (below)"
         v.chosen = True
-        v.why = (f"every circle identifiable; BIC gain {gain:.1f} over {chosen} with the floor; "
-                 f"moves the mean shift by up to {np.nanmax(diff):.3f} nm ({z:.0f} standard "
-                 "errors)")
+        v.why = (f"every circle identifiable; BIC gain {gain:.4g} over {chosen} with the "
+                 f"floor; moves the mean shift by up to {np.nanmax(diff):.4g} nm ({z:.3g} "
+                 "standard errors)")
         chosen = model
     if not verdicts[chosen].why:
         verdicts[chosen].why = ("no model with more circles passed the rules" if len(order) > 1

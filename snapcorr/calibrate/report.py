@@ -45,8 +45,8 @@ def summary(res) -> str:
         v = res.verdicts.get(name)
         head = f"joint fit, {CIRCLES[name]}"
         txt = ", ".join(f"{k} = {fit.params[k]:.4g} +- {fit.stderr[k]:.2g}" for k in fit.names)
-        stats = (f"BIC with floor {res.bic_floor[name]:.1f}, reduced chi2 "
-                 f"{fit.reduced_chi2:.2f}")
+        stats = (f"BIC with floor {res.bic_floor[name]:.4g}, reduced chi2 "
+                 f"{fit.reduced_chi2:.4g}")
         lines.append(f"{head}: {txt + '; ' if txt else ''}{stats}")
         if v is not None:
             lines.append(f"  -> {'chosen' if v.chosen else 'rejected'}: {v.why}")
@@ -70,8 +70,8 @@ def summary(res) -> str:
                      f"same filter: {err}")
     if res.predictive:
         per = " | ".join(
-            f"{name}: " + ", ".join(f"f/{f:g} {c:.0f}" for f, c in pred.chi2.items())
-            + f" (total {pred.total:.0f})" for name, pred in res.predictive.items())
+            f"{name}: " + ", ".join(f"f/{f:g} {c:.4g}" for f, c in pred.chi2.items())
+            + f" (total {pred.total:.4g})" for name, pred in res.predictive.items())
         blocks = next(iter(res.predictive.values())).n
         lines.append(f"each flat left out and predicted by the estimators fitted without it, "
                      f"chi2 over {max(blocks.values(), default=0)} blocks each: {per}")
