@@ -61,6 +61,11 @@ EXAMPLES = {
           --harmonise --out scene_harmonised.nc
                                           ... and spectra with one response per band, the
                                           same for a material anywhere in the field
+      snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 2 \
+          --resample --no-input --out scene.hdr
+                                          ... as ENVI pairs for other tools (scene.hdr,
+                                          scene_wavelength_corrected.hdr, scene_resampled.hdr,
+                                          ...), without a copy of the input
       snapcorr correct mosaic_ff.nc --lens my_lens.toml --sensor imec_5x5_nir --f-number 2 \
           --virtual-bands angle-aware --out mosaic_corrected.nc
                                           ... and virtual bands recomputed for each pixel's
@@ -123,6 +128,19 @@ EXAMPLES = {
     """,
 }
 
+#: ``snapcorr --help``: the everyday path in four commands (each command's --help has more).
+WORKFLOW = r"""
+  snapcorr demo                           the paper's experiment, simulated end to end
+  snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --sensor snapscan_vnir \
+      --out scene_ff.nc                   (DN - dark) / (white - dark)
+  snapcorr calibrate --flat 2=f2.tif --flat 8=f8.tif --target-cube 2=t2_ff.nc \
+      --target-cube 8=t8_ff.nc --sensor snapscan_vnir --pixel-pitch-um 5.5 --out my_lens.toml
+                                          the lens, once: flats and a spectral target
+  snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 2 \
+      --out scene_corrected.nc --plot scene_corrected.png
+                                          every pixel's wavelengths
+"""
+
 #: Library parameter names as the command line spells them, for error messages.
 _CLI_TERMS = {
     "pass wavelength_nm": "give --sensor SENSOR.toml (its cwl_nm are the wavelengths)",
@@ -180,6 +198,7 @@ def _pair_arg(what, names, *, integer=False):
 
 
 _center_arg = _pair_arg("centre", "CX,CY")
+_center_rc_arg = _pair_arg("centre", "ROW,COL")
 _origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
 
 
@@ -1129,6 +1148,29 @@ def _write_result(args, ds, inputs, input_names, source):
                          store_derived=getattr(args, "store_derived", False))
 
 
+def _add_center(p, help_text):
+    """``--center ROW,COL`` and its deprecated x-first form ``--center-px CX,CY``."""
+    p.add_argument("--center", type=_center_rc_arg, default=None, metavar="ROW,COL",
+                   help=help_text.replace("optical centre", "optical centre (row, column)", 1))
+    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
+                   help="deprecated: the optical centre x first; use --center ROW,COL")
+
+
+def _center_option(args):
+    """``args.center_px``, the internal (cx, cy), from ``--center ROW,COL`` or the deprecated
+    ``--center-px CX,CY`` (said on stderr; giving both is an error)."""
+    if getattr(args, "center_px", None) is not None:
+        if args.center is not None:
+            raise ValueError("give the optical centre once: --center ROW,COL (--center-px "
+                             "CX,CY is its old x-first form)")
+        cx, cy = args.center_px
+        print(f"snapcorr {args.command}: --center-px CX,CY is deprecated and will be removed; "
+              f"give --center ROW,COL (here --center {cy:g},{cx:g})", file=sys.stderr)
+    elif getattr(args, "center", None) is not None:
+        row, col = args.center
+        args.center_px = (col, row)
+
+
 def _add_demo(command):
     p = command("demo", "the main job on a bundled default: calibrate the paper's lens, "
                 "correct a simulated cube, write figures")
@@ -1212,8 +1254,7 @@ def _add_calibrate(command):
     p.add_argument("--pupil-magnification", type=_positive, default=None,
                    help="pupil magnification m_P (default 1, or the --lens value)")
     p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
-    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                   help="optical centre in pixels (default: found from the flats)")
+    _add_center(p, "optical centre in pixels (default: found from the flats)")
     p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
@@ -1250,8 +1291,7 @@ def _add_correct(command):
                    help="result: .nc or .zarr (everything, provenance in the attributes), or "
                    "STEM.hdr for ENVI pairs (STEM.hdr the input's values, "
                    "STEM_wavelength_corrected.hdr, STEM_resampled.hdr, ...)")
-    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                   help="optical centre in sensor pixels (default: the lens profile's, "
+    _add_center(p, "optical centre in sensor pixels (default: the lens profile's, "
                    "converted to this pixel pitch, else the sensor's centre)")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help=ORIGIN_HELP)
@@ -1352,8 +1392,7 @@ def _add_pupil(command):
                    help="lens profile whose vignetting circles (P, h) and magnifications are "
                    "used and copied (bundled name or .toml)")
     _add_target_fit_options(p)
-    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                   help="optical centre in sensor pixels (default: found from the cubes)")
+    _add_center(p, "optical centre in sensor pixels (default: found from the cubes)")
     p.add_argument("--magnification", type=float, default=None,
                    help="linear magnification m without --lens (default 0)")
     p.add_argument("--pupil-magnification", type=_positive, default=None,
@@ -1440,8 +1479,7 @@ def _add_budget(command):
                    help="error against band and against image radius")
     p.add_argument("--cube", type=Path, default=None,
                    help="a cube: its pixels set the field, and --source cube its spectrum")
-    p.add_argument("--center-px", type=_center_arg, default=None, metavar="CX,CY",
-                   help="optical centre in the cube's sensor pixels, for --cube (default: "
+    _add_center(p, "optical centre in the cube's sensor pixels, for --cube (default: "
                    "from the lens calibration, else the sensor's centre)")
     p.add_argument("--cra-max", type=_positive, default=None, metavar="DEG",
                    help="the field to cover (default: the sensor's size_px, or the cube)")
@@ -1466,7 +1504,8 @@ def build_parser():
         prog="snapcorr",
         description="Wavelength correction for spectral cameras with thin-film "
         "Fabry-Perot filters (Goossens et al. 2019).",
-        epilog=_examples(*EXAMPLES),
+        epilog="a session (snapcorr COMMAND --help shows each command's options and "
+        "examples):\n" + textwrap.indent(textwrap.dedent(WORKFLOW).strip("\n"), "  "),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
@@ -1505,6 +1544,7 @@ def main(argv=None):
         with cleanup_on_signals(), warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = _one_line_warning
+            _center_option(args)
             return args.func(args)
     except (ValueError, TypeError, OSError, KeyError) as err:
         print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)

@@ -66,7 +66,8 @@ def test_version_and_help(cli):
     res = cli("--version")
     assert res.returncode == 0 and __version__ in res.stdout
     res = cli("--help")
-    assert res.returncode == 0 and "examples:" in res.stdout and "demo" in res.stdout
+    assert res.returncode == 0 and "a session" in res.stdout and "snapcorr demo" in res.stdout
+    assert len(res.stdout.splitlines()) < 45  # the commands and one session, not every example
     for sub in ("demo", "shift", "flatfield", "calibrate", "correct", "budget"):
         res = cli(sub, "--help")
         assert res.returncode == 0 and "examples:" in res.stdout
@@ -75,6 +76,25 @@ def test_version_and_help(cli):
         assert shown == {sub}, (sub, shown)
         if sub == "correct":  # continued lines keep their backslash and break, ready to paste
             assert "--f-number 1.4 \\\n      --out scene_corrected.nc" in res.stdout
+
+
+def test_every_example_in_the_help_parses():
+    """The examples of --help use options that exist, with values they accept."""
+    import shlex
+
+    from snapcorr.cli import EXAMPLES, WORKFLOW, build_parser
+
+    parser = build_parser()
+    text = re.sub(r"\s*\\\n\s*", " ", "\n".join([WORKFLOW, *EXAMPLES.values()]))
+    # a command, then (after two or more spaces) what it does
+    commands = [re.split(r"\s{2,}", line.strip())[0] for line in text.splitlines()
+                if line.strip().startswith("snapcorr ")]
+    assert len(commands) > 20
+    for command in commands:
+        try:
+            parser.parse_args(shlex.split(command)[1:])
+        except SystemExit:
+            pytest.fail(f"does not parse: {command}")
 
 
 def test_every_option_has_help_text():
