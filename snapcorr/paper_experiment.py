@@ -23,18 +23,11 @@ import numpy as np
 
 from .optics.lens import Lens
 from .optics.response import kernel_bins
+from .spectra import colour_filter  # re-exported: snapcorr.paper_experiment.colour_filter
 
 __all__ = ["PAPER_LENS", "colour_filter", "measured_transmittance", "paper_metrics"]
 
 PAPER_LENS = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm (simulated truth)")
-
-
-def colour_filter(wavelength_nm):
-    """A red glass-like long-pass filter with a notch: features that a shift moves."""
-    lam = np.asarray(wavelength_nm, float)
-    edge = 1.0 / (1.0 + np.exp(-(lam - 640.0) / 9.0))
-    notch = 1.0 - 0.45 * np.exp(-0.5 * ((lam - 760.0) / 12.0) ** 2)
-    return 0.04 + 0.9 * edge * notch
 
 
 def measured_transmittance(cwl_nm, fwhm_nm, n_eff, f_number, cra_deg, lens, *, step_nm=0.1):
@@ -278,17 +271,26 @@ def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
 
 def _draw_maps(path, vig, cwl):
     """The chief-ray angle and one band's shift of the vignetted model's result, to ``path``."""
-    from matplotlib.figure import Figure
-
     from ._io import save_png
+
+    save_png(_maps_figure(vig, cwl), path, dpi=110)
+
+
+def _maps_figure(vig, cwl):
+    """The figure :func:`_draw_maps` writes: ``vig`` needs ``cra_deg`` (y, x) and
+    ``wavelength_corrected`` (y, x, band), each with ``.values``."""
+    from matplotlib.figure import Figure
 
     band = int(np.argmin(np.abs(cwl - 700.0)))
     fig = Figure(figsize=(11, 3.6), layout="constrained")
     a1, a2 = fig.subplots(1, 2)
     im = a1.imshow(vig["cra_deg"].values, cmap="viridis")
-    fig.colorbar(im, ax=a1, label="deg")
+    fig.colorbar(im, ax=a1, label="chief-ray angle (deg)")
     a1.set_title("chief-ray angle")
     im = a2.imshow(vig["wavelength_corrected"].values[..., band] - cwl[band], cmap="magma")
-    fig.colorbar(im, ax=a2, label="nm")
+    fig.colorbar(im, ax=a2, label="wavelength shift (nm)")
     a2.set_title(f"shift of the {cwl[band]:.0f} nm band at f/1.4 (vignetted model)")
-    save_png(fig, path, dpi=110)
+    for ax in (a1, a2):  # the cube's pixels (8 x 8 binned sensor pixels, 44 um)
+        ax.set_xlabel("x (px)")
+        ax.set_ylabel("y (px)")
+    return fig

@@ -1,4 +1,5 @@
-"""Source spectra: the sun, blackbodies (tungsten lamps), spectrum files and a cube's own.
+"""Source spectra: the sun, blackbodies (tungsten lamps), spectrum files and a cube's own;
+and the transmittance of the colour filter in Goossens et al. 2019 (:func:`colour_filter`).
 
 A :class:`Spectrum` is sampled at increasing wavelengths and interpolated linearly between
 them; asking for it outside its range is an error, never a silent zero. The scene budget
@@ -20,6 +21,7 @@ __all__ = [
     "SOLAR_MODELS",
     "Spectrum",
     "blackbody",
+    "colour_filter",
     "cube_spectrum",
     "parse_source",
     "read_spectrum",
@@ -253,3 +255,26 @@ def parse_source(text, cube=None) -> Spectrum:
     raise ValueError(f"unknown source {t!r}: use solar, solar:astm-g173, "
                      "tungsten:TEMPERATURE_K, cube, cube:Y,X or the path of a two-column "
                      "spectrum file")
+
+
+def colour_filter(wavelength_nm):
+    """A red glass-like long-pass filter with a notch: features that a shift moves.
+
+    The colour filter of the experiment in Goossens et al. 2019 as simulated by
+    :mod:`snapcorr.paper_experiment` (a long-pass edge at 640 nm, a notch at 760 nm), and one
+    of the targets :data:`snapcorr.calibrate.CANDIDATE_TARGETS` offers for the exit pupil.
+
+    Parameters
+    ----------
+    wavelength_nm : array_like
+        Wavelengths, nm.
+
+    Returns
+    -------
+    ndarray
+        The transmittance (0.04-0.94), of the shape of ``wavelength_nm``.
+    """
+    lam = np.asarray(wavelength_nm, float)
+    edge = 1.0 / (1.0 + np.exp(-(lam - 640.0) / 9.0))
+    notch = 1.0 - 0.45 * np.exp(-0.5 * ((lam - 760.0) / 12.0) ** 2)
+    return 0.04 + 0.9 * edge * notch

@@ -38,6 +38,8 @@ from .. import __version__
 from .._validation import check_center, check_positive
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
+from ..spectra import colour_filter
+from .pupil_solver import _pinv_solve, _Problem, _project_off, _solve, _whiten
 from .target_model import (
     PRIOR_SD,
     RadialBins,
@@ -258,96 +260,6 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
 
 
 # -- the fit ------------------------------------------------------------------------------
-def _pinv_solve(Aw, rhs):
-    """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
-    normal equations; also the rank used. A well-conditioned system (the unknown target
-    with its prior) is solved by Cholesky, anything else by eigenvalues."""
-    from scipy import linalg
-
-    N = (Aw.T @ Aw)
-    N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
-    b = Aw.T @ rhs
-    d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
-    Ns = N / d[:, None] / d[None, :]
-    try:
-        c = linalg.cho_factor(Ns, check_finite=False)
-        if np.min(np.abs(np.diag(c[0]))) ** 2 > 1e-10:
-            z = linalg.cho_solve(c, b / (d if b.ndim == 1 else d[:, None]), check_finite=False)
-            return (z / d if b.ndim == 1 else z / d[:, None]), N.shape[0]
-    except linalg.LinAlgError:
-        pass
-    w, V = np.linalg.eigh(Ns)
-    keep = w > 1e-12 * w.max()
-    bd = b / (d if b.ndim == 1 else d[:, None])
-    z = V[:, keep] @ ((V[:, keep].T @ bd) / (w[keep] if b.ndim == 1 else w[keep][:, None]))
-    return (z / d if b.ndim == 1 else z / d[:, None]), int(keep.sum())
-
-
-def _whiten(model, A):
-    """The whitened design, with the target's prior as extra rows when it is unknown."""
-    from scipy import sparse
-
-    Aw = sparse.diags_array(1.0 / model.sigma) @ A
-    if model.prior_sd is None:
-        return Aw
-    eye = sparse.identity(A.shape[1], format="csr") / model.prior_sd
-    return sparse.vstack([Aw, eye], format="csr")
-
-
-def _whitened_y(model):
-    yw = model.y / model.sigma
-    if model.prior_sd is None:
-        return yw
-    return np.concatenate([yw, np.full(model.n_columns, model.prior_mean / model.prior_sd)])
-
-
-def _solve(model, A, *, rank=False):
-    """Weighted least squares for the linear coefficients: ``s``, whitened residuals (the
-    prior's rows last), and with ``rank`` the number of parameters the data spend on them
-    (the trace of the hat matrix: the rank without a prior, less with one; else None)."""
-    Aw = _whiten(model, A)
-    yw = _whitened_y(model)
-    s, used = _pinv_solve(Aw, yw)
-    if not rank:
-        return s, yw - Aw @ s, None
-    rank = used
-    if model.prior_sd is not None:  # the prior is isotropic: lambda / (lambda + 1 / sd^2)
-        Ad = Aw[:model.n_rows]
-        lam = np.clip(np.linalg.eigvalsh((Ad.T @ Ad).toarray()), 0.0, None)
-        rank = float(np.sum(lam / (lam + model.prior_sd**-2)))
-    return s, yw - Aw @ s, rank
-
-
-def _project_off(Aw, J):
-    """``J`` minus its least-squares fit by the columns of ``Aw``: the Jacobian of the
-    profiled residuals (variable projection). ``J`` may lack the prior's rows (zero)."""
-    if J.shape[0] < Aw.shape[0]:
-        J = np.vstack([J, np.zeros((Aw.shape[0] - J.shape[0], J.shape[1]))])
-    z, _ = _pinv_solve(Aw, J)
-    return J - Aw @ z
-
-
-class _Problem:
-    """``x`` (and a common scale of ``n_eff``, or one index per band) -> whitened residuals,
-    the target's coefficients profiled out."""
-
-    def __init__(self, model, n_design, progress=None):
-        self.model = model
-        self.n_design = np.asarray(n_design, float)
-        self.progress = progress
-
-    def residuals(self, x, k=1.0, *, field=True, rank=False):
-        if self.progress is not None:
-            self.progress(f"model at x = {float(x):.3f} mm")
-        A = self.model.design(x, self.n_design * k, field=field)
-        s, r, used = _solve(self.model, A, rank=rank)
-        return r, s, used
-
-    def chi2(self, x, k=1.0, *, field=True):
-        r, _, _ = self.residuals(x, k, field=field)
-        return float(r @ r)
-
-
 def _scan_grid(r_max, x_lo, x_hi, n_mean, cwl_mean, step_nm):
     """Trial x from ``x_hi`` to ``x_lo``, evenly spaced in the shift they give at the field's
     edge (steps of ``step_nm``): every trial shift pattern differs from its neighbours alike."""
@@ -946,17 +858,10 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
 
 
 # -- choosing a target ----------------------------------------------------------------------
+# (the colour filter of Goossens et al. 2019 is :func:`snapcorr.spectra.colour_filter`)
 def white_tile(lam):
     """A white reference tile: no spectral feature at all."""
     return np.full(np.shape(lam), 0.95)
-
-
-def colour_filter(lam):
-    """The colour filter of the experiment in Goossens et al. 2019 as simulated in
-    :func:`snapcorr.paper_experiment.colour_filter` (a long-pass edge at 640 nm, a notch)."""
-    from ..paper_experiment import colour_filter as paper
-
-    return paper(lam)
 
 
 #: Absorption bands (centre, FWHM nm, depth) of a holmium/didymium-like rare-earth glass.

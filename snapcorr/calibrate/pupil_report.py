@@ -1,8 +1,15 @@
-"""The picture of an exit-pupil fit: the target's signal over the field, and chi-square in x."""
+"""The picture of an exit-pupil fit: the target's signal over the field, and chi-square in x.
+
+It reads the fit it is given (:class:`~snapcorr.calibrate.exit_pupil.PupilFit`) and re-solves
+the model through :mod:`~snapcorr.calibrate.pupil_solver`; it never imports
+:mod:`~snapcorr.calibrate.exit_pupil`, which reaches it through ``PupilFit.plot``.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+
+from .pupil_solver import _Problem
 
 __all__ = ["plot_pupil_fit"]
 
@@ -23,8 +30,6 @@ def plot_pupil_fit(fit, *, bands=4):
     one marker per f-number, with the fitted model. Right: chi-square against ``x`` about the
     fit, with the parabola its standard error implies."""
     import matplotlib.pyplot as plt
-
-    from .exit_pupil import _Problem
 
     model = fit.model
     pred = np.asarray(model.design(fit.exit_pupil_mm, fit.n_eff) @ fit.coefficients).ravel()
