@@ -315,29 +315,27 @@ def _read(path, sensor=None, origin=None):
     Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
     memory-mapped, never copied whole).
     """
-    from .cube import mosaic_to_cube, read_cube, read_frame, row_blocks
+    from .cube import mosaic_to_cube, read_cube
 
     wl = sensor.cwl_nm if sensor is not None else None
     frame_error = None
     if sensor is not None and sensor.layout == "mosaic":
         try:
-            frame = read_frame(path, chunks={})  # lazily: nothing read yet
+            frame = _read_frame_rows(path, sensor)
         except ValueError as err:  # not a single-band frame: read it as a cube below
             frame_error = err
         else:
-            frame = read_frame(path, chunks={"y": _frame_rows(frame, sensor), "x": -1})
             try:
                 return mosaic_to_cube(frame.data, sensor, origin_px=origin,
                                       attrs={**frame.attrs, "source": str(path)})
             except ValueError as err:
                 raise ValueError(f"{path}: {err}") from None
     try:
-        cube = read_cube(path, wavelength_nm=wl, chunks={})
+        cube = read_cube(path, wavelength_nm=wl, chunks="rows")  # opened once, read in blocks
     except ValueError as err:
         if frame_error is not None and "2-D" in str(err):
             raise frame_error from None
         raise
-    cube = read_cube(path, wavelength_nm=wl, chunks=dict(row_blocks(cube).chunksizes))
     if origin is not None and "sensor_row" not in cube.coords:
         from .cube import sensor_positions
         from .cube.model import with_positions
@@ -414,12 +412,17 @@ def _cmd_flatfield(args):
     return 0
 
 
-def _read_frame_checked(path, sensor, what, shape=None):
-    """A raw 2-D mosaic frame, lazily in whole-tile row blocks; of ``shape`` when given."""
+def _read_frame_rows(path, sensor):
+    """A raw 2-D mosaic frame, opened once, lazily in whole-tile row blocks."""
     from .cube import read_frame
 
-    frame = read_frame(path, chunks={})
-    frame = read_frame(path, chunks={"y": _frame_rows(frame, sensor), "x": -1})
+    frame = read_frame(path, chunks="rows")
+    return frame.chunk({"y": _frame_rows(frame, sensor), "x": -1})
+
+
+def _read_frame_checked(path, sensor, what, shape=None):
+    """A raw 2-D mosaic frame, lazily in whole-tile row blocks; of ``shape`` when given."""
+    frame = _read_frame_rows(path, sensor)
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} {path} is {frame.shape[0]} x {frame.shape[1]} px but the raw "
                          f"frame {shape[0]} x {shape[1]}: a snapshot's references are frames "

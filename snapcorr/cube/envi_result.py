@@ -31,16 +31,9 @@ import numpy as np
 import xarray as xr
 
 from .._io import atomic_write_files
-from .io import (
-    JSON_PREFIX,
-    _check_targets,
-    _check_writable,
-    _envi_position_keys,
-    _json_attrs,
-    _positions,
-    _quiet_spectral,
-    _version,
-)
+from .attrs import JSON_PREFIX, _json_attrs, _positions, _version
+from .envi import _envi_position_keys, _quiet_spectral
+from .writing import _check_targets, _check_writable
 
 __all__ = ["write_envi_result"]
 
