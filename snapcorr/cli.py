@@ -725,6 +725,10 @@ def _cmd_calibrate(args):
         given.magnification if given else 0.0)
     mp = args.pupil_magnification if args.pupil_magnification is not None else (
         given.pupil_magnification if given else 1.0)
+    if args.pupil == "auto":
+        raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
+                         "cannot make: give --target-cube, or --pupil paper or lambertian")
+    pupil = args.pupil or (given.pupil if given else "paper")
     flats, bands, sat, dark = _read_flats(args)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
@@ -733,7 +737,8 @@ def _cmd_calibrate(args):
             dark=dark, center_px=args.center_px, saturation=sat,
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
-            tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step)
+            tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
+            pupil=pupil)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     if given is not None:
         cal["exit_pupil_from"] = str(args.lens)
@@ -836,7 +841,7 @@ def _calibrate_with_target(args):
                 max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
                 target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
                 name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
-                target_inputs=seen, progress=bar.step)
+                target_inputs=seen, progress=bar.step, pupil=args.pupil or "auto")
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
@@ -889,7 +894,7 @@ def _cmd_pupil(args):
                                magnification=args.magnification,
                                pupil_magnification=args.pupil_magnification,
                                inputs=seen, name=args.name or args.out.stem,
-                               progress=bar.step)
+                               progress=bar.step, pupil=args.pupil or "auto")
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     fit.lens.save(args.out, overwrite=args.overwrite)
@@ -1249,6 +1254,7 @@ def _add_calibrate(command):
     t.add_argument("--sensor", default=None, metavar="SENSOR",
                    help="with --target-cube: the camera of the cubes (bundled name or .toml)")
     _add_target_fit_options(t, "with --target-cube: ")
+    _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
                    help="pixel pitch of the flats, micrometres")
     p.add_argument("--magnification", type=float, default=None,
@@ -1364,6 +1370,16 @@ def _add_shift(command):
     p.set_defaults(func=_cmd_shift)
 
 
+def _add_pupil_option(group):
+    """``--pupil``: how the light fills the exit pupil (``snapcorr.optics.lens.PUPILS``)."""
+    group.add_argument("--pupil", default=None, choices=["paper", "lambertian", "auto"],
+                       help="how the light fills the exit pupil: paper (Goossens 2019 Eq. 28, "
+                       "uniform per area), lambertian (sine condition, uniform in direction "
+                       "cosines) or auto (both fitted to the target, the Lambertian kept only "
+                       "for a chi-square gain above 10; twice the time). Default: auto with "
+                       "target cubes, else the --lens profile's, else paper")
+
+
 def _add_target_fit_options(group, when=""):
     """The options of a fit to a target's cubes, shared by ``pupil`` and ``calibrate
     --target-cube`` (``when`` says which option they go with)."""
@@ -1395,6 +1411,7 @@ def _add_pupil(command):
                    help="lens profile whose vignetting circles (P, h) and magnifications are "
                    "used and copied (bundled name or .toml)")
     _add_target_fit_options(p)
+    _add_pupil_option(p)
     _add_center(p, "optical centre in sensor pixels (default: found from the cubes)")
     p.add_argument("--magnification", type=float, default=None,
                    help="linear magnification m without --lens (default 0)")

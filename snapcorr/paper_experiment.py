@@ -133,7 +133,8 @@ def run(out, *, echo=print, seed=2019):
     lines.append(f"1. calibration from simulated flats (f/1.4-f/8, 1 % noise): {cal.method}, "
                  f"{cal.model} circle(s): {lens.describe_vignetting()} (true "
                  f"{truth.describe_vignetting()}), centre "
-                 f"({cal.center_px[0]:.1f}, {cal.center_px[1]:.1f}) px (true {flat_center})")
+                 f"row {cal.center_px[1]:.1f}, col {cal.center_px[0]:.1f} px (true row "
+                 f"{flat_center[1]}, col {flat_center[0]})")
 
     # 2. the cube: 8 x 8 binned Snapscan pixels (44 um), the same sensor area
     shape = (160, 256)

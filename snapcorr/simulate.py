@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._coords import accepts_center_rc
 from ._validation import validate_method
 from .optics.chief_ray import pixel_tangents
 from .optics.pupil import overlap_area_mm2
@@ -168,6 +169,7 @@ def _radial_profile(t_max, R, radii, slopes, natural):
     return t, v[first]
 
 
+@accepts_center_rc
 def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
                               natural_vignetting=True, pixel_acceptance_deg=None, source=None,
                               method="radial"):
@@ -180,16 +182,16 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_p
 
     Parameters
     ----------
-    shape : tuple of int
-        ``(ny, nx)``.
+    shape : (ny, nx)
     pixel_pitch_um : float
         Pixel pitch, micrometres.
     f_number : float
         F-number (> 0).
     lens : snapcorr.Lens
         Exit pupil distance ``x``, vignetting circles and working f-number (Eq. 27).
-    center_px : tuple of float, optional
-        Optical centre ``(cx, cy)``, image coordinates (:func:`snapcorr.optics.chief_ray.cra_map`).
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: the image centre.
     natural_vignetting : bool
         Include ``cos^4(CRA)``.
     pixel_acceptance_deg : float, optional
@@ -226,7 +228,7 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_p
     --------
     >>> from snapcorr import Lens
     >>> lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
-    >>> v = relative_illumination_map((1, 3), 2000.0, 1.4, lens, center_px=(0, 0))
+    >>> v = relative_illumination_map((1, 3), 2000.0, 1.4, lens, center_rc=(0, 0))
     >>> v.round(4)  # CRA 0, 5.44 and 10.78 deg
     array([[1.    , 0.8725, 0.6939]])
     >>> cra = np.rad2deg(np.arctan(2.0 / 21.0))  # 2 mm off axis, x = 21 mm
@@ -325,6 +327,7 @@ class Detector:
                                                 positive=True))
 
 
+@accepts_center_rc
 def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
                natural_vignetting=True, pixel_acceptance_deg=None, source=None,
                detector=None, dtype=np.float32, rng=None, noise=True):
@@ -337,8 +340,8 @@ def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
 
     Parameters
     ----------
-    shape, pixel_pitch_um, f_number, lens, center_px, natural_vignetting, pixel_acceptance_deg,
-    source
+    shape, pixel_pitch_um, f_number, lens, center_rc, center_px, natural_vignetting,
+    pixel_acceptance_deg, source
         As for :func:`relative_illumination_map`. ``source=None`` is an integrating sphere;
         :class:`LampPlaque` is a lamp and a diffuse plaque.
     detector : Detector, optional
@@ -611,6 +614,7 @@ def _modelled_responses(sensor):
                            [[Peak(c, w, 1.0)] for c, w in zip(cwl, fwhm, strict=True)])
 
 
+@accepts_center_rc
 def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
     """What every pixel of a mosaic sensor reads of a uniform target, flat-fielded: its band's
     response behind the lens, averaged over the target's reflectance.
@@ -629,8 +633,9 @@ def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
         ``reflectance(wavelength_nm)`` -> values.
     f_number : float
     lens : Lens
-    center_px : (cx, cy), optional
-        Optical centre (default: the sensor's centre).
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: the sensor's centre.
 
     Returns
     -------

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import xarray as xr
 
+from ._coords import accepts_center_rc
 from .cube import demosaic, flatfield
 
 __all__ = ["process_stream"]
 
 
+@accepts_center_rc
 def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=None,
                    f_number=None, origin_px=None, saturation=None, dtype="float32",
                    resample=False, method="auto", tolerance_nm=None, center_px=None):
@@ -44,7 +46,7 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     dtype : {"float32", "float64"}
     resample : bool
         Also every frame's spectra on the nominal wavelengths (``resampled``).
-    method, tolerance_nm, center_px
+    method, tolerance_nm, center_rc, center_px
         The correction's model, tolerance and optical centre
         (:func:`~snapcorr.correct.correct_cube`; harmonised spectra and virtual bands are
         not offered for streams).

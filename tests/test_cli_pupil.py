@@ -71,6 +71,9 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, cli):
     assert cal["f_numbers"] == [2.0, 8.0]
     assert plot.stat().st_size > 10_000
     assert "exit pupil x =" in text and "n_eff =" in text
+    # --pupil auto (the default): both pupils fitted, the paper's kept for these cubes
+    assert "pupil: paper" in text and cal["pupil_choice"]["chosen"] == "paper"
+    assert cal["pupil_choice"]["chi2"]["lambertian"] > cal["pupil_choice"]["chi2"]["paper"]
     # the sensor with the fitted index, for `snapcorr correct`, says where it came from
     fitted = Sensor.load(sensor_out)
     assert np.allclose(fitted.n_eff, cal["n_eff"]) and fitted.cwl_nm == tuple(CWL)
@@ -84,7 +87,7 @@ def test_a_known_spectrum_from_a_file(files, cli):
     res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
               files / "sensor.toml", "--target-spectrum", files / "glass.csv",
               "--magnification", "0.06", "--pupil-magnification", "1.3",
-              "--center-px", "61,46.5", "--out", out)
+              "--center", "46.5,61", "--pupil", "paper", "--out", out)
     assert res.returncode == 0, res
     lens = Lens.load(out)
     assert abs(lens.exit_pupil_mm - 21.0) < 0.21

@@ -130,7 +130,7 @@ def _args(d):
     return [*flats, "--target-cube", f"2={d / 'target_f2.nc'}", "--target-cube",
             f"8={d / 'target_f8.nc'}", "--sensor", d / "sensor.toml",
             "--pixel-pitch-um", str(PITCH_UM), "--magnification", "0.06",
-            "--pupil-magnification", "1.3", "--max-circles", "1"]
+            "--pupil-magnification", "1.3", "--max-circles", "1", "--pupil", "paper"]
 
 
 def test_calibrate_with_target_cubes_writes_one_consistent_profile(files, cli):

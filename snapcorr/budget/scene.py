@@ -13,6 +13,7 @@ import math
 import numpy as np
 import xarray as xr
 
+from .._coords import accepts_center_rc
 from .._validation import check_positive, validate_method
 from ..optics import MODELS, Lens, mean_shift
 from ..optics.response import kernel_bins
@@ -208,6 +209,7 @@ def _relative_signals(source, prof, shift_lists, d, lattice):
     return np.interp(allshift, np.arange(j0, j1 + 1) * d, p / p0)
 
 
+@accepts_center_rc
 def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
                     center_px=None, sensor_origin_px=None):
     """The cheapest model whose signal error for ``source`` stays below ``tolerance_pct`` over
@@ -227,8 +229,8 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
         (``"solar"``, ``"tungsten:2856"``, ``"cube"``, a file).
     tolerance_pct : float
         Radiometric tolerance, percent of the signal.
-    center_px, sensor_origin_px : optional
-        As for :func:`~snapcorr.correct.correct_cube`.
+    center_rc, center_px, sensor_origin_px : optional
+        As for :func:`~snapcorr.correct.correct_cube` (``center_px`` deprecated).
 
     Returns
     -------

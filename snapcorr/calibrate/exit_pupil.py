@@ -35,6 +35,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .. import __version__
+from .._coords import accepts_center_rc
 from .._validation import check_center, check_positive
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
@@ -131,6 +132,11 @@ class PupilFit:
     covariance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((1, 1)))
     """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
 
+    @property
+    def center_rc(self) -> tuple:
+        """The optical centre, ``(row, col)`` pixels (``center_px`` is x first)."""
+        return (self.center_px[1], self.center_px[0])
+
     def summary(self) -> str:
         lines = [f"exit pupil x = {self.exit_pupil_mm:.4g} +- {self.exit_pupil_stderr_mm:.2g} mm"
                  f" (reduced chi-square {self.chi2_red:.3g}, {self.dof} degrees of freedom)"]
@@ -144,7 +150,7 @@ class PupilFit:
         elif self.n_eff_fitted == "product":
             lines.append(f"x * n_eff = {self.x_n_eff_mm:.4g} +- {self.x_n_eff_stderr_mm:.2g} mm "
                          f"(x assumes the sensor's n_eff = {np.mean(n):.4g})")
-        lines.append(f"optical centre ({self.center_px[0]:.2f}, {self.center_px[1]:.2f}) px "
+        lines.append(f"optical centre row {self.center_px[1]:.2f}, col {self.center_px[0]:.2f} "
                      f"({self.center_source}); target spectrum {self.spectrum}")
         lines.extend(f"note: {t}" for t in self.notes)
         return "\n".join(lines)
@@ -449,11 +455,12 @@ def _one_blas_thread(func):
     return wrapper
 
 
+@accepts_center_rc
 @_one_blas_thread
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
-                 name=None, progress=None, scale_circles=None) -> PupilFit:
+                 name=None, progress=None, scale_circles=None, pupil=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -472,8 +479,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         where the data ask for it and constrain it (``N_EFF_P``, ``N_EFF_REL_STDERR``), the
         sensor's values times a factor linear in wavelength, or one per band. With
         one f-number only ``x * n_eff`` is determined: the result says so.
-    center_px : (cx, cy), optional
-        Optical centre in sensor pixels (default: found from the cubes).
+    center_rc, center_px : (row, col), optional
+        Optical centre in sensor pixels (default: found from the cubes); ``center_px=(cx,
+        cy)`` is the deprecated x-first form.
     target_spectrum : callable or (wavelength_nm, value), optional
         The target's spectrum, known up to a scale per cube. Default: unknown, solved for.
     sensor_origin_px : (row, col), optional
@@ -492,6 +500,11 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         the profile written holds them at the ``x`` found: one run gives a consistent
         profile. Default: when the lens's calibration says it came from flats
         (``exit_pupil_scaling``).
+    pupil : {None, "paper", "lambertian", "auto"}
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`). None: the lens's
+        (the paper's without a lens). ``"auto"``: both are fitted, and the Lambertian one is
+        kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
+        same parameters); the choice and the two chi-squares are in the notes and the profile.
 
     Returns
     -------
@@ -502,10 +515,21 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     FeaturelessTargetError
         The target's signal does not change over the field above the noise.
     """
+    if pupil == "auto":
+        return _either_pupil(locals())
+    return _locate(**locals())
+
+
+def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, sensor_origin_px,
+            magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
+            scale_circles, pupil):
+    """:func:`locate_pupil` for one pupil (its body)."""
     n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)")
     cubes = _check_cubes(cubes, sensor)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)
+    if pupil is not None:
+        base = dataclasses.replace(base, pupil=pupil)
     spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
     nb = sensor.n_bands
     bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
@@ -549,6 +573,41 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                     None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
                     chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
                     notes, cov * scale)
+
+
+#: ``pupil="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more than this
+#: (the two models have the same parameters: a likelihood ratio of exp(5), as the lens
+#: calibration's :data:`~snapcorr.calibrate.choice.MIN_BIC_GAIN`).
+PUPIL_CHI2_GAIN = 10.0
+
+
+def _either_pupil(args):
+    """``locate_pupil(pupil="auto")``: both pupils fitted, the paper's kept unless the
+    Lambertian one fits clearly better."""
+    args = {k: v for k, v in args.items() if k != "pupil"}
+    fits = {}
+    for name in ("paper", "lambertian"):
+        try:
+            fits[name] = locate_pupil(**args, pupil=name)
+        except FeaturelessTargetError:
+            raise
+        except ValueError as err:  # e.g. a numerical aperture of 1 for one of them
+            fits[name] = err
+    ok = {k: v for k, v in fits.items() if isinstance(v, PupilFit)}
+    if not ok:
+        raise fits["paper"]
+    chi2 = {k: v.chi2_red * v.dof for k, v in ok.items()}
+    gain = chi2.get("paper", np.inf) - chi2.get("lambertian", np.inf)
+    chosen = "lambertian" if "paper" not in ok or gain > PUPIL_CHI2_GAIN else "paper"
+    got = ok[chosen]
+    said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
+    got.notes.append(f"pupil: {chosen} (chi-square {said}; the Lambertian pupil is kept only "
+                     f"for a gain above {PUPIL_CHI2_GAIN:g})")
+    cal = dict(got.lens.calibration)
+    cal["pupil_choice"] = {"chosen": chosen, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
+                           "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
+    got.lens = dataclasses.replace(got.lens, calibration=cal)
+    return got
 
 
 def _band_reader(cube):
@@ -824,7 +883,8 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
         "target_spectrum": spectrum_desc,
         "filter_profile": profile,
         "sensor": sensor.name,
-        "center_px": [r(center[0], 8), r(center[1], 8)],
+        "center_rc": [r(center[1], 8), r(center[0], 8)],
+        "center_px": [r(center[0], 8), r(center[1], 8)],  # x first, for earlier readers
         "center_source": center_source,
         "pixel_pitch_um": float(sensor.pixel_pitch_um),
         "snapcorr_version": __version__,
@@ -854,7 +914,7 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
             "rule": "the flats fix P / x and h / x^2: P scaled as x, h as x^2, to the x found"}
     return Lens(x, circles, base.magnification, base.pupil_magnification,
                 name=name or (lens.name if lens is not None else "lens (exit pupil from a target)"),
-                calibration=cal)
+                calibration=cal, pupil=base.pupil)
 
 
 # -- choosing a target ----------------------------------------------------------------------

@@ -39,6 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import __version__
+from .._coords import accepts_center_rc
 from .._validation import check_center, check_pixel_pitch_um, check_positive
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
@@ -128,6 +129,11 @@ class LensCalibration:
     exit_pupil_stderr_mm: float | None = None
     shift_stderr_fit_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shift_stderr_model_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def center_rc(self) -> tuple:
+        """The optical centre used, ``(row, col)`` pixels (``center_px`` is x first)."""
+        return (self.center_px[1], self.center_px[0])
 
     def model_onsets_deg(self):
         """First onset at each f-number predicted by the chosen circles (NaN past the field)."""
@@ -221,32 +227,31 @@ def _check_enough_flats(items, vignetting_distance_mm):
             "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
 
 
+@accepts_center_rc
 def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm=None,
-                   magnification=0.0,
-                   pupil_magnification=1.0, dark=None, center_px=None, saturation=None,
+                   magnification=0.0, pupil_magnification=1.0, dark=None, center_px=None,
+                   saturation=None,
                    vignetting_distance_mm=None, method="auto", name="calibrated lens",
                    inputs=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
-                   progress=None):
+                   progress=None, pupil="paper"):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
     ----------
     flats : mapping
         f-number -> 2-D flat-field image (integrating sphere, or lamp and plaque).
-    exit_pupil_mm : float
-        Distance x from the sensor to the exit pupil.
-    pixel_pitch_um : float
+    exit_pupil_mm, pixel_pitch_um : float
+        Distance x from the sensor to the exit pupil (mm); pixel pitch (um).
     exit_pupil_stderr_mm : float, optional
-        Standard error of x, if known. The flats fix ``P / x`` and ``h / x^2`` exactly, so P
-        and h move with x (``dP/dx = P / x``, ``dh/dx = 2 h / x``; recorded in the profile,
-        with P's and h's errors including this one).
+        Standard error of x, if known: the flats fix ``P / x`` and ``h / x^2``, so P and h
+        move with x (``dP/dx = P / x``, ``dh/dx = 2 h / x``, in the profile and their errors).
     magnification, pupil_magnification : float
         m and m_P of the working f-number, Eq. (27).
     dark : 2-D array, optional
         Dark frame, subtracted from every flat.
-    center_px : (cx, cy), optional
-        Optical centre in pixels (pixel (row i, column j) is centred at x=j, y=i). Default:
-        found from the flats and refined by the joint fit.
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: found from the flats and refined by the joint fit.
     saturation : float or mapping, optional
         Values at or above are saturated and ignored (one level, or f-number -> level).
     vignetting_distance_mm : float, optional
@@ -258,7 +263,6 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, unless
         the onsets predict left-out flats better (:mod:`snapcorr.calibrate.predictive`).
     name : str
-        Lens name for the profile.
     inputs : mapping, optional
         f-number -> file name, recorded in the profile.
     tolerance_nm : float
@@ -268,6 +272,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         Most vignetting circles tried (0 to 3).
     progress : callable, optional
         ``progress(step)`` before each long step (a model fitted, a flat left out).
+    pupil : {"paper", "lambertian"}
+        The pupil (:data:`snapcorr.optics.lens.PUPILS`): its radius sets the onsets; the flats'
+        area model stays the paper's (area times ``cos^4(CRA)``).
 
     Returns
     -------
@@ -276,10 +283,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
     exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm = \
         _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
                     exit_pupil_stderr_mm)
-    tolerance_nm = _check_choice_args(tolerance_nm, max_circles)
-    items = _check_inputs(flats, dark)
-    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name)
+    tolerance_nm, items = _check_choice_args(tolerance_nm, max_circles), _check_inputs(flats, dark)
     _check_enough_flats(items, vignetting_distance_mm)
+    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
     fl, ratios, center, center_source, notes = _prepare_flats(items, dark, saturation, center_px)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
     max_cra = ons.max_cra_deg
@@ -302,13 +308,14 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
     notes += method_notes
     model = _unless_joint(used, verdicts, model)
-    lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name)
+    lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
+                pupil=pupil)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
     errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra)
     notes += _precision_notes(verdicts, model, next_best, diff, errs["shift_stderr_nm"], fs,
-                              tolerance_nm)
-    notes += [_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles)] if circles else []
+                              tolerance_nm) + (
+        [_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles)] if circles else [])
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -319,7 +326,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
         exit_pupil_stderr_mm=exit_pupil_stderr_mm, **errs)
     result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
-                       calibration=_calibration_table(result, inputs))
+                       calibration=_calibration_table(result, inputs), pupil=pupil)
     return result
 
 
@@ -654,15 +661,16 @@ def _calibration_table(res: LensCalibration, inputs):
         "snapcorr_version": __version__,
         "f_numbers": fs,
         "reference_f_number": res.reference_f_number if res.reference_f_number else "none",
-        "center_px": [float(c) for c in res.center_px],
+        "center_rc": [float(res.center_px[1]), float(res.center_px[0])],
+        "center_px": [float(c) for c in res.center_px],  # x first, for earlier readers
         "center_source": res.center_source,
         "pixel_pitch_um": res.pixel_pitch_um,
-        "image_size_px": [int(res.shape[1]), int(res.shape[0])],
+        "image_shape_px": [int(res.shape[0]), int(res.shape[1])],
+        "image_size_px": [int(res.shape[1]), int(res.shape[0])],  # x first, likewise
         "max_cra_deg": round(res.max_cra_deg, 4),
     }
     if res.lens.has_vignetting:
         table["onset_cra_deg"] = [_clean(v) for v in res.model_onsets_deg()]
-    if res.lens.has_vignetting:
         x = res.lens.exit_pupil_mm
         circles = res.lens.vignetting
         scaling = {"dP_dx": [_clean(P / x) for P, _ in circles],

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._coords import accepts_center_rc
 from .._validation import check_center
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
@@ -153,6 +154,7 @@ def ratio_images(flats: Flats) -> Ratios:
                   block_centroids(flats.valids, block))
 
 
+@accepts_center_rc
 def optical_center(flats: Flats, ratios: Ratios, center_px=None):
     """The optical centre (pixels), how it was found, and a note if it could not be.
 
@@ -162,8 +164,9 @@ def optical_center(flats: Flats, ratios: Ratios, center_px=None):
     ratios : Ratios
         The flats' block means and ratios (:func:`ratio_images`); contours are traced in the
         ratios, else in the block means.
-    center_px : (cx, cy), optional
-        A given centre, full-resolution pixels (column, row); returned as it is.
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. A given centre, full-resolution pixels; returned as it is (as ``(cx, cy)``).
 
     Returns
     -------

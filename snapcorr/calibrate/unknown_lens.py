@@ -30,14 +30,16 @@ errors cover all the same.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._coords import accepts_center_rc
 from ..optics.lens import Lens
 from . import choice
-from .exit_pupil import PupilFit, locate_pupil
+from .exit_pupil import PUPIL_CHI2_GAIN, PupilFit, locate_pupil
 from .lens_calibration import LensCalibration, calibrate_lens
 
 __all__ = ["LensAndPupil", "calibrate_with_target"]
@@ -117,13 +119,14 @@ class LensAndPupil:
         return "\n".join(lines)
 
 
+@accepts_center_rc
 def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=False,
                           provisional_x_mm=None, magnification=0.0, pupil_magnification=1.0,
                           dark=None, center_px=None, saturation=None, method="auto",
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
                           name="calibrated lens", inputs=None, target_inputs=None,
-                          progress=None) -> LensAndPupil:
+                          progress=None, pupil="paper") -> LensAndPupil:
     """Characterise a lens whose exit pupil distance is unknown: flats plus target cubes.
 
     Parameters
@@ -144,7 +147,8 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
         kept from it. Default: the x at which the flats' corner sits at 20 degrees.
     magnification, pupil_magnification, dark, center_px, saturation, method, max_circles, \
 tolerance_nm
-        As :func:`~snapcorr.calibrate.calibrate_lens` (``center_px`` in the flats' pixels).
+        As :func:`~snapcorr.calibrate.calibrate_lens` (``center_rc``, or the deprecated
+        ``center_px``, in the flats' pixels).
     target_spectrum, sensor_origin_px, profile
         As :func:`~snapcorr.calibrate.locate_pupil`.
     name : str
@@ -152,6 +156,12 @@ tolerance_nm
         f-number -> path of each flat and cube, recorded in the profile.
     progress : callable, optional
         ``progress(step)`` before each long step.
+    pupil : {"paper", "lambertian", "auto"}
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`), for the flats and
+        the target alike. ``"auto"``: the whole calibration is run with each, and the
+        Lambertian pupil is kept only where the target's chi-square falls by more than
+        :data:`~snapcorr.calibrate.exit_pupil.PUPIL_CHI2_GAIN` (the flats hardly tell them
+        apart; the target's spectral structure does).
 
     Returns
     -------
@@ -162,6 +172,8 @@ tolerance_nm
     FeaturelessTargetError
         The target carries no information about x.
     """
+    if pupil == "auto":
+        return _either_pupil(locals())
     flats = dict(flats)
     if not flats or not cubes:
         raise ValueError("give flat fields and target cubes (one of each at least)")
@@ -172,7 +184,8 @@ tolerance_nm
     common = dict(pixel_pitch_um=pixel_pitch_um, magnification=magnification,
                   pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
                   saturation=saturation, method=method, max_circles=max_circles,
-                  tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress)
+                  tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress,
+                  pupil=pupil)
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
@@ -200,6 +213,25 @@ tolerance_nm
     return LensAndPupil(lens, final, pupil, names, values,
                         np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
                         float(provisional_x_mm), notes)
+
+
+def _either_pupil(args):
+    """``calibrate_with_target(pupil="auto")``: the paper's pupil unless the Lambertian one
+    fits the target clearly better (:data:`~snapcorr.calibrate.exit_pupil.PUPIL_CHI2_GAIN`)."""
+    args = {k: v for k, v in args.items() if k != "pupil"}
+    runs = {name: calibrate_with_target(**args, pupil=name)
+            for name in ("paper", "lambertian")}
+    chi2 = {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()}
+    chosen = "lambertian" if chi2["paper"] - chi2["lambertian"] > PUPIL_CHI2_GAIN else "paper"
+    got = runs[chosen]
+    said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
+    got.notes.append(f"pupil: {chosen} (the target's chi-square {said}; the Lambertian pupil "
+                     f"is kept only for a gain above {PUPIL_CHI2_GAIN:g})")
+    cal = dict(got.lens.calibration)
+    cal["pupil_choice"] = {"chosen": chosen, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
+                           "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
+    got.lens = dataclasses.replace(got.lens, calibration=cal)
+    return got
 
 
 def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
@@ -246,7 +278,7 @@ def _flat_block(cal: LensCalibration):
         if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(want))):
             raise ValueError("the flats' joint fit has no finite covariance (P, h or the "
                              "centre undetermined): no joint errors can be given; add flats at "
-                             "more f-numbers or give --center-px")
+                             "more f-numbers or give --center ROW,COL")
         d = np.divide(want, raw, out=np.ones_like(want), where=raw > 0)
         return names, values, cov * np.outer(d, d)
     of = cal.onset_fits[cal.method.split("-")[1]]
@@ -311,7 +343,7 @@ def _shift_stderr_from_x(cal: LensCalibration, x, sx):
         shifts = []
         for xi in (x - sx, x + sx):
             li = Lens(xi, scaled_circles(lens.vignetting, x, xi), lens.magnification,
-                      lens.pupil_magnification)
+                      lens.pupil_magnification, pupil=lens.pupil)
             cra = np.degrees(np.arctan(d / xi))
             cut = float(li.cutoff_cra_deg(f)) if li.has_vignetting else 90.0
             cra = np.where(cra < cut, cra, np.nan)
@@ -352,4 +384,4 @@ def _profile(cal, pupil, names, values, cov, total, x_part, x0):
     }
     lens = cal.lens
     return Lens(lens.exit_pupil_mm, lens.vignetting, lens.magnification,
-                lens.pupil_magnification, name=lens.name, calibration=table)
+                lens.pupil_magnification, name=lens.name, calibration=table, pupil=lens.pupil)

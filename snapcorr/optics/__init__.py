@@ -4,7 +4,7 @@ Pure numpy, no file I/O beyond lens profiles; every function broadcasts.
 """
 
 from .bandwidth import FWHM_METHODS, FwhmTable, response_fwhm
-from .chief_ray import cra_deg, cra_map
+from .chief_ray import cra_deg, cra_map, pixel_cra_deg
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
 from .mean import METHODS, MODELS, choose_model, mean_shift, select_method
@@ -48,6 +48,7 @@ __all__ = [
     "kernel",
     "kernel_asymptotic",
     "mean_shift",
+    "pixel_cra_deg",
     "response_fwhm",
     "select_method",
     "shift_nm",

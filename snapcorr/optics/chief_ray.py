@@ -4,31 +4,38 @@
 from the sensor to the exit pupil. This is the one place the map from pixels to angles is
 written; simulation, calibration and correction all use it.
 
-Pixel (row ``i``, column ``j``) has its centre at image coordinates ``(x=j, y=i)``, as in
-OpenCV and scikit-image; an optical centre ``center_px = (cx, cy)`` is in the same coordinates
-and may be fractional or outside the image.
+Pixel (row ``i``, column ``j``) has its centre at ``(row, col) = (i, j)``; the optical
+centre is given the same way, ``center_rc = (row, col)``, and may be fractional or outside the
+image (:mod:`snapcorr._coords`). Inside, the centre is kept x first, ``(cx, cy)``.
 """
 
 from __future__ import annotations
 
 import operator
+import warnings
 
 import numpy as np
 
+from .._coords import (
+    CENTER_PX_DEPRECATION,
+    accepts_center_rc,
+    called_from_outside,
+    center_from_rc,
+)
 from .._validation import check_center, check_positive
 
-__all__ = ["cra_deg", "cra_map", "image_shape", "pixel_tangents"]
+__all__ = ["cra_deg", "cra_map", "image_shape", "pixel_cra_deg", "pixel_tangents"]
 
 
-def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
+def pixel_cra_deg(rows, cols, center_rc, pixel_pitch_um, exit_pupil_mm):
     """Chief-ray angle (degrees) of pixels at sensor ``rows`` and ``cols`` (Eq. 8).
 
     Parameters
     ----------
     rows, cols : array_like
         Sensor row and column of each pixel (fractional allowed); they broadcast.
-    center_px : (cx, cy)
-        Optical centre, pixels (column, row).
+    center_rc : (row, col)
+        Optical centre, pixels.
     pixel_pitch_um : float
         Pixel pitch, micrometres.
     exit_pupil_mm : float
@@ -41,9 +48,32 @@ def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
 
     Examples
     --------
-    >>> round(float(cra_deg(0, 4, (0, 0), 5.5, 21.0)), 4)  # 22 um off axis
+    >>> round(float(pixel_cra_deg(0, 4, (0, 0), 5.5, 21.0)), 4)  # 22 um off axis
     0.06
     """
+    return _cra_deg(rows, cols, center_from_rc(center_rc), pixel_pitch_um, exit_pupil_mm)
+
+
+def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
+    """Deprecated: :func:`pixel_cra_deg` with the optical centre x first, ``(cx, cy)``.
+
+    Parameters
+    ----------
+    rows, cols, pixel_pitch_um, exit_pupil_mm
+        As for :func:`pixel_cra_deg`.
+    center_px : (cx, cy)
+        Optical centre, pixels, x first.
+    """
+    cx, cy = check_center(center_px)
+    if called_from_outside(2):
+        warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx).replace(
+            "center_rc=", "pixel_cra_deg(rows, cols, center_rc=") + "; cra_deg will be removed",
+            FutureWarning, stacklevel=2)
+    return _cra_deg(rows, cols, (cx, cy), pixel_pitch_um, exit_pupil_mm)
+
+
+def _cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
+    """:func:`pixel_cra_deg` with the internal ``(cx, cy)`` centre."""
     cx, cy = check_center(center_px)
     scale = _tan_per_pixel(pixel_pitch_um, exit_pupil_mm)
     dy = (np.asarray(rows, float) - cy) * scale
@@ -51,6 +81,7 @@ def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
     return np.rad2deg(np.arctan(np.hypot(dy, dx)))
 
 
+@accepts_center_rc
 def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
     """Chief-ray angle of every pixel of an image, degrees.
 
@@ -62,9 +93,9 @@ def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
         Pixel pitch, micrometres.
     exit_pupil_mm : float
         Distance ``x`` from the sensor to the exit pupil, mm.
-    center_px : (cx, cy), optional
-        Optical centre, pixels (column, row). Default: the image centre
-        ``((nx - 1) / 2, (ny - 1) / 2)``.
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: the image centre ``((ny - 1) / 2, (nx - 1) / 2)``.
 
     Returns
     -------
@@ -74,7 +105,7 @@ def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
 
     Examples
     --------
-    >>> cra = cra_map((3, 5), 5.5, 21.0, center_px=(0, 0))
+    >>> cra = cra_map((3, 5), 5.5, 21.0, center_rc=(0, 0))
     >>> cra.shape, float(cra[0, 0])
     ((3, 5), 0.0)
     >>> round(float(cra[0, 4]), 4)  # 22 um off axis
@@ -84,6 +115,7 @@ def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
     return np.rad2deg(np.arctan(np.hypot(ty[:, None], tx[None, :])))
 
 
+@accepts_center_rc
 def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
     """``tan`` of the chief ray's components along the columns and the rows, 1-D each.
 
@@ -98,8 +130,9 @@ def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
         Pixel pitch, micrometres.
     exit_pupil_mm : float
         Distance ``x`` from the sensor to the exit pupil, mm.
-    center_px : (cx, cy), optional
-        Optical centre, pixels (column, row). Default: the image centre.
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: the image centre.
 
     Returns
     -------

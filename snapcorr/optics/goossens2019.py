@@ -54,6 +54,7 @@ __all__ = [
     "asymptotic_error_estimate_nm",
     "kernel",
     "kernel_asymptotic",
+    "lambertian_potentials",
     "mean_shift_asymptotic",
     "mean_shift_contour",
     "mean_shift_riemann",
@@ -115,6 +116,52 @@ def shift_potential(s, n_eff):
     return 0.5 * (1.0 - dsq - dash)
 
 
+def lambertian_potentials(s, n_eff):
+    """``(Psi_dw, Psi_w)``: the potentials of the shift and of the weight for a Lambertian
+    pupil (each ray weighted by ``cos^4(phi) = (1 + s)^-2`` per unit area), ``x = 1``.
+
+    With ``Psi_f(s) = (1 / 2s) int_0^s f(t) dt`` (so that ``integral of f dA = contour of
+    Psi_f (p - F) x dp``, as for :func:`shift_potential`): ``Psi_w = 1 / (2 (1 + s))``, and
+    for ``f = delta w`` with ``delta = 1 - sqrt(1 - q)``, ``q = s / (n^2 (1 + s)) =
+    sin^2(phi) / n^2``, the substitution ``tau = 1 / (1 + t)`` makes the integral elementary,
+    ``int_0^s delta w dt = s / (1 + s) - (2 n^2 / 3) (1 - (1 - q)^(3/2))``, written without
+    cancellation as ``n^2 q^2 (1 + 2a) / (3 (1 + a)^2)``, ``a = sqrt(1 - q)``.
+    """
+    n2 = np.asarray(n_eff, float) ** 2
+    s = np.asarray(s, float)
+    a = np.sqrt(1.0 - s / (n2 * (1.0 + s)))
+    psi_dw = s * (1.0 + 2.0 * a) / (6.0 * n2 * (1.0 + s) ** 2 * (1.0 + a) ** 2)
+    return psi_dw, 0.5 / (1.0 + s)
+
+
+def _relative_shift(s, n):
+    """``delta(s) = 1 - sqrt(1 - q)``, ``q = s / (n^2 (1 + s))``, without cancellation."""
+    q = s / ((1.0 + s) * n * n)
+    return q / (1.0 + np.sqrt(1.0 - q))
+
+
+def _contour_sums(s, geom, s_ref, n, w, pupil):
+    """The boundary sums of one arc set: ``(rest, weight)`` with ``rest`` the potential's
+    integral less its reference value, and ``weight`` the Lambertian weight's (None for the
+    paper's uniform pupil, whose weight integral is the area)."""
+    if pupil == "paper":
+        return ((shift_potential(s, n) - shift_potential(s_ref, n)) * geom) @ w, None
+    psi_dw, psi_w = lambertian_potentials(s, n)
+    _, psi_w_ref = lambertian_potentials(s_ref, n)
+    delta_ref = _relative_shift(s_ref, n)
+    return ((psi_dw - delta_ref * psi_w) * geom) @ w, ((psi_w - psi_w_ref) * geom) @ w
+
+
+def _contour_mean(s_ref, n, rest, weight, upper_area, pupil):
+    """The relative mean shift from the boundary sums (:func:`_contour_sums`) and the
+    vignetted pupil's upper-half area."""
+    if pupil == "paper":
+        return -(2.0 * shift_potential(s_ref, n) + rest / upper_area)
+    _, psi_w_ref = lambertian_potentials(s_ref, n)
+    total = weight + 2.0 * upper_area * psi_w_ref  # the weight's integral over the upper half
+    return -(_relative_shift(s_ref, n) + rest / total)
+
+
 def _validate_geometry(x_mm, R_mm, d_mm, P_mm, dv_mm):
     """Broadcast and normalise by x; flip so that the vignetting circle sits at v >= 0."""
     x = np.asarray(x_mm, float)
@@ -143,7 +190,8 @@ def circle_list(P_mm, dv_mm):
     return [(P_mm, dv_mm)]
 
 
-def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, nodes=None):
+def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, nodes=None,
+                       pupil="paper"):
     """Exact kernel mean, Eq. (22), by Gauss-Legendre on the vignetted pupil's boundary.
 
     Parameters
@@ -157,6 +205,9 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
         per circle for several circles. ``None``: ideal aperture.
     nodes : int, optional
         Gauss-Legendre nodes per arc (default :data:`DEFAULT_NODES`).
+    pupil : {"paper", "lambertian"}
+        Each ray weighted by its area in the pupil plane (Eq. 22), or by ``cos^4(phi)`` per
+        area (:data:`snapcorr.optics.lens.PUPILS`, :func:`lambertian_potentials`).
 
     Returns
     -------
@@ -168,11 +219,13 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     PupilCutOffError
         Where the vignetting circles leave no part of the pupil.
     """
+    if pupil not in ("paper", "lambertian"):
+        raise ValueError(f"pupil must be 'paper' or 'lambertian', got {pupil!r}")
     circles = circle_list(P_mm, dv_mm)
     if len(circles) > 1:
-        return _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes)
+        return _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes, pupil)
     P_mm, dv_mm = circles[0] if circles else (None, None)
-    return _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes)
+    return _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes, pupil)
 
 
 def _cut_off(count):
@@ -189,7 +242,7 @@ def _point_mean(s_mid, n):
     return -q / (1.0 + np.sqrt(1.0 - q))
 
 
-def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes):
+def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes, pupil="paper"):
     """The pupil and at most one vignetting circle: two arcs, found in closed form."""
     n = check_n_eff(n_eff)
     F, rho1, rho2, v = _validate_geometry(x_mm, R_mm, d_mm, P_mm, dv_mm)
@@ -199,15 +252,15 @@ def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes):
     area = lens_area(rho1, rho2, beta, alpha)
     if np.any(area <= 0):
         raise _cut_off(int(np.sum(area <= 0)))
-    # Subtract Psi at a point inside the vignetted pupil (the middle of its extent along the
-    # axis): the constant part integrates exactly (to 2 A Psi_ref), and the remainder stays
-    # small where the boundary terms cancel -- slivers near the full cut-off and pupils far
-    # smaller than their distance from the pixel's foot.
+    # Subtract the potential at a point inside the vignetted pupil (the middle of its extent
+    # along the axis): the constant part integrates exactly (to 2 A Psi_ref), and the
+    # remainder stays small where the boundary terms cancel -- slivers near the full cut-off
+    # and pupils far smaller than their distance from the pixel's foot.
     x_mid = 0.5 * (np.maximum(-rho1, v - rho2) + np.minimum(rho1, v + rho2))
-    psi_ref = shift_potential((x_mid - F) ** 2, n)
+    s_ref = (x_mid - F) ** 2
     xi, w = _gauss_legendre(nodes or DEFAULT_NODES)
     r2 = np.where(np.isfinite(rho2), rho2, 0.0)
-    rest = np.zeros_like(F)
+    rest, weight = np.zeros_like(F), np.zeros_like(F)
     # Arc k: centre offset e from the pixel's foot, radius rho, half-angle theta, and the sign
     # of its polar axis (the pupil arc faces +x, the vignetting arc -x).
     arcs = ((rho1, -F, beta, 1.0), (r2, v - F, alpha, -1.0))
@@ -221,22 +274,23 @@ def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes):
             c, s_ = sign * np.cos(t), np.sin(t)
             rr, ee = rho[sl, None], e[sl, None]
             s = (ee + rr * c) ** 2 + (rr * s_) ** 2  # |p - F|^2, >= 0 by construction
-            integrand = (shift_potential(s, n[sl, None]) - psi_ref[sl, None]) * (
-                rr * rr + rr * ee * c
-            )
-            rest[sl] += half * (integrand @ w)
+            r_k, w_k = _contour_sums(s, rr * rr + rr * ee * c, s_ref[sl, None], n[sl, None], w,
+                                     pupil)
+            rest[sl] += half * r_k
+            if w_k is not None:
+                weight[sl] += half * w_k
     # The mirrored halves double both the integral and the area: the factor 2 cancels.
-    mean = -(2.0 * psi_ref + rest / (0.5 * area))
+    mean = _contour_mean(s_ref, n, rest, weight, 0.5 * area, pupil)
     # A pupil (or the sliver left just before the full cut-off) thinner than _TINY_EXTENT
     # along the axis is a point for Eq. (3): its mean is the shift at its middle to ~1e-7 nm,
     # while the contour terms would cancel to their last digits.
     tiny = (np.minimum(rho1, v + rho2) - np.maximum(-rho1, v - rho2)) < _TINY_EXTENT
     if np.any(tiny):
-        mean[tiny] = _point_mean((x_mid[tiny] - F[tiny]) ** 2, n[tiny])
+        mean[tiny] = _point_mean(s_ref[tiny], n[tiny])
     return (np.broadcast_to(cwl_nm, shape).ravel() * mean).reshape(shape)
 
 
-def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes):
+def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes, pupil="paper"):
     """The pupil and several vignetting circles: the boundary is a chain of arcs
     (:func:`~snapcorr.optics.discs.boundary`), each integrated as in the two-disc case."""
     n = check_n_eff(n_eff)
@@ -261,19 +315,21 @@ def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes):
         if np.any(area <= 0):
             raise _cut_off(int(np.sum(area <= 0)))
         x_mid = 0.5 * (b.lo + b.hi)
-        psi_ref = shift_potential((x_mid - Fs) ** 2, ns)
+        s_ref = (x_mid - Fs) ** 2
         half = 0.5 * (t_left - t_right)  # (pieces, n)
         t = t_right[..., None] + half[..., None] * (1.0 + xi)
         e = (ck - Fs)[..., None]
         rr = rk[..., None]
         c = np.cos(t)
         s = (e + rr * c) ** 2 + (rr * np.sin(t)) ** 2
-        integrand = (shift_potential(s, ns[:, None]) - psi_ref[:, None]) * (rr * rr + rr * e * c)
-        rest = np.sum(half * (integrand @ w), axis=0)
-        m = -(2.0 * psi_ref + rest / area)
+        r_k, w_k = _contour_sums(s, rr * rr + rr * e * c, s_ref[:, None], ns[:, None], w,
+                                 pupil)
+        rest = np.sum(half * r_k, axis=0)
+        weight = None if w_k is None else np.sum(half * w_k, axis=0)
+        m = _contour_mean(s_ref, ns, rest, weight, area, pupil)
         tiny = (b.hi - b.lo) < _TINY_EXTENT
         if np.any(tiny):
-            m[tiny] = _point_mean((x_mid[tiny] - Fs[tiny]) ** 2, ns[tiny])
+            m[tiny] = _point_mean(s_ref[tiny], ns[tiny])
         mean[sl] = m
     return (np.broadcast_to(cwl_nm, shape).ravel() * mean).reshape(shape)
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._io import read_toml, write_toml
 
-__all__ = ["Lens"]
+__all__ = ["PUPILS", "Lens"]
 
 
 def _finite(name, value, *, positive=False):
@@ -66,6 +66,15 @@ def _circles(vignetting):
 #: 1 / (2 NA) = 0.5 at least.
 MIN_WORKING_F_NUMBER = 0.5
 
+#: How the light fills the exit pupil. ``"paper"``: Goossens 2019 Eq. (28), a flat disc of
+#: radius ``x / (2 f_W)`` (marginal ray at ``tan(theta) = 1 / (2 f_W)``), every ray weighted
+#: by its area in the pupil plane. ``"lambertian"``: an aplanatic lens (the sine condition,
+#: ``sin(theta) = NA = 1 / (2 f_W)``, radius ``x NA / sqrt(1 - NA^2)``) with a Lambertian
+#: pupil, uniform in direction cosines: each ray weighted by ``cos^4(phi)`` per unit area of
+#: the plane (Jacobian of direction cosines over the plane at ``x``). They differ on axis by
+#: about 1.1 nm at f/1.4, 0.3 nm at f/2 and 0.02 nm at f/4 (1000 nm filters, n_eff 1.5).
+PUPILS = ("paper", "lambertian")
+
 
 @dataclass(frozen=True)
 class Lens:
@@ -91,6 +100,8 @@ class Lens:
     calibration : dict, optional
         Free-form record of how the profile was obtained (the ``[calibration]`` table of a lens
         file). Kept as-is through load/save; not used in computations.
+    pupil : {"paper", "lambertian"}
+        How the light fills the exit pupil (:data:`PUPILS`); default the paper's.
 
     Examples
     --------
@@ -108,9 +119,12 @@ class Lens:
     pupil_magnification: float = 1.0
     name: str = field(default="", kw_only=True)
     calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
+    pupil: str = field(default="paper", kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
+        if self.pupil not in PUPILS:
+            raise ValueError(f"pupil must be one of {', '.join(PUPILS)}, got {self.pupil!r}")
         if isinstance(self.exit_pupil_mm, str):
             raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
                             "name is a keyword argument: Lens(x, ..., name='...'))")
@@ -150,12 +164,21 @@ class Lens:
         return fw
 
     def exit_pupil_radius_mm(self, f_number):
-        """Exit-pupil radius R, Eq. (28): ``x / (2 f_W)``."""
-        return self.exit_pupil_mm / (2.0 * self.working_f_number(f_number))
+        """Exit-pupil radius R: ``x / (2 f_W)``, Eq. (28), for the paper's pupil;
+        ``x NA / sqrt(1 - NA^2)``, ``NA = 1 / (2 f_W)``, for the Lambertian one (:data:`PUPILS`).
+        """
+        fw = self.working_f_number(f_number)
+        if self.pupil == "paper":
+            return self.exit_pupil_mm / (2.0 * fw)
+        na = 1.0 / (2.0 * fw)
+        if np.any(na >= 1.0):
+            raise ValueError("a numerical aperture of 1 has no exit-pupil radius: the working "
+                             "f-number must exceed 0.5 for the Lambertian pupil")
+        return self.exit_pupil_mm * na / np.sqrt(1.0 - na * na)
 
     def cone_angle_deg(self, f_number):
         """Half-cone angle of the image-side light cone, ``arctan(R / x)``, degrees."""
-        return np.rad2deg(np.arctan(1.0 / (2.0 * self.working_f_number(f_number))))
+        return np.rad2deg(np.arctan(self.exit_pupil_radius_mm(f_number) / self.exit_pupil_mm))
 
     def pupil_discs(self, f_number, cra_deg):
         """Radii and centres (mm, along the pixel's radial line) of the exit pupil and every
@@ -276,6 +299,8 @@ class Lens:
             d["vignetting"] = [{"radius_mm": P, "distance_mm": h} for P, h in self.vignetting]
         d["magnification"] = self.magnification
         d["pupil_magnification"] = self.pupil_magnification
+        if self.pupil != "paper":  # profiles of the paper's pupil stay as they were
+            d["pupil"] = self.pupil
         return d
 
     @classmethod
@@ -286,7 +311,8 @@ class Lens:
         ``vignetting_distance_mm`` (the form of earlier profiles).
         """
         single = {"vignetting_radius_mm", "vignetting_distance_mm"}
-        known = {"name", "exit_pupil_mm", "vignetting", "magnification", "pupil_magnification"}
+        known = {"name", "exit_pupil_mm", "vignetting", "magnification", "pupil_magnification",
+                 "pupil"}
         unknown = set(table) - known - single
         if unknown:
             raise ValueError(f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are "

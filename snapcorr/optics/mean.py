@@ -94,22 +94,32 @@ def _geometry(f_number, cra_deg, lens):
 def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d, P, dv)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, pupil=lens.pupil)
 
 
 def _ideal(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, _, _ = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, pupil=lens.pupil)
+
+
+def _paper_pupil_only(lens, what):
+    """Refuse a formula derived for the paper's pupil for another one."""
+    if lens.pupil != "paper":
+        raise ValueError(f"{what} is derived for the paper's pupil (Eq. 28, uniform per area), "
+                         f"not the {lens.pupil} one: use method 'vignetted', 'ideal', 'table', "
+                         "'grid' or 'auto'")
 
 
 def _riemann(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=g19.RIEMANN_STEP_NM):
+    _paper_pupil_only(lens, "the paper's Riemann sum of its kernel (Eq. 37)")
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d, P, dv)
     return g19.mean_shift_riemann(cwl_nm, n_eff, x, R, d, P, dv, step_nm=step_nm)
 
 
 def _asymptotic(cwl_nm, n_eff, f_number, cra_deg, lens):
+    _paper_pupil_only(lens, "Eq. (6)")
     _geometry(f_number, cra_deg, lens)
     cone = np.deg2rad(lens.cone_angle_deg(f_number))
     return g19.mean_shift_asymptotic(cwl_nm, n_eff, cone, np.deg2rad(np.abs(cra_deg)))
@@ -181,7 +191,7 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     1. ``"asymptotic"`` (Eq. 6) where the pixel is not vignetted (below the onset of Eq. 46,
        or a lens without vignetting circles) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
        error estimate (:func:`~snapcorr.optics.goossens2019.asymptotic_error_estimate_nm`) is
-       below the tolerance;
+       below the tolerance (the paper's pupil only: Eq. 6 is derived for it);
     2. ``"ideal"`` (exact, one full circle) where the pixel is not vignetted;
     3. ``"vignetted"`` (exact, the chain of arcs bounding the vignetted pupil) elsewhere.
 
@@ -211,7 +221,7 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     not_vign = ~lens.is_vignetted(f_number, cra)
     tan_cone = 1.0 / (2.0 * lens.working_f_number(f_number))
     err = g19.asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, np.tan(np.deg2rad(cra)))
-    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm)
+    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm) & (lens.pupil == "paper")
     return np.where(asym, "asymptotic", np.where(not_vign, "ideal", "vignetted"))
 
 
@@ -281,11 +291,13 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     if model == "vignetted":
         return model, (f"CRAs up to {cra_max:.2f} deg pass the onset of optical vignetting "
                        f"at f/{f:g} ({onset:.2f} deg)")
+    where = ("no vignetting circle" if not lens.has_vignetting else
+             f"every CRA (<= {cra_max:.2f} deg) is below the onset ({onset:.2f} deg)")
+    if lens.pupil != "paper":
+        return model, f"{where}; Eq. 6 holds for the paper's pupil, not this {lens.pupil} one"
     tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f)))
     err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone, np.tan(np.deg2rad(cra_max)))
     err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
-    where = ("no vignetting circle" if not lens.has_vignetting else
-             f"every CRA (<= {cra_max:.2f} deg) is below the onset ({onset:.2f} deg)")
     if model == "asymptotic":
         return model, f"{where}, and Eq. 6 is within {err:.2g} nm <= {tol:g} nm"
     return model, f"{where}; Eq. 6 would be off by up to {err:.2g} nm"
@@ -387,7 +399,7 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     # With several circles a grid takes seconds to build (the boundary's arcs change at more
     # places than its frame pins), so it pays only for far more elements.
     grid_min = AUTO_GRID_MIN_SIZE * (1 if len(lens.vignetting) <= 1 else 20)
-    if np.count_nonzero(todo) >= grid_min:
+    if np.count_nonzero(todo) >= grid_min and lens.pupil == "paper":  # ShiftGrid's pupil
         idx = np.flatnonzero(todo)
         out[idx] = _grid_method(cwl[idx], n[idx], f[idx], cra[idx], lens, tolerance_nm)
         todo[idx] = False

@@ -64,7 +64,8 @@ def kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0.05, n
     check_positive("step_nm", step_nm)
     n_eff = float(check_n_eff(n_eff))
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
-    exact = float(mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv))  # raises if cut off
+    exact = float(mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv,  # raises if cut off
+                                     pupil=lens.pupil))
     rmin = float(min_radius_mm(d, R, dv, P))
     rmax = float(max_radius_mm(d, R, dv, P))
     lo, hi = (float(shift_nm(cwl_nm, n_eff, np.rad2deg(np.arctan(r / x)))) for r in (rmax, rmin))
@@ -74,6 +75,9 @@ def kernel_bins(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0.05, n
     half = 0.5 * np.diff(edges)
     lam = (edges[:-1] + half)[:, None] + half[:, None] * xi
     K = kernel(lam, cwl_nm, n_eff, x, R, d, P, dv)
+    if lens.pupil == "lambertian":  # each ray by cos^4(phi) = (1 - sin^2 phi)^2 per area
+        sin2 = np.clip(n_eff * n_eff * (1.0 - (1.0 + lam / cwl_nm) ** 2), 0.0, 1.0)
+        K = K * (1.0 - sin2) ** 2
     mass = (K * w).sum(axis=1) * half
     keep = mass > 0
     if not np.any(keep):  # narrower than the nodes can see: a Dirac at the mean
@@ -128,6 +132,9 @@ def filter_response(
     validate_method(method, RESPONSE_METHODS)
     p, t = check_curve(wavelength_nm, transmission)
     if method == "rienstra":
+        if lens.pupil != "paper":
+            raise ValueError("Rienstra's ray bundle (1998) weights the paper's pupil; for the "
+                             f"{lens.pupil} one use method='kernel'")
         return rienstra1998.transform(
             p,
             t,

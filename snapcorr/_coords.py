@@ -1,0 +1,83 @@
+"""Image coordinates: one convention, (row, col), and the deprecation of the x-first centre.
+
+Every pair of pixel coordinates snapcorr takes or gives is ``(row, col)``, the order of the
+array's dims ``(y, x)``, as in NumPy and scikit-image: the optical centre (``center_rc``,
+``--center ROW,COL``) like the crop's origin (``sensor_origin_px``, ``--sensor-origin-px
+ROW,COL``). Rows and columns count from the first pixel's centre, 0.
+
+The optical centre used to be given x first (``center_px=(cx, cy)``, ``--center-px CX,CY``).
+Those forms still work and warn (``FutureWarning``); they are never reinterpreted, and giving
+both forms is an error. Internally the centre stays ``(cx, cy)``: only the entry points
+convert.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import sys
+import warnings
+
+from ._validation import check_pair
+
+__all__ = [
+    "CENTER_PX_DEPRECATION",
+    "accepts_center_rc",
+    "called_from_outside",
+    "center_from_rc",
+    "rc_from_center",
+]
+
+#: Said when the old form is used (the tests match on its start).
+CENTER_PX_DEPRECATION = ("center_px is the old x-first form (cx, cy) of the optical centre and "
+                         "will be removed; give center_rc=(row, col) instead "
+                         "(here center_rc=({row:g}, {col:g}))")
+
+
+def center_from_rc(center_rc, name="center_rc"):
+    """``(cx, cy)``, the internal form, from a public ``(row, col)``."""
+    row, col = check_pair(name, center_rc, "two numbers (row, col) in pixels")
+    return (col, row)
+
+
+def rc_from_center(center_px):
+    """``[row, col]`` from the internal ``(cx, cy)``."""
+    return [float(center_px[1]), float(center_px[0])]
+
+
+def called_from_outside(depth):
+    """Whether the caller ``depth`` frames up is outside snapcorr (it gets the warnings)."""
+    name = sys._getframe(depth).f_globals.get("__name__", "")
+    return not (name == "snapcorr" or name.startswith("snapcorr."))
+
+
+def accepts_center_rc(func):
+    """Let ``func`` (which takes the internal ``center_px=(cx, cy)``) take ``center_rc=(row,
+    col)`` too, and warn when a caller outside snapcorr gives ``center_px``."""
+    sig = inspect.signature(func)
+    params = list(sig.parameters.values())
+    if "center_px" not in sig.parameters:
+        raise TypeError(f"{func.__name__} takes no center_px")
+    new = inspect.Parameter("center_rc", inspect.Parameter.KEYWORD_ONLY, default=None)
+    at = [p.name for p in params].index("center_px")
+    if params[at].kind != inspect.Parameter.KEYWORD_ONLY:  # after every keyword-only one
+        at = len([p for p in params if p.kind != inspect.Parameter.VAR_KEYWORD])
+    signature = sig.replace(parameters=[*params[:at], new, *params[at:]])
+
+    @functools.wraps(func)
+    def wrapper(*args, center_rc=None, **kwargs):
+        bound = sig.bind_partial(*args, **kwargs)
+        old = bound.arguments.get("center_px")
+        if center_rc is not None:
+            if old is not None:
+                raise TypeError(f"{func.__name__}: give the optical centre once, as "
+                                "center_rc=(row, col); center_px is its old x-first form")
+            bound.arguments["center_px"] = center_from_rc(center_rc)
+        elif old is not None and called_from_outside(2):
+            cx, cy = check_pair("center_px", old, "two numbers (cx, cy) in pixels")
+            warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx), FutureWarning,
+                          stacklevel=2)
+        return func(*bound.args, **bound.kwargs)
+
+    wrapper.__signature__ = signature
+    return wrapper
