@@ -428,11 +428,7 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
     boxes = _windows(ys, xs, ny, nx, _window_half(s))
     has_resampled = "resampled" in ds.variables
-    spectra = _window_means(cube, corrected,
-                            ds["resampled"].transpose("y", "x", "band") if has_resampled
-                            else None,
-                            ds["mask"].transpose("y", "x", "band") if _has_mask(ds, cube)
-                            else None, boxes) if picked else []
+    spectra = _spectra_at(ds, cube, corrected, boxes, has_resampled) if picked else []
 
     b_shift = _band_moving_most(spectra, wl, b)
     (shift_img,) = _load(_image(corrected, s, b_shift))
@@ -459,6 +455,13 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     sub = _subtitle(ds.attrs)
     fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
     return _save(fig, path)
+
+
+def _spectra_at(ds, cube, corrected, boxes, has_resampled):
+    """The window means of the cube, its corrected wavelengths and ``resampled``."""
+    resampled = ds["resampled"].transpose("y", "x", "band") if has_resampled else None
+    mask = ds["mask"].transpose("y", "x", "band") if _has_mask(ds, cube) else None
+    return _window_means(cube, corrected, resampled, mask, boxes)
 
 
 def _check_correction(ds):
