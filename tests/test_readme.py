@@ -4,6 +4,7 @@ import argparse
 import fnmatch
 import re
 import shlex
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -16,6 +17,9 @@ matplotlib.use("Agg")
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.M | re.S)
+OPTION = re.compile(r"(?<![\w-])(?:--[a-z][a-z0-9-]*|-[a-zA-Z](?![\w-]))")
+#: Options the parser still takes but the README must not show (deprecated forms).
+DEPRECATED = {"--center-px"}
 
 
 def blocks(language):
@@ -48,8 +52,10 @@ def test_python_blocks_run_in_order_from_any_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__readme__"}
     try:
-        for i, block in enumerate(code, 1):
-            exec(compile(block, f"README.md python block {i}", "exec"), namespace)
+        with warnings.catch_warnings():  # no example gives the centre in its old x-first form
+            warnings.filterwarnings("error", message="center_px is the old", category=FutureWarning)
+            for i, block in enumerate(code, 1):
+                exec(compile(block, f"README.md python block {i}", "exec"), namespace)
     finally:
         plt.close("all")
     patterns = [line.strip().rstrip("/") for line in
@@ -70,24 +76,69 @@ def test_readme_command_lines_parse():
             pytest.fail(f"the README shows a command the CLI refuses: snapcorr {shlex.join(words)}")
 
 
-def test_command_line_synopsis_names_real_options():
-    """Every --option in the "Command line" synopsis belongs to its subcommand."""
-    section = README.read_text().split("## Command line", 1)[1]
-    synopsis = FENCE.search(section).group(2)
+def subcommands():
     parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    known, command = {}, None
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def synopsis_options():
+    """``{subcommand: options shown}`` from the first block of the "Command line" section; a
+    line starting ``snapcorr SUB`` opens SUB, the lines after it continue it."""
+    section = README.read_text().split("\n## Command line\n", 1)[1]
+    synopsis = FENCE.search(section).group(2)
+    shown, command = {}, None
     for line in synopsis.splitlines():
         words = line.split()
         if words[:1] == ["snapcorr"] and len(words) > 1 and not words[1].startswith("-"):
             command = words[1]
-            assert command in sub.choices, f"no subcommand {command!r}"
-        if command is None:
-            continue
-        options = known.setdefault(command, set(sub.choices[command]._option_string_actions))
-        for option in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", line):
-            assert option in options, f"snapcorr {command} has no {option}"
-    assert set(known) == set(sub.choices), "the synopsis misses a subcommand"
+        if command is not None:
+            shown.setdefault(command, set()).update(OPTION.findall(line))
+    return shown
+
+
+def parser_options(subparser):
+    """Every option string of a subcommand but help and the deprecated forms."""
+    return {o for action in subparser._actions for o in action.option_strings
+            if o not in ("-h", "--help") and o not in DEPRECATED}
+
+
+def test_command_line_synopsis_names_real_options():
+    """Every option in the "Command line" synopsis belongs to its subcommand, and none is a
+    deprecated form."""
+    choices = subcommands()
+    shown = synopsis_options()
+    assert set(shown) == set(choices), "the synopsis misses a subcommand or names one that is not"
+    for command, options in shown.items():
+        known = set(choices[command]._option_string_actions)
+        for option in sorted(options):
+            assert option in known, f"snapcorr {command} has no {option}"
+            assert option not in DEPRECATED, f"the synopsis shows the deprecated {option}"
+
+
+def test_command_line_synopsis_shows_every_option():
+    """... and every option the parser takes is in it: the synopsis cannot drift."""
+    shown = synopsis_options()
+    missing = {command: sorted(parser_options(sub) - shown.get(command, set()))
+               for command, sub in subcommands().items()}
+    missing = {c: m for c, m in missing.items() if m}
+    assert not missing, f"the README's synopsis lacks options `--help` shows: {missing}"
+
+
+def test_readme_uses_no_deprecated_form():
+    """Examples give the optical centre (row, col): --center ROW,COL, center_rc=."""
+    for words in snapcorr_commands():
+        assert not DEPRECATED & set(words), f"snapcorr {shlex.join(words)}"
+    for block in blocks("python"):
+        assert "center_px=" not in block
+
+
+def test_envi_result_files_are_named():
+    """Every image `correct --out STEM.hdr` writes is named in the README."""
+    from snapcorr.cube.envi_result import IMAGES
+
+    text = README.read_text()
+    missing = [name for name in IMAGES if f"STEM_{name}.hdr" not in text]
+    assert not missing, f"the README does not name these ENVI images: {missing}"
 
 
 @pytest.mark.parametrize("find, kind, name, bundled", [
