@@ -201,7 +201,7 @@ def coverage_sweep(*, quick=False, echo=print, write=True, workers=2):
     from concurrent.futures import ProcessPoolExecutor
 
     if quick:
-        cases, noises, seeds = ("one_h_gt_x",), (0.02,), (0, 1)
+        cases, noises, seeds = ("one_h_gt_x",), (0.02,), (0,)
         scene = dict(shape=(128, 160), pitch_um=56.8, center_px=(87.5, 60.0))
     else:
         cases, noises, seeds = COVERAGE_CASES, COVERAGE_NOISES, COVERAGE_SEEDS

@@ -70,7 +70,8 @@ def cubes(target, lens, f_numbers, *, noise, seed, n_eff=N_EFF, nan_fraction=0.0
     return out
 
 
-@pytest.mark.parametrize("lens", ["paper", "plain"])
+# the lens with a circle runs by default in test_x_and_n_eff_from_two_f_numbers
+@pytest.mark.parametrize("lens", [pytest.param("paper", marks=pytest.mark.slow), "plain"])
 @pytest.mark.parametrize("target", ["colour_filter",
                                     pytest.param("rare_earth_glass", marks=pytest.mark.slow)])
 def test_x_within_one_percent_with_n_eff_known(target, lens):
@@ -86,7 +87,7 @@ def test_x_within_one_percent_with_n_eff_known(target, lens):
     assert np.hypot(got.center_px[0] - CENTER[0], got.center_px[1] - CENTER[1]) < 0.5
 
 
-@pytest.mark.parametrize("lens", ["paper", "plain"])
+@pytest.mark.parametrize("lens", ["paper", pytest.param("plain", marks=pytest.mark.slow)])
 def test_x_and_n_eff_from_two_f_numbers(lens):
     truth = LENSES[lens]
     # the filters' true index differs from the design value the sensor file holds
