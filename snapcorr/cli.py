@@ -620,8 +620,8 @@ def _cmd_correct(args):
               + ", ".join(p.name for p in written))
     print(f"wrote {args.out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
           f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
-          f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre "
-          f"{tuple(round(c, 1) for c in ds.attrs['optical_center_px'])} px "
+          f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre row "
+          f"{ds.attrs['optical_center_rc'][0]:g}, col {ds.attrs['optical_center_rc'][1]:g} "
           f"({ds.attrs['optical_center_source']})"
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
     if "fwhm_table" in ds:

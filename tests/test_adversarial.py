@@ -1316,7 +1316,7 @@ def test_lens_center_on_a_sensor_of_another_size_is_refused(tmp_path, monkeypatc
     before = snapshot(tmp_path)
     rc, _, err = cli(*correct_args("cube.npy", "c.nc", "--method", "none",
                                    sensor="other.toml", lens="lens.toml"))
-    assert_refused(rc, err, "--center-px")
+    assert_refused(rc, err, "--center ROW,COL")
     assert snapshot(tmp_path) == before
 
 

@@ -126,7 +126,7 @@ def test_help_shows_the_command_shape(cli):
     res = cli("calibrate", "--help")
     assert res.returncode == 0
     for word in ("--flat F_NUMBER=PATH", "--exit-pupil-mm", "--pixel-pitch-um",
-                 "--magnification", "--pupil-magnification", "--dark", "--center-px CX,CY",
+                 "--magnification", "--pupil-magnification", "--dark", "--center ROW,COL",
                  "--out", "--plot PNG", "examples:"):
         assert word in res.stdout, word
 

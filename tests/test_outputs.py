@@ -174,3 +174,11 @@ def test_raw_counts_are_named_and_carry_units_through_the_correction(files, cli)
     ds = read_dataset(d / "r.nc")
     assert ds["raw"].attrs["units"] == "count"
     assert ds["resampled"].attrs["units"] == "count"
+    # a float cube nobody gave units keeps none: "1" is only for ratios
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, NB), 10.0, 1.7)
+    plain = make_cube(np.ones((4, 5, NB), np.float32), sensor.cwl_nm)
+    out = correct_cube(plain, sensor, 1.4, PAPER_LENS, resample=True, harmonise=True)
+    assert "units" not in out["resampled"].attrs and "units" not in out["harmonised"].attrs
+    ratio = make_cube(np.ones((4, 5, NB), np.float32), sensor.cwl_nm, name="reflectance")
+    assert correct_cube(ratio, sensor, 1.4, PAPER_LENS, resample=True)["resampled"].attrs[
+        "units"] == "1"

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._coords import accepts_center_rc
 from ..optics.goossens2019 import PupilCutOffError
 from ..optics.lens import Lens
 from ..optics.profiles import PROFILES
@@ -90,9 +91,10 @@ def _band_rho(rows, cols, b, center_px, pitch_mm):
     return (((r - cy) * pitch_mm) ** 2)[:, None] + (((c - cx) * pitch_mm) ** 2)[None, :]
 
 
+@accepts_center_rc
 def radial_bins(band_image, n_bands, rows, cols, center_px, pitch_mm, *, f_number,
                 n_bins=96, min_count=16):
-    """Reduce a cube to means over annuli of equal area about ``center_px``.
+    """Reduce a cube to means over annuli of equal area about the optical centre.
 
     Parameters
     ----------
@@ -102,8 +104,11 @@ def radial_bins(band_image, n_bands, rows, cols, center_px, pitch_mm, *, f_numbe
     rows, cols : ndarray, shape (ny, n_bands or 1), (nx, n_bands or 1)
         Sensor row and column of every cube pixel (see
         :func:`~snapcorr.correct.geometry.cube_positions`).
-    center_px : (float, float)
-        Optical centre (column, row) in sensor pixels.
+    center_px : (cx, cy)
+        Optical centre in sensor pixels, x first (deprecated: give ``center_rc=(row, col)``
+        instead, as a keyword, and ``None`` here).
+    center_rc : (row, col), optional
+        The same, row first.
     pitch_mm : float
     f_number : float
     n_bins : int

@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from .. import __version__
+from .._coords import accepts_center_rc
 from .._validation import check_positive, validate_method
 from ..cube.derived import corrected_fwhm, corrected_wavelength
 from ..cube.flatfield import cf_attrs
@@ -70,11 +71,12 @@ def relative_shift(n_eff, f_number, cra_deg, lens, *, model, tolerance_nm, cwl_m
     return np.interp(cra, table.cra_deg, table.relative_shift)
 
 
+@accepts_center_rc
 def correct_cube(cube, sensor, f_number, lens, *, method="auto",
                  tolerance_nm=DEFAULT_TOLERANCE_NM, center_px=None, sensor_origin_px=None,
                  resample=False, harmonise=False, target_fwhm_nm=None, mask=None,
                  virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
-                 virtual_fwhm_nm=None):
+                 virtual_fwhm_nm=None, fwhm=True):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
     Parameters
@@ -95,8 +97,9 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     tolerance_nm : float
         Largest error allowed in the corrected wavelengths (model choice and table
         interpolation), nm.
-    center_px : (cx, cy), optional
-        Optical centre in sensor pixels (default: from the lens calibration, converted through
+    center_rc, center_px : (row, col), optional
+        Optical centre in sensor pixels, row first (``center_px=(cx, cy)``: the deprecated
+        x-first form; default: from the lens calibration, converted through
         millimetres when its pixel pitch differs, else the sensor's centre, else the centre of
         the area the cube covers; :func:`~snapcorr.correct.optical_center`).
     sensor_origin_px : (row, col), optional
@@ -124,6 +127,11 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         The vendor matrix's name, for ``virtual_bands="vendor"``.
     virtual_wavelengths_nm, virtual_fwhm_nm : array_like, optional
         Centres and widths of fitted virtual bands (default: the vendor's).
+    fwhm : bool
+        Also give each pixel's response FWHM (``fwhm_corrected`` over ``fwhm_table``; needs
+        ``n_eff``). The table costs 0.5-1.1 s for 150 bands whatever the cube's size, and its
+        length is known only once built: ``False`` skips it (harmonising and measured
+        responses build it all the same, and ``False`` only leaves it out).
 
     Returns
     -------
@@ -134,10 +142,10 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         ``wavelength_corrected(y, x, band)`` (float32, nm) rebuilt from them lazily, block by
         block (:mod:`snapcorr.cube.derived`); ``cra_deg(y, x[, band])``;
         ``fwhm_corrected(y, x, band)`` (float32, nm; each pixel's response FWHM, rebuilt
-        lazily from ``fwhm_table(band, fwhm_cra)``); ``resampled`` and ``harmonised`` (with
-        ``fwhm_harmonised(band)``, the common response) on request; ``mask`` when given;
-        ``virtual(y, x, virtual_band)`` and the matrix used, on request; provenance in
-        attrs.
+        lazily from ``fwhm_table(band, fwhm_cra)``) unless ``fwhm=False``; ``resampled``
+        and ``harmonised`` (with ``fwhm_harmonised(band)``, the common response) on
+        request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the matrix used,
+        on request; provenance in attrs.
     """
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask, resample)
@@ -146,19 +154,16 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
                                               sensor_origin_px=sensor_origin_px)
     cra_max = _field_max_deg(cra, f, lens)
     used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
-    widths = (None if sensor.n_eff is None
-              else _width_table(sensor, lens, f, cra_max, tolerance_nm))
+    want, first = _widths_needed(sensor, lens, used, fwhm, harmonise)
+    widths = _width_table(sensor, lens, f, cra_max, tolerance_nm) if first else None
     scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
     scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-    ds = _dataset(cube, sensor, lens, cra, scale, column, source=how,
-                  center_source=center_source)
-    if widths is not None:
-        ds = _with_fwhm(ds, cube, lens, sensor, f, widths)
-    if mask is not None:
-        ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
-        ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
-    if resample:
-        ds["resampled"] = _resampled(cube, scale, column, cwl)
+    # the resampling pass before the table: after it, an in-memory pass ran a fifth slower
+    resampled = _resampled(cube, scale, column, cwl) if resample else None
+    if want and widths is None:
+        widths = _width_table(sensor, lens, f, cra_max, tolerance_nm)
+    ds = _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source,
+                    widths if fwhm else None, mask, resampled)
     if harmonise or used == "harmonised":
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
                          scale_at, n_eff, sensor, f, lens)
@@ -167,6 +172,34 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
                                virtual_wavelengths_nm, virtual_fwhm_nm))
     return _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
                             center_source, cra_max)
+
+
+def _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source, widths, mask,
+               resampled):
+    """The result's variables: the cube, the compact wavelengths, the CRA, the widths (when
+    given), the mask and the resampled spectra (when given)."""
+    ds = _dataset(cube, sensor, lens, cra, scale, column, source=how,
+                  center_source=center_source)
+    if widths is not None:
+        ds = _with_fwhm(ds, cube, lens, sensor, f, widths)
+    if mask is not None:
+        ds["mask"] = mask.drop_vars([c for c in mask.coords if c not in mask.dims])
+        ds["mask"].attrs = {**mask.attrs, **cf_attrs("mask")}
+    if resampled is not None:
+        ds["resampled"] = resampled
+    return ds
+
+
+def _widths_needed(sensor, lens, used, fwhm, harmonise):
+    """Whether the widths' table is wanted at all (``fwhm_corrected``, the harmonising), and
+    whether it is needed first (measured responses: the bands' centres the scales need).
+    Without ``n_eff`` there is none."""
+    if sensor.n_eff is None:
+        return False, False
+    want = fwhm or harmonise or used == "harmonised"
+    first = sensor.responses is not None and (
+        used not in ("none", "asymptotic") and not (used == "ideal" and lens.has_vignetting))
+    return want, first
 
 
 def _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
@@ -178,7 +211,8 @@ def _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, ce
         "lens": lens.name, "lens_vignetting_mm": [list(c) for c in lens.vignetting] or "none",
         "sensor": sensor.name, "f_number": f, "method": used, "method_reason": reason,
         "method_requested": method, "tolerance_nm": float(tolerance_nm),
-        "optical_center_px": [float(center[0]), float(center[1])],
+        "optical_center_rc": [float(center[1]), float(center[0])],
+        "optical_center_px": [float(center[0]), float(center[1])],  # x first, deprecated
         "optical_center_source": center_source, "cra_max_deg": cra_max,
         "snapcorr_version": __version__,
     })
@@ -347,14 +381,20 @@ def _measured_table(sensor, lens, f, cra_max, tolerance_nm):
 def _width_table(sensor, lens, f, cra_max, tolerance_nm):
     """Each band's whole response (filter shape spread by the kernel, Eq. 13) tabulated over
     CRA once: a FwhmTable, or for measured filters a MeasuredTable (centres too)."""
+    from threadpoolctl import threadpool_limits
+
     from ..optics.bandwidth import FwhmTable
 
-    if sensor.responses is not None:
-        return _measured_table(sensor, lens, f, cra_max, tolerance_nm)
-    # the widths need no finer table than FWHM_TOLERANCE_NM even when the wavelengths do
-    tol = max(float(tolerance_nm), FWHM_TOLERANCE_NM)
-    return FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
-                           cra_max_deg=cra_max, profile=sensor.profile_shape, tolerance_nm=tol)
+    # small products only: BLAS threads add nothing here, and woken they keep spinning after
+    # it, which slowed the resampling pass that followed by half (measured)
+    with threadpool_limits(1, user_api="blas"):
+        if sensor.responses is not None:
+            return _measured_table(sensor, lens, f, cra_max, tolerance_nm)
+        # the widths need no finer table than FWHM_TOLERANCE_NM even when the wavelengths do
+        tol = max(float(tolerance_nm), FWHM_TOLERANCE_NM)
+        return FwhmTable.build(sensor.cwl_nm, sensor.fwhm_nm, sensor.n_eff, f, lens,
+                               cra_max_deg=cra_max, profile=sensor.profile_shape,
+                               tolerance_nm=tol)
 
 
 def _with_fwhm(ds, cube, lens, sensor, f, table):
@@ -415,7 +455,7 @@ def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
 
 def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
                 sensor, f, lens):
-    from .harmonise import harmonise_spectra
+    from .harmonise import harmonise_spectra, node_weights
 
     if table is None:  # no widths without n_eff
         sensor.require("n_eff", "harmonise (each pixel's bandwidth)")
@@ -467,11 +507,12 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
         node_sigma = np.sqrt(np.stack([np.interp(nodes, table.cra_deg, v) for v in vt],
                                       axis=1))
         node_scale = scale_at(nodes, float(np.unique(n_eff)[0]))
+        # the weights on the nodes once, not once per block of a dask cube
+        weights = node_weights(cs, nodes, node_scale, node_sigma)
 
         def block(data, c, sc):
             return restored(harmonise_spectra(ordered(data), sc, cols, cs, cra=c[..., 0],
-                                              nodes=nodes, node_scale=node_scale,
-                                              node_sigma=node_sigma))
+                                              weights=weights))
     else:
         def block(data, c, sc):
             sig = np.empty(data.shape)
@@ -491,7 +532,7 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
                          output_core_dims=[["band"]], dask="parallelized",
                          output_dtypes=[dtype]).transpose("y", "x", "band")
     name = cube.name or "radiance"
-    out.attrs = {"units": cube.attrs.get("units", "1"),
+    out.attrs = {**_units_of(cube),
                  "long_name": f"{cube.attrs.get('long_name', name)} on the nominal wavelengths, "
                               "one response per band",
                  "source": "each pixel's spectrum (straight lines between its corrected "
@@ -543,10 +584,18 @@ def _resampled(cube, scale, column, cwl):
     out = out.transpose("y", "x", "band")
     name = cube.name or "radiance"
     attrs = {**cf_attrs(name), **cube.attrs}
-    out.attrs = {"units": attrs.get("units", "1"),
+    out.attrs = {**_units_of(cube),
                  "long_name": f"{attrs.get('long_name', name)} on the nominal wavelengths",
                  "source": f"{name} interpolated linearly from wavelength_corrected onto "
                            "wavelength",
                  "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
                          "range (extrapolation is not done)"}
     return out
+
+
+def _units_of(cube):
+    """``{"units": ...}`` of a spectrum computed from ``cube``: the cube's own (or what its
+    name says, :func:`~snapcorr.cube.flatfield.cf_attrs`), none when nothing says ("1" is for
+    ratios only)."""
+    units = {**cf_attrs(cube.name or "radiance"), **cube.attrs}.get("units")
+    return {} if units is None else {"units": units}

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._coords import accepts_center_rc
 from .._validation import check_center, check_pair
 from ..cube.mosaic import sensor_positions
-from ..optics.chief_ray import cra_deg
+from ..optics.chief_ray import _cra_deg as cra_deg
 
 __all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
 
@@ -133,8 +134,9 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
     return rows, cols
 
 
+@accepts_center_rc
 def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
-    """The optical centre in sensor pixels (column, row), and where it came from.
+    """The optical centre in sensor pixels, and where it came from.
 
     Given explicitly; else the lens profile's ``[calibration] center_px``, converted through
     millimetres when the calibration's pixel pitch differs from the sensor's (binned pixels,
@@ -150,15 +152,17 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     lens : Lens
         Its ``calibration`` table (``center_px``, ``pixel_pitch_um``, ``image_size_px``); the
         calibration's centre is used only when it records its pixel pitch.
-    center_px : (cx, cy), optional
-        Optical centre given explicitly, sensor pixels (column, row).
+    center_rc, center_px : (row, col), optional
+        Optical centre given explicitly, sensor pixels; ``center_px=(cx, cy)`` is the
+        deprecated x-first form.
     positions : (rows, cols), optional
         The cube's sensor positions if already known (as :func:`cube_positions` returns).
 
     Returns
     -------
     center : (float, float)
-        ``(cx, cy)``, sensor pixels (column, row).
+        ``(cx, cy)``, sensor pixels, x first: the internal form (:mod:`snapcorr._coords`);
+        ``center[::-1]`` is ``(row, col)``.
     source : str
         ``"given"``, ``"lens calibration"`` (possibly with the conversion noted),
         ``"sensor centre"`` or ``"image centre"``.
@@ -168,7 +172,7 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     PlacementError
         The calibration's centre was measured on another pixel grid and the two image areas
         cannot be matched (no ``image_size_px`` in the profile, no ``size_px`` for the sensor, or
-        different physical sizes): pass ``center_px`` (``--center-px``).
+        different physical sizes): pass ``center_rc`` (``--center ROW,COL``).
     """
     if center_px is not None:
         return check_center(center_px), "given"
@@ -197,7 +201,7 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
             raise PlacementError(
                 f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
                 f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
-                "give --center-px CX,CY (center_px) in this sensor's pixels")
+                "give --center ROW,COL (center_rc) in this sensor's pixels")
         if same_pitch:
             return (cx, cy), "lens calibration"
         # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
@@ -212,6 +216,7 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
             (float(rows.min()) + float(rows.max())) / 2.0), "image centre"
 
 
+@accepts_center_rc
 def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     """Chief-ray angle of every pixel (and band, for mosaics), degrees.
 
@@ -220,8 +225,9 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     cube : xarray.DataArray
     sensor : Sensor
     lens : Lens
-    center_px : (cx, cy), optional
-        Optical centre in sensor pixels (column, row); see :func:`optical_center`.
+    center_rc, center_px : (row, col), optional
+        Optical centre in sensor pixels (``center_px=(cx, cy)``: the deprecated x-first
+        form); see :func:`optical_center`.
     sensor_origin_px : (row, col), optional
         Sensor position of the cube's first pixel, for cubes that do not carry their
         positions; see :func:`cube_positions`.
@@ -231,6 +237,7 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     cra : ndarray, shape (ny, nx, nb) or (ny, nx, 1)
         The last axis is 1 when every band shares its pixel's position (Snapscan).
     center : (float, float)
+        ``(cx, cy)``, x first (as :func:`optical_center`).
     center_source : str
     """
     pitch = sensor.require("pixel_pitch_um", "the chief-ray angle of each pixel")

@@ -27,38 +27,30 @@ values; a nominal wavelength outside that range is NaN, as in ``resampled``.
 
 Two paths give the same numbers: for a Snapscan (one scale per pixel, one chief-ray angle per
 pixel) the weights are tabulated on chief-ray-angle nodes and interpolated, a banded matrix
-per pixel and nothing transcendental in the loop; otherwise each pixel's weights are computed
-directly.
+per pixel and nothing transcendental in the loop; otherwise each value is computed directly,
+by the pass resampling uses (:func:`snapcorr.correct._spectra.spectra_pass`) given the
+pixel's widening.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
-from .resample import sort_samples
+from ._spectra import REACH as _REACH
+from ._spectra import cdf as _cdf
+from ._spectra import pdf as _phi
+from ._spectra import spectra_pass
+from ._spectra import spectrum_value as _value
 
-__all__ = ["harmonise_spectra"]
+__all__ = ["NodeWeights", "harmonise_spectra", "node_weights"]
 
-#: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
-_REACH = 6.0
 #: The tabulated weights stop at this many (the mass beyond: 6e-5) and are renormalised to
 #: sum to one: fewer terms per value, a flat spectrum still flat.
 _TABLE_REACH = 4.0
-_SQRT2 = math.sqrt(2.0)
-_INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
-
-
-@numba.njit(cache=True)
-def _phi(z):  # pragma: no cover - compiled
-    return _INV_SQRT_2PI * math.exp(-0.5 * z * z)
-
-
-@numba.njit(cache=True)
-def _cdf(z):  # pragma: no cover - compiled
-    return 0.5 * (1.0 + math.erf(z / _SQRT2))
 
 
 @numba.njit(cache=True)
@@ -92,105 +84,99 @@ def _segment_weights(lam, t, sigma, w, k_reach=_REACH):  # pragma: no cover - co
         w[j] += mass - right
 
 
-@numba.njit(cache=True)
-def _value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
-    """``sum(w * d)`` of :func:`_segment_weights` without forming ``w``: only the segments
-    within reach of ``t`` (found from ``j0`` on; ``t`` increases between calls). Returns the
-    value and the first segment in reach, the next call's start."""
-    n = lam.size
-    if sigma <= 0.0:
-        j = j0
-        while j < n - 2 and lam[j + 1] < t:
-            j += 1
-        u = (t - lam[j]) / (lam[j + 1] - lam[j])
-        return d[j] + u * (d[j + 1] - d[j]), j
-    reach = _REACH * sigma
-    j = j0
-    while j < n - 2 and lam[j + 1] < t - reach:
-        j += 1
-    start = j
-    acc = 0.0
-    if lam[0] > t - reach:
-        acc += d[0] * _cdf((lam[0] - t) / sigma)
-    if lam[n - 1] < t + reach:
-        acc += d[n - 1] * (1.0 - _cdf((lam[n - 1] - t) / sigma))
-    za = (lam[j] - t) / sigma
-    ca, pa = _cdf(za), _phi(za)
-    while j < n - 1 and lam[j] <= t + reach:
-        a, b = lam[j], lam[j + 1]
-        zb = (b - t) / sigma
-        cb, pb = _cdf(zb), _phi(zb)
-        mass = cb - ca
-        right = ((t - a) * mass + sigma * (pa - pb)) / (b - a)
-        acc += right * d[j + 1] + (mass - right) * d[j]
-        ca, pa = cb, pb
-        j += 1
-    return acc, start
+@numba.njit(cache=True, fastmath={"contract"})
+def _diagonal_sums(acc, rows, buf, width, k0):  # pragma: no cover - compiled
+    """``acc[k] += sum(rows[q, k0 + k] * buf[q + k] for q < width)``, one diagonal at a time:
+    a vector operation over the outputs, and every output's sum in band order."""
+    n = acc.size
+    for q in range(width):
+        r = rows[q, k0:k0 + n]
+        b = buf[q:q + n]
+        for k in range(n):
+            acc[k] += r[k] * b[k]
 
 
-@numba.njit(parallel=True, cache=True)
-def _direct(data, scale, column, cwl, sigma, out):  # pragma: no cover - compiled
-    ny, nx, nb = data.shape
-    for y in numba.prange(ny):
-        lam = np.empty(nb)
-        d = np.empty(nb)
-        for x in range(nx):
-            for b in range(nb):
-                lam[b] = cwl[b] * scale[y, x, column[b]]
-                d[b] = data[y, x, b]
-            m = sort_samples(lam, d, nb)
-            j = 0
-            for k in range(nb):
-                t = cwl[k]
-                if m < 2 or t < lam[0] or t > lam[m - 1]:
-                    out[y, x, k] = np.nan
-                    continue
-                out[y, x, k], j = _value(lam[:m], d[:m], t, sigma[y, x, k], j)
-
-
-@numba.njit(parallel=True, cache=True, fastmath={"reassoc", "contract"})
-def _tabulated(data, scale, cra, nodes, W, lo, cnt, var, sigma_direct, cwl,
-               out):  # pragma: no cover - compiled
+@numba.njit(parallel=True, cache=True, fastmath={"contract"})
+def _tabulated(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var, sigma_direct,
+               near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
     # A pixel's weights are those of its two neighbouring nodes, interpolated linearly in
-    # chief-ray angle (nodes a few hundredths of a nanometre of shift apart). Below
-    # sigma_direct the weights bend within a node step (a straight line's kinks are barely
-    # smoothed): those values are computed directly, over the few segments in reach.
+    # chief-ray angle (nodes a few hundredths of a nanometre of shift apart): the value is
+    # (1 - u) sa + u sb, each a float32 sum over one node's banded matrix (a few tens of
+    # terms: 1e-7 of the values), taken along its diagonals (``_diagonal_sums``) so that it
+    # vectorises over the outputs. Below sigma_direct the weights bend within a node step (a
+    # straight line's kinks are barely smoothed): those values are computed directly, over
+    # the few segments in reach.
     ny, nx, nb = data.shape
     m = nodes.size
     step = (nodes[m - 1] - nodes[0]) / (m - 1) if m > 1 else 1.0
+    pad = 0
+    for i in range(m):
+        pad = max(pad, -off[i], off[i] + wid[i])
+    sd2 = sigma_direct * sigma_direct
     for y in numba.prange(ny):
         lam = np.empty(nb)
         d = np.empty(nb)
-        d32 = np.empty(nb, np.float32)
+        buf = np.zeros(nb + 2 * pad, np.float32)  # the spectrum, zeros beyond its ends
+        sa = np.empty(nb, np.float32)
+        sb = np.empty(nb, np.float32)
         for x in range(nx):
             s = scale[y, x]
+            finite = True
             for b in range(nb):
-                lam[b] = cwl[b] * s
-                d[b] = data[y, x, b]
-                d32[b] = d[b]
+                buf[pad + b] = data[y, x, b]
+                finite &= math.isfinite(buf[pad + b])
             pos = min(max((cra[y, x] - nodes[0]) / step, 0.0), m - 1.0)
             i = min(int(pos), m - 2) if m > 1 else 0
+            i1 = i + 1 if m > 1 else i
             u = pos - i
-            j = 0
-            for k in range(nb):
-                t = cwl[k]
-                if t < lam[0] or t > lam[nb - 1]:
-                    out[y, x, k] = np.nan
-                    continue
-                v2 = (1.0 - u) * var[i, k] + u * var[i + 1, k]
-                if v2 < sigma_direct * sigma_direct:
-                    out[y, x, k], j = _value(lam, d, t, math.sqrt(max(v2, 0.0)), j)
-                    continue
-                # float32 sums (a few tens of terms: 1e-7 of the values), which vectorise
-                sa = np.float32(0.0)
-                sb = np.float32(0.0)
-                a0, a1 = lo[i, k], lo[i + 1, k]
-                wa, wb = W[i, k], W[i + 1, k]
-                for q in range(cnt[i, k]):
-                    sa += wa[q] * d32[a0 + q]
-                for q in range(cnt[i + 1, k]):
-                    sb += wb[q] * d32[a1 + q]
-                out[y, x, k] = (1.0 - u) * sa + u * sb
+            # the outputs inside the pixel's corrected range: klo...khi
+            lam0, lam1 = cwl[0] * s, cwl[nb - 1] * s
+            klo = 0
+            while klo < nb and cwl[klo] < lam0:
+                klo += 1
+            khi = nb - 1
+            while khi >= klo and cwl[khi] > lam1:
+                khi -= 1
+            for k in range(klo):
+                out[y, x, k] = np.nan
+            for k in range(khi + 1, nb):
+                out[y, x, k] = np.nan
+            n = khi + 1 - klo
+            if n <= 0:
+                continue
+            if finite:
+                sa[:n] = 0.0
+                sb[:n] = 0.0
+                _diagonal_sums(sa[:n], D[i], buf[pad + off[i] + klo:], wid[i], klo)
+                _diagonal_sums(sb[:n], D[i1], buf[pad + off[i1] + klo:], wid[i1], klo)
+            else:  # a NaN or infinity reaches only the outputs whose weights cover it
+                for k in range(klo, khi + 1):
+                    ta = np.float32(0.0)
+                    tb = np.float32(0.0)
+                    for q in range(cnt[i, k]):
+                        ta += W[i, k, q] * buf[pad + lo[i, k] + q]
+                    for q in range(cnt[i1, k]):
+                        tb += W[i1, k, q] * buf[pad + lo[i1, k] + q]
+                    sa[k - klo] = ta
+                    sb[k - klo] = tb
+            for k in range(n):
+                out[y, x, klo + k] = (1.0 - u) * sa[k] + u * sb[k]
+            if nbad[i, khi + 1] - nbad[i, klo] + nbad[i1, khi + 1] - nbad[i1, klo] > 0:
+                for k in range(klo, khi + 1):  # a row never read by the data it was made for
+                    if nbad[i, k + 1] > nbad[i, k] or nbad[i1, k + 1] > nbad[i1, k]:
+                        out[y, x, k] = np.nan
+            j = -1
+            for c in range(near_ptr[i], near_ptr[i + 1]):  # outputs that may be direct
+                k = near_k[c]
+                if klo <= k <= khi:
+                    v2 = (1.0 - u) * var[i, k] + u * var[i1, k]
+                    if v2 < sd2:
+                        if j < 0:
+                            for b in range(nb):
+                                lam[b] = cwl[b] * s
+                                d[b] = data[y, x, b]
+                            j = 0
+                        out[y, x, k], j = _value(lam, d, cwl[k], math.sqrt(max(v2, 0.0)), j)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -227,8 +213,31 @@ def _node_weights(cwl, node_scale, node_sigma, W, lo, cnt):  # pragma: no cover 
                 W[i, k, q] = w[first + q]
 
 
+def _diagonals(W, lo, cnt):
+    """Each node's weights (row ``k``: ``W[i, k, :cnt[i, k]]`` on the bands from ``lo[i, k]``)
+    along the diagonals of its banded matrix: ``D[i, q, k]`` weighs band ``k + off[i] + q``
+    for ``q < wid[i]`` (zero where row ``k`` has no weight there). Rows of NaN (outputs far
+    beyond the node's corrected range: no weight reaches them) are left out and marked in
+    ``bad``."""
+    m, nb, L = W.shape
+    bad = np.isnan(W).any(axis=2)
+    q = np.arange(L)
+    keep = (q < cnt[..., None]) & (W != 0) & ~bad[..., None]
+    rel = lo[..., None] + q - np.arange(nb)[:, None]  # band - output
+    big = np.iinfo(np.int64).max
+    off = np.where(keep, rel, big).min(axis=(1, 2))
+    last = np.where(keep, rel, -big).max(axis=(1, 2))
+    empty = ~keep.any(axis=(1, 2))
+    off[empty], last[empty] = 0, 0
+    wid = last - off + 1
+    D = np.zeros((m, int(wid.max(initial=1)), nb), np.float32)
+    ii, kk, qq = np.nonzero(keep)
+    D[ii, rel[ii, kk, qq] - off[ii], kk] = W[ii, kk, qq]
+    return D, off, wid, bad
+
+
 def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, nodes=None,
-                      node_scale=None, node_sigma=None, out=None):
+                      node_scale=None, node_sigma=None, weights=None, out=None):
     """Each pixel's spectrum widened by its own Gaussian and put on the nominal wavelengths.
 
     Either ``sigma`` (``(ny, nx, nb)``: the widening's standard deviation per pixel and
@@ -251,6 +260,10 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     cra, nodes, node_scale, node_sigma : ndarray, optional
         The Snapscan path's tables (above); ``nodes`` evenly spaced, degrees; ``node_sigma``
         in nm.
+    weights : NodeWeights, optional
+        The Snapscan path's weights made from those tables by :func:`node_weights`, for a
+        cube harmonised block by block (then ``nodes``, ``node_scale`` and ``node_sigma``
+        are not used).
     out : ndarray, shape (ny, nx, nb), optional
         Array to write the result into (default: a new one).
 
@@ -279,11 +292,59 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
         out = np.empty(data.shape, np.float32 if data.dtype == np.float32 else np.float64)
     scale = np.ascontiguousarray(scale, dtype=np.float64)
     if sigma is not None:
-        sig = np.ascontiguousarray(np.broadcast_to(sigma, data.shape), dtype=np.float64)
-        _direct(data, scale, np.ascontiguousarray(column, dtype=np.int64), cwl, sig, out)
+        # a view when it is float64 already (a scalar: zero strides), not a float64 cube
+        sig = np.broadcast_to(np.asarray(sigma, dtype=np.float64), data.shape)
+        spectra_pass(data, scale, np.ascontiguousarray(column, dtype=np.int64), cwl, sig,
+                     out)
         return out
     if scale.shape[2] != 1 or cra is None:
         raise ValueError("the tabulated path needs one scale column and cra")
+    if weights is None:
+        weights = node_weights(cwl, nodes, node_scale, node_sigma)
+    elif weights.cwl.shape != cwl.shape or np.any(weights.cwl != cwl):
+        raise ValueError("the weights were made for other nominal wavelengths")
+    w = weights
+    _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
+               np.ascontiguousarray(cra, dtype=np.float64), w.nodes, w.D, w.off, w.wid,
+               w.nbad, w.W, w.lo, w.cnt, w.var, w.sigma_direct, w.near_ptr, w.near_k, cwl,
+               out)
+    return out
+
+
+class NodeWeights(NamedTuple):
+    """The Snapscan path's weights on its chief-ray-angle nodes (:func:`node_weights`)."""
+
+    cwl: np.ndarray
+    nodes: np.ndarray
+    D: np.ndarray
+    off: np.ndarray
+    wid: np.ndarray
+    nbad: np.ndarray
+    W: np.ndarray
+    lo: np.ndarray
+    cnt: np.ndarray
+    var: np.ndarray
+    sigma_direct: float
+    near_ptr: np.ndarray
+    near_k: np.ndarray
+
+
+def node_weights(cwl_nm, nodes, node_scale, node_sigma):
+    """The weights of the Snapscan path of :func:`harmonise_spectra`, once for every block of
+    a cube (they depend on the nodes, not on the pixels).
+
+    Parameters
+    ----------
+    cwl_nm : ndarray, shape (nb,)
+        Nominal wavelengths, increasing.
+    nodes, node_scale, node_sigma : ndarray
+        As for :func:`harmonise_spectra`.
+
+    Returns
+    -------
+    NodeWeights
+    """
+    cwl = np.ascontiguousarray(cwl_nm, dtype=np.float64)
     nodes = np.ascontiguousarray(nodes, dtype=np.float64)
     if nodes.size > 1 and not np.allclose(np.diff(nodes), (nodes[-1] - nodes[0]) /
                                           (nodes.size - 1), rtol=1e-6, atol=1e-12):
@@ -299,9 +360,18 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     lo = np.zeros((nodes.size, cwl.size), np.int64)
     cnt = np.zeros((nodes.size, cwl.size), np.int64)
     _node_weights(cwl, node_scale, ns, W, lo, cnt)
-    # below ten node steps' shift of a band the weights are computed directly
+    D, off, wid, bad = _diagonals(W, lo, cnt)
+    # rows of NaN before each output, per node
+    nbad = np.concatenate([np.zeros((nodes.size, 1), np.int64),
+                           np.cumsum(bad, axis=1, dtype=np.int64)], axis=1)
+    # below ten node steps' shift of a band the weights are computed directly: the outputs
+    # of each interval between nodes where that may happen (either node's variance below
+    # it, with a margin for the rounding of the interpolated variance)
     step = np.max(np.abs(np.diff(node_scale))) * cwl.max() if nodes.size > 1 else 0.0
-    _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
-               np.ascontiguousarray(cra, dtype=np.float64), nodes, W, lo, cnt, ns * ns,
-               10.0 * step, cwl, out)
-    return out
+    var = ns * ns
+    low = np.minimum(var, np.concatenate([var[1:], var[-1:]])) < \
+        (10.0 * step) ** 2 * (1.0 + 1e-9) + 1e-300
+    near_ptr = np.concatenate([[0], np.cumsum(low.sum(axis=1))]).astype(np.int64)
+    near_k = np.nonzero(low)[1].astype(np.int64)
+    return NodeWeights(cwl, nodes, D, off, wid, nbad, W, lo, cnt, var, float(10.0 * step),
+                       near_ptr, near_k)

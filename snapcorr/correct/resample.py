@@ -17,63 +17,9 @@ import math
 import numba
 import numpy as np
 
+from ._spectra import sort_samples, spectra_pass
+
 __all__ = ["resample_to_nominal", "sort_samples"]
-
-
-@numba.njit(cache=True)
-def sort_samples(lam, d, n):  # pragma: no cover - compiled
-    """Put a pixel's samples ``(lam, d)`` (first ``n``) in increasing wavelength, in place,
-    and merge those at the same wavelength into their mean; returns how many remain.
-
-    Bands whose corrected wavelengths cross (two measured filters a few nm apart that shift
-    differently) are taken in the order the light has them; the usual, already increasing
-    spectrum costs one comparison per band.
-    """
-    for i in range(1, n):  # insertion sort: linear on sorted input
-        li, di = lam[i], d[i]
-        j = i - 1
-        while j >= 0 and lam[j] > li:
-            lam[j + 1] = lam[j]
-            d[j + 1] = d[j]
-            j -= 1
-        lam[j + 1] = li
-        d[j + 1] = di
-    m = 0
-    i = 0
-    while i < n:
-        k = i + 1
-        acc = d[i]
-        while k < n and lam[k] == lam[i]:
-            acc += d[k]
-            k += 1
-        lam[m] = lam[i]
-        d[m] = acc / (k - i)
-        m += 1
-        i = k
-    return m
-
-
-@numba.njit(parallel=True, cache=True, fastmath=False)
-def _resample(data, scale, column, cwl, out):  # pragma: no cover - compiled
-    ny, nx, nb = data.shape
-    for y in numba.prange(ny):
-        lam = np.empty(nb)
-        d = np.empty(nb)
-        for x in range(nx):
-            for b in range(nb):
-                lam[b] = cwl[b] * scale[y, x, column[b]]
-                d[b] = data[y, x, b]
-            m = sort_samples(lam, d, nb)
-            j = 0
-            for k in range(nb):
-                t = cwl[k]
-                if m < 2 or t < lam[0] or t > lam[m - 1]:
-                    out[y, x, k] = np.nan
-                    continue
-                while j < m - 2 and lam[j + 1] < t:
-                    j += 1
-                w = (t - lam[j]) / (lam[j + 1] - lam[j])
-                out[y, x, k] = d[j] + w * (d[j + 1] - d[j])
 
 
 @numba.njit(parallel=True, fastmath=True, boundscheck=False, cache=True)
@@ -148,6 +94,7 @@ def resample_to_nominal(data, scale, column, cwl_nm, out=None):
                and np.all(np.abs(step - step.mean()) <= 1e-6 * step.mean()))
     if uniform:
         _resample_uniform(data, scale, np.float32(cwl[0] / step.mean()), out)
-    else:
-        _resample(data, scale, column, cwl, out)
+    else:  # the pass harmonising shares, with no widening (a zero-stride view, not a cube)
+        spectra_pass(data, scale, column, cwl, np.broadcast_to(np.float64(0.0), data.shape),
+                     out, False)
     return out

@@ -1,0 +1,114 @@
+"""One convention for image coordinates: (row, col), the old x-first centre deprecated.
+
+See snapcorr/_coords.py and CONTRIBUTING.md. The old form must keep its meaning (never a
+silent swap), warn, and refuse to be mixed with the new one.
+"""
+
+import importlib
+import inspect
+import pkgutil
+import warnings
+
+import numpy as np
+import pytest
+from conftest import PAPER_LENS
+
+import snapcorr
+from snapcorr.cube import Sensor, make_cube
+from snapcorr.optics import cra_deg, cra_map, pixel_cra_deg
+from snapcorr.simulate import flat_frame, relative_illumination_map
+
+ROW, COL = 7.25, 19.5  # an off-centre optical centre in a 20 x 30 image
+
+
+def _public_functions():
+    """Every public function of every snapcorr module (by ``__all__``)."""
+    seen = {}
+    for info in pkgutil.walk_packages(snapcorr.__path__, "snapcorr."):
+        if info.name.endswith("__main__") or "._" in info.name:  # private modules
+            continue
+        mod = importlib.import_module(info.name)
+        for name in getattr(mod, "__all__", []):
+            obj = getattr(mod, name, None)
+            if inspect.isfunction(obj):
+                seen[f"{obj.__module__}.{obj.__qualname__}"] = obj
+    return seen
+
+
+def test_every_public_function_taking_an_x_first_centre_takes_center_rc():
+    missing = []
+    for name, func in _public_functions().items():
+        params = inspect.signature(func).parameters
+        if "center_px" in params and "center_rc" not in params and name != \
+                "snapcorr.optics.chief_ray.cra_deg":
+            missing.append(name)
+    assert not missing, missing
+
+
+@pytest.mark.parametrize("call", [
+    lambda **kw: flat_frame((20, 30), 22.0, 1.4, PAPER_LENS, noise=False, **kw),
+    lambda **kw: relative_illumination_map((20, 30), 22.0, 1.4, PAPER_LENS, **kw),
+    lambda **kw: cra_map((20, 30), 22.0, 21.0, **kw),
+], ids=["flat_frame", "relative_illumination_map", "cra_map"])
+def test_center_rc_is_the_old_centre_row_first_and_the_old_form_warns(call):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new form: no warning at all
+        new = call(center_rc=(ROW, COL))
+    with pytest.warns(FutureWarning, match=r"center_px is the old x-first form .* "
+                                           r"center_rc=\(7\.25, 19\.5\)"):
+        old = call(center_px=(COL, ROW))
+    np.testing.assert_array_equal(new, old)
+    # the row really is the row: the smallest angle sits at (ROW, COL)'s nearest pixel
+    cra = cra_map((20, 30), 22.0, 21.0, center_rc=(ROW, COL))
+    assert np.unravel_index(np.argmin(cra), cra.shape) == (7, 19)
+    with pytest.raises(TypeError, match="give the optical centre once"):
+        call(center_rc=(ROW, COL), center_px=(COL, ROW))
+
+
+def test_pixel_cra_deg_takes_row_first_and_cra_deg_is_deprecated():
+    rows, cols = np.arange(20)[:, None], np.arange(30)[None, :]
+    new = pixel_cra_deg(rows, cols, (ROW, COL), 22.0, 21.0)
+    with pytest.warns(FutureWarning, match="pixel_cra_deg"):
+        old = cra_deg(rows, cols, (COL, ROW), 22.0, 21.0)
+    np.testing.assert_array_equal(new, old)
+    # against the geometry written out here: tan(CRA) = d / x
+    d_mm = np.hypot(rows - ROW, cols - COL) * 22.0e-3
+    np.testing.assert_allclose(new, np.rad2deg(np.arctan(d_mm / 21.0)), rtol=1e-12)
+
+
+def test_the_correction_reports_and_takes_the_centre_row_first():
+    from snapcorr.correct import correct_cube
+
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 4), 10.0, 1.7)
+    cube = make_cube(np.ones((20, 30, 4), np.float32), sensor.cwl_nm, name="reflectance")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # snapcorr's own calls never warn
+        ds = correct_cube(cube, sensor, 1.4, PAPER_LENS, center_rc=(ROW, COL))
+    assert ds.attrs["optical_center_rc"] == [ROW, COL]
+    with pytest.warns(FutureWarning):
+        old = correct_cube(cube, sensor, 1.4, PAPER_LENS, center_px=(COL, ROW))
+    np.testing.assert_array_equal(ds["cra_deg"].values, old["cra_deg"].values)
+
+
+def test_cli_center_is_row_first_and_center_px_says_it_is_deprecated(tmp_path, cli):
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 4), 10.0, 1.7)
+    sensor.save(tmp_path / "sensor.toml")
+    PAPER_LENS.save(tmp_path / "lens.toml")
+    from snapcorr.cube import read_dataset, write_cube
+
+    write_cube(make_cube(np.ones((20, 30, 4), np.float32), sensor.cwl_nm), tmp_path / "c.nc")
+    common = ["correct", "c.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "2"]
+    new = cli(*common, "--center", f"{ROW},{COL}", "--out", "new.nc", cwd=tmp_path)
+    assert new.returncode == 0 and "deprecated" not in new.stderr, new.stderr
+    old = cli(*common, "--center-px", f"{COL},{ROW}", "--out", "old.nc", cwd=tmp_path)
+    assert old.returncode == 0
+    assert "--center-px CX,CY is deprecated" in old.stderr and \
+        f"--center {ROW:g},{COL:g}" in old.stderr
+    a, b = read_dataset(tmp_path / "new.nc"), read_dataset(tmp_path / "old.nc")
+    np.testing.assert_array_equal(a["cra_deg"].values, b["cra_deg"].values)
+    assert f"row {ROW:g}, col {COL:g}" in new.stdout
+    both = cli(*common, "--center", "1,2", "--center-px", "2,1", "--out", "x.nc",
+               cwd=tmp_path)
+    assert both.returncode == 1 and "give the optical centre once" in both.stderr
+    assert len(both.stderr.strip().splitlines()) == 1
