@@ -676,8 +676,8 @@ SCRIPT = textwrap.dedent("""
     from snapcorr._io import cleanup_on_signals
     from snapcorr.cube import write_dataset
 
-    data = da.random.random((2500, 1000, 20), chunks=(50, 1000, 20)).astype("float32")
-    ds = xr.Dataset({"radiance": (("y", "x", "band"), data)})  # 200 MB
+    data = da.random.random((5000, 1000, 20), chunks=(50, 1000, 20)).astype("float32")
+    ds = xr.Dataset({"radiance": (("y", "x", "band"), data)})  # 400 MB: seconds to write
     with cleanup_on_signals():
         write_dataset(ds, sys.argv[1])
 """)
@@ -699,7 +699,7 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path, ext, signum):
             assert proc.poll() is None, proc.communicate()[1].decode()[-2000:]
             assert time.monotonic() < deadline, "no temporary appeared"
             time.sleep(0.01)
-        time.sleep(0.3)  # well into the write
+        time.sleep(0.1)  # into the write
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=120)
     finally:
