@@ -554,7 +554,7 @@ def _write_correction(args, ds, inputs, cube_name):
         if args.no_input:
             ds.attrs["input_left_out"] = f"{cube_name} (--no-input); the input is {args.cube}"
         return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
-                                 include_input=not args.no_input)
+                                 include_input=not args.no_input, input_name=cube_name)
     return [_write_result(args, ds, inputs, [cube_name], args.cube)]
 
 
@@ -564,6 +564,9 @@ def _cmd_correct(args):
     inputs = [args.cube, args.lens, args.sensor]
     _check_outputs([args.out, args.plot], inputs, args.overwrite,
                    [(".nc", ".zarr", ".hdr"), (".png",)])
+    if args.out.suffix.lower() == ".hdr" and (args.compression != "auto" or args.store_derived):
+        raise ValueError("an ENVI result is written plainly and whole: --compression and "
+                         "--store-derived go with .nc or .zarr")
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
@@ -894,7 +897,9 @@ def _cmd_pupil(args):
                                magnification=args.magnification,
                                pupil_magnification=args.pupil_magnification,
                                inputs=seen, name=args.name or args.out.stem,
-                               progress=bar.step, pupil=args.pupil or "auto")
+                               progress=bar.step, pupil=args.pupil or (
+                                   lens.pupil if lens is not None and lens.has_vignetting
+                                   else "auto"))
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     fit.lens.save(args.out, overwrite=args.overwrite)
@@ -1377,7 +1382,8 @@ def _add_pupil_option(group):
                        "uniform per area), lambertian (sine condition, uniform in direction "
                        "cosines) or auto (both fitted to the target, the Lambertian kept only "
                        "for a chi-square gain above 10; twice the time). Default: auto with "
-                       "target cubes, else the --lens profile's, else paper")
+                       "target cubes (the --lens profile's when it has circles, which belong to "
+                       "its pupil), else the --lens profile's, else paper")
 
 
 def _add_target_fit_options(group, when=""):

@@ -65,8 +65,8 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     if (lens is None) != (f_number is None):
         raise ValueError("correcting a stream needs both a lens and an f-number")
     if lens is None and (method != "auto" or tolerance_nm is not None or center_px is not None):
-        raise ValueError("method, tolerance_nm and center_px choose the correction: give a "
-                         "lens and an f-number too (the demosaicking method is "
+        raise ValueError("method, tolerance_nm and the optical centre choose the correction: "
+                         "give a lens and an f-number too (the demosaicking method is "
                          "demosaic_method)")
     if 0 in frames.shape:
         raise ValueError(f"the stream holds no frame (shape {frames.shape})")

@@ -71,9 +71,8 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, cli):
     assert cal["f_numbers"] == [2.0, 8.0]
     assert plot.stat().st_size > 10_000
     assert "exit pupil x =" in text and "n_eff =" in text
-    # --pupil auto (the default): both pupils fitted, the paper's kept for these cubes
-    assert "pupil: paper" in text and cal["pupil_choice"]["chosen"] == "paper"
-    assert cal["pupil_choice"]["chi2"]["lambertian"] > cal["pupil_choice"]["chi2"]["paper"]
+    # the circles of --lens belong to its pupil: kept, not chosen again
+    assert lens.pupil == "paper" and "pupil_choice" not in cal
     # the sensor with the fitted index, for `snapcorr correct`, says where it came from
     fitted = Sensor.load(sensor_out)
     assert np.allclose(fitted.n_eff, cal["n_eff"]) and fitted.cwl_nm == tuple(CWL)
@@ -87,9 +86,14 @@ def test_a_known_spectrum_from_a_file(files, cli):
     res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
               files / "sensor.toml", "--target-spectrum", files / "glass.csv",
               "--magnification", "0.06", "--pupil-magnification", "1.3",
-              "--center", "46.5,61", "--pupil", "paper", "--out", out)
+              "--center", "46.5,61", "--out", out)
     assert res.returncode == 0, res
     lens = Lens.load(out)
+    # --pupil auto (the default without circles): both pupils fitted, the paper's kept for
+    # these cubes of the paper's pupil
+    choice = lens.calibration["pupil_choice"]
+    assert "pupil: paper" in res.stdout and choice["chosen"] == "paper" == lens.pupil
+    assert choice["chi2"]["lambertian"] > choice["chi2"]["paper"] + 10
     assert abs(lens.exit_pupil_mm - 21.0) < 0.21
     assert "given" in lens.calibration["target_spectrum"]
     assert lens.calibration["center_source"] == "given"
@@ -107,6 +111,8 @@ def test_a_known_spectrum_from_a_file(files, cli):
       "{d}/sensor_never.toml"], "--sensor-out needs --fit-n-eff"),
     (["--cube", "2={d}/glass_f2.nc", "--fit-n-eff", "--sensor-out", "{d}/sensor_never.toml"],
      "two or more f-numbers"),
+    (["--cube", "2={d}/glass_f2.nc", "--lens", "{d}/lens_ph.toml", "--pupil", "lambertian"],
+     "belong to the paper pupil"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, cli, args, message):
     before = snapshot(files)

@@ -138,3 +138,20 @@ def test_auto_chooses_the_pupil_the_target_shows(truth):
         assert abs(got.exit_pupil_mm / 16.0 - 1) < 0.005
         assert abs(got.exit_pupil_mm - 16.0) < 3 * got.exit_pupil_stderr_mm
         assert abs(got.n_eff[0] - 1.7) < 3 * got.n_eff_stderr[0]
+
+
+@pytest.mark.parametrize(("f", "cra_max"), [(1.4, 0.5), (1.4, 3.0), (1.0, 3.0)])
+def test_measured_responses_reach_over_the_lambertian_cone(f, cra_max):
+    """The measured-response table's window covers the Lambertian cone (arcsin NA, wider
+    than the paper's arctan), and its centres move by the Lambertian kernel's mean."""
+    from snapcorr.cube.responses import FilterResponses, Peak
+    from snapcorr.optics.measured import MeasuredTable
+
+    grid = np.arange(400.0, 1000.01, 0.1)
+    cwl, fwhm = np.array([500.0, 800.0]), np.array([8.0, 12.0])
+    curves = np.exp(-4 * np.log(2) * ((grid[None] - cwl[:, None]) / fwhm[:, None]) ** 2)
+    r = FilterResponses(grid, curves, np.ones(grid.size),
+                        [[Peak(c, w, 1.0)] for c, w in zip(cwl, fwhm, strict=True)])
+    lens = Lens(21.0, pupil="lambertian")
+    table = MeasuredTable.build(r, 1.7, f, lens, cra_max_deg=cra_max)  # raised before
+    assert np.all(np.isfinite(table.centre_nm))

@@ -182,3 +182,46 @@ def test_raw_counts_are_named_and_carry_units_through_the_correction(files, cli)
     ratio = make_cube(np.ones((4, 5, NB), np.float32), sensor.cwl_nm, name="reflectance")
     assert correct_cube(ratio, sensor, 1.4, PAPER_LENS, resample=True)["resampled"].attrs[
         "units"] == "1"
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_compression_decides_for_variables_read_from_a_file(tmp_path, ext):
+    """A variable read from a file carries that file's encoding: "all" and "none" override
+    it, "auto" keeps a compression it already has."""
+    rng = np.random.default_rng(2)
+    ds = xr.Dataset({"v": (("y", "x", "band"), rng.random((12, 14, NB), np.float32)),
+                     "n": (("y", "x", "band"), rng.integers(0, 9, (12, 14, NB), np.uint16))})
+    write_dataset(ds, tmp_path / f"plain{ext}", compression="none")
+    write_dataset(ds, tmp_path / f"packed{ext}", compression="all")
+    engine = "h5netcdf" if ext == ".nc" else "zarr"
+
+    def packed(path, name):
+        e = xr.open_dataset(path, engine=engine)[name].encoding
+        return bool(e.get("zlib")) if ext == ".nc" else bool(e.get("compressors"))
+
+    for src, comp, want in (("plain", "all", True), ("packed", "none", False),
+                            ("packed", "auto", True)):
+        got = read_dataset(tmp_path / f"{src}{ext}", chunks={})
+        out = tmp_path / f"{src}_{comp}{ext}"
+        write_dataset(got, out, compression=comp)
+        assert packed(out, "v") is want, (src, comp)
+        xr.testing.assert_equal(read_dataset(out)[["v", "n"]], ds)
+
+
+def test_envi_result_refuses_what_it_cannot_do_before_any_work(files, cli):
+    d, _, _, sensor = files
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--out", "r.hdr", "--compression", "all", cwd=d)
+    assert res.returncode == 1 and "go with .nc or .zarr" in res.stderr
+    # an image of an earlier run this one would not rewrite: refused, nothing written
+    _correct(cli, d, "r.hdr", "--harmonise")
+    before = {p.name: p.stat().st_mtime_ns for p in d.iterdir()}
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--out", "r.hdr", "--overwrite", cwd=d)
+    assert res.returncode == 1 and "r_harmonised.hdr exists" in res.stderr, res.stderr
+    assert {p.name: p.stat().st_mtime_ns for p in d.iterdir()} == before
+    # a cube read back from a result under a result's name is refused, not overwritten
+    resampled = read_cube(d / "r_harmonised.hdr")
+    assert resampled.name == "harmonised"
+    with pytest.raises(ValueError, match="a name the result gives another variable"):
+        correct_cube(resampled, sensor, 1.4, PAPER_LENS, harmonise=True)

@@ -505,6 +505,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         (the paper's without a lens). ``"auto"``: both are fitted, and the Lambertian one is
         kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
         same parameters); the choice and the two chi-squares are in the notes and the profile.
+        A lens with circles keeps its own pupil (they were found with its radius).
 
     Returns
     -------
@@ -515,6 +516,11 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     FeaturelessTargetError
         The target's signal does not change over the field above the noise.
     """
+    if lens is not None and lens.has_vignetting and pupil not in (None, lens.pupil):
+        raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil} pupil (its "
+                         f"radius sets their onsets); the {pupil} pupil would need them found "
+                         "again: fit flats and target together (calibrate_with_target, "
+                         "snapcorr calibrate --target-cube) with pupil 'auto'")
     if pupil == "auto":
         return _either_pupil(locals())
     return _locate(**locals())
@@ -536,7 +542,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
                                           n_bins)
     r_max = _field_radius(bins)
     x_lo, x_hi = _trial_range(r_max)
-    max_rel = _max_shift_rel(r_max, x_lo, n_design, base.working_f_number(min(cubes)))
+    cone = math.radians(float(base.cone_angle_deg(min(cubes))))  # the fastest cube's cone
+    max_rel = _max_shift_rel(r_max, x_lo, n_design, cone)
     circles_at = _circles_at(lens, base, scale_circles)
     model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
                                    circles_at)
@@ -565,7 +572,7 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
         if mode != "one":
             err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
     xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
-    notes += _validity_notes(r_max, x, base.working_f_number(min(cubes)), chi2_red)
+    notes += _validity_notes(r_max, x, cone, chi2_red)
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
                             inputs, name, circles_at)
@@ -596,6 +603,7 @@ def _either_pupil(args):
     ok = {k: v for k, v in fits.items() if isinstance(v, PupilFit)}
     if not ok:
         raise fits["paper"]
+    failed = [f"the {k} pupil could not be fitted ({v})" for k, v in fits.items() if k not in ok]
     chi2 = {k: v.chi2_red * v.dof for k, v in ok.items()}
     gain = chi2.get("paper", np.inf) - chi2.get("lambertian", np.inf)
     chosen = "lambertian" if "paper" not in ok or gain > PUPIL_CHI2_GAIN else "paper"
@@ -603,6 +611,7 @@ def _either_pupil(args):
     said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
     got.notes.append(f"pupil: {chosen} (chi-square {said}; the Lambertian pupil is kept only "
                      f"for a gain above {PUPIL_CHI2_GAIN:g})")
+    got.notes.extend(failed)
     cal = dict(got.lens.calibration)
     cal["pupil_choice"] = {"chosen": chosen, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
                            "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
@@ -647,9 +656,9 @@ def _trial_range(r_max):
     return x_lo, x_hi
 
 
-def _max_shift_rel(r_max, x_lo, n_design, working_f_number):
+def _max_shift_rel(r_max, x_lo, n_design, cone_rad):
     """The largest relative shift a trial may give: the edge's chief ray and the cone."""
-    phi_max = math.atan(r_max / x_lo) + math.atan(1.0 / (2.0 * float(working_f_number)))
+    phi_max = math.atan(r_max / x_lo) + cone_rad
     return 1.2 * (1 - math.sqrt(max(1 - math.sin(phi_max) ** 2
                                     / (0.6 * n_design.min()) ** 2, 0.05)))
 
@@ -796,10 +805,10 @@ def _x_n_eff(x, n, err, cov, k, n_design, one_k):
     return xn, xn_err
 
 
-def _validity_notes(r_max, x, working_f_number, chi2_red):
+def _validity_notes(r_max, x, cone_rad, chi2_red):
     """Notes where rays pass the index law's validated angle, or the model misfits."""
     notes = []
-    aoi = math.degrees(math.atan(r_max / x) + math.atan(1.0 / (2.0 * float(working_f_number))))
+    aoi = math.degrees(math.atan(r_max / x) + cone_rad)
     if aoi > AOI_VALIDITY_DEG:
         notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
                      f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "

@@ -291,10 +291,19 @@ def _dataset(cube, sensor, lens, cra, scale, column, *, source, center_source):
     return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
 
 
+#: Variables a correction's result holds besides the input cube.
+RESULT_NAMES = ("wavelength_corrected", "fwhm_corrected", "resampled", "harmonised",
+                "virtual", "mask", "cra_deg", "wavelength_scale", "scale_index", "fwhm_table",
+                "fwhm_harmonised")
+
+
 def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                   harmonise, mask=None, resample=False):
     """The checks every correction makes first; returns the f-number as a float."""
     check_cube(cube)
+    if cube.name in RESULT_NAMES:  # e.g. a resampled cube read back from its own file
+        raise ValueError(f"the cube is named {cube.name!r}, a name the result gives another "
+                         "variable: rename it first (cube.rename('radiance'))")
     if (resample or harmonise) and cube.sizes["band"] < 2:
         what = "resample" if resample else "harmonise"
         raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "

@@ -177,8 +177,11 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     if center_px is not None:
         return check_center(center_px), "given"
     cal = getattr(lens, "calibration", {}) or {}
-    if "center_px" in cal and cal.get("pixel_pitch_um") is not None:
-        cx, cy = check_center(cal["center_px"], "the lens calibration's center_px")
+    if ("center_rc" in cal or "center_px" in cal) and cal.get("pixel_pitch_um") is not None:
+        if "center_rc" in cal:  # row first; the x-first center_px beside it is for old readers
+            cy, cx = check_center(cal["center_rc"], "the lens calibration's center_rc")
+        else:
+            cx, cy = check_center(cal["center_px"], "the lens calibration's center_px")
         p_cal = float(cal["pixel_pitch_um"])
         p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
         size = cal.get("image_size_px")

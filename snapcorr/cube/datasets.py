@@ -167,11 +167,20 @@ def _store(ds, path, fmt, compression="auto"):
             from None
 
 
-def _compressible(ds):
-    """Numeric variables of two or more dims without a compression of their own."""
-    own = ("compressors", "compressor", "zlib", "compression")
+def _compresses(var):
+    """Whether ``var``'s own encoding (from the file it was read from) compresses it."""
+    e = var.encoding
+    return bool(e.get("zlib")) or bool(e.get("compression")) or bool(e.get("compressors")) \
+        or e.get("compressor") is not None
+
+
+def _compressible(ds, compression="auto"):
+    """Numeric variables of two or more dims that ``compression`` decides for: every one for
+    ``"all"`` and ``"none"`` (whatever their source's encoding), for ``"auto"`` those whose
+    own encoding does not already compress them."""
     return [name for name, v in ds.variables.items()
-            if v.dtype.kind in "biuf" and v.ndim >= 2 and not any(k in v.encoding for k in own)]
+            if v.dtype.kind in "biuf" and v.ndim >= 2
+            and (compression != "auto" or not _compresses(v))]
 
 
 def _zarr_encoding(ds, compression="auto"):
@@ -182,19 +191,19 @@ def _zarr_encoding(ds, compression="auto"):
     from zarr.codecs import BloscCodec
 
     if compression == "none":
-        return {name: {"compressors": None} for name in _compressible(ds)}
+        return {name: {"compressors": None} for name in _compressible(ds, compression)}
     codec = BloscCodec(cname="lz4", clevel=5, shuffle="bitshuffle")
-    return {name: {"compressors": [codec]} for name in _compressible(ds)}
+    return {name: {"compressors": [codec]} for name in _compressible(ds, compression)}
 
 
 def _netcdf_encoding(ds, compression="auto"):
     """DEFLATE level 1 with byte shuffling (readable by every netCDF-4 reader) where it pays:
     integer and boolean variables and stored derived ones for ``"auto"``, every numeric one
-    for ``"all"`` (see :func:`write_dataset`)."""
+    for ``"all"`` (see :func:`write_dataset`); ``"none"`` turns a source's own off."""
     if compression == "none":
-        return {}
+        return {name: {"zlib": False} for name in _compressible(ds, compression)}
     return {name: {"zlib": True, "complevel": 1, "shuffle": True}
-            for name in _compressible(ds)
+            for name in _compressible(ds, compression)
             if compression == "all" or ds[name].dtype.kind in "biu"
             or STORED_FROM in ds[name].attrs}
 

@@ -46,14 +46,6 @@ _ONE_PER_BAND = {"resampled": ("wavelength", None), "harmonised": ("wavelength",
                  "virtual": ("virtual_wavelength", "virtual_fwhm")}
 
 
-def _input_name(ds):
-    """The input cube's variable: the (y, x, band) data variable that is none of the rest."""
-    names = [n for n, v in ds.data_vars.items()
-             if v.dims[:2] == ("y", "x") and "band" in v.dims and n not in IMAGES
-             and not n.startswith("fwhm_") and not n.startswith("filter_white")]
-    return names[0] if len(names) == 1 else None
-
-
 def _as_image(var):
     """``var`` as a ``(y, x, band)`` array for ENVI: a mask as uint8, a map as one band."""
     dims = [d for d in var.dims if d not in ("y", "x")]
@@ -95,7 +87,8 @@ def _header(ds, name, var, stem, nominal, positions):
     return header
 
 
-def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=True):
+def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=True,
+                      input_name=None):
     """Write a correction result (:func:`snapcorr.correct.correct_cube`) as ENVI pairs.
 
     Parameters
@@ -111,6 +104,8 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
         Files the data came from; writing over any of them is refused.
     include_input : bool
         Also write the input's values as ``STEM.hdr``.
+    input_name : str, optional
+        The input cube's variable (default: the result's ``cube_name`` attribute).
 
     Returns
     -------
@@ -123,12 +118,22 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
     stem = path.stem
     nominal = [float(v) for v in ds["wavelength"].values]
     images = []
-    cube_name = _input_name(ds)
-    if include_input and cube_name is not None:
-        images.append((cube_name, path))
+    if include_input:
+        name = input_name or ds.attrs.get("cube_name")
+        if name not in ds.data_vars or name in IMAGES:
+            raise ValueError(f"the result holds no input cube {name!r} to write as {path.name}")
+        images.append((name, path))
     images += [(n, path.with_name(f"{stem}_{n}.hdr")) for n in IMAGES if n in ds.variables]
     if not images:
         raise ValueError("nothing to write: the result holds no image")
+    # an image of an earlier run that this one does not write would be left beside it
+    stale = [path.with_name(f"{stem}_{n}.hdr") for n in IMAGES if n not in ds.variables]
+    stale += [] if include_input else [path]
+    stale = [p for p in stale if p.exists()]
+    if stale:
+        raise ValueError(f"{stale[0]} exists and this result has no such image: it would be "
+                         "left beside the new files as if it belonged to them; move it away "
+                         "or choose another name")
     positions = _envi_position_keys(_positions(ds))
     pairs = []
     for name, hdr in images:

@@ -282,7 +282,7 @@ def _reach(n_eff, f_number, cra_max_deg, lens):
     """How far (in log wavelength) the most oblique ray at ``cra_max_deg`` scales a filter,
     with a margin: the smallest ``a`` over the bands' indices."""
     n_min = float(np.min(check_n_eff(n_eff)))
-    half = np.arctan(1.0 / (2.0 * float(lens.working_f_number(f_number))))
+    half = np.deg2rad(float(lens.cone_angle_deg(f_number)))  # the lens's own pupil
     phi = min(np.deg2rad(float(cra_max_deg)) + half, np.pi / 2)
     a = np.sqrt(max(1e-6, 1.0 - np.sin(phi) ** 2 / n_min**2))
     return float(-np.log(a)) * 1.05 + 1e-4
