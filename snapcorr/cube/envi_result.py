@@ -19,7 +19,8 @@ the resampled, harmonised and virtual cubes. The input's values sit at each pixe
 wavelengths, so their header gives none (a reader would otherwise plot them at the nominal
 ones, the error the correction removes) and names ``STEM_wavelength_corrected.hdr`` instead;
 ``snapcorr nominal wavelength`` lists the nominal ones. Every header holds the result's
-provenance (``snapcorr attrs``, JSON).
+provenance (``snapcorr attrs``, JSON). Dask images are written chunk by chunk into each file's
+memory map, so a result larger than memory can be written.
 """
 
 from __future__ import annotations
@@ -56,6 +57,26 @@ def _as_image(var):
     if var.ndim == 2:
         data = data[:, :, None]
     return data
+
+
+def _write_image(path, data, header):
+    """One ENVI pair (BSQ) at ``path``, filled block by block: a dask image is computed one
+    chunk at a time straight into the file's memory map, never held whole."""
+    from spectral.io import envi
+
+    dtype = np.dtype(data.dtype)
+    with _quiet_spectral():
+        img = envi.create_image(str(path), header, shape=tuple(data.shape), dtype=dtype,
+                                interleave="bsq", ext=".raw", force=True)
+        out = img.open_memmap(writable=True)  # (rows, cols, bands), a view of the file
+    if hasattr(data, "dask"):
+        import dask.array as da
+
+        da.store(data, out, lock=False)
+    else:
+        out[...] = data
+    out.flush()
+    del out
 
 
 def _header(ds, name, var, stem, nominal, positions):
@@ -149,13 +170,8 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
         targets += [hdr, hdr.with_suffix(".raw")]
 
     def write(folder):
-        from spectral.io import envi
-
         for name, hdr, header in pairs:
-            data = np.asarray(_as_image(ds[name]))
-            with _quiet_spectral():
-                envi.save_image(str(folder / hdr.name), data, dtype=data.dtype,
-                                interleave="bsq", ext=".raw", metadata=header, force=True)
+            _write_image(folder / hdr.name, _as_image(ds[name]), header)
 
     atomic_write_files(targets, write)
     return [hdr for _, hdr, _ in pairs]
