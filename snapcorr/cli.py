@@ -815,16 +815,8 @@ def _calibrate_with_target(args):
         raise ValueError("--target-cube needs --sensor SENSOR (the camera of the cubes: its "
                          "bands, filters and pixel pitch)")
     seen = _one_per_f_number(args.target_cube, "target cube")
-    if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
-        raise ValueError("--sensor-out needs --fit-n-eff and target cubes at two or more "
-                         "f-numbers (one f-number fixes only x * n_eff)")
-    inputs = ([p for _, p in args.flat] + [p for _, p in args.target_cube]
-              + [args.dark, args.sensor, args.target_spectrum])
-    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
-                   [(".toml",), (".png",), (".toml",)])
-    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
-            args.out):
-        raise ValueError("--sensor-out and --out are the same file; choose two paths")
+    _check_target_outputs(args, seen, [p for _, p in args.flat] + [p for _, p in args.target_cube]
+                          + [args.dark, args.sensor, args.target_spectrum], "target cubes")
     sensor = _sensor(args.sensor)
     spectrum = _target_spectrum(args.target_spectrum)
     flats, bands, sat, dark = _read_flats(args)
@@ -864,6 +856,18 @@ def _calibrate_with_target(args):
     return 0
 
 
+def _check_target_outputs(args, seen, inputs, cubes):
+    """The outputs of a target fit (``--out``, ``--plot``, ``--sensor-out``), before any work."""
+    if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
+        raise ValueError(f"--sensor-out needs --fit-n-eff and {cubes} at two or more "
+                         "f-numbers (one f-number fixes only x * n_eff)")
+    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
+                   [(".toml",), (".png",), (".toml",)])
+    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
+            args.out):
+        raise ValueError("--sensor-out and --out are the same file; choose two paths")
+
+
 def _cmd_pupil(args):
     if args.predict:
         return _pupil_predict(args)
@@ -873,15 +877,8 @@ def _cmd_pupil(args):
         raise ValueError("give --cube F_NUMBER=PATH (one per f-number) and --out LENS.toml, or "
                          "--predict to compare targets before measuring")
     seen = _one_per_f_number(args.cube, "cube")
-    if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
-        raise ValueError("--sensor-out needs --fit-n-eff and cubes at two or more f-numbers "
-                         "(one f-number fixes only x * n_eff)")
-    inputs = [p for _, p in args.cube] + [args.sensor, args.lens, args.target_spectrum]
-    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
-                   [(".toml",), (".png",), (".toml",)])
-    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
-            args.out):
-        raise ValueError("--sensor-out and --out are the same file; choose two paths")
+    _check_target_outputs(args, seen, [p for _, p in args.cube]
+                          + [args.sensor, args.lens, args.target_spectrum], "cubes")
     sensor = _sensor(args.sensor)
     lens = _lens(args.lens) if args.lens else None
     spectrum = _target_spectrum(args.target_spectrum)

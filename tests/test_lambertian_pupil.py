@@ -155,3 +155,22 @@ def test_measured_responses_reach_over_the_lambertian_cone(f, cra_max):
     lens = Lens(21.0, pupil="lambertian")
     table = MeasuredTable.build(r, 1.7, f, lens, cra_max_deg=cra_max)  # raised before
     assert np.all(np.isfinite(table.centre_nm))
+
+
+def test_the_pupil_chooser_keeps_the_paper_unless_the_gain_is_clear():
+    from types import SimpleNamespace
+
+    from snapcorr.calibrate.exit_pupil import PUPIL_CHI2_GAIN, choose_pupil
+
+    def results():
+        return {k: SimpleNamespace(notes=[], lens=Lens(21.0, pupil=k))
+                for k in ("paper", "lambertian")}
+
+    near = choose_pupil(results(), {"paper": 100.0, "lambertian": 100.0 - PUPIL_CHI2_GAIN},
+                        "chi-square")
+    assert near.lens.pupil == "paper" and near.lens.calibration["pupil_choice"]["chosen"] == \
+        "paper"
+    clear = choose_pupil(results(), {"paper": 100.0, "lambertian": 89.0}, "chi-square")
+    assert clear.lens.pupil == "lambertian" and "pupil: lambertian" in clear.notes[0]
+    only = choose_pupil({"lambertian": results()["lambertian"]}, {"lambertian": 5.0}, "x")
+    assert only.lens.pupil == "lambertian"

@@ -604,16 +604,24 @@ def _either_pupil(args):
     if not ok:
         raise fits["paper"]
     failed = [f"the {k} pupil could not be fitted ({v})" for k, v in fits.items() if k not in ok]
-    chi2 = {k: v.chi2_red * v.dof for k, v in ok.items()}
+    chosen = choose_pupil(ok, {k: v.chi2_red * v.dof for k, v in ok.items()}, "chi-square")
+    chosen.notes.extend(failed)
+    return chosen
+
+
+def choose_pupil(results, chi2, what):
+    """The result to keep of ``results`` (pupil -> a result with ``notes`` and ``lens``):
+    the paper's pupil unless the Lambertian one lowers ``chi2`` (pupil -> chi-square) by more
+    than :data:`PUPIL_CHI2_GAIN`; the choice and both chi-squares go into its notes and its
+    lens's ``[calibration] pupil_choice``."""
     gain = chi2.get("paper", np.inf) - chi2.get("lambertian", np.inf)
-    chosen = "lambertian" if "paper" not in ok or gain > PUPIL_CHI2_GAIN else "paper"
-    got = ok[chosen]
+    name = "lambertian" if "paper" not in results or gain > PUPIL_CHI2_GAIN else "paper"
+    got = results[name]
     said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
-    got.notes.append(f"pupil: {chosen} (chi-square {said}; the Lambertian pupil is kept only "
-                     f"for a gain above {PUPIL_CHI2_GAIN:g})")
-    got.notes.extend(failed)
+    got.notes.append(f"pupil: {name} ({what} {said}; the Lambertian pupil is kept only for a "
+                     f"gain above {PUPIL_CHI2_GAIN:g})")
     cal = dict(got.lens.calibration)
-    cal["pupil_choice"] = {"chosen": chosen, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
+    cal["pupil_choice"] = {"chosen": name, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
                            "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
     got.lens = dataclasses.replace(got.lens, calibration=cal)
     return got

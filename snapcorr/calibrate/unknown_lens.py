@@ -30,7 +30,6 @@ errors cover all the same.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -39,7 +38,7 @@ import numpy as np
 from .._coords import accepts_center_rc
 from ..optics.lens import Lens
 from . import choice
-from .exit_pupil import PUPIL_CHI2_GAIN, PupilFit, locate_pupil
+from .exit_pupil import PupilFit, choose_pupil, locate_pupil
 from .lens_calibration import LensCalibration, calibrate_lens
 
 __all__ = ["LensAndPupil", "calibrate_with_target"]
@@ -221,17 +220,8 @@ def _either_pupil(args):
     args = {k: v for k, v in args.items() if k != "pupil"}
     runs = {name: calibrate_with_target(**args, pupil=name)
             for name in ("paper", "lambertian")}
-    chi2 = {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()}
-    chosen = "lambertian" if chi2["paper"] - chi2["lambertian"] > PUPIL_CHI2_GAIN else "paper"
-    got = runs[chosen]
-    said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
-    got.notes.append(f"pupil: {chosen} (the target's chi-square {said}; the Lambertian pupil "
-                     f"is kept only for a gain above {PUPIL_CHI2_GAIN:g})")
-    cal = dict(got.lens.calibration)
-    cal["pupil_choice"] = {"chosen": chosen, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
-                           "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
-    got.lens = dataclasses.replace(got.lens, calibration=cal)
-    return got
+    return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()},
+                        "the target's chi-square")
 
 
 def _target_center(cubes, sensor, lens, sensor_origin_px, notes):

@@ -18,7 +18,7 @@ import numpy as np
 from .._coords import accepts_center_rc
 from .._validation import check_center, check_pair
 from ..cube.mosaic import sensor_positions
-from ..optics.chief_ray import _cra_deg as cra_deg
+from ..optics.chief_ray import _cra_deg
 
 __all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
 
@@ -247,5 +247,5 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
     center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
     # rows (ny, 1, nb) against columns (1, nx, nb)
-    cra = cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
+    cra = _cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
     return cra, center, source

@@ -238,8 +238,7 @@ def _cut_off(count):
 
 def _point_mean(s_mid, n):
     """Relative shift at one point (a pupil thinner than ``_TINY_EXTENT``)."""
-    q = s_mid / ((1.0 + s_mid) * n * n)
-    return -q / (1.0 + np.sqrt(1.0 - q))
+    return -_relative_shift(s_mid, n)
 
 
 def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes, pupil="paper"):
