@@ -315,7 +315,12 @@ def _read(path, sensor=None, origin=None):
     Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
     memory-mapped, never copied whole).
     """
-    from .cube import mosaic_to_cube, read_cube
+    return _read_with_mask(path, sensor, origin)[0]
+
+
+def _read_with_mask(path, sensor=None, origin=None):
+    """:func:`_read`'s cube and a flat-field result's ``mask`` (or None), from one opening."""
+    from .cube.io import read_cube_and_mask
 
     wl = sensor.cwl_nm if sensor is not None else None
     frame_error = None
@@ -325,13 +330,15 @@ def _read(path, sensor=None, origin=None):
         except ValueError as err:  # not a single-band frame: read it as a cube below
             frame_error = err
         else:
+            from .cube import mosaic_to_cube
+
             try:
                 return mosaic_to_cube(frame.data, sensor, origin_px=origin,
-                                      attrs={**frame.attrs, "source": str(path)})
+                                      attrs={**frame.attrs, "source": str(path)}), None
             except ValueError as err:
                 raise ValueError(f"{path}: {err}") from None
-    try:
-        cube = read_cube(path, wavelength_nm=wl, chunks="rows")  # opened once, read in blocks
+    try:  # opened once, read in blocks
+        cube, mask = read_cube_and_mask(path, wavelength_nm=wl, chunks="rows")
     except ValueError as err:
         if frame_error is not None and "2-D" in str(err):
             raise frame_error from None
@@ -342,7 +349,7 @@ def _read(path, sensor=None, origin=None):
 
         cube = with_positions(cube, *sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"],
                                                       origin))
-    return cube
+    return cube, mask
 
 
 def _frame_rows(frame, sensor):
@@ -533,17 +540,8 @@ def _cmd_stream(args):
 
 
 def _correct_input(args, sensor):
-    """The cube to correct and, from a flat-field result, its mask."""
-    from .cube import read_dataset
-
-    cube = _read(args.cube, sensor, args.sensor_origin_px)
-    mask = None
-    if args.cube.suffix.lower() in (".nc", ".zarr"):
-        src = read_dataset(args.cube, chunks={"y": cube.chunksizes["y"][0], "x": -1,
-                                              "band": -1})
-        if "mask" in src and tuple(src["mask"].dims) == ("y", "x", "band"):
-            mask = src["mask"]
-    return cube, mask
+    """The cube to correct and, from a flat-field result, its mask (the file opened once)."""
+    return _read_with_mask(args.cube, sensor, args.sensor_origin_px)
 
 
 def _write_correction(args, ds, inputs, cube_name):
@@ -560,6 +558,7 @@ def _write_correction(args, ds, inputs, cube_name):
 
 def _cmd_correct(args):
     from .correct import correct_cube
+    from .cube.derived import with_fwhm_table
 
     inputs = [args.cube, args.lens, args.sensor]
     _check_outputs([args.out, args.plot], inputs, args.overwrite,
@@ -627,6 +626,7 @@ def _cmd_correct(args):
           f"{ds.attrs['optical_center_rc'][0]:g}, col {ds.attrs['optical_center_rc'][1]:g} "
           f"({ds.attrs['optical_center_source']})"
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
+    ds = with_fwhm_table(ds)  # built by the write already
     if "fwhm_table" in ds:
         table = ds["fwhm_table"].values
         print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over "

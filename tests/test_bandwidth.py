@@ -200,11 +200,11 @@ def test_the_table_interpolates_within_its_tolerance():
 def test_a_fine_wavelength_tolerance_does_not_ask_the_width_table_for_it():
     """1e-4 nm is a valid wavelength tolerance; the FWHM table stops at its own floor
     (0.005 nm) instead of refusing the cube, and says which it used."""
-    from snapcorr.correct import correct_cube
+    from snapcorr.correct import correct_cube, with_fwhm_table
     from snapcorr.cube import Sensor, make_cube
 
     sensor = Sensor("s", "snapscan", 300.0, np.linspace(500, 900, 6), 10.0, 1.7)
     cube = make_cube(np.ones((40, 50, 6), np.float32), sensor.cwl_nm)
-    ds = correct_cube(cube, sensor, 2.8, as_lens(PAPER), tolerance_nm=1e-4)
+    ds = with_fwhm_table(correct_cube(cube, sensor, 2.8, as_lens(PAPER), tolerance_nm=1e-4))
     assert ds.attrs["tolerance_nm"] == 1e-4
     assert "within 0.005 nm" in ds["fwhm_table"].attrs["source"]

@@ -1,6 +1,7 @@
-"""``correct_cube(..., fwhm=False)``: the FWHM table behind ``fwhm_corrected`` costs the same
-whatever the cube's size (most of a small correction), so a correction that does not read the
-widths can skip it; everything else it gives is unchanged."""
+"""The FWHM table behind ``fwhm_corrected`` costs the same whatever the cube's size (most of a
+small correction): ``correct_cube`` builds it when the widths are first read (their values, a
+write, ``with_fwhm_table``), never when nothing reads them, and ``fwhm=False`` leaves them out;
+everything else it gives is unchanged."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from conftest import PAPER_TRUTH
 from snapcorr import Lens
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, make_cube, read_dataset, write_dataset
+from snapcorr.cube.derived import LazyTable, with_fwhm_table
 from snapcorr.optics import FwhmTable
 
 LENS = Lens(PAPER_TRUTH.exit_pupil_mm, PAPER_TRUTH.circles, PAPER_TRUTH.magnification,
@@ -48,10 +50,11 @@ def _refuse(monkeypatch):
 
 def test_without_fwhm_the_table_is_not_built_and_the_rest_is_the_same(monkeypatch, builds):
     cube = _cube()
-    whole = correct_cube(cube, SENSOR, 1.4, LENS, center_px=(28.0, 20.0), resample=True)
+    whole = with_fwhm_table(correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0),
+                                         resample=True))
     assert len(builds) == 1 and all(v in whole.variables for v in WIDTHS)
     _refuse(monkeypatch)
-    lean = correct_cube(cube, SENSOR, 1.4, LENS, center_px=(28.0, 20.0), resample=True,
+    lean = correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), resample=True,
                         fwhm=False)
     assert not any(v in lean.variables for v in WIDTHS)
     xr.testing.assert_identical(lean, whole.drop_vars(list(WIDTHS)))
@@ -59,10 +62,27 @@ def test_without_fwhm_the_table_is_not_built_and_the_rest_is_the_same(monkeypatc
                                   whole["wavelength_corrected"].values)
 
 
+def test_the_table_waits_for_the_first_read_of_the_widths(monkeypatch, builds):
+    """The default correction returns before any table is built; a correction whose widths
+    nobody reads never builds one (resampled values read, written as a file without them)."""
+    cube = _cube()
+    ds = correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), resample=True)
+    assert builds == [] and "fwhm_corrected" in ds.coords and "fwhm_table" not in ds
+    ds["resampled"].values, ds["wavelength_corrected"].values
+    ds.isel(y=slice(0, 5)).fwhm_corrected  # noqa: B018  (selecting reads nothing)
+    assert builds == []
+    first = ds["fwhm_corrected"].values
+    assert len(builds) == 1
+    np.testing.assert_array_equal(ds["fwhm_corrected"].values, first)  # kept, not rebuilt
+    np.testing.assert_array_equal(ds.isel(band=[2, 5])["fwhm_corrected"].values,
+                                  first[:, :, [2, 5]])
+    assert len(builds) == 1
+
+
 def test_the_default_builds_the_table_once_and_reads_the_same_widths(builds):
     """The widths (read lazily, block by block) are the table's, interpolated per pixel."""
     cube = _cube()
-    ds = correct_cube(cube, SENSOR, 1.4, LENS, center_px=(28.0, 20.0))
+    ds = with_fwhm_table(correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0)))
     assert len(builds) == 1
     table = FwhmTable.build(SENSOR.cwl_nm, SENSOR.fwhm_nm, SENSOR.n_eff, 1.4, LENS,
                             cra_max_deg=ds.attrs["cra_max_deg"], tolerance_nm=0.01)
@@ -70,12 +90,75 @@ def test_the_default_builds_the_table_once_and_reads_the_same_widths(builds):
     np.testing.assert_array_equal(ds["fwhm_cra_deg"].values, table.cra_deg)
     want = table(ds["cra_deg"].values).astype(np.float32)
     np.testing.assert_allclose(ds["fwhm_corrected"].values, want, rtol=0, atol=1e-4)
+    # the lazy widths and the eager ones (a harmonising correction builds its table first)
+    eager = correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), harmonise=True)
+    np.testing.assert_array_equal(eager["fwhm_corrected"].values, ds["fwhm_corrected"].values)
+    xr.testing.assert_identical(eager["fwhm_table"], ds["fwhm_table"])
+
+
+def test_a_lazy_table_is_written_with_the_file(tmp_path, builds):
+    """The file holds the table (built for the write), so readers rebuild the same widths;
+    a selection of bands writes their rows of it."""
+    ds = correct_cube(_cube(), SENSOR, 1.4, LENS, center_rc=(20.0, 28.0))
+    write_dataset(ds, tmp_path / "c.nc")
+    assert len(builds) == 1
+    back = read_dataset(tmp_path / "c.nc")
+    assert "fwhm_table" in back and "fwhm_corrected" in back.coords
+    np.testing.assert_array_equal(back["fwhm_corrected"].values, ds["fwhm_corrected"].values)
+    some = ds.isel(band=[6, 1, 3], x=slice(10, 30))
+    write_dataset(some, tmp_path / "some.zarr")
+    back = read_dataset(tmp_path / "some.zarr")
+    np.testing.assert_array_equal(back["fwhm_corrected"].values,
+                                  some["fwhm_corrected"].values)
+    np.testing.assert_array_equal(back["fwhm_table"].values,
+                                  with_fwhm_table(ds)["fwhm_table"].values[[6, 1, 3]])
+    assert len(builds) == 1
+
+
+def test_what_a_file_could_not_rebuild_is_stored_whole(tmp_path):
+    """A derived variable whose compact form a selection dropped (or whose lazy table was
+    lost) is written as a plain variable, not listed for a rebuild the reader cannot do."""
+    ds = correct_cube(_cube(), SENSOR, 1.4, LENS, center_rc=(20.0, 28.0))
+    cut = ds.drop_vars("wavelength_scale")
+    cut["fwhm_corrected"].encoding.clear()
+    write_dataset(cut, tmp_path / "cut.nc")
+    raw = xr.open_dataset(tmp_path / "cut.nc")
+    assert {"wavelength_corrected", "fwhm_corrected"} <= set(raw.data_vars)
+    assert "derived_variables" not in raw.attrs
+    back = read_dataset(tmp_path / "cut.nc")
+    for name in ("wavelength_corrected", "fwhm_corrected"):
+        np.testing.assert_array_equal(back[name].values, ds[name].values)
+    raw.close()
+
+
+def test_the_lazy_table_travels_and_is_built_once(builds):
+    """Copies share it (xarray copies encodings); pickled, it carries what was built."""
+    import copy
+    import pickle
+    import threading
+
+    ds = correct_cube(_cube(), SENSOR, 1.4, LENS, center_rc=(20.0, 28.0))
+    table = ds["fwhm_corrected"].encoding["snapcorr_fwhm_table"]
+    assert isinstance(table, LazyTable) and not table.built
+    assert copy.deepcopy(ds)["fwhm_corrected"].encoding["snapcorr_fwhm_table"] is table
+    fresh = pickle.loads(pickle.dumps(table))
+    assert not fresh.built
+    threads = [threading.Thread(target=table) for _ in range(4)]  # at once: built once
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(builds) == 1 and table.built
+    again = pickle.loads(pickle.dumps(table))
+    assert again.built
+    xr.testing.assert_identical(again(), table())
+    assert len(builds) == 1
 
 
 def test_harmonising_builds_the_table_once_and_gives_the_same_values_either_way(builds):
     cube = _cube()
-    whole = correct_cube(cube, SENSOR, 1.4, LENS, center_px=(28.0, 20.0), harmonise=True)
-    lean = correct_cube(cube, SENSOR, 1.4, LENS, center_px=(28.0, 20.0), harmonise=True,
+    whole = correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), harmonise=True)
+    lean = correct_cube(cube, SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), harmonise=True,
                         fwhm=False)
     assert len(builds) == 2  # one a correction: the harmonising needs it
     assert not any(v in lean.variables for v in WIDTHS)
@@ -84,7 +167,7 @@ def test_harmonising_builds_the_table_once_and_gives_the_same_values_either_way(
 
 def test_a_correction_without_widths_round_trips_through_a_file(tmp_path, monkeypatch):
     _refuse(monkeypatch)
-    ds = correct_cube(_cube(), SENSOR, 1.4, LENS, center_px=(28.0, 20.0), fwhm=False)
+    ds = correct_cube(_cube(), SENSOR, 1.4, LENS, center_rc=(20.0, 28.0), fwhm=False)
     write_dataset(ds, tmp_path / "c.nc")
     back = read_dataset(tmp_path / "c.nc")
     assert not any(v in back.variables for v in WIDTHS)
@@ -108,7 +191,7 @@ def test_measured_responses_build_only_the_table_their_centres_need(monkeypatch,
     sensor = dataclasses.replace(vendor, n_eff=(1.8,) * 25, pixel_pitch_um=5.5)
     frame = np.random.default_rng(0).uniform(0.2, 0.8, (20, 20)).astype(np.float32)
     cube = mosaic_to_cube(frame, sensor, origin_px=(40, 60))
-    whole = correct_cube(cube, sensor, 2.0, PAPER_LENS, method=method)
+    whole = with_fwhm_table(correct_cube(cube, sensor, 2.0, PAPER_LENS, method=method))
     calls = []
     original = MeasuredTable.build.__func__
 

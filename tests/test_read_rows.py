@@ -48,3 +48,35 @@ def test_flatfield_opens_each_input_once(tmp_path, cli, monkeypatch):
               "--out", "ff.nc", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert sorted(opened) == ["dark.hdr", "raw.hdr", "white.hdr"], opened
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_correct_opens_its_input_once_and_keeps_its_mask(tmp_path, cli, monkeypatch, ext):
+    """A flat-field result's cube and mask come from one opening of the file."""
+    import snapcorr.cube.datasets as cds
+    from snapcorr.cube import read_dataset
+    from snapcorr.data import lens_path
+
+    rng = np.random.default_rng(2)
+    for name, level in (("raw", 2000), ("dark", 100), ("white", 3000)):
+        data = (level + rng.integers(0, 50, (16, 20, 4))).astype(np.uint16)
+        if name == "white":
+            data[3, 4, 1] = 50  # below the dark: masked
+        write_cube(make_cube(data, [500.0, 520.0, 540.0, 560.0]), tmp_path / f"{name}.hdr")
+    (tmp_path / "sensor.toml").write_text(
+        '[sensor]\nname = "p4"\nlayout = "snapscan"\npixel_pitch_um = 5.5\n'
+        "cwl_nm = [500.0, 520.0, 540.0, 560.0]\nfwhm_nm = 10.0\nn_eff = 1.7\n")
+    res = cli("flatfield", "raw.hdr", "--dark", "dark.hdr", "--white", "white.hdr",
+              "--out", f"ff{ext}", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    mask = read_dataset(tmp_path / f"ff{ext}")["mask"].values
+    assert mask.any() and not mask.all()
+    opened = []
+    real = cds._open_dataset
+    monkeypatch.setattr(cds, "_open_dataset",
+                        lambda path, *a: opened.append(str(path)) or real(path, *a))
+    res = cli("correct", f"ff{ext}", "--lens", str(lens_path("edmund_optics_16mm")),
+              "--sensor", "sensor.toml", "--f-number", "2", "--out", "c.nc", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert [p.rsplit("/", 1)[-1] for p in opened] == [f"ff{ext}"], opened
+    np.testing.assert_array_equal(read_dataset(tmp_path / "c.nc")["mask"].values, mask)

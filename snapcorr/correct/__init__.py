@@ -1,5 +1,6 @@
 """Per-pixel wavelength correction of cubes (Goossens et al. 2019, Eq. 8 and 23)."""
 
+from ..cube.derived import with_fwhm_table
 from .core import correct_cube, relative_shift
 from .geometry import PlacementError, cube_cra_deg, cube_positions, optical_center
 from .resample import resample_to_nominal
@@ -15,4 +16,5 @@ __all__ = [
     "relative_shift",
     "resample_to_nominal",
     "virtual_bands",
+    "with_fwhm_table",
 ]

@@ -10,6 +10,7 @@ exact models, Eq. (6) directly for the asymptotic one. The cube itself is not to
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -18,7 +19,7 @@ import xarray as xr
 from .. import __version__
 from .._coords import accepts_center_rc
 from .._validation import check_positive, validate_method
-from ..cube.derived import corrected_fwhm, corrected_wavelength
+from ..cube.derived import LazyTable, corrected_fwhm, corrected_wavelength, lazy_fwhm
 from ..cube.flatfield import cf_attrs
 from ..cube.model import check_cube
 from ..cube.sensor import Sensor
@@ -128,10 +129,10 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     virtual_wavelengths_nm, virtual_fwhm_nm : array_like, optional
         Centres and widths of fitted virtual bands (default: the vendor's).
     fwhm : bool
-        Also give each pixel's response FWHM (``fwhm_corrected`` over ``fwhm_table``; needs
-        ``n_eff``). The table costs 0.5-1.1 s for 150 bands whatever the cube's size, and its
-        length is known only once built: ``False`` skips it (harmonising and measured
-        responses build it all the same, and ``False`` only leaves it out).
+        Give each pixel's response FWHM (``fwhm_corrected``; needs ``n_eff``) from a table
+        over CRA (0.5-1.1 s for 150 bands), built when first read (values, a write, or
+        :func:`~snapcorr.correct.with_fwhm_table`, which adds ``fwhm_table``) unless the
+        harmonising needs it first. ``False`` leaves the widths out.
 
     Returns
     -------
@@ -141,11 +142,10 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         (one factor per pixel and effective index for a Snapscan), and the coordinate
         ``wavelength_corrected(y, x, band)`` (float32, nm) rebuilt from them lazily, block by
         block (:mod:`snapcorr.cube.derived`); ``cra_deg(y, x[, band])``;
-        ``fwhm_corrected(y, x, band)`` (float32, nm; each pixel's response FWHM, rebuilt
-        lazily from ``fwhm_table(band, fwhm_cra)``) unless ``fwhm=False``; ``resampled``
-        and ``harmonised`` (with ``fwhm_harmonised(band)``, the common response) on
-        request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the matrix used,
-        on request; provenance in attrs.
+        ``fwhm_corrected(y, x, band)`` (float32, nm, lazily) unless ``fwhm=False``;
+        ``resampled`` and ``harmonised`` (with ``fwhm_harmonised(band)``, the common
+        response) on request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the
+        matrix used, on request; provenance in attrs.
     """
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask, resample)
@@ -158,12 +158,13 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     widths = _width_table(sensor, lens, f, cra_max, tolerance_nm) if first else None
     scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
     scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-    # the resampling pass before the table: after it, an in-memory pass ran a fifth slower
-    resampled = _resampled(cube, scale, column, cwl) if resample else None
-    if want and widths is None:
+    resampled = _resampled(cube, scale, column, cwl) if resample else None  # before a table
+    if want and widths is None and (harmonise or used == "harmonised"):
         widths = _width_table(sensor, lens, f, cra_max, tolerance_nm)
     ds = _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source,
                     widths if fwhm else None, mask, resampled)
+    if want and fwhm and widths is None:  # only fwhm_corrected reads it: built on first use
+        ds = _with_lazy_fwhm(ds, cube, sensor, lens, f, cra_max, tolerance_nm)
     if harmonise or used == "harmonised":
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
                          scale_at, n_eff, sensor, f, lens)
@@ -406,22 +407,45 @@ def _width_table(sensor, lens, f, cra_max, tolerance_nm):
                                tolerance_nm=tol)
 
 
-def _with_fwhm(ds, cube, lens, sensor, f, table):
-    """``fwhm_corrected``: the width table interpolated per pixel lazily."""
-    ds = ds.assign_coords(fwhm_cra_deg=("fwhm_cra", table.cra_deg,
-                                        {"units": "degree",
-                                         "long_name": "chief-ray angles of fwhm_table"}))
+def _fwhm_dataset(table, lens, sensor, f):
+    """The width table as stored: ``fwhm_table(band, fwhm_cra)`` over ``fwhm_cra_deg``, with
+    the bands' nominal ``wavelength``."""
     if sensor.responses is not None:
         what = (f"measured responses through the system ({sensor.responses.system_name}), "
                 "each ray scaling the whole curve, FWHM about the main peak,")
     else:
         what = f"{sensor.profile} filters (FWHM {_span(sensor.fwhm_nm)} nm at normal incidence)"
-    ds["fwhm_table"] = (("band", "fwhm_cra"), table.fwhm_nm, {
-        "units": "nm", "long_name": "FWHM of each band's whole response at fwhm_cra_deg",
-        "source": f"{what} spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
-                  "et al. 2019 Eq. 13, 37; each ray scales the curve); linear interpolation "
-                  f"within {table.tolerance_nm:g} nm"})
+    return xr.Dataset(
+        {"fwhm_table": (("band", "fwhm_cra"), table.fwhm_nm, {
+            "units": "nm", "long_name": "FWHM of each band's whole response at fwhm_cra_deg",
+            "source": f"{what} spread by the kernel of lens {lens.name} at f/{f:g} (Goossens "
+                      "et al. 2019 Eq. 13, 37; each ray scales the curve); linear "
+                      f"interpolation within {table.tolerance_nm:g} nm"})},
+        coords={"fwhm_cra_deg": ("fwhm_cra", table.cra_deg, {
+                    "units": "degree", "long_name": "chief-ray angles of fwhm_table"}),
+                "wavelength": ("band", np.asarray(sensor.cwl_nm, float))})
+
+
+def _built_fwhm_dataset(sensor, lens, f, cra_max, tolerance_nm):
+    return _fwhm_dataset(_width_table(sensor, lens, f, cra_max, tolerance_nm), lens, sensor, f)
+
+
+def _with_fwhm(ds, cube, lens, sensor, f, table):
+    """``fwhm_corrected``: the width table interpolated per pixel lazily."""
+    t = _fwhm_dataset(table, lens, sensor, f)
+    ds = ds.assign_coords(fwhm_cra_deg=t["fwhm_cra_deg"])
+    ds["fwhm_table"] = t["fwhm_table"].drop_vars("wavelength")
     return ds.assign_coords(fwhm_corrected=corrected_fwhm(ds, chunks=cube.chunks))
+
+
+def _with_lazy_fwhm(ds, cube, sensor, lens, f, cra_max, tolerance_nm):
+    """``fwhm_corrected`` over a width table built when it is first read (its values, a write,
+    :func:`~snapcorr.cube.derived.with_fwhm_table`): a correction that never reads the
+    widths never builds it (0.5-1 s for 150 bands, whatever the cube's size)."""
+    table = LazyTable(functools.partial(_built_fwhm_dataset, sensor, lens, f, cra_max,
+                                        tolerance_nm))
+    return ds.assign_coords(fwhm_corrected=lazy_fwhm(ds["cra_deg"], table, ds.sizes["band"],
+                                                     chunks=cube.chunks))
 
 
 #: Chief-ray-angle step of the Snapscan path's weight tables, between which a pixel's weights

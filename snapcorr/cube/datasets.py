@@ -18,6 +18,7 @@ import xarray as xr
 
 from .._io import atomic_write, atomic_write_dir
 from .attrs import _mark, _one_line, decode_attrs, encode_attrs
+from .derived import rebuildable, with_fwhm_table
 from .formats import _File, _Rows
 from .model import DIMS
 
@@ -86,6 +87,8 @@ def _read_xarray(path, fmt, chunks):
         var = _rows(ds[frames[0]], chunks).expand_dims("band", axis=2)
     attrs = {**decode_attrs(ds.attrs), **var.attrs}  # the variables' are decoded above
     found = _File(path, fmt, var, name=var.name, attrs=attrs)
+    if "mask" in ds.data_vars and tuple(ds["mask"].dims) == DIMS and var.name != "mask":
+        found.extras["mask"] = _rows(ds["mask"], chunks)  # a flat-field result's, same file
     if "wavelength" in var.coords:
         found.wavelength = var["wavelength"].values
         found.units = var["wavelength"].attrs.get("units")
@@ -126,23 +129,24 @@ def _encoded(ds, store_derived=False):
     if not isinstance(ds, xr.Dataset):
         raise TypeError(f"write_dataset writes an xarray.Dataset, got {type(ds).__name__}; "
                         "for a cube use write_cube or cube.to_dataset()")
+    ds = with_fwhm_table(ds)  # a width table not built yet is built for the file
     derived = [n for n, v in ds.variables.items() if "derived_from" in v.attrs]
     listed = ds.attrs.get("derived_variables", [])
     if isinstance(listed, str):
         listed = listed.replace(",", " ").split()
     attrs = dict(ds.attrs)
-    if store_derived:
-        # plain variables for readers without snapcorr; data variables rather than
-        # coordinates, so that they are written block by block like the cube
-        out = ds.reset_coords([n for n in derived if n in ds.coords]).copy()
-        for name in derived:
-            var_attrs = dict(out[name].attrs)
-            var_attrs[STORED_FROM] = var_attrs.pop("derived_from")
-            out[name].attrs = var_attrs
-        names = [n for n in listed if n not in derived]
-    else:
-        out = ds.drop_vars(derived).copy()
-        names = list(dict.fromkeys([*listed, *derived]))
+    # what the file could not rebuild (a selection that dropped its compact form) is stored
+    whole = derived if store_derived else [n for n in derived if not rebuildable(ds, n)]
+    # plain variables for readers without snapcorr; data variables rather than coordinates,
+    # so that they are written block by block like the cube
+    out = ds.reset_coords([n for n in whole if n in ds.coords])
+    out = out.drop_vars([n for n in derived if n not in whole]).copy()
+    for name in whole:
+        var_attrs = dict(out[name].attrs)
+        var_attrs[STORED_FROM] = var_attrs.pop("derived_from")
+        out[name].attrs = var_attrs
+    names = list(dict.fromkeys([*(n for n in listed if n not in whole),
+                                *(n for n in derived if n not in whole)]))
     attrs.pop("derived_variables", None)
     if names:
         attrs["derived_variables"] = names

@@ -13,10 +13,13 @@ A variable or coordinate whose attrs carry ``derived_from`` is not written by
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import xarray as xr
 
-__all__ = ["DERIVED", "corrected_fwhm", "corrected_wavelength", "restore"]
+__all__ = ["DERIVED", "LazyTable", "corrected_fwhm", "corrected_wavelength", "lazy_fwhm",
+           "rebuildable", "restore", "with_fwhm_table"]
 
 WAVELENGTH_ATTRS = {
     "units": "nm",
@@ -116,15 +119,44 @@ def corrected_fwhm(ds, *, chunks=None):
         ``(y_chunks, x_chunks, band_chunks)`` of the result (default: blocks of about 16 MiB
         of rows, every band).
     """
+    table = _table_arrays(ds)
+    return _fwhm_from(ds["cra_deg"], lambda: table, table[1].shape[0], chunks)
+
+
+def lazy_fwhm(cra, table, n_bands, *, chunks=None):
+    """``fwhm_corrected(y, x, band)`` over a table not built yet: ``table()`` builds it (a
+    :class:`LazyTable` of a Dataset holding ``fwhm_table`` and ``fwhm_cra_deg``) when the
+    first block is computed. The result's encoding carries ``table`` under
+    :data:`LAZY_TABLE`, where :func:`with_fwhm_table` and the writers find it.
+
+    Parameters
+    ----------
+    cra : xarray.DataArray
+        ``cra_deg(y, x)`` or ``cra_deg(y, x, band)``.
+    table : LazyTable
+    n_bands : int
+    chunks : tuple of tuples, optional
+        As for :func:`corrected_fwhm`.
+    """
+    out = _fwhm_from(cra, lambda: _table_arrays(table()), int(n_bands), chunks)
+    out.encoding[LAZY_TABLE] = table
+    return out
+
+
+def _table_arrays(ds):
+    """``(nodes, table)`` of a Dataset with ``fwhm_table`` and ``fwhm_cra_deg``, float64."""
+    return (np.asarray(ds["fwhm_cra_deg"].values, float),
+            np.asarray(ds["fwhm_table"].transpose("band", "fwhm_cra").values, float))
+
+
+def _fwhm_from(cra, arrays, nb, chunks):
+    """The lazy interpolation of ``arrays()`` (``(nodes, table)``, asked for in each block)
+    at ``cra``."""
     import dask.array as da
 
-    table = np.asarray(ds["fwhm_table"].transpose("band", "fwhm_cra").values, float)
-    nodes = np.asarray(ds["fwhm_cra_deg"].values, float)
-    cra = ds["cra_deg"]
     per_band = "band" in cra.dims
     cra = cra.transpose("y", "x", *(("band",) if per_band else ())).data
     ny, nx = cra.shape[:2]
-    nb = table.shape[0]
     if chunks is None:
         rows = max(1, (16 * 2**20) // max(1, nx * nb * 4))
         chunks = (tuple(min(rows, ny - r) for r in range(0, ny, rows)) or (0,), (nx,), (nb,))
@@ -132,24 +164,105 @@ def corrected_fwhm(ds, *, chunks=None):
     cc = (ychunks, xchunks) + ((bchunks,) if per_band else ())
     c = cra.rechunk(cc) if isinstance(cra, da.Array) else da.from_array(np.asarray(cra),
                                                                         chunks=cc)
+
+    def block(a, lo, n):
+        nodes, table = arrays()
+        return _fwhm_block(np.asarray(a, float), nodes, table[lo:lo + n])
+
     parts, lo = [], 0
     for k, n in enumerate(bchunks):
-        t = table[lo:lo + n]
         if per_band:
             piece = c.blocks[:, :, k] if len(bchunks) > 1 else c
         else:
             piece = c
-        parts.append(piece.map_blocks(lambda a, t=t: _fwhm_block(np.asarray(a, float), nodes, t),
-                                      chunks=(ychunks, xchunks, (n,)), dtype=np.float32,
-                                      meta=np.empty((0, 0, 0), np.float32),
+        parts.append(piece.map_blocks(block, lo, n, chunks=(ychunks, xchunks, (n,)),
+                                      dtype=np.float32, meta=np.empty((0, 0, 0), np.float32),
                                       **({} if per_band else {"new_axis": 2})))
         lo += n
     data = da.concatenate(parts, axis=2) if len(parts) > 1 else parts[0]
     return xr.DataArray(data, dims=("y", "x", "band"), attrs=dict(FWHM_ATTRS))
 
 
+#: The encoding key under which a lazy ``fwhm_corrected`` carries its :class:`LazyTable`.
+LAZY_TABLE = "snapcorr_fwhm_table"
+
+
+class LazyTable:
+    """A value built by ``build()`` on its first use, once (thread-safe), then kept.
+
+    The FWHM table behind a lazy ``fwhm_corrected``: a correction that never reads the
+    widths never pays for them. Copies (``copy``, ``deepcopy``, as xarray makes of an
+    encoding) are the same object; a pickled one carries the value if it was built.
+    """
+
+    def __init__(self, build):
+        self._build = build
+        self._value = None
+        self._lock = threading.Lock()
+
+    @property
+    def built(self):
+        """Whether the value has been built."""
+        return self._value is not None
+
+    def __call__(self):
+        if self._value is None:
+            with self._lock:
+                if self._value is None:
+                    self._value = self._build()
+        return self._value
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+    def __getstate__(self):
+        return {"_build": self._build, "_value": self._value}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def __repr__(self):
+        return f"<LazyTable {'built' if self.built else 'not built yet'}>"
+
+
+def with_fwhm_table(ds):
+    """``ds`` with its ``fwhm_table(band, fwhm_cra)`` and ``fwhm_cra_deg``, building the table
+    if ``fwhm_corrected`` holds it lazily (as :func:`snapcorr.correct.correct_cube` leaves it
+    when nothing else needs the widths). A Dataset without either is returned unchanged.
+    """
+    if "fwhm_table" in ds.variables or "fwhm_corrected" not in ds.variables:
+        return ds
+    table = ds["fwhm_corrected"].encoding.get(LAZY_TABLE)
+    if table is None:
+        return ds
+    t = table()
+    if "wavelength" in ds.variables:  # by the bands' own wavelengths: selections follow
+        where = {float(w): i for i, w in enumerate(t["wavelength"].values)}
+        pick = [where.get(float(w)) for w in np.atleast_1d(ds["wavelength"].values)]
+        if None in pick:
+            raise ValueError("the FWHM table was built for other bands than this Dataset "
+                             "holds; call with_fwhm_table before changing its wavelengths")
+        t = t.isel(band=pick)
+    out = ds.assign_coords(fwhm_cra_deg=t["fwhm_cra_deg"])
+    out["fwhm_table"] = t["fwhm_table"].drop_vars("wavelength", errors="ignore")
+    return out
+
+
 #: Name -> function rebuilding it from a Dataset read back from a file.
 DERIVED = {"wavelength_corrected": corrected_wavelength, "fwhm_corrected": corrected_fwhm}
+
+#: Name -> the variables :data:`DERIVED` rebuilds it from.
+NEEDS = {"wavelength_corrected": ("wavelength", "wavelength_scale", "scale_index"),
+         "fwhm_corrected": ("cra_deg", "fwhm_table", "fwhm_cra_deg")}
+
+
+def rebuildable(ds, name):
+    """Whether ``ds`` holds all that :data:`DERIVED` needs to rebuild ``name``."""
+    return name in DERIVED and all(v in ds.variables for v in NEEDS[name])
 
 
 def restore(ds):

@@ -81,6 +81,7 @@ class _File:
     name: object = None
     attrs: dict = field(default_factory=dict)
     positions: dict = field(default_factory=dict)  # name -> array or encoded dict
+    extras: dict = field(default_factory=dict)  # e.g. a flat-field result's mask
 
 
 def _rows_per_block(nx, nb, dtype, target_bytes):

@@ -125,8 +125,8 @@ from .writing import _check_targets as _check_targets
 from .writing import _check_writable as _check_writable
 from .writing import _targets
 
-__all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_dataset", "read_frame", "row_blocks",
-           "write_cube", "write_dataset"]
+__all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_cube_and_mask", "read_dataset",
+           "read_frame", "row_blocks", "write_cube", "write_dataset"]
 
 
 #: Target size of the blocks a cube is streamed in (``snapcorr correct``, ``flatfield``), and
@@ -221,6 +221,25 @@ def read_cube(path, *, wavelength_nm=None, chunks=None):
         Not a regular file (or folder for ``.zarr``), an unreadable or invalid file, wavelengths
         missing, in no length unit or not plausible in nm, values that are not real numbers.
     """
+    return read_cube_and_mask(path, wavelength_nm=wavelength_nm, chunks=chunks)[0]
+
+
+def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
+    """:func:`read_cube`'s cube and, from a netCDF or Zarr flat-field result, its
+    ``mask(y, x, band)`` in the same blocks (None otherwise): the file is opened once.
+
+    Parameters
+    ----------
+    path : str or Path
+    wavelength_nm : array_like, optional
+    chunks : dict or "rows", optional
+        As for :func:`read_cube`; the mask comes in the cube's blocks.
+
+    Returns
+    -------
+    cube : xarray.DataArray
+    mask : xarray.DataArray or None
+    """
     chunks = _as_chunks(chunks)
     f = _read_file(path, chunks=chunks, what="cube")
     try:
@@ -231,7 +250,10 @@ def read_cube(path, *, wavelength_nm=None, chunks=None):
         raise type(err)(f"{f.path}: {err}") from None
     if chunks is not None and cube.chunks is None:  # read in memory (TIFF, OpenEXR)
         cube = cube.chunk(_resolve_chunks(chunks, cube.shape, cube.dtype))
-    return cube
+    mask = f.extras.get("mask")
+    if mask is not None and cube.chunks is not None:  # block for block with the cube
+        mask = mask.chunk(dict(zip(mask.dims, cube.chunks, strict=True)))
+    return cube, mask
 
 
 def _cube_wavelengths(f, given, n_bands):
