@@ -8,7 +8,14 @@ import numpy as np
 
 __all__ = ["WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers",
            "check_numbers", "check_pair", "check_positive", "check_positive_array",
-           "check_wavelengths_nm", "validate_method"]
+           "check_wavelengths_nm", "shown", "validate_method"]
+
+
+def shown(value, limit=40):
+    """``repr(value)`` cut to ``limit`` characters, for messages (a 400-digit integer from a
+    TOML file is no better shown whole)."""
+    r = repr(value)
+    return r if len(r) <= limit else r[:limit - 3] + "..."
 
 
 def check_positive(name, value):
@@ -16,13 +23,15 @@ def check_positive(name, value):
     (not a boolean, not text: a command line's strings are converted where they are parsed)."""
     kind = _not_a_number(value)
     if kind:
-        raise ValueError(f"{name} must be a number, got {kind} ({value!r})")
+        raise ValueError(f"{name} must be a number, got {kind} ({shown(value)})")
     try:
         v = float(value)
+    except OverflowError:
+        raise ValueError(f"{name} must be a finite number > 0, got {shown(value)}") from None
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+        raise ValueError(f"{name} must be a number, got {shown(value)}") from None
     if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        raise ValueError(f"{name} must be a finite number > 0, got {shown(value)}")
     return v
 
 
@@ -63,8 +72,8 @@ def check_positive_array(name, values, unit=""):
     """
     try:
         v = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numbers, got {values!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be numbers, got {shown(values)}") from None
     if not (np.all(np.isfinite(v)) and np.all(v > 0)):
         unit = f" ({unit})" if unit else ""
         raise ValueError(f"{name} must be finite and > 0{unit}, got {np.ravel(v)[:5].tolist()}")
@@ -89,10 +98,10 @@ def check_pair(name, value, what="two numbers"):
     """
     try:
         a, b = (float(c) for c in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be {what}, got {shown(value)}") from None
     if not (math.isfinite(a) and math.isfinite(b)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(f"{name} must be finite, got {shown(value)}")
     return a, b
 
 
@@ -161,8 +170,8 @@ def check_wavelengths_nm(name, values, *, where=""):
     prefix = f"{where}: " if where else ""
     try:
         w = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{prefix}{name} must be numbers (nm), got {values!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{prefix}{name} must be numbers (nm), got {shown(values)}") from None
     if w.dtype == bool or np.asarray(values).dtype == bool:
         raise ValueError(f"{prefix}{name} must be numbers (nm), got booleans")
     if not np.all(np.isfinite(w)):
@@ -202,7 +211,7 @@ def check_numbers(name, value):
     lists."""
     kind = _not_a_number(value)
     if kind:
-        raise ValueError(f"{name} must be a number, got {kind} ({value!r})")
+        raise ValueError(f"{name} must be a number, got {kind} ({shown(value)})")
     return value
 
 
@@ -212,8 +221,8 @@ def check_integers(name, value):
     check_numbers(name, value)
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be whole numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be whole numbers, got {shown(value)}") from None
     if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
-        raise ValueError(f"{name} must be whole numbers, got {value!r}")
+        raise ValueError(f"{name} must be whole numbers, got {shown(value)}")
     return arr.astype(np.int64)

@@ -145,6 +145,9 @@ WORKFLOW = r"""
 _CLI_TERMS = {
     "pass wavelength_nm": "give --sensor SENSOR.toml (its cwl_nm are the wavelengths)",
     "overwrite=True": "--overwrite",
+    "but wavelength_nm gives": "but the --sensor has",
+    "(read a 2-D frame with read_frame)": "(a 2-D raw frame of a mosaic camera is read with "
+                                          "that camera's --sensor, whose layout is mosaic)",
 }
 
 
@@ -179,6 +182,12 @@ def _sensor(value):
     return _bundled_or_file(value, Sensor.load, sensor_path, (".toml", ".xml"))
 
 
+#: Pixel positions further out than this are a typo: no sensor is this wide.
+_MAX_PX = 1_000_000
+#: The most wavelengths a list may give (a step of 0.01 nm over 100 nm-10 um).
+_MAX_WAVELENGTHS = 1_000_000
+
+
 def _pair_arg(what, names, *, integer=False):
     def parse(value):
         try:
@@ -188,6 +197,10 @@ def _pair_arg(what, names, *, integer=False):
                 from None
         if not (math.isfinite(a) and math.isfinite(b)):
             raise argparse.ArgumentTypeError(f"the {what} must be finite, got {value!r}")
+        if max(abs(a), abs(b)) > _MAX_PX:
+            raise argparse.ArgumentTypeError(f"the {what} lies {max(abs(a), abs(b)):.3g} "
+                                             f"pixels out; no sensor is wider than {_MAX_PX:,} "
+                                             f"pixels, got {value!r}")
         if integer:
             if a != round(a) or b != round(b) or a < 0 or b < 0:
                 raise argparse.ArgumentTypeError(f"the {what} is whole pixels >= 0, got "
@@ -206,7 +219,7 @@ def _number(text):
     """A command-line string as a float (NaN for text that is not one, refused after)."""
     try:
         return float(text)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return float("nan")
 
 
@@ -222,12 +235,22 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
     """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
     (without ``--overwrite``), have the wrong suffix or no folder to go in."""
     # realpath, unlike Path.resolve, does not raise on a symlink loop (the reader reports it)
-    srcs = [Path(os.path.realpath(i)) for i in inputs if i is not None]
+    srcs = [Path(os.path.realpath(_input_path(i))) for i in inputs if i is not None]
+    bundled = _bundled_folder()
+    seen = []
     for out, allowed in zip(outputs, suffixes, strict=True):
         if out is None:
             continue
         out = Path(out)
         res = Path(os.path.realpath(out))
+        if bundled is not None and res.is_relative_to(bundled) and os.path.lexists(res):
+            raise ValueError(f"output {out} is one of snapcorr's bundled files ({bundled}), "
+                             "never replaced; give your own a new name")
+        for other, given in seen:  # two outputs of one command: neither in the other
+            if res == other or res.is_relative_to(other) or other.is_relative_to(res):
+                raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
+                                 "other; give each its own path")
+        seen.append((res, out))
         for src in srcs:
             if res == src:
                 raise ValueError(f"output {out} is also an input; choose another output path")
@@ -246,6 +269,33 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
             check_replaceable(out)  # a PNG or TOML snapcorr did not write is never replaced
         if not res.parent.is_dir():
             raise ValueError(f"{out.parent} is not a folder; create it first")
+
+
+def _input_path(value):
+    """An input as the file it names: a bundled lens or sensor by name is its profile."""
+    path = Path(value)
+    if path.exists() or path.suffix:
+        return path
+    from .data import lens_path, sensor_path
+
+    for find in (lens_path, sensor_path):
+        try:
+            found = find(str(value))
+        except (FileNotFoundError, ValueError):
+            continue
+        if found.exists():
+            return found
+    return path
+
+
+def _bundled_folder():
+    """The bundled profiles' folder (None when not installed from a checkout)."""
+    from .data import calibration_dir
+
+    try:
+        return Path(os.path.realpath(calibration_dir()))
+    except FileNotFoundError:
+        return None
 
 
 class _StageBar:
@@ -394,7 +444,9 @@ def _cmd_flatfield(args):
                 raise ValueError(f"{label} {p} is {c.shape[0]} x {c.shape[1]} x {c.shape[2]} "
                                  f"but {args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
                                  f"{raw.shape[2]}: x and band must match")
-    ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
+    snapshot = sensor is not None and sensor.layout == "mosaic"
+    ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype,
+                   snapshot=snapshot)
     if args.filter_white:
         fw = read(args.filter_white)
         if fw.shape != raw.shape:
@@ -402,8 +454,8 @@ def _cmd_flatfield(args):
             raise ValueError(f"--filter-white {args.filter_white} is {sizes[0]} but {args.raw} "
                              f"is {sizes[1]}: the white seen through the filter is a cube of "
                              "the same size and place")
-        tr = flatfield(fw, darks, whites,
-                       saturation=args.saturation, name="transmittance", dtype=args.dtype)
+        tr = flatfield(fw, darks, whites, saturation=args.saturation, name="transmittance",
+                       dtype=args.dtype, snapshot=snapshot)
         _with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})
@@ -653,6 +705,11 @@ def _wavelength_list(value):
             start, stop, step = (float(v) for v in value.split(":"))
             if not step > 0 or not stop >= start:
                 raise ValueError
+            count = (stop - start) / step + 1
+            if not count <= _MAX_WAVELENGTHS:
+                raise argparse.ArgumentTypeError(
+                    f"{value!r} gives {count:.3g} wavelengths; at most {_MAX_WAVELENGTHS:,} "
+                    "(is the step in nm?)")
             values = np.arange(start, stop + 0.5 * step, step)
         else:
             values = np.array([float(v) for v in value.split(",")])
@@ -1569,7 +1626,7 @@ def main(argv=None):
             warnings.showwarning = _one_line_warning
             _center_option(args)
             return args.func(args)
-    except (ValueError, TypeError, OSError, KeyError) as err:
+    except (ValueError, TypeError, OverflowError, OSError, KeyError) as err:
         print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

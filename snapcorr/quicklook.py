@@ -122,7 +122,7 @@ def _label(da, fallback):
 def _num(value, fmt="g"):
     try:
         return format(float(value), fmt)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return str(value)
 
 

@@ -85,7 +85,7 @@ _BRDF_KEYS = (*((mu, nu) for mu in range(3) for nu in range(3) if mu or nu), "t"
 def _number(name, value, *, positive=False, nonnegative=False):
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise TypeError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(v):
         raise ValueError(f"{name} must be finite, got {value!r}")

@@ -9,6 +9,7 @@ them; asking for it outside its range is an error, never a silent zero. The scen
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -145,14 +146,26 @@ def read_spectrum(path) -> Spectrum:
     """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments;
     comma, semicolon, tab or space separated; header lines before the numbers are skipped) or
     an ``.npy`` array of shape (n, 2) or (2, n)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"no spectrum file {str(p)!r}")
+    from ._io import check_input
+
+    try:
+        p = check_input(path, what="spectrum")
+    except FileNotFoundError:
+        raise ValueError(f"no spectrum file {str(path)!r}") from None
     if p.suffix == ".npy":
-        a = np.load(p)
+        try:
+            a = np.load(p)  # never pickles: an object array is refused
+        except (ValueError, EOFError, OSError) as err:
+            raise ValueError(f"{p}: not a NumPy array of numbers ({err}); a spectrum is two "
+                             "columns, wavelength nm and value") from None
     else:
+        try:
+            text = p.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{p}: not a text file; a spectrum is two columns of numbers "
+                             "(wavelength nm, value), one row per line") from None
         rows = []
-        for k, line in enumerate(p.read_text().splitlines(), 1):
+        for k, line in enumerate(text.splitlines(), 1):
             line = line.split("#", 1)[0].strip()
             if not line:
                 continue
@@ -167,7 +180,10 @@ def read_spectrum(path) -> Spectrum:
             raise ValueError(f"{p}: need two columns of numbers (wavelength nm, value), one "
                              "row per line")
         a = np.array(rows)
-    a = np.asarray(a, float)
+    try:
+        a = np.asarray(a, float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{p}: need two columns of numbers (wavelength nm, value)") from None
     if a.ndim == 2 and a.shape[0] == 2 and a.shape[1] != 2:
         a = a.T
     if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 2:
@@ -248,10 +264,8 @@ def parse_source(text, cube=None) -> Spectrum:
             raise ValueError(f"pixel ({y}, {x}) is outside the {cube.sizes['y']} x "
                              f"{cube.sizes['x']} cube")
         return cube_spectrum(cube, y, x)
-    if Path(t).is_file():
-        return read_spectrum(t)
-    if Path(t).suffix or "/" in t or "\\" in t:
-        raise ValueError(f"no spectrum file {t!r}")
+    if Path(t).suffix or "/" in t or "\\" in t or os.path.lexists(t):
+        return read_spectrum(t)  # a path: what is (or is not) there is said by the reader
     raise ValueError(f"unknown source {t!r}: use solar, solar:astm-g173, "
                      "tungsten:TEMPERATURE_K, cube, cube:Y,X or the path of a two-column "
                      "spectrum file")

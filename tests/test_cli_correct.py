@@ -46,7 +46,7 @@ def test_a_cube_of_another_sensor_is_one_line(files, cli, extra):
     Sensor("four", "snapscan", 40.0, np.linspace(500, 900, 4), 10.0, 1.7).save(d / "four.toml")
     res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "four.toml",
               "--f-number", "2", "--out", "out.nc", *extra, cwd=d)
-    assert res.returncode == 1 and "has 5 bands, the sensor 'four' 4" in res.stderr
+    assert res.returncode == 1 and "has 5 bands but the --sensor has 4" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1 and not (d / "out.nc").exists()
 
 

@@ -48,7 +48,7 @@ class _FilterMoments:
         and width, not on its centre, so a sensor's equal bands share one table)."""
         try:
             return cls._of(dataclasses.replace(profile, cwl_nm=1000.0))
-        except (TypeError, ValueError):  # not a dataclass profile: no caching
+        except (TypeError, ValueError, OverflowError):  # not a dataclass profile: no caching
             return cls._of.__wrapped__(cls, profile)
 
     @classmethod

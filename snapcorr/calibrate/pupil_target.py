@@ -66,7 +66,7 @@ def _spectrum(target, sensor):
         return target, f"given ({getattr(target, '__name__', 'a function')})"
     try:
         wl, val = (np.asarray(v, float) for v in target)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError("target_spectrum must be a function or (wavelength_nm, value)") from None
     from .._validation import check_curve, check_wavelengths_nm
 

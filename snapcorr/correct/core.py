@@ -292,6 +292,9 @@ def _dataset(cube, sensor, lens, cra, scale, column, *, source, center_source):
     return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds, chunks=cube.chunks))
 
 
+#: The widest common response harmonising takes, nm: wider would blur every band into one.
+MAX_TARGET_FWHM_NM = 1000.0
+
 #: Variables a correction's result holds besides the input cube.
 RESULT_NAMES = ("wavelength_corrected", "fwhm_corrected", "resampled", "harmonised",
                 "virtual", "mask", "cra_deg", "wavelength_scale", "scale_index", "fwhm_table",
@@ -317,6 +320,10 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
     check_positive("tolerance_nm", tolerance_nm)
     if target_fwhm_nm is not None and not (harmonise or method == "harmonised"):
         raise ValueError("target_fwhm_nm sets the common response of harmonise=True")
+    if target_fwhm_nm is not None and check_positive("target_fwhm_nm",
+                                                     target_fwhm_nm) > MAX_TARGET_FWHM_NM:
+        raise ValueError(f"target_fwhm_nm {float(target_fwhm_nm):g} nm is wider than any band "
+                         f"set spans; at most {MAX_TARGET_FWHM_NM:g} nm")
     sensor.check_cube(cube)
     if mask is not None and (tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape):
         raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")

@@ -40,6 +40,13 @@ def _zarr_consolidated(path):
     return (Path(path) / ".zmetadata").is_file()
 
 
+def _netcdf_engine(path):
+    """h5netcdf for netCDF-4 (HDF5), SciPy's reader for netCDF-3 (classic, 64-bit offset
+    and CDF-5 files begin with ``CDF``), which h5netcdf cannot open."""
+    with open(path, "rb") as f:
+        return "scipy" if f.read(3) == b"CDF" else "h5netcdf"
+
+
 def _open_dataset(path, fmt, chunks):
     """The file's Dataset, lazily. ``chunks``: None (each variable read whole when used), a
     dict by dim (dask: netCDF in those chunks, Zarr in its own chunks then rechunked), or
@@ -49,11 +56,11 @@ def _open_dataset(path, fmt, chunks):
     cut from it)."""
     if isinstance(chunks, _Rows):
         if fmt == "netcdf":
-            return xr.open_dataset(path, engine="h5netcdf", chunks=None, cache=False)
+            return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)
         return xr.open_dataset(path, engine="zarr", consolidated=_zarr_consolidated(path),
                                chunks=None, cache=False)
     if fmt == "netcdf":
-        return xr.open_dataset(path, engine="h5netcdf", chunks=chunks)
+        return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
     # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
     # directly, chunks that split the stored ones make xarray warn).
     ds = xr.open_zarr(path, consolidated=_zarr_consolidated(path),

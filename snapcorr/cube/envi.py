@@ -125,11 +125,21 @@ def _envi_repeated_keys(hdr):
         text = Path(hdr).read_text(encoding="utf-8", errors="replace")
     except OSError:
         return []
-    keys, depth = [], 0
-    for line in text.splitlines()[1:]:  # the first line is "ENVI"
-        if depth == 0 and "=" in line:
-            keys.append(line.split("=", 1)[0].strip().lower())
-        depth = max(depth + line.count("{") - line.count("}"), 0)
+    # walked as Spectral Python reads it: lines without "=" and comment lines (";") skipped,
+    # a value opened by "{" running to the first line that ends in "}"
+    keys, lines = [], text.splitlines(keepends=True)[1:]  # the first line is "ENVI"
+    while lines:
+        line = lines.pop(0)
+        if "=" not in line or line.startswith(";"):
+            continue
+        key, _, val = line.partition("=")
+        keys.append(key.strip().lower())
+        val = val.strip()
+        if val.startswith("{"):
+            while not val.endswith("}") and lines:
+                line = lines.pop(0)
+                if not line.startswith(";"):
+                    val += line.strip()
     return sorted({k for k in keys if k and keys.count(k) > 1})
 
 
@@ -181,13 +191,28 @@ def _apply_envi_values(data, values, ignore):
     return where(drop, kind.type(np.nan), out)
 
 
+def _same_file(a, b):
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 def _envi_data_file(hdr, interleave):
     names = [*_ENVI_EXTS, f".{interleave}"]
     candidates = [hdr.with_suffix(e) for e in names] + \
                  [hdr.with_suffix(e.upper()) for e in names if e]
+    found = []
     for c in candidates:
-        if os.path.lexists(c) and not os.path.isdir(c) and c != hdr:
-            return c
+        if os.path.lexists(c) and not os.path.isdir(c) and c != hdr and \
+                not any(_same_file(c, f) for f in found):
+            found.append(c)
+    if len(found) > 1:  # Spectral Python would take the first: say so rather than guess
+        raise ValueError(f"{hdr}: more than one data file could be this header's ("
+                         f"{', '.join(f.name for f in found)}); give the data file itself "
+                         "instead of the header, or move the others away")
+    if found:
+        return found[0]
     looked = ", ".join(c.name for c in candidates[:len(names)])
     raise ValueError(f"{hdr}: cannot read the data: no data file next to the header (looked "
                      f"for {looked}); put the data file beside it")
@@ -236,7 +261,7 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
     if "data ignore value" in h:
         try:
             ignore = float(h["data ignore value"])
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ValueError(f"{hdr}: 'data ignore value = {h['data ignore value']}' is not a "
                              "number; fix the header") from None
     values = _envi_values(h, hdr, bands)
@@ -292,7 +317,7 @@ def _envi_numbers(h, key, hdr, scalar=False):
     try:
         values = [int(v) if re.fullmatch(r"\s*[-+]?\d+\s*", str(v)) else float(v)
                   for v in items]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{hdr}: '{key}' must hold numbers, got {raw!r:.80}") from None
     if scalar:
         if len(values) != 1:

@@ -89,7 +89,7 @@ def _check_dtypes(dtype, raw, dark, white):
     return dtype
 
 
-def _average_reference(label, frames, raw, dtype, saturation):
+def _average_reference(label, frames, raw, dtype, saturation, snapshot):
     """A reference's frames averaged (a line-scan strip over its rows too), and its flags."""
     ref = frames[0]
     if ref.sizes["x"] != raw.sizes["x"] or ref.sizes["band"] != raw.sizes["band"]:
@@ -99,13 +99,13 @@ def _average_reference(label, frames, raw, dtype, saturation):
     if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
         raise ValueError(f"{label} and the cube have different wavelengths; they must come "
                          "from the same sensor and band set")
-    snapshot = _is_snapshot(raw)
-    if snapshot and ref.sizes["y"] != raw.sizes["y"]:
-        raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
-                         f"{raw.sizes['y']}, and the cube is a snapshot (its bands sit at "
-                         "different rows of a mosaic tile): a snapshot has no scan axis, so "
-                         "its references are cubes of the same size and place")
     for f in frames:
+        if snapshot and f.sizes["y"] != raw.sizes["y"]:
+            raise ValueError(f"the {label} reference has {f.sizes['y']} rows but the cube "
+                             f"{raw.sizes['y']}, and the cube is a snapshot (a mosaic "
+                             "sensor's: its bands sit at different rows of a tile): a "
+                             "snapshot has no scan axis, so its references are cubes of the "
+                             "same size and place")
         _check_same_place(label, f, raw, snapshot)
     stack = xr.concat([f.astype(dtype) for f in frames], dim="frame")
     stack = stack.drop_vars([c for c in stack.coords if c not in ("wavelength", "fwhm")])
@@ -163,7 +163,8 @@ def _check_same_place(label, ref, raw, snapshot):
                 "taken with it)")
 
 
-def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32"):
+def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="float32",
+              snapshot=False):
     """Flat-field a cube: ``(raw - dark) / (white - dark)`` (Goossens 2019 Eq. 29).
 
     Parameters
@@ -189,6 +190,9 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     dtype : {"float32", "float64"}
         Type of the result (float32 by default: half the memory and files of float64, and
         7 significant digits, far below any sensor's noise).
+    snapshot : bool
+        The cube is a snapshot sensor's (``layout = "mosaic"``) even where it records no
+        positions (a bare array): its references are never taken as line-scan strips.
 
     Returns
     -------
@@ -211,8 +215,9 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     dtype = _check_dtypes(dtype, raw, darks[0], whites[0])
     if saturation is not None:
         saturation = check_positive("saturation", saturation)
-    d, dark_bad = _average_reference("dark", darks, raw, dtype, saturation)
-    w, white_bad = _average_reference("white", whites, raw, dtype, saturation)
+    snapshot = bool(snapshot) or _is_snapshot(raw)
+    d, dark_bad = _average_reference("dark", darks, raw, dtype, saturation, snapshot)
+    w, white_bad = _average_reference("white", whites, raw, dtype, saturation, snapshot)
     return _result(raw, raw, d, w, dark_bad | white_bad, saturation, name, dtype,
                    (len(darks), len(whites)), frame=False)
 

@@ -159,7 +159,7 @@ def _to_nm(values, units, where):
                          "their spellings); pass wavelength_nm or fix the file's units")
     try:
         v = np.asarray(values, dtype=float).ravel()
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{where}: values must be numbers, got {values!r:.80}") from None
     return v if scale == 1.0 else np.round(v * scale, 9)
 

@@ -113,11 +113,8 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
         sub = 0
         while inp.seek_subimage(sub, 0):  # a multi-page TIFF: one band per page
             spec = inp.spec()
-            pixels = inp.read_image(sub, 0, 0, spec.nchannels, "unknown")
-            if pixels is None:
-                raise ValueError(f"{path}: cannot read page {sub + 1}: "
-                                 f"{_one_line(inp.geterror()) or 'no pixels'}")
-            pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+            _check_stored(path, fmt, spec, sub)
+            pixels = _pixels(inp, spec, sub, path)
             names = list(spec.channelnames)
             if drop_alpha and len(names) > 1:
                 keep = [i for i, n in enumerate(names) if n.upper() not in ("A", "ALPHA")]
@@ -157,12 +154,7 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
     data = data[..., keep]
     dtype = meta.get("dtype")
     if dtype is not None:
-        try:
-            dtype = np.dtype(dtype)
-        except TypeError:
-            raise ValueError(f"{path}: the description names an unknown dtype {dtype!r}") \
-                from None
-        data = data.astype(dtype)
+        data = _described_dtype(path, fmt, data, dtype)
     cube_attrs = meta.get("attrs", {})
     found = _File(path, fmt, data, wavelength=wl, fwhm=meta.get("fwhm_nm"),
                   name=meta.get("name") or name,
@@ -172,6 +164,78 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
         if isinstance(meta.get(key), dict):
             found.positions[key] = meta[key]
     return found
+
+
+#: TIFF photometric interpretations OpenImageIO would convert (to RGB, or inverted) rather
+#: than give as stored; 1 (min-is-black, grey) and 2 (RGB, plain channels) are read as stored.
+_CONVERTED_PHOTOMETRIC = {0: "min-is-white (inverted on reading)", 3: "a palette",
+                          4: "a transparency mask", 5: "CMYK (separated)", 6: "YCbCr",
+                          8: "CIE L*a*b*", 9: "ICC L*a*b*", 10: "ITU L*a*b*",
+                          32844: "LogL", 32845: "LogLuv"}
+
+
+def _check_stored(path, fmt, spec, sub):
+    """Refuse a TIFF page whose samples OpenImageIO would rescale or convert: a bit depth
+    other than its type's (12-bit counts come back bit-replicated to 16 bits, 1-bit ones as
+    0/255) or a colour model other than grey or plain channels."""
+    if fmt != "tiff":
+        return
+    where = f"page {sub + 1}" if sub else "the image"
+    bits = spec.getattribute("oiio:BitsPerSample")
+    if bits is not None and int(bits) != 8 * spec.format.size():
+        raise ValueError(f"{path}: {where} stores {int(bits)}-bit samples, which would be "
+                         f"rescaled to {spec.format} on reading, not read as stored; save the "
+                         "values in 8, 16 or 32 bits per sample")
+    photometric = spec.getattribute("tiff:PhotometricInterpretation")
+    if photometric is not None and int(photometric) not in (1, 2):
+        what = _CONVERTED_PHOTOMETRIC.get(int(photometric), f"photometric {int(photometric)}")
+        raise ValueError(f"{path}: {where} is stored as {what}, which would be converted on "
+                         "reading, not read as stored; save the values as grey "
+                         "(min-is-black) or plain channels")
+
+
+def _pixels(inp, spec, sub, path):
+    """A page's pixels ``(height, width, channels)`` as stored: channels of mixed types (an
+    OpenEXR's uint beside float ones) each read in its own type, since one common type
+    would give the integers normalised to [0, 1]."""
+    formats = list(spec.channelformats)
+    if formats and len({str(f) for f in formats}) > 1:
+        chans = [inp.read_image(sub, 0, c, c + 1, formats[c]) for c in range(spec.nchannels)]
+        if any(c is None for c in chans):
+            raise ValueError(f"{path}: cannot read page {sub + 1}: "
+                             f"{_one_line(inp.geterror()) or 'no pixels'}")
+        chans = [np.asarray(c).reshape(spec.height, spec.width) for c in chans]
+        common = np.result_type(*chans)
+        if common.kind == "f" and any(c.dtype.kind in "iu" and c.dtype.itemsize >= 4
+                                      for c in chans):
+            common = np.dtype(np.float64)  # 32-bit integers held exactly
+        return np.stack([c.astype(common) for c in chans], axis=2)
+    pixels = inp.read_image(sub, 0, 0, spec.nchannels, "unknown")
+    if pixels is None:
+        raise ValueError(f"{path}: cannot read page {sub + 1}: "
+                         f"{_one_line(inp.geterror()) or 'no pixels'}")
+    return np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+
+
+def _described_dtype(path, fmt, data, dtype):
+    """``data`` in the dtype its description names: the stored one, or one its values convert
+    to exactly (snapcorr writes integers into OpenEXR's float channels; OpenImageIO gives a
+    TIFF's half floats as float32). Anything else (a file re-saved in another type under the
+    old description) is refused."""
+    try:
+        dtype = np.dtype(dtype)
+    except TypeError:
+        raise ValueError(f"{path}: the description names an unknown dtype {dtype!r}") from None
+    if dtype == data.dtype:
+        return data
+    if dtype in _EXR_EXACT:
+        with np.errstate(invalid="ignore", over="ignore"):
+            cast = data.astype(dtype)
+        if np.array_equal(cast.astype(data.dtype), data, equal_nan=dtype.kind == "f"):
+            return cast
+    raise ValueError(f"{path}: the description says {dtype} but the file stores {data.dtype} "
+                     "values that do not convert exactly (re-saved by another program "
+                     "with the old description?); remove or correct its 'dtype'")
 
 
 def _oiio_pages(path, fmt, pages, what):

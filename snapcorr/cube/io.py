@@ -244,7 +244,7 @@ def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
     f = _read_file(path, chunks=chunks, what="cube")
     try:
         cube = _to_cube(f, wavelength_nm)
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:
         if str(err).startswith(str(f.path)):
             raise
         raise type(err)(f"{f.path}: {err}") from None
@@ -257,6 +257,9 @@ def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
 
 
 def _cube_wavelengths(f, given, n_bands):
+    if given is not None and np.size(given) != n_bands:  # the file's own would win unseen
+        raise ValueError(f"{f.path} has {n_bands} bands but wavelength_nm gives "
+                         f"{np.size(given)}; use the sensor it was taken with")
     wl = None
     if f.wavelength is not None:
         try:
@@ -269,7 +272,7 @@ def _cube_wavelengths(f, given, n_bands):
             raise ValueError(f"{f.path} carries no wavelengths; pass wavelength_nm")
         try:
             wl = np.atleast_1d(np.asarray(given, dtype=float))
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ValueError(f"wavelength_nm must be numbers, got {given!r:.80}") from None
     if wl.shape != (n_bands,):
         raise ValueError(f"{f.path} has {n_bands} bands but {wl.size} wavelengths")

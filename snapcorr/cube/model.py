@@ -113,7 +113,7 @@ def make_cube(data, wavelength_nm, *, fwhm_nm=None, attrs=None, name=None):
     _check_sizes(data.shape)
     try:
         wl = np.atleast_1d(np.asarray(wavelength_nm, dtype=float))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"wavelengths must be numbers (nm), got {wavelength_nm!r}") from None
     if wl.shape != (data.shape[2],):
         raise ValueError(f"the cube has {data.shape[2]} bands but {wl.size} wavelengths")

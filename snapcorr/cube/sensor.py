@@ -22,6 +22,7 @@ from .._validation import (
     check_numbers,
     check_pixel_pitch_um,
     check_wavelengths_nm,
+    shown,
 )
 from .responses import CorrectionMatrix, FilterResponses
 
@@ -57,8 +58,8 @@ def _per_band(name, value, n_bands, *, minimum=None, strict=True):
     check_numbers(name, value)
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be numbers, got {shown(value)}") from None
     if arr.ndim == 0:
         arr = np.full(n_bands, float(arr))
     if arr.shape != (n_bands,):
@@ -174,7 +175,7 @@ class Sensor:
             size = check_integers("size_px", self.size_px)
             if size.shape != (2,) or np.any(size < 1):
                 raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
-                                 f"{self.size_px!r}")
+                                 f"{shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
         self._check_vendor_parts(n)
@@ -471,7 +472,7 @@ class Sensor:
             if isinstance(shape, str) and shape not in (*PROFILE_NAMES, MEASURED):
                 table["profile"] = str(path.parent / shape)  # relative to the sensor file
             return cls.from_dict(table, calibration=doc.get("calibration"))
-        except (TypeError, ValueError) as err:
+        except (TypeError, ValueError, OverflowError) as err:
             raise ValueError(f"{path}: {err}") from None
 
     @classmethod
@@ -507,8 +508,12 @@ def _read_shape_cached(path):
     if p.suffix.lower() not in (".csv", ".txt", ".tsv", ".dat"):
         raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)} or a two-column "
                          f"file (.csv, .txt), got {p.name!r}")
-    if not p.is_file():
-        raise FileNotFoundError(f"filter profile file not found: {p}")
+    from .._io import check_input
+
+    try:
+        check_input(p, what="filter profile")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"filter profile file not found: {p}") from None
     rows = []
     for k, line in enumerate(p.read_text(errors="replace").splitlines()):
         line = line.split("#", 1)[0].strip()

@@ -155,7 +155,7 @@ def image_shape(shape):
     """``(ny, nx)`` as two positive ints, or a clear ``ValueError``."""
     try:
         ny, nx = (operator.index(n) for n in shape)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"shape must be two positive integers (ny, nx), got {shape!r}") from None
     if ny < 1 or nx < 1:
         raise ValueError(f"shape must be two positive integers (ny, nx), got {shape!r}")

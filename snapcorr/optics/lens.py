@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .._io import read_toml, write_toml
+from .._validation import check_numbers, shown
 
 __all__ = ["PUPILS", "Lens"]
 
@@ -23,14 +24,42 @@ __all__ = ["PUPILS", "Lens"]
 def _finite(name, value, *, positive=False):
     if isinstance(value, (bool, np.bool_)):  # TOML's `true` is not 1 mm
         raise TypeError(f"{name} must be a number, got a boolean ({value!r})")
+    need = "a finite number > 0" if positive else "a finite number"
     try:
         v = float(value)
+    except OverflowError:
+        raise ValueError(f"{name} must be {need}, got {shown(value)}") from None
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {value!r}") from None
+        raise TypeError(f"{name} must be a number, got {shown(value)}") from None
     if not math.isfinite(v) or (positive and v <= 0):
-        need = "a finite number > 0" if positive else "a finite number"
-        raise ValueError(f"{name} must be {need}, got {value!r}")
+        raise ValueError(f"{name} must be {need}, got {shown(value)}")
     return v
+
+
+def _check_placement(cal):
+    """The ``[calibration]`` keys a correction reads to place the optical axis: centres as
+    two finite numbers, the pitch as a camera's, the image size as two whole numbers > 0."""
+    from .._validation import check_integers, check_pair, check_pixel_pitch_um
+
+    for key in ("center_rc", "center_px"):
+        if key in cal:
+            check_numbers(f"[calibration] {key}", cal[key])
+            check_pair(f"[calibration] {key}", _as_list(cal[key], key), "two numbers (pixels)")
+    if "pixel_pitch_um" in cal:
+        check_pixel_pitch_um("[calibration] pixel_pitch_um", cal["pixel_pitch_um"])
+    if "image_size_px" in cal:
+        size = check_integers("[calibration] image_size_px", _as_list(cal["image_size_px"],
+                                                                        "image_size_px"))
+        if size.shape != (2,) or np.any(size <= 0):
+            raise ValueError("[calibration] image_size_px must be two whole numbers > 0 "
+                             f"([width, height]), got {shown(cal['image_size_px'])}")
+
+
+def _as_list(value, key):
+    if not isinstance(value, (list, tuple, np.ndarray)):
+        raise ValueError(f"[calibration] {key} must be a list of two numbers, got "
+                         f"{shown(value)}")
+    return value
 
 
 def _circles(vignetting):
@@ -54,7 +83,7 @@ def _circles(vignetting):
             c = (c["radius_mm"], c["distance_mm"])
         try:
             P, h = c
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise TypeError(f"vignetting circle {i + 1} must be a (P, h) pair in mm, got {c!r}")\
                 from None
         out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True),
@@ -98,8 +127,10 @@ class Lens:
     name : str, optional
         Human-readable name.
     calibration : dict, optional
-        Free-form record of how the profile was obtained (the ``[calibration]`` table of a lens
-        file). Kept as-is through load/save; not used in computations.
+        Record of how the profile was obtained (the ``[calibration]`` table of a lens file),
+        kept as-is through load/save. Only the keys that place the optical axis on another
+        sensor are read (``center_rc``, ``center_px``, ``pixel_pitch_um``, ``image_size_px``:
+        checked here); the rest is free-form.
     pupil : {"paper", "lambertian"}
         How the light fills the exit pupil (:data:`PUPILS`); default the paper's.
 
@@ -141,6 +172,7 @@ class Lens:
             _finite("pupil_magnification", self.pupil_magnification, positive=True),
         )
         set_(self, "calibration", dict(self.calibration or {}))
+        _check_placement(self.calibration)
 
     # -- optics ---------------------------------------------------------------------------
     @property
@@ -342,7 +374,7 @@ class Lens:
         doc = read_toml(path, "lens", "lens profile")
         try:
             return cls.from_dict(doc["lens"], calibration=doc.get("calibration"))
-        except (TypeError, ValueError) as err:
+        except (TypeError, ValueError, OverflowError) as err:
             raise ValueError(f"{path}: {err}") from None
 
     def save(self, path, *, overwrite=False) -> Path:
