@@ -393,13 +393,32 @@ def _read_with_mask(path, sensor=None, origin=None):
         if frame_error is not None and "2-D" in str(err):
             raise frame_error from None
         raise
-    if origin is not None and "sensor_row" not in cube.coords:
+    if origin is not None:
         from .cube import sensor_positions
         from .cube.model import with_positions
 
-        cube = with_positions(cube, *sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"],
-                                                      origin))
+        rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
+        if "sensor_row" not in cube.coords:
+            cube = with_positions(cube, rows, cols)
+        else:
+            _check_origin(path, cube, rows, cols, origin)
     return cube, mask
+
+
+def _check_origin(path, cube, rows, cols, origin):
+    """A --sensor-origin-px must agree with the positions the file records (which are used)."""
+    for coord, dim, want in (("sensor_row", "y", rows), ("sensor_col", "x", cols)):
+        if coord not in cube.coords:
+            continue
+        have = np.asarray(cube[coord].transpose(dim, ...).values)
+        have = have if have.ndim == 2 else have[:, None]
+        if have.shape[0] != want.shape[0] or not np.array_equal(
+                np.broadcast_to(have, want.shape) if have.shape[1] == 1 else have, want):
+            raise ValueError(f"--sensor-origin-px {origin[0]},{origin[1]} disagrees with the "
+                             f"sensor positions {path} records (its first pixel at row "
+                             f"{int(np.min(cube['sensor_row']))}, col "
+                             f"{int(np.min(cube['sensor_col']))}); leave the option out: the "
+                             "file's positions are used")
 
 
 def _frame_rows(frame, sensor):

@@ -146,3 +146,23 @@ def test_two_outputs_of_one_command_may_not_meet(small, cli):
                         "--out", "o.zarr", "--plot", "o.zarr/q.png", cwd=small))
     assert "one lies in the other" in err
     assert not (small / "o.zarr").exists()
+
+
+def test_an_origin_that_contradicts_the_files_positions_is_refused(tmp_path, cli):
+    """A file's recorded positions are used; an option that says otherwise is refused rather
+    than silently ignored."""
+    from snapcorr.cube import Sensor, make_cube, sensor_positions, write_cube
+    from snapcorr.cube.model import with_positions
+
+    sensor = Sensor("p", "snapscan", 5.5, [500.0, 550.0], 10.0, 1.7)
+    rng = np.random.default_rng(3)
+    for name, level in (("raw", 200.0), ("dark", 10.0), ("white", 400.0)):
+        c = make_cube((level + rng.random((6, 7, 2))).astype(np.float32), [500.0, 550.0])
+        write_cube(with_positions(c, *sensor_positions(sensor, 6, 7, (10, 20))),
+                   tmp_path / f"{name}.nc")
+    sensor.save(tmp_path / "s.toml")
+    args = ("flatfield", "raw.nc", "--dark", "dark.nc", "--white", "white.nc", "--sensor",
+            "s.toml", "--sensor-origin-px")
+    assert cli(*args, "10,20", "--out", "a.nc", cwd=tmp_path).returncode == 0
+    err = _one_line(cli(*args, "10,21", "--out", "b.nc", cwd=tmp_path))
+    assert "disagrees with the sensor positions raw.nc records" in err
