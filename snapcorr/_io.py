@@ -8,16 +8,28 @@ Reading
 Writing
     Every output is written under a hidden temporary name next to its target (``.name.XXXX``)
     and moved in only when complete, so a crash never leaves half a file. The final move
-    replaces only what was there when the write began (and checked then: a PNG or TOML only
-    if snapcorr wrote it): a target that
-    did not exist is moved in without replacing anything (a hard link, or a reserved empty
-    folder renamed over), so a file or folder that appears there during the write, or a
-    second writer of the same output, is never replaced: the write fails and the result is
-    discarded. A target that existed is moved aside, compared with the one checked (device,
-    inode and modification time) and put back if it is not the same; the new one is moved in
-    and only then is the old one deleted (a failure puts the old ones back). Between the two
-    renames the path is briefly absent: a replacement is safe, not atomic.
+    replaces only what was there when the target was checked: :func:`check_replaceable` (and
+    the cube writers' target checks) note what is at the target then (nothing, or its device,
+    inode, size and modification time, :func:`note_checked`), and the move refuses a target
+    that differs. Inside :func:`checked_outputs` (a command: :func:`cleanup_on_signals` opens
+    one) a note holds until the target is written, so an output that appears or changes during
+    the command's work, after its checks, is never replaced; outside one, from the library's
+    check to the move. A target that did not exist is moved in without replacing anything (a
+    hard link, or a reserved empty folder renamed over), so a file or folder that appears there
+    during the write, or a second writer of the same output, is never replaced: the write fails
+    and the result is discarded. A target that existed is moved aside, compared with the one
+    checked and put back if it is not the same; the new one is moved in and only then is the
+    old one deleted (a failure puts the old ones back). Between the two renames the path is
+    briefly absent: a replacement is safe, not atomic.
     :func:`refuse_inputs` refuses a target that is, contains or lies inside an input.
+
+Ownership
+    ``overwrite`` replaces only what snapcorr wrote: a PNG with its ``Software`` mark, a TOML
+    with its first line, and cubes and results with a mark that names the file it was written
+    as (see :mod:`snapcorr.cube.writing`; the final move adds it, :func:`_stamp`). A target is
+    examined without following it into anything but a regular file (a FIFO, device or socket
+    is refused before it is opened) and only a bounded part of it is read
+    (:func:`read_regular`).
 
 Interruptions
     Temporary paths are kept in a registry while they exist. Inside :func:`cleanup_on_signals`
@@ -30,14 +42,20 @@ from __future__ import annotations
 import atexit
 import contextlib
 import errno
+import hashlib
+import itertools
+import json
 import os
+import re
 import shutil
 import signal
 import stat
+import struct
 import tempfile
 import threading
 import time
 import tomllib
+import zlib
 from pathlib import Path
 
 __all__ = [
@@ -45,8 +63,13 @@ __all__ = [
     "atomic_write_dir",
     "atomic_write_files",
     "check_input",
+    "check_replaceable",
+    "checked_outputs",
     "cleanup_on_signals",
     "file_kind",
+    "last_written",
+    "note_checked",
+    "read_regular",
     "read_toml",
     "refuse_inputs",
     "remove_path",
@@ -118,6 +141,86 @@ def check_input(path, *, directory=False, what="file"):
         raise ValueError(f"{path} is {file_kind(mode)}, not a regular file; snapcorr reads "
                          f"a {what} only from a regular file (copy the data into one first)")
     return path
+
+
+class NotRegularFileError(ValueError):
+    """What was opened to be read is not a regular file (a FIFO, device, socket, folder...),
+    or is larger than the reader accepts."""
+
+
+def read_regular(path, limit, *, follow_links=True, whole=True):
+    """The bytes of the regular file at ``path``, at most ``limit`` of them.
+
+    The path is opened without waiting (a FIFO opens at once, to be refused) and examined
+    through the open file, so what is read is what was examined: anything but a regular file
+    raises :class:`NotRegularFileError` before a byte is read.
+
+    Parameters
+    ----------
+    path : str or Path
+    limit : int
+        The most bytes read.
+    follow_links : bool
+        False: a symbolic link at ``path`` is refused rather than followed (``O_NOFOLLOW``).
+    whole : bool
+        True: a file larger than ``limit`` raises :class:`NotRegularFileError`; False: its
+        first ``limit`` bytes are returned.
+
+    Raises
+    ------
+    NotRegularFileError
+        Not a regular file (a symbolic link when ``follow_links`` is False), or too large.
+    OSError
+        The path cannot be opened or read.
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
+        with contextlib.suppress(OSError):
+            if stat.S_ISLNK(os.lstat(path).st_mode):
+                raise NotRegularFileError(f"{path} is a symbolic link, not a regular file")
+    try:
+        fd = os.open(path, flags)
+    except OSError as err:
+        if err.errno == errno.ELOOP and not follow_links:
+            raise NotRegularFileError(f"{path} is a symbolic link, not a regular file") \
+                from None
+        raise
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise NotRegularFileError(f"{path} is {file_kind(st.st_mode)}, not a regular file")
+        if whole and st.st_size > limit:
+            raise NotRegularFileError(f"{path} holds {st.st_size} bytes, more than the "
+                                      f"{limit} read here")
+        parts, left = [], limit + (1 if whole else 0)
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            parts.append(chunk)
+            left -= len(chunk)
+        data = b"".join(parts)
+        if whole and len(data) > limit:  # grew while it was read
+            raise NotRegularFileError(f"{path} holds more than the {limit} bytes read here")
+        return data
+    finally:
+        os.close(fd)
+
+
+def _found(path):
+    """``(mode, words)`` of what is at an existing ``path``, a symbolic link followed (mode
+    None for a link to nothing or a loop)."""
+    lst = os.lstat(path)
+    if not stat.S_ISLNK(lst.st_mode):
+        return lst.st_mode, file_kind(lst.st_mode)
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            return None, "a loop of symbolic links"
+        return None, f"a symbolic link to {os.readlink(path)}, which does not exist"
+    return st.st_mode, f"{file_kind(st.st_mode)} (a symbolic link to {os.readlink(path)})"
 
 
 def _check_store_entries(path, what):
@@ -303,18 +406,19 @@ def _usual_permissions(path, directory=False):
 
 
 def _state(path):
-    """``(device, inode, mtime)`` of what is at ``path`` (a link itself), or None if nothing
-    is. The modification time tells a new file from an old one whose inode number was reused;
-    a rename keeps it."""
+    """``(device, inode, size, mtime)`` of what is at ``path`` (a link itself), or None if
+    nothing is. The size and modification time tell a new file from an old one whose inode
+    number was reused, or one rewritten in place; a rename keeps them."""
     try:
         st = os.lstat(path)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return None
-    return st.st_dev, st.st_ino, st.st_mtime_ns
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
 class OutputChangedError(FileExistsError):
-    """The output path changed while the output was written: nothing was replaced."""
+    """The output path changed while the output was written, or since it was checked:
+    nothing was replaced."""
 
 
 def _changed(target, now):
@@ -323,6 +427,125 @@ def _changed(target, now):
         errno.EEXIST, f"{target} {what} while the output was written (another program, or a "
         "second snapcorr writing the same output?); nothing there was replaced and the new "
         "output was discarded: write again, or choose another name", str(target))
+
+
+def _changed_since_check(target, checked, now):
+    if checked is None:
+        what = "appeared after snapcorr checked its outputs"
+    elif now is None:
+        what = "was removed or moved after snapcorr checked it"
+    else:
+        what = "changed after snapcorr checked it"
+    return OutputChangedError(
+        f"{target} {what} (another program, or a second snapcorr writing the same output?); "
+        "nothing there was replaced: write again, or choose another name")
+
+
+# -- what each target was when it was checked ------------------------------------------------
+
+#: Target key -> (its :func:`_state` when checked, the :func:`checked_outputs` scope noting it
+#: or None). The final move of a write replaces only that state.
+_CHECKED: dict[str, tuple] = {}
+#: The scopes open now (innermost last).
+_SCOPES: list[int] = []
+_SCOPE_IDS = itertools.count(1)
+#: Target key -> its state right after snapcorr moved it in (the most recent writes).
+_WRITTEN: dict[str, tuple] = {}
+_WRITTEN_KEEP = 4096
+
+
+def _target_key(path):
+    """A target's key: its folder resolved (symbolic links, ``..``, the working folder), its
+    own name as given (a link there is the target itself, never followed)."""
+    parent, name = os.path.split(os.path.abspath(os.fspath(path)))
+    with contextlib.suppress(OSError, RuntimeError, ValueError):
+        parent = os.path.realpath(parent)
+    return os.path.join(parent, name)
+
+
+@contextlib.contextmanager
+def checked_outputs():
+    """A command's outputs held to what its checks found until they are written.
+
+    Inside the block, what :func:`note_checked` notes (through :func:`check_replaceable` and
+    the cube writers' target checks) is kept until the target is written: a later check, and
+    the final move, refuse a target that differs (it appeared, changed or went away during
+    the command's work: another program, or a second snapcorr writing it). On leaving, the
+    notes of the block's targets not written are forgotten. Blocks nest.
+    :func:`cleanup_on_signals` opens one.
+
+    Examples
+    --------
+    >>> from snapcorr._io import checked_outputs, note_checked
+    >>> with checked_outputs():
+    ...     note_checked("result_that_does_not_exist.nc")  # nothing there
+    """
+    with _LOCK:
+        scope = next(_SCOPE_IDS)
+        _SCOPES.append(scope)
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _SCOPES.remove(scope)
+            for key in [k for k, (_, s) in _CHECKED.items() if s == scope]:
+                del _CHECKED[key]
+
+
+def note_checked(path):
+    """Note what is at the output ``path`` now (nothing, or its device, inode, size and
+    modification time) as what its write may replace, and return it.
+
+    A target noted before is compared: inside :func:`checked_outputs` a difference raises
+    :class:`OutputChangedError` (the target appeared or changed after the command checked
+    it); outside one, a note left by a write that never happened is replaced. Call it when a
+    target is checked, before its content is examined.
+
+    Raises
+    ------
+    OutputChangedError
+        Inside :func:`checked_outputs`: the target is not what it was when first checked.
+    """
+    key, now = _target_key(path), _state(path)
+    with _LOCK:
+        scope = _SCOPES[-1] if _SCOPES else None
+        noted = _CHECKED.get(key)
+        if noted is not None and noted[0] != now and noted[1] is not None:
+            raise _changed_since_check(path, noted[0], now)
+        if noted is None or noted[0] != now:
+            _CHECKED[key] = (now, scope)
+        elif noted[1] is None and scope is not None:
+            _CHECKED[key] = (now, scope)  # held for the command from now on
+    return now
+
+
+def _expected(path):
+    """What the write of ``path`` may replace: the state noted when it was checked (the note
+    is used up), else what is there now; refuses a target that changed since its check."""
+    key, now = _target_key(path), _state(path)
+    with _LOCK:
+        noted = _CHECKED.pop(key, None)
+    if noted is None:
+        return now
+    if noted[0] != now:
+        raise _changed_since_check(path, noted[0], now)
+    return noted[0]
+
+
+def last_written(path):
+    """The :func:`_state` ``(device, inode, size, mtime)`` of what snapcorr last moved in at
+    ``path`` in this process, or None: a later look can tell its own file from one put there
+    since."""
+    with _LOCK:
+        return _WRITTEN.get(_target_key(path))
+
+
+def _note_written(target):
+    with _LOCK:
+        _WRITTEN.pop(_target_key(target), None)
+        _WRITTEN[_target_key(target)] = _state(target)
+        while len(_WRITTEN) > _WRITTEN_KEEP:
+            del _WRITTEN[next(iter(_WRITTEN))]
 
 
 def _move_in_new(new, target):
@@ -368,8 +591,8 @@ def _move_in_new(new, target):
 def _replace(moves, expected):
     """Move each ``(new, target)`` into place, replacing only what ``expected`` says.
 
-    ``expected`` holds, for each target, the :func:`_state` of what was there when the
-    write began (None: nothing, and nothing may be replaced). Existing targets are moved aside
+    ``expected`` holds, for each target, the :func:`_state` of what was there when it was
+    checked (None: nothing, and nothing may be replaced). Existing targets are moved aside
     and checked against it; the old ones are deleted only once every new path is in place; on
     any failure (an interruption too) the new paths are taken out and the old ones put back.
     """
@@ -409,6 +632,8 @@ def _replace(moves, expected):
                     os.rename(aside / target.name, target)
                 os.rmdir(aside)
         raise
+    for target in placed:
+        _note_written(target)
     for aside, _ in asides:
         shutil.rmtree(aside, ignore_errors=True)
 
@@ -459,12 +684,13 @@ def atomic_write_dir(path, write):
 
 def _write_and_move(path, write, *, directory):
     _check_kind(path, directory=directory)
-    check_replaceable(path)  # again now: what may be replaced is what is there at this moment
-    before = _state(path)  # only this may be replaced
+    before = _expected(path)  # only what was there when it was checked may be replaced
+    _check_content(path)  # again now: a PNG or TOML only if snapcorr wrote it
     tmp = _make_temporary(path, directory=directory)
     try:
         write(tmp)
         _usual_permissions(tmp, directory=directory)
+        _stamp(tmp, path)
         _replace([(tmp, path)], [before])
     except BaseException:
         remove_path(tmp)
@@ -484,18 +710,38 @@ def atomic_write_files(paths, write):
         raise ValueError("files written together must share a folder")
     for p in paths:
         _check_kind(p, directory=False)
-        check_replaceable(p)
-    before = [_state(p) for p in paths]
+    before = [_expected(p) for p in paths]
+    for p in paths:
+        _check_content(p)
     tmp = _make_temporary(paths[0], directory=True)
     try:
         write(tmp)
         for p in paths:
             if not (tmp / p.name).is_file():
                 raise ValueError(f"the writer did not produce {p.name}")
+        for p in paths:
+            _stamp(tmp / p.name, p)
         _replace([(tmp / p.name, p) for p in paths], before)
     finally:
         remove_path(tmp, settle_s=0)
     return paths
+
+
+#: Names whose files carry a mark tied to the name they are written as (cubes and results).
+_TIED = (".nc", ".zarr", ".hdr", ".npy.json")
+
+
+def _stamp(new, target):
+    """Tie snapcorr's mark in the finished temporary ``new`` to the name it is moved in as
+    (``target``'s), for the formats whose mark is an attribute a re-save would copy; see
+    :func:`snapcorr.cube.writing._tie_mark`."""
+    name = Path(target).name
+    if name.lower().endswith(".png"):
+        _stamp_png(new, name)
+    elif name.lower().endswith(_TIED):
+        from .cube.writing import _tie_mark
+
+        _tie_mark(Path(new), name)
 
 
 # -- signals ---------------------------------------------------------------------------------
@@ -515,7 +761,8 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
     every temporary path registered since entering and still present is removed (files
     unlinked, folders deleted) with those signals and SIGINT ignored, and the previous
     handlers are restored. Outside the main thread the handlers are left alone and only the
-    cleanup is done.
+    cleanup is done. The block is also a :func:`checked_outputs` scope: outputs checked in it
+    are replaced only as they were checked.
 
     Examples
     --------
@@ -531,7 +778,8 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
         for s in numbers:
             previous[s] = signal.signal(s, _interrupt)
     try:
-        yield
+        with checked_outputs():
+            yield
     finally:
         if main:
             for s in {*numbers, signal.SIGINT}:
@@ -606,9 +854,70 @@ def read_toml(path, table, what, *, others=("calibration",)):
 #: ``overwrite`` can tell them from a user's files.
 _MARK = "snapcorr"
 
+#: The most of a PNG read to find its mark, and of a TOML, a header or a JSON document.
+_PNG_LIMIT = 64 << 20
+_TEXT_LIMIT = 8 << 20
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_TIED_RE = re.compile(r'^snapcorr (\S+) as ("(?:[^"\\]|\\.)*") \(check ([0-9a-f]{32})\)$')
+
+
+def _token(name, *parts):
+    """The check of a mark: a digest of the name a file was written as and of what it holds
+    (bytes, or anything JSON can describe), so that a copy under another name, an edit or a
+    re-save by another program no longer matches."""
+    h = hashlib.sha256(json.dumps(name).encode())
+    for part in parts:
+        if not isinstance(part, bytes | bytearray):
+            part = json.dumps(part, sort_keys=True, ensure_ascii=True, default=str).encode()
+        h.update(len(part).to_bytes(8, "little"))
+        h.update(part)
+    return h.hexdigest()[:32]
+
+
+def tied_mark(name, token):
+    """snapcorr's mark tied to the file name it is written as:
+    ``snapcorr <version> as "<name>" (check <token>)``."""
+    from . import __version__
+
+    return f"{_MARK} {__version__} as {json.dumps(name)} (check {token})"
+
+
+def untie_mark(value):
+    """``(name, token)`` of a :func:`tied_mark`, else None (no mark, or a mark of an earlier
+    version that names no file)."""
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    m = _TIED_RE.match(value) if isinstance(value, str) else None
+    if m is None:
+        return None
+    try:
+        name = json.loads(m.group(2))
+    except ValueError:
+        return None
+    return (name, m.group(3)) if isinstance(name, str) else None
+
+
+def mark_matches(value, target, token, what):
+    """``(True, "")`` if the mark ``value`` names ``target`` and its check is ``token``, else
+    ``(False, what was found)``, ``what`` naming the kind of file ("a netCDF file", ...)."""
+    tie = untie_mark(value)
+    if tie is None:
+        return False, (f"{what} with snapcorr's mark of an earlier version, which does not "
+                       "name the file it was written as (or copied from one of snapcorr's "
+                       "and re-saved by another program)")
+    name, check = tie
+    if name != Path(target).name:
+        return False, (f"{what} with the mark snapcorr gave {name}, copied or saved under "
+                       "this name")
+    if check != token:
+        return False, (f"{what} with snapcorr's mark, but not as snapcorr wrote it (a copy, "
+                       "an edit, or a re-save by another program)")
+    return True, ""
+
 
 def save_png(fig, path, *, dpi=120, inputs=()):
-    """Write a matplotlib figure as PNG atomically, marked as snapcorr's (``Software``).
+    """Write a matplotlib figure as PNG atomically, marked as snapcorr's (``Software``, tied
+    to the file's name and image when it is moved in).
 
     Parameters
     ----------
@@ -630,48 +939,160 @@ def save_png(fig, path, *, dpi=120, inputs=()):
         inputs=inputs)
 
 
+def _png_chunks(data):
+    """``[(type, body), ...]`` of a PNG up to its first IDAT; ``None`` if it is not one."""
+    if not data.startswith(_PNG_SIGNATURE):
+        return None
+    chunks, pos = [], len(_PNG_SIGNATURE)
+    while pos + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        if pos + 12 + length > len(data):
+            return None
+        chunks.append((kind, data[pos + 8:pos + 8 + length]))
+        pos += 12 + length
+        if kind == b"IEND":
+            return chunks
+    return None
+
+
+def _png_text(kind, body):
+    """``(keyword, text)`` of a PNG text chunk (tEXt, zTXt, iTXt), else None."""
+    try:
+        key, _, rest = body.partition(b"\0")
+        if kind == b"tEXt":
+            return key.decode("latin-1"), rest.decode("latin-1")
+        if kind == b"zTXt":
+            d = zlib.decompressobj()
+            text = d.decompress(rest[1:], 1 << 16)
+            return key.decode("latin-1"), text.decode("latin-1")
+        if kind == b"iTXt":
+            flag, _method, rest = rest[0], rest[1], rest[2:]
+            _lang, _, rest = rest.partition(b"\0")
+            _tkey, _, text = rest.partition(b"\0")
+            if flag:
+                text = zlib.decompressobj().decompress(text, 1 << 16)
+            return key.decode("latin-1"), text.decode("utf-8", "replace")
+    except (IndexError, zlib.error, UnicodeDecodeError):
+        return None
+    return None
+
+
+def _png_token(name, chunks):
+    return _token(name, *[body for kind, body in chunks if kind in (b"IHDR", b"PLTE", b"IDAT")])
+
+
+def _png_software(chunks):
+    for kind, body in chunks:
+        text = _png_text(kind, body) if kind in (b"tEXt", b"zTXt", b"iTXt") else None
+        if text is not None and text[0] == "Software":
+            return text[1]
+    return None
+
+
+def _chunk(kind, body):
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(
+        ">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+
+def _stamp_png(new, name):
+    """Tie the ``Software`` mark of the finished PNG ``new`` to ``name`` and its image."""
+    data = Path(new).read_bytes()
+    chunks = _png_chunks(data)
+    if chunks is None or not str(_png_software(chunks) or "").startswith(_MARK):
+        return  # not snapcorr's own PNG: left as it is
+    text = tied_mark(name, _png_token(name, chunks)).encode("latin-1", "backslashreplace")
+    out = [_PNG_SIGNATURE]
+    for kind, body in chunks:
+        found = _png_text(kind, body) if kind in (b"tEXt", b"zTXt", b"iTXt") else None
+        if found is not None and found[0] == "Software":
+            out.append(_chunk(b"tEXt", b"Software\0" + text))
+        else:
+            out.append(_chunk(kind, body))
+    Path(new).write_bytes(b"".join(out))
+
+
+def _toml_mark(name, body):
+    return f"# written by {tied_mark(name, _token(name, body.encode('utf-8')))}\n"
+
+
 def written_by_snapcorr(path):
-    """``(True, "")`` if the PNG or TOML at ``path`` carries snapcorr's mark (a lens profile
-    from an earlier version: its ``[calibration] snapcorr_version``), else ``(False, what it
-    is)``. Other kinds: ``(False, "a file of a kind snapcorr does not mark")``."""
+    """``(True, "")`` if the PNG or TOML at ``path`` carries snapcorr's mark naming this file
+    (its name, and a check of its content), else ``(False, what it is)``.
+
+    The file is read only if it is a regular file, and only so much of it: anything else is
+    ``(False, what it is)``. Other kinds: ``(False, "a file of a kind snapcorr does not
+    mark")``. A mark of an earlier version, which names no file, is not accepted: a copy of
+    snapcorr's file under another name, or one edited since, carries it too.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix not in (".png", ".toml"):
+        return False, "a file of a kind snapcorr does not mark"
+    limit = _PNG_LIMIT if suffix == ".png" else _TEXT_LIMIT
     try:
-        if suffix == ".png":
-            from PIL import Image, UnidentifiedImageError
-
-            try:
-                with Image.open(path) as im:
-                    software = str(im.info.get("Software", ""))
-            except (UnidentifiedImageError, SyntaxError, ValueError):
-                return False, "a file that is not a PNG image"
-            if software.startswith(_MARK):
-                return True, ""
-            return False, "a PNG that snapcorr did not write (no 'snapcorr' Software mark)"
-        if suffix == ".toml":
-            text = path.read_text(encoding="utf-8", errors="replace")
-            if text.startswith(f"# written by {_MARK}"):
-                return True, ""
-            with contextlib.suppress(tomllib.TOMLDecodeError):
-                cal = tomllib.loads(text).get("calibration", {})
-                if isinstance(cal, dict) and "snapcorr_version" in cal:
-                    return True, ""
-            return False, "a TOML file that snapcorr did not write"
+        data = read_regular(path, limit)
+    except NotRegularFileError:
+        mode, found = _found(path) if os.path.lexists(path) else (None, "nothing")
+        if mode is not None and stat.S_ISREG(mode):
+            found = f"a file larger than the {limit >> 20} MiB snapcorr reads to find its mark"
+        return False, found
     except OSError as err:
         return False, f"a file that cannot be read ({err.strerror or err})"
-    except Exception:  # PIL's many errors for a file that is not an image
-        return False, "a file that is not a PNG image"
-    return False, "a file of a kind snapcorr does not mark"
+    if suffix == ".png":
+        chunks = _png_chunks(data)
+        if chunks is None:
+            return False, "a file that is not a PNG image"
+        software = _png_software(chunks)
+        if not str(software or "").startswith(_MARK):
+            return False, "a PNG that snapcorr did not write (no 'snapcorr' Software mark)"
+        return mark_matches(software, path, _png_token(path.name, chunks), "a PNG")
+    text = data.decode("utf-8", "replace")
+    first, _, body = text.partition("\n")
+    if not first.startswith(f"# written by {_MARK}"):
+        return False, "a TOML file that snapcorr did not write"
+    return mark_matches(first[len("# written by "):].rstrip("\r"), path,
+                        _token(path.name, body.encode("utf-8")), "a TOML file")
 
 
-def check_replaceable(path):
-    """Refuse to replace (with ``overwrite``) a PNG or TOML that snapcorr did not write."""
-    if not os.path.lexists(path) or Path(path).suffix.lower() not in (".png", ".toml"):
+def _check_content(path):
+    """Refuse a target that is not a regular file or folder (a FIFO, device, socket, a link
+    to nothing, followed through a link), and a PNG or TOML snapcorr did not write."""
+    if not os.path.lexists(path):
+        return
+    suffix = Path(path).suffix.lower()
+    mode, found = _found(path)
+    marked = suffix in (".png", ".toml")
+    if mode is None or not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)) or (
+            marked and stat.S_ISDIR(mode)):
+        raise ValueError(f"{path} exists and is {found}; overwrite replaces only a "
+                         f"{'Zarr store' if suffix == '.zarr' else 'file'} snapcorr wrote: "
+                         "move it away or choose another name")
+    if not marked:
         return
     ours, found = written_by_snapcorr(path)
     if not ours:
         raise ValueError(f"{path} exists and is {found}; overwrite replaces only what "
                          "snapcorr wrote: move it away or choose another name")
+
+
+def check_replaceable(path):
+    """Check an output before any work: note what is there now, nothing included (see
+    :func:`note_checked`: only that may be replaced), and refuse to replace (with
+    ``overwrite``) what snapcorr cannot have written.
+
+    Refused: anything but a regular file or a folder (a FIFO, device or socket, also through
+    a symbolic link; examined without opening it), and a PNG or TOML without snapcorr's mark
+    naming this file. Call it for every output, whether it exists or not.
+
+    Raises
+    ------
+    ValueError
+        The target is refused.
+    OutputChangedError
+        Inside :func:`checked_outputs`: the target changed since it was first checked.
+    """
+    note_checked(path)
+    _check_content(path)
 
 
 def write_toml(path, doc, *, overwrite=False):
@@ -698,13 +1119,11 @@ def write_toml(path, doc, *, overwrite=False):
     """
     import tomli_w
 
-    from . import __version__
-
     path = Path(path)
-    if path.exists() and not overwrite:
+    if os.path.lexists(path) and not overwrite:
         raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
     check_replaceable(path)
     parts = doc if isinstance(doc, list) else [doc]
-    text = f"# written by {_MARK} {__version__}\n" + "\n".join(
-        p if isinstance(p, str) else tomli_w.dumps(p) for p in parts)
-    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    body = "\n".join(p if isinstance(p, str) else tomli_w.dumps(p) for p in parts)
+    text = _toml_mark(path.name, body) + body
+    return atomic_write(path, lambda tmp: tmp.write_bytes(text.encode("utf-8")))

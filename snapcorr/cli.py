@@ -263,10 +263,9 @@ def _check_outputs(outputs, inputs, overwrite, suffixes):
         if out.exists() and out.is_dir() != folder:
             raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
                              "it is never replaced: choose another output path")
-        if out.exists() and not overwrite:
+        if os.path.lexists(out) and not overwrite:
             raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
-        if out.exists():
-            check_replaceable(out)  # a PNG or TOML snapcorr did not write is never replaced
+        check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced
         if not res.parent.is_dir():
             raise ValueError(f"{out.parent} is not a folder; create it first")
 

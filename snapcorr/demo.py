@@ -14,12 +14,27 @@ Everything is summarised in ``summary.txt``.
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import re
+import stat
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
-from ._io import atomic_write, save_png
+from ._io import (
+    NotRegularFileError,
+    atomic_write,
+    checked_outputs,
+    file_kind,
+    last_written,
+    note_checked,
+    read_regular,
+    save_png,
+    written_by_snapcorr,
+)
 from .data import lens_path
 from .optics import METHODS, Lens, mean_shift
 from .optics import MODELS as LADDER
@@ -32,27 +47,155 @@ CWL_NM, N_EFF = 700.0, 1.7
 MODELS = tuple(m for m in LADDER if m in METHODS)  # the ladder's mean-shift rungs
 
 
-#: Written into a demo's folder: a later run may replace what is in such a folder.
+#: Written into a demo's folder, last: the files the demo wrote there (name, size and SHA-256),
+#: which a later run may replace without ``overwrite``. A regular file, never followed through
+#: a link, replaced atomically.
 MARKER = ".snapcorr-demo"
+#: The files the demo writes into its folder (besides :data:`MARKER`).
+OUTPUTS = ("mean_shift.png", "mean_shift.csv", "calibration.png", "lens.toml", "spectra.png",
+           "maps.png", "summary.txt")
+_CSV_HEADER = "f_number,cra_deg,asymptotic_nm,ideal_nm,vignetted_nm,relative_illumination"
+#: The most read of the marker, and of a file to check it.
+_MARKER_LIMIT = 1 << 16
+_FILE_LIMIT = 64 << 20
+
+
+def _read_marker(out):
+    """The files :data:`MARKER` vouches for (``{name: {"size", "sha256"}}``; an earlier
+    version's marker vouches for none), or None without a marker. A marker that is not a
+    regular file (a symbolic link, a FIFO, a folder...) is refused before it is opened."""
+    path = out / MARKER
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    not_marker = (f"{path} exists and is {{}}, not the marker snapcorr demo writes (a "
+                  "regular file): remove it or choose another --out")
+    if not stat.S_ISREG(mode):
+        raise ValueError(not_marker.format(file_kind(mode)))
+    try:
+        data = read_regular(path, _MARKER_LIMIT, follow_links=False)
+    except NotRegularFileError:  # swapped since, or far larger than a marker
+        raise ValueError(not_marker.format("not a marker-sized regular file")) from None
+    except OSError as err:
+        raise ValueError(f"{path}: cannot read it ({err.strerror or err}); remove it or "
+                         "choose another --out") from None
+    try:
+        doc = json.loads(data)
+    except ValueError:
+        return {}
+    files = doc.get("files") if isinstance(doc, dict) else None
+    if not isinstance(files, dict):
+        return {}
+    return {n: e for n, e in files.items() if n in OUTPUTS and isinstance(e, dict)}
+
+
+def _vouched(path, entry):
+    """Whether ``path`` is the very file the marker lists (its size and SHA-256)."""
+    if not isinstance(entry.get("size"), int) or entry["size"] > _FILE_LIMIT:
+        return False
+    try:
+        data = read_regular(path, _FILE_LIMIT, follow_links=False)
+    except (OSError, ValueError):
+        return False
+    return len(data) == entry["size"] and hashlib.sha256(data).hexdigest() == entry.get("sha256")
+
+
+def _own_mark(path):
+    """``(True, "")`` if ``path`` carries the mark the demo writes into that file (a PNG's or
+    TOML's snapcorr mark naming it; the table's header; the summary's first line), else
+    ``(False, what it is)``."""
+    if path.suffix in (".png", ".toml"):
+        return written_by_snapcorr(path)
+    try:
+        first = read_regular(path, _FILE_LIMIT, follow_links=False, whole=False)
+    except (OSError, ValueError):
+        return False, "a file that cannot be read"
+    first = first.split(b"\n", 1)[0].decode("utf-8", "replace").rstrip("\r")
+    if path.name == "mean_shift.csv" and first == _CSV_HEADER:
+        return True, ""
+    if path.name == "summary.txt" and re.match(r"snapcorr \S+ demo: ", first):
+        return True, ""
+    return False, "a file snapcorr demo did not write"
 
 
 def check_out_dir(out_dir, *, overwrite=False):
     """The demo's output folder, refused if it holds files the demo did not make.
 
-    A folder that does not exist yet, is empty, or holds a previous demo's output (the
-    :data:`MARKER` file) is fine; any other folder only with ``overwrite=True``, since the demo
-    writes files with common names (``lens.toml``, ``summary.txt``) into it.
+    Everything is checked before the demo does any work. A folder that does not exist yet,
+    is empty, or holds :data:`MARKER` is fine, and what the demo writes there
+    (:data:`OUTPUTS`) may replace a file only if the marker lists that very file (its size and
+    SHA-256); any other file of those names only with ``overwrite=True``, and only if it
+    carries snapcorr's mark (a PNG or TOML snapcorr wrote as that file, the demo's table
+    header or summary line). A folder holding other files and no marker needs
+    ``overwrite=True``. Anything but a regular file at one of those names, or at the marker's
+    (a symbolic link, a FIFO...), is refused before it is opened. What is at each name is
+    noted (:func:`snapcorr._io.note_checked`): within :func:`run_demo`, a file that appears or
+    changes there later is not replaced.
     """
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
+    if os.path.lexists(out) and not out.is_dir():
         raise ValueError(f"{out} is not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists() and not overwrite:
+    for name in (MARKER, *OUTPUTS):  # before anything is examined: only this is replaced
+        note_checked(out / name)
+    if not out.is_dir():
+        return out
+    vouched = _read_marker(out)
+    if vouched is None and not overwrite and any(out.iterdir()):
         names = sorted(p.name for p in out.iterdir())
         raise FileExistsError(
             f"{out} holds files snapcorr demo did not make ({', '.join(names[:4])}"
             f"{', ...' if len(names) > 4 else ''}); choose an empty or new folder with --out, "
-            "or pass --overwrite to write over files of the same names")
+            "or pass --overwrite to replace the files of the same names snapcorr wrote")
+    theirs = []
+    for name in OUTPUTS:
+        path = out / name
+        try:
+            mode = os.lstat(path).st_mode
+        except FileNotFoundError:
+            continue
+        if not stat.S_ISREG(mode):
+            raise ValueError(f"{path} exists and is {file_kind(mode)}; snapcorr demo replaces "
+                             "only files it wrote: move it away or choose another --out")
+        if not (vouched and name in vouched and _vouched(path, vouched[name])):
+            theirs.append(name)
+    if theirs and not overwrite:
+        them = "it" if len(theirs) == 1 else "them"
+        why = ("it holds no marker" if vouched is None else
+               f"its marker {MARKER} does not list {them} as the demo wrote {them}")
+        raise FileExistsError(
+            f"{out} holds {', '.join(theirs)}, which snapcorr demo did not write ({why}); "
+            "choose an empty or new folder with --out, or pass --overwrite to replace the "
+            "files of the same names snapcorr wrote")
+    for name in theirs:
+        ours, found = _own_mark(out / name)
+        if not ours:
+            raise ValueError(f"{out / name} exists and is {found}; --overwrite replaces only "
+                             "what snapcorr wrote: move it away or choose another --out")
     return out
+
+
+def _write_marker(out):
+    """:data:`MARKER`, atomically, listing each output that is still the file the demo moved
+    in (the same device, inode, size and time as when it was written)."""
+    files = {}
+    for name in OUTPUTS:
+        path = out / name
+        try:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                         | getattr(os, "O_NONBLOCK", 0))
+        except OSError:
+            continue
+        with os.fdopen(fd, "rb") as fh:
+            st = os.fstat(fd)
+            if not stat.S_ISREG(st.st_mode) or last_written(path) != (
+                    st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns) or \
+                    st.st_size > _FILE_LIMIT:
+                continue  # not the file the demo wrote: not vouched for
+            data = fh.read(_FILE_LIMIT + 1)
+        files[name] = {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    text = json.dumps({"written_by": f"snapcorr {__version__} demo", "files": files}, indent=1)
+    atomic_write(out / MARKER, lambda p: p.write_text(text + "\n", encoding="utf-8"))
 
 
 def _mean_shift_over_the_field(lens):
@@ -109,8 +252,9 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     """Run the demo; write ``mean_shift.png``, ``mean_shift.csv`` and ``summary.txt``, and the
     simulated experiment's ``calibration.png``, ``lens.toml``, ``spectra.png`` and ``maps.png``.
 
-    Refuses a folder holding files the demo did not make unless ``overwrite``
-    (:func:`check_out_dir`).
+    Refuses, before any work, a folder holding files the demo did not make unless
+    ``overwrite``, and even then files of its names snapcorr did not write
+    (:func:`check_out_dir`); :data:`MARKER` is written last, listing the files written.
 
     Parameters
     ----------
@@ -122,7 +266,8 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     echo : callable
         ``echo(text)`` prints progress and the summary.
     overwrite : bool
-        Write into a folder holding other files.
+        Write into a folder holding other files, replacing files of the demo's names that
+        snapcorr wrote (never others).
 
     Returns
     -------
@@ -130,16 +275,18 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
         Paths of the outputs: ``figure``, ``table``, ``summary``, ``spectra``,
         ``calibration``, ``maps`` and ``lens``.
     """
-    out = check_out_dir(out_dir, overwrite=overwrite)
+    with checked_outputs():  # the folder's files held to what the checks found
+        return _run(check_out_dir(out_dir, overwrite=overwrite), lens, echo)
+
+
+def _run(out, lens, echo):
     out.mkdir(parents=True, exist_ok=True)
-    (out / MARKER).write_text(f"written by snapcorr {__version__} demo\n", encoding="utf-8")
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = save_png(fig, out / "mean_shift.png", dpi=120)
-    header = "f_number,cra_deg,asymptotic_nm,ideal_nm,vignetted_nm,relative_illumination"
-
     def write_csv(p):
-        np.savetxt(p, np.array(rows), delimiter=",", header=header, comments="", fmt="%.6f")
+        np.savetxt(p, np.array(rows), delimiter=",", header=_CSV_HEADER, comments="",
+                   fmt="%.6f")
 
     table = atomic_write(out / "mean_shift.csv", write_csv)
     echo("\n".join(lines))
@@ -151,9 +298,8 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     lines += ["", "The paper's experiment, simulated end to end:", *exp_lines]
     text = "\n".join(lines) + "\n"
     summary = atomic_write(out / "summary.txt", lambda p: p.write_text(text, encoding="utf-8"))
-    names = ("mean_shift.png", "mean_shift.csv", "calibration.png", "lens.toml",
-             "spectra.png", "maps.png", "summary.txt")
-    echo(f"wrote {', '.join(str(out / n) for n in names)}")
+    _write_marker(out)  # last: it vouches only for what the demo wrote
+    echo(f"wrote {', '.join(str(out / n) for n in OUTPUTS)}")
     return {"figure": figure, "table": table, "summary": summary,
             "spectra": out / "spectra.png", "calibration": out / "calibration.png",
             "maps": out / "maps.png", "lens": out / "lens.toml"}

@@ -185,3 +185,20 @@ def run_cli(*args, cwd=None):
 def cli():
     """``cli(*args, cwd=None)``: run ``snapcorr ARGS`` in-process (:func:`run_cli`)."""
     return run_cli
+
+
+@contextlib.contextmanager
+def deadline(seconds=60):
+    """Fail instead of hanging: an alarm interrupts a blocked open of a FIFO or a read of
+    /dev/zero. Only a guard (generous: a first call may import readers on a busy machine), no
+    duration asserted."""
+    def fire(signum, frame):
+        raise TimeoutError(f"still blocked after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, fire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)

@@ -2,7 +2,6 @@
 overwriting, and interruptions. Every refusal is one clear line, raised before anything is
 written, with the inputs unchanged."""
 
-import contextlib
 import os
 import signal
 import socket
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import deadline
 
 from snapcorr import _io
 from snapcorr.calibrate import read_flat
@@ -53,22 +53,6 @@ def _one_line(err):
     return text
 
 
-@contextlib.contextmanager
-def _deadline(seconds):
-    """Fail instead of hanging: an alarm interrupts a blocked open() of a FIFO. Only a guard
-    (generous: a first call may import readers on a busy machine), no duration asserted."""
-    def fire(signum, frame):
-        raise TimeoutError(f"still blocked after {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, fire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
 # -- 1. inputs that are not regular files ----------------------------------------------------
 
 
@@ -78,7 +62,7 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path, reader, ext):
     if reader == "read_dataset" and ext != ".nc":
         pytest.skip("results are .nc or .zarr")
     os.mkfifo(tmp_path / f"pipe{ext}")
-    with _deadline(60), pytest.raises(ValueError, match=r"is a FIFO \(named pipe\), not a "
+    with deadline(60), pytest.raises(ValueError, match=r"is a FIFO \(named pipe\), not a "
                                                        "regular file") as err:
         READERS[reader](tmp_path / f"pipe{ext}")
     _one_line(err)
@@ -100,7 +84,7 @@ def test_a_fifo_at_any_depth_of_a_zarr_store_is_refused_before_it_is_opened(tmp_
     chunk.unlink()
     os.mkfifo(chunk)
     readers = {**READERS, "read_frames": read_frames}
-    with _deadline(60), pytest.raises(ValueError, match=r"inside the .* store .* is a FIFO "
+    with deadline(60), pytest.raises(ValueError, match=r"inside the .* store .* is a FIFO "
                                                        r"\(named pipe\)") as err:
         readers[reader](tmp_path / "s.zarr")
     _one_line(err)
@@ -111,7 +95,7 @@ def test_an_envi_data_file_that_is_a_fifo_is_refused(tmp_path, reader):
     write_cube(_cube(shape=(5, 6, 1)), tmp_path / "e.hdr")
     (tmp_path / "e.raw").unlink()
     os.mkfifo(tmp_path / "e.raw")
-    with _deadline(60), pytest.raises(ValueError, match=r"e\.raw is a FIFO") as err:
+    with deadline(60), pytest.raises(ValueError, match=r"e\.raw is a FIFO") as err:
         READERS[reader](tmp_path / "e.hdr")
     _one_line(err)
 
@@ -406,7 +390,7 @@ def test_overwrite_never_replaces_what_snapcorr_did_not_write(tmp_path, kind, wr
     if writer == "write_dataset" and target.suffix not in (".nc", ".zarr"):
         pytest.skip("write_dataset writes .nc and .zarr")
     before = _snapshot(tmp_path)
-    with _deadline(60), pytest.raises(ValueError, match=message) as err:
+    with deadline(60), pytest.raises(ValueError, match=message) as err:
         if writer == "write_cube":
             write_cube(_cube(), target, overwrite=True)
         else:

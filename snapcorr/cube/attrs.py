@@ -7,7 +7,8 @@
   ``snapcorr attrs`` field of ENVI headers);
 - sensor positions (``sensor_row``, ``sensor_col``) as an offset per band and one step, or
   every value (:func:`_encode_positions`, :func:`_decode_positions`);
-- the mark every file snapcorr writes carries (:func:`_mark`, :func:`_version`).
+- the mark every file snapcorr writes carries (:func:`_mark`, :func:`_version`), and the mark
+  tied to the file it was written as (:func:`_tied_mark`, :func:`_mark_matches`).
 
 See :mod:`snapcorr.cube.io` for how each format holds them.
 """
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -29,10 +31,33 @@ JSON_PREFIX = "json:"
 
 
 def _mark():
-    """The mark of the writer: ``"snapcorr <version>"``."""
+    """The mark of the writer: ``"snapcorr <version>"``.
+
+    A writer puts it in (``written_by``; ENVI headers: ``snapcorr version``); when the
+    finished file is moved in, it is tied to the name it is written as and to what the file
+    holds (:func:`_tied_mark`, by :func:`snapcorr.cube.writing._tie_mark`), so that a copy,
+    or a file another program saved from it with its attributes, is not taken for
+    snapcorr's own."""
     from .. import __version__
 
     return f"snapcorr {__version__}"
+
+
+def _tied_mark(name, description):
+    """The mark tied to the file ``name`` and to ``description`` (what the file holds, as
+    anything JSON can describe): ``snapcorr <version> as "<name>" (check <digest>)``."""
+    from .._io import _token, tied_mark
+
+    return tied_mark(name, _token(name, description))
+
+
+def _mark_matches(value, target, description, what):
+    """``(True, "")`` if the mark ``value`` is :func:`_tied_mark` of ``target``'s name and
+    ``description``, else ``(False, what was found)``; an earlier version's mark, which names
+    no file, does not match."""
+    from .._io import _token, mark_matches
+
+    return mark_matches(value, target, _token(Path(target).name, description), what)
 
 
 def _version():
