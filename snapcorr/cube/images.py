@@ -154,7 +154,7 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
     data = data[..., keep]
     dtype = meta.get("dtype")
     if dtype is not None:
-        data = _described_dtype(path, fmt, data, dtype)
+        data = _described_dtype(path, data, dtype)
     cube_attrs = meta.get("attrs", {})
     found = _File(path, fmt, data, wavelength=wl, fwhm=meta.get("fwhm_nm"),
                   name=meta.get("name") or name,
@@ -217,7 +217,7 @@ def _pixels(inp, spec, sub, path):
     return np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
 
 
-def _described_dtype(path, fmt, data, dtype):
+def _described_dtype(path, data, dtype):
     """``data`` in the dtype its description names: the stored one, or one its values convert
     to exactly (snapcorr writes integers into OpenEXR's float channels; OpenImageIO gives a
     TIFF's half floats as float32). Anything else (a file re-saved in another type under the
