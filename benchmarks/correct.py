@@ -33,7 +33,7 @@ lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
 sensor = Sensor("bench", "snapscan", 5.5 * 2048 / n, np.linspace(470, 900, 150), 10.0, 1.7)
 data = np.random.default_rng(0).random((n, n, 150), dtype=np.float32)
 cube = make_cube(data, sensor.cwl_nm)
-small = make_cube(data[:4, :4], sensor.cwl_nm)
+small = make_cube(np.ascontiguousarray(data[:4, :4]), sensor.cwl_nm)  # as laid out
 correct_cube(small, sensor, 1.4, lens, resample=True, harmonise=True)  # compile, untimed
 out = {"cube_bytes": data.nbytes}
 copies = []

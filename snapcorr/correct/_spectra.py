@@ -6,7 +6,9 @@ nominal wavelength: the straight line through the samples (:mod:`snapcorr.correc
 or that line averaged with a Gaussian (:mod:`snapcorr.correct.harmonise`). A Gaussian of
 zero width is the straight line itself, so one pass (:func:`spectra_pass`) serves both;
 resampling runs it with ``widen=False`` (the line everywhere, :func:`line_value`, no widths
-read), harmonising's direct path with each value's widening.
+read), harmonising's direct path with each value's widening. The tabulated harmonising pass
+computes its few direct values (finite spectra) from the line's kinks instead
+(:func:`smoothed_line_value`), the same to 1e-9 and two to three times faster.
 
 The helpers say ``fastmath=False`` outright: Numba compiles a function called from a
 ``fastmath`` one (the tabulated harmonising pass) with its caller's flags unless it sets them
@@ -20,8 +22,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["REACH", "cdf", "line_value", "pdf", "sort_samples", "spectra_pass",
-           "spectrum_value"]
+__all__ = ["REACH", "cdf", "line_value", "pdf", "smoothed_line_value", "sort_samples",
+           "spectra_pass", "spectrum_value"]
 
 #: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
 REACH = 6.0
@@ -92,13 +94,16 @@ def spectrum_value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
     """The straight line through ``(lam, d)`` (increasing ``lam``, held constant beyond the
     ends) averaged with a Gaussian of standard deviation ``sigma`` about ``t``; at
     ``sigma <= 0`` the line's value at ``t``. Only the segments within reach of ``t`` are
-    visited, found from segment ``j0`` on (``t`` increases between calls). Returns the value
-    and the first segment in reach, the next call's start."""
+    visited, found from segment ``j0`` (``t`` increases between calls; ``sigma`` may change
+    freely, the search steps back as far as a wider reach needs). Returns the value and the
+    first segment in reach, the next call's start."""
     if sigma <= 0.0:
         return line_value(lam, d, t, j0)
     n = lam.size
     reach = REACH * sigma
     j = j0
+    while j > 0 and lam[j] > t - reach:  # a wider Gaussian than the last call's reaches back
+        j -= 1
     while j < n - 2 and lam[j + 1] < t - reach:
         j += 1
     start = j
@@ -119,6 +124,88 @@ def spectrum_value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
         ca, pa = cb, pb
         j += 1
     return acc, start
+
+
+def _ramp_excess_exact(a):
+    """``E[max(Z - a, 0)] - max(-a, 0)`` for a standard normal ``Z`` (even in ``a``): what a
+    Gaussian average adds to a ramp whose kink is ``a`` standard deviations from the point;
+    below 2e-10 beyond six. Python floats: makes the table of :func:`_ramp_excess`."""
+    a = abs(a)
+    return _INV_SQRT_2PI * math.exp(-0.5 * a * a) - 0.5 * a * math.erfc(a / _SQRT2)
+
+
+def _ramp_excess_table(pieces=12, degree=10):
+    """Polynomials (highest power first) in ``s = 2 (a - a_i) / w - 1`` for
+    :func:`_ramp_excess_exact` on ``pieces`` intervals ``[a_i, a_i + w]`` over
+    ``[0, REACH]``: its Chebyshev interpolant on each (1e-15 from it)."""
+    from numpy.polynomial import chebyshev
+
+    w = REACH / pieces
+    table = np.empty((pieces, degree + 1))
+    for i in range(pieces):
+        s = chebyshev.chebpts1(degree + 1)
+        f = [_ramp_excess_exact(i * w + (si + 1.0) * w / 2.0) for si in s]
+        table[i] = chebyshev.cheb2poly(chebyshev.chebfit(s, f, degree))[::-1]
+    return table
+
+
+_RAMP_TABLE = _ramp_excess_table()
+_RAMP_SCALE = _RAMP_TABLE.shape[0] / REACH
+
+
+@numba.njit(cache=True, fastmath=False)
+def _ramp_excess(z):  # pragma: no cover - compiled
+    """:func:`_ramp_excess_exact` for ``|z| <= REACH`` (beyond: its value at ``REACH``), from
+    its table: ten multiply-adds, where the formula takes an ``exp`` and an ``erfc`` (three
+    times as long)."""
+    a = min(abs(z), REACH)
+    i = min(int(a * _RAMP_SCALE), _RAMP_TABLE.shape[0] - 1)
+    s = 2.0 * (a * _RAMP_SCALE - i) - 1.0
+    c = _RAMP_TABLE[i]
+    r = c[0]
+    for k in range(1, c.size):
+        r = r * s + c[k]
+    return r
+
+
+@numba.njit(cache=True, fastmath=False)
+def _kink(lam, d, m):  # pragma: no cover - compiled
+    """The change of slope of the straight line through ``(lam, d)`` (held constant beyond the
+    ends) at sample ``m``."""
+    n = lam.size
+    right = (d[m + 1] - d[m]) / (lam[m + 1] - lam[m]) if m < n - 1 else 0.0
+    left = (d[m] - d[m - 1]) / (lam[m] - lam[m - 1]) if m > 0 else 0.0
+    return right - left
+
+
+@numba.njit(cache=True, fastmath=False)
+def smoothed_line_value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
+    """:func:`spectrum_value` for finite ``d`` within the samples' range
+    (``lam[0] <= t <= lam[-1]``), from the line's kinks: the line is a sum of ramps, a
+    Gaussian average leaves a straight stretch as it is, so the value is the line's at ``t``
+    plus, for each sample within reach, its change of slope times ``sigma`` times
+    :func:`_ramp_excess` (a polynomial). Nothing transcendental, and only the kinks within
+    ``REACH`` standard deviations (none where the Gaussian sees only a straight stretch),
+    where :func:`spectrum_value` takes an ``erf`` and an ``exp`` at every sample it visits;
+    the two agree to 1e-9 of the values (the Gaussian's mass beyond its reach, which they
+    leave out differently). Returns the value and the segment of ``t``, the next call's
+    start (``t`` increases between calls; the kinks are walked from it both ways, however
+    the widths change)."""
+    v, j = line_value(lam, d, t, j0)
+    if sigma <= 0.0:
+        return v, j
+    n = lam.size
+    reach = REACH * sigma
+    acc = 0.0
+    m = j
+    while m >= 0 and lam[m] >= t - reach:
+        acc += _kink(lam, d, m) * _ramp_excess((lam[m] - t) / sigma)
+        m -= 1
+    m = j + 1
+    while m < n and lam[m] <= t + reach:
+        acc += _kink(lam, d, m) * _ramp_excess((lam[m] - t) / sigma)
+        m += 1
+    return v + sigma * acc, j
 
 
 @numba.njit(parallel=True, cache=True)

@@ -43,6 +43,7 @@ import numpy as np
 from ._spectra import REACH as _REACH
 from ._spectra import cdf as _cdf
 from ._spectra import pdf as _phi
+from ._spectra import smoothed_line_value as _smoothed
 from ._spectra import spectra_pass
 from ._spectra import spectrum_value as _value
 
@@ -84,47 +85,152 @@ def _segment_weights(lam, t, sigma, w, k_reach=_REACH):  # pragma: no cover - co
         w[j] += mass - right
 
 
+#: The widest pair of banded matrices (in diagonals) summed with the sums in registers
+#: (:func:`_pair_sums`, one compiled version per even width); wider ones diagonal by diagonal.
+_PAIR_MAX = 24
+#: The outputs are padded to a multiple of this (a vector of float32), and the diagonals'
+#: output ranges for :func:`_banded` start and end on multiples of it.
+_LANES = 8
+
+
 @numba.njit(cache=True, fastmath={"contract"})
-def _diagonal_sums(acc, rows, buf, width, k0):  # pragma: no cover - compiled
-    """``acc[k] += sum(rows[q, k0 + k] * buf[q + k] for q < width)``, one diagonal at a time:
-    a vector operation over the outputs, and every output's sum in band order."""
-    n = acc.size
+def _pair_sums(o, A, B, x, u, width):  # pragma: no cover - compiled
+    """``o[k] = (1 - u) sum(A[q, k] x[k + q]) + u sum(B[q, k] x[k + q])`` over ``q < width``:
+    two nodes' banded matrices along their common diagonals, in band order, each output's
+    two sums in registers (``width`` a compile-time constant: the loop over the diagonals is
+    unrolled, the one over the outputs vectorised; the data read once for both)."""
+    width = numba.literally(width)
+    for k in range(o.size):
+        sa = np.float32(0.0)
+        sb = np.float32(0.0)
+        for q in range(width):
+            v = x[k + q]
+            sa += A[q][k] * v
+            sb += B[q][k] * v
+        o[k] = (1.0 - u) * sa + u * sb
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def _pair(o, A, B, x, u, width):  # pragma: no cover - compiled
+    """:func:`_pair_sums` for ``width`` up to ``_PAIR_MAX``, taken to the next even number
+    (half as many versions to compile; ``A`` and ``B`` have a row of zeros to spare, which
+    leaves every sum as it is); False (nothing done) beyond."""
+    if width <= 2:
+        _pair_sums(o, A, B, x, u, 2)
+    elif width <= 4:
+        _pair_sums(o, A, B, x, u, 4)
+    elif width <= 6:
+        _pair_sums(o, A, B, x, u, 6)
+    elif width <= 8:
+        _pair_sums(o, A, B, x, u, 8)
+    elif width <= 10:
+        _pair_sums(o, A, B, x, u, 10)
+    elif width <= 12:
+        _pair_sums(o, A, B, x, u, 12)
+    elif width <= 14:
+        _pair_sums(o, A, B, x, u, 14)
+    elif width <= 16:
+        _pair_sums(o, A, B, x, u, 16)
+    elif width <= 18:
+        _pair_sums(o, A, B, x, u, 18)
+    elif width <= 20:
+        _pair_sums(o, A, B, x, u, 20)
+    elif width <= 22:
+        _pair_sums(o, A, B, x, u, 22)
+    elif width <= 24:
+        _pair_sums(o, A, B, x, u, 24)
+    else:
+        return False
+    return True
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def _banded(acc, rows, ks, ke, buf, width, k0, k1):  # pragma: no cover - compiled
+    """``acc[k] = sum(rows[q, k] * buf[q + k] for q < width)`` for ``k0 <= k < k1``, one
+    diagonal at a time (a vector operation over the outputs, every output's sum in band order),
+    each over only the outputs where it has weights (``ks[q]...ke[q]``: ``rows`` is zero
+    elsewhere, so the sums are those over the whole band): the matrices wider than
+    ``_PAIR_MAX``."""
+    acc[k0:k1] = 0.0
     for q in range(width):
-        r = rows[q, k0:k0 + n]
-        b = buf[q:q + n]
-        for k in range(n):
-            acc[k] += r[k] * b[k]
+        a = max(ks[q], k0)
+        b = min(ke[q], k1)
+        if a >= b:
+            continue
+        r = rows[q, a:b]
+        x = buf[q + a:]
+        s = acc[a:b]
+        for k in range(b - a):
+            s[k] += r[k] * x[k]
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def _row_sums(o, W, lo, cnt, i, i1, u, spectrum, ta, tb):  # pragma: no cover - compiled
+    """``o[k]`` for ``ta <= k <= tb`` from the two nodes' weights row by row (``W[i, k]`` on
+    ``spectrum[lo[i, k]:]``): a spectrum with a NaN or infinity, which spoils only the
+    outputs whose weights reach it."""
+    for k in range(ta, tb + 1):
+        t_a = np.float32(0.0)
+        t_b = np.float32(0.0)
+        for q in range(cnt[i, k]):
+            t_a += W[i, k, q] * spectrum[lo[i, k] + q]
+        for q in range(cnt[i1, k]):
+            t_b += W[i1, k, q] * spectrum[lo[i1, k] + q]
+        o[k] = (1.0 - u) * t_a + u * t_b
+
+
+@numba.njit(cache=True)
+def _direct_values(o, lam, d, cwl, direct, var, i, i1, u, near,
+                   finite):  # pragma: no cover - compiled
+    """``o[k]`` for the outputs marked in ``direct`` (among ``near``, in increasing order;
+    the marks cleared): the line through ``(lam, d)`` averaged with the Gaussian of the
+    nodes' interpolated variance, from its kinks where the spectrum is finite."""
+    j = 0
+    for k in near:
+        if direct[k]:
+            direct[k] = False
+            sig = math.sqrt(max((1.0 - u) * var[i, k] + u * var[i1, k], 0.0))
+            if finite:
+                o[k], j = _smoothed(lam, d, cwl[k], sig, j)
+            else:
+                o[k], j = _value(lam, d, cwl[k], sig, j)
 
 
 @numba.njit(parallel=True, cache=True, fastmath={"contract"})
-def _tabulated(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var, sigma_direct,
-               near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
+def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, cnt, var,
+               sigma_direct, near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
     # A pixel's weights are those of its two neighbouring nodes, interpolated linearly in
     # chief-ray angle (nodes a few hundredths of a nanometre of shift apart): the value is
     # (1 - u) sa + u sb, each a float32 sum over one node's banded matrix (a few tens of
-    # terms: 1e-7 of the values), taken along its diagonals (``_diagonal_sums``) so that it
-    # vectorises over the outputs. Below sigma_direct the weights bend within a node step (a
-    # straight line's kinks are barely smoothed): those values are computed directly, over
-    # the few segments in reach.
+    # terms: 1e-7 of the values), taken along its diagonals so that it vectorises over the
+    # outputs, both nodes at once (``_pair``; row r of D[i] is diagonal base[i] + r, zero
+    # beyond the node's own, so the two share their rows' diagonals). Below sigma_direct the
+    # weights bend within a node step (a straight line's kinks are barely smoothed): those
+    # values are computed directly, from the few kinks in reach.
     ny, nx, nb = data.shape
+    npad = D.shape[2]
     m = nodes.size
     step = (nodes[m - 1] - nodes[0]) / (m - 1) if m > 1 else 1.0
-    pad = 0
+    pad = 1  # (a diagonal to spare for an odd width taken even)
     for i in range(m):
-        pad = max(pad, -off[i], off[i] + wid[i])
+        pad = max(pad, -base[i], off[i] + wid[i] + 1)
     sd2 = sigma_direct * sigma_direct
     for y in numba.prange(ny):
         lam = np.empty(nb)
         d = np.empty(nb)
-        buf = np.zeros(nb + 2 * pad, np.float32)  # the spectrum, zeros beyond its ends
-        sa = np.empty(nb, np.float32)
-        sb = np.empty(nb, np.float32)
+        buf = np.zeros(npad + 2 * pad, np.float32)  # the spectrum, zeros beyond its ends
+        sa = np.zeros(npad, np.float32)
+        sb = np.zeros(npad, np.float32)
+        direct = np.zeros(nb, np.bool_)
+        res = np.zeros(npad, np.float32)
         for x in range(nx):
             s = scale[y, x]
+            src = data[y, x]
+            spectrum = buf[pad:pad + nb]  # (indices from zero up: no negative index to wrap)
             finite = True
             for b in range(nb):
-                buf[pad + b] = data[y, x, b]
-                finite &= math.isfinite(buf[pad + b])
+                spectrum[b] = src[b]
+                finite &= math.isfinite(spectrum[b])
             pos = min(max((cra[y, x] - nodes[0]) / step, 0.0), m - 1.0)
             i = min(int(pos), m - 2) if m > 1 else 0
             i1 = i + 1 if m > 1 else i
@@ -137,46 +243,53 @@ def _tabulated(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var, sigm
             khi = nb - 1
             while khi >= klo and cwl[khi] > lam1:
                 khi -= 1
+            # the outputs computed directly (no diagonals summed for them if they are at the
+            # ends of the range, all of them at the field's edge): the others are ta...tb
+            n_direct = 0
+            for c in range(near_ptr[i], near_ptr[i + 1]):
+                k = near_k[c]
+                if klo <= k <= khi and (1.0 - u) * var[i, k] + u * var[i1, k] < sd2:
+                    direct[k] = True
+                    n_direct += 1
+            ta, tb = klo, khi
+            while ta <= tb and direct[ta]:
+                ta += 1
+            while tb >= ta and direct[tb]:
+                tb -= 1
+            if ta <= tb:
+                d0 = min(off[i], off[i1])
+                width = max(off[i] + wid[i], off[i1] + wid[i1]) - d0
+                if not finite:  # a NaN or infinity reaches only the outputs it weighs in
+                    _row_sums(out[y, x], W, lo, cnt, i, i1, u, buf[pad:], ta, tb)
+                elif _pair(res, D[i, d0 - base[i]:], D[i1, d0 - base[i1]:], buf[pad + d0:],
+                           u, width):  # every output, a whole number of vectors
+                    o = out[y, x]  # (those outside ta...tb are written again below)
+                    for k in range(nb):
+                        o[k] = res[k]
+                else:
+                    ra, rb = off[i] - base[i], off[i1] - base[i1]
+                    k0, k1 = ta - ta % _LANES, min(tb + _LANES - tb % _LANES, npad)
+                    _banded(sa, D[i, ra:], ks[i, ra:], ke[i, ra:], buf[pad + off[i]:], wid[i],
+                            k0, k1)
+                    _banded(sb, D[i1, rb:], ks[i1, rb:], ke[i1, rb:], buf[pad + off[i1]:],
+                            wid[i1], k0, k1)
+                    va, vb, o = sa[ta:tb + 1], sb[ta:tb + 1], out[y, x, ta:tb + 1]
+                    for k in range(tb + 1 - ta):
+                        o[k] = (1.0 - u) * va[k] + u * vb[k]
+                if nbad[i, tb + 1] - nbad[i, ta] + nbad[i1, tb + 1] - nbad[i1, ta] > 0:
+                    for k in range(ta, tb + 1):  # a row never read by the data it was made for
+                        if nbad[i, k + 1] > nbad[i, k] or nbad[i1, k + 1] > nbad[i1, k]:
+                            out[y, x, k] = np.nan
             for k in range(klo):
                 out[y, x, k] = np.nan
             for k in range(khi + 1, nb):
                 out[y, x, k] = np.nan
-            n = khi + 1 - klo
-            if n <= 0:
-                continue
-            if finite:
-                sa[:n] = 0.0
-                sb[:n] = 0.0
-                _diagonal_sums(sa[:n], D[i], buf[pad + off[i] + klo:], wid[i], klo)
-                _diagonal_sums(sb[:n], D[i1], buf[pad + off[i1] + klo:], wid[i1], klo)
-            else:  # a NaN or infinity reaches only the outputs whose weights cover it
-                for k in range(klo, khi + 1):
-                    ta = np.float32(0.0)
-                    tb = np.float32(0.0)
-                    for q in range(cnt[i, k]):
-                        ta += W[i, k, q] * buf[pad + lo[i, k] + q]
-                    for q in range(cnt[i1, k]):
-                        tb += W[i1, k, q] * buf[pad + lo[i1, k] + q]
-                    sa[k - klo] = ta
-                    sb[k - klo] = tb
-            for k in range(n):
-                out[y, x, klo + k] = (1.0 - u) * sa[k] + u * sb[k]
-            if nbad[i, khi + 1] - nbad[i, klo] + nbad[i1, khi + 1] - nbad[i1, klo] > 0:
-                for k in range(klo, khi + 1):  # a row never read by the data it was made for
-                    if nbad[i, k + 1] > nbad[i, k] or nbad[i1, k + 1] > nbad[i1, k]:
-                        out[y, x, k] = np.nan
-            j = -1
-            for c in range(near_ptr[i], near_ptr[i + 1]):  # outputs that may be direct
-                k = near_k[c]
-                if klo <= k <= khi:
-                    v2 = (1.0 - u) * var[i, k] + u * var[i1, k]
-                    if v2 < sd2:
-                        if j < 0:
-                            for b in range(nb):
-                                lam[b] = cwl[b] * s
-                                d[b] = data[y, x, b]
-                            j = 0
-                        out[y, x, k], j = _value(lam, d, cwl[k], math.sqrt(max(v2, 0.0)), j)
+            if n_direct:
+                for b in range(nb):
+                    lam[b] = cwl[b] * s
+                    d[b] = data[y, x, b]
+                _direct_values(out[y, x], lam, d, cwl, direct, var, i, i1, u,
+                               near_k[near_ptr[i]:near_ptr[i + 1]], finite)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -215,10 +328,15 @@ def _node_weights(cwl, node_scale, node_sigma, W, lo, cnt):  # pragma: no cover 
 
 def _diagonals(W, lo, cnt):
     """Each node's weights (row ``k``: ``W[i, k, :cnt[i, k]]`` on the bands from ``lo[i, k]``)
-    along the diagonals of its banded matrix: ``D[i, q, k]`` weighs band ``k + off[i] + q``
-    for ``q < wid[i]`` (zero where row ``k`` has no weight there). Rows of NaN (outputs far
-    beyond the node's corrected range: no weight reaches them) are left out and marked in
-    ``bad``."""
+    along the diagonals of its banded matrix: ``D[i, r, k]`` weighs band ``k + base[i] + r``
+    (zero where row ``k`` has no weight there; the outputs padded with zeros to a multiple of
+    ``_LANES``). A node's own diagonals are ``off[i]...off[i] + wid[i] - 1``; its rows reach
+    over its neighbours' too (zeros), and one further, so that a pixel between two nodes reads
+    both along the same diagonals, an even number of them. ``ks[i, r] <= k < ke[i, r]``
+    (multiples of ``_LANES``) are the outputs row ``r`` has weights for (the rows' reach
+    shifts along the bands, so most diagonals have weights for only some of the outputs), for
+    the matrices too wide for registers. Rows of NaN (outputs far beyond the node's corrected
+    range: no weight reaches them) are left out and marked in ``bad``."""
     m, nb, L = W.shape
     bad = np.isnan(W).any(axis=2)
     q = np.arange(L)
@@ -230,10 +348,19 @@ def _diagonals(W, lo, cnt):
     empty = ~keep.any(axis=(1, 2))
     off[empty], last[empty] = 0, 0
     wid = last - off + 1
-    D = np.zeros((m, int(wid.max(initial=1)), nb), np.float32)
+    near = [np.maximum(np.arange(m) - 1, 0), np.arange(m), np.minimum(np.arange(m) + 1, m - 1)]
+    base = np.min([off[j] for j in near], axis=0)
+    top = np.max([off[j] + wid[j] for j in near], axis=0)
+    npad = -(-nb // _LANES) * _LANES
+    D = np.zeros((m, int((top - base).max(initial=1)) + 1, npad), np.float32)
     ii, kk, qq = np.nonzero(keep)
-    D[ii, rel[ii, kk, qq] - off[ii], kk] = W[ii, kk, qq]
-    return D, off, wid, bad
+    D[ii, rel[ii, kk, qq] - base[ii], kk] = W[ii, kk, qq]
+    some = D != 0
+    first = np.argmax(some, axis=2)
+    end = npad - np.argmax(some[:, :, ::-1], axis=2)
+    ks = np.where(some.any(axis=2), first // _LANES * _LANES, 0)
+    ke = np.where(some.any(axis=2), -(-end // _LANES) * _LANES, 0)
+    return D, base, off, wid, ks.astype(np.int64), ke.astype(np.int64), bad
 
 
 def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, nodes=None,
@@ -304,10 +431,15 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     elif weights.cwl.shape != cwl.shape or np.any(weights.cwl != cwl):
         raise ValueError("the weights were made for other nominal wavelengths")
     w = weights
-    _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
-               np.ascontiguousarray(cra, dtype=np.float64), w.nodes, w.D, w.off, w.wid,
-               w.nbad, w.W, w.lo, w.cnt, w.var, w.sigma_direct, w.near_ptr, w.near_k, cwl,
-               out)
+    # rows handed to the threads a few at a time as they ask, not in one half each: the
+    # field's edge (values computed directly) costs more, and a thread slowed by other work
+    # is not waited for
+    rows = max(1, min(8, data.shape[0] // (4 * numba.get_num_threads())))
+    with numba.parallel_chunksize(rows):
+        _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
+                   np.ascontiguousarray(cra, dtype=np.float64), w.nodes, w.D, w.base, w.off,
+                   w.wid, w.ks, w.ke, w.nbad, w.W, w.lo, w.cnt, w.var, w.sigma_direct,
+                   w.near_ptr, w.near_k, cwl, out)
     return out
 
 
@@ -317,8 +449,11 @@ class NodeWeights(NamedTuple):
     cwl: np.ndarray
     nodes: np.ndarray
     D: np.ndarray
+    base: np.ndarray
     off: np.ndarray
     wid: np.ndarray
+    ks: np.ndarray
+    ke: np.ndarray
     nbad: np.ndarray
     W: np.ndarray
     lo: np.ndarray
@@ -360,7 +495,7 @@ def node_weights(cwl_nm, nodes, node_scale, node_sigma):
     lo = np.zeros((nodes.size, cwl.size), np.int64)
     cnt = np.zeros((nodes.size, cwl.size), np.int64)
     _node_weights(cwl, node_scale, ns, W, lo, cnt)
-    D, off, wid, bad = _diagonals(W, lo, cnt)
+    D, base, off, wid, ks, ke, bad = _diagonals(W, lo, cnt)
     # rows of NaN before each output, per node
     nbad = np.concatenate([np.zeros((nodes.size, 1), np.int64),
                            np.cumsum(bad, axis=1, dtype=np.int64)], axis=1)
@@ -373,5 +508,5 @@ def node_weights(cwl_nm, nodes, node_scale, node_sigma):
         (10.0 * step) ** 2 * (1.0 + 1e-9) + 1e-300
     near_ptr = np.concatenate([[0], np.cumsum(low.sum(axis=1))]).astype(np.int64)
     near_k = np.nonzero(low)[1].astype(np.int64)
-    return NodeWeights(cwl, nodes, D, off, wid, nbad, W, lo, cnt, var, float(10.0 * step),
-                       near_ptr, near_k)
+    return NodeWeights(cwl, nodes, D, base, off, wid, ks, ke, nbad, W, lo, cnt, var,
+                       float(10.0 * step), near_ptr, near_k)
