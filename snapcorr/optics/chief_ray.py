@@ -78,7 +78,13 @@ def _cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
     scale = _tan_per_pixel(pixel_pitch_um, exit_pupil_mm)
     dy = (np.asarray(rows, float) - cy) * scale
     dx = (np.asarray(cols, float) - cx) * scale
-    return np.rad2deg(np.arctan(np.hypot(dy, dx)))
+    r = np.square(dy) + np.square(dx)  # (tan^2: far from overflow for any field)
+    if r.ndim == 0:
+        return np.rad2deg(np.arctan(np.sqrt(r)))
+    # in place: one array the size of the image (twice as fast at 2048^2 as four)
+    np.sqrt(r, out=r)
+    np.arctan(r, out=r)
+    return np.rad2deg(r, out=r)
 
 
 @accepts_center_rc
