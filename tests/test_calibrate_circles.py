@@ -576,22 +576,24 @@ def test_a_circle_the_noise_hides_is_in_the_error_bar():
     z, err = shift_z(out)
     assert err > 0.1 and z < 2.5, (z, err)
     assert "shift_stderr_model_choice_nm" in res.lens.calibration
-
-
-_HIDDEN = pytest.mark.xfail(strict=True, reason=(
-    "a pixel-vignetting circle at the detection limit: in 3 of 8 seeds the two-circle fit's "
-    "second circle lands elsewhere, so no rival model carries the missing circle's 0.2 nm "
-    "into the error bar (RMS z 8)"))
+    # what carries it: the rival with the pixel's circle held at h = x, its P pinned
+    pixel, _ = res.rivals["pixel"]
+    assert pixel.params["h2_mm"] == X and pixel.params["P2_mm"] == pytest.approx(8.5, rel=0.01)
+    assert "pixel" in res.lens.calibration["model_choice"]["rivals"]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("key", "noise"), [
     (k, n) for k in ("one_h_lt_x", "one_h_gt_x", "two_front_rear", "circle_pixel")
-    for n in (0.005, 0.02, 0.05) if (k, n) != ("circle_pixel", 0.05)]
-    + [pytest.param("circle_pixel", 0.05, marks=_HIDDEN)])
+    for n in (0.005, 0.02, 0.05)])
 def test_shift_error_bars_cover_over_seeds(key, noise):
     """The shift's errors over its reported standard errors, over 8 seeds: RMS in [0.5, 2]
-    for every truth and noise level (``benchmarks/calibration_circles.coverage_sweep``)."""
+    for every truth and noise level (``benchmarks/calibration_circles.coverage_sweep``).
+
+    The pixel-vignetting circle at 5 % noise is at the detection limit (its 0.24 nm about 4
+    Cramér-Rao standard deviations): most seeds choose one circle, and what covers the
+    missing circle is the rival with it held at ``h = x`` (one parameter, so its evidence
+    clears the criterion where a free second circle's does not): RMS z 8 without it."""
     z = np.array([shift_z(calibrate(TRUTHS[key], noise=noise, seed=s, scene=HALF))[0]
                   for s in range(8)])
     rms = float(np.sqrt(np.mean(z**2)))

@@ -431,7 +431,7 @@ def floor_chi2(data: BlockData, fit: ModelFit, floor_rel, center=None):
 
 
 def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_nfev=60,
-              keep=2):
+              keep=2, fixed=None, screen=True):
     """Fit one model from several starting points; return the best :class:`ModelFit`.
 
     The first circle's h is kept positive: mirroring every circle through the axis
@@ -449,6 +449,13 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
         Keep h fixed (a single f-number cannot tell P from h).
     keep : int
         The fit is run from the ``keep`` starting points with the lowest cost.
+    fixed : dict, optional
+        Further parameters held at given values, by name (``{"h2_mm": x}``: a second circle
+        that is pixel vignetting); they count as no parameter and have no standard error.
+    screen : bool
+        Run the starts on a subset of the blocks first, then polish the best on all of them
+        (default); False: on all blocks from the start (a start at a minimum already, whose
+        subset's own minimum lies elsewhere by the subset's noise).
     """
     n = data.n_used
     if n == 0:
@@ -459,7 +466,8 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     names = param_names(model)
     free = [i for i, nm in enumerate(names)
             if not (center is not None and nm in ("cx_px", "cy_px"))
-            and not (fixed_h is not None and nm == "h_mm")]
+            and not (fixed_h is not None and nm == "h_mm")
+            and nm not in (fixed or {})]
     x = data.x_mm
     lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf] + [1e-3, -20 * x] * 2)[: len(names)]
     hi_all = np.array([20 * x, 20 * x, np.inf, np.inf] + [20 * x, 20 * x] * 2)[: len(names)]
@@ -472,7 +480,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     # Starts are screened and run on every k-th block (about SCREEN_BLOCKS of them); the best
     # is then polished on all blocks. The minimum barely moves with the subset, and this is
     # where the time goes.
-    step, screen = _screening_subset(data)
+    step, screen = _screening_subset(data) if screen else (1, data)
     margin = np.where(np.isfinite(lo_all), 1e-4 * np.maximum(np.abs(lo_all), 1.0), 0.0)
     bases = []
     for start in starts:
@@ -481,6 +489,8 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
             base[2:4] = center
         if fixed_h is not None:
             base[1] = fixed_h
+        for nm, v in (fixed or {}).items():
+            base[names.index(nm)] = v
         base[free] = np.clip(base[free], (lo_all + margin)[free], (hi_all - margin)[free])
         r = _residuals(screen, model, base, center)[0]
         bases.append((float(r @ r), base))

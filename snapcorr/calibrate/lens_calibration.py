@@ -95,6 +95,10 @@ class LensCalibration:
         used, scaled up by the fit's misfit) and ``shift_stderr_model_nm`` (the models the
         rules could not rule out: see :func:`_model_choice_stderr`) in quadrature. Empty
         where there is neither (no circle, and no other model in question).
+    rivals : dict
+        Name -> ``(ModelFit, floored BIC)`` of models never chosen that count in the model
+        choice's error: ``"pixel"``, the first circle plus pixel vignetting (``h = x``), where
+        two circles were fitted (:func:`snapcorr.calibrate.stages.pixel_rival`).
     predictive : dict
         Estimator -> :class:`~snapcorr.calibrate.predictive.Prediction`: how well each
         predicted the flats left out (``auto`` with circles only).
@@ -129,6 +133,7 @@ class LensCalibration:
     exit_pupil_stderr_mm: float | None = None
     shift_stderr_fit_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shift_stderr_model_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rivals: dict = field(default_factory=dict)
 
     @property
     def center_rc(self) -> tuple:
@@ -230,10 +235,9 @@ def _check_enough_flats(items, vignetting_distance_mm):
 @accepts_center_rc
 def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm=None,
                    magnification=0.0, pupil_magnification=1.0, dark=None, center_px=None,
-                   saturation=None,
-                   vignetting_distance_mm=None, method="auto", name="calibrated lens",
-                   inputs=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
-                   progress=None, pupil="paper"):
+                   saturation=None, vignetting_distance_mm=None, method="auto",
+                   name="calibrated lens", inputs=None, tolerance_nm=choice.TOLERANCE_NM,
+                   max_circles=3, progress=None, pupil="paper"):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -288,12 +292,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
     fl, ratios, center, center_source, notes = _prepare_flats(items, dark, saturation, center_px)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
-    max_cra = ons.max_cra_deg
-    fs = fl.f_numbers
+    max_cra, fs = ons.max_cra_deg, fl.f_numbers
     fix_center = center if (center_px is not None or fl.single) else None
     decide = functools.partial(_choose, base=base, fs=fs, tolerance_nm=tolerance_nm,
                                h_given=vignetting_distance_mm is not None)
-    fits, bic, fit_notes, data = _fit_joint_models(
+    fits, bic, fit_notes, data, rivals = _fit_joint_models(
         fl, ratios, base, pixel_pitch_um, center, fix_center, ons.fits, max_cra,
         vignetting_distance_mm, max_circles, decide, progress)
     model, verdicts = decide(fits, bic, max_cra)
@@ -312,7 +315,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
                 pupil=pupil)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
-    errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra)
+    errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
+                         rivals)
     notes += _precision_notes(verdicts, model, next_best, diff, errs["shift_stderr_nm"], fs,
                               tolerance_nm) + (
         [_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles)] if circles else [])
@@ -324,7 +328,7 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
         shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
         shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
-        exit_pupil_stderr_mm=exit_pupil_stderr_mm, **errs)
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, **errs)
     result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
                        calibration=_calibration_table(result, inputs), pupil=pupil)
     return result
@@ -342,11 +346,13 @@ def _predict(data, fs, fit, ons, base, center, fix_center, h_given, progress):
                                          fixed_h=h_given, progress=progress)
 
 
-def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra):
+def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
+                  rivals=None):
     """The shift's standard error per f-number: the fit's part, the model choice's part, and
     both in quadrature (as :class:`LensCalibration` fields)."""
     fit_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
-    model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra)
+    model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra,
+                                      rivals)
                  if used == "joint" else np.zeros(0))
     return {"shift_stderr_fit_nm": fit_err, "shift_stderr_model_nm": model_err,
             "shift_stderr_nm": _combine(fit_err, model_err)}
@@ -406,7 +412,8 @@ def _choose(fits, bic, max_cra, *, base, fs, tolerance_nm, h_given):
 
 def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onset_fits,
                       max_cra, vignetting_distance_mm, max_circles, decide, progress=None):
-    """The joint fits, one more circle while the last is chosen; their BICs and notes."""
+    """The joint fits, one more circle while the last is chosen; their BICs, notes, the
+    blocks fitted and the rival models (:func:`~snapcorr.calibrate.stages.joint_fits`)."""
     data = stages.block_data(fl, ratios, base, pixel_pitch_um)
     centers = [center]
     if fix_center is None:  # should the contours have misled: the image centre too
@@ -415,16 +422,17 @@ def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onse
     def keep_going(fits, bic):  # only a chosen model can be the base of a better one
         return decide(fits, bic, max_cra)[0] == list(fits)[-1]
 
+    rivals = {}
     fits, bic = stages.joint_fits(
         data, base, fl.f_numbers, onset_fits.values(), centers, fix_center, max_cra,
         fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going,
-        progress=progress)
+        progress=progress, rivals=rivals)
     notes = []
     if vignetting_distance_mm is not None and max_circles > 1:
         notes.append("h given: one circle fitted (a further circle's h would be unknown)")
     notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
               for k, v in fits.items() if not v.success]
-    return fits, bic, notes, data
+    return fits, bic, notes, data, rivals
 
 
 def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
@@ -545,7 +553,7 @@ def _by_prediction(model, verdicts, ons, x, predict):
 MIN_MODEL_WEIGHT = 1e-4
 
 
-def _model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra):
+def _model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, rivals=None):
     """The error of the predicted mean shift that the choice of model leaves, per f-number.
 
     The rules choose a richer model only on strong evidence; where the flats cannot decide
@@ -557,14 +565,22 @@ def _model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra):
     weight from the floored BIC, ``1 / (1 + exp((BIC_m - BIC_chosen) / 2))``. A model far
     worse by the criterion weighs nothing; one the flats cannot tell from the chosen one
     weighs about half. Empty when no model counts.
+
+    The rivals (``{name: (fit, floored BIC)}``, :func:`~snapcorr.calibrate.stages.joint_fits`)
+    count the same way where their circles are identifiable: the first circle plus pixel
+    vignetting (``h = x``, one parameter) carries a pixel circle at the detection limit,
+    which a free second circle (two parameters, and a valley of P and h) often cannot.
     """
     var = np.zeros(len(fs))
     used = False
-    for m, fit in fits.items():
-        v = verdicts.get(m)
-        if m == model or v is None or v.problems or not fit.success:
+    candidates = [(fit, bic[m]) for m, fit in fits.items()
+                  if m != model and (v := verdicts.get(m)) is not None and not v.problems]
+    candidates += [(fit, b) for fit, b in (rivals or {}).values()
+                   if not choice.check_circles(fit, base, fs, max_cra)]
+    for fit, b in candidates:
+        if not fit.success:
             continue
-        delta = float(bic[m] - bic[model])
+        delta = float(b - bic[model])
         weight = 1.0 / (1.0 + math.exp(min(delta / 2.0, 700.0)))
         if weight < MIN_MODEL_WEIGHT:
             continue
@@ -713,6 +729,17 @@ def _calibration_table(res: LensCalibration, inputs):
                 "P_stderr_mm": _clean(of.P_stderr_mm), "h_stderr_mm": _clean(of.h_stderr_mm),
                 "residuals_mm": [_clean(r) for r in of.residuals_mm]})
         table[f"onset_{det}"] = entry
+    table["joint_fit"] = _joint_fit_table(res)
+    table["model_choice"] = _model_choice_table(res)
+    if inputs:
+        table["inputs"] = {f"f/{float(k):g}": str(v) for k, v in inputs.items()}
+    if res.notes:
+        table["notes"] = list(res.notes)
+    return table
+
+
+def _joint_fit_table(res: LensCalibration):
+    """Each joint fit's criteria, verdict, parameters and standard errors."""
     joint = {}
     for name, fit in res.fits.items():
         entry = {"bic": _clean(fit.bic), "bic_with_floor": _clean(res.bic_floor[name]),
@@ -726,8 +753,12 @@ def _calibration_table(res: LensCalibration, inputs):
             entry[k.replace("_mm", "_stderr_mm").replace("_px", "_stderr_px")] = \
                 _clean(fit.stderr[k])
         joint[name] = entry
-    table["joint_fit"] = joint
-    table["model_choice"] = {
+    return joint
+
+
+def _model_choice_table(res: LensCalibration):
+    """The rule that chose the model, its rivals, and how far the next best lies."""
+    table = {
         "models_tried": list(res.fits),
         "rule": ("circles must be identifiable (onset inside the field at >= 2 f-numbers, "
                  f"standard errors < {100 * choice.MAX_REL_ERROR:g} % of P and h, |h| > "
@@ -739,15 +770,17 @@ def _calibration_table(res: LensCalibration, inputs):
         "reference_filter": {"cwl_nm": choice.REFERENCE_CWL_NM,
                              "n_eff": choice.REFERENCE_N_EFF},
     }
+    if res.rivals:  # never chosen; in the model choice's error where identifiable
+        table["rivals"] = {
+            name: {"bic": _clean(fit.bic), "bic_with_floor": _clean(b),
+                   "reduced_chi2": _clean(fit.reduced_chi2), "converged": bool(fit.success),
+                   **{k: _clean(fit.params[k]) for k in fit.names}}
+            for name, (fit, b) in res.rivals.items()}
     if res.next_best is not None:
-        table["model_choice"]["next_best"] = res.next_best
-        table["model_choice"]["shift_difference_to_next_best_nm"] = [
+        table["next_best"] = res.next_best
+        table["shift_difference_to_next_best_nm"] = [
             _clean(d) for d in res.shift_difference_nm]
     check = res.onset_check_deg()
     if check is not None:
-        table["model_choice"]["paper_onsets_vs_chosen_max_deg"] = _clean(check)
-    if inputs:
-        table["inputs"] = {f"f/{float(k):g}": str(v) for k, v in inputs.items()}
-    if res.notes:
-        table["notes"] = list(res.notes)
+        table["paper_onsets_vs_chosen_max_deg"] = _clean(check)
     return table
