@@ -188,13 +188,17 @@ def fisher(truth, noise, shape, pitch_um, center_px, f_numbers, *, step=1, lit_m
     return F * (step * step / noise**2), names
 
 
-def bound(truth, noise, shape, pitch_um, center_px, f_numbers, *, step=1, lit_min=0.05):
+def bound(truth, noise, shape, pitch_um, center_px, f_numbers, *, step=1, lit_min=0.05,
+          held=()):
     """Cramér-Rao bound on the circles' parameters, the nuisances profiled out.
 
     Parameters
     ----------
     truth, noise, shape, pitch_um, center_px, f_numbers, step, lit_min
         As :func:`fisher`.
+    held : tuple of int
+        Circle parameters (indices into ``(P1, h1, P2, h2, ...)``) known, not estimated: an
+        estimator that holds them; their rows and columns are zero.
 
     Returns
     -------
@@ -211,13 +215,22 @@ def bound(truth, noise, shape, pitch_um, center_px, f_numbers, *, step=1, lit_mi
     F, names = fisher(truth, noise, shape, pitch_um, center_px, f_numbers, step=step,
                       lit_min=lit_min)
     n_circ = 2 * len(truth.circles)
+    free = [i for i in range(len(names)) if i not in held]
+    if held:
+        C = np.zeros((len(names), len(names)))
+        C[np.ix_(free, free)] = _inverse(F[np.ix_(free, free)], [names[i] for i in free])
+        return C[:n_circ, :n_circ]
+    return _inverse(F, names)[:n_circ, :n_circ]
+
+
+def _inverse(F, names):
+    """The inverse of a Fisher matrix, scaled to unit diagonal first."""
     scale = np.sqrt(np.diag(F))
     if np.any(scale <= 0):
         blind = [n for n, s in zip(names, scale, strict=True) if s <= 0]
         raise np.linalg.LinAlgError(f"the flats carry no information on {blind}")
     C = np.linalg.inv(F / np.outer(scale, scale)) / np.outer(scale, scale)
-    C = 0.5 * (C + C.T)
-    return C[:n_circ, :n_circ]
+    return 0.5 * (C + C.T)
 
 
 def shift_bound_nm(truth, cov, f_numbers, max_cra_deg, cwl_nm=1000.0, n_eff=1.5, n=61):

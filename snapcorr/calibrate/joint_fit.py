@@ -113,6 +113,7 @@ class ModelFit:
     scales: np.ndarray
     success: bool
     message: str = ""
+    #: ``"held"``: the parameters held at given values (``fit_model(fixed=...)``), by name
     extra: dict = field(default_factory=dict)
 
     @property
@@ -523,7 +524,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     params = dict(zip(names, map(float, p), strict=True))
     stderr = dict(zip(names, map(float, err), strict=True))
     return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
-                    str(res.message))
+                    str(res.message), extra={"held": dict(fixed)} if fixed else {})
 
 
 def _screening_subset(data: BlockData):

@@ -97,8 +97,10 @@ class LensCalibration:
         where there is neither (no circle, and no other model in question).
     rivals : dict
         Name -> ``(ModelFit, floored BIC)`` of models never chosen that count in the model
-        choice's error: ``"pixel"``, the first circle plus pixel vignetting (``h = x``), where
-        two circles were fitted (:func:`snapcorr.calibrate.stages.pixel_rival`).
+        choice's error, where two circles were fitted: ``"pixel"``, the first circle plus
+        pixel vignetting (``h = x``, :func:`snapcorr.calibrate.stages.pixel_rival`); or
+        ``"free"``, the free second circle, where the pixel's had the lower BIC and is the
+        two-circle model.
     predictive : dict
         Estimator -> :class:`~snapcorr.calibrate.predictive.Prediction`: how well each
         predicted the flats left out (``auto`` with circles only).
@@ -432,6 +434,11 @@ def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onse
         notes.append("h given: one circle fitted (a further circle's h would be unknown)")
     notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
               for k, v in fits.items() if not v.success]
+    if "free" in rivals:
+        notes.append(
+            f"two circles: the second is pixel vignetting, held at h = x = {base.exit_pupil_mm:g}"
+            " mm (a free h: the BIC with the floor higher by "
+            f"{rivals['free'][1] - bic['two']:.4g})")
     return fits, bic, notes, data, rivals
 
 
@@ -689,9 +696,14 @@ def _calibration_table(res: LensCalibration, inputs):
         table["onset_cra_deg"] = [_clean(v) for v in res.model_onsets_deg()]
         x = res.lens.exit_pupil_mm
         circles = res.lens.vignetting
+        held = res.fits[res.model].extra.get("held", {}) if res.method == "joint" else {}
+        dh = [1.0 if f"h{i + 1 if i else ''}_mm" in held else 2 * h / x
+              for i, (_, h) in enumerate(circles)]
         scaling = {"dP_dx": [_clean(P / x) for P, _ in circles],
-                   "dh_dx": [_clean(2 * h / x) for _, h in circles],
-                   "rule": "the flats fix P / x and h / x^2: P and h scale with x",
+                   "dh_dx": [_clean(v) for v in dh],
+                   "rule": "the flats fix P / x and h / x^2: P and h scale with x"
+                           + ("; a circle held at h = x (pixel vignetting) moves with x"
+                              if held else ""),
                    "exit_pupil_stderr_mm": ("not given" if res.exit_pupil_stderr_mm is None
                                             else _clean(res.exit_pupil_stderr_mm))}
         if res.exit_pupil_stderr_mm is not None:
@@ -699,8 +711,8 @@ def _calibration_table(res: LensCalibration, inputs):
             sx = res.exit_pupil_stderr_mm
             scaling["P_stderr_with_x_mm"] = [_clean(math.hypot(e, P / x * sx))
                                              for e, (P, _) in zip(sP, circles, strict=True)]
-            scaling["h_stderr_with_x_mm"] = [_clean(math.hypot(e, 2 * h / x * sx))
-                                             for e, (_, h) in zip(sh, circles, strict=True)]
+            scaling["h_stderr_with_x_mm"] = [_clean(math.hypot(e, d * sx))
+                                             for e, d in zip(sh, dh, strict=True)]
         table["exit_pupil_scaling"] = scaling
     if res.shift_stderr_nm.size:
         table["shift_stderr_nm"] = [_clean(v) for v in res.shift_stderr_nm]
@@ -748,10 +760,11 @@ def _joint_fit_table(res: LensCalibration):
         if v is not None:
             entry["chosen"] = v.chosen
             entry["why"] = v.why
+        held = fit.extra.get("held", {})
         for k in fit.names:
             entry[k] = _clean(fit.params[k])
             entry[k.replace("_mm", "_stderr_mm").replace("_px", "_stderr_px")] = \
-                _clean(fit.stderr[k])
+                "held" if k in held else _clean(fit.stderr[k])
         joint[name] = entry
     return joint
 
@@ -770,7 +783,7 @@ def _model_choice_table(res: LensCalibration):
         "reference_filter": {"cwl_nm": choice.REFERENCE_CWL_NM,
                              "n_eff": choice.REFERENCE_N_EFF},
     }
-    if res.rivals:  # never chosen; in the model choice's error where identifiable
+    if res.rivals:  # not chosen; in the model choice's error where identifiable
         table["rivals"] = {
             name: {"bic": _clean(fit.bic), "bic_with_floor": _clean(b),
                    "reduced_chi2": _clean(fit.reduced_chi2), "converged": bool(fit.success),

@@ -158,7 +158,8 @@ def compare_estimators(data: BlockData, fs, fit: ModelFit, onset_solver, center,
         # predicted the flat left out worse by tens of chi-square, which handed two-circle
         # lenses to the onsets
         refit = fit_model(without_flat(data, k), fit.model, [p_full], center=fix_center,
-                          fixed_h=fixed_h, max_nfev=REFIT_NFEV, keep=1, screen=False)
+                          fixed_h=fixed_h, max_nfev=REFIT_NFEV, keep=1, screen=False,
+                          fixed=fit.extra.get("held"))
         p = np.array([refit.params[n] for n in names])
         cj, nj = predict_left_out(data, fit.model, p, fix_center, k)
         po = np.array([circle[0], circle[1], center[0], center[1]])

@@ -436,7 +436,8 @@ def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center=None):
     (about 4 Cramér-Rao standard deviations) lowers the chi-square by 15-32, under the
     ``2 ln n`` a free circle pays, and the free fit's P and h wander along the valley of
     onsets they share (or it stops elsewhere); held at ``h = x`` its P comes out within
-    0.2 % and the evidence clears one ``ln n``. It is never chosen, but it is a rival of the
+    0.2 % and the evidence clears one ``ln n``. Where its BIC is lower than the free fit's it
+    is the two-circle model (the cheaper of two that fit alike); else it is a rival of the
     model chosen in the error of the shift
     (:func:`~snapcorr.calibrate.lens_calibration._model_choice_stderr`).
 
@@ -501,7 +502,9 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         ``progress(step)`` before each model is fitted.
     rivals : dict, optional
         Filled, where two circles are fitted, with ``"pixel"``: ``(fit, floored BIC)`` of the
-        first circle plus pixel vignetting (:func:`pixel_rival`).
+        first circle plus pixel vignetting (:func:`pixel_rival`); or, where that has the
+        lower BIC (the free h does not buy its ``ln n``), it becomes the two-circle model
+        and the free fit is the rival, ``"free"``.
 
     Returns
     -------
@@ -547,5 +550,12 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
                                  center=fix_center, keep=2 if n == 2 else 1))
         if n == 2 and rivals is not None:
             pixel = pixel_rival(data, prev, R, x, max_cra, fix_center)
-            rivals["pixel"] = (pixel, floored(MODELS[n], pixel))
+            b = floored(MODELS[n], pixel)
+            if pixel.success and b < bic[MODELS[n]]:
+                # the second circle at h = x fits as well for one parameter less: the two
+                # circles are those, and the free h is the rival
+                rivals["free"] = (fits[MODELS[n]], bic[MODELS[n]])
+                fits[MODELS[n]], bic[MODELS[n]] = pixel, b
+            else:
+                rivals["pixel"] = (pixel, b)
     return fits, bic
