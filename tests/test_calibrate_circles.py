@@ -607,6 +607,9 @@ def test_pixel_vignetting_is_the_second_circle_where_a_free_h_buys_nothing():
     assert table["joint_fit"]["two"]["h2_stderr_mm"] == "held"
     assert table["exit_pupil_scaling"]["dh_dx"][1] == 1.0
     assert any("pixel vignetting, held at h = x" in n for n in table["notes"])
+    from snapcorr.calibrate.report import summary
+
+    assert "h2_mm = 21 (held: pixel vignetting, h = x)" in summary(res)
 
 
 @pytest.mark.slow

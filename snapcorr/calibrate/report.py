@@ -44,7 +44,10 @@ def summary(res) -> str:
     for name, fit in res.fits.items():
         v = res.verdicts.get(name)
         head = f"joint fit, {CIRCLES[name]}"
-        txt = ", ".join(f"{k} = {fit.params[k]:.4g} +- {fit.stderr[k]:.2g}" for k in fit.names)
+        held = fit.extra.get("held", {})
+        txt = ", ".join(f"{k} = {fit.params[k]:.4g} " + (
+            "(held: pixel vignetting, h = x)" if k in held else f"+- {fit.stderr[k]:.2g}")
+            for k in fit.names)
         stats = (f"BIC with floor {res.bic_floor[name]:.4g}, reduced chi2 "
                  f"{fit.reduced_chi2:.4g}")
         lines.append(f"{head}: {txt + '; ' if txt else ''}{stats}")

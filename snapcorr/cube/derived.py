@@ -33,7 +33,9 @@ class _Blocks:
     ``dask.array.from_array`` copies any array that has a ``copy`` method, and hashes it for
     a name (copying it again when it is not contiguous, as a transposed view is): 0.1-0.2 s
     at 2048^2 for a coordinate nobody may read. This has no ``copy``, and the graph is named
-    at random."""
+    at random. So the lazy coordinates read the Dataset's arrays as they are when computed:
+    a value changed in place in ``wavelength_scale`` (or the chief-ray angles) changes them
+    too, as a coordinate derived from it should, in every Dataset sharing the array."""
 
     def __init__(self, array):
         self._array = array
