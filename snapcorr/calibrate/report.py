@@ -44,7 +44,7 @@ def summary(res) -> str:
     for name, fit in res.fits.items():
         v = res.verdicts.get(name)
         head = f"joint fit, {CIRCLES[name]}"
-        held = fit.extra.get("held", {})
+        held = getattr(fit, "extra", {}).get("held", {})
         txt = ", ".join(f"{k} = {fit.params[k]:.4g} " + (
             "(held: pixel vignetting, h = x)" if k in held else f"+- {fit.stderr[k]:.2g}")
             for k in fit.names)
