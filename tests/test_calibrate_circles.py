@@ -405,8 +405,9 @@ def test_field_covers_the_onsets():
 @pytest.mark.parametrize("key, noise, seed", [
     ("one_h_lt_x", 0.005, 0),
     ("one_weak", 0.005, 0),
-    ("two_front_rear", 0.005, 0),
-    # circle + pixel vignetting runs by default in test_standard_errors_reach_the_cramer_rao_bound
+    # two circles run by default in test_predictive_refit.py (2 % noise), circle + pixel
+    # vignetting in test_standard_errors_reach_the_cramer_rao_bound
+    pytest.param("two_front_rear", 0.005, 0, marks=pytest.mark.slow),
     pytest.param("circle_pixel", 0.005, 0, marks=pytest.mark.slow),
     ("none_in_field", 0.02, 0),
 ])

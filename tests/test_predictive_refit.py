@@ -48,13 +48,14 @@ def test_a_two_circle_lens_keeps_the_joint_fit(two_circles):
 
 
 def test_each_refit_is_at_its_minimum(two_circles):
-    """Against the same refit run on to convergence (ten times as many steps): the flat left
-    out is predicted the same to well under the choice's margin (10)."""
+    """Against the same refit run on to convergence (four times as many steps): its
+    chi-square on the flats it keeps is the same to well under the choice's margin (10), and
+    so are its parameters."""
     _, calls = two_circles
     assert len(calls) >= 2
     assert all(data.q.shape[1] > joint_fit.SCREEN_BLOCKS for data, *_ in calls)
     for data, model, starts, kw, fit in calls:
-        long = joint_fit.fit_model(data, model, starts, **{**kw, "max_nfev": 40})
+        long = joint_fit.fit_model(data, model, starts, **{**kw, "max_nfev": 16})
         assert fit.chi2 - long.chi2 < 0.5, (fit.chi2, long.chi2)
         names = list(fit.names)
         for refit in (fit, long):
