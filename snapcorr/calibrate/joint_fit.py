@@ -481,7 +481,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     # Starts are screened and run on every k-th block (about SCREEN_BLOCKS of them); the best
     # is then polished on all blocks. The minimum barely moves with the subset, and this is
     # where the time goes.
-    step, screen = _screening_subset(data) if screen else (1, data)
+    step, subset = _screening_subset(data) if screen else (1, data)
     margin = np.where(np.isfinite(lo_all), 1e-4 * np.maximum(np.abs(lo_all), 1.0), 0.0)
     bases = []
     for start in starts:
@@ -493,14 +493,14 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
         for nm, v in (fixed or {}).items():
             base[names.index(nm)] = v
         base[free] = np.clip(base[free], (lo_all + margin)[free], (hi_all - margin)[free])
-        r = _residuals(screen, model, base, center)[0]
+        r = _residuals(subset, model, base, center)[0]
         bases.append((float(r @ r), base))
     bases.sort(key=lambda cb: cb[0])
     best = None
     for i, (_, base) in enumerate(bases[:keep]):
         p0 = base[free]
 
-        def fun(pf, base=base, d=screen):
+        def fun(pf, base=base, d=subset):
             return _residuals(d, model, full(pf, base), center)[0]
 
         # the most promising start gets a longer run

@@ -38,8 +38,8 @@ __all__ = ["MIN_PREDICTIVE_GAIN", "Prediction", "compare_estimators", "predict_l
 
 #: The onsets must beat the joint fit's predictive chi-square by more than this to be used.
 MIN_PREDICTIVE_GAIN = 10.0
-#: Most evaluations of a refit without one flat, a third of them (it starts from the full
-#: fit's minimum, and runs on every block).
+#: ``max_nfev`` of a refit without one flat (``fit_model`` gives its first start three times
+#: this: 12 evaluations); it starts from the full fit's minimum and runs on every block.
 REFIT_NFEV = 4
 
 
