@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from concurrent import futures
 
 import numpy as np
 import xarray as xr
@@ -156,23 +157,60 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
     want, first = _widths_needed(sensor, lens, used, fwhm, harmonise)
     widths = _width_table(sensor, lens, f, cra_max, tolerance_nm) if first else None
-    scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
-    scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-    resampled = _resampled(cube, scale, column, cwl) if resample else None  # before a table
-    if want and widths is None and (harmonise or used == "harmonised"):
-        widths = _width_table(sensor, lens, f, cra_max, tolerance_nm)
+    harmonising = harmonise or used == "harmonised"
+    # harmonising needs the width table before its pass: it is built on a second thread (small
+    # arrays, one core) while this one makes the scales and the output's memory ready
+    later = (_in_background(_width_table, sensor, lens, f, cra_max, tolerance_nm)
+             if want and widths is None and harmonising else None)
+    try:
+        scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
+        scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
+        resampled = _resampled(cube, scale, column, cwl) if resample else None
+        buffer = _output_buffer(cube) if harmonising else None
+    finally:
+        if later is not None:  # waited for even when the above failed: no work left behind
+            futures.wait([later])
+    widths = later.result() if later is not None else widths
     ds = _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source,
                     widths if fwhm else None, mask, resampled)
     if want and fwhm and widths is None:  # only fwhm_corrected reads it: built on first use
         ds = _with_lazy_fwhm(ds, cube, sensor, lens, f, cra_max, tolerance_nm)
-    if harmonise or used == "harmonised":
+    if harmonising:
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
-                         scale_at, n_eff, sensor, f, lens)
+                         scale_at, n_eff, sensor, f, lens, buffer)
     if virtual_bands is not None:
         ds = ds.merge(_virtual(cube, sensor, f, lens, cra, virtual_bands, virtual_matrix,
                                virtual_wavelengths_nm, virtual_fwhm_nm))
     return _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
                             center_source, cra_max)
+
+
+def _in_background(fn, *args):
+    """``fn(*args)`` on a thread of its own: a :class:`concurrent.futures.Future`."""
+    pool = futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="snapcorr")
+    try:
+        return pool.submit(fn, *args)
+    finally:
+        pool.shutdown(wait=False)  # the thread ends with its one job
+
+
+def _output_dtype(cube):
+    """Float32 for float32 and small-integer cubes, else float64."""
+    return np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
+                                        np.int16) else np.float64
+
+
+def _output_buffer(cube):
+    """For an in-memory cube, the array the harmonising pass writes into, every page of it
+    touched once: the kernel maps and zeroes a cube's worth of fresh memory (about a third
+    of a copy's time) now, while the width table is built, not in the pass. None for a dask
+    cube (written block by block)."""
+    if cube.chunks is not None:
+        return None
+    out = np.empty(cube.shape, _output_dtype(cube))
+    flat = out.reshape(-1)
+    flat[::max(1, 4096 // out.itemsize)] = 0  # one write per page (numpy lets go of the GIL)
+    return out
 
 
 def _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source, widths, mask,
@@ -494,7 +532,7 @@ def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
 
 
 def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
-                sensor, f, lens):
+                sensor, f, lens, buffer=None):
     from .harmonise import harmonise_spectra, node_weights
 
     if table is None:  # no widths without n_eff
@@ -529,8 +567,7 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
                          "ones")
     in_order = np.array_equal(order, np.arange(order.size))
     cs, cols, vt = cwl[order], column[order], var_table[order]
-    dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
-                                         np.int16) else np.float64
+    dtype = _output_dtype(cube)
 
     def ordered(data):
         data = np.asarray(data, dtype)
@@ -538,6 +575,10 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
 
     def restored(out):
         return out if in_order else out[..., inverse]
+
+    def into(data):  # an in-memory cube is one block: the output readied for it
+        return buffer if buffer is not None and in_order and buffer.shape == data.shape \
+            else None
 
     snapscan = cra.shape[2] == 1 and scale.shape[2] == 1
     if snapscan:
@@ -552,14 +593,15 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
 
         def block(data, c, sc):
             return restored(harmonise_spectra(ordered(data), sc, cols, cs, cra=c[..., 0],
-                                              weights=weights))
+                                              weights=weights, out=into(data)))
     else:
         def block(data, c, sc):
             sig = np.empty(data.shape)
             for k, b in enumerate(order):  # k: place in the walk, b: the band
                 cb = c[..., b if c.shape[2] > 1 else 0]
                 sig[..., k] = np.sqrt(np.interp(cb, table.cra_deg, vt[k]))
-            return restored(harmonise_spectra(ordered(data), sc, cols, cs, sig))
+            return restored(harmonise_spectra(ordered(data), sc, cols, cs, sig,
+                                              out=into(data)))
 
     cr = xr.DataArray(cra, dims=("y", "x", "c"))
     sc = xr.DataArray(scale, dims=("y", "x", "m"))
@@ -601,8 +643,7 @@ def _resampled(cube, scale, column, cwl):
 
     order = np.argsort(cwl, kind="stable")
     inverse = np.argsort(order, kind="stable")
-    dtype = np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
-                                         np.int16) else np.float64
+    dtype = _output_dtype(cube)
 
     in_order = np.array_equal(order, np.arange(order.size))
 
