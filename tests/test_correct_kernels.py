@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from snapcorr.correct.harmonise import harmonise_spectra
+from snapcorr.correct.harmonise import harmonise_spectra, node_weights
 from snapcorr.correct.resample import resample_to_nominal
 
 REF = Path(__file__).parent / "data" / "correct_kernels_reference.npz"
@@ -94,13 +94,34 @@ def test_harmonising_reproduces_the_reference(ref):
                      (harmonise_spectra(d32, *args), ref["harmonise_32"])):
         _same(np.where(same, got, 0).astype(got.dtype), np.where(same, old, 0).astype(old.dtype),
               tol=1e-7)  # (a segment's mass the reference left out may be 5e-8 there)
-    # the tabulated pass sums its weights in float32 whatever the data (now in band order, then
-    # as the compiler vectorised it): the same to float32 rounding of values up to 2
+    # the tabulated pass sums its weights in float32 whatever the data (now in pairs of
+    # diagonals, as the compiler vectorised it): the same to float32 rounding of values up to
+    # 2, where it takes the path it took then. Its values are computed directly below ten
+    # times what changes over a node step: then the largest shift of any band over any step
+    # (a few values here); now each band's shift or change of widening over its step, and
+    # these tables' widenings jump from node to node (zero at a fifth of them): those values
+    # are the direct pass's (each pixel's own scale, which these tables do not match)
+    w = node_weights(ref["cwl_even"], ref["nodes"], ref["node_scale"], ref["node_sigma"])
+    pos = np.clip((ref["cra"] - ref["nodes"][0]) / (ref["nodes"][1] - ref["nodes"][0]), 0,
+                  ref["nodes"].size - 1)
+    i = np.minimum(pos.astype(int), ref["nodes"].size - 2)
+    u = (pos - i)[..., None]
+    v2 = (1 - u) * w.var[i] + u * w.var[i + 1]
+    then = v2 < (10 * np.max(np.abs(np.diff(ref["node_scale"]))) * ref["cwl_even"].max()) ** 2
+    now = v2 < w.var_direct[i]
+    assert np.all(now[then]) and 0.1 < np.mean(now == then) < 0.9 and not np.all(now)
     for bits, d in (("32", d32), ("64", ref["data"])):
-        _same(harmonise_spectra(d, ref["scale_one"], one, ref["cwl_even"], cra=ref["cra"],
+        got = harmonise_spectra(d, ref["scale_one"], one, ref["cwl_even"], cra=ref["cra"],
                                 nodes=ref["nodes"], node_scale=ref["node_scale"],
-                                node_sigma=ref["node_sigma"]), ref[f"harmonise_tabulated_{bits}"],
-              tol=1e-6)
+                                node_sigma=ref["node_sigma"])
+        old = ref[f"harmonise_tabulated_{bits}"]
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(old))
+        _same(np.where(now == then, got, 0).astype(got.dtype),
+              np.where(now == then, old, 0).astype(old.dtype), tol=1e-6)
+        direct = harmonise_spectra(d, ref["scale_one"], one, ref["cwl_even"], np.sqrt(v2))
+        moved = now & ~then & np.isfinite(direct)
+        assert moved.sum() > 100
+        np.testing.assert_allclose(got[moved], direct[moved], rtol=0, atol=1e-6)
 
 
 def test_no_widening_is_resampling_and_a_scalar_widening_is_a_cube_of_it(ref):

@@ -5,7 +5,7 @@ data's range at most), NaN at the same places.
 The reference is the pass as it was before the two nodes' sums were taken together, in
 registers, along their common diagonals and the direct values from the line's kinks: each
 node's banded matrix summed diagonal by diagonal into memory for every output in range, then
-the values below ``sigma_direct`` overwritten by
+the values below ``var_direct`` overwritten by
 :func:`snapcorr.correct._spectra.spectrum_value`. It runs on the weights that
 :func:`snapcorr.correct.harmonise.node_weights` makes now (its rows ``W``, ``lo``, ``cnt`` are
 unchanged), laid out along the diagonals as it laid them out. Compiled without ``parallel``
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from snapcorr.correct import harmonise
-from snapcorr.correct._spectra import smoothed_line_value, spectrum_value
+from snapcorr.correct._spectra import line_slopes, smoothed_line_value, spectrum_value
 from snapcorr.correct.harmonise import harmonise_spectra, node_weights
 
 # ---------------------------------------------------------------------------------------------
@@ -57,7 +57,7 @@ def _reference_diagonal_sums(acc, rows, buf, width, k0):  # pragma: no cover - c
 
 
 @numba.njit(cache=True, fastmath={"contract"})
-def _reference_pass(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var, sigma_direct,
+def _reference_pass(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var, var_direct,
                     near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
     ny, nx, nb = data.shape
     m = nodes.size
@@ -65,7 +65,6 @@ def _reference_pass(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var,
     pad = 0
     for i in range(m):
         pad = max(pad, -off[i], off[i] + wid[i])
-    sd2 = sigma_direct * sigma_direct
     for y in range(ny):
         lam = np.empty(nb)
         d = np.empty(nb)
@@ -123,7 +122,7 @@ def _reference_pass(data, scale, cra, nodes, D, off, wid, nbad, W, lo, cnt, var,
                 k = near_k[c]
                 if klo <= k <= khi:
                     v2 = (1.0 - u) * var[i, k] + u * var[i1, k]
-                    if v2 < sd2:
+                    if v2 < var_direct[i, k]:
                         if j < 0:
                             for b in range(nb):
                                 lam[b] = cwl[b] * s
@@ -139,7 +138,7 @@ def reference(data, scale, cwl, cra, weights):
     D, off, wid = _reference_diagonals(w.W, w.lo, w.cnt)
     out = np.empty(data.shape, np.float32 if data.dtype == np.float32 else np.float64)
     _reference_pass(data, np.ascontiguousarray(scale[:, :, 0]), np.ascontiguousarray(cra),
-                    w.nodes, D, off, wid, w.nbad, w.W, w.lo, w.cnt, w.var, w.sigma_direct,
+                    w.nodes, D, off, wid, w.nbad, w.W, w.lo, w.cnt, w.var, w.var_direct,
                     w.near_ptr, w.near_k, cwl, out)
     return out
 
@@ -222,7 +221,7 @@ def test_random_and_smooth_spectra_are_the_reference(nb, sigma_hi):
         i = np.minimum(pos.astype(int), nodes.size - 2)
         u = (pos - i)[..., None]
         v2 = (1 - u) * weights.var[i] + u * weights.var[i + 1]
-        direct = np.sum(v2 < weights.sigma_direct ** 2)
+        direct = np.sum(v2 < weights.var_direct[i])
         assert 0 < direct < v2.size / 2
         # and outputs outside the pixels' corrected range
         assert 0 < np.isnan(want).sum() < want.size / 10
@@ -313,9 +312,11 @@ def test_the_kinks_give_the_segments_value():
             continue
         d = rng.normal(0.0, 3.0, lam.size) + rng.choice([0.0, 50.0])
         sigma = float(rng.choice([0.0, 0.01, 0.3, 2.0, 8.0, 40.0]) * rng.random())
+        slope = np.empty(lam.size)
+        line_slopes(lam, d, slope)
         j_new = j_old = 0
         for t in np.sort(rng.uniform(lam[0], lam[-1], 5)):
-            a, j_new = smoothed_line_value(lam, d, t, sigma, j_new)
+            a, j_new = smoothed_line_value(lam, d, slope, t, sigma, j_new)
             b, j_old = spectrum_value(lam, d, t, sigma, j_old)
             assert abs(a - b) <= 2e-9 * np.abs(d).max() + 1e-12
 

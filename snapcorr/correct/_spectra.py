@@ -22,8 +22,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["REACH", "cdf", "line_value", "pdf", "smoothed_line_value", "sort_samples",
-           "spectra_pass", "spectrum_value"]
+__all__ = ["REACH", "cdf", "line_slopes", "line_value", "pdf", "smoothed_line_value",
+           "sort_samples", "spectra_pass", "spectrum_value"]
 
 #: The Gaussian is cut at this many standard deviations (the mass beyond: 2e-9).
 REACH = 6.0
@@ -169,19 +169,28 @@ def _ramp_excess(z):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, fastmath=False)
-def _kink(lam, d, m):  # pragma: no cover - compiled
-    """The change of slope of the straight line through ``(lam, d)`` (held constant beyond the
-    ends) at sample ``m``."""
-    n = lam.size
-    right = (d[m + 1] - d[m]) / (lam[m + 1] - lam[m]) if m < n - 1 else 0.0
-    left = (d[m] - d[m - 1]) / (lam[m] - lam[m - 1]) if m > 0 else 0.0
+def line_slopes(lam, d, slope):  # pragma: no cover - compiled
+    """``slope[m]`` (``m < lam.size - 1``): the slope of the straight line through
+    ``(lam, d)`` between samples ``m`` and ``m + 1``, once per spectrum for
+    :func:`smoothed_line_value` (a division per sample, not two per kink it visits)."""
+    for m in range(lam.size - 1):
+        slope[m] = (d[m + 1] - d[m]) / (lam[m + 1] - lam[m])
+
+
+@numba.njit(cache=True, fastmath=False)
+def _kink(slope, n, m):  # pragma: no cover - compiled
+    """The change of slope of the straight line of ``n`` samples (held constant beyond the
+    ends) at sample ``m``, from its :func:`line_slopes`."""
+    right = slope[m] if m < n - 1 else 0.0
+    left = slope[m - 1] if m > 0 else 0.0
     return right - left
 
 
 @numba.njit(cache=True, fastmath=False)
-def smoothed_line_value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
+def smoothed_line_value(lam, d, slope, t, sigma, j0):  # pragma: no cover - compiled
     """:func:`spectrum_value` for finite ``d`` within the samples' range
-    (``lam[0] <= t <= lam[-1]``), from the line's kinks: the line is a sum of ramps, a
+    (``lam[0] <= t <= lam[-1]``; ``slope`` their :func:`line_slopes`), from the line's
+    kinks: the line is a sum of ramps, a
     Gaussian average leaves a straight stretch as it is, so the value is the line's at ``t``
     plus, for each sample within reach, its change of slope times ``sigma`` times
     :func:`_ramp_excess` (a polynomial). Nothing transcendental, and only the kinks within
@@ -199,11 +208,11 @@ def smoothed_line_value(lam, d, t, sigma, j0):  # pragma: no cover - compiled
     acc = 0.0
     m = j
     while m >= 0 and lam[m] >= t - reach:
-        acc += _kink(lam, d, m) * _ramp_excess((lam[m] - t) / sigma)
+        acc += _kink(slope, n, m) * _ramp_excess((lam[m] - t) / sigma)
         m -= 1
     m = j + 1
     while m < n and lam[m] <= t + reach:
-        acc += _kink(lam, d, m) * _ramp_excess((lam[m] - t) / sigma)
+        acc += _kink(slope, n, m) * _ramp_excess((lam[m] - t) / sigma)
         m += 1
     return v + sigma * acc, j
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from ._spectra import REACH as _REACH
 from ._spectra import cdf as _cdf
+from ._spectra import line_slopes as _slopes
 from ._spectra import pdf as _phi
 from ._spectra import smoothed_line_value as _smoothed
 from ._spectra import spectra_pass
@@ -95,19 +96,26 @@ _LANES = 8
 
 @numba.njit(cache=True, fastmath={"contract"})
 def _pair_sums(o, A, B, x, u, width):  # pragma: no cover - compiled
-    """``o[k] = (1 - u) sum(A[q, k] x[k + q]) + u sum(B[q, k] x[k + q])`` over ``q < width``:
-    two nodes' banded matrices along their common diagonals, in band order, each output's
-    two sums in registers (``width`` a compile-time constant: the loop over the diagonals is
-    unrolled, the one over the outputs vectorised; the data read once for both)."""
+    """``o[k] = (1 - u) sum(A[q, k] x[k + q]) + u sum(B[q, k] x[k + q])`` over ``q < width``
+    (even): two nodes' banded matrices along their common diagonals, each output's two sums
+    in registers, each as two partial sums (even and odd diagonals, in band order, added at
+    the end: two chains of dependent additions half as long; ``width`` a compile-time
+    constant: the loop over the diagonals is unrolled, the one over the outputs vectorised;
+    the data read once for both)."""
     width = numba.literally(width)
     for k in range(o.size):
         sa = np.float32(0.0)
         sb = np.float32(0.0)
-        for q in range(width):
+        ta = np.float32(0.0)
+        tb = np.float32(0.0)
+        for q in range(0, width, 2):
             v = x[k + q]
             sa += A[q][k] * v
             sb += B[q][k] * v
-        o[k] = (1.0 - u) * sa + u * sb
+            v = x[k + q + 1]
+            ta += A[q + 1][k] * v
+            tb += B[q + 1][k] * v
+        o[k] = (1.0 - u) * (sa + ta) + u * (sb + tb)
 
 
 @numba.njit(cache=True, fastmath={"contract"})
@@ -180,33 +188,37 @@ def _row_sums(o, W, lo, cnt, i, i1, u, spectrum, ta, tb):  # pragma: no cover - 
 
 
 @numba.njit(cache=True)
-def _direct_values(o, lam, d, cwl, direct, var, i, i1, u, near,
+def _direct_values(o, lam, d, slope, cwl, direct, var, i, i1, u, near,
                    finite):  # pragma: no cover - compiled
     """``o[k]`` for the outputs marked in ``direct`` (among ``near``, in increasing order;
     the marks cleared): the line through ``(lam, d)`` averaged with the Gaussian of the
-    nodes' interpolated variance, from its kinks where the spectrum is finite."""
+    nodes' interpolated variance, from its kinks (``slope`` a buffer for them) where the
+    spectrum is finite."""
+    if finite:
+        _slopes(lam, d, slope)
     j = 0
     for k in near:
         if direct[k]:
             direct[k] = False
             sig = math.sqrt(max((1.0 - u) * var[i, k] + u * var[i1, k], 0.0))
             if finite:
-                o[k], j = _smoothed(lam, d, cwl[k], sig, j)
+                o[k], j = _smoothed(lam, d, slope, cwl[k], sig, j)
             else:
                 o[k], j = _value(lam, d, cwl[k], sig, j)
 
 
 @numba.njit(parallel=True, cache=True, fastmath={"contract"})
 def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, cnt, var,
-               sigma_direct, near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
+               var_direct, near_ptr, near_k, cwl, out):  # pragma: no cover - compiled
     # A pixel's weights are those of its two neighbouring nodes, interpolated linearly in
     # chief-ray angle (nodes a few hundredths of a nanometre of shift apart): the value is
     # (1 - u) sa + u sb, each a float32 sum over one node's banded matrix (a few tens of
     # terms: 1e-7 of the values), taken along its diagonals so that it vectorises over the
     # outputs, both nodes at once (``_pair``; row r of D[i] is diagonal base[i] + r, zero
-    # beyond the node's own, so the two share their rows' diagonals). Below sigma_direct the
-    # weights bend within a node step (a straight line's kinks are barely smoothed): those
-    # values are computed directly, from the few kinks in reach.
+    # beyond the node's own, so the two share their rows' diagonals). Below var_direct (ten
+    # times the band's shift over the node step, squared) the weights bend within a node
+    # step (a straight line's kinks are barely smoothed): those values are computed
+    # directly, from the few kinks in reach.
     ny, nx, nb = data.shape
     npad = D.shape[2]
     m = nodes.size
@@ -214,13 +226,13 @@ def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, 
     pad = 1  # (a diagonal to spare for an odd width taken even)
     for i in range(m):
         pad = max(pad, -base[i], off[i] + wid[i] + 1)
-    sd2 = sigma_direct * sigma_direct
     for y in numba.prange(ny):
         lam = np.empty(nb)
         d = np.empty(nb)
         buf = np.zeros(npad + 2 * pad, np.float32)  # the spectrum, zeros beyond its ends
         sa = np.zeros(npad, np.float32)
         sb = np.zeros(npad, np.float32)
+        slope = np.empty(nb)
         direct = np.zeros(nb, np.bool_)
         res = np.zeros(npad, np.float32)
         for x in range(nx):
@@ -248,7 +260,8 @@ def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, 
             n_direct = 0
             for c in range(near_ptr[i], near_ptr[i + 1]):
                 k = near_k[c]
-                if klo <= k <= khi and (1.0 - u) * var[i, k] + u * var[i1, k] < sd2:
+                if klo <= k <= khi and (1.0 - u) * var[i, k] + u * var[i1, k] < \
+                        var_direct[i, k]:
                     direct[k] = True
                     n_direct += 1
             ta, tb = klo, khi
@@ -288,7 +301,7 @@ def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, 
                 for b in range(nb):
                     lam[b] = cwl[b] * s
                     d[b] = data[y, x, b]
-                _direct_values(out[y, x], lam, d, cwl, direct, var, i, i1, u,
+                _direct_values(out[y, x], lam, d, slope, cwl, direct, var, i, i1, u,
                                near_k[near_ptr[i]:near_ptr[i + 1]], finite)
 
 
@@ -438,7 +451,7 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     with numba.parallel_chunksize(rows):
         _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
                    np.ascontiguousarray(cra, dtype=np.float64), w.nodes, w.D, w.base, w.off,
-                   w.wid, w.ks, w.ke, w.nbad, w.W, w.lo, w.cnt, w.var, w.sigma_direct,
+                   w.wid, w.ks, w.ke, w.nbad, w.W, w.lo, w.cnt, w.var, w.var_direct,
                    w.near_ptr, w.near_k, cwl, out)
     return out
 
@@ -459,7 +472,7 @@ class NodeWeights(NamedTuple):
     lo: np.ndarray
     cnt: np.ndarray
     var: np.ndarray
-    sigma_direct: float
+    var_direct: np.ndarray
     near_ptr: np.ndarray
     near_k: np.ndarray
 
@@ -499,14 +512,27 @@ def node_weights(cwl_nm, nodes, node_scale, node_sigma):
     # rows of NaN before each output, per node
     nbad = np.concatenate([np.zeros((nodes.size, 1), np.int64),
                            np.cumsum(bad, axis=1, dtype=np.int64)], axis=1)
-    # below ten node steps' shift of a band the weights are computed directly: the outputs
-    # of each interval between nodes where that may happen (either node's variance below
-    # it, with a margin for the rounding of the interpolated variance)
-    step = np.max(np.abs(np.diff(node_scale))) * cwl.max() if nodes.size > 1 else 0.0
+    # the weights bend within a node step where the widening is below ten times what
+    # changes over that step (the band's shift, or the widening itself; both in nm, that
+    # band's, over that step): those values are computed directly. The outputs of each
+    # interval between nodes where that may happen (either node's variance below it, with
+    # a margin for the rounding of the interpolated variance)
     var = ns * ns
+    var_direct = (10.0 * _node_step_change(node_scale, ns, cwl)) ** 2
     low = np.minimum(var, np.concatenate([var[1:], var[-1:]])) < \
-        (10.0 * step) ** 2 * (1.0 + 1e-9) + 1e-300
+        var_direct * (1.0 + 1e-9) + 1e-300
     near_ptr = np.concatenate([[0], np.cumsum(low.sum(axis=1))]).astype(np.int64)
     near_k = np.nonzero(low)[1].astype(np.int64)
     return NodeWeights(cwl, nodes, D, base, off, wid, ks, ke, nbad, W, lo, cnt, var,
-                       float(10.0 * step), near_ptr, near_k)
+                       var_direct, near_ptr, near_k)
+
+
+def _node_step_change(node_scale, node_sigma, cwl):
+    """``(n_nodes, nb)``: the larger of how far each band moves between node ``i`` and
+    ``i + 1`` and how much its widening changes there (nm; the last node repeats the last
+    interval's). The weights are smooth functions of both on the scale of the widening."""
+    if node_scale.size < 2:
+        return np.zeros((node_scale.size, cwl.size))
+    shift = np.abs(np.diff(node_scale))[:, None] * cwl[None, :]
+    change = np.maximum(shift, np.abs(np.diff(node_sigma, axis=0)))
+    return np.concatenate([change, change[-1:]])
