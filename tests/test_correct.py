@@ -67,6 +67,31 @@ def test_mosaic_bands_get_their_own_positions():
     assert cra[2, 3, b] == pytest.approx(np.degrees(np.arctan(d / 21.0)), rel=1e-12)
 
 
+def test_the_largest_angle_without_the_map_is_the_maps_largest():
+    """``correct_cube`` starts its width table from the field's largest CRA before the map is
+    made: the same number, bit for bit, for a centre inside, at the edge of and outside the
+    image, a crop placed on the sensor, a mosaic (each band at its own place) and one pixel,
+    and what correct_cube records is the map's largest."""
+    from snapcorr.correct.geometry import largest_cra_deg
+
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    mosaic_sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    mosaic = mosaic_to_cube(np.arange(16 * 24, dtype=np.float32).reshape(16, 24),
+                            mosaic_sensor, origin_px=(40, 80))
+    rng = np.random.default_rng(3)
+    cases = [(cube, s, None, None), (cube, s, (10.0, -5.0), None), (cube, s, (49.0, 39.0), None),
+             (cube, s, (-300.5, 1200.25), None), (cube, s, None, (500, 700)),
+             (cube.isel(y=[7], x=[3]), s, (3.0, 7.0), None),
+             (mosaic, mosaic_sensor, (0.0, 0.0), None), (mosaic, mosaic_sensor, None, None)]
+    cases += [(cube, s, tuple(rng.uniform(-60, 110, 2)), None) for _ in range(20)]
+    for c, sensor, center, origin in cases:
+        cra = cube_cra_deg(c, sensor, PAPER, center, sensor_origin_px=origin)[0]
+        assert largest_cra_deg(c, sensor, PAPER, center, origin) == float(cra.max())
+    ds = correct_cube(cube, s, 2.8, PAPER, center_px=(-3.0, 60.0))
+    assert ds.attrs["cra_max_deg"] == float(ds["cra_deg"].max())
+
+
 @pytest.mark.parametrize("lens", [PAPER, H_GE_X], ids=["h<x", "h>=x"])
 def test_corrected_wavelengths_match_brute_force_pupil_integration(lens):
     s = _sensor(n=4, pitch=80.0, n_eff=[1.7, 1.7, 2.0, 2.0])

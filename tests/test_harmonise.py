@@ -194,3 +194,60 @@ def test_bands_listed_out_of_order_give_the_same_spectra():
     np.testing.assert_array_equal(got["harmonised"].values, ref["harmonised"].values[..., perm])
     np.testing.assert_array_equal(got["fwhm_harmonised"].values,
                                   ref["fwhm_harmonised"].values[perm])
+
+
+def test_the_width_table_built_alongside_is_waited_for_and_its_errors_reach_the_caller():
+    """The width table is built on a second thread while the scales are made: its result is
+    the one used, its error is the caller's, and an error on this side waits for it (no work
+    left running) and is the one raised."""
+    import threading
+    import time
+
+    from snapcorr.correct import core
+
+    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
+    cube = make_cube(np.random.default_rng(4).random((4, 30, CWL.size)), CWL)
+    lens = as_lens(PAPER)
+    want = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+    built = core._width_table
+    seen = []
+
+    def slow_table(*args):
+        time.sleep(0.3)
+        table = built(*args)
+        seen.append(threading.current_thread() is not threading.main_thread())
+        return table
+
+    def failing_table(*args):
+        raise ValueError("no table here")
+
+    def failing_scales(*args, **kwargs):
+        raise RuntimeError("no scales here")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(core, "_width_table", slow_table)
+        got = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+        assert seen == [True]
+        xr.testing.assert_identical(got, want)
+        mp.setattr(core, "_scales", failing_scales)
+        with pytest.raises(RuntimeError, match="no scales here"):
+            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+        assert seen == [True, True]  # finished before the error left
+        mp.undo()
+        mp.setattr(core, "_width_table", failing_table)
+        with pytest.raises(ValueError, match="no table here"):
+            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+
+
+def test_the_output_readied_in_advance_is_new_memory_and_the_input_is_untouched():
+    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
+    data = np.random.default_rng(5).random((5, 20, CWL.size)).astype(np.float32)
+    before = data.copy()
+    cube = make_cube(data, CWL)
+    ds = correct_cube(cube, sensor, 1.4, as_lens(PAPER), harmonise=True, center_px=CENTER)
+    out = ds["harmonised"].values
+    assert out.dtype == np.float32 and not np.shares_memory(out, data)
+    np.testing.assert_array_equal(data, before)
+    chunked = correct_cube(cube.chunk({"y": 2, "x": 7}), sensor, 1.4, as_lens(PAPER),
+                           harmonise=True, center_px=CENTER)
+    np.testing.assert_array_equal(chunked["harmonised"].values, out)

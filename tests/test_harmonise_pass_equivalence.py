@@ -46,6 +46,34 @@ def _reference_diagonals(W, lo, cnt):
     return D, off, wid
 
 
+def _numpy_diagonals(W, lo, cnt):
+    """The layout as numpy made it before the compiled one (``_reach``, ``_lay_out``)."""
+    m, nb, L = W.shape
+    bad = np.isnan(W).any(axis=2)
+    q = np.arange(L)
+    keep = (q < cnt[..., None]) & (W != 0) & ~bad[..., None]
+    rel = lo[..., None] + q - np.arange(nb)[:, None]  # band - output
+    big = np.iinfo(np.int64).max
+    off = np.where(keep, rel, big).min(axis=(1, 2))
+    last = np.where(keep, rel, -big).max(axis=(1, 2))
+    empty = ~keep.any(axis=(1, 2))
+    off[empty], last[empty] = 0, 0
+    wid = last - off + 1
+    near = [np.maximum(np.arange(m) - 1, 0), np.arange(m), np.minimum(np.arange(m) + 1, m - 1)]
+    base = np.min([off[j] for j in near], axis=0)
+    top = np.max([off[j] + wid[j] for j in near], axis=0)
+    npad = -(-nb // harmonise._LANES) * harmonise._LANES
+    D = np.zeros((m, int((top - base).max(initial=1)) + 1, npad), np.float32)
+    ii, kk, qq = np.nonzero(keep)
+    D[ii, rel[ii, kk, qq] - base[ii], kk] = W[ii, kk, qq]
+    some = D != 0
+    first = np.argmax(some, axis=2)
+    end = npad - np.argmax(some[:, :, ::-1], axis=2)
+    ks = np.where(some.any(axis=2), first // harmonise._LANES * harmonise._LANES, 0)
+    ke = np.where(some.any(axis=2), -(-end // harmonise._LANES) * harmonise._LANES, 0)
+    return D, base, off, wid, ks.astype(np.int64), ke.astype(np.int64), bad
+
+
 @numba.njit(cache=True, fastmath={"contract"})
 def _reference_diagonal_sums(acc, rows, buf, width, k0):  # pragma: no cover - compiled
     n = acc.size
@@ -344,3 +372,33 @@ def test_the_direct_path_is_unchanged_for_per_band_scales():
                 continue
             want, j = spectrum_value(lam, d, cwl[k], sigma[y, x, k], j)
             assert got[y, x, k] == np.float32(want)
+
+
+def test_the_compiled_layout_is_the_numpy_one():
+    """``_diagonals`` (compiled) lays the weights out as the numpy version before it did: the
+    benchmark-like tables, widenings up to 40 band steps, nodes whose scale puts some outputs
+    beyond every band (rows of NaN), a node with no weight at all, and one node."""
+    cases = []
+    for nb, sigma_hi in ((150, 3.0), (37, 12.0), (60, 0.0)):
+        cwl, nodes, node_scale, node_sigma = _tables(nb, n_nodes=41, sigma_hi=sigma_hi,
+                                                     sigma_lo=0.0 if sigma_hi == 0 else 0.05)
+        cases.append((cwl, nodes, node_scale, node_sigma))
+    cwl = np.linspace(470.0, 900.0, 40)
+    cases.append((cwl, np.array([0.0, 5.0, 10.0]), np.array([1.0, 1.3, 0.6]),
+                  np.array([np.full(40, 2.0), np.full(40, 0.5), np.full(40, 8.0)])))
+    cases.append((cwl, np.array([1.0]), np.array([0.99]), np.full((1, 40), 1.5)))
+    bad_rows = 0
+    for cwl, nodes, node_scale, node_sigma in cases:
+        w = node_weights(cwl, nodes, node_scale, node_sigma)
+        got = harmonise._diagonals(w.W, w.lo, w.cnt)
+        want = _numpy_diagonals(w.W, w.lo, w.cnt)
+        for a, b in zip(got, want, strict=True):
+            assert a.dtype == b.dtype and a.shape == b.shape
+            np.testing.assert_array_equal(a, b)
+        bad_rows += int(got[-1].sum())
+    W = w.W.copy()
+    W[0] = 0.0  # a node without a weight
+    for a, b in zip(harmonise._diagonals(W, w.lo, w.cnt), _numpy_diagonals(W, w.lo, w.cnt),
+                    strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert bad_rows > 0

@@ -26,7 +26,7 @@ from ..cube.model import check_cube
 from ..cube.sensor import Sensor
 from ..optics import MODELS, ShiftTable, choose_model, mean_shift
 from ..optics.lens import Lens
-from .geometry import cube_cra_deg
+from .geometry import cube_cra_deg, largest_cra_deg
 
 __all__ = ["correct_cube", "relative_shift"]
 
@@ -151,38 +151,59 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask, resample)
     cwl = np.asarray(sensor.cwl_nm, float)
-    cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
-                                              sensor_origin_px=sensor_origin_px)
-    cra_max = _field_max_deg(cra, f, lens)
+    cra_max = _field_max_deg(largest_cra_deg(cube, sensor, lens, center_px, sensor_origin_px),
+                             f, lens)
     used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
     want, first = _widths_needed(sensor, lens, used, fwhm, harmonise)
     widths = _width_table(sensor, lens, f, cra_max, tolerance_nm) if first else None
     harmonising = harmonise or used == "harmonised"
-    # harmonising needs the width table before its pass: it is built on a second thread (small
-    # arrays, one core) while this one makes the scales and the output's memory ready
-    later = (_in_background(_width_table, sensor, lens, f, cra_max, tolerance_nm)
-             if want and widths is None and harmonising else None)
-    try:
-        scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
-        scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-        resampled = _resampled(cube, scale, column, cwl) if resample else None
-        buffer = _output_buffer(cube) if harmonising else None
-    finally:
-        if later is not None:  # waited for even when the above failed: no work left behind
-            futures.wait([later])
-    widths = later.result() if later is not None else widths
+    cra, center, center_source, scale_at, how, scale, column, resampled, buffer, widths, kv = \
+        _maps(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_eff,
+              tolerance_nm, widths, want and widths is None and harmonising, resample,
+              harmonising)
     ds = _assembled(cube, sensor, lens, f, cra, scale, column, how, center_source,
                     widths if fwhm else None, mask, resampled)
     if want and fwhm and widths is None:  # only fwhm_corrected reads it: built on first use
         ds = _with_lazy_fwhm(ds, cube, sensor, lens, f, cra_max, tolerance_nm)
     if harmonising:
         ds = _harmonised(ds, cube, cra, scale, column, cwl, widths, target_fwhm_nm,
-                         scale_at, n_eff, sensor, f, lens, buffer)
+                         scale_at, n_eff, sensor, f, lens, buffer, kv)
     if virtual_bands is not None:
         ds = ds.merge(_virtual(cube, sensor, f, lens, cra, virtual_bands, virtual_matrix,
                                virtual_wavelengths_nm, virtual_fwhm_nm))
     return _with_provenance(ds, sensor, lens, f, used, reason, method, tolerance_nm, center,
                             center_source, cra_max)
+
+
+def _maps(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_eff,
+          tolerance_nm, widths, build_widths, resample, harmonising):
+    """Every pixel's CRA and scales (and ``resampled``), and the width table when
+    ``build_widths``: harmonising needs it before its pass, so it is built on a second thread
+    (small arrays, one core; the field's largest CRA is known without the map) while this
+    one makes the maps and, for harmonising, the output's memory ready."""
+    later = (_in_background(_harmonising_tables, sensor, lens, f, cra_max, tolerance_nm, n_eff)
+             if build_widths else None)
+    try:
+        cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
+                                                  sensor_origin_px=sensor_origin_px)
+        scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
+        scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
+        resampled = (_resampled(cube, scale, column, np.asarray(sensor.cwl_nm, float))
+                     if resample else None)
+        buffer = _output_buffer(cube) if harmonising else None
+    finally:
+        if later is not None:  # waited for even when the above failed: no work left behind
+            futures.wait([later])
+    widths, kv = later.result() if later is not None else (widths, None)
+    return (cra, center, center_source, scale_at, how, scale, column, resampled, buffer, widths,
+            kv)
+
+
+def _harmonising_tables(sensor, lens, f, cra_max, tolerance_nm, n_eff):
+    """The width table, and each band's kernel variance at its angles (nm^2)."""
+    table = _width_table(sensor, lens, f, cra_max, tolerance_nm)
+    return table, _kernel_variance(table.cra_deg, n_eff, np.asarray(sensor.cwl_nm, float), f,
+                                   lens)
 
 
 def _in_background(fn, *args):
@@ -289,9 +310,9 @@ def _model(sensor, f, cra_max, lens, method, tolerance_nm):
     return used, reason, n_eff
 
 
-def _field_max_deg(cra, f, lens):
+def _field_max_deg(cra_max, f, lens):
     """The cube's largest CRA, refused where the lens passes no light at all."""
-    cra_max = float(cra.max())
+    cra_max = float(cra_max)
     cutoff = float(lens.cutoff_cra_deg(f))
     if cra_max >= cutoff:
         raise ValueError(f"at f/{f:g} the lens's vignetting circle cuts off the whole pupil "
@@ -511,7 +532,7 @@ def _kernel_variance(nodes, n_eff, cwl, f, lens):
     return out * cwl[:, None] ** 2
 
 
-def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
+def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens, kv=None):
     """Kernel variances over the table's CRAs (band, node), nm^2, and the reference pixel's
     kernel variance and FWHM per band.
 
@@ -521,9 +542,11 @@ def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
     kernel is box-like: at f/1.4 the quadrature rule widened the pixels near the axis by
     ~30 % too much in variance, and more for Airy filters, whose width is in the wings).
     The reference is the pixel of the largest kernel variance in the field; a wider target
-    adds to it (target^2 - its FWHM^2) / (8 ln 2).
+    adds to it (target^2 - its FWHM^2) / (8 ln 2). ``kv``: the variances over the table's CRAs
+    if already computed.
     """
-    kv = _kernel_variance(table.cra_deg, n_eff, cwl, f, lens)
+    if kv is None:
+        kv = _kernel_variance(table.cra_deg, n_eff, cwl, f, lens)
     kv_field = np.concatenate([_kernel_variance(ends, n_eff, cwl, f, lens), kv[:, inside]],
                               axis=1)
     ref = np.nanargmax(np.where(np.isnan(kv_field), -np.inf, kv_field), axis=1)
@@ -532,7 +555,7 @@ def _reference_response(table, inside, ends, field, n_eff, cwl, f, lens):
 
 
 def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_at, n_eff,
-                sensor, f, lens, buffer=None):
+                sensor, f, lens, buffer=None, kv=None):
     from .harmonise import harmonise_spectra, node_weights
 
     if table is None:  # no widths without n_eff
@@ -542,7 +565,8 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
     ends = np.array([cra_lo, cra_hi])
     field = np.concatenate([table(ends).T, table.fwhm_nm[:, inside]], axis=1)
     widest = np.nanmax(field, axis=1)
-    kv, kv_ref, fwhm_ref = _reference_response(table, inside, ends, field, n_eff, cwl, f, lens)
+    kv, kv_ref, fwhm_ref = _reference_response(table, inside, ends, field, n_eff, cwl, f, lens,
+                                               kv)
     if target_fwhm_nm is None:
         target = widest
         how = "the widest response in the field at each band"
@@ -613,24 +637,28 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
     out = xr.apply_ufunc(block, data, cr, sc, input_core_dims=[["band"], ["c"], ["m"]],
                          output_core_dims=[["band"]], dask="parallelized",
                          output_dtypes=[dtype]).transpose("y", "x", "band")
-    name = cube.name or "radiance"
-    out.attrs = {**_units_of(cube),
-                 "long_name": f"{cube.attrs.get('long_name', name)} on the nominal wavelengths, "
-                              "one response per band",
-                 "source": "each pixel's spectrum (straight lines between its corrected "
-                           "wavelengths) averaged with a Gaussian of the variance its response "
-                           "lacks against the common one (the difference of the kernels' "
-                           "variances), at the nominal wavelengths",
-                 "common_response": "the response of the pixel of the largest kernel variance"
-                                    f", spread to fwhm_harmonised: {how}",
-                 "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
-                         "range (extrapolation is not done)"}
+    out.attrs = _harmonised_attrs(cube, how)
     ds["harmonised"] = out
     ds["fwhm_harmonised"] = ("band", target, {"units": "nm",
                                               "long_name": "FWHM of the common response of "
                                                            "harmonised",
                                               "source": how})
     return ds
+
+
+def _harmonised_attrs(cube, how):
+    name = cube.name or "radiance"
+    return {**_units_of(cube),
+            "long_name": f"{cube.attrs.get('long_name', name)} on the nominal wavelengths, one "
+                         "response per band",
+            "source": "each pixel's spectrum (straight lines between its corrected wavelengths) "
+                      "averaged with a Gaussian of the variance its response lacks against the "
+                      "common one (the difference of the kernels' variances), at the nominal "
+                      "wavelengths",
+            "common_response": "the response of the pixel of the largest kernel variance, "
+                               f"spread to fwhm_harmonised: {how}",
+            "note": "NaN where the nominal wavelength lies outside the pixel's corrected range "
+                    "(extrapolation is not done)"}
 
 
 def _span(values):

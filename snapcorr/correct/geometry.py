@@ -243,9 +243,29 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
         ``(cx, cy)``, x first (as :func:`optical_center`).
     center_source : str
     """
-    pitch = sensor.require("pixel_pitch_um", "the chief-ray angle of each pixel")
-    rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
-    center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
+    pitch, rows, cols, center, source = _placed(cube, sensor, lens, center_px,
+                                                sensor_origin_px)
     # rows (ny, 1, nb) against columns (1, nx, nb)
     cra = _cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
     return cra, center, source
+
+
+def _placed(cube, sensor, lens, center_px, sensor_origin_px):
+    pitch = sensor.require("pixel_pitch_um", "the chief-ray angle of each pixel")
+    rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
+    center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
+    return pitch, rows, cols, center, source
+
+
+def largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
+    """``cube_cra_deg(...)[0].max()`` without the map: for each band's positions, the row
+    and the column farthest from the centre (every step from the offsets to the angle is
+    monotonic, element by element the same arithmetic), so a table over the field's angles
+    can be started before the map is made."""
+    pitch, rows, cols, center, _ = _placed(cube, sensor, lens, center_px, sensor_origin_px)
+    cx, cy = center
+    bands = np.arange(rows.shape[1])
+    far_rows = rows[np.argmax(np.abs(rows - cy), axis=0), bands]
+    far_cols = cols[np.argmax(np.abs(cols - cx), axis=0), bands]
+    return float(np.max(_cra_deg(far_rows[None, None, :], far_cols[None, None, :], center,
+                                 pitch, lens.exit_pupil_mm)))

@@ -103,6 +103,7 @@ def _pair_sums(o, A, B, x, u, width):  # pragma: no cover - compiled
     constant: the loop over the diagonals is unrolled, the one over the outputs vectorised;
     the data read once for both)."""
     width = numba.literally(width)
+    uf = np.float32(u)  # (interpolated in float32 too: no conversions in the loop)
     for k in range(o.size):
         sa = np.float32(0.0)
         sb = np.float32(0.0)
@@ -115,7 +116,7 @@ def _pair_sums(o, A, B, x, u, width):  # pragma: no cover - compiled
             v = x[k + q + 1]
             ta += A[q + 1][k] * v
             tb += B[q + 1][k] * v
-        o[k] = (1.0 - u) * (sa + ta) + u * (sb + tb)
+        o[k] = (sa + ta) * (np.float32(1.0) - uf) + (sb + tb) * uf
 
 
 @numba.njit(cache=True, fastmath={"contract"})
@@ -350,30 +351,71 @@ def _diagonals(W, lo, cnt):
     shifts along the bands, so most diagonals have weights for only some of the outputs), for
     the matrices too wide for registers. Rows of NaN (outputs far beyond the node's corrected
     range: no weight reaches them) are left out and marked in ``bad``."""
-    m, nb, L = W.shape
-    bad = np.isnan(W).any(axis=2)
-    q = np.arange(L)
-    keep = (q < cnt[..., None]) & (W != 0) & ~bad[..., None]
-    rel = lo[..., None] + q - np.arange(nb)[:, None]  # band - output
-    big = np.iinfo(np.int64).max
-    off = np.where(keep, rel, big).min(axis=(1, 2))
-    last = np.where(keep, rel, -big).max(axis=(1, 2))
-    empty = ~keep.any(axis=(1, 2))
-    off[empty], last[empty] = 0, 0
+    m, nb = W.shape[:2]
+    bad, off, last = _reach(W, lo, cnt)
     wid = last - off + 1
     near = [np.maximum(np.arange(m) - 1, 0), np.arange(m), np.minimum(np.arange(m) + 1, m - 1)]
     base = np.min([off[j] for j in near], axis=0)
     top = np.max([off[j] + wid[j] for j in near], axis=0)
     npad = -(-nb // _LANES) * _LANES
     D = np.zeros((m, int((top - base).max(initial=1)) + 1, npad), np.float32)
-    ii, kk, qq = np.nonzero(keep)
-    D[ii, rel[ii, kk, qq] - base[ii], kk] = W[ii, kk, qq]
-    some = D != 0
-    first = np.argmax(some, axis=2)
-    end = npad - np.argmax(some[:, :, ::-1], axis=2)
-    ks = np.where(some.any(axis=2), first // _LANES * _LANES, 0)
-    ke = np.where(some.any(axis=2), -(-end // _LANES) * _LANES, 0)
-    return D, base, off, wid, ks.astype(np.int64), ke.astype(np.int64), bad
+    ks = np.zeros(D.shape[:2], np.int64)
+    ke = np.zeros(D.shape[:2], np.int64)
+    _lay_out(W, lo, cnt, bad, base, D, ks, ke)
+    return D, base, off, wid, ks, ke, bad
+
+
+@numba.njit(cache=True)
+def _reach(W, lo, cnt):  # pragma: no cover - compiled
+    """Rows of NaN (``bad``), and each node's first and last diagonal with a weight (0, 0 for
+    a node without any)."""
+    m, nb, L = W.shape
+    bad = np.zeros((m, nb), np.bool_)
+    off = np.zeros(m, np.int64)
+    last = np.zeros(m, np.int64)
+    for i in range(m):
+        first, end, seen = 0, 0, False
+        for k in range(nb):
+            for q in range(L):
+                if math.isnan(W[i, k, q]):
+                    bad[i, k] = True
+            if bad[i, k]:
+                continue
+            for q in range(cnt[i, k]):
+                if W[i, k, q] != 0:
+                    r = lo[i, k] + q - k
+                    if not seen or r < first:
+                        first = r
+                    if not seen or r > end:
+                        end = r
+                    seen = True
+        off[i], last[i] = first, end
+    return bad, off, last
+
+
+@numba.njit(cache=True)
+def _lay_out(W, lo, cnt, bad, base, D, ks, ke):  # pragma: no cover - compiled
+    """``D[i, r, k]``: the weights along the diagonals from ``base``; ``ks``/``ke``: the
+    outputs each row has weights for, widened to whole vectors."""
+    m, nb = W.shape[:2]
+    R, npad = D.shape[1], D.shape[2]
+    for i in range(m):
+        for k in range(nb):
+            if bad[i, k]:
+                continue
+            for q in range(cnt[i, k]):
+                if W[i, k, q] != 0:
+                    D[i, lo[i, k] + q - k - base[i], k] = W[i, k, q]
+        for r in range(R):
+            first, end = -1, -1
+            for k in range(npad):
+                if D[i, r, k] != 0:
+                    if first < 0:
+                        first = k
+                    end = k + 1
+            if first >= 0:
+                ks[i, r] = first // _LANES * _LANES
+                ke[i, r] = -(-end // _LANES) * _LANES
 
 
 def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, nodes=None,
