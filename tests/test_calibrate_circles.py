@@ -403,10 +403,12 @@ def test_field_covers_the_onsets():
 
 # -- default run: a handful of representative cases -----------------------------------------
 @pytest.mark.parametrize("key, noise, seed", [
-    ("one_h_lt_x", 0.005, 0),
+    # one circle with h < x runs by default in test_reported_shift_error_is_never_below_the_bound
+    # and in test_calibrate_flats.py (the paper's lens); two circles in
+    # test_predictive_refit.py (2 % noise), circle + pixel vignetting in
+    # test_standard_errors_reach_the_cramer_rao_bound
+    pytest.param("one_h_lt_x", 0.005, 0, marks=pytest.mark.slow),
     ("one_weak", 0.005, 0),
-    # two circles run by default in test_predictive_refit.py (2 % noise), circle + pixel
-    # vignetting in test_standard_errors_reach_the_cramer_rao_bound
     pytest.param("two_front_rear", 0.005, 0, marks=pytest.mark.slow),
     pytest.param("circle_pixel", 0.005, 0, marks=pytest.mark.slow),
     ("none_in_field", 0.02, 0),
