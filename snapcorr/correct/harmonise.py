@@ -217,9 +217,9 @@ def _tabulated(data, scale, cra, nodes, D, base, off, wid, ks, ke, nbad, W, lo, 
     # terms: 1e-7 of the values), taken along its diagonals so that it vectorises over the
     # outputs, both nodes at once (``_pair``; row r of D[i] is diagonal base[i] + r, zero
     # beyond the node's own, so the two share their rows' diagonals). Below var_direct (ten
-    # times the band's shift over the node step, squared) the weights bend within a node
-    # step (a straight line's kinks are barely smoothed): those values are computed
-    # directly, from the few kinks in reach.
+    # times the band's shift or change of widening over the node step, squared) the weights
+    # bend within a node step (a straight line's kinks are barely smoothed): those values are
+    # computed directly, from the few kinks in reach.
     ny, nx, nb = data.shape
     npad = D.shape[2]
     m = nodes.size
@@ -447,7 +447,8 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
         cube harmonised block by block (then ``nodes``, ``node_scale`` and ``node_sigma``
         are not used).
     out : ndarray, shape (ny, nx, nb), optional
-        Array to write the result into (default: a new one).
+        Array to write the result into (default: a new one): C-ordered, of the result's
+        dtype, sharing no memory with ``data``.
 
     Returns
     -------
@@ -470,8 +471,15 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
         raise ValueError(f"data must be (ny, nx, {cwl.size}) with at least two bands")
     if not np.all(np.diff(cwl) > 0):
         raise ValueError("nominal wavelengths must be increasing")
+    dtype = np.float32 if data.dtype == np.float32 else np.float64
     if out is None:
-        out = np.empty(data.shape, np.float32 if data.dtype == np.float32 else np.float64)
+        out = np.empty(data.shape, dtype)
+    elif (not isinstance(out, np.ndarray) or out.shape != data.shape or out.dtype != dtype
+          or not out.flags.c_contiguous or not out.flags.writeable
+          or np.shares_memory(out, data)):
+        # (the compiled passes write without bounds checks, and read the data after writing)
+        raise ValueError(f"out must be a new writeable C-ordered {np.dtype(dtype).name} array "
+                         f"of shape {data.shape}, apart from the data")
     scale = np.ascontiguousarray(scale, dtype=np.float64)
     if sigma is not None:
         # a view when it is float64 already (a scalar: zero strides), not a float64 cube
