@@ -72,7 +72,7 @@ def test_the_largest_angle_without_the_map_is_the_maps_largest():
     made: the same number, bit for bit, for a centre inside, at the edge of and outside the
     image, a crop placed on the sensor, a mosaic (each band at its own place) and one pixel,
     and what correct_cube records is the map's largest."""
-    from snapcorr.correct.geometry import largest_cra_deg
+    from snapcorr.correct.geometry import _largest_cra_deg
 
     s = _sensor(pitch=40.0)
     cube = _cube(s)
@@ -87,7 +87,7 @@ def test_the_largest_angle_without_the_map_is_the_maps_largest():
     cases += [(cube, s, tuple(rng.uniform(-60, 110, 2)), None) for _ in range(20)]
     for c, sensor, center, origin in cases:
         cra = cube_cra_deg(c, sensor, PAPER, center, sensor_origin_px=origin)[0]
-        assert largest_cra_deg(c, sensor, PAPER, center, origin) == float(cra.max())
+        assert _largest_cra_deg(c, sensor, PAPER, center, origin) == float(cra.max())
     ds = correct_cube(cube, s, 2.8, PAPER, center_px=(-3.0, 60.0))
     assert ds.attrs["cra_max_deg"] == float(ds["cra_deg"].max())
 

@@ -27,7 +27,7 @@ from ..cube.model import check_cube
 from ..cube.sensor import Sensor
 from ..optics import MODELS, ShiftTable, choose_model, mean_shift
 from ..optics.lens import Lens
-from .geometry import cube_cra_deg, largest_cra_deg
+from .geometry import _largest_cra_deg, cube_cra_deg
 
 __all__ = ["correct_cube", "relative_shift"]
 
@@ -152,7 +152,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask, resample)
     cwl = np.asarray(sensor.cwl_nm, float)
-    cra_max = _field_max_deg(largest_cra_deg(cube, sensor, lens, center_px, sensor_origin_px),
+    cra_max = _field_max_deg(_largest_cra_deg(cube, sensor, lens, center_px, sensor_origin_px),
                              f, lens)
     used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
     want, first = _widths_needed(sensor, lens, used, fwhm, harmonise)

@@ -20,8 +20,7 @@ from .._validation import check_center, check_pair
 from ..cube.mosaic import sensor_positions
 from ..optics.chief_ray import _cra_deg
 
-__all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "largest_cra_deg",
-           "optical_center"]
+__all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
 
 #: Physical sizes (mm) closer than this fraction of a pixel count as the same image area.
 _SAME_AREA_PX = 1.0
@@ -258,7 +257,7 @@ def _placed(cube, sensor, lens, center_px, sensor_origin_px):
     return pitch, rows, cols, center, source
 
 
-def largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
+def _largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
     """``cube_cra_deg(...)[0].max()`` without the map: for each band's positions, the row
     and the column farthest from the centre (every step from the offsets to the angle is
     monotonic, element by element the same arithmetic), so a table over the field's angles
