@@ -28,27 +28,10 @@ from snapcorr.correct.harmonise import harmonise_spectra, node_weights
 # the reference: the pass as it was
 
 
-def _reference_diagonals(W, lo, cnt):
-    m, nb, L = W.shape
-    bad = np.isnan(W).any(axis=2)
-    q = np.arange(L)
-    keep = (q < cnt[..., None]) & (W != 0) & ~bad[..., None]
-    rel = lo[..., None] + q - np.arange(nb)[:, None]
-    big = np.iinfo(np.int64).max
-    off = np.where(keep, rel, big).min(axis=(1, 2))
-    last = np.where(keep, rel, -big).max(axis=(1, 2))
-    empty = ~keep.any(axis=(1, 2))
-    off[empty], last[empty] = 0, 0
-    wid = last - off + 1
-    D = np.zeros((m, int(wid.max(initial=1)), nb), np.float32)
-    ii, kk, qq = np.nonzero(keep)
-    D[ii, rel[ii, kk, qq] - off[ii], kk] = W[ii, kk, qq]
-    return D, off, wid
-
-
-def _numpy_diagonals(W, lo, cnt):
-    """The layout as numpy made it before the compiled one (``_reach``, ``_lay_out``)."""
-    m, nb, L = W.shape
+def _numpy_reach(W, lo, cnt):
+    """Rows of NaN, the weights kept, each weight's diagonal (band - output) and each node's
+    first and last diagonal, as numpy found them (both references below)."""
+    nb, L = W.shape[1:]
     bad = np.isnan(W).any(axis=2)
     q = np.arange(L)
     keep = (q < cnt[..., None]) & (W != 0) & ~bad[..., None]
@@ -58,6 +41,23 @@ def _numpy_diagonals(W, lo, cnt):
     last = np.where(keep, rel, -big).max(axis=(1, 2))
     empty = ~keep.any(axis=(1, 2))
     off[empty], last[empty] = 0, 0
+    return bad, keep, rel, off, last
+
+
+def _reference_diagonals(W, lo, cnt):
+    m, nb = W.shape[:2]
+    _, keep, rel, off, last = _numpy_reach(W, lo, cnt)
+    wid = last - off + 1
+    D = np.zeros((m, int(wid.max(initial=1)), nb), np.float32)
+    ii, kk, qq = np.nonzero(keep)
+    D[ii, rel[ii, kk, qq] - off[ii], kk] = W[ii, kk, qq]
+    return D, off, wid
+
+
+def _numpy_diagonals(W, lo, cnt):
+    """The layout as numpy made it before the compiled one (``_reach``, ``_lay_out``)."""
+    m, nb = W.shape[:2]
+    bad, keep, rel, off, last = _numpy_reach(W, lo, cnt)
     wid = last - off + 1
     near = [np.maximum(np.arange(m) - 1, 0), np.arange(m), np.minimum(np.arange(m) + 1, m - 1)]
     base = np.min([off[j] for j in near], axis=0)

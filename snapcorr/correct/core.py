@@ -182,30 +182,24 @@ def _maps(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_e
     ``build_widths``: harmonising needs it before its pass, so it is built on a second thread
     (small arrays, one core; the field's largest CRA is known without the map) while this
     one makes the maps and, for harmonising, the output's memory ready."""
-    limit = _one_blas_thread() if build_widths else contextlib.nullcontext()
-    with limit:
-        return _maps_alongside(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max,
-                               used, n_eff, tolerance_nm, widths, build_widths, resample,
-                               harmonising)
-
-
-def _maps_alongside(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_eff,
-                    tolerance_nm, widths, build_widths, resample, harmonising):
-    later = (_in_background(_harmonising_tables, sensor, lens, f, cra_max, tolerance_nm, n_eff)
-             if build_widths else None)
-    try:
-        cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
-                                                  sensor_origin_px=sensor_origin_px)
-        scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths)
-        scale, column = _scales(cra, n_eff, scale_at, per_band=sensor.responses is not None)
-        resampled = (_resampled(cube, scale, column, np.asarray(sensor.cwl_nm, float))
-                     if resample else None)
-        # (only where the pass will run: a table for it, distinct increasing wavelengths)
-        buffer = (_output_buffer(cube, sensor.cwl_nm)
-                  if harmonising and (build_widths or widths is not None) else None)
-    finally:
-        if later is not None:  # waited for even when the above failed: no work left behind
-            futures.wait([later])
+    with _one_blas_thread() if build_widths else contextlib.nullcontext():
+        later = (_in_background(_harmonising_tables, sensor, lens, f, cra_max, tolerance_nm,
+                                n_eff) if build_widths else None)
+        try:
+            cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
+                                                      sensor_origin_px=sensor_origin_px)
+            scale_at, how = _scale_function(sensor, f, lens, used, tolerance_nm, cra_max,
+                                            widths)
+            scale, column = _scales(cra, n_eff, scale_at,
+                                    per_band=sensor.responses is not None)
+            resampled = (_resampled(cube, scale, column, np.asarray(sensor.cwl_nm, float))
+                         if resample else None)
+            # (only where the pass will run: a table for it, distinct increasing wavelengths)
+            buffer = (_output_buffer(cube, sensor.cwl_nm)
+                      if harmonising and (build_widths or widths is not None) else None)
+        finally:
+            if later is not None:  # waited for even when the above failed: no work left
+                futures.wait([later])
     widths, kv = later.result() if later is not None else (widths, None)
     return (cra, center, center_source, scale_at, how, scale, column, resampled, buffer, widths,
             kv)
