@@ -287,3 +287,70 @@ def test_the_output_readied_in_advance_is_new_memory_and_the_input_is_untouched(
     assert core._output_buffer(cube, CWL).shape == data.shape
     assert core._output_buffer(cube.chunk({"y": 2}), CWL) is None
     assert core._output_buffer(cube, CWL[::-1]) is None
+
+
+def test_the_weights_start_on_a_vector_boundary_and_any_copy_gives_the_same_values():
+    """The diagonals are laid out on a 64-byte boundary (no vector read straddles two cache
+    lines); weights that are not (unpickled, as a dask worker receives them) are put on one
+    for the pass, and the values are the same to the bit."""
+    import pickle
+
+    from snapcorr.correct import harmonise
+    from snapcorr.correct.harmonise import node_weights
+
+    rng = np.random.default_rng(6)
+    nodes = np.linspace(0.0, 18.0, 40)
+    w = node_weights(CWL, nodes, 1.0 - 0.0005 * nodes**1.5,
+                     np.sqrt(np.outer(18.0 - nodes, np.linspace(0.5, 1.5, CWL.size)) / 4.0))
+    assert w.D.ctypes.data % 64 == 0 and w.D.strides[1] % 32 == 0
+    raw = np.empty(w.D.nbytes + 64, np.uint8)
+    start = -raw.ctypes.data % 64 + 16  # numpy's own boundary, not a vector's
+    off = raw[start:start + w.D.nbytes].view(np.float32).reshape(w.D.shape)
+    off[...] = w.D
+    moved = harmonise._aligned(off)
+    assert moved.ctypes.data % 64 == 0 and moved is not off
+    np.testing.assert_array_equal(moved, w.D)
+    assert harmonise._aligned(w.D) is w.D
+    data = rng.random((6, 9, CWL.size)).astype(np.float32)
+    cra = rng.uniform(0.0, 18.0, (6, 9))
+    scale = np.interp(cra, nodes, 1.0 - 0.0005 * nodes**1.5)[..., None]
+    column = np.zeros(CWL.size, int)
+    want = harmonise_spectra(data, scale, column, CWL, cra=cra, weights=w)
+    for other in (w._replace(D=off), pickle.loads(pickle.dumps(w))):
+        got = harmonise_spectra(data, scale, column, CWL, cra=cra, weights=other)
+        np.testing.assert_array_equal(got, want)
+
+
+def test_the_output_pages_are_shared_out_between_the_threads_once_each():
+    """Threads claiming shares of the output's memory at once get each element once, every
+    page is touched, and nothing is after a cancel."""
+    import threading
+
+    from snapcorr.correct import core
+
+    out = np.full(3_000_001, np.nan, np.float32)  # 12 MB: 46 shares of 256 kB, one short
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(core._Pages, "SHARE_BYTES", 256 << 10)
+        pages = core._Pages(out)
+        claimed = {0: [], 1: [], 2: []}
+
+        def claim(j):
+            while (share := pages._claim()) is not None:
+                claimed[j].append(share)
+
+        threads = [threading.Thread(target=claim, args=(j,)) for j in claimed]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        shares = sorted((s for got in claimed.values() for s in got), key=lambda s: s.start)
+        assert [s.start for s in shares] == list(range(0, out.size, 65536))
+        assert [s.stop for s in shares] == [*range(65536, out.size, 65536), out.size]
+        assert all(s.step == 1024 for s in shares)
+        core._Pages(out).touch()
+        assert np.all(out[::1024] == 0) and np.all(np.isnan(out[1::1024]))
+        out[:] = np.nan
+        pages = core._Pages(out)
+        pages.cancel()
+        pages.touch()
+        assert np.all(np.isnan(out))

@@ -358,11 +358,35 @@ def _diagonals(W, lo, cnt):
     base = np.min([off[j] for j in near], axis=0)
     top = np.max([off[j] + wid[j] for j in near], axis=0)
     npad = -(-nb // _LANES) * _LANES
-    D = np.zeros((m, int((top - base).max(initial=1)) + 1, npad), np.float32)
+    D = _aligned_zeros((m, int((top - base).max(initial=1)) + 1, npad), np.float32)
     ks = np.zeros(D.shape[:2], np.int64)
     ke = np.zeros(D.shape[:2], np.int64)
     _lay_out(W, lo, cnt, bad, base, D, ks, ke)
     return D, base, off, wid, ks, ke, bad
+
+
+#: Byte boundary of the diagonals' first element: with rows a whole number of vectors long,
+#: every vector the pass reads from them is on a boundary of its own size and none straddles
+#: two cache lines (numpy's arrays start on 16 bytes; the pass took 11 % longer so, measured).
+_ALIGN = 64
+
+
+def _aligned(a):
+    """``a`` itself when it starts on an ``_ALIGN``-byte boundary, else a copy that does (a
+    table made here does; one unpickled, as a dask worker receives it, may not)."""
+    if a.ctypes.data % _ALIGN == 0:
+        return a
+    out = _aligned_zeros(a.shape, a.dtype)
+    out[...] = a
+    return out
+
+
+def _aligned_zeros(shape, dtype):
+    """Zeros starting on an ``_ALIGN``-byte boundary."""
+    size = math.prod(shape) * np.dtype(dtype).itemsize
+    raw = np.zeros(size + _ALIGN, np.uint8)
+    start = -raw.ctypes.data % _ALIGN
+    return raw[start:start + size].view(dtype).reshape(shape)
 
 
 @numba.njit(cache=True)
@@ -500,9 +524,9 @@ def harmonise_spectra(data, scale, column, cwl_nm, sigma=None, *, cra=None, node
     rows = max(1, min(8, data.shape[0] // (4 * numba.get_num_threads())))
     with numba.parallel_chunksize(rows):
         _tabulated(data, np.ascontiguousarray(scale[:, :, 0]),
-                   np.ascontiguousarray(cra, dtype=np.float64), w.nodes, w.D, w.base, w.off,
-                   w.wid, w.ks, w.ke, w.nbad, w.W, w.lo, w.cnt, w.var, w.var_direct,
-                   w.near_ptr, w.near_k, cwl, out)
+                   np.ascontiguousarray(cra, dtype=np.float64), w.nodes, _aligned(w.D),
+                   w.base, w.off, w.wid, w.ks, w.ke, w.nbad, w.W, w.lo, w.cnt, w.var,
+                   w.var_direct, w.near_ptr, w.near_k, cwl, out)
     return out
 
 
