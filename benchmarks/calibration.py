@@ -30,9 +30,9 @@ ESTIMATORS = ("onset-ratio", "onset-model", "joint")
 
 def _flats(shape, pitch_um, electrons, seed):
     rng = np.random.default_rng(seed)
-    center = (shape[1] * 0.55, shape[0] * 0.46)
+    center = (shape[0] * 0.46, shape[1] * 0.55)  # (row, col)
     camera = Detector(signal_electrons=electrons)
-    return {f: flat_frame(shape, pitch_um, f, PAPER, center_px=center, detector=camera, rng=rng)
+    return {f: flat_frame(shape, pitch_um, f, PAPER, center_rc=center, detector=camera, rng=rng)
             for f in F_NUMBERS}
 
 

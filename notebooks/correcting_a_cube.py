@@ -71,8 +71,8 @@ print(sensor.name, f"{sensor.n_bands} bands, {cwl[0]:g}-{cwl[-1]:g} nm, n_eff",
 print("correction:", lens.name, lens.describe_vignetting())
 print("simulation:", PAPER_LENS.name, PAPER_LENS.describe_vignetting())
 
-center = (131.0, 77.5)  # optical centre (column, row), a little off the image centre
-cra = cra_map(shape, sensor.pixel_pitch_um, lens.exit_pupil_mm, center)
+center = (77.5, 131.0)  # optical centre (row, col), a little off the image centre
+cra = cra_map(shape, sensor.pixel_pitch_um, lens.exit_pupil_mm, center_rc=center)
 print(f"chief-ray angles up to {cra.max():.2f} deg")
 
 # %% [markdown]
@@ -95,7 +95,7 @@ def simulate(f_number, n_whites=2):
     transmittance = np.stack([np.interp(cra, grid, per_cra[:, b]) for b in range(cwl.size)],
                              axis=-1)
     white = 3000.0 * relative_illumination_map(shape, sensor.pixel_pitch_um, f_number,
-                                               PAPER_LENS, center_px=center)
+                                               PAPER_LENS, center_rc=center)
 
     def frame(signal):
         return rng.poisson(signal).astype(np.float32) + np.float32(100.0)
@@ -127,7 +127,7 @@ print(f"reflectance cube: {dict(cube.sizes)}, {cube.dtype}")
 # why.
 
 # %%
-ds = correct_cube(cube, sensor, f_number, lens, center_px=center, resample=True)
+ds = correct_cube(cube, sensor, f_number, lens, center_rc=center, resample=True)
 print(ds.attrs["method"], "--", ds.attrs["method_reason"])
 print(ds)
 
@@ -175,7 +175,7 @@ def spot_spectra(result):
     return out
 
 
-results = {m: correct_cube(cube, sensor, f_number, lens, center_px=center, method=m)
+results = {m: correct_cube(cube, sensor, f_number, lens, center_rc=center, method=m)
            for m in ("none", "asymptotic", "ideal", "vignetted")}
 print(f"{'model':>11} {f'{cwl[band]:.1f} nm band at 17.4 deg':>24} {'worst r':>9} "
       f"{'max diff':>9}")
@@ -234,7 +234,7 @@ print(f"largest difference between the spots on the nominal grid: "
 # material gives the same spectrum anywhere (`harmonised`, NaN where `resampled` is).
 
 # %%
-dh = correct_cube(cube, sensor, f_number, lens, center_px=center, resample=True,
+dh = correct_cube(cube, sensor, f_number, lens, center_rc=center, resample=True,
                   harmonise=True)
 fw = dh["fwhm_corrected"].values[..., band]
 print(f"{cwl[band]:.1f} nm band: FWHM {fw.min():.2f}-{fw.max():.2f} nm over the field "
@@ -300,7 +300,7 @@ write_cube(cube, out / "scene_ff.nc")
 sensor.save(out / "sensor.toml")
 lens.save(out / "lens.toml")
 args = ["correct", "scene_ff.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
-        "--f-number", f"{f_number:g}", "--center-px", f"{center[0]:g},{center[1]:g}",
+        "--f-number", f"{f_number:g}", "--center", f"{center[0]:g},{center[1]:g}",
         "--out", "scene_corrected_cli.nc", "--resample"]
 print("snapcorr " + shlex.join(args))
 log = io.StringIO()

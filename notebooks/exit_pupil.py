@@ -142,10 +142,10 @@ binned = dataclasses.replace(
     sensor, name="snapscan-vnir, binned 16 x 16", pixel_pitch_um=16 * sensor.pixel_pitch_um,
     size_px=(128, 128), cwl_nm=sensor.cwl_nm[::5], fwhm_nm=sensor.fwhm_nm[::5],
     n_eff=sensor.n_eff[::5])
-true_center = (66.3, 61.2)  # (column, row), pixels: the optical axis off the image centre
+true_center = (61.2, 66.3)  # (row, col), pixels: the optical axis off the image centre
 target = CANDIDATE_TARGETS["rare-earth glass"]
 rows, cols = np.indices(binned.size_px)
-d_max = np.hypot(cols - true_center[0], rows - true_center[1]).max() * binned.pixel_pitch_mm
+d_max = np.hypot(rows - true_center[0], cols - true_center[1]).max() * binned.pixel_pitch_mm
 print(f"chief-ray angles up to {np.degrees(np.arctan(d_max / truth.exit_pupil_mm)):.1f} deg; "
       f"the circle starts to cut the cone at {float(truth.onset_cra_deg(2.0)):.1f} deg at f/2")
 
@@ -160,7 +160,7 @@ print(f"chief-ray angles up to {np.degrees(np.arctan(d_max / truth.exit_pupil_mm
 # %%
 def target_cubes(spectrum, f_numbers, noise, rng, *, n_radii=64, step_deg=0.02):
     """Flat-fielded cubes of a uniform target behind `truth`, keyed by f-number."""
-    d2 = ((cols - true_center[0]) ** 2 + (rows - true_center[1]) ** 2) * binned.pixel_pitch_mm**2
+    d2 = ((rows - true_center[0]) ** 2 + (cols - true_center[1]) ** 2) * binned.pixel_pitch_mm**2
     r2 = np.linspace(0.0, d2.max(), n_radii)  # values at these radii, interpolated to pixels
     # per band: the target and a white tile through the curve scaled by s (a tabulation in s)
     s_grid = np.linspace(0.9, 1.0, 401)

@@ -57,11 +57,11 @@ print(truth)
 # %%
 f_numbers = (1.4, 2.0, 2.8, 4.0, 8.0)
 shape, pitch_um = (256, 256), 44.0
-true_center = (140.3, 118.6)  # (column, row), pixels
+true_center = (118.6, 140.3)  # (row, col), pixels
 rng = np.random.default_rng(2019)
-flats = {f: flat_frame(shape, pitch_um, f, truth, center_px=true_center, rng=rng)
+flats = {f: flat_frame(shape, pitch_um, f, truth, center_rc=true_center, rng=rng)
          for f in f_numbers}
-cra = cra_map(shape, pitch_um, truth.exit_pupil_mm, true_center)
+cra = cra_map(shape, pitch_um, truth.exit_pupil_mm, center_rc=true_center)
 print(f"chief-ray angles up to {cra.max():.1f} deg")
 
 fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), constrained_layout=True)
@@ -80,7 +80,7 @@ for ax, (image, title, cmap) in zip(axes, panels, strict=True):
 #
 # `calibrate_lens` needs the exit-pupil distance, the pixel pitch and, for the working
 # f-number of Eq. 27, the magnification and pupil magnification. It finds the optical centre
-# itself (unless `center_px` is given).
+# itself (unless `center_rc` is given).
 
 # %%
 res = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=pitch_um, magnification=0.06,
@@ -123,9 +123,9 @@ print(f"{'truth':>12} {P0:>18.4f} {'':>8} {h0:>18.3f}")
 for name, (P, dP, h, dh) in estimates.items():
     print(f"{name:>12} {P:>9.4f} +- {dP:<6.4f} {100 * (P / P0 - 1):>+7.2f}% "
           f"{h:>9.3f} +- {dh:<6.3f} {100 * (h / h0 - 1):>+7.2f}%")
-cx, cy = res.center_px
-print(f"optical centre ({cx:.2f}, {cy:.2f}) px from the {res.center_source}, "
-      f"true ({true_center[0]}, {true_center[1]})")
+row, col = res.center_rc
+print(f"optical centre row {row:.2f}, col {col:.2f} px from the {res.center_source}, "
+      f"true row {true_center[0]}, col {true_center[1]}")
 print(f"chosen: {res.method}, {res.model} circle")
 
 # %% [markdown]
@@ -148,14 +148,14 @@ for c, a, b in zip(cras, true_shift, found_shift, strict=True):
 # the aperture (natural vignetting that depends on the aperture size, pupil aberrations)
 # which the model lacks. Then only *where* the fall-off starts is trusted, and `auto` falls
 # back to the paper's onsets. Here such a fall-off, `1 - tan^2(CRA) / N` at f-number `N`,
-# is added to the same flats; the optical centre found above is given (`center_px`), which
+# is added to the same flats; the optical centre found above is given (`center_rc`), which
 # also spares the fit two parameters:
 
 # %%
 tan2 = np.tan(np.deg2rad(cra)) ** 2
 distorted = {f: img * (1.0 - tan2 / f) for f, img in flats.items()}
 res2 = calibrate_lens(distorted, exit_pupil_mm=21.0, pixel_pitch_um=pitch_um,
-                      magnification=0.06, pupil_magnification=1.3, center_px=res.center_px)
+                      magnification=0.06, pupil_magnification=1.3, center_rc=res.center_rc)
 one2 = res2.fits["one"]
 print(f"misfit threshold: reduced chi2 > {MISFIT_CHI2}")
 print(f"joint fit: P = {one2.params['P_mm']:.4f} mm ({100 * (one2.params['P_mm'] / P0 - 1):+.2f}"
@@ -177,7 +177,7 @@ print("why:", res2.reason)
 
 # %%
 two_truth = Lens(21.0, [(7.4236, 16.991), (8.5, 30.0)], 0.06, 1.3, name="front and rear")
-two_flats = {f: flat_frame(shape, pitch_um, f, two_truth, center_px=true_center, rng=rng)
+two_flats = {f: flat_frame(shape, pitch_um, f, two_truth, center_rc=true_center, rng=rng)
              for f in flats}
 res3 = calibrate_lens(two_flats, exit_pupil_mm=21.0, pixel_pitch_um=pitch_um,
                       magnification=0.06, pupil_magnification=1.3)
@@ -207,8 +207,8 @@ path = res.lens.save(out / "my_lens.toml")
 lens = Lens.load(path)
 print(lens)
 print("same lens as calibrated:", lens == res.lens)
-print({k: lens.calibration[k] for k in ("method", "model", "center_px", "center_source",
-                                        "pixel_pitch_um", "image_size_px")})
+print({k: lens.calibration[k] for k in ("method", "model", "center_rc", "center_source",
+                                        "pixel_pitch_um", "image_shape_px")})
 print(path.read_text().split("[calibration]")[0].strip())
 
 # %% [markdown]

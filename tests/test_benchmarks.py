@@ -2,10 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import NO_X_FIRST_CENTER
 
 from benchmarks import mean_shift as bench
 
-pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
+pytestmark = [pytest.mark.examples,  # run by .ci/run: `python -m pytest -m examples`
+              pytest.mark.filterwarnings(NO_X_FIRST_CENTER)]
 
 
 def test_quick_benchmark_runs_and_reports_sane_numbers():

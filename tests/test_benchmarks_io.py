@@ -10,10 +10,12 @@ import math
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import NO_X_FIRST_CENTER
 
 from benchmarks import io_memory
 
-pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
+pytestmark = [pytest.mark.examples,  # run by .ci/run: `python -m pytest -m examples`
+              pytest.mark.filterwarnings(NO_X_FIRST_CENTER)]
 
 
 def _finite_positive(*values):

@@ -7,10 +7,12 @@ afresh) fit 64 x 80 x 16-band cubes, as the full run fits 256 x 320 x 100.
 import math
 
 import pytest
+from conftest import NO_X_FIRST_CENTER
 
 from benchmarks import pupil
 
-pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
+pytestmark = [pytest.mark.examples,  # run by .ci/run: `python -m pytest -m examples`
+              pytest.mark.filterwarnings(NO_X_FIRST_CENTER)]
 
 
 def _finite(*values):

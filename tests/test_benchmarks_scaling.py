@@ -7,10 +7,12 @@ LocalClusters of worker processes, as in the full run.
 import math
 
 import pytest
+from conftest import NO_X_FIRST_CENTER
 
 from benchmarks import scaling
 
-pytestmark = pytest.mark.examples  # run by .ci/run: `python -m pytest -m examples`
+pytestmark = [pytest.mark.examples,  # run by .ci/run: `python -m pytest -m examples`
+              pytest.mark.filterwarnings(NO_X_FIRST_CENTER)]
 
 
 def _finite_positive(*values):

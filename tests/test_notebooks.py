@@ -11,6 +11,7 @@ from pathlib import Path
 
 import jupytext
 import pytest
+from conftest import NO_X_FIRST_CENTER
 from nbclient import NotebookClient
 
 NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
@@ -58,7 +59,8 @@ def test_notebook_is_paired_and_in_sync(path):
 @pytest.mark.examples
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_notebook_runs(path, monkeypatch):
-    monkeypatch.setenv("PYTHONWARNINGS", "error::RuntimeWarning")  # inherited by the kernel
+    # inherited by the kernel; our examples give the centre row first
+    monkeypatch.setenv("PYTHONWARNINGS", f"error::RuntimeWarning,{NO_X_FIRST_CENTER}")
     before = sorted(p.name for p in NOTEBOOK_DIR.iterdir())
     client = NotebookClient(jupytext.read(path), kernel_name="python3",
                             timeout=CELL_TIMEOUT_S,

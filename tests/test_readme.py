@@ -4,11 +4,11 @@ import argparse
 import fnmatch
 import re
 import shlex
-import warnings
 from pathlib import Path
 
 import matplotlib
 import pytest
+from conftest import NO_X_FIRST_CENTER
 
 from snapcorr.cli import build_parser
 from snapcorr.data import lens_path, sensor_path
@@ -43,6 +43,7 @@ def snapcorr_commands():
     return found
 
 
+@pytest.mark.filterwarnings(NO_X_FIRST_CENTER)
 def test_python_blocks_run_in_order_from_any_folder(tmp_path, monkeypatch):
     """Each block in turn, in one namespace, in an empty folder (not the repository)."""
     import matplotlib.pyplot as plt
@@ -52,10 +53,8 @@ def test_python_blocks_run_in_order_from_any_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__readme__"}
     try:
-        with warnings.catch_warnings():  # no example gives the centre in its old x-first form
-            warnings.filterwarnings("error", message="center_px is the old", category=FutureWarning)
-            for i, block in enumerate(code, 1):
-                exec(compile(block, f"README.md python block {i}", "exec"), namespace)
+        for i, block in enumerate(code, 1):
+            exec(compile(block, f"README.md python block {i}", "exec"), namespace)
     finally:
         plt.close("all")
     patterns = [line.strip().rstrip("/") for line in
