@@ -247,6 +247,11 @@ def test_the_width_table_built_alongside_is_waited_for_and_its_errors_reach_the_
         mp.setattr(core, "_unlimited_width_table", failing_table)
         with pytest.raises(ValueError, match="no table here"):
             correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+        # both failing: this side's error is raised, and says the table's too
+        mp.setattr(core, "_scales", failing_scales)
+        with pytest.raises(RuntimeError, match="no scales here") as both:
+            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
+        assert any("no table here" in note for note in both.value.__notes__)
 
 
 def test_the_output_readied_in_advance_is_new_memory_and_the_input_is_untouched():

@@ -202,9 +202,13 @@ def _maps(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_e
                          if resample else None)
             if pages is not None:
                 pages.touch()
-        except BaseException:
+        except BaseException as err:
             if pages is not None:  # the other thread touches no more of it
                 pages.cancel()
+            if later is not None:  # its error, if any, told with this one
+                futures.wait([later])
+                if (other := later.exception()) is not None:
+                    err.add_note(f"(the width table failed too: {other!r})")
             raise
         finally:
             if later is not None:  # waited for even when the above failed: no work left
