@@ -205,14 +205,11 @@ def _maps(cube, sensor, lens, f, center_px, sensor_origin_px, cra_max, used, n_e
         except BaseException as err:
             if pages is not None:  # the other thread touches no more of it
                 pages.cancel()
-            if later is not None:  # its error, if any, told with this one
+            if later is not None:  # waited for (no work left running); its error told too
                 futures.wait([later])
                 if (other := later.exception()) is not None:
                     err.add_note(f"(the width table failed too: {other!r})")
             raise
-        finally:
-            if later is not None:  # waited for even when the above failed: no work left
-                futures.wait([later])
     widths, kv = later.result() if later is not None else (widths, None)
     return (cra, center, center_source, scale_at, how, scale, column, resampled, buffer, widths,
             kv)

@@ -367,7 +367,7 @@ def _diagonals(W, lo, cnt):
 
 #: Byte boundary of the diagonals' first element: with rows a whole number of vectors long,
 #: every vector the pass reads from them is on a boundary of its own size and none straddles
-#: two cache lines (numpy's arrays start on 16 bytes; the pass took 11 % longer so, measured).
+#: two cache lines (numpy's arrays start on 16 bytes; the pass took 12 % longer so, measured).
 _ALIGN = 64
 
 
