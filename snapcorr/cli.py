@@ -76,6 +76,11 @@ EXAMPLES = {
                                           what a vendor calibration file holds, and its curves
       snapcorr sensor camera.xml --toml my_camera.toml
                                           ... and a sensor TOML naming it, to add n_eff
+      snapcorr sensor camera.xml --phase-from white.npy --dark dark.npy
+                                          where a crop's first pixel sits on the mosaic's
+                                          tile grid, read from its white reference
+      snapcorr sensor camera.xml --phase-from white.npy --sensor-origin-px 512,768
+                                          ... and whether the stated origin agrees
     """,
     "calibrate": r"""
       snapcorr calibrate --flat 1.4=f1.4.tif --flat 2=f2.tif --flat 2.8=f2.8.tif \
@@ -451,6 +456,7 @@ def _cmd_flatfield(args):
     def read(path):
         return _read(path, sensor, args.sensor_origin_px)
 
+    _check_phase(args, sensor)
     if args.demosaic is not None:
         return _flatfield_demosaic(args, sensor, inputs)
     raw = read(args.raw)
@@ -487,6 +493,23 @@ def _cmd_flatfield(args):
           f"values masked ({100 * n_masked / total:.2f} %)")
     _quicklook(args, "plot_flatfield", ds)
     return 0
+
+
+def _check_phase(args, sensor):
+    """The stated origin (or a whole-sensor frame) against the phase the first white frame
+    shows, before any work (a white cube records where it was taken: it is not re-checked)."""
+    from .cube.phase import check_mosaic_phase
+
+    if sensor is None or sensor.layout != "mosaic" or sensor.responses is None:
+        return
+    try:
+        white = _read_frame_rows(args.white[0], sensor)
+        dark = _read_frame_rows(args.dark[0], sensor) if args.dark else None
+    except ValueError:  # a cube, not a raw frame
+        return
+    check_mosaic_phase(white, sensor, args.sensor_origin_px,
+                       dark=dark if dark is not None and dark.shape == white.shape else None,
+                       saturation=args.saturation, what=f"--white {args.white[0]}")
 
 
 def _read_frame_rows(path, sensor):
@@ -743,6 +766,11 @@ def _cmd_sensor(args):
     inputs = [args.file]
     _check_outputs([args.toml, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     sensor = _sensor(args.file)
+    if args.phase_from is not None:
+        return _print_phase(args, sensor)
+    if args.dark is not None or args.sensor_origin_px is not None:
+        given = "--dark" if args.dark is not None else "--sensor-origin-px"
+        raise ValueError(f"{given} goes with --phase-from WHITE")
     print(sensor.describe())
     if args.toml:
         sensor.save(args.toml, overwrite=args.overwrite)
@@ -751,6 +779,31 @@ def _cmd_sensor(args):
         print(f"wrote {args.toml}{note}")
     _quicklook(args, "plot_sensor", sensor)
     return 0
+
+
+def _print_phase(args, sensor):
+    """``sensor --phase-from WHITE``: where the white's first pixel sits on the tile grid."""
+    from .cube.phase import mosaic_phase
+
+    if args.toml or args.plot:
+        raise ValueError("--phase-from reads a white frame: give --toml and --plot in a run "
+                         "of their own")
+    white = _read_frame_checked(args.phase_from, sensor, "--phase-from")
+    dark = (None if args.dark is None else
+            _read_frame_checked(args.dark, sensor, "--dark", white.shape))
+    try:
+        found = mosaic_phase(white, sensor, dark=dark, origin_px=args.sensor_origin_px)
+    except ValueError as err:
+        raise ValueError(f"--phase-from {args.phase_from}: {err}") from None
+    print(f"{args.phase_from} ({white.shape[0]} x {white.shape[1]} px): {found.describe()}")
+    if found.agrees is not None:
+        stated = ("the whole-sensor frame" if args.sensor_origin_px is None else
+                  "--sensor-origin-px {},{}".format(*args.sensor_origin_px))
+        print(f"{stated}: {'agrees' if found.agrees else 'DISAGREES'}"
+              + ("" if found.agrees else
+                 " (an origin that agrees: {},{})".format(
+                     *found.origin_px(args.sensor_origin_px or (0, 0)))))
+    return 0 if found.phase_px is not None else 1
 
 
 def _flat_arg(value):
@@ -1555,6 +1608,16 @@ def _add_sensor(command):
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the bands' responses and what each correction matrix makes of "
                    "them")
+    p.add_argument("--phase-from", type=Path, default=None, metavar="WHITE",
+                   help="a raw white frame of a mosaic sensor with measured responses: print "
+                   "where its first pixel sits on the tile grid (the band gains under a smooth "
+                   "lamp are the tile's fingerprint)")
+    p.add_argument("--dark", type=Path, default=None, metavar="DARK",
+                   help="with --phase-from: a dark frame, subtracted from the white")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help="with --phase-from: the stated sensor row and column of the white's "
+                   "first pixel, checked against what the white shows (a whole-sensor frame "
+                   "needs none)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_sensor)
 

@@ -66,7 +66,8 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), as the camera would
     give them: the white frame is an integrating sphere seen through the bundled lens at
     ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_frame`) times
-    each band's sensitivity; the scene is a uniform target whose reflectance
+    each band's sensitivity (with measured responses, each band's response under the sphere's
+    tungsten lamp); the scene is a uniform target whose reflectance
     (:func:`mosaic_target`) peaks in the middle of the sensor's bands, seen through each
     pixel's filter as the lens shifts and widens it
     (:func:`snapcorr.simulate.mosaic_reflectance`), so the bands at the edge of the field
@@ -102,9 +103,7 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     rng = np.random.default_rng(seed)
     shape = tuple(sens.size_px)
     the_lens = Lens.load(lens_path(lens))
-    cwl = np.asarray(sens.cwl_nm, float)
-    center = 0.5 * (cwl.min() + cwl.max())
-    sensitivity = 0.75 + 0.25 * np.cos(np.pi * (cwl - center) / (np.ptp(cwl) + 1e-9))
+    sensitivity = _band_sensitivity(sens)
     tr, tc = sens.mosaic_shape
     r0, c0 = sens.tile_origin_px
     gain = np.empty(shape)
@@ -121,6 +120,26 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
         return np.clip(np.rint(dn), 0, full_scale).astype(np.uint16)
 
     return frame(light * refl), frame(np.zeros(shape)), frame(light)
+
+
+#: Colour temperature of the sphere's lamp in :func:`mosaic_frames` (tungsten halogen).
+SPHERE_LAMP_K = 2856.0
+
+
+def _band_sensitivity(sensor):
+    """Each band's signal behind the white, at most 1: with measured responses, each band's
+    whole response through the band-pass under the sphere's tungsten lamp (so the white
+    carries the tile's fingerprint, :mod:`snapcorr.cube.phase`); else a smooth 0.5-1."""
+    if sensor.responses is not None:
+        from .spectra import blackbody
+
+        grid = sensor.responses.wavelength_nm
+        lamp = blackbody(SPHERE_LAMP_K, grid).values
+        signal = sensor.responses.effective @ lamp
+        return signal / signal.max()
+    cwl = np.asarray(sensor.cwl_nm, float)
+    center = 0.5 * (cwl.min() + cwl.max())
+    return 0.75 + 0.25 * np.cos(np.pi * (cwl - center) / (np.ptp(cwl) + 1e-9))
 
 
 def mosaic_target(sensor):

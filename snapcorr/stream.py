@@ -15,6 +15,7 @@ import xarray as xr
 
 from ._coords import accepts_center_rc
 from .cube import demosaic, flatfield
+from .cube.phase import check_mosaic_phase
 
 __all__ = ["process_stream"]
 
@@ -41,7 +42,8 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         (:func:`~snapcorr.correct.correct_cube`, computed once for the stream).
     f_number : float, optional
     origin_px : (int, int), optional
-        Sensor row and column of the frames' first pixel.
+        Sensor row and column of the frames' first pixel; refused where the first white
+        shows another phase of the mosaic (:func:`~snapcorr.cube.phase.check_mosaic_phase`).
     saturation : float, optional
     dtype : {"float32", "float64"}
     resample : bool
@@ -70,6 +72,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                          "demosaic_method)")
     if 0 in frames.shape:
         raise ValueError(f"the stream holds no frame (shape {frames.shape})")
+    whites, darks = (v if isinstance(v, (list, tuple)) else [v] for v in (white, dark))
+    check_mosaic_phase(whites[0], sensor, origin_px, dark=darks[0] if darks else None,
+                       saturation=saturation)
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
     ds = demosaic(ff, sensor, demosaic_method, origin_px=origin_px)
     if lens is None:
