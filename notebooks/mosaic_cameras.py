@@ -74,7 +74,7 @@ ax.legend(fontsize=8);
 raw, dark, white = snapcorr.data.mosaic_frames("imec_5x5_nir", f_number=2.8)
 cubes = [mosaic_to_cube(frame, sensor) for frame in (raw, dark, white)]
 print(raw.shape, "->", cubes[0].shape, cubes[0].attrs["mosaic_area_px"])
-ff = flatfield(*cubes, saturation=4095)["reflectance"]
+ff = flatfield(*cubes, saturation=sensor.full_scale_dn)["reflectance"]
 
 # %% [markdown]
 # ## Virtual bands across the field
@@ -143,7 +143,7 @@ axes[0].legend(fontsize=8);
 # %%
 from snapcorr.cube import demosaic  # noqa: E402
 
-ff_frame = flatfield(raw, dark, white, saturation=4095)
+ff_frame = flatfield(raw, dark, white, saturation=sensor.full_scale_dn)
 edge = ff_frame["reflectance"].values.copy()
 edge[:, 1000:] *= 0.5  # an edge, sharper than any lens would give
 crop = (slice(500, 540), slice(975, 1025))

@@ -469,6 +469,7 @@ def _cmd_flatfield(args):
                                  f"but {args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
                                  f"{raw.shape[2]}: x and band must match")
     snapshot = sensor is not None and sensor.layout == "mosaic"
+    _default_saturation(args, sensor, whites)
     ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype,
                    snapshot=snapshot)
     if args.filter_white:
@@ -493,6 +494,17 @@ def _cmd_flatfield(args):
           f"values masked ({100 * n_masked / total:.2f} %)")
     _quicklook(args, "plot_flatfield", ds)
     return 0
+
+
+def _default_saturation(args, sensor, whites):
+    """``--saturation`` defaults to the sensor's largest code (its bit depth), said on stderr."""
+    from .cube.mosaic import frame_saturation
+
+    if args.saturation is None:
+        args.saturation = frame_saturation(sensor, whites, what=f"--white {args.white[0]}")
+        if args.saturation is not None:
+            print(f"saturation: {args.saturation:g} DN, the largest {sensor.bit_depth}-bit code "
+                  "of the sensor (--saturation DN to change)", file=sys.stderr)
 
 
 def _check_phase(args, sensor):
@@ -567,6 +579,7 @@ def _flatfield_demosaic(args, sensor, inputs):
     raw = _read_frame_checked(args.raw, sensor, "the raw frame")
     darks = [_read_frame_checked(p, sensor, "--dark", raw.shape) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
+    _default_saturation(args, sensor, whites)
     ff = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
     with _StageBar("flat-fielding (checking the mask)"):
         check_masked(ff)
@@ -610,6 +623,8 @@ def _cmd_stream(args):
     frames = read_frames(args.frames)
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
+    _check_phase(args, sensor)  # before the saturation's note (process_stream checks again)
+    _default_saturation(args, sensor, whites)
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, origin_px=args.sensor_origin_px,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample)
@@ -1341,7 +1356,8 @@ def _add_flatfield(command):
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help=ORIGIN_HELP + " (needs --sensor)")
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
-                   help="digital number at or above which a pixel is saturated")
+                   help="digital number at or above which a pixel is saturated (default: the "
+                   "sensor's largest code, from its bit_depth, where it gives one)")
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="type of the result (default: %(default)s)")
     p.add_argument("--demosaic", default=None, metavar="METHOD",
@@ -1588,7 +1604,8 @@ def _add_stream(command):
     p.add_argument("--resample", action="store_true",
                    help="also every frame's spectra on the nominal wavelengths")
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
-                   help="digital number at or above which a pixel is saturated")
+                   help="digital number at or above which a pixel is saturated (default: the "
+                   "sensor's largest code, from its bit_depth, where it gives one)")
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="type of the result (default: %(default)s)")
     p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")

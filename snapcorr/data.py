@@ -63,7 +63,8 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
                   f_number: float = 2.8, seed=0):
     """Simulated raw frames of a bundled mosaic sensor: a scene, a dark and a white frame.
 
-    Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), as the camera would
+    Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), or in the sensor's
+    own bit depth where it gives one (``imec_5x5_nir``: 10-bit, 0-1023), as the camera would
     give them: the white frame is an integrating sphere seen through the bundled lens at
     ``f_number`` (optical and natural vignetting, :func:`snapcorr.simulate.flat_frame`) times
     each band's sensitivity (with measured responses, each band's response under the sphere's
@@ -92,6 +93,8 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     >>> raw, dark, white = mosaic_frames()
     >>> raw.shape, raw.dtype.name, int(dark.max()) < int(raw.min()) < int(white.max()) < 4096
     ((1088, 2048), 'uint16', True)
+    >>> int(mosaic_frames("imec_5x5_nir")[2].max()) <= 1023  # a 10-bit sensor
+    True
     """
     from .cube import Sensor
     from .optics import Lens
@@ -113,10 +116,13 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     light = flat_frame(shape, sens.pixel_pitch_um, f_number, the_lens,
                        noise=False, dtype=np.float64,
                        detector=Detector(signal_electrons=3500.0)) * gain
-    dark_dn, full_scale = 64.0, 4095
+    # 12-bit codes at one electron each, or the sensor's own depth at as many electrons each
+    full_scale = sens.full_scale_dn or 4095
+    per_e = full_scale / 4095
+    dark_dn = 64.0 * per_e
 
     def frame(electrons):
-        dn = rng.poisson(electrons) + rng.normal(dark_dn, 2.0, shape)
+        dn = rng.poisson(electrons) * per_e + rng.normal(dark_dn, 2.0 * per_e, shape)
         return np.clip(np.rint(dn), 0, full_scale).astype(np.uint16)
 
     return frame(light * refl), frame(np.zeros(shape)), frame(light)

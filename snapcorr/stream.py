@@ -15,6 +15,7 @@ import xarray as xr
 
 from ._coords import accepts_center_rc
 from .cube import demosaic, flatfield
+from .cube.mosaic import frame_saturation
 from .cube.phase import check_mosaic_phase
 
 __all__ = ["process_stream"]
@@ -45,6 +46,8 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         Sensor row and column of the frames' first pixel; refused where the first white
         shows another phase of the mosaic (:func:`~snapcorr.cube.phase.check_mosaic_phase`).
     saturation : float, optional
+        Default: the sensor's largest code (its ``bit_depth``), where it gives one
+        (:func:`~snapcorr.cube.mosaic.frame_saturation`).
     dtype : {"float32", "float64"}
     resample : bool
         Also every frame's spectra on the nominal wavelengths (``resampled``).
@@ -73,6 +76,7 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     if 0 in frames.shape:
         raise ValueError(f"the stream holds no frame (shape {frames.shape})")
     whites, darks = (v if isinstance(v, (list, tuple)) else [v] for v in (white, dark))
+    saturation = frame_saturation(sensor, whites, saturation)
     check_mosaic_phase(whites[0], sensor, origin_px, dark=darks[0] if darks else None,
                        saturation=saturation)
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)

@@ -30,7 +30,7 @@ def test_sensor_prints_what_the_file_holds_and_writes_an_equivalent_toml(tmp_pat
 def _frames(tmp_path, sensor):
     """Whole-sensor raw, dark and white frames of a flat grey target: 0.4 of the white."""
     rng = np.random.default_rng(0)
-    white = rng.normal(2000.0, 20.0, sensor.size_px)
+    white = rng.normal(800.0, 8.0, sensor.size_px)  # the sensor's codes are 10-bit
     raw = 64 + 0.4 * (white - 64) + rng.normal(0, 5, sensor.size_px)
     dark = rng.normal(64.0, 2.0, sensor.size_px)
     for name, frame in (("raw", raw), ("dark", dark), ("white", white)):
@@ -92,7 +92,7 @@ def test_a_cube_of_another_sensor_and_a_missing_n_eff_are_refused(tmp_path, cli)
     (tmp_path / "s.toml").write_text(f'[sensor]\nvendor_file = "{VENDOR_XML}"\n'
                                      "pixel_pitch_um = 5.5\n")
     rng = np.random.default_rng(2)
-    for name, value in (("raw", 900.0), ("dark", 64.0), ("white", 2000.0)):
+    for name, value in (("raw", 500.0), ("dark", 64.0), ("white", 900.0)):
         np.save(tmp_path / f"{name}.npy", rng.normal(value, 5.0, (50, 50)).astype(np.float32))
     rc, _, err = cli("flatfield", str(tmp_path / "raw.npy"), "--dark", str(tmp_path / "dark.npy"),
                      "--white", str(tmp_path / "white.npy"), "--sensor", str(tmp_path / "s.toml"),

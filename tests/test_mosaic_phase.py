@@ -79,8 +79,8 @@ def white_frame(fx, shape, origin, light, *, seed, noise=0.01, size=(1088, 2048)
         here = band == b
         signal[here] = np.interp(a[here], a_nodes, table)
     signal *= np.cos(phi) ** 4
-    signal *= 3000.0 / np.median(signal)
-    dark = 64.0
+    signal *= 500.0 / np.median(signal)  # the file's 10-bit codes: the brightest band ~850
+    dark = 32.0
     frame = dark + signal * (1 + noise * rng.standard_normal(shape))
     return frame, np.full(shape, dark)
 
@@ -154,10 +154,9 @@ def test_a_whole_sensor_white_is_checked_against_the_file(vendor):
 def test_saturated_and_dead_pixels_are_left_out(vendor):
     fx, sensor, _ = vendor
     white, dark = white_frame(fx, (64, 64), (8, 8), lamp("tungsten", fx.grid), seed=9)
-    white = dark + 0.4 * (white - dark)  # the brightest band well below 4095
-    white[::7, ::5] = 4095.0
+    white[::7, ::5] = 1023.0
     white[3::11, ::3] = 0.0
-    assert mosaic_phase(white, sensor, dark=dark, saturation=4095).phase_px == (0, 0)
+    assert mosaic_phase(white, sensor, dark=dark, saturation=1023).phase_px == (0, 0)
 
 
 def test_a_sensor_without_measured_responses_is_not_checked():
@@ -190,8 +189,8 @@ def crop_files(vendor, tmp_path_factory):
     white, dark = white_frame(fx, (64, 64), (101, 202), lamp("tungsten", fx.grid), seed=2)
     raw = dark + 0.4 * (white - dark)
     for name, frame in (("raw", raw), ("dark", dark), ("white", white)):
-        np.save(folder / f"{name}.npy", np.clip(np.rint(frame), 0, 4095).astype(np.uint16))
-    np.save(folder / "frames.npy", np.clip(np.rint(np.stack([raw, raw])), 0, 4095).astype(
+        np.save(folder / f"{name}.npy", np.clip(np.rint(frame), 0, 1023).astype(np.uint16))
+    np.save(folder / "frames.npy", np.clip(np.rint(np.stack([raw, raw])), 0, 1023).astype(
         np.uint16))
     return folder
 

@@ -8,7 +8,7 @@ from .._validation import check_integers
 from .model import make_cube, with_positions
 from .sensor import Sensor
 
-__all__ = ["frame_area", "mosaic_to_cube", "sensor_positions"]
+__all__ = ["frame_area", "frame_saturation", "mosaic_to_cube", "sensor_positions"]
 
 
 def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
@@ -196,3 +196,39 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
         rows = np.repeat((r0 + np.arange(ny))[:, None], sensor.n_bands, axis=1)
         cols = np.repeat((c0 + np.arange(nx))[:, None], sensor.n_bands, axis=1)
     return rows, cols
+
+
+def frame_saturation(sensor, whites, saturation=None, *, what="the white"):
+    """The digital number at or above which a raw pixel is saturated.
+
+    ``saturation`` where given; else the sensor's largest code (``2**bit_depth - 1``, a
+    vendor file's bit depth), refused where a white holds larger values (frames scaled to
+    other units, or a camera mode of another depth: a wrong level would mask every bright
+    pixel, or none).
+
+    Parameters
+    ----------
+    sensor : Sensor or None
+    whites : sequence of array_like
+        The white frames (or cubes) as read, numpy or dask.
+    saturation : float, optional
+        The level given by the user.
+    what : str
+        What the whites are, for the message.
+
+    Returns
+    -------
+    float or None
+    """
+    if saturation is not None or sensor is None or sensor.full_scale_dn is None:
+        return saturation
+    full = sensor.full_scale_dn
+    for w in whites:
+        top = float(np.nanmax(np.asarray(getattr(w, "data", w))))
+        if top > full:
+            raise ValueError(
+                f"{what} holds values up to {top:g}, above the largest {sensor.bit_depth}-bit "
+                f"code ({full}) of the sensor {sensor.name!r}: the frames are in other units "
+                "(scaled, or another camera mode); give the saturation level (--saturation "
+                "DN, saturation=) or bit_depth in a sensor TOML")
+    return float(full)

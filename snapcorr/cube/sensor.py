@@ -33,9 +33,11 @@ __all__ = ["LAYOUTS", "VENDOR_OVERRIDES", "Sensor"]
 #: repeating tile.
 LAYOUTS = ("snapscan", "mosaic")
 _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosaic_shape",
-         "band_offset", "size_px", "profile", "filter_area_px"}
+         "band_offset", "size_px", "profile", "filter_area_px", "bit_depth"}
 #: The keys a sensor TOML naming a ``vendor_file`` may add or override.
-VENDOR_OVERRIDES = ("name", "n_eff", "pixel_pitch_um", "size_px")
+VENDOR_OVERRIDES = ("name", "n_eff", "pixel_pitch_um", "size_px", "bit_depth")
+#: A camera's digital numbers have at most this many bits.
+BIT_DEPTH_MAX = 32
 #: Filter shapes a sensor may name (``snapcorr.optics.PROFILES`` at normal incidence); any
 #: other ``profile`` is a file of a measured shape. ``"measured"``: each band's own measured
 #: response (a vendor calibration file).
@@ -115,6 +117,10 @@ class Sensor:
         The vendor's correction matrices to virtual bands.
     vendor_file : str, optional
         The vendor calibration file these came from (provenance; not compared).
+    bit_depth : int, optional
+        Bits of the camera's digital numbers (a vendor file's ``bit_depth``/``input_bpp``):
+        a raw pixel at the largest code, ``2**bit_depth - 1`` (:attr:`full_scale_dn`), is
+        saturated, the default saturation of flat-fielding.
     """
 
     name: str
@@ -132,6 +138,7 @@ class Sensor:
     filter_area_px: tuple | None = field(default=None, kw_only=True)
     matrices: tuple = field(default=(), repr=False, kw_only=True)
     vendor_file: str | None = field(default=None, compare=False, kw_only=True)
+    bit_depth: int | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -178,6 +185,12 @@ class Sensor:
                                  f"{shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
+        if self.bit_depth is not None:
+            bits = check_integers("bit_depth", self.bit_depth)
+            if bits.shape != () or not 1 <= int(bits) <= BIT_DEPTH_MAX:
+                raise ValueError(f"bit_depth must be a whole number of bits, 1-{BIT_DEPTH_MAX}, "
+                                 f"got {shown(self.bit_depth)}")
+            set_(self, "bit_depth", int(bits))
         self._check_vendor_parts(n)
         if self.profile not in (*PROFILE_NAMES, MEASURED):
             _read_shape(self.profile)  # read and checked now: a bad file fails at load
@@ -281,6 +294,11 @@ class Sensor:
         return _read_shape(self.profile)
 
     @property
+    def full_scale_dn(self) -> int | None:
+        """The largest digital number, ``2**bit_depth - 1`` (None where not given)."""
+        return None if self.bit_depth is None else 2 ** self.bit_depth - 1
+
+    @property
     def n_bands(self) -> int:
         return len(self.cwl_nm)
 
@@ -320,7 +338,9 @@ class Sensor:
         size = (f"{self.size_px[1]} x {self.size_px[0]} px" if self.size_px else "size not given")
         pitch = (f"{self.pixel_pitch_um:g} um pixels" if self.pixel_pitch_um
                  else "pixel pitch not given (add pixel_pitch_um in a sensor TOML)")
-        lines.append(f"  sensor: {size}, {pitch}")
+        bits = ("" if self.bit_depth is None else
+                f", {self.bit_depth}-bit codes (saturated at {self.full_scale_dn})")
+        lines.append(f"  sensor: {size}, {pitch}{bits}")
         if self.layout == "mosaic":
             tr, tc = self.mosaic_shape
             area = "tile grid from the sensor's corner"
@@ -379,6 +399,8 @@ class Sensor:
                 d["pixel_pitch_um"] = self.pixel_pitch_um
             if self.size_px is not None:
                 d["size_px"] = list(self.size_px)
+            if self.bit_depth is not None:
+                d["bit_depth"] = self.bit_depth
             return d
         if self.responses is not None or self.matrices:
             raise ValueError(f"the sensor {self.name!r} has measured responses or correction "
@@ -399,6 +421,8 @@ class Sensor:
             d["size_px"] = list(self.size_px)
         if self.profile != "gaussian":
             d["profile"] = self.profile
+        if self.bit_depth is not None:
+            d["bit_depth"] = self.bit_depth
         return d
 
     @classmethod
@@ -415,7 +439,7 @@ class Sensor:
 
     @classmethod
     def from_vendor(cls, path, *, name=None, n_eff=None, pixel_pitch_um=None, size_px=None,
-                    calibration=None) -> Sensor:
+                    calibration=None, bit_depth=None) -> Sensor:
         """A mosaic sensor from the vendor's calibration ``.xml`` (either variant).
 
         The bands are the file's, in its index order (band ``i`` at tile row ``i // width``,
@@ -438,6 +462,8 @@ class Sensor:
             Replaces the file's sensor size.
         calibration : dict, optional
             Provenance, as for the TOML's ``[calibration]`` table.
+        bit_depth : int, optional
+            Replaces the file's bit depth (a camera mode of another depth).
         """
         from .vendor_xml import read_vendor_file
 
@@ -453,7 +479,8 @@ class Sensor:
             size_px=size_px if size_px is not None else cal.size_px,
             calibration=calibration or {}, responses=cal.responses,
             filter_area_px=cal.filter_area_px, matrices=cal.matrices,
-            vendor_file=str(Path(path).resolve()))
+            vendor_file=str(Path(path).resolve()),
+            bit_depth=bit_depth if bit_depth is not None else cal.bit_depth)
 
     @classmethod
     def load(cls, path) -> Sensor:
