@@ -47,6 +47,10 @@ EXAMPLES = {
                                           a film of raw frames (a .zarr, a multi-page .tif or
                                           a folder of frames), each flat-fielded, demosaicked
                                           and corrected, frame by frame
+      snapcorr stream frames.zarr --dark dark.npy --white white.npy --sensor imec_5x5_nir \
+          --lens my_lens.toml --f-number 2.8 --virtual-bands angle-aware --out film.zarr
+                                          ... with every frame's virtual bands, for each
+                                          pixel's angle behind the lens
       snapcorr stream frames/ --dark dark.npy --white white.npy --sensor mosaic_4x4_vis \
           --out stream.zarr               ... flat-fielded and demosaicked only
     """,
@@ -619,6 +623,10 @@ def _cmd_stream(args):
         raise ValueError("correcting a stream needs both --lens and --f-number")
     if args.resample and args.lens is None:
         raise ValueError("--resample needs --lens and --f-number")
+    _check_virtual_options(args)
+    if args.virtual_bands is not None and args.lens is None:
+        raise ValueError("--virtual-bands needs --lens and --f-number (the stream is corrected "
+                         "first)")
     lens = _lens(args.lens) if args.lens is not None else None
     frames = read_frames(args.frames)
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
@@ -627,7 +635,10 @@ def _cmd_stream(args):
     _default_saturation(args, sensor, whites)
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, origin_px=args.sensor_origin_px,
-                        saturation=args.saturation, dtype=args.dtype, resample=args.resample)
+                        saturation=args.saturation, dtype=args.dtype, resample=args.resample,
+                        virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
+                        virtual_wavelengths_nm=args.virtual_wavelengths,
+                        virtual_fwhm_nm=args.virtual_fwhm_nm)
     ds.attrs.update({"frames_file": str(args.frames), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]}
                     | ({"lens_file": str(args.lens)} if args.lens else {})
@@ -644,6 +655,7 @@ def _cmd_stream(args):
           + (f", f/{args.f_number:g}, method {ds.attrs['method']} (CRA up to "
              f"{ds.attrs['cra_max_deg']:.2f} deg)" if lens else ", not corrected (no --lens)")
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
+    _print_virtual(args, ds)
     return 0
 
 
@@ -662,6 +674,31 @@ def _write_correction(args, ds, inputs, cube_name):
         return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
                                  include_input=not args.no_input, input_name=cube_name)
     return [_write_result(args, ds, inputs, [cube_name], args.cube)]
+
+
+def _check_virtual_options(args):
+    """The virtual-band options make sense together."""
+    if args.virtual_bands is None and any(v is not None for v in (
+            args.virtual_matrix, args.virtual_wavelengths, args.virtual_fwhm_nm)):
+        raise ValueError("--virtual-matrix, --virtual-wavelengths and --virtual-fwhm-nm choose "
+                         "the virtual bands: give --virtual-bands too")
+    if args.virtual_matrix is not None and args.virtual_bands != "vendor":
+        raise ValueError("--virtual-matrix names the vendor matrix to apply: use it with "
+                         "--virtual-bands vendor")
+    if args.virtual_bands == "vendor" and (args.virtual_wavelengths is not None
+                                           or args.virtual_fwhm_nm is not None):
+        raise ValueError("the vendor's virtual bands are the file's; --virtual-wavelengths and "
+                         "--virtual-fwhm-nm set fitted or angle-aware ones")
+
+
+def _print_virtual(args, ds):
+    """One line on the virtual bands of a result, if it has them."""
+    if "virtual" in ds:
+        wl = ds["virtual_wavelength"].values
+        err = (f"; expected error up to {float(ds['virtual_stderr'].max()):.2g} (virtual_stderr)"
+               if "virtual_stderr" in ds else "")
+        print(f"virtual bands: {wl.size} from {wl.min():.1f} to {wl.max():.1f} nm, "
+              f"{args.virtual_bands}{err}")
 
 
 def _cmd_correct(args):
@@ -692,17 +729,7 @@ def _cmd_correct(args):
             cube, sensor, args.f_number, lens, args.source,
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
             center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
-    if args.virtual_bands is None and any(v is not None for v in (
-            args.virtual_matrix, args.virtual_wavelengths, args.virtual_fwhm_nm)):
-        raise ValueError("--virtual-matrix, --virtual-wavelengths and --virtual-fwhm-nm choose "
-                         "the virtual bands: give --virtual-bands too")
-    if args.virtual_matrix is not None and args.virtual_bands != "vendor":
-        raise ValueError("--virtual-matrix names the vendor matrix to apply: use it with "
-                         "--virtual-bands vendor")
-    if args.virtual_bands == "vendor" and (args.virtual_wavelengths is not None
-                                           or args.virtual_fwhm_nm is not None):
-        raise ValueError("the vendor's virtual bands are the file's; --virtual-wavelengths and "
-                         "--virtual-fwhm-nm set fitted or angle-aware ones")
+    _check_virtual_options(args)
     ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
                       tolerance_nm=args.tolerance_nm, center_px=args.center_px,
                       sensor_origin_px=args.sensor_origin_px, resample=args.resample,
@@ -740,12 +767,7 @@ def _cmd_correct(args):
         print(f"each pixel's band FWHM: {np.nanmin(table):.3g}-{np.nanmax(table):.3g} nm over "
               f"the field ({sensor.profile} filters of {np.min(sensor.fwhm_nm):.3g}-"
               f"{np.max(sensor.fwhm_nm):.3g} nm)")
-    if "virtual" in ds:
-        wl = ds["virtual_wavelength"].values
-        err = (f"; expected error up to {float(ds['virtual_stderr'].max()):.2g} (virtual_stderr)"
-               if "virtual_stderr" in ds else "")
-        print(f"virtual bands: {wl.size} from {wl.min():.1f} to {wl.max():.1f} nm, "
-              f"{args.virtual_bands}{err}")
+    _print_virtual(args, ds)
     if "harmonised" in ds:  # asked for, or chosen by the scene budget
         w = ds["fwhm_harmonised"].values
         print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
@@ -1471,17 +1493,7 @@ def _add_correct(command):
     p.add_argument("--target-fwhm-nm", type=_positive, default=None, metavar="NM",
                    help="with --harmonise: the common response's FWHM for every band (at "
                    "least the widest in the field)")
-    g = p.add_argument_group("virtual bands (mosaic sensors with a vendor calibration file)")
-    g.add_argument("--virtual-bands", default=None, choices=["vendor", "fitted", "angle-aware"],
-                   help="also give virtual bands: the vendor's matrix, one fitted to the "
-                   "measured responses, or one for each pixel's responses behind the lens")
-    g.add_argument("--virtual-matrix", default=None, metavar="NAME",
-                   help="the vendor matrix to apply (default: the one for flat-fielded values)")
-    g.add_argument("--virtual-wavelengths", type=_wavelength_list, default=None,
-                   metavar="NM,NM,...|START:STOP:STEP",
-                   help="centres of fitted virtual bands (default: the vendor's)")
-    g.add_argument("--virtual-fwhm-nm", type=_positive, default=None, metavar="NM",
-                   help="width of fitted virtual bands (default: the vendor's)")
+    _add_virtual_options(p)
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="quick look: a band image, the CRA and shift maps, a few pixels' "
                    "spectra at nominal and corrected wavelengths")
@@ -1603,6 +1615,7 @@ def _add_stream(command):
                    help="the f-number the frames were taken at")
     p.add_argument("--resample", action="store_true",
                    help="also every frame's spectra on the nominal wavelengths")
+    _add_virtual_options(p)
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="digital number at or above which a pixel is saturated (default: the "
                    "sensor's largest code, from its bit_depth, where it gives one)")
@@ -1612,6 +1625,20 @@ def _add_stream(command):
     _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=_cmd_stream)
+
+
+def _add_virtual_options(p):
+    g = p.add_argument_group("virtual bands (mosaic sensors with a vendor calibration file)")
+    g.add_argument("--virtual-bands", default=None, choices=["vendor", "fitted", "angle-aware"],
+                   help="also give virtual bands: the vendor's matrix, one fitted to the "
+                   "measured responses, or one for each pixel's responses behind the lens")
+    g.add_argument("--virtual-matrix", default=None, metavar="NAME",
+                   help="the vendor matrix to apply (default: the one for flat-fielded values)")
+    g.add_argument("--virtual-wavelengths", type=_wavelength_list, default=None,
+                   metavar="NM,NM,...|START:STOP:STEP",
+                   help="centres of fitted virtual bands (default: the vendor's)")
+    g.add_argument("--virtual-fwhm-nm", type=_positive, default=None, metavar="NM",
+                   help="width of fitted virtual bands (default: the vendor's)")
 
 
 def _add_sensor(command):

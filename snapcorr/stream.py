@@ -11,6 +11,7 @@ for every frame of a stream and is computed once.
 
 from __future__ import annotations
 
+import numpy as np
 import xarray as xr
 
 from ._coords import accepts_center_rc
@@ -24,7 +25,9 @@ __all__ = ["process_stream"]
 @accepts_center_rc
 def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=None,
                    f_number=None, origin_px=None, saturation=None, dtype="float32",
-                   resample=False, method="auto", tolerance_nm=None, center_px=None):
+                   resample=False, method="auto", tolerance_nm=None, center_px=None,
+                   virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
+                   virtual_fwhm_nm=None):
     """Flat-field, demosaic and (with a lens) correct a stream of raw mosaic frames.
 
     Parameters
@@ -53,16 +56,20 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         Also every frame's spectra on the nominal wavelengths (``resampled``).
     method, tolerance_nm, center_rc, center_px
         The correction's model, tolerance and optical centre
-        (:func:`~snapcorr.correct.correct_cube`; harmonised spectra and virtual bands are
-        not offered for streams).
+        (:func:`~snapcorr.correct.correct_cube`; harmonised spectra are not offered for
+        streams).
+    virtual_bands, virtual_matrix, virtual_wavelengths_nm, virtual_fwhm_nm
+        Also every frame's virtual bands (:func:`~snapcorr.correct.virtual_bands`, with a
+        lens): the matrix (or the angle-aware table) and the band noise are chosen once, on
+        the first frame, and applied to every frame.
 
     Returns
     -------
     xarray.Dataset
         ``reflectance(frame, y, x, band)``, ``mask`` of the same dims, the ``raw`` frames cut
         to the filter area, ``n_masked``; with a lens the correction's variables
-        (``wavelength_corrected(y, x, band)``, ``cra_deg``, ...) and its provenance. Lazy for
-        dask frames.
+        (``wavelength_corrected(y, x, band)``, ``cra_deg``, ...) and its provenance, and
+        ``virtual(frame, y, x, virtual_band)`` when asked for. Lazy for dask frames.
     """
     if not isinstance(frames, xr.DataArray) or tuple(frames.dims) != ("frame", "y", "x"):
         dims = tuple(frames.dims) if isinstance(frames, xr.DataArray) else type(frames).__name__
@@ -82,8 +89,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
     ds = demosaic(ff, sensor, demosaic_method, origin_px=origin_px)
     if lens is None:
-        if resample:
-            raise ValueError("resampling a stream needs a lens and an f-number")
+        if resample or virtual_bands is not None:
+            raise ValueError("resampling a stream, or its virtual bands, need a lens and an "
+                             "f-number")
         return ds
     from .correct import correct_cube
     from .correct.core import _resampled
@@ -93,11 +101,14 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         raise ValueError("a stream's correction gives corrected wavelengths (and resampled "
                          "spectra); harmonised spectra are made cube by cube with "
                          "correct_cube")
-    options = {"method": method, "center_px": center_px}
+    options = {"method": method, "center_px": center_px, "virtual_bands": virtual_bands,
+               "virtual_matrix": virtual_matrix, "virtual_wavelengths_nm": virtual_wavelengths_nm,
+               "virtual_fwhm_nm": virtual_fwhm_nm}
     if tolerance_nm is not None:
         options["tolerance_nm"] = tolerance_nm
     geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **options)
-    out = ds.merge(geometry.drop_vars(["reflectance"]), compat="override")
+    per_frame = ["reflectance"] + (["virtual"] if virtual_bands is not None else [])
+    out = ds.merge(geometry.drop_vars(per_frame), compat="override")
     out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
     if resample:
         cwl = sensor.cwl_nm
@@ -105,4 +116,20 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         out["resampled"] = xr.concat(  # frame by frame: each a cube of its own
             [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
                 "frame"])], dim="frame")
+    if virtual_bands is not None:
+        out["virtual"] = _virtual_frames(cube, geometry)
     return out
+
+
+def _virtual_frames(cube, geometry):
+    """Every frame's virtual bands by the first frame's matrix or angle-aware table."""
+    from .correct.virtual import apply_virtual
+
+    first = geometry["virtual"]
+    cra = None
+    if "virtual_table" in geometry:  # each pixel at the mean angle of its bands, as correct_cube
+        cra = np.asarray(geometry["cra_deg"].transpose("y", "x", ...).values)
+        cra = cra.mean(axis=2) if cra.ndim == 3 else cra
+    frames = [apply_virtual(cube.isel(frame=i), geometry, cra).transpose(*first.dims)
+              for i in range(cube.sizes["frame"])]
+    return xr.concat(frames, dim="frame").assign_coords(first.coords).assign_attrs(first.attrs)

@@ -23,6 +23,8 @@ The result is ``virtual(y, x, virtual_band)`` with ``virtual_wavelength`` and ``
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numba
 import numpy as np
 import xarray as xr
@@ -30,7 +32,7 @@ import xarray as xr
 from .._validation import validate_method
 from ..cube.flatfield import cf_attrs
 
-__all__ = ["VIRTUAL_METHODS", "virtual_bands"]
+__all__ = ["VIRTUAL_METHODS", "apply_virtual", "virtual_bands"]
 
 VIRTUAL_METHODS = ("vendor", "fitted", "angle-aware")
 #: Most pixels the regularisation is chosen from and the error bars averaged over.
@@ -213,6 +215,31 @@ def _apply(cube, A=None, table=None, cra=None):
                           output_core_dims=[["virtual_band"]], dask="parallelized",
                           output_dtypes=[dtype],
                           dask_gufunc_kwargs={"output_sizes": {"virtual_band": nv}})
+
+
+def apply_virtual(cube, ds, cra_deg=None):
+    """A cube's virtual bands by the matrix (or angle-aware table) of an earlier result.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        ``(y, x, band)``, of the sensor and geometry ``ds`` was made for.
+    ds : xarray.Dataset
+        A result of :func:`virtual_bands` (``virtual_matrix``, or ``virtual_table`` on
+        ``virtual_cra_deg``).
+    cra_deg : ndarray, shape (y, x), optional
+        Each pixel's chief-ray angle, for a table.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``virtual`` with dims ``(y, x, virtual_band)``.
+    """
+    if "virtual_matrix" in ds:
+        return _apply(cube, A=np.asarray(ds["virtual_matrix"].values))
+    table = SimpleNamespace(matrices=np.asarray(ds["virtual_table"].values),
+                            cra_deg=np.asarray(ds["virtual_cra_deg"].values))
+    return _apply(cube, table=table, cra=cra_deg)
 
 
 def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=None,
