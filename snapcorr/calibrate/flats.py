@@ -19,7 +19,12 @@ __all__ = [
     "noise_model",
     "radial_profile",
     "read_flat",
+    "remove_band_gains",
 ]
+
+#: Only pixels whose local mean is at least this fraction of the frame's brightest (99th
+#: percentile) give the band gains: past a vignetting cut-off a ratio is noise over noise.
+GAIN_LIT_FRACTION = 0.2
 
 #: Pixels further than this many robust standard deviations from their 5 x 5 median are
 #: treated as hot or dead.
@@ -310,3 +315,125 @@ def radial_profile(image, valid, cra_deg, *, bin_deg=0.1, denominator=None):
     var = np.maximum(np.bincount(idx, q * q) / nn - m1 * m1, 0.0)
     stderr = np.sqrt(var * n / np.maximum(n - 1, 1) / nn)
     return RadialProfile(theta[keep], mean[keep], stderr[keep], n[keep].astype(np.int64))
+
+
+def remove_band_gains(image, sensor, *, origin_px=None, dark=None, saturation=None):
+    """Divide a snapshot mosaic's band gains out of a raw flat field.
+
+    Behind a mosaic of filters each band has its own gain (a 4 x 4 sensor's span 0.25-1.0 in
+    a flat of white light): a raw flat carries the tile pattern on top of the lens's fall-off.
+    The pattern is a property of the layout, not noise, so it is fitted and divided out. Each
+    pixel is divided by a smooth local mean of the frame: a tile-sized box average applied
+    twice, once from either side, so every band weighs the same in it (whatever the pixel's
+    place in the tile) and the kernel is symmetric about the pixel (a gradient of the fall-off
+    cancels; what its curvature leaves is ~1e-5 of the level). A band's gain is the median of
+    that ratio over its pixels, where the frame is lit (at least ``GAIN_LIT_FRACTION`` of its
+    brightest) and the kernel holds no masked pixel; the gains are scaled to a mean of 1, so
+    the flat keeps its level. They are fitted from each frame: they differ a little between
+    f-numbers, as the filters shift with the angle of the light.
+
+    Where the bands sit follows the sensor's layout at the frame's origin, modulo the tile
+    (:func:`snapcorr.cube.mosaic.frame_area`, :meth:`Sensor.band_offsets_at`). Pixels outside the
+    sensor's filter area (``filter_area_px``) carry no filter and have no band gain: they are
+    NaN in the result (not used), as is a tile position that carries no band.
+
+    Parameters
+    ----------
+    image : array_like
+        The raw frame, 2-D (rows, cols) counts: the whole sensor, or a crop at ``origin_px``.
+    sensor : Sensor
+        A ``layout = "mosaic"`` sensor.
+    origin_px : (int, int), optional
+        Sensor row and column of the frame's first pixel (default: the frame is the whole
+        sensor, of its ``size_px``).
+    dark : array_like, optional
+        Dark frame of the same shape, subtracted first (the gains multiply the light only).
+    saturation : float, optional
+        Raw values at or above this (before the dark is subtracted) are saturated: NaN.
+
+    Returns
+    -------
+    image : ndarray, float64
+        Dark subtracted, each pixel divided by its band's gain; NaN where the pixel is not
+        finite, saturated, outside the filter area or on a tile position without a band.
+    gains : ndarray, shape (n_bands,)
+        Each band's gain relative to the mean over the bands, in the sensor's band order.
+
+    Raises
+    ------
+    ValueError
+        Not a mosaic sensor, a frame that does not fit the sensor at ``origin_px``, or a band
+        with too few lit pixels to fit its gain.
+    """
+    check_mosaic_sensor(sensor)
+    img = np.array(image, dtype=np.float64)
+    if img.ndim != 2:
+        raise ValueError(f"a raw mosaic flat is 2-D, got shape {img.shape}")
+    if saturation is not None:
+        img[img >= saturation] = np.nan
+    if dark is not None:
+        img = img - np.asarray(dark, np.float64)
+    labels = _band_labels(img.shape, sensor, origin_px)
+    img[labels < 0] = np.nan
+    gains = _fit_band_gains(img, labels, sensor)
+    out = img / np.where(labels >= 0, gains[np.maximum(labels, 0)], np.nan)
+    return out, gains
+
+
+def check_mosaic_sensor(sensor):
+    """Refuse anything but a mosaic :class:`Sensor`: only its flats carry band gains."""
+    from ..cube.sensor import Sensor
+
+    if not isinstance(sensor, Sensor):
+        raise TypeError(f"sensor must be a Sensor, got {type(sensor).__name__}")
+    if sensor.layout != "mosaic":
+        raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r}): "
+                         "its flats carry no tile pattern of band gains to remove")
+
+
+def _band_labels(shape, sensor, origin_px):
+    """Each pixel's band (index into the sensor's bands), -1 where it carries no filter."""
+    from ..cube.mosaic import frame_area
+
+    (lo_r, lo_c), (rows, cols), (y0, x0) = frame_area(shape, sensor, origin_px)
+    r0, c0 = (0, 0) if origin_px is None else (int(origin_px[0]), int(origin_px[1]))
+    tr, tc = sensor.mosaic_shape
+    labels = np.full(shape, -1, np.int32)
+    kept = labels[lo_r - r0:lo_r - r0 + rows, lo_c - c0:lo_c - c0 + cols]  # a view
+    for b in range(sensor.n_bands):
+        kept[y0[b]::tr, x0[b]::tc] = b
+    return labels
+
+
+def _fit_band_gains(img, labels, sensor):
+    """Each band's gain over the mean of the bands: the median of pixel / symmetric local mean
+    (the tile-sized box from either side: a tent of 2 t - 1 pixels, every tile position
+    weighing 1 / t in each direction)."""
+    import cv2
+
+    tr, tc = sensor.mosaic_shape
+    ky = np.convolve(np.ones(tr), np.ones(tr)) / tr**2
+    kx = np.convolve(np.ones(tc), np.ones(tc)) / tc**2
+    ok = np.isfinite(img)
+    smooth = cv2.sepFilter2D(np.where(ok, img, 0.0), cv2.CV_64F, kx, ky,
+                             borderType=cv2.BORDER_CONSTANT)
+    cover = cv2.sepFilter2D(ok.astype(np.float64), cv2.CV_64F, kx, ky,
+                            borderType=cv2.BORDER_CONSTANT)
+    whole = ok & (cover > 1.0 - 1e-9)  # the kernel holds no masked pixel, nor the border
+    if not whole.any():
+        raise ValueError("the frame holds no pixel whose tile-sized neighbourhood is whole: "
+                         "no band gain can be fitted")
+    peak = float(np.percentile(smooth[whole], 99))
+    lit = whole & (smooth > GAIN_LIT_FRACTION * peak) & (smooth > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = img / smooth
+    gains = np.full(sensor.n_bands, np.nan)
+    for b in range(sensor.n_bands):
+        r = ratio[lit & (labels == b)]
+        if r.size < 20:
+            raise ValueError(f"band {b} ({sensor.cwl_nm[b]:g} nm) has {r.size} lit pixels in "
+                             "the flat: too few to fit its gain (20 at least)")
+        gains[b] = np.median(r)
+    if not np.all(np.isfinite(gains) & (gains > 0)):
+        raise ValueError("a band of the flat has no signal: its gain cannot be divided out")
+    return gains / gains.mean()

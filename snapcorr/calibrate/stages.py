@@ -17,7 +17,7 @@ from .._coords import accepts_center_rc
 from .._validation import check_center
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
-from .flats import clean_flat, estimate_center, radial_profile
+from .flats import clean_flat, estimate_center, radial_profile, remove_band_gains
 from .joint_fit import (
     MODELS,
     N_CIRCLES,
@@ -42,6 +42,7 @@ __all__ = [
     "profiles_and_onsets",
     "ratio_images",
     "solve_onsets",
+    "without_band_gains",
 ]
 
 #: Largest side of the block-averaged images used by the joint fit.
@@ -86,6 +87,42 @@ class Ratios:
     ratio_ok: list
     ref_peak: float | None
     centroids: list = None  # per flat: (dx, dy, sx, sy) of its valid pixels in each block
+
+
+def without_band_gains(items, dark, saturation, sensor, origin_px):
+    """Raw flats of a snapshot mosaic, dark subtracted, with each flat's band gains divided out
+    (:func:`~snapcorr.calibrate.remove_band_gains`).
+
+    Parameters
+    ----------
+    items : sequence of (float, ndarray)
+        ``(f_number, raw frame)`` pairs.
+    dark : ndarray, optional
+        Dark frame subtracted from every flat before the gains are fitted.
+    saturation : float or dict, optional
+        Raw value at or above which a pixel is saturated (a dict: per f-number).
+    sensor : Sensor
+        The mosaic sensor.
+    origin_px : (int, int), optional
+        Sensor row and column of the frames' first pixel (default: the whole sensor).
+
+    Returns
+    -------
+    items : list of (float, ndarray)
+        The flats, NaN where saturated or carrying no filter.
+    gains : dict
+        f-number -> each band's gain (mean 1), in the sensor's band order.
+    """
+    sat = saturation if isinstance(saturation, dict) else {f: saturation for f, _ in items}
+    out, gains = [], {}
+    for f, img in items:
+        try:
+            flat, gains[f] = remove_band_gains(img, sensor, origin_px=origin_px, dark=dark,
+                                               saturation=sat.get(f))
+        except ValueError as err:
+            raise ValueError(f"the flat at f/{f:g}: {err}") from None
+        out.append((f, flat))
+    return out, gains
 
 
 def clean_flats(items, dark, saturation) -> Flats:
