@@ -10,7 +10,7 @@ a 1024 x 1280 sensor of 7.1 um.
 import numpy as np
 import pytest
 from conftest import PAPER_TRUTH
-from flatsim import make_flats
+from flatsim import make_flats, shot_noise_frames, tile_gains
 
 from snapcorr.calibrate import calibrate_lens, remove_band_gains
 from snapcorr.cube import Sensor
@@ -35,17 +35,9 @@ def _sensor(size_px, filter_area_px=None):
 
 
 def _pattern(origin=(0, 0), area=None):
-    """This file's layout: the gain of every pixel of a frame at ``origin`` (sensor row,
-    column); pixels outside the filter area ``area`` see no filter (gain 1.6: brighter)."""
-    rows = origin[0] + np.arange(SHAPE[0])[:, None]
-    cols = origin[1] + np.arange(SHAPE[1])[None, :]
-    r0, c0 = (0, 0) if area is None else area[:2]
-    pattern = GAINS.reshape(TILE, TILE)[(rows - r0) % TILE, (cols - c0) % TILE]
-    if area is not None:
-        inside = ((rows >= area[0]) & (rows < area[0] + area[2])
-                  & (cols >= area[1]) & (cols < area[1] + area[3]))
-        pattern = np.where(inside, pattern, 1.6)
-    return pattern
+    """The gain of every pixel of a frame at ``origin`` (sensor row, column), bands in
+    row-major order; outside the filter area ``area`` no filter (gain 1.6: brighter)."""
+    return tile_gains(SHAPE, GAINS.reshape(TILE, TILE), origin, area, unfiltered_gain=1.6)
 
 
 @pytest.fixture(scope="module")
@@ -57,11 +49,9 @@ def light():
     return {f: img * (LEVEL_DN / 45000.0) for f, img in clean.items()}
 
 
-def _raw(light, pattern, seed=7):
+def _raw(light, pattern):
     """Raw frames: the light times the gains, shot and read noise, whole DN."""
-    rng = np.random.default_rng(seed)
-    return {f: np.rint(rng.poisson(img * pattern * ELECTRONS_PER_DN) / ELECTRONS_PER_DN
-                       + READ_DN * rng.standard_normal(SHAPE)) for f, img in light.items()}
+    return shot_noise_frames(light, pattern, ELECTRONS_PER_DN, READ_DN)
 
 
 def _calibrate(flats, **kw):
