@@ -63,7 +63,7 @@ def read_flat(path):
     return image, {"bands": int(data.shape[2]), "saturation": sat}
 
 
-def noise_model(image, valid):
+def noise_model(image, valid, *, gain=None):
     """Noise variance as ``a + b * signal + c * signal**2`` (read, shot and gain noise: the
     photon-transfer curve), measured in the image.
 
@@ -75,12 +75,24 @@ def noise_model(image, valid):
     frames summed with different gains), and with its intercept held at or above 0 it would
     overstate the variance everywhere.
 
+    Parameters
+    ----------
+    image : array_like
+        2-D image (y, x).
+    valid : array_like of bool
+        Same shape; True where a pixel is used.
+    gain : array_like, optional
+        Same shape: each pixel's gain already divided out of ``image`` (a mosaic's band
+        gains, :func:`remove_band_gains`). The curve is then the raw frame's, in raw counts
+        ``g * signal``: a pixel's variance in the image is ``a / g^2 + b signal / g +
+        c signal^2``, and each residual's, with its neighbours' gains, is fitted in bins of
+        signal within each gain.
+
     Returns
     -------
     a, b, c : float
     """
     import cv2
-    from scipy.optimize import nnls
 
     img = np.asarray(image, np.float32)
     kernel = np.array([[0, -0.25, 0], [-0.25, 1, -0.25], [0, -0.25, 0]], np.float32)
@@ -88,36 +100,74 @@ def noise_model(image, valid):
     cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
     ok = cv2.erode(np.asarray(valid, np.uint8), cross, borderType=cv2.BORDER_CONSTANT,
                    borderValue=0) > 0
+    if gain is not None:
+        ok &= np.isfinite(gain) & (np.asarray(gain) > 0)
     signal = cv2.blur(img, (3, 3))[ok]
     r = resid[ok]
     if r.size < 200:
         return 0.0, 0.0, 0.0
+    if gain is None:
+        groups = [(np.arange(r.size), 1.0, 1.0)]
+    else:
+        groups = _gain_groups(np.where(ok, gain, 1.0).astype(np.float64), ok)
     step = max(1, r.size // 400_000)  # a few 1e5 pixels pin the curve down
-    signal, r = signal[::step], r[::step]
-    order = np.argsort(signal, kind="stable")
-    centers, variances, weights = [], [], []
-    for part in np.array_split(order, 20):  # 20 bins of equal count
-        if part.size < 50:
-            continue
-        rr = r[part]
-        mad = np.median(np.abs(rr - np.median(rr)))
-        centers.append(float(np.median(signal[part])))
-        variances.append(float((1.4826 * mad) ** 2 / 1.25))
-        weights.append(float(part.size))
-    if len(centers) < 2 or np.ptp(centers) == 0:  # no spread of signal to fit a curve to
-        return (float(np.mean(variances)) if variances else 0.0), 0.0, 0.0
-    s = np.asarray(centers)
-    v = np.asarray(variances)
-    # each bin's variance is known to about sqrt(2 / n) of itself: weight by that
-    w = np.sqrt(np.asarray(weights)) / np.maximum(v, 1e-30)
-    scale = max(float(np.max(np.abs(s))), 1e-30)
-    u = s / scale
-    design = np.stack([np.ones_like(u), u, u * u], axis=1)
+    rows, variances, weights = [], [], []
+    for members, ka, kb in groups:
+        members = members[::step]
+        order = members[np.argsort(signal[members], kind="stable")]
+        n_bins = int(np.clip(order.size // 100, 1, 20))  # bins of equal count
+        for part in np.array_split(order, n_bins):
+            if part.size < 50:
+                continue
+            rr = r[part]
+            mad = np.median(np.abs(rr - np.median(rr)))
+            level = float(np.median(signal[part]))
+            rows.append((ka, kb * level, level * level))
+            variances.append(float((1.4826 * mad) ** 2 / 1.25))
+            weights.append(float(part.size))
+    return _fit_noise_curve(np.asarray(rows), np.asarray(variances), np.asarray(weights))
+
+
+def _gain_groups(gain, ok):
+    """Pixels of one gain (a band), and what a residual's variance has of ``a`` and ``b``
+    over 1.25 times a gain-1 pixel's: ``(1 / g^2 + sum_nbrs 1 / (16 g_n^2)) / 1.25`` and the
+    same with ``1 / g``. The groups are the distinct gains (at most 64, else in 64 ranges)."""
+    import cv2
+
+    nbrs = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], np.float64) / 16.0
+    ka = (1.0 / gain**2 + cv2.filter2D(1.0 / gain**2, -1, nbrs,
+                                       borderType=cv2.BORDER_REFLECT)) / 1.25
+    kb = (1.0 / gain + cv2.filter2D(1.0 / gain, -1, nbrs, borderType=cv2.BORDER_REFLECT)) / 1.25
+    g = gain[ok]
+    values, key = np.unique(np.round(g, 12), return_inverse=True)
+    if values.size > 64:
+        key = np.minimum((np.argsort(np.argsort(g)) * 64) // g.size, 63)
+    ka, kb = ka[ok], kb[ok]
+    out = []
+    for k in np.unique(key):
+        members = np.flatnonzero(key == k)
+        out.append((members, float(np.median(ka[members])), float(np.median(kb[members]))))
+    return out
+
+
+def _fit_noise_curve(rows, v, n):
+    """``a, b, c`` >= 0 (scipy ``nnls``) of ``v ~ a rows[:, 0] + b rows[:, 1] + c rows[:, 2]``,
+    each bin weighted by its variance's precision (about sqrt(2 / n) of itself)."""
+    from scipy.optimize import nnls
+
+    if v.size == 0:
+        return 0.0, 0.0, 0.0
+    levels = np.sqrt(rows[:, 2])
+    if v.size < 2 or np.ptp(levels) == 0:  # no spread of signal to fit a curve to
+        return float(np.mean(v)), 0.0, 0.0
+    w = np.sqrt(n) / np.maximum(v, 1e-30)
+    scale = max(float(np.max(levels)), 1e-30)
+    design = rows / np.array([1.0, scale, scale * scale])
     coef, _ = nnls(design * w[:, None], v * w)
     return float(coef[0]), float(coef[1] / scale), float(coef[2] / scale**2)
 
 
-def clean_flat(image, *, dark=None, saturation=None):
+def clean_flat(image, *, dark=None, saturation=None, gain=None):
     """Subtract the dark frame and mask saturated, non-finite, hot and dead pixels.
 
     Hot and dead pixels are those further than ``OUTLIER_SIGMA`` standard deviations of the
@@ -134,6 +184,10 @@ def clean_flat(image, *, dark=None, saturation=None):
         Dark frame of the same shape, subtracted; pixels where it is not finite are masked.
     saturation : float, optional
         Raw values at or above this (before the dark is subtracted) are masked as saturated.
+    gain : array_like, optional
+        Each pixel's gain, already divided out of ``image`` (a mosaic's band gains,
+        :func:`remove_band_gains`): a pixel of gain ``g`` collected ``g`` times the light,
+        and its noise is that of the raw counts over ``g`` (:func:`noise_model`).
 
     Returns
     -------
@@ -157,11 +211,12 @@ def clean_flat(image, *, dark=None, saturation=None):
         img = img - np.where(np.isfinite(dark), dark, 0.0)
     img = np.where(valid, img, 0.0).astype(np.float32)
     med = cv2.medianBlur(img, 5)
-    a, b, c = noise_model(img, valid)
+    a, b, c = noise_model(img, valid, gain=gain)
     peak = float(np.percentile(med[valid], 99)) if valid.any() else 0.0
     floor = (1e-4 * abs(peak)) ** 2  # noise-free data: tolerate rounding and kinks
     level = np.maximum(med, 0.0)
-    var = (a + (b + c * level) * level + floor).astype(np.float32)
+    g = 1.0 if gain is None else np.where(valid, gain, 1.0)
+    var = (a / g**2 + (b / g + c * level) * level + floor).astype(np.float32)
     valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)

@@ -306,9 +306,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
      tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
                                  center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)
     items = _check_inputs(flats, dark, vignetting_distance_mm)
-    items, dark, saturation, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
+    items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
-    fl, ratios, center, center_source, notes = _prepare_flats(items, dark, saturation, center_px)
+    fl, ratios, center, center_source, notes = _prepare_flats(items, center_px, **cleaning)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
     max_cra, fs = ons.max_cra_deg, fl.f_numbers
     fix_center = center if (center_px is not None or fl.single) else None
@@ -394,23 +394,25 @@ class _Onsets(NamedTuple):
 
 
 def _raw_mosaic(items, dark, saturation, sensor, origin_px):
-    """Raw flats of a mosaic ``sensor`` with their band gains divided out (the dark subtracted
-    and saturated pixels masked, so neither is left to do), and the record of it (as
-    :attr:`LensCalibration.mosaic`); without ``sensor``, everything as it came and ``{}``."""
+    """Raw flats of a mosaic ``sensor`` with their band gains divided out, what is left of
+    cleaning them (keywords of :func:`_prepare_flats`: the dark is subtracted and saturated
+    pixels are masked already; each pixel's gain, for its noise), and the record of it (as
+    :attr:`LensCalibration.mosaic`); without ``sensor``, the flats as they came and ``{}``."""
     if sensor is None:
         if origin_px is not None:
             raise ValueError("sensor_origin_px needs sensor (the mosaic whose band gains are "
                              "removed from the flats)")
-        return items, dark, saturation, {}
+        return items, {"dark": dark, "saturation": saturation}, {}
     check_mosaic_sensor(sensor)
-    items, gains = stages.without_band_gains(items, dark, saturation, sensor, origin_px)
-    return items, None, None, {"sensor": sensor, "sensor_origin_px": origin_px,
-                               "band_gains": gains}
+    items, gains, pixel_gains = stages.without_band_gains(items, dark, saturation, sensor,
+                                                          origin_px)
+    return items, {"pixel_gains": pixel_gains}, {
+        "sensor": sensor, "sensor_origin_px": origin_px, "band_gains": gains}
 
 
-def _prepare_flats(items, dark, saturation, center_px):
+def _prepare_flats(items, center_px, *, dark=None, saturation=None, pixel_gains=None):
     """Clean the flats, take their ratio images and find the optical centre; with notes."""
-    fl = stages.clean_flats(items, dark, saturation)
+    fl = stages.clean_flats(items, dark, saturation, pixel_gains)
     notes = list(fl.notes)
     ratios = stages.ratio_images(fl)
     center, center_source, note = stages.optical_center(fl, ratios, center_px)
