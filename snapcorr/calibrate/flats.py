@@ -115,7 +115,8 @@ def noise_model(image, valid, *, gain=None):
     for members, ka, kb in groups:
         members = members[::step]
         order = members[np.argsort(signal[members], kind="stable")]
-        n_bins = int(np.clip(order.size // 100, 1, 20))  # bins of equal count
+        # 20 bins of equal count (a band's share of the pixels: fewer, of 100 or more)
+        n_bins = 20 if gain is None else int(np.clip(order.size // 100, 1, 20))
         for part in np.array_split(order, n_bins):
             if part.size < 50:
                 continue
