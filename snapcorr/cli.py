@@ -106,6 +106,14 @@ EXAMPLES = {
           --magnification 0.06 --pupil-magnification 1.3 --out my_lens.toml
                                           x unknown: x, n_eff, P, h and the centre in one run,
                                           with their covariance, from flats and a target
+      snapcorr calibrate --flat 2=raw_f2.npy --flat 4=raw_f4.npy --flat 11=raw_f11.npy \
+          --sensor mosaic_4x4_vis --dark raw_dark.npy --exit-pupil-mm 21 \
+          --pixel-pitch-um 5.5 --out my_lens.toml
+                                          raw frames of a snapshot mosaic: each flat's band
+                                          gains (the tile pattern) fitted and divided out
+      snapcorr calibrate --flat 2=crop_f2.tif --flat 8=crop_f8.tif --sensor mosaic_4x4_vis \
+          --sensor-origin-px 512,768 --exit-pupil-mm 21 --pixel-pitch-um 5.5 --out my_lens.toml
+                                          ... a crop whose first pixel is sensor row 512, col 768
     """,
     "pupil": r"""
       snapcorr pupil --cube 2=target_f2_ff.nc --cube 8=target_f8_ff.nc --sensor snapscan_vnir \
@@ -879,11 +887,12 @@ def _cmd_calibrate(args):
     if args.target_cube:
         return _calibrate_with_target(args)
     _no_target_options(args)
+    sensor = _flat_sensor(args)
     if args.exit_pupil_mm is None and args.lens is None:
         raise ValueError("give the exit pupil distance: --exit-pupil-mm X, --lens LENS.toml "
                          "(from snapcorr pupil), or --target-cube F_NUMBER=PATH (repeat) with "
                          "--sensor to fit it from a spectral target in the same run")
-    inputs = [p for _, p in args.flat] + [args.dark, args.lens]
+    inputs = [p for _, p in args.flat] + [args.dark, args.lens, args.sensor]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     x = given.exit_pupil_mm if given else args.exit_pupil_mm
@@ -906,8 +915,9 @@ def _cmd_calibrate(args):
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
-            pupil=pupil)
+            pupil=pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
+    _band_gains_said(res, cal, args)
     if given is not None:
         cal["exit_pupil_from"] = str(args.lens)
         for key in ("exit_pupil_stderr_mm", "n_eff", "n_eff_stderr", "n_eff_fitted"):
@@ -924,7 +934,34 @@ def _cmd_calibrate(args):
     return 0
 
 
-_TARGET_OPTIONS = ("sensor", "fit_n_eff", "sensor_out", "target_spectrum", "sensor_origin_px")
+_TARGET_OPTIONS = ("fit_n_eff", "sensor_out", "target_spectrum")
+
+
+def _flat_sensor(args):
+    """``--sensor`` without --target-cube: the mosaic whose raw frames the flats are (its band
+    gains are divided out); a sensor of another layout is refused."""
+    if args.sensor is None:
+        if args.sensor_origin_px is not None:
+            raise ValueError("--sensor-origin-px needs --sensor (the mosaic whose raw frames "
+                             "the flats are)")
+        return None
+    sensor = _sensor(args.sensor)
+    if sensor.layout != "mosaic":
+        raise ValueError(f"--sensor {args.sensor} is not a mosaic (layout {sensor.layout!r}): "
+                         "its flats carry no tile pattern to remove; leave --sensor out (it "
+                         "goes with raw mosaic flats, or with --target-cube)")
+    return sensor
+
+
+def _band_gains_said(res, cal, args):
+    """Say which band gains were divided out, and record the sensor file."""
+    if not res.mosaic:
+        return
+    cal["band_gains"] = {**cal["band_gains"], "sensor_file": str(args.sensor)}
+    spread = [f"f/{f:g} {g.min():.2f}-{g.max():.2f}"
+              for f, g in sorted(res.mosaic["band_gains"].items())]
+    print(f"divided out the band gains of {res.mosaic['sensor'].name} (relative to their mean: "
+          + ", ".join(spread) + ")", file=sys.stderr)
 
 
 def _no_target_options(args):
@@ -1420,7 +1457,11 @@ def _add_calibrate(command):
                    "n_eff, P, h and the centre are then fitted together, with their "
                    "covariance; instead of --exit-pupil-mm / --lens")
     t.add_argument("--sensor", default=None, metavar="SENSOR",
-                   help="with --target-cube: the camera of the cubes (bundled name or .toml)")
+                   help="with --target-cube: the camera of the cubes (bundled name, .toml or "
+                   "vendor .xml); without it: a snapshot mosaic whose raw frames the flats "
+                   "are, whose band gains (the tile pattern) are fitted in each flat and "
+                   "divided out, pixels outside its filter area left out (a sensor of "
+                   "another layout is refused: its flats have no tile pattern)")
     _add_target_fit_options(t, "with --target-cube: ")
     _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
@@ -1553,7 +1594,9 @@ def _add_target_fit_options(group, when=""):
                        help=f"{when}the target's spectrum, two columns (wavelength nm, "
                        "value); default: unknown, solved for")
     group.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
-                       help=f"{when}sensor row and column of the cubes' first pixel (crops)")
+                       help=f"{when}sensor row and column of the cubes' first pixel (crops)"
+                       + ("; without it, of the raw mosaic flats' (with --sensor)" if when
+                          else ""))
 
 
 def _add_pupil(command):

@@ -36,6 +36,8 @@ __all__ = [
     "make_flats",
     "mean_shift_nm",
     "relative_illumination",
+    "shot_noise_frames",
+    "tile_gains",
 ]
 
 #: The user's five f-numbers.
@@ -256,3 +258,33 @@ def mean_shift_nm(truth, cwl_nm, n_eff, f_number, cra_deg, nodes=32):
             den += np.sum(du[:, None] * dv)
         out[n_i] = num / den
     return out if np.ndim(cra_deg) else float(out[0])
+
+
+def tile_gains(shape, gains, origin_rc=(0, 0), filter_area=None, unfiltered_gain=1.0):
+    """Gain of every pixel of a raw frame of a snapshot mosaic.
+
+    ``gains``: (tile rows, tile cols), the gain of each place in the tile, the tile grid
+    starting at the filter area's corner (the sensor's (0, 0) without one). The frame's first
+    pixel is at sensor row and column ``origin_rc``; pixels outside ``filter_area`` (row,
+    column, rows, columns on the sensor) carry no filter and have ``unfiltered_gain``.
+    """
+    g = np.asarray(gains, float)
+    rows = origin_rc[0] + np.arange(shape[0])[:, None]
+    cols = origin_rc[1] + np.arange(shape[1])[None, :]
+    r0, c0 = (0, 0) if filter_area is None else filter_area[:2]
+    out = g[(rows - r0) % g.shape[0], (cols - c0) % g.shape[1]]
+    if filter_area is not None:
+        ar, ac, an, am = filter_area
+        inside = (rows >= ar) & (rows < ar + an) & (cols >= ac) & (cols < ac + am)
+        out = np.where(inside, out, unfiltered_gain)
+    return out
+
+
+def shot_noise_frames(light, gain, electrons_per_dn=2.0, read_dn=3.0, seed=7):
+    """Frames of ``light`` (f-number -> noiseless DN at gain 1, e.g. ``make_flats(...,
+    return_truth_maps=True)``) times ``gain`` (an array or 1): Poisson shot noise of the
+    electrons, Gaussian read noise, whole DN."""
+    rng = np.random.default_rng(seed)
+    return {f: np.rint(rng.poisson(np.clip(img * gain, 0, None) * electrons_per_dn)
+                       / electrons_per_dn + read_dn * rng.standard_normal(np.shape(img)))
+            for f, img in light.items()}

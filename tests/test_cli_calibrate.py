@@ -196,3 +196,65 @@ def test_flats_without_a_dark_frame_are_said_to_be_taken_as_dark_subtracted(flat
     assert res.returncode == 0, res.stderr
     assert "no --dark" not in res.stdout
     assert len(Lens.load(flats / "withdark.toml").vignetting) == 1
+
+
+@pytest.fixture(scope="module")
+def mosaic_flats(tmp_path_factory):
+    """Raw frames of a 4 x 4 mosaic (band gains 0.25-1.0) from the independent simulator, a
+    dark frame, and the sensor (the whole 256 x 320 px sensor, 28.4 um pixels)."""
+    from conftest import PAPER_TRUTH
+    from flatsim import make_flats, shot_noise_frames, tile_gains
+
+    from snapcorr.cube import Sensor
+
+    d = tmp_path_factory.mktemp("mosaic_flats")
+    shape, pitch, fs = (256, 320), 28.4, (2.0, 4.0, 11.0)
+    _, light, _ = make_flats(PAPER_TRUTH, fs, shape=shape, pitch_um=pitch,
+                             center_px=(174.75, 119.75), noise=0.0, seed=1, integer=False,
+                             return_truth_maps=True)
+    gains = np.random.default_rng(5).permutation(np.linspace(0.25, 1.0, 16)).reshape(4, 4)
+    raw = shot_noise_frames({f: img * (30000 / 45000) for f, img in light.items()},
+                            tile_gains(shape, gains))
+    for f, img in raw.items():
+        np.save(d / f"raw_f{f:g}.npy", (img + 100).astype(np.uint16))
+    np.save(d / "dark.npy", np.full(shape, 100, np.uint16))
+    Sensor("raw 4x4", "mosaic", pitch, tuple(500.0 + 10 * np.arange(16)), 10.0, 1.7,
+           mosaic_shape=(4, 4), band_offset=tuple((b // 4, b % 4) for b in range(16)),
+           size_px=shape).save(d / "raw4x4.toml")
+    return d
+
+
+MOSAIC = ["--flat", "2=raw_f2.npy", "--flat", "4=raw_f4.npy", "--flat", "11=raw_f11.npy",
+          "--dark", "dark.npy", "--exit-pupil-mm", "21", "--pixel-pitch-um", "28.4",
+          "--magnification", "0.06", "--pupil-magnification", "1.3", "--max-circles", "1",
+          "--method", "joint"]
+
+
+def test_raw_mosaic_flats_with_their_sensor(mosaic_flats, cli):
+    """--sensor without --target-cube: the band gains are divided out of each raw flat and
+    the profile says so (the library's figures: test_calibrate_mosaic_flats.py)."""
+    res = cli("calibrate", *MOSAIC, "--sensor", "raw4x4.toml", "--out", "lens.toml",
+              cwd=mosaic_flats)
+    assert res.returncode == 0, res.stderr
+    assert "divided out the band gains of raw 4x4" in res.stderr
+    lens = Lens.load(mosaic_flats / "lens.toml")
+    (P, h), = lens.vignetting
+    assert abs(P / PAPER.vignetting[0][0] - 1) < 0.01 and abs(h / PAPER.vignetting[0][1] - 1) < 0.01
+    gains = lens.calibration["band_gains"]
+    assert gains["removed"] is True and gains["sensor_file"] == "raw4x4.toml"
+    assert gains["sensor_origin_rc"] == "whole sensor" and len(gains["gains"]["f/2"]) == 16
+    assert min(gains["gains"]["f/11"]) < 0.45 < 1.55 < max(gains["gains"]["f/11"])
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--sensor", "snapscan_vnir"], "--sensor snapscan_vnir is not a mosaic"),
+    (["--sensor-origin-px", "0,4"], "--sensor-origin-px needs --sensor"),
+    (["--sensor", "mosaic_4x4_vis"], "give the sensor row and column of its first pixel"),
+    (["--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "1000,0"], "reaches beyond the sensor"),
+    (["--sensor", "raw4x4.toml", "--fit-n-eff"], "--fit-n-eff goes with --target-cube"),
+])
+def test_raw_mosaic_flat_mistakes_are_one_line(mosaic_flats, cli, extra, words):
+    res = cli("calibrate", *MOSAIC, *extra, "--out", "bad.toml", cwd=mosaic_flats)
+    assert res.returncode == 1 and words in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and not (mosaic_flats / "bad.toml").exists()
+    assert len([ln for ln in res.stderr.splitlines() if not ln.startswith("read ")]) == 1

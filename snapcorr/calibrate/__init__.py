@@ -17,6 +17,7 @@ from .flats import (
     noise_model,
     radial_profile,
     read_flat,
+    remove_band_gains,
 )
 from .joint_fit import ModelFit
 from .lens_calibration import METHODS, LensCalibration, calibrate_lens
@@ -48,5 +49,6 @@ __all__ = [
     "pupil_precision",
     "radial_profile",
     "read_flat",
+    "remove_band_gains",
     "solve_vignetting_circle",
 ]

@@ -19,7 +19,12 @@ __all__ = [
     "noise_model",
     "radial_profile",
     "read_flat",
+    "remove_band_gains",
 ]
+
+#: Only pixels whose local mean is at least this fraction of the frame's brightest (99th
+#: percentile) give the band gains: past a vignetting cut-off a ratio is noise over noise.
+GAIN_LIT_FRACTION = 0.2
 
 #: Pixels further than this many robust standard deviations from their 5 x 5 median are
 #: treated as hot or dead.
@@ -58,7 +63,7 @@ def read_flat(path):
     return image, {"bands": int(data.shape[2]), "saturation": sat}
 
 
-def noise_model(image, valid):
+def noise_model(image, valid, *, gain=None):
     """Noise variance as ``a + b * signal + c * signal**2`` (read, shot and gain noise: the
     photon-transfer curve), measured in the image.
 
@@ -70,12 +75,24 @@ def noise_model(image, valid):
     frames summed with different gains), and with its intercept held at or above 0 it would
     overstate the variance everywhere.
 
+    Parameters
+    ----------
+    image : array_like
+        2-D image (y, x).
+    valid : array_like of bool
+        Same shape; True where a pixel is used.
+    gain : array_like, optional
+        Same shape: each pixel's gain already divided out of ``image`` (a mosaic's band
+        gains, :func:`remove_band_gains`). The curve is then the raw frame's, in raw counts
+        ``g * signal``: a pixel's variance in the image is ``a / g^2 + b signal / g +
+        c signal^2``, and each residual's, with its neighbours' gains, is fitted in bins of
+        signal within each gain.
+
     Returns
     -------
     a, b, c : float
     """
     import cv2
-    from scipy.optimize import nnls
 
     img = np.asarray(image, np.float32)
     kernel = np.array([[0, -0.25, 0], [-0.25, 1, -0.25], [0, -0.25, 0]], np.float32)
@@ -83,36 +100,75 @@ def noise_model(image, valid):
     cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
     ok = cv2.erode(np.asarray(valid, np.uint8), cross, borderType=cv2.BORDER_CONSTANT,
                    borderValue=0) > 0
+    if gain is not None:
+        ok &= np.isfinite(gain) & (np.asarray(gain) > 0)
     signal = cv2.blur(img, (3, 3))[ok]
     r = resid[ok]
     if r.size < 200:
         return 0.0, 0.0, 0.0
+    if gain is None:
+        groups = [(np.arange(r.size), 1.0, 1.0)]
+    else:
+        groups = _gain_groups(np.where(ok, gain, 1.0).astype(np.float64), ok)
     step = max(1, r.size // 400_000)  # a few 1e5 pixels pin the curve down
-    signal, r = signal[::step], r[::step]
-    order = np.argsort(signal, kind="stable")
-    centers, variances, weights = [], [], []
-    for part in np.array_split(order, 20):  # 20 bins of equal count
-        if part.size < 50:
-            continue
-        rr = r[part]
-        mad = np.median(np.abs(rr - np.median(rr)))
-        centers.append(float(np.median(signal[part])))
-        variances.append(float((1.4826 * mad) ** 2 / 1.25))
-        weights.append(float(part.size))
-    if len(centers) < 2 or np.ptp(centers) == 0:  # no spread of signal to fit a curve to
-        return (float(np.mean(variances)) if variances else 0.0), 0.0, 0.0
-    s = np.asarray(centers)
-    v = np.asarray(variances)
-    # each bin's variance is known to about sqrt(2 / n) of itself: weight by that
-    w = np.sqrt(np.asarray(weights)) / np.maximum(v, 1e-30)
-    scale = max(float(np.max(np.abs(s))), 1e-30)
-    u = s / scale
-    design = np.stack([np.ones_like(u), u, u * u], axis=1)
+    rows, variances, weights = [], [], []
+    for members, ka, kb in groups:
+        members = members[::step]
+        order = members[np.argsort(signal[members], kind="stable")]
+        # 20 bins of equal count (a band's share of the pixels: fewer, of 100 or more)
+        n_bins = 20 if gain is None else int(np.clip(order.size // 100, 1, 20))
+        for part in np.array_split(order, n_bins):
+            if part.size < 50:
+                continue
+            rr = r[part]
+            mad = np.median(np.abs(rr - np.median(rr)))
+            level = float(np.median(signal[part]))
+            rows.append((ka, kb * level, level * level))
+            variances.append(float((1.4826 * mad) ** 2 / 1.25))
+            weights.append(float(part.size))
+    return _fit_noise_curve(np.asarray(rows), np.asarray(variances), np.asarray(weights))
+
+
+def _gain_groups(gain, ok):
+    """Pixels of one gain (a band), and what a residual's variance has of ``a`` and ``b``
+    over 1.25 times a gain-1 pixel's: ``(1 / g^2 + sum_nbrs 1 / (16 g_n^2)) / 1.25`` and the
+    same with ``1 / g``. The groups are the distinct gains (at most 64, else in 64 ranges)."""
+    import cv2
+
+    nbrs = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], np.float64) / 16.0
+    ka = (1.0 / gain**2 + cv2.filter2D(1.0 / gain**2, -1, nbrs,
+                                       borderType=cv2.BORDER_REFLECT)) / 1.25
+    kb = (1.0 / gain + cv2.filter2D(1.0 / gain, -1, nbrs, borderType=cv2.BORDER_REFLECT)) / 1.25
+    g = gain[ok]
+    values, key = np.unique(np.round(g, 12), return_inverse=True)
+    if values.size > 64:
+        key = np.minimum((np.argsort(np.argsort(g)) * 64) // g.size, 63)
+    ka, kb = ka[ok], kb[ok]
+    out = []
+    for k in np.unique(key):
+        members = np.flatnonzero(key == k)
+        out.append((members, float(np.median(ka[members])), float(np.median(kb[members]))))
+    return out
+
+
+def _fit_noise_curve(rows, v, n):
+    """``a, b, c`` >= 0 (scipy ``nnls``) of ``v ~ a rows[:, 0] + b rows[:, 1] + c rows[:, 2]``,
+    each bin weighted by its variance's precision (about sqrt(2 / n) of itself)."""
+    from scipy.optimize import nnls
+
+    if v.size == 0:
+        return 0.0, 0.0, 0.0
+    levels = np.sqrt(rows[:, 2])
+    if v.size < 2 or np.ptp(levels) == 0:  # no spread of signal to fit a curve to
+        return float(np.mean(v)), 0.0, 0.0
+    w = np.sqrt(n) / np.maximum(v, 1e-30)
+    scale = max(float(np.max(levels)), 1e-30)
+    design = rows / np.array([1.0, scale, scale * scale])
     coef, _ = nnls(design * w[:, None], v * w)
     return float(coef[0]), float(coef[1] / scale), float(coef[2] / scale**2)
 
 
-def clean_flat(image, *, dark=None, saturation=None):
+def clean_flat(image, *, dark=None, saturation=None, gain=None):
     """Subtract the dark frame and mask saturated, non-finite, hot and dead pixels.
 
     Hot and dead pixels are those further than ``OUTLIER_SIGMA`` standard deviations of the
@@ -129,6 +185,10 @@ def clean_flat(image, *, dark=None, saturation=None):
         Dark frame of the same shape, subtracted; pixels where it is not finite are masked.
     saturation : float, optional
         Raw values at or above this (before the dark is subtracted) are masked as saturated.
+    gain : array_like, optional
+        Each pixel's gain, already divided out of ``image`` (a mosaic's band gains,
+        :func:`remove_band_gains`): a pixel of gain ``g`` collected ``g`` times the light,
+        and its noise is that of the raw counts over ``g`` (:func:`noise_model`).
 
     Returns
     -------
@@ -152,11 +212,12 @@ def clean_flat(image, *, dark=None, saturation=None):
         img = img - np.where(np.isfinite(dark), dark, 0.0)
     img = np.where(valid, img, 0.0).astype(np.float32)
     med = cv2.medianBlur(img, 5)
-    a, b, c = noise_model(img, valid)
+    a, b, c = noise_model(img, valid, gain=gain)
     peak = float(np.percentile(med[valid], 99)) if valid.any() else 0.0
     floor = (1e-4 * abs(peak)) ** 2  # noise-free data: tolerate rounding and kinks
     level = np.maximum(med, 0.0)
-    var = (a + (b + c * level) * level + floor).astype(np.float32)
+    g = 1.0 if gain is None else np.where(valid, gain, 1.0)
+    var = (a / g**2 + (b / g + c * level) * level + floor).astype(np.float32)
     valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)
@@ -310,3 +371,125 @@ def radial_profile(image, valid, cra_deg, *, bin_deg=0.1, denominator=None):
     var = np.maximum(np.bincount(idx, q * q) / nn - m1 * m1, 0.0)
     stderr = np.sqrt(var * n / np.maximum(n - 1, 1) / nn)
     return RadialProfile(theta[keep], mean[keep], stderr[keep], n[keep].astype(np.int64))
+
+
+def remove_band_gains(image, sensor, *, origin_px=None, dark=None, saturation=None):
+    """Divide a snapshot mosaic's band gains out of a raw flat field.
+
+    Behind a mosaic of filters each band has its own gain (a 4 x 4 sensor's span 0.25-1.0 in
+    a flat of white light): a raw flat carries the tile pattern on top of the lens's fall-off.
+    The pattern is a property of the layout, not noise, so it is fitted and divided out. Each
+    pixel is divided by a smooth local mean of the frame: a tile-sized box average applied
+    twice, once from either side, so every band weighs the same in it (whatever the pixel's
+    place in the tile) and the kernel is symmetric about the pixel (a gradient of the fall-off
+    cancels; what its curvature leaves is ~1e-5 of the level). A band's gain is the median of
+    that ratio over its pixels, where the frame is lit (at least ``GAIN_LIT_FRACTION`` of its
+    brightest) and the kernel holds no masked pixel; the gains are scaled to a mean of 1, so
+    the flat keeps its level. They are fitted from each frame: they differ a little between
+    f-numbers, as the filters shift with the angle of the light.
+
+    Where the bands sit follows the sensor's layout at the frame's origin, modulo the tile
+    (:func:`snapcorr.cube.mosaic.frame_area`, :meth:`Sensor.band_offsets_at`). Pixels outside the
+    sensor's filter area (``filter_area_px``) carry no filter and have no band gain: they are
+    NaN in the result (not used), as is a tile position that carries no band.
+
+    Parameters
+    ----------
+    image : array_like
+        The raw frame, 2-D (rows, cols) counts: the whole sensor, or a crop at ``origin_px``.
+    sensor : Sensor
+        A ``layout = "mosaic"`` sensor.
+    origin_px : (int, int), optional
+        Sensor row and column of the frame's first pixel (default: the frame is the whole
+        sensor, of its ``size_px``).
+    dark : array_like, optional
+        Dark frame of the same shape, subtracted first (the gains multiply the light only).
+    saturation : float, optional
+        Raw values at or above this (before the dark is subtracted) are saturated: NaN.
+
+    Returns
+    -------
+    image : ndarray, float64
+        Dark subtracted, each pixel divided by its band's gain; NaN where the pixel is not
+        finite, saturated, outside the filter area or on a tile position without a band.
+    gains : ndarray, shape (n_bands,)
+        Each band's gain relative to the mean over the bands, in the sensor's band order.
+
+    Raises
+    ------
+    ValueError
+        Not a mosaic sensor, a frame that does not fit the sensor at ``origin_px``, or a band
+        with too few lit pixels to fit its gain.
+    """
+    check_mosaic_sensor(sensor)
+    img = np.array(image, dtype=np.float64)
+    if img.ndim != 2:
+        raise ValueError(f"a raw mosaic flat is 2-D, got shape {img.shape}")
+    if saturation is not None:
+        img[img >= saturation] = np.nan
+    if dark is not None:
+        img = img - np.asarray(dark, np.float64)
+    labels = _band_labels(img.shape, sensor, origin_px)
+    img[labels < 0] = np.nan
+    gains = _fit_band_gains(img, labels, sensor)
+    out = img / np.where(labels >= 0, gains[np.maximum(labels, 0)], np.nan)
+    return out, gains
+
+
+def check_mosaic_sensor(sensor):
+    """Refuse anything but a mosaic :class:`Sensor`: only its flats carry band gains."""
+    from ..cube.sensor import Sensor
+
+    if not isinstance(sensor, Sensor):
+        raise TypeError(f"sensor must be a Sensor, got {type(sensor).__name__}")
+    if sensor.layout != "mosaic":
+        raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r}): "
+                         "its flats carry no tile pattern of band gains to remove")
+
+
+def _band_labels(shape, sensor, origin_px):
+    """Each pixel's band (index into the sensor's bands), -1 where it carries no filter."""
+    from ..cube.mosaic import frame_area
+
+    (lo_r, lo_c), (rows, cols), (y0, x0) = frame_area(shape, sensor, origin_px)
+    r0, c0 = (0, 0) if origin_px is None else (int(origin_px[0]), int(origin_px[1]))
+    tr, tc = sensor.mosaic_shape
+    labels = np.full(shape, -1, np.int32)
+    kept = labels[lo_r - r0:lo_r - r0 + rows, lo_c - c0:lo_c - c0 + cols]  # a view
+    for b in range(sensor.n_bands):
+        kept[y0[b]::tr, x0[b]::tc] = b
+    return labels
+
+
+def _fit_band_gains(img, labels, sensor):
+    """Each band's gain over the mean of the bands: the median of pixel / symmetric local mean
+    (the tile-sized box from either side: a tent of 2 t - 1 pixels, every tile position
+    weighing 1 / t in each direction)."""
+    import cv2
+
+    tr, tc = sensor.mosaic_shape
+    ky = np.convolve(np.ones(tr), np.ones(tr)) / tr**2
+    kx = np.convolve(np.ones(tc), np.ones(tc)) / tc**2
+    ok = np.isfinite(img)
+    smooth = cv2.sepFilter2D(np.where(ok, img, 0.0), cv2.CV_64F, kx, ky,
+                             borderType=cv2.BORDER_CONSTANT)
+    cover = cv2.sepFilter2D(ok.astype(np.float64), cv2.CV_64F, kx, ky,
+                            borderType=cv2.BORDER_CONSTANT)
+    whole = ok & (cover > 1.0 - 1e-9)  # the kernel holds no masked pixel, nor the border
+    if not whole.any():
+        raise ValueError("the frame holds no pixel whose tile-sized neighbourhood is whole: "
+                         "no band gain can be fitted")
+    peak = float(np.percentile(smooth[whole], 99))
+    lit = whole & (smooth > GAIN_LIT_FRACTION * peak) & (smooth > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = img / smooth
+    gains = np.full(sensor.n_bands, np.nan)
+    for b in range(sensor.n_bands):
+        r = ratio[lit & (labels == b)]
+        if r.size < 20:
+            raise ValueError(f"band {b} ({sensor.cwl_nm[b]:g} nm) has {r.size} lit pixels in "
+                             "the flat: too few to fit its gain (20 at least)")
+        gains[b] = np.median(r)
+    if not np.all(np.isfinite(gains) & (gains > 0)):
+        raise ValueError("a band of the flat has no signal: its gain cannot be divided out")
+    return gains / gains.mean()

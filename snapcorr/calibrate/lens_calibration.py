@@ -29,6 +29,7 @@ are in :mod:`snapcorr.calibrate.stages`; the summary and the picture in
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import functools
 import math
@@ -45,6 +46,7 @@ from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
 from ..optics.shift import EffectiveIndexWarning
 from . import choice, predictive, report, stages
+from .flats import check_mosaic_sensor
 from .joint_fit import N_CIRCLES, ModelFit, param_names
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
@@ -106,6 +108,10 @@ class LensCalibration:
         predicted the flats left out (``auto`` with circles only).
     profiles, ratio_profiles : dict
         f-number -> :class:`RadialProfile` of each flat and of its ratio to the reference.
+    mosaic : dict
+        Raw flats of a snapshot mosaic: ``sensor``, ``sensor_origin_px`` (None: the whole
+        sensor) and ``band_gains`` (f-number -> each band's gain divided out, mean 1). Empty
+        for flats without a tile pattern.
     """
 
     lens: Lens
@@ -136,6 +142,7 @@ class LensCalibration:
     shift_stderr_fit_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shift_stderr_model_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rivals: dict = field(default_factory=dict)
+    mosaic: dict = field(default_factory=dict)
 
     @property
     def center_rc(self) -> tuple:
@@ -169,7 +176,9 @@ class LensCalibration:
         report.save_plot(self, path)
 
 
-def _check_inputs(flats, dark):
+def _check_inputs(flats, dark, vignetting_distance_mm):
+    """The flats as sorted ``(f_number, image)`` pairs, refused where they cannot be
+    calibrated from (:func:`_check_enough_flats`)."""
     if not flats:
         raise ValueError("give at least one flat field")
     items = []
@@ -199,11 +208,13 @@ def _check_inputs(flats, dark):
     if dark is not None and np.shape(dark) != items[0][1].shape:
         raise ValueError(f"the dark frame is {np.shape(dark)}, the flats "
                          f"{items[0][1].shape}")
+    _check_enough_flats(items, vignetting_distance_mm)
     return sorted(items)
 
 
 def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
-                exit_pupil_stderr_mm=None):
+                exit_pupil_stderr_mm=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3):
+    """Every number checked (:func:`_check_choice_args` too), as floats."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
@@ -214,7 +225,8 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
         center_px = check_center(center_px)
     if exit_pupil_stderr_mm is not None:
         exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
-    return exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm
+    return (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+            exit_pupil_stderr_mm, _check_choice_args(tolerance_nm, max_circles))
 
 
 def _check_choice_args(tolerance_nm, max_circles):
@@ -237,9 +249,9 @@ def _check_enough_flats(items, vignetting_distance_mm):
 @accepts_center_rc
 def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm=None,
                    magnification=0.0, pupil_magnification=1.0, dark=None, center_px=None,
-                   saturation=None, vignetting_distance_mm=None, method="auto",
-                   name="calibrated lens", inputs=None, tolerance_nm=choice.TOLERANCE_NM,
-                   max_circles=3, progress=None, pupil="paper"):
+                   saturation=None, vignetting_distance_mm=None, method="auto", inputs=None,
+                   name="calibrated lens", tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
+                   progress=None, pupil="paper", sensor=None, sensor_origin_px=None):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -281,18 +293,22 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
     pupil : {"paper", "lambertian"}
         The pupil (:data:`snapcorr.optics.lens.PUPILS`): its radius sets the onsets; the flats'
         area model stays the paper's (area times ``cos^4(CRA)``).
+    sensor, sensor_origin_px : Sensor, (int, int), optional
+        Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
+        and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
+        fitted and divided out first (:func:`~snapcorr.calibrate.remove_band_gains`).
 
     Returns
     -------
     LensCalibration
     """
-    exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm = \
-        _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
-                    exit_pupil_stderr_mm)
-    tolerance_nm, items = _check_choice_args(tolerance_nm, max_circles), _check_inputs(flats, dark)
-    _check_enough_flats(items, vignetting_distance_mm)
+    (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm,
+     tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
+                                 center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)
+    items = _check_inputs(flats, dark, vignetting_distance_mm)
+    items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
-    fl, ratios, center, center_source, notes = _prepare_flats(items, dark, saturation, center_px)
+    fl, ratios, center, center_source, notes = _prepare_flats(items, center_px, **cleaning)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
     max_cra, fs = ons.max_cra_deg, fl.f_numbers
     fix_center = center if (center_px is not None or fl.single) else None
@@ -313,15 +329,13 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
     notes += method_notes
     model = _unless_joint(used, verdicts, model)
-    lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
-                pupil=pupil)
+    lens = dataclasses.replace(base, vignetting=circles)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
                                  fs, max_cra)
     errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
                          rivals)
     notes += _precision_notes(verdicts, model, next_best, diff, errs["shift_stderr_nm"], fs,
-                              tolerance_nm) + (
-        [_x_note(exit_pupil_mm, exit_pupil_stderr_mm, circles)] if circles else [])
+                              tolerance_nm) + _x_notes(exit_pupil_mm, exit_pupil_stderr_mm, circles)
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -330,9 +344,8 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
         shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
         shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
-        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, **errs)
-    result.lens = Lens(exit_pupil_mm, circles, magnification, pupil_magnification, name=name,
-                       calibration=_calibration_table(result, inputs), pupil=pupil)
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, mosaic=mosaic, **errs)
+    result.lens = dataclasses.replace(lens, calibration=_calibration_table(result, inputs))
     return result
 
 
@@ -380,9 +393,26 @@ class _Onsets(NamedTuple):
     fits: dict
 
 
-def _prepare_flats(items, dark, saturation, center_px):
+def _raw_mosaic(items, dark, saturation, sensor, origin_px):
+    """Raw flats of a mosaic ``sensor`` with their band gains divided out, what is left of
+    cleaning them (keywords of :func:`_prepare_flats`: the dark is subtracted and saturated
+    pixels are masked already; each pixel's gain, for its noise), and the record of it (as
+    :attr:`LensCalibration.mosaic`); without ``sensor``, the flats as they came and ``{}``."""
+    if sensor is None:
+        if origin_px is not None:
+            raise ValueError("sensor_origin_px needs sensor (the mosaic whose band gains are "
+                             "removed from the flats)")
+        return items, {"dark": dark, "saturation": saturation}, {}
+    check_mosaic_sensor(sensor)
+    items, gains, pixel_gains = stages.without_band_gains(items, dark, saturation, sensor,
+                                                          origin_px)
+    return items, {"pixel_gains": pixel_gains}, {
+        "sensor": sensor, "sensor_origin_px": origin_px, "band_gains": gains}
+
+
+def _prepare_flats(items, center_px, *, dark=None, saturation=None, pixel_gains=None):
     """Clean the flats, take their ratio images and find the optical centre; with notes."""
-    fl = stages.clean_flats(items, dark, saturation)
+    fl = stages.clean_flats(items, dark, saturation, pixel_gains)
     notes = list(fl.notes)
     ratios = stages.ratio_images(fl)
     center, center_source, note = stages.optical_center(fl, ratios, center_px)
@@ -608,16 +638,18 @@ def _combine(fit_err, model_err):
     return np.hypot(fit_err, model_err)
 
 
-def _x_note(x, sx, circles):
-    """What x given without (or with) an error means for P and h."""
+def _x_notes(x, sx, circles):
+    """What x given without (or with) an error means for P and h (none without a circle)."""
+    if not circles:
+        return []
     P, h = circles[0]
     if sx is None:
-        return (f"x = {x:g} mm was given without an error, and the flats cannot check it: "
+        return [f"x = {x:g} mm was given without an error, and the flats cannot check it: "
                 f"P and h scale with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g}; 1 % "
                 "in x is 1 % in P and 2 % in h). Measure x with `snapcorr pupil`, or "
-                "calibrate with --target-cube")
-    return (f"x = {x:g} +- {sx:.2g} mm: its error is in the standard errors of P and h "
-            f"recorded with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g})")
+                "calibrate with --target-cube"]
+    return [f"x = {x:g} +- {sx:.2g} mm: its error is in the standard errors of P and h "
+            f"recorded with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g})"]
 
 
 def _shift_stderr(used, fit, onset_fits, center, base, fs, max_cra):
@@ -741,6 +773,8 @@ def _calibration_table(res: LensCalibration, inputs):
                 "P_stderr_mm": _clean(of.P_stderr_mm), "h_stderr_mm": _clean(of.h_stderr_mm),
                 "residuals_mm": [_clean(r) for r in of.residuals_mm]})
         table[f"onset_{det}"] = entry
+    if res.mosaic:
+        table["band_gains"] = _band_gain_table(res.mosaic)
     table["joint_fit"] = _joint_fit_table(res)
     table["model_choice"] = _model_choice_table(res)
     if inputs:
@@ -748,6 +782,27 @@ def _calibration_table(res: LensCalibration, inputs):
     if res.notes:
         table["notes"] = list(res.notes)
     return table
+
+
+def _band_gain_table(mosaic):
+    """Which mosaic's band gains were divided out of the flats, and the gains of each."""
+    sensor, origin = mosaic["sensor"], mosaic["sensor_origin_px"]
+    return {
+        "removed": True,
+        "rule": ("each flat's band gains fitted (median per band of each pixel over a "
+                 "symmetric tile-sized local mean, where lit) and divided out before the fit; "
+                 "pixels outside the filter area not used"),
+        "sensor": sensor.name,
+        **({"sensor_file": sensor.vendor_file} if sensor.vendor_file else {}),
+        "mosaic_shape": [int(v) for v in sensor.mosaic_shape],
+        "filter_area_px": (list(sensor.filter_area_px) if sensor.filter_area_px is not None
+                           else "the whole sensor"),
+        "sensor_origin_rc": ([int(origin[0]), int(origin[1])] if origin is not None
+                             else "whole sensor"),
+        "band_cwl_nm": [float(v) for v in sensor.cwl_nm],
+        "gains": {f"f/{float(f):g}": [_clean(v) for v in g]
+                  for f, g in sorted(mosaic["band_gains"].items())},
+    }
 
 
 def _joint_fit_table(res: LensCalibration):

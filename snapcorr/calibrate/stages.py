@@ -17,7 +17,7 @@ from .._coords import accepts_center_rc
 from .._validation import check_center
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
-from .flats import clean_flat, estimate_center, radial_profile
+from .flats import _band_labels, clean_flat, estimate_center, radial_profile, remove_band_gains
 from .joint_fit import (
     MODELS,
     N_CIRCLES,
@@ -42,6 +42,7 @@ __all__ = [
     "profiles_and_onsets",
     "ratio_images",
     "solve_onsets",
+    "without_band_gains",
 ]
 
 #: Largest side of the block-averaged images used by the joint fit.
@@ -88,7 +89,58 @@ class Ratios:
     centroids: list = None  # per flat: (dx, dy, sx, sy) of its valid pixels in each block
 
 
-def clean_flats(items, dark, saturation) -> Flats:
+def without_band_gains(items, dark, saturation, sensor, origin_px):
+    """Raw flats of a snapshot mosaic, dark subtracted, with each flat's band gains divided out
+    (:func:`~snapcorr.calibrate.remove_band_gains`).
+
+    Parameters
+    ----------
+    items : sequence of (float, ndarray)
+        ``(f_number, raw frame)`` pairs.
+    dark : ndarray, optional
+        Dark frame subtracted from every flat before the gains are fitted.
+    saturation : float or dict, optional
+        Raw value at or above which a pixel is saturated (a dict: per f-number).
+    sensor : Sensor
+        The mosaic sensor.
+    origin_px : (int, int), optional
+        Sensor row and column of the frames' first pixel (default: the whole sensor).
+
+    Returns
+    -------
+    items : list of (float, ndarray)
+        The flats, NaN where saturated or carrying no filter.
+    gains : dict
+        f-number -> each band's gain (mean 1), in the sensor's band order.
+    pixel_gains : dict
+        f-number -> the gain divided out of each pixel (NaN: no filter), for the noise.
+    """
+    sat = saturation if isinstance(saturation, dict) else {f: saturation for f, _ in items}
+    out, gains, pixel_gains = [], {}, {}
+    for f, img in items:
+        try:
+            flat, gains[f] = remove_band_gains(img, sensor, origin_px=origin_px, dark=dark,
+                                               saturation=sat.get(f))
+        except ValueError as err:
+            raise ValueError(f"the flat at f/{f:g}: {err}") from None
+        labels = _band_labels(flat.shape, sensor, origin_px)
+        pixel_gains[f] = np.where(labels >= 0, gains[f][np.maximum(labels, 0)], np.nan)
+        out.append((f, flat))
+    return out, gains, pixel_gains
+
+
+def _pattern_hint(img, saturation, pixel_gains):
+    """Where most pixels were masked only for standing out from their neighbours: a tile
+    pattern, the raw frames of a snapshot mosaic whose band gains were not divided out."""
+    plain = np.isfinite(img) & (img < saturation if saturation is not None else True)
+    if pixel_gains or plain.mean() < 0.5:
+        return ""
+    return ("; most pixels stand out from their neighbours: if these are raw frames of a "
+            "snapshot mosaic, give its sensor (sensor=, --sensor) so that the band gains are "
+            "divided out")
+
+
+def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
     """Dark-subtract and mask each flat (:func:`~snapcorr.calibrate.clean_flat`); refuse flats
     with too few usable pixels (< 20 %) or no signal.
 
@@ -102,6 +154,9 @@ def clean_flats(items, dark, saturation) -> Flats:
     saturation : float or dict, optional
         Raw value at or above which a pixel is saturated; a dict gives it per f-number
         (missing or None: no saturation test).
+    pixel_gains : dict, optional
+        f-number -> the gain already divided out of each pixel (a mosaic's band gains,
+        :func:`without_band_gains`), for each pixel's noise (:func:`clean_flat`).
 
     Returns
     -------
@@ -111,7 +166,8 @@ def clean_flats(items, dark, saturation) -> Flats:
     notes = []
     images, valids, variances = [], [], []
     for f, img in items:
-        image, ok, var = clean_flat(img, dark=dark, saturation=sat.get(f))
+        image, ok, var = clean_flat(img, dark=dark, saturation=sat.get(f),
+                                    gain=(pixel_gains or {}).get(f))
         lost = 1.0 - ok.mean()
         if lost > 0.05:
             notes.append(f"f/{f:g}: {100 * lost:.1f} % of pixels masked (saturated, dead, hot "
@@ -119,7 +175,7 @@ def clean_flats(items, dark, saturation) -> Flats:
         if ok.mean() < 0.2:
             raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
                              "pixels (saturated, dead or non-finite); lower the exposure or "
-                             "check the file")
+                             "check the file" + _pattern_hint(img, sat.get(f), pixel_gains))
         images.append(image)
         valids.append(ok)
         variances.append(var)
