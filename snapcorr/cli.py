@@ -906,7 +906,7 @@ def _cmd_calibrate(args):
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
                          "cannot make: give --target-cube, or --pupil paper or lambertian")
     pupil = args.pupil or (given.pupil if given else "paper")
-    flats, bands, sat, dark = _read_flats(args)
+    flats, bands, sat, dark = _read_flats(args, sensor)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
             flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
@@ -972,16 +972,20 @@ def _no_target_options(args):
                          "from a spectral target); leave it out or add the target's cubes")
 
 
-def _read_flats(args):
-    """Every flat (mean of its bands), the saturation levels and the dark."""
+def _read_flats(args, sensor=None):
+    """Every flat (mean of its bands), the saturation levels and the dark. Raw flats of a
+    mosaic ``sensor`` that gives its bit depth saturate at its largest code by default."""
     from .calibrate import read_flat
+    from .cube.mosaic import frame_saturation
 
     flats, bands, sat = {}, set(), {}
     for f, path in sorted(args.flat):
         image, info = read_flat(path)
         flats[f] = image
         bands.add(info["bands"])
-        sat[f] = args.saturation if args.saturation is not None else info["saturation"]
+        sat[f] = (args.saturation if args.saturation is not None
+                  else frame_saturation(sensor, [image], what=f"--flat {f:g}={path}")
+                  or info["saturation"])
         print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
               + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
               file=sys.stderr)

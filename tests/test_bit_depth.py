@@ -52,3 +52,16 @@ def test_flatfield_masks_pixels_at_the_largest_code_by_default(tmp_path):
     assert code == 0, err
     assert "saturation: 1023 DN, the largest 10-bit code" in err
     assert "10 of" in out  # the ten saturated white pixels, one band value each
+
+
+def test_raw_mosaic_flats_saturate_at_the_largest_code_or_are_refused(tmp_path):
+    frame = np.full((1088, 2048), 900, np.uint16)
+    frame[0, 0] = 3000  # not a 10-bit code
+    np.save(tmp_path / "f2.npy", frame)
+    np.save(tmp_path / "f8.npy", frame)
+    code, _, err = run_cli("calibrate", "--flat", f"2={tmp_path / 'f2.npy'}", "--flat",
+                           f"8={tmp_path / 'f8.npy'}", "--sensor", "imec_5x5_nir",
+                           "--exit-pupil-mm", "21", "--pixel-pitch-um", "5.5",
+                           "--out", tmp_path / "lens.toml")
+    assert code != 0 and err.count("\n") <= 3, err
+    assert "--flat 2=" in err and "above the largest 10-bit code (1023)" in err

@@ -224,7 +224,9 @@ def frame_saturation(sensor, whites, saturation=None, *, what="the white"):
         return saturation
     full = sensor.full_scale_dn
     for w in whites:
-        top = float(np.nanmax(np.asarray(getattr(w, "data", w))))
+        values = np.asarray(getattr(w, "data", w))
+        values = values[np.isfinite(values)]
+        top = float(values.max()) if values.size else 0.0
         if top > full:
             raise ValueError(
                 f"{what} holds values up to {top:g}, above the largest {sensor.bit_depth}-bit "
