@@ -226,3 +226,20 @@ def test_a_crop_without_its_origin_is_refused_with_the_phase_its_white_shows(ven
     assert code != 0 and err.count("\n") == 1, err
     assert "64 x 64 px crop of the 1088 x 2048 px sensor" in err
     assert "first pixel sits at row 1, col 2 of the 4 x 4 tile" in err
+
+
+def test_a_tile_of_too_few_bands_cannot_tell(vendor):
+    _, sensor, _ = vendor
+    import dataclasses
+
+    from snapcorr.cube.responses import FilterResponses
+
+    r = sensor.responses
+    few = FilterResponses(r.wavelength_nm, r.curves[:4], r.system, r.peaks[:4], r.system_name)
+    tiny = dataclasses.replace(sensor, cwl_nm=sensor.cwl_nm[:4], fwhm_nm=sensor.fwhm_nm[:4],
+                               mosaic_shape=(2, 2), band_offset=((0, 0), (0, 1), (1, 0), (1, 1)),
+                               responses=few, matrices=())
+    white = np.random.default_rng(0).uniform(100, 200, (32, 32))
+    found = mosaic_phase(white, tiny)
+    assert found.phase_px is None and "too few to tell" in found.describe()
+    assert check_mosaic_phase(white, tiny, (0, 0)).agrees is None  # passes, unchecked

@@ -88,7 +88,9 @@ class MosaicPhase:
     def ratio(self) -> float:
         """The runner-up's misfit over the best one's (inf for a one-pixel tile)."""
         m = np.sort(self.misfit, axis=None)
-        return float(m[1] / m[0]) if m.size > 1 and m[0] > 0 else float("inf")
+        if m.size < 2:
+            return float("inf")
+        return float(m[1] / m[0]) if m[0] > 0 else (float("inf") if m[1] > 0 else 1.0)
 
     @property
     def agrees(self) -> bool | None:
@@ -121,6 +123,8 @@ class MosaicPhase:
     def describe(self) -> str:
         """One paragraph: the phase found (or why none), with the misfits that decide it."""
         tr, tc = self.misfit.shape
+        if not np.isfinite(self.misfit).any():
+            return f"the white cannot tell the mosaic's phase: {self.reason}"
         best, second = self.ranked_px[:2] if self.misfit.size > 1 else (self.ranked_px[0],) * 2
         fits = (f"a smooth lamp through the measured responses misfits the white's band means "
                 f"by {100 * self.misfit[best]:.2g} % at tile position (row {best[0]}, col "
@@ -306,6 +310,11 @@ def mosaic_phase(white, sensor, *, dark=None, origin_px=None, saturation=None,
     if means is None:
         raise ValueError("the white holds no whole tile of usable values (finite, above the "
                          "dark, not saturated)")
+    if np.isfinite(means).sum() < degree + 3:
+        return MosaicPhase(np.full(sensor.mosaic_shape, np.inf), None, stated,
+                           tuple(sensor.tile_origin_px),
+                           f"{int(np.isfinite(means).sum())} usable band means are too few to "
+                           f"tell against a lamp of {degree + 1} unknowns")
     at_k = _misfits(means, sensor, degree)
     # at_k is indexed by the tile position of the pixel k from the frame's first one
     misfit = np.roll(at_k, shift=(-k[0], -k[1]), axis=(0, 1))
