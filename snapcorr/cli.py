@@ -1151,7 +1151,8 @@ def _pupil_predict(args):
     sensor = _sensor(args.sensor)
     from .calibrate.exit_pupil import check_modelled
 
-    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)")
+    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
+                   measured=False)
     lens = _lens(args.lens or "edmund_optics_16mm")
     targets = dict(CANDIDATE_TARGETS)
     if args.target_spectrum is not None:
