@@ -23,6 +23,7 @@ times ``1 - a_k``, as it does.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 from scipy import sparse
@@ -31,6 +32,9 @@ from scipy.signal import fftconvolve
 from .target_model import PROFILE_CUT, TargetModel
 
 __all__ = ["MeasuredTargetModel", "target_model"]
+
+#: The fine grid's step (at the longest wavelength) as a fraction of the narrowest band's FWHM.
+GRID_STEP_FWHM = 1 / 60
 
 
 class MeasuredTargetModel(TargetModel):
@@ -50,10 +54,17 @@ class MeasuredTargetModel(TargetModel):
         ``grid_step_nm``, ``circles_at_mm``); the rays always scale the curves.
     """
 
+    #: The offset tables of the last few models (the fit builds a fine and a coarse model,
+    #: and more for its held-out test, on the same grids): key -> (responses, spectrum, Q).
+    _tables_cache: ClassVar[dict] = {}
+
     def __init__(self, bins, cwl_nm, fwhm_nm, lens, *, responses, **kwargs):
         self.responses = responses
         kwargs.pop("profile", None)
         kwargs.pop("transform", None)
+        if kwargs.get("grid_step_nm") is None:
+            # the curves are known at ~1 nm; the kernel's masses are FWHM / 30 apart
+            kwargs["grid_step_nm"] = float(np.min(fwhm_nm)) * GRID_STEP_FWHM
         super().__init__(bins, cwl_nm, fwhm_nm, lens, transform="scale", **kwargs)
 
     def _grid(self, profile, n_design, spectrum, max_shift_rel):
@@ -70,9 +81,17 @@ class MeasuredTargetModel(TargetModel):
         lam = self.lam0 * np.exp(self.du * np.arange(n_t))
         self.n_off = math.ceil(-math.log(1.0 - max_shift_rel) / self.du) + 2
         ext = self.lam0 * np.exp(self.du * np.arange(n_t + self.n_off))
+        key = (id(R), id(spectrum), self.lam0, self.n_basis, self.du, self.n_off)
+        hit = self._tables_cache.get(key)
+        if hit is not None and hit[0] is R and hit[1] is spectrum:
+            self.Q = hit[2]
+            return
+        if len(self._tables_cache) >= 4:
+            self._tables_cache.clear()
         B = np.interp(lam, R.wavelength_nm, R.system, left=0.0, right=0.0)
         cols = self._columns(lam, spectrum) * (B * lam * self.du)[:, None]
         self.Q = []
+        self._tables_cache[key] = (R, spectrum, self.Q)
         for curve in R.curves:
             T = np.interp(ext, R.wavelength_nm, curve, left=0.0, right=0.0)
             # Q[j, m] = sum_i T[i + j] cols[i, m]: a correlation for every column
