@@ -219,7 +219,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     magnification, pupil_magnification : float, optional
         When no lens is given (default 0 and 1).
     profile : str
-        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`).
+        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`); not used for a
+        sensor with measured responses, whose whole curves are the filters
+        (:class:`~snapcorr.calibrate.measured_target.MeasuredTargetModel`).
     n_bins : int
         Annuli per cube.
     progress : callable, optional
