@@ -1125,8 +1125,11 @@ def _fitted_sensor(sensor, fit, args):
     cal = fit.lens.calibration
     keep = ("n_eff_fitted", "n_eff_stderr", "f_numbers", "target_spectrum", "inputs",
             "snapcorr_version", "date")
-    record = {"n_eff_from": str(args.out), "n_eff_design": list(sensor.n_eff),
-              **{k: cal[k] for k in keep if k in cal}}
+    from .calibrate.pupil_target import N_EFF_START
+
+    design = ({"n_eff_design": list(sensor.n_eff)} if sensor.n_eff is not None
+              else {"n_eff_start": N_EFF_START})  # a vendor file gives none
+    record = {"n_eff_from": str(args.out), **design, **{k: cal[k] for k in keep if k in cal}}
     record["source"] = "snapcorr pupil: " + cal["source"]
     return dataclasses.replace(sensor, name=f"{sensor.name} (n_eff fitted)",
                                n_eff=tuple(float(v) for v in fit.n_eff), calibration=record)
@@ -1151,7 +1154,8 @@ def _pupil_predict(args):
     sensor = _sensor(args.sensor)
     from .calibrate.exit_pupil import check_modelled
 
-    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)")
+    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
+                   measured=False)
     lens = _lens(args.lens or "edmund_optics_16mm")
     targets = dict(CANDIDATE_TARGETS)
     if args.target_spectrum is not None:

@@ -219,7 +219,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     magnification, pupil_magnification : float, optional
         When no lens is given (default 0 and 1).
     profile : str
-        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`).
+        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`); not used for a
+        sensor with measured responses, whose whole curves are the filters
+        (:class:`~snapcorr.calibrate.measured_target.MeasuredTargetModel`).
     n_bins : int
         Annuli per cube.
     progress : callable, optional
@@ -260,7 +262,10 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
             magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
             scale_circles, pupil):
     """:func:`locate_pupil` for one pupil (its body)."""
-    n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)")
+    n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
+                              fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
+    if sensor.responses is not None:  # each band's whole measured curve, not a profile
+        profile = "measured"
     cubes = _check_cubes(cubes, sensor)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)

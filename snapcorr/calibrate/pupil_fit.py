@@ -21,9 +21,10 @@ import numpy as np
 from scipy import optimize
 
 from ..optics.shift import EffectiveIndexWarning
+from .measured_target import target_model
 from .pupil_solver import _Problem, _solve
 from .pupil_target import FeaturelessTargetError
-from .target_model import TargetModel, rebin
+from .target_model import rebin
 
 #: The field must explain the data better than a field without any shift by at least this
 #: chi-square or the target is refused as featureless.
@@ -91,9 +92,8 @@ def _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
     """The target model of the annuli, and a coarse copy (four annuli in one) for the scan."""
     common = dict(spectrum=spectrum, profile=profile, n_eff_design=n_design,
                   max_shift_rel=max_rel, circles_at_mm=circles_at_mm)
-    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, base, **common)
-    coarse = TargetModel([rebin(b, 4) for b in bins], sensor.cwl_nm, sensor.fwhm_nm, base,
-                         **common)
+    model = target_model(bins, sensor, base, **common)
+    coarse = target_model([rebin(b, 4) for b in bins], sensor, base, **common)
     return model, coarse
 
 
@@ -207,9 +207,9 @@ def _heldout(bins, sensor, base, n_design, spectrum, profile, max_rel, circles_a
         if coarse:
             return _target_models(half_bins, sensor, base, n_design, spectrum, profile,
                                   max_rel, circles_at)
-        return TargetModel(half_bins, sensor.cwl_nm, sensor.fwhm_nm, base, spectrum=spectrum,
-                           profile=profile, n_eff_design=n_design, max_shift_rel=max_rel,
-                           circles_at_mm=circles_at), None
+        return target_model(half_bins, sensor, base, spectrum=spectrum, profile=profile,
+                            n_eff_design=n_design, max_shift_rel=max_rel,
+                            circles_at_mm=circles_at), None
 
     def fit_x(half_problem, half_coarse):  # the scan and a 1-D refinement, index held
         grid = _scan_grid(r_max, x_lo, x_hi, float(np.mean(half_problem.n_design)),

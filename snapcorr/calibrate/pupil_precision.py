@@ -151,7 +151,8 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
         raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
     if not (math.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be > 0, got {noise!r}")
-    n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)")
+    n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
+                              measured=False)
     bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
     x = float(lens.exit_pupil_mm)
     truth = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens, spectrum=spectrum,

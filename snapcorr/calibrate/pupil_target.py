@@ -33,15 +33,39 @@ class FeaturelessTargetError(ValueError):
 
 
 # -- the inputs ---------------------------------------------------------------------------
-def check_modelled(sensor, what):
-    """``sensor``'s indices, for a model of filters by their shape about each centre: sensors
-    with measured responses behind a band-pass (vendor files) are not modelled here yet."""
-    if sensor.responses is not None:
+#: Where the sensor gives no effective index and it is fitted (two f-numbers or more), the
+#: fit starts here (a thin-film filter's typical value; the fit spans 0.6-1.6 times it).
+N_EFF_START = 1.7
+
+
+def check_modelled(sensor, what, *, fit_n_eff=False, measured=True):
+    """``sensor``'s effective indices for the target model, or a ``ValueError`` naming what
+    is not modelled.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    what : str
+        What needs them, for the messages.
+    fit_n_eff : bool
+        The index is fitted (at two f-numbers or more): a sensor that gives none (a vendor
+        file) starts from :data:`N_EFF_START`.
+    measured : bool
+        ``what`` models measured responses behind a band-pass (vendor files: each band's whole
+        curve, :class:`~snapcorr.calibrate.measured_target.MeasuredTargetModel`); False
+        refuses them.
+
+    Returns
+    -------
+    ndarray, shape (n_bands,)
+    """
+    if sensor.responses is not None and not measured:
         raise ValueError(f"{what} models each band by the sensor's filter shape about its "
                          f"centre; the sensor {sensor.name!r} has measured responses behind a "
-                         "band-pass (a vendor file), whose bands move otherwise near the "
-                         "band-pass's edges, and these are not modelled here yet: give n_eff "
-                         "from the vendor's design value in a sensor TOML naming the file")
+                         "band-pass (a vendor file), which it does not model yet (snapcorr "
+                         "pupil --fit-n-eff does: fit the cubes directly)")
+    if sensor.n_eff is None and fit_n_eff:
+        return np.full(sensor.n_bands, N_EFF_START)
     return np.asarray(sensor.require("n_eff", what), float)
 
 

@@ -305,14 +305,7 @@ class TargetModel:
         self.h = float(grid_step_nm or self.fwhm.min() / 200.0)
         q = max(1, round((basis_step_nm or self.fwhm.min() / 6.0) / self.h))
         self.q, self.step = q, q * self.h
-        reach = [self._support(profile, c, w, n) for c, w, n in zip(self.cwl, self.fwhm, nd,
-                                                                  strict=True)]
-        lo = float(np.min(self.cwl * (1 - max_shift_rel))) - max(r[0] for r in reach) - self.step
-        hi = float(np.max(self.cwl)) + max(r[0] for r in reach) + 2 * self.step
-        self.lam0 = math.floor(lo / self.step) * self.step  # a multiple of the basis step
-        self.n_basis = math.ceil((hi - self.lam0) / self.step) + 1
-        self.n_fine = (self.n_basis - 1) * q + 1
-        self._tables(profile, nd, spectrum, reach)
+        self._grid(profile, nd, spectrum, max_shift_rel)
         self._rows()
         if self.known:
             self.prior_mean = self.prior_sd = None
@@ -325,6 +318,17 @@ class TargetModel:
         self._kernel_cache = {}
 
     # -- set-up ----------------------------------------------------------------------------
+    def _grid(self, profile, n_design, spectrum, max_shift_rel):
+        """The target's grid of hat functions (``lam0``, ``n_basis``) and the bands' tables."""
+        reach = [self._support(profile, c, w, n) for c, w, n in zip(self.cwl, self.fwhm,
+                                                                  n_design, strict=True)]
+        lo = float(np.min(self.cwl * (1 - max_shift_rel))) - max(r[0] for r in reach) - self.step
+        hi = float(np.max(self.cwl)) + max(r[0] for r in reach) + 2 * self.step
+        self.lam0 = math.floor(lo / self.step) * self.step  # a multiple of the basis step
+        self.n_basis = math.ceil((hi - self.lam0) / self.step) + 1
+        self.n_fine = (self.n_basis - 1) * self.q + 1
+        self._tables(profile, n_design, spectrum, reach)
+
     def _support(self, profile, cwl, fwhm, n_eff):
         shape = _profile_shape(profile, cwl, fwhm, n_eff)
         t = np.arange(-PROFILE_REACH * fwhm, PROFILE_REACH * fwhm + self.h / 2, self.h)

@@ -48,8 +48,8 @@ _NEEDS = {
     "n_eff": ("its filters' effective index n_eff, which vendor calibration files do not give; "
               "give it in a sensor TOML naming the file (vendor_file = ..., n_eff = ...), from "
               "the vendor's design value or a measurement (`snapcorr pupil --fit-n-eff` fits "
-              "it from cubes of a spectral target for sensors with modelled filters; it does "
-              "not model measured responses yet)"),
+              "it from cubes of a spectral target at two f-numbers, measured responses "
+              "included, and --sensor-out writes that TOML)"),
     "pixel_pitch_um": ("its pixel pitch, which its file gives as 0 (unknown); give "
                        "pixel_pitch_um in a sensor TOML naming the file (vendor_file = ..., "
                        "pixel_pitch_um = ...)"),
