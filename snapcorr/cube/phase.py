@@ -135,8 +135,8 @@ class MosaicPhase:
         r0, c0 = self.tile_origin_px
         where = (f"the frame's first pixel sits at row {self.phase_px[0]}, col "
                  f"{self.phase_px[1]} of the {tr} x {tc} tile (a sensor origin ROW,COL with "
-                 f"ROW - {r0} = {self.phase_px[0]} and COL - {c0} = {self.phase_px[1]} modulo "
-                 f"{tr} and {tc})")
+                 f"(ROW - {r0}) mod {tr} = {self.phase_px[0]} and (COL - {c0}) mod {tc} = "
+                 f"{self.phase_px[1]})")
         return f"{where}; {fits}"
 
 
