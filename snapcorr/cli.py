@@ -639,8 +639,6 @@ def _cmd_stream(args):
     frames = read_frames(args.frames)
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
-    _check_phase(args, sensor)  # before the saturation's note (process_stream checks again)
-    _default_saturation(args, sensor, whites)
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, origin_px=args.sensor_origin_px,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample,
@@ -664,6 +662,9 @@ def _cmd_stream(args):
              f"{ds.attrs['cra_max_deg']:.2f} deg)" if lens else ", not corrected (no --lens)")
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
     _print_virtual(args, ds)
+    if args.saturation is None and sensor.full_scale_dn is not None:
+        print(f"saturation: {sensor.full_scale_dn} DN, the largest {sensor.bit_depth}-bit code "
+              "of the sensor (--saturation DN to change)", file=sys.stderr)
     return 0
 
 
