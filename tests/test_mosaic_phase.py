@@ -243,3 +243,14 @@ def test_a_tile_of_too_few_bands_cannot_tell(vendor):
     found = mosaic_phase(white, tiny)
     assert found.phase_px is None and "too few to tell" in found.describe()
     assert check_mosaic_phase(white, tiny, (0, 0)).agrees is None  # passes, unchecked
+
+
+def test_a_white_with_nothing_usable_is_refused_naming_it(vendor, crop_files, tmp_path):
+    _, _, xml = vendor
+    f = crop_files
+    np.save(tmp_path / "white.npy", np.zeros((64, 64), np.uint16))  # at or below the dark
+    code, _, err = run_cli("flatfield", str(f / "raw.npy"), "--dark", str(f / "dark.npy"),
+                           "--white", str(tmp_path / "white.npy"), "--sensor", str(xml),
+                           "--sensor-origin-px", "101,202", "--out", str(tmp_path / "ff.nc"))
+    assert code != 0 and err.count("\n") == 1, err
+    assert f"--white {tmp_path / 'white.npy'}: the white holds no whole tile" in err

@@ -369,7 +369,11 @@ def check_mosaic_phase(white, sensor, origin_px=None, *, dark=None, saturation=N
     first = white[0] if isinstance(white, (list, tuple)) else white
     if getattr(first, "ndim", 2) == 3 and "mosaic_area_px" not in getattr(first, "attrs", {}):
         return None
-    found = mosaic_phase(white, sensor, dark=dark, origin_px=origin_px, saturation=saturation)
+    try:
+        found = mosaic_phase(white, sensor, dark=dark, origin_px=origin_px,
+                             saturation=saturation)
+    except ValueError as err:  # say which white, for a command's one line
+        raise ValueError(f"{what}: {err}") from None
     shape = getattr(first, "shape", None)
     if (found.stated_px is None and sensor.size_px is not None and len(shape or ()) == 2
             and tuple(shape) != tuple(sensor.size_px)):
