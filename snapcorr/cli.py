@@ -1648,7 +1648,8 @@ def _add_stream(command):
                 "each frame")
     p.add_argument("frames", type=Path, help="frames (frame, y, x): a .zarr or .nc holding one "
                    "3-D variable, a 3-D .npy, a multi-page .tif (a frame per page) or a folder "
-                   "of frame files (.npy, .tif, .exr, .hdr; in the order of their names)")
+                   "of frame files (.npy, .tif, .exr, .hdr; in the order of their names, "
+                   "numbers in them read as numbers: t0.25, t0.5, t1)")
     p.add_argument("--dark", type=Path, action="append", required=True,
                    help="dark frame (repeat to average several)")
     p.add_argument("--white", type=Path, action="append", required=True,

@@ -88,6 +88,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                        saturation=saturation)
     ff = flatfield(frames, dark, white, saturation=saturation, dtype=dtype)
     ds = demosaic(ff, sensor, demosaic_method, origin_px=origin_px)
+    # which file each frame came from, and by what order (a folder of frames)
+    ds.attrs.update({k: frames.attrs[k] for k in ("frame_files", "frame_order")
+                     if k in frames.attrs})
     if lens is None:
         if resample or virtual_bands is not None:
             raise ValueError("resampling a stream, or its virtual bands, need a lens and an "

@@ -150,8 +150,11 @@ NEWER_BROKEN = [
     (dict(replace={'<response values="': '<response values="0.5 '}), "602 values, expected 601"),
     (dict(replace={'<coefficients values="': '<coefficients values="1.0 '}),
      "17 values, expected 16"),
-    (dict(replace={'<response values="': '<response values="abc '}), "'abc', not a number"),
-    (dict(replace={'<response values="': '<response values="nan '}), "not finite"),
+    (dict(replace={'<response values="': '<response values="abc '}), "602 values, expected 601"),
+    (dict(replace={'sample_points_nm values="400.0 ': 'sample_points_nm values="abc '}),
+     "'abc', not a number"),
+    (dict(replace={'sample_points_nm values="400.0 ': 'sample_points_nm values="nan '}),
+     "not finite"),
     (dict(replace={"<width_px>2048": "<width_px>wide"}), "width_px> must be a number"),
     (dict(replace={"<height_px>1088": "<height_px>1088.5"}), "whole number"),
     (dict(replace={'sample_points_nm values="400.0 401.0': 'sample_points_nm values="401.0 400.0'}),
@@ -266,8 +269,14 @@ def test_measured_responses_leave_no_room_for_a_second_description(tmp_path):
         orphan.save(tmp_path / "o.toml")
     fx = imec_4x4()
     fx.curves[5] = 0.0
-    with pytest.raises(ValueError, match=r"^dead\.xml: .*zero everywhere"):
+    with pytest.raises(ValueError, match=r"^dead\.xml: .*band\[5\]/response> is nowhere "
+                       "positive"):
         Sensor.load(write_newer(tmp_path / "dead.xml", fx))
+    fx.curves[5, fx.grid > 390] = 0.0  # light only where the band-pass passes none
+    fx.curves[5, fx.grid > 990] = 1.0
+    fx.components[0][2][fx.components[0][1] > 980] = 0.0
+    with pytest.raises(ValueError, match=r"^dark\.xml: .*zero everywhere through the system"):
+        Sensor.load(write_newer(tmp_path / "dark.xml", fx))
 
 
 def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_numbers():

@@ -6,7 +6,8 @@
   without xarray's dimension names too), or a 3-D ``.npy``;
 - a multi-page TIFF, one frame per page (read through OpenImageIO page by page);
 - a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
-  taken in the order of their names (numbers in names compared as numbers).
+  taken in the order of their names (numbers in names compared as numbers, decimals and
+  signs included: :func:`natural_order`; recorded as ``frame_order``).
 
 Nothing is read until computed (only the files' headers), so memory does not grow with the
 number of frames. A ``frame`` coordinate (times, say) of a ``.zarr`` or ``.nc`` is kept.
@@ -14,6 +15,7 @@ number of frames. A ``frame`` coordinate (times, say) of a ``.zarr`` or ``.nc`` 
 
 from __future__ import annotations
 
+import itertools
 import re
 from pathlib import Path
 
@@ -23,14 +25,82 @@ import xarray as xr
 from .._io import check_input
 from .io import FORMATS, _open_dataset, open_image, read_frame
 
-__all__ = ["read_frames"]
+__all__ = ["natural_order", "read_frames"]
 
 #: Files a folder of frames may hold (others, such as ENVI's data files, are passed over).
 FRAME_SUFFIXES = (".npy", ".tif", ".tiff", ".exr", ".hdr")
 
 
-def _natural(path):
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
+#: A number in a file name: digits, with a decimal part where a point is followed by digits,
+#: and the sign before it kept apart (whether it is a sign is decided over all the names).
+_NUMBER = re.compile(r"([+-]?)([0-9]+(?:\.[0-9]+)?)")
+#: How a folder's frames are ordered, recorded with them (``frame_order``).
+FRAME_ORDER = ("by name, numbers compared as numbers (decimal points read as such; a '-' or "
+               "'+' before a number read as its sign only where names differ by it)")
+
+
+def _tokens(name):
+    """``name`` as text and ``(sign, digits)`` pieces, the text in lower case."""
+    out, at = [], 0
+    for m in _NUMBER.finditer(name):
+        out.append(name[at:m.start()].lower())
+        out.append((m.group(1), m.group(2)))
+        at = m.end()
+    out.append(name[at:].lower())
+    return out
+
+
+def natural_order(names):
+    """``names`` in natural order: numbers in them compared as numbers.
+
+    Decimal parts count (``t0.25`` before ``t0.5`` before ``t1``). A ``-`` or ``+`` right
+    before a number is its sign only where the names differ by it at that place (``z-0.5``,
+    ``z+0``, ``z+0.5``); where every name has it (``frame-1``, ``2026-12-01``) it is a
+    separator. Names whose numbers are equal but written differently (``f1``, ``f01``) are
+    ambiguous, and refused.
+
+    Parameters
+    ----------
+    names : sequence of str
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    ValueError
+        Two names that compare equal.
+    """
+    tokens = [_tokens(n) for n in names]
+    signed = set()  # number places (by position in the names' pieces) whose sign varies
+    if len({len(t) for t in tokens}) == 1 and tokens:
+        for k in range(1, len(tokens[0]), 2):
+            if len({t[k][0].replace("+", "") for t in tokens}) > 1:
+                signed.add(k)
+
+    def key(t):
+        out = []
+        for k, piece in enumerate(t):
+            if k % 2 == 0:
+                out.append((0, piece, 0.0))
+                continue
+            sign, digits = piece
+            if k in signed:
+                value = -float(digits) if sign == "-" else float(digits)
+                out.append((1, "", value))
+            else:  # the sign is part of the text before
+                out.append((0, sign, 0.0))
+                out.append((1, "", float(digits)))
+        return out
+
+    keyed = sorted(zip((key(t) for t in tokens), names, strict=True), key=lambda kv: kv[0])
+    for (k0, a), (k1, b) in itertools.pairwise(keyed):
+        if k0 == k1:
+            raise ValueError(f"frames {a!r} and {b!r} have the same number in their names: "
+                             "their order is ambiguous; rename them (e.g. zero-padded "
+                             "numbers) so that each name's number differs")
+    return [n for _, n in keyed]
 
 
 def read_frames(path, *, frames_per_chunk=1):
@@ -66,8 +136,8 @@ def read_frames(path, *, frames_per_chunk=1):
     coords = {}
     if path.is_dir() and path.suffix.lower() != ".zarr":
         check_input(path, directory=True, what="folder of frames")
-        files = sorted((p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES),
-                       key=lambda p: (_natural(p), p.name))
+        found = {p.name: p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES}
+        files = [found[n] for n in natural_order(list(found))]
         for p in files:  # a frame that cannot be read is an error, never left out
             if not p.is_file():
                 raise ValueError(f"{p} is not a regular file (a broken link, a folder or a "
@@ -85,6 +155,7 @@ def read_frames(path, *, frames_per_chunk=1):
                                  f"{arrays[0].dtype}: every frame must match")
         data = da.stack(arrays)
         attrs["frame_files"] = [p.name for p in files]
+        attrs["frame_order"] = FRAME_ORDER
     else:
         fmt = FORMATS.get(path.suffix.lower())
         if fmt in ("zarr", "netcdf"):

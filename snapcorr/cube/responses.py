@@ -27,6 +27,9 @@ MATRIX_KINDS = ("reflectance", "irradiance")
 #: A peak counts as inside the system's pass band where the system transmits at least this
 #: fraction of its maximum there (a band's main peak is its strongest inside).
 PASSBAND_FRACTION = 0.5
+#: How far below zero a measured curve may dip, as a fraction of its largest value
+#: (measurement noise about a zero baseline: a real band-pass dips to -0.0008 of 0.97).
+NOISE_FRACTION = 0.01
 
 
 class Peak(NamedTuple):
@@ -88,6 +91,14 @@ class FilterResponses:
         for name, a in (("responses", curves), ("system response", system)):
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"the {name} must be finite numbers")
+            top = np.max(a, axis=-1)
+            if not np.all(top > 0) or np.any(np.min(a, axis=-1) < -NOISE_FRACTION * top):
+                raise ValueError(f"the {name} must be positive somewhere and not negative "
+                                 f"beyond noise ({NOISE_FRACTION:g} of the largest value)")
+        with np.errstate(over="ignore"):
+            if not np.all(np.isfinite(curves * system)):
+                raise ValueError("the responses times the system's response overflow: their "
+                                 "values are not a response's")
         peaks = tuple(tuple(Peak(*p) for p in band) for band in self.peaks)
         if len(peaks) != curves.shape[0] or any(len(p) == 0 for p in peaks):
             raise ValueError(f"every band needs at least one peak ({curves.shape[0]} bands, "
@@ -98,6 +109,14 @@ class FilterResponses:
                 if not (np.isfinite(p.fwhm_nm) and p.fwhm_nm > 0 and np.isfinite(p.qe)):
                     raise ValueError(f"a peak's fwhm_nm must be > 0 and its QE finite, got "
                                      f"{p}")
+        step = np.diff(grid)
+        for b, band in enumerate(peaks):
+            for p in band:
+                at = float(np.interp(p.wavelength_nm, grid[1:], step))
+                if p.fwhm_nm < at:
+                    raise ValueError(f"band {b}: a peak's FWHM of {p.fwhm_nm:g} nm is narrower "
+                                     f"than the grid's {at:g} nm step at {p.wavelength_nm:g} "
+                                     "nm; the curve cannot show a band so narrow")
         if not np.any(curves * system > 0, axis=1).all():
             raise ValueError("a band's response is zero everywhere through the system")
         set_(self, "wavelength_nm", _frozen(grid))

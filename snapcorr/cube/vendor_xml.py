@@ -37,14 +37,23 @@ from pathlib import Path
 import numpy as np
 
 from .._io import check_input
-from .responses import CorrectionMatrix, FilterResponses, Peak
+from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
 
 #: Larger than any calibration file (a 5x5 sensor's is 0.4 MB): a bigger file is refused
 #: before it is parsed.
 MAX_FILE_BYTES = 64 * 2**20
+#: More samples than any curve of a calibration file holds (0.01 nm steps over 400-1400 nm):
+#: a count or a list beyond it is refused before anything is sized by it.
+MAX_SAMPLES = 100_000
+#: The longest text a number is written in (``repr`` of a float is at most 24 characters),
+#: with its separators: a list longer than this per value it should hold is refused before
+#: it is split.
+MAX_CHARS_PER_VALUE = 64
 _SPLIT = re.compile(r"[,\s;]+")
+#: A whole number as files write one: ASCII digits (``str.isdigit`` also takes "²").
+_WHOLE = re.compile(r"-?[0-9]+")
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,11 +129,27 @@ class _File:
         return value
 
     def numbers(self, node, where, count=None):
-        """The numbers of a ``values`` attribute or of the element's text."""
+        """The numbers of a ``values`` attribute or of the element's text.
+
+        The text's length is bounded before it is split and the count compared before any
+        value is parsed: a list of millions of numbers is refused in the time it takes to
+        measure it, not after every value is read (at most :data:`MAX_SAMPLES` values, or
+        ``count``).
+        """
         text = node.get("values")
         if text is None:
             text = node.text or ""
+        most = MAX_SAMPLES if count is None else count
+        if len(text) > (most + 1) * MAX_CHARS_PER_VALUE:
+            self.fail(f"<{where}> holds {len(text) / 2**20:.1f} MiB of text, more than "
+                      f"{most} numbers take" + ("" if count is not None else
+                                                " (no calibration curve has more samples)"))
         parts = [p for p in _SPLIT.split(text.strip()) if p]
+        if count is not None and len(parts) != count:
+            self.fail(f"<{where}> holds {len(parts)} values, expected {count}")
+        if len(parts) > MAX_SAMPLES:
+            self.fail(f"<{where}> holds {len(parts)} values; no calibration curve has more "
+                      f"than {MAX_SAMPLES}")
         try:
             values = np.array([float(p) for p in parts])
         except ValueError:
@@ -134,8 +159,20 @@ class _File:
             self.fail(f"<{where}> holds no numbers")
         if not np.all(np.isfinite(values)):
             self.fail(f"<{where}> holds a value that is not finite")
-        if count is not None and values.size != count:
-            self.fail(f"<{where}> holds {values.size} values, expected {count}")
+        return values
+
+    def curve(self, values, where):
+        """A transmission or response curve: not negative beyond measurement noise
+        (:data:`~snapcorr.cube.responses.NOISE_FRACTION` of its largest value) and not zero
+        everywhere, so that what multiplies it stays a physical response."""
+        top = float(np.max(values))
+        if not top > 0:
+            self.fail(f"<{where}> is nowhere positive (largest value {top:g}): not a "
+                      "response")
+        low = float(np.min(values))
+        if low < -NOISE_FRACTION * top:
+            self.fail(f"<{where}> goes down to {low:g}, below -{NOISE_FRACTION:g} of its "
+                      f"largest value {top:g}: a response is not negative")
         return values
 
 
@@ -195,14 +232,19 @@ def read_vendor_file(path) -> VendorCalibration:
     return _older(f, root, info)
 
 
-def _sensor_info(f, root):
+def _sensor_info(f, root, variant):
+    """The sensor's size, pitch and bit depth; messages name the variant's own tags."""
     si = f.child(root, "sensor_calibration", "sensor_info")
-    rows = f.number(si, "sensor_info", "height_px", "height", integer=True, minimum=1)
-    cols = f.number(si, "sensor_info", "width_px", "width", integer=True, minimum=1)
-    pitch = f.number(si, "sensor_info", "pixel_pitch_um", "pixel_pitch", minimum=0,
+
+    def tags(newer, older):
+        return (newer, older) if variant == "newer" else (older, newer)
+
+    rows = f.number(si, "sensor_info", *tags("height_px", "height"), integer=True, minimum=1)
+    cols = f.number(si, "sensor_info", *tags("width_px", "width"), integer=True, minimum=1)
+    pitch = f.number(si, "sensor_info", *tags("pixel_pitch_um", "pixel_pitch"), minimum=0,
                      required=False, default=0.0)
-    bits = f.number(si, "sensor_info", "bit_depth", "input_bpp", integer=True, minimum=1,
-                    required=False)
+    bits = f.number(si, "sensor_info", *tags("bit_depth", "input_bpp"), integer=True,
+                    minimum=1, required=False)
     return (rows, cols), (float(pitch) if pitch > 0 else None), bits
 
 
@@ -241,7 +283,7 @@ def _peaks(f, band, where):
         order = p.get("order")
         out.append(Peak(f.number(p, w, "wavelength_nm"), f.number(p, w, "fwhm_nm"),
                         f.number(p, w, "QE", "qe", required=False, default=np.nan),
-                        int(order) if order and order.strip().lstrip("-").isdigit() else None))
+                        int(order) if order and _WHOLE.fullmatch(order.strip()) else None))
     if not out:
         f.fail(f"<{where}/peaks> lists no peak")
     for p in out:
@@ -251,11 +293,23 @@ def _peaks(f, band, where):
     return tuple(p._replace(qe=0.0) if not np.isfinite(p.qe) else p for p in out)
 
 
+def _resolved(f, peaks, grid, where):
+    """Refuse a peak narrower than the grid's step where it sits: the file's curve cannot
+    show it, and what is sized by a band's width (the centres' and widths' fine grid) would
+    grow without bound as the stated width falls."""
+    for k, p in enumerate(peaks):
+        step = float(np.interp(p.wavelength_nm, grid[1:], np.diff(grid)))
+        if p.fwhm_nm < step:
+            f.fail(f"<{where}/peaks/peak[{k}]/fwhm_nm> is {p.fwhm_nm:g} nm, narrower than the "
+                   f"response grid's {step:g} nm step at {p.wavelength_nm:g} nm: the measured "
+                   "curve cannot show a band so narrow")
+
+
 def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
     by_index = {}
     for band in bands_el.findall("band"):
         raw = next((band.get(a) for a in index_attrs if band.get(a) is not None), None)
-        if raw is None or not raw.strip().isdigit():
+        if raw is None or not _WHOLE.fullmatch(raw.strip()) or raw.strip().startswith("-"):
             f.fail(f"a <{where}/band> has no whole-number {index_attrs[0]} attribute "
                    f"(got {raw!r})")
         i = int(raw)
@@ -270,10 +324,12 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         w = f"{where}/band[{i}]"
         band = by_index[i]
         peaks.append(_peaks(f, band, w))
+        _resolved(f, peaks[-1], grid, w)
         node = band
         for tag in response_tag:
             node = f.child(node, w, tag)
-        curves.append(f.numbers(node, f"{w}/{'/'.join(response_tag)}", count=grid.size))
+        where_curve = f"{w}/{'/'.join(response_tag)}"
+        curves.append(f.curve(f.numbers(node, where_curve, count=grid.size), where_curve))
     return np.array(curves), tuple(peaks)
 
 
@@ -283,6 +339,9 @@ def _grid_from_range(f, ci, where):
     n = f.number(ci, where, "nr_measurements", "nr_data_points", integer=True, minimum=3)
     if not step > 0:
         f.fail(f"<{where}> gives a step of {step:g} nm; it must be > 0")
+    if n > MAX_SAMPLES or n > f.path.stat().st_size // 2:
+        f.fail(f"<{where}/nr_measurements> is {n}: more samples than the file holds room for "
+               f"(at most {min(MAX_SAMPLES, f.path.stat().st_size // 2)})")
     grid = start + step * np.arange(n)
     end = f.number(ci, where, "measurement_range_end_nm", "wavelength_end_nm", required=False)
     if end is not None and abs(grid[-1] - end) > 1e-6 * max(1.0, abs(end)):
@@ -292,7 +351,7 @@ def _grid_from_range(f, ci, where):
 
 
 def _older(f, root, info):
-    size, pitch, bits = _sensor_info(f, root)
+    size, pitch, bits = _sensor_info(f, root, "older")
     _layout(f, info, "filter_info")
     area, tile = _area_and_tile(f, info, "filter_info", size)
     grid = _grid_from_range(f, f.child(info, "filter_info", "calibration_info"),
@@ -306,7 +365,8 @@ def _older(f, root, info):
     if rej is not None:
         where = "filter_info/rejection_filter"
         node = f.child(f.child(rej, where, "filter_response"), where, "data")
-        values = f.numbers(node, f"{where}/filter_response/data")
+        values = f.curve(f.numbers(node, f"{where}/filter_response/data"),
+                         f"{where}/filter_response/data")
         if rej.find("wavelength_start_nm") is not None:
             own = _grid_from_range(f, rej, where)
             if values.size != own.size:
@@ -367,7 +427,7 @@ def _on_grid(f, own, values, grid, where):
 
 
 def _newer(f, root, info):
-    size, pitch, bits = _sensor_info(f, root)
+    size, pitch, bits = _sensor_info(f, root, "newer")
     grid_node = f.child(f.child(info, "filter_info", "calibration_info"),
                         "filter_info/calibration_info", "sample_points_nm")
     grid = f.numbers(grid_node, "filter_info/calibration_info/sample_points_nm")
@@ -391,7 +451,8 @@ def _newer(f, root, info):
     for k, comp in enumerate(comps.findall("optical_component") if comps is not None else []):
         w = f"system_info/optical_components/optical_component[{k}]"
         own = f.numbers(f.child(comp, w, "sample_points_nm"), f"{w}/sample_points_nm")
-        values = f.numbers(f.child(comp, w, "response"), f"{w}/response", count=own.size)
+        values = f.curve(f.numbers(f.child(comp, w, "response"), f"{w}/response",
+                                   count=own.size), f"{w}/response")
         system = system * _on_grid(f, own, values, grid, w)
         kind = comp.find("type")
         names.append((kind.text or "").strip() if kind is not None and kind.text else

@@ -224,7 +224,10 @@ class _Lobes:
         peaks = np.array([p.wavelength_nm for p in responses.main_peaks()])
         lo, hi = main_lobes(grid, eff, peaks)
         fwhm = np.array([p.fwhm_nm for p in responses.main_peaks()])
-        self.du = float(np.min(np.log1p(fwhm / peaks))) * LOBE_STEP_FWHM
+        # never finer than the curves' own sampling can matter (a hundredth of their finest
+        # step): a stated width far below it would otherwise size these windows without bound
+        finest = float(np.min(np.diff(np.log(grid))))
+        self.du = max(float(np.min(np.log1p(fwhm / peaks))), finest) * LOBE_STEP_FWHM
         n = int(np.ceil((np.max(np.log(hi / lo)) + 2 * reach) / self.du)) + 2
         # window b reaches `reach` beyond its lobe on both sides: a ray scaled by
         # a >= exp(-reach) brings the lobe down to its start, and the response at the lobe's
