@@ -834,6 +834,8 @@ def read_toml(path, table, what, *, others=("calibration",)):
             doc = tomllib.load(fh)
     except FileNotFoundError:
         raise FileNotFoundError(f"{what} not found: {path}") from None
+    except OSError as err:  # bytes that cannot be read (/proc/self/mem: EIO)
+        raise ValueError(f"{path}: cannot read it ({err.strerror or err})") from None
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{path} is not valid TOML: {err}") from None
     except UnicodeDecodeError:

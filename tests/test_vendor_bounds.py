@@ -126,3 +126,23 @@ def test_older_files_are_told_by_their_own_tags(tmp_path):
     path = write_older(tmp_path / "old.xml", imec_4x4(),
                        replace={"<height>1088": "<height>tall"})
     _refused(path, r"<sensor_info/height> must be a number")
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/mem"), reason="Linux only")
+def test_a_path_whose_bytes_cannot_be_read_is_named(tmp_path):
+    with pytest.raises(ValueError, match=r"^/proc/self/mem: cannot read it \(Input/output"):
+        Sensor.load("/proc/self/mem")  # read as a sensor TOML
+    toml = tmp_path / "camera.toml"
+    toml.write_text('[sensor]\nvendor_file = "/proc/self/mem"\nn_eff = 1.8\n')
+    with pytest.raises(ValueError, match=r"mem: cannot read it \(Input/output error\)"):
+        Sensor.load(toml)
+
+
+@pytest.mark.parametrize("how, words", [("um", "look like micrometres"),
+                                        ("repeated", r"repeats \[\d")])
+def test_a_matrix_of_wavelengths_that_are_not_nm_is_refused(tmp_path, how, words):
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[0]
+    wl = wl / 1000 if how == "um" else np.r_[wl[0], wl[:-1]]
+    fx.matrices[0] = (name, kind, wl, fw, coeffs)
+    _refused(write_newer(tmp_path / "wl.xml", fx), f"matrix 'hsi_reflectance'.*{words}")

@@ -128,8 +128,8 @@ def _profile_of(sensor, profile):
     if profile is None:
         if sensor.profile not in PROFILES:
             raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
-                             f"the budget does not model; pass profile= (--profile "
-                             f"{'|'.join(PROFILES)})")
+                             f"the budget does not model; name one it does: "
+                             f"{', '.join(PROFILES)} (--profile, or profile= in Python)")
         profile = sensor.profile
     validate_method(profile, PROFILES, "profile")
     return profile

@@ -194,9 +194,11 @@ class CorrectionMatrix:
             raise ValueError(f"a correction matrix's type must be one of {MATRIX_KINDS}, got "
                              f"{self.kind!r}")
         wl = np.atleast_1d(np.asarray(self.wavelength_nm, float))
-        if wl.ndim != 1 or wl.size == 0 or not np.all(np.isfinite(wl)) or np.any(wl <= 0):
-            raise ValueError(f"matrix {self.name!r}: virtual band wavelengths must be finite "
-                             "and > 0")
+        if wl.ndim != 1 or wl.size == 0:
+            raise ValueError(f"matrix {self.name!r}: virtual band wavelengths must be a list of "
+                             "numbers")
+        # in nm, distinct: a result's virtual bands are written with them and read back
+        wl = check_wavelengths_nm("virtual band wavelengths", wl, where=f"matrix {self.name!r}")
         fw = np.broadcast_to(np.asarray(self.fwhm_nm, float), wl.shape)
         if np.any(fw[np.isfinite(fw)] <= 0) or np.any(np.isinf(fw)):
             raise ValueError(f"matrix {self.name!r}: virtual band widths must be > 0")

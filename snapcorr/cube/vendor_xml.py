@@ -218,6 +218,8 @@ def read_vendor_file(path) -> VendorCalibration:
                f"(limit {MAX_FILE_BYTES / 2**20:.0f} MiB); is this the right file?")
     try:
         root = ElementTree.parse(f.path).getroot()
+    except OSError as err:  # a path that names no real file's bytes (/proc/self/mem: EIO)
+        f.fail(f"cannot read it ({err.strerror or err}); is it a calibration file on disk?")
     except ElementTree.ParseError as err:
         f.fail(f"not well-formed XML ({err})")
     except DefusedXmlException as err:
