@@ -22,7 +22,7 @@ from .derived import rebuildable, with_fwhm_table
 from .formats import _File, _Rows
 from .model import DIMS
 
-__all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORED_FROM"]
+__all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORED_FROM", "refuse_packed_counts"]
 
 
 # -- reading ---------------------------------------------------------------------------------
@@ -70,6 +70,45 @@ def _open_dataset(path, fmt, chunks):
     return ds
 
 
+#: CF attributes by which a reader turns stored numbers into others (unpacking, and fill
+#: values made NaN).
+PACKING = ("scale_factor", "add_offset", "_FillValue", "missing_value")
+#: Units that say a variable holds a camera's numbers (none at all says the same).
+COUNT_UNITS = ("", "count", "counts", "dn", "digital number", "digital numbers", "adu")
+
+
+def refuse_packed_counts(var, path, *, counts=False):
+    """Refuse a camera's numbers that xarray would unpack or mask on reading.
+
+    A variable stored as integers with CF packing or fill values is decoded by xarray into
+    floats (scaled, fill values made NaN): for physical values that is what the file means,
+    but a camera's raw counts would then no longer be the camera's numbers, and the result's
+    ``raw`` would keep others. Such a variable is refused where it holds counts: ``counts``
+    (a stream of frames), or units of counts or none.
+
+    Parameters
+    ----------
+    var : xarray.DataArray
+        As opened (its ``encoding`` says how it is stored).
+    path : str or Path
+        The file, for the message.
+    counts : bool
+        The variable is known to hold a camera's numbers.
+    """
+    import numpy as np
+
+    stored = np.dtype(var.encoding.get("dtype", var.dtype))
+    packing = {k: var.encoding[k] for k in PACKING if k in var.encoding}
+    units = str(var.attrs.get("units", "")).strip().lower()
+    if stored.kind not in "iu" or not packing or not (counts or units in COUNT_UNITS):
+        return
+    said = ", ".join(f"{k} {np.asarray(v).tolist()!r}" for k, v in packing.items())
+    raise ValueError(f"{path}: {var.name} is stored as {stored} with {said}, which a reader "
+                     "applies (scaled, or fill values made NaN), so the camera's numbers would "
+                     "not be read as they are; store the counts without them, or give the "
+                     "variable the units of the physical values it holds")
+
+
 def _read_xarray(path, fmt, chunks):
     """The cube of a netCDF file or Zarr store (a ``(y, x)`` frame as one band): its
     ``radiance``, ``reflectance`` or ``transmittance``, else its first ``(y, x, band)``
@@ -92,6 +131,7 @@ def _read_xarray(path, fmt, chunks):
             raise ValueError(f"{path} holds no (y, x, band) variable")
         # chunked first: expand_dims would read a variable that is not a dask array whole
         var = _rows(ds[frames[0]], chunks).expand_dims("band", axis=2)
+    refuse_packed_counts(var, path)
     attrs = {**decode_attrs(ds.attrs), **var.attrs}  # the variables' are decoded above
     found = _File(path, fmt, var, name=var.name, attrs=attrs)
     if "mask" in ds.data_vars and tuple(ds["mask"].dims) == DIMS and var.name != "mask":

@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from .._io import check_input
+from .datasets import refuse_packed_counts
 from .io import FORMATS, _open_dataset, open_image, read_frame
 
 __all__ = ["natural_order", "read_frames"]
@@ -201,6 +202,7 @@ def _xarray_stack(path, fmt):
             raise ValueError(f"{path} holds {found}; a stream of frames is one variable of "
                              "dims (frame, y, x) (a cube's bands are not frames)")
     var = ds[stacks[0]]
+    refuse_packed_counts(var, path, counts=True)
     first = var.dims[0]
     coords = {c: ("frame", var[c].values, var[c].attrs) for c in var.coords
               if var[c].dims == (first,)}
