@@ -60,7 +60,12 @@ def _open_dataset(path, fmt, chunks):
         return xr.open_dataset(path, engine="zarr", consolidated=_zarr_consolidated(path),
                                chunks=None, cache=False)
     if fmt == "netcdf":
-        return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
+        with warnings.catch_warnings():
+            # blocks that split the file's own chunks read some of them twice: a cost, not an
+            # error (opened in the file's chunks instead, a contiguous variable would be one
+            # block, read whole by every block cut from it)
+            warnings.filterwarnings("ignore", message="The specified chunks separate")
+            return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
     # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
     # directly, chunks that split the stored ones make xarray warn).
     ds = xr.open_zarr(path, consolidated=_zarr_consolidated(path),
@@ -164,6 +169,11 @@ def _to_dataset(cube):
     return ds
 
 
+#: Encoding keys that describe how a file read laid a variable out (chunks, shards, its
+#: shape there), dropped before writing: each output is laid out from the data written.
+STORAGE_LAYOUT = ("chunks", "preferred_chunks", "chunksizes", "shards", "contiguous",
+                  "original_shape", "source")
+
 #: Variables :func:`write_dataset` stores when ``store_derived`` is set keep their formula
 #: under this attribute (``derived_from`` would make :func:`read_dataset` expect to rebuild them).
 STORED_FROM = "computed_from"
@@ -201,6 +211,10 @@ def _encoded(ds, store_derived=False):
     out.attrs = encode_attrs(attrs, "the dataset")
     for name, var in out.variables.items():
         var.attrs = encode_attrs(var.attrs, f"variable {name!r}")
+        # how the file it was read from laid it out is not how this one will be: a store's
+        # chunks kept on a variable rechunked since (a cube read in blocks of rows, its
+        # sensor positions with it) would overlap the blocks written
+        var.encoding = {k: v for k, v in var.encoding.items() if k not in STORAGE_LAYOUT}
     return out
 
 
