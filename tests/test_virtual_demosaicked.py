@@ -180,7 +180,8 @@ def test_fill_missing_estimates_a_missing_sample_and_nothing_else(method):
 
 def test_a_cube_demosaicked_elsewhere_keeps_the_pixel_noise_model(vis):
     """Without ``demosaic_method`` nothing says how the cube was made: no demosaicking error
-    is assumed (the bands' own noise model, as for a tile cube)."""
+    is assumed (the bands' own noise model, as for a tile cube). A dask cube gives the same
+    error bars as in memory."""
     cam, sensor = vis
     weights = fs.dead_leaves((64, 64), 8, seed=4)
     placed = fs.place(cam, weights, fs.scene_spectra(8, seed=4), np.ones((64, 64)),
@@ -189,6 +190,10 @@ def test_a_cube_demosaicked_elsewhere_keeps_the_pixel_noise_model(vis):
     cube = demosaic(frame, sensor, "ri", origin_px=placed.origin, name="reflectance")
     with_dem = virtual_bands(cube, sensor, "fitted")
     assert "demosaicking (ri)" in with_dem["virtual_stderr"].attrs["source"]
+    lazy = demosaic(frame.chunk({"y": 32, "x": 32}), sensor, "ri", origin_px=placed.origin,
+                    name="reflectance")  # a dask cube: its patches read, the same figures
+    np.testing.assert_allclose(virtual_bands(lazy, sensor, "fitted")["virtual_stderr"].values,
+                               with_dem["virtual_stderr"].values, rtol=1e-5)
     cube.attrs.pop("demosaic_method")
     without = virtual_bands(cube, sensor, "fitted")
     assert "demosaicking" not in without["virtual_stderr"].attrs["source"]
