@@ -1,6 +1,6 @@
 """Cubes in and out: the data model, sensor layouts and flat-fielding."""
 
-from .demosaicking import DEMOSAIC_METHODS, demosaic
+from .demosaicking import DEMOSAIC_METHODS, demosaic, demosaicking_error
 from .flatfield import flatfield
 from .frames import read_frames
 from .io import (
@@ -24,6 +24,7 @@ __all__ = [
     "Sensor",
     "check_cube",
     "demosaic",
+    "demosaicking_error",
     "flatfield",
     "make_cube",
     "mosaic_to_cube",

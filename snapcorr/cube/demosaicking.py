@@ -46,22 +46,24 @@ from .model import check_dtype, make_cube, with_positions
 from .mosaic import frame_area
 from .sensor import Sensor
 
-__all__ = ["DEMOSAIC_METHODS", "DEMOSAIC_REACH_TILES", "demosaic", "demosaic_array"]
+__all__ = ["DEMOSAIC_METHODS", "DEMOSAIC_REACH_TILES", "demosaic", "demosaic_array",
+           "demosaicking_error"]
 
 def _method(name):
     """The kernel ``snapcorr.cube.msfa.<name>``, imported at its first call (numba loads then,
     not with ``snapcorr.cube``)."""
-    def run(frame, y0, x0, n, m):
+    def run(frame, y0, x0, n, m, **options):
         from . import msfa
 
-        return getattr(msfa, name)(frame, y0, x0, n, m)
+        return getattr(msfa, name)(frame, y0, x0, n, m, **options)
 
     run.__name__ = run.__qualname__ = name
     run.__doc__ = f"snapcorr.cube.msfa.{name}, imported at its first call."
     return run
 
 
-#: The methods by name: ``f(frame, y0, x0, n, m) -> (rows, cols, bands)``.
+#: The methods by name: ``f(frame, y0, x0, n, m, *, fill_missing=False) -> (rows, cols,
+#: bands)``.
 DEMOSAIC_METHODS = {
     "nearest": _method("tile_replication"),
     "bilinear": _method("weighted_bilinear"),
@@ -84,7 +86,7 @@ def _dtype(dtype):
     return np.float32 if exact else np.float64
 
 
-def demosaic_array(frame, y0, x0, n, m, method="ri"):
+def demosaic_array(frame, y0, x0, n, m, method="ri", *, fill_missing=False):
     """The numpy core: every band at every pixel of a 2-D frame.
 
     Parameters
@@ -97,13 +99,17 @@ def demosaic_array(frame, y0, x0, n, m, method="ri"):
         Tile rows and columns.
     method : str
         A name of :data:`DEMOSAIC_METHODS`.
+    fill_missing : bool
+        Estimate a missing sample's own band from the samples around it, as every other pixel
+        is estimated, instead of leaving it NaN (the cross-validation of
+        :func:`demosaicking_error` holds samples out so).
 
     Returns
     -------
     ndarray, shape (rows, cols, n_bands)
         float32 (float64 for a float64 frame or integers wider than 16 bits, which float32
         would round); each band's own samples unchanged, NaN where the frame was NaN or
-        infinite.
+        infinite (unless ``fill_missing``).
 
     Raises
     ------
@@ -123,7 +129,8 @@ def demosaic_array(frame, y0, x0, n, m, method="ri"):
                          f"(the pseudo-panchromatic image averages them), got {y0.size} bands; "
                          "use bilinear or nearest")
     # every method keeps each band's samples as measured (missing ones missing)
-    return DEMOSAIC_METHODS[method](data, y0, x0, int(n), int(m))
+    return DEMOSAIC_METHODS[method](data, y0, x0, int(n), int(m),
+                                    fill_missing=bool(fill_missing))
 
 
 def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
@@ -322,3 +329,134 @@ def _lazy(data, y0, x0, n, m, method):
 
     return da.map_blocks(block, padded, new_axis=data.ndim,
                          chunks=(*data.chunks, (y0.size,)), dtype=dtype)
+
+
+#: Cross-validation of a demosaicked cube (:func:`demosaicking_error`), in passes
+#: ``r < HOLDOUT_PERIOD``: band ``b``'s samples (sub-grid ``(i, j)``) are held out where
+#: ``(I + 2 J + b + r) % HOLDOUT_PERIOD == 0``, with ``(I, J) = (i, j)`` (single samples, each
+#: a tile from the nearest one left) or ``(i // 3, j // 3)`` (3 x 3 blocks, whose centre is two
+#: tiles from it). A tile loses about one band in five either way.
+HOLDOUT_PERIOD = 5
+#: At most this many patches are cross-validated, spread over the cube, each
+#: ``ERROR_PATCH_TILES`` tiles a side inside a halo of the method's reach.
+ERROR_PATCHES = 6
+ERROR_PATCH_TILES = 24
+
+
+def _patches(size, inner, halo, count):
+    """Up to ``count`` windows ``(start, stop, lo, hi)`` along an axis of ``size``: the
+    window read, and inside it the part held out (a halo of the method's reach from any
+    side that is not the cube's own edge). One window for a short axis."""
+    if size <= inner + 2 * halo or count == 1:
+        return [(0, size, 0, size)]
+    out = []
+    for c in np.linspace(halo + inner / 2, size - halo - inner / 2, count):
+        lo = round(float(c) - inner / 2)
+        out.append((lo - halo, lo + inner + halo, halo, halo + inner))
+    return out
+
+
+def _held_out(values, y0, x0, n, m, method, area):
+    """Squared errors of the held-out samples of one patch, by band: ``(sum, count)`` for
+    single samples and for the centres of 3 x 3 blocks (:data:`HOLDOUT_PERIOD`)."""
+    nb = y0.size
+    own = np.full(values.shape[:2], -1)
+    for b in range(nb):
+        own[y0[b]::n, x0[b]::m] = b
+    yy, xx = np.indices(own.shape)
+    i, j = (yy - y0[own]) // n, (xx - x0[own]) // m  # each pixel's place on its sub-grid
+    raw = np.take_along_axis(values, own[..., None], axis=2)[..., 0]
+    keep = area & np.isfinite(raw)
+    out = np.zeros((2, 2, nb))
+    for k, (bi, bj, centre) in enumerate(((i, j, keep), (i // 3, j // 3,
+                                                          keep & (i % 3 == 1) & (j % 3 == 1)))):
+        for r in range(HOLDOUT_PERIOD):
+            hole = (bi + 2 * bj + own + r) % HOLDOUT_PERIOD == 0
+            held = hole & centre
+            est = demosaic_array(np.where(hole, np.nan, raw), y0, x0, n, m, method,
+                                 fill_missing=True)
+            d = est[held, own[held]].astype(float) - raw[held]
+            ok = np.isfinite(d)
+            np.add.at(out[k, 0], own[held][ok], d[ok] ** 2)
+            np.add.at(out[k, 1], own[held][ok], 1)
+    return out
+
+
+def _distance_factor(n, m, exponent):
+    """Mean over a tile's pixels other than a band's own of ``(d / s)^exponent``: ``d`` the
+    distance to the band's nearest sample, ``s = sqrt(n m)`` a held-out sample's."""
+    dy, dx = np.meshgrid(np.minimum(np.arange(n), n - np.arange(n)),
+                         np.minimum(np.arange(m), m - np.arange(m)), indexing="ij")
+    d = np.hypot(dy, dx).ravel()[1:] / np.sqrt(n * m)
+    return float(np.mean(d**exponent))
+
+
+def demosaicking_error(cube, sensor, *, noise_var=0.0):
+    """Each band's mean square demosaicking error over a demosaicked cube, measured on the
+    cube itself by cross-validation at the band's own samples.
+
+    A demosaicked cube keeps every band's measured samples, so the raw mosaic is in it. Each
+    band's samples are held out in turn (:data:`HOLDOUT_PERIOD`) and filled in by the cube's
+    own method from the samples left (``demosaic_array(..., fill_missing=True)``); the
+    squared differences from the held-out values, less the held-out sample's own noise, are
+    the error of estimating the band a tile from its nearest sample (leave-out
+    cross-validation, Stone 1974 [5]_). A pixel the cube estimated is nearer one: its error is
+    scaled by the mean of ``(d / tile)^beta`` over the tile's pixels, ``d`` its distance to
+    the band's nearest sample, with ``beta`` the growth of the error with distance measured
+    on the cube by holding out 3 x 3 blocks of samples as well (their centres two tiles from
+    the nearest sample): ``beta = log2(mse(2 tiles) / mse(1 tile))``, within [0, 2] (0: an
+    error that does not shrink near a sample; 2: a smooth field's). The interpolation error
+    of a field whose increments grow as a power of the distance grows with the same power (a
+    power-law variogram; natural images' power spectra are power laws, Field 1987 [6]_). Each
+    band is measured at one pixel in ``n_bands``, where its error is its noise.
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        ``(y, x, band)`` from :func:`demosaic` (its ``demosaic_method`` and
+        ``mosaic_area_px``), numpy or dask (a few patches are read).
+    sensor : Sensor
+        The mosaic sensor it was demosaicked for.
+    noise_var : float
+        The samples' noise variance (the held-out value's own noise is taken off).
+
+    Returns
+    -------
+    mse : ndarray, shape (n_bands,)
+        Each band's mean square error over the cube's pixels (its values' units squared).
+    count : int
+        How many samples were held out.
+
+    References
+    ----------
+    .. [5] M. Stone, "Cross-validatory choice and assessment of statistical predictions",
+       J. R. Stat. Soc. B 36, 111-147 (1974).
+    .. [6] D. J. Field, "Relations between the statistics of natural images and the response
+       properties of cortical cells", J. Opt. Soc. Am. A 4, 2379-2394 (1987).
+    """
+    method = cube.attrs.get("demosaic_method")
+    if method not in DEMOSAIC_METHODS or "mosaic_area_px" not in cube.attrs:
+        raise ValueError("demosaicking_error takes a cube made by demosaic (its "
+                         "demosaic_method and mosaic_area_px attributes)")
+    n, m = sensor.mosaic_shape
+    r0, c0 = (int(v) for v in cube.attrs["mosaic_area_px"][:2])
+    off = sensor.band_offsets_at((r0, c0))
+    ny, nx = cube.sizes["y"], cube.sizes["x"]
+    reach = DEMOSAIC_REACH_TILES[method]
+    total = 0.0
+    for ys, ye, ylo, yhi in _patches(ny, ERROR_PATCH_TILES * n, reach * n, 2):
+        for xs, xe, xlo, xhi in _patches(nx, ERROR_PATCH_TILES * m, reach * m,
+                                         ERROR_PATCHES // 2):
+            values = np.asarray(cube.isel(y=slice(ys, ye), x=slice(xs, xe)).values, float)
+            area = np.zeros(values.shape[:2], bool)
+            area[ylo:yhi, xlo:xhi] = True
+            total = total + _held_out(values, (off[:, 0] - ys) % n, (off[:, 1] - xs) % m, n,
+                                      m, method, area)
+    if np.any(total[:, 1] == 0):
+        raise ValueError("too small a cube to cross-validate its demosaicking: every band "
+                         "needs samples, and 3 x 3 blocks of them, away from its edges")
+    near, far = np.clip(total[:, 0] / total[:, 1] - float(noise_var), 1e-30, None)
+    beta = float(np.clip(np.log2(far.sum() / near.sum()), 0.0, 2.0))
+    nb = off.shape[0]
+    mse = _distance_factor(n, m, beta) * near
+    return (1.0 - 1.0 / nb) * mse + float(noise_var) / nb, int(total[:, 1].sum())

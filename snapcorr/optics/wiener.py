@@ -45,6 +45,7 @@ References
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,8 +138,16 @@ def markov_prior(wavelength_nm, *, mean=PRIOR["mean"], sd=PRIOR["sd"],
     return sd**2 * np.exp(-np.abs(grid[:, None] - grid[None, :]) / length_nm) + mean**2
 
 
+def _noise(alpha, n_bands):
+    """Band noise variances as a vector: one number for every band, or one per band."""
+    a = np.broadcast_to(np.asarray(alpha, float), (n_bands,))
+    if not np.all(np.isfinite(a) & (a > 0)):
+        raise ValueError(f"the band noise variance alpha must be > 0 and finite, got {alpha!r}")
+    return a
+
+
 def wiener_matrix(weights, targets, prior, alpha):
-    """``A = g Phi s^T (s Phi s^T + alpha I)^-1`` (Pratt & Mancill 1976).
+    """``A = g Phi s^T (s Phi s^T + N)^-1`` (Pratt & Mancill 1976), ``N = diag(alpha)``.
 
     Parameters
     ----------
@@ -148,23 +157,23 @@ def wiener_matrix(weights, targets, prior, alpha):
         The virtual bands' averaging weights.
     prior : ndarray, shape (n, n)
         Second moment of the spectra (:func:`markov_prior`).
-    alpha : float
-        Band noise variance (> 0).
+    alpha : float or array_like, shape (n_bands,)
+        Band noise variance (> 0): one for every band, or each band's (pixel noise plus a
+        demosaicking error, independent between bands).
 
     Returns
     -------
     ndarray, shape (n_virtual, n_bands)
     """
-    check_positive("alpha", alpha)
     ps = prior @ weights.T
-    gram = weights @ ps + alpha * np.eye(weights.shape[0])
+    gram = weights @ ps + np.diag(_noise(alpha, weights.shape[0]))
     return np.linalg.solve(gram, (targets @ ps).T).T
 
 
 def expected_error(matrix, weights, targets, prior, alpha):
     """Each virtual band's expected RMS error for spectra of the prior and band noise of
-    variance ``alpha``: ``sqrt(diag((A s - g) Phi (A s - g)^T + alpha A A^T))``, for any
-    linear estimate ``A`` (for the Wiener one with that ``alpha`` it is
+    variance ``alpha``: ``sqrt(diag((A s - g) Phi (A s - g)^T + A diag(alpha) A^T))``, for
+    any linear estimate ``A`` (for the Wiener one with that ``alpha`` it is
     ``g Phi g^T - A s Phi g^T``).
 
     Parameters
@@ -174,14 +183,15 @@ def expected_error(matrix, weights, targets, prior, alpha):
         The bands' averaging weights where the estimate is applied.
     targets : ndarray, shape (n_virtual, n)
     prior : ndarray, shape (n, n)
-    alpha : float
+    alpha : float or array_like, shape (n_bands,)
 
     Returns
     -------
     ndarray, shape (n_virtual,)
     """
     miss = matrix @ weights - targets
-    var = np.sum((miss @ prior) * miss, axis=1) + alpha * np.sum(matrix**2, axis=1)
+    var = (np.sum((miss @ prior) * miss, axis=1)
+           + matrix**2 @ _noise(alpha, matrix.shape[1]))
     return np.sqrt(np.clip(var, 0.0, None))
 
 
@@ -229,13 +239,23 @@ def gcv_alpha(weights, values, prior, alphas=ALPHAS):
     return float(alphas[np.argmin(score)]), score
 
 
+#: The prior's leading components, by the prior's bytes: its eigen-decomposition (a few
+#: tenths of a second on 601 wavelengths) is the same for every table of a sensor.
+_COMPONENTS = {}
+
+
 def _probes(grid, responses, prior, k=8):
     """Band values of typical spectra, on which interpolation errors are judged: the prior's
     mean and its first ``k`` principal components (scaled by their standard deviations) at
     normal incidence, as values in [0, 1] would be."""
-    values, vectors = np.linalg.eigh(prior)
-    top = vectors[:, ::-1][:, :k] * np.sqrt(np.clip(values[::-1][:k], 0.0, None))
-    return (normalised(grid, responses.effective) @ top).T
+    key = (prior.shape, k, hashlib.blake2b(np.ascontiguousarray(prior).tobytes()).hexdigest())
+    if key not in _COMPONENTS:
+        if len(_COMPONENTS) >= 4:
+            _COMPONENTS.clear()
+        values, vectors = np.linalg.eigh(prior)
+        _COMPONENTS[key] = vectors[:, ::-1][:, :k] * np.sqrt(np.clip(values[::-1][:k], 0.0,
+                                                                      None))
+    return (normalised(grid, responses.effective) @ _COMPONENTS[key]).T
 
 
 @dataclass(frozen=True)
@@ -248,7 +268,7 @@ class VirtualTable:
     ----------
     cra_deg : ndarray, shape (n_nodes,)
     matrices : ndarray, shape (n_nodes, n_virtual, n_bands)
-    alpha : float
+    alpha : float or ndarray, shape (n_bands,)
     tolerance : float
     stderr : ndarray, shape (n_nodes, n_virtual)
         Each virtual band's expected error at the nodes (:func:`expected_error`).
@@ -256,7 +276,7 @@ class VirtualTable:
 
     cra_deg: np.ndarray
     matrices: np.ndarray
-    alpha: float
+    alpha: float | np.ndarray
     tolerance: float
     stderr: np.ndarray = None
 
@@ -275,15 +295,16 @@ class VirtualTable:
         f_number : float
         lens : Lens
         cra_max_deg : float
-        alpha : float
-            The regularisation (:func:`gcv_alpha`).
+        alpha : float or array_like, shape (n_bands,)
+            The band noise variance of the estimate (:func:`gcv_alpha`; per band with a
+            demosaicking error).
         prior : ndarray, optional
             Default: :func:`markov_prior` on the responses' grid.
         tolerance : float
             Largest change of a virtual value of a typical spectrum (reflectance units) that
             interpolating between nodes may make.
         max_nodes : int
-        noise_var : float, optional
+        noise_var : float or array_like, shape (n_bands,), optional
             The band noise variance of the expected errors (default: ``alpha``).
 
         Returns
@@ -291,7 +312,8 @@ class VirtualTable:
         VirtualTable
         """
         grid = responses.wavelength_nm
-        noise_var = alpha if noise_var is None else float(noise_var)
+        alpha = _noise(alpha, responses.effective.shape[0])
+        noise_var = alpha if noise_var is None else _noise(noise_var, alpha.size)
         phi = markov_prior(grid) if prior is None else prior
         nv = targets.shape[0]
         probes = _probes(grid, responses, phi)
@@ -317,7 +339,8 @@ class VirtualTable:
         if missing:
             raise ValueError(f"no light reaches pixels at CRA {missing[0]:.2f} deg through "
                              "the lens: the virtual bands cannot be computed there")
-        return cls(nodes, np.stack([found[float(c)][0] for c in nodes]), float(alpha),
+        return cls(nodes, np.stack([found[float(c)][0] for c in nodes]),
+                   float(alpha[0]) if np.all(alpha == alpha[0]) else alpha,
                    float(tolerance), np.stack([found[float(c)][1] for c in nodes]))
 
     def __call__(self, cra_deg):

@@ -122,7 +122,8 @@ def _any_nan(v):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True)
-def _compose(gain, offset, base, frame, y0, x0, n, m, mode, wx, out):  # pragma: no cover
+def _compose(gain, offset, base, frame, y0, x0, n, m, mode, wx, fill,
+             out):  # pragma: no cover
     rows, cols, nb = out.shape
     gx = offset.shape[2]
     for y in numba.prange(rows):
@@ -170,17 +171,20 @@ def _compose(gain, offset, base, frame, y0, x0, n, m, mode, wx, out):  # pragma:
                             o[b] = s * bilinear_at(gain[b], y, x, y0[b], x0[b], n, m) + c
                         else:
                             o[b] = s + c
-        # each band's own samples as measured (missing ones stay missing)
+        # each band's own samples as measured (missing ones stay missing, unless filled)
         for b in range(nb):
             if (y - y0[b]) % n == 0:
                 for x in range(x0[b], cols, m):
-                    out[y, x, b] = frame[y, x]
+                    v = frame[y, x]
+                    if v == v or not fill:
+                        out[y, x, b] = v
 
 
-def interpolate(grids, frame, y0, x0, n, m, out, *, base=None, gain=None):
+def interpolate(grids, frame, y0, x0, n, m, out, *, base=None, gain=None, fill=False):
     """Fill ``out[y, x, b]`` with band ``b``'s grid interpolated bilinearly at every pixel:
     alone, plus ``base[y, x]``, or (with ``gain``) ``base * gain + grids``, both interpolated;
-    at band ``b``'s own samples, the frame's value.
+    at band ``b``'s own samples, the frame's value (where that is missing: NaN, or with
+    ``fill`` the estimate from the samples around it).
 
     Parameters
     ----------
@@ -195,10 +199,12 @@ def interpolate(grids, frame, y0, x0, n, m, out, *, base=None, gain=None):
     out : ndarray, shape (rows, cols, n_bands)
     base : ndarray, shape (rows, cols), optional
     gain : ndarray like ``grids``, optional (needs ``base``)
+    fill : bool
+        Estimate a missing sample from the samples around it instead of leaving it NaN.
     """
     mode = 0 if base is None else (1 if gain is None else 2)
     if base is None:
         base = np.zeros((1, 1), out.dtype)
     _compose(grids if gain is None else gain, grids, base, frame, y0, x0, n, m, mode,
-             _column_weights(x0, m).astype(out.dtype), out)
+             _column_weights(x0, m).astype(out.dtype), bool(fill), out)
     return out

@@ -22,7 +22,7 @@ import numpy as np
 from ._grid import interpolate, sub_grids
 
 
-def weighted_bilinear(frame, y0, x0, n, m):
+def weighted_bilinear(frame, y0, x0, n, m, *, fill_missing=False):
     """Every band bilinearly interpolated from its own samples (WB).
 
     Parameters
@@ -33,10 +33,13 @@ def weighted_bilinear(frame, y0, x0, n, m):
         Each band's first sample row and column in the frame.
     n, m : int
         Tile rows and columns.
+    fill_missing : bool
+        Estimate a missing sample from the band's samples around it (else it stays NaN).
 
     Returns
     -------
     ndarray, shape (rows, cols, n_bands)
     """
     out = np.empty((*frame.shape, y0.size), frame.dtype)
-    return interpolate(sub_grids(frame, y0, x0, n, m), frame, y0, x0, n, m, out)
+    return interpolate(sub_grids(frame, y0, x0, n, m), frame, y0, x0, n, m, out,
+                       fill=fill_missing)

@@ -263,7 +263,7 @@ def pseudo_panchromatic(frame, n, m):
     return out
 
 
-def ppid(frame, y0, x0, n, m):
+def ppid(frame, y0, x0, n, m, *, fill_missing=False):
     """PPID: each band's difference from the pseudo-panchromatic image, interpolated
     bilinearly, plus that image (Eq. 30-34 of [1]_).
 
@@ -274,6 +274,8 @@ def ppid(frame, y0, x0, n, m):
         Each band's first sample row and column in the frame.
     n, m : int
         Tile rows and columns.
+    fill_missing : bool
+        Estimate a missing sample from the band's samples around it (else it stays NaN).
 
     Returns
     -------
@@ -282,4 +284,4 @@ def ppid(frame, y0, x0, n, m):
     ppi = pseudo_panchromatic(frame, n, m)
     out = np.empty((*frame.shape, y0.size), frame.dtype)
     return interpolate(sub_grids(frame - ppi, y0, x0, n, m), frame, y0, x0, n, m, out,
-                       base=ppi)
+                       base=ppi, fill=fill_missing)

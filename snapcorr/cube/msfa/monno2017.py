@@ -120,7 +120,7 @@ def _guided(values, guide, inside, radius, eps_fraction, workers, a_out,
                          a_out[b], offset_out[b])
 
 
-def residual_interpolation(frame, y0, x0, n, m, *, radius=RADIUS):
+def residual_interpolation(frame, y0, x0, n, m, *, radius=RADIUS, fill_missing=False):
     """Every band from a local linear model of its samples against the pseudo-panchromatic
     image, plus its residuals interpolated bilinearly (module docstring).
 
@@ -133,6 +133,8 @@ def residual_interpolation(frame, y0, x0, n, m, *, radius=RADIUS):
         Tile rows and columns.
     radius : int
         Half-width of the fitting window, in the band's samples.
+    fill_missing : bool
+        Estimate a missing sample from the band's samples around it (else it stays NaN).
 
     Returns
     -------
@@ -150,4 +152,5 @@ def residual_interpolation(frame, y0, x0, n, m, *, radius=RADIUS):
             min(numba.get_num_threads(), y0.size), a, offset)
     out = np.empty((*frame.shape, y0.size), frame.dtype)
     # a guide + (c + residual), both interpolated bilinearly
-    return interpolate(offset, frame, y0, x0, n, m, out, base=guide, gain=a)
+    return interpolate(offset, frame, y0, x0, n, m, out, base=guide, gain=a,
+                       fill=fill_missing)

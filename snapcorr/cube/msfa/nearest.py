@@ -23,7 +23,7 @@ def _nearest_present(frame, yy, xx, n, m):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True)
-def _replicate(frame, y0, x0, n, m, out):  # pragma: no cover - compiled
+def _replicate(frame, y0, x0, n, m, fill, out):  # pragma: no cover - compiled
     rows, cols = frame.shape
     nb = y0.size
     # column phase p of a pixel x = t m + p -> band b's sample column t m + xoff[p, b]: the
@@ -45,13 +45,14 @@ def _replicate(frame, y0, x0, n, m, out):  # pragma: no cover - compiled
                     xx = t * m + xoff[p, b]
                     if xx < 0:
                         xx += m
-                    if yy[b] == y and xx == x:  # the band's own sample, as measured
-                        out[y, x, b] = frame[y, x]
+                    own = yy[b] == y and xx == x
+                    if own and (not fill or frame[y, x] == frame[y, x]):
+                        out[y, x, b] = frame[y, x]  # the band's own sample, as measured
                     else:
                         out[y, x, b] = _nearest_present(frame, yy[b], xx, n, m)
 
 
-def tile_replication(frame, y0, x0, n, m):
+def tile_replication(frame, y0, x0, n, m, *, fill_missing=False):
     """Each band's value of the tile-sized window holding the pixel (the nearest sample at or
     before it along each axis): no interpolation, the baseline every method must beat. Where
     that sample is missing (NaN, or beyond the frame's far edge), the next one below, right or
@@ -64,11 +65,13 @@ def tile_replication(frame, y0, x0, n, m):
         Each band's first sample row and column in the frame (``0 <= y0 < n``).
     n, m : int
         Tile rows and columns.
+    fill_missing : bool
+        A missing sample takes the next sample as the other pixels do (else it stays NaN).
 
     Returns
     -------
     ndarray, shape (rows, cols, n_bands)
     """
     out = np.empty((*frame.shape, y0.size), frame.dtype)
-    _replicate(frame, y0, x0, n, m, out)
+    _replicate(frame, y0, x0, n, m, bool(fill_missing), out)
     return out
