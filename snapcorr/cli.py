@@ -161,6 +161,8 @@ WORKFLOW = r"""
 #: Library parameter names as the command line spells them, for error messages.
 _CLI_TERMS = {
     "pass wavelength_nm": "give --sensor SENSOR.toml (its cwl_nm are the wavelengths)",
+    "virtual_wavelengths_nm": "--virtual-wavelengths",
+    "virtual_fwhm_nm": "--virtual-fwhm-nm",
     "overwrite=True": "--overwrite",
     "but wavelength_nm gives": "but the --sensor has",
     "(read a 2-D frame with read_frame)": "(a 2-D raw frame of a mosaic camera is read with "
@@ -631,7 +633,7 @@ def _cmd_stream(args):
         raise ValueError("correcting a stream needs both --lens and --f-number")
     if args.resample and args.lens is None:
         raise ValueError("--resample needs --lens and --f-number")
-    _check_virtual_options(args)
+    _check_virtual_options(args, sensor)
     if args.virtual_bands is not None and args.lens is None:
         raise ValueError("--virtual-bands needs --lens and --f-number (the stream is corrected "
                          "first)")
@@ -685,8 +687,8 @@ def _write_correction(args, ds, inputs, cube_name):
     return [_write_result(args, ds, inputs, [cube_name], args.cube)]
 
 
-def _check_virtual_options(args):
-    """The virtual-band options make sense together."""
+def _check_virtual_options(args, sensor):
+    """The virtual-band options make sense together, and for the sensor, before any work."""
     if args.virtual_bands is None and any(v is not None for v in (
             args.virtual_matrix, args.virtual_wavelengths, args.virtual_fwhm_nm)):
         raise ValueError("--virtual-matrix, --virtual-wavelengths and --virtual-fwhm-nm choose "
@@ -698,6 +700,10 @@ def _check_virtual_options(args):
                                            or args.virtual_fwhm_nm is not None):
         raise ValueError("the vendor's virtual bands are the file's; --virtual-wavelengths and "
                          "--virtual-fwhm-nm set fitted or angle-aware ones")
+    if args.virtual_bands in ("fitted", "angle-aware") and sensor.responses is not None:
+        from .correct.virtual import virtual_targets
+
+        virtual_targets(sensor, args.virtual_wavelengths, args.virtual_fwhm_nm)
 
 
 def _print_virtual(args, ds):
@@ -738,7 +744,7 @@ def _cmd_correct(args):
             cube, sensor, args.f_number, lens, args.source,
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
             center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
-    _check_virtual_options(args)
+    _check_virtual_options(args, sensor)
     ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
                       tolerance_nm=args.tolerance_nm, center_px=args.center_px,
                       sensor_origin_px=args.sensor_origin_px, resample=args.resample,

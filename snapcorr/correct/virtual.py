@@ -44,7 +44,7 @@ import xarray as xr
 from .._validation import validate_method
 from ..cube.flatfield import cf_attrs
 
-__all__ = ["VIRTUAL_METHODS", "apply_virtual", "virtual_bands"]
+__all__ = ["VIRTUAL_METHODS", "apply_virtual", "virtual_bands", "virtual_targets"]
 
 VIRTUAL_METHODS = ("vendor", "fitted", "angle-aware")
 #: Most pixels the regularisation is chosen from and the error bars averaged over.
@@ -95,22 +95,65 @@ def _vendor(sensor, name, reflectance):
     return chosen, A, how
 
 
-def _targets(sensor, wavelengths_nm, fwhm_nm):
-    """The virtual bands' centres and widths: given, else the vendor's, else the bands'."""
+#: The narrowest virtual band, in steps of the responses' grid: a Gaussian narrower than
+#: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none).
+MIN_FWHM_STEPS = 2.0
+
+
+def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):
+    """The virtual bands' centres and widths, checked: given, else the vendor's, else the
+    bands'.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        With measured responses.
+    wavelengths_nm : array_like, optional
+        The virtual bands' centres, nm: distinct, within the responses' grid.
+    fwhm_nm : float or array_like, optional
+        Their FWHM, nm: at least :data:`MIN_FWHM_STEPS` steps of the responses' grid.
+
+    Returns
+    -------
+    wavelength_nm, fwhm_nm : ndarray
+    """
+    from .._validation import check_positive_array, check_wavelengths_nm
+
     if wavelengths_nm is not None:
-        wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+        wl = check_wavelengths_nm("virtual_wavelengths_nm", np.atleast_1d(wavelengths_nm))
+        if wl.ndim != 1:
+            raise ValueError(f"virtual_wavelengths_nm must be a list of wavelengths, got "
+                             f"shape {wl.shape}")
     elif sensor.matrices:
         wl = np.array(sensor.matrices[0].wavelength_nm)
     else:
         wl = np.sort(np.asarray(sensor.cwl_nm, float))
     if fwhm_nm is not None:
-        fw = np.broadcast_to(np.asarray(fwhm_nm, float), wl.shape).copy()
+        fw = np.broadcast_to(check_positive_array("virtual_fwhm_nm", np.asarray(fwhm_nm,
+                                                                                float), "nm"),
+                             wl.shape).copy()
     elif (wavelengths_nm is None and sensor.matrices
           and np.all(np.isfinite(sensor.matrices[0].fwhm_nm))):
         fw = np.array(sensor.matrices[0].fwhm_nm)
     else:
         order = np.argsort(sensor.cwl_nm)
         fw = np.interp(wl, np.asarray(sensor.cwl_nm)[order], np.asarray(sensor.fwhm_nm)[order])
+    if sensor.responses is not None:
+        grid = sensor.responses.wavelength_nm
+        step = np.interp(wl, grid[1:], np.diff(grid))
+        narrow = np.flatnonzero(fw < MIN_FWHM_STEPS * step)
+        if narrow.size:
+            b = narrow[0]
+            raise ValueError(f"virtual_fwhm_nm {fw[b]:g} nm at {wl[b]:g} nm is narrower than "
+                             f"the responses' grid resolves ({MIN_FWHM_STEPS:g} of its "
+                             f"{step[b]:g} nm steps); ask for at least "
+                             f"{MIN_FWHM_STEPS * step.max():g} nm")
+        out = np.flatnonzero((wl - 1.5 * fw < grid[0]) | (wl + 1.5 * fw > grid[-1]))
+        if out.size:
+            b = out[0]
+            raise ValueError(f"the virtual band at {wl[b]:g} nm (FWHM {fw[b]:g} nm) reaches "
+                             f"beyond the responses' grid ({grid[0]:g}-{grid[-1]:g} nm) within "
+                             "1.5 FWHM: virtual_wavelengths_nm must lie inside it")
     return wl, fw
 
 
@@ -517,7 +560,7 @@ def _estimated(cube, sample, sensor, method, geometry, wavelengths_nm, fwhm_nm, 
     )
 
     grid = sensor.responses.wavelength_nm
-    wl, fw = _targets(sensor, wavelengths_nm, fwhm_nm)
+    wl, fw = virtual_targets(sensor, wavelengths_nm, fwhm_nm)
     g = gaussian_targets(grid, wl, fw)
     phi = markov_prior(grid)
     prior = (f"Markov prior (mean {PRIOR['mean']:g}, sd {PRIOR['sd']:g}, correlation length "

@@ -1,0 +1,60 @@
+"""The virtual-band options are checked for the sensor before any work or write, with the
+option's name in the one-line error: repeated or non-nm wavelengths, widths the responses'
+grid cannot resolve, bands beyond the grid."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import snapcorr.data
+from snapcorr.correct.virtual import virtual_targets
+from snapcorr.cube import Sensor
+
+NIR = Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir"))
+
+
+@pytest.mark.parametrize("wl, fwhm, words", [
+    ([700.0, 700.0], None, "virtual_wavelengths_nm repeats"),
+    ([0.7, 0.8], None, "virtual_wavelengths_nm must be in nanometres"),
+    ([700.0, 710.0], 0.001, "virtual_fwhm_nm 0.001 nm at 700 nm is narrower than the "
+                            "responses' grid resolves"),
+    ([405.0], 10.0, "reaches beyond the responses' grid"),
+    ([700.0], -3.0, "virtual_fwhm_nm"),
+])
+def test_targets_that_cannot_be_estimated_are_refused(wl, fwhm, words):
+    with pytest.raises(ValueError, match=words):
+        virtual_targets(NIR, wl, fwhm)
+
+
+def test_the_defaults_and_good_targets_pass():
+    wl, fw = virtual_targets(NIR)
+    np.testing.assert_array_equal(wl, NIR.matrices[0].wavelength_nm)
+    wl, fw = virtual_targets(NIR, [650.0, 700.0], 2.0)  # two grid steps: the narrowest
+    np.testing.assert_array_equal(fw, [2.0, 2.0])
+
+
+@pytest.fixture(scope="module")
+def tile_cube(tmp_path_factory):
+    from snapcorr.cube import flatfield, mosaic_to_cube, write_dataset
+
+    d = tmp_path_factory.mktemp("virtual")
+    frames = snapcorr.data.mosaic_frames("imec_5x5_nir")
+    tiles = [mosaic_to_cube(f[100:200, 400:500], NIR, origin_px=(100, 400)) for f in frames]
+    write_dataset(flatfield(*tiles, saturation=NIR.full_scale_dn), d / "ff.nc")
+    return d
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--virtual-wavelengths", "700,700"], "--virtual-wavelengths repeats [700.0] nm"),
+    (["--virtual-fwhm-nm", "0.001"], "--virtual-fwhm-nm 0.001 nm at"),
+])
+@pytest.mark.parametrize("out", ["o.nc", "o.hdr"])
+def test_the_command_line_names_the_option_and_writes_nothing(tile_cube, cli, extra, words,
+                                                              out):
+    code, _, err = cli("correct", "ff.nc", "--sensor", "imec_5x5_nir", "--lens",
+                       "edmund_optics_16mm", "--f-number", "2.8", "--virtual-bands", "fitted",
+                       *extra, "--out", out, cwd=tile_cube)
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    assert words in err
+    assert sorted(p.name for p in tile_cube.iterdir()) == ["ff.nc"]
