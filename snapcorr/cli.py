@@ -785,8 +785,11 @@ def _cmd_correct(args):
     _print_virtual(args, ds)
     if "harmonised" in ds:  # asked for, or chosen by the scene budget
         w = ds["fwhm_harmonised"].values
-        print(f"harmonised: one response per band, FWHM {w.min():.3g}-{w.max():.3g} nm "
-              f"({ds['fwhm_harmonised'].attrs['source']})")
+        print(f"harmonised: one response per band, FWHM {np.nanmin(w):.3g}-{np.nanmax(w):.3g} "
+              f"nm ({ds['fwhm_harmonised'].attrs['source']})")
+        left_out = ds["harmonised"].attrs.get("not_harmonised", "none")
+        if not left_out.startswith("none"):  # measured responses: the bands left NaN, and why
+            print(f"harmonised: not harmonised (NaN): {left_out}")
     _quicklook(args, "plot_correction", ds)
     return 0
 

@@ -116,7 +116,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     harmonise : bool
         Also give ``harmonised``: every pixel's spectrum on the nominal wavelengths with one
         common response per band (:mod:`snapcorr.correct.harmonise`), so the same material
-        gives the same spectrum anywhere in the field. NaN where ``resampled`` would be.
+        gives the same spectrum anywhere in the field. NaN where ``resampled`` would be (for
+        measured responses: in the bands named in its ``not_harmonised``, and its ``note``).
     target_fwhm_nm : float, optional
         The common response's FWHM for every band (default: the widest response in the
         cube's field at each band). It must be at least that widest response: harmonising
@@ -628,22 +629,12 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
     inside = (table.cra_deg >= cra_lo) & (table.cra_deg <= cra_hi)
     ends = np.array([cra_lo, cra_hi])
     field = np.concatenate([table(ends).T, table.fwhm_nm[:, inside]], axis=1)
-    widest = np.nanmax(field, axis=1)
+    target, how = _common_width(np.nanmax(field, axis=1), target_fwhm_nm, cwl)
+    if sensor.responses is not None:
+        return _harmonised_measured(ds, cube, cra, np.concatenate([ends, table.cra_deg[inside]]),
+                                    target_fwhm_nm, target, how, n_eff, sensor, f, lens)
     kv, kv_ref, fwhm_ref = _reference_response(table, inside, ends, field, n_eff, cwl, f, lens,
                                                kv)
-    if target_fwhm_nm is None:
-        target = widest
-        how = "the widest response in the field at each band"
-    else:
-        F = check_positive("target_fwhm_nm", target_fwhm_nm)
-        short = np.flatnonzero(widest > F + 1e-9)
-        if short.size:
-            b = short[np.argmax(widest[short])]
-            raise ValueError(f"target_fwhm_nm {F:g} nm is narrower than the widest response in "
-                             f"the field ({widest[b]:.3g} nm at {cwl[b]:g} nm): harmonising "
-                             "only widens; ask for at least that")
-        target = np.full(cwl.size, F)
-        how = f"{F:g} nm at every band (asked for)"
     extra = np.clip(target ** 2 - fwhm_ref ** 2, 0.0, None) / (8 * math.log(2))
     var_table = np.clip((extra + kv_ref)[:, None] - kv, 0.0, None)
     # the spectra are walked in increasing wavelength; bands listed otherwise are put in order
@@ -708,6 +699,173 @@ def _harmonised(ds, cube, cra, scale, column, cwl, table, target_fwhm_nm, scale_
                                                            "harmonised",
                                               "source": how})
     return ds
+
+
+def _common_width(widest, target_fwhm_nm, cwl):
+    """The common response's FWHM per band (the widest in the field unless one is asked
+    for, which must be at least that: harmonising only widens) and how it was chosen."""
+    if target_fwhm_nm is None:
+        return widest, "the widest response in the field at each band"
+    F = check_positive("target_fwhm_nm", target_fwhm_nm)
+    short = np.flatnonzero(widest > F + 1e-9)
+    if short.size:
+        b = short[np.argmax(widest[short])]
+        raise ValueError(f"target_fwhm_nm {F:g} nm is narrower than the widest response in "
+                         f"the field ({widest[b]:.3g} nm at {cwl[b]:g} nm): harmonising "
+                         "only widens; ask for at least that")
+    return np.full(cwl.size, F), f"{F:g} nm at every band (asked for)"
+
+
+def _harmonised_measured(ds, cube, cra, angles, target_fwhm_nm, target, how, n_eff, sensor,
+                         f, lens):
+    """``harmonised`` for measured responses: each band's value through its common response
+    (:func:`snapcorr.optics.measured.common_responses` at the pixel of the largest kernel
+    variance in the field, ``angles`` its chief-ray angles), estimated from every band of the
+    pixel by the Wiener matrix at its angle (:func:`~snapcorr.correct.harmonise.matched_table`);
+    the bands the band-pass edge cuts are NaN (:func:`_edge_bands`)."""
+    from ..optics.measured import common_responses
+    from .harmonise import harmonise_matched, matched_table
+
+    cwl = np.asarray(sensor.cwl_nm, float)
+    kv = _kernel_variance(angles, n_eff, cwl, f, lens)
+    ref = angles[np.nanargmax(np.where(np.isnan(kv), -np.inf, kv), axis=1)]
+    with _one_blas_thread():  # small matrices: 16 x faster on one thread (measured)
+        targets, width = common_responses(sensor.responses, n_eff, f, ref, lens)
+        if target_fwhm_nm is not None:  # widened until each is as wide as asked
+            targets, width = _widened(sensor, n_eff, f, ref, lens, target, width)
+        table = matched_table(sensor.responses, targets, n_eff, f, lens,
+                              cra_max_deg=max(float(angles.max()), 1e-6))
+    cut, cut_note = _edge_bands(sensor, n_eff, f, lens, angles)
+    mats = table.matrices.copy()
+    mats[:, cut, :] = np.nan
+    table = table._replace(matrices=mats)
+    dtype = _output_dtype(cube)
+
+    def block(data, c):
+        return harmonise_matched(np.asarray(data, dtype), c, table)
+
+    cr = xr.DataArray(cra, dims=("y", "x", "c"))
+    data = cube
+    if cube.chunks is not None:
+        data = cube.chunk({"band": -1})
+        cr = cr.chunk({"y": data.chunks[0], "x": data.chunks[1], "c": -1})
+    out = xr.apply_ufunc(block, data, cr, input_core_dims=[["band"], ["c"]],
+                         output_core_dims=[["band"]], dask="parallelized",
+                         output_dtypes=[dtype]).transpose("y", "x", "band")
+    seen = ("each band's measured response as the pixel of the largest kernel variance in the "
+            f"field (CRA {', '.join(f'{c:.2f}' for c in np.unique(np.round(ref, 2)))} deg) "
+            "sees it, moved back to its place at normal incidence")
+    if target_fwhm_nm is not None:
+        seen += f", widened by a Gaussian to {how}"
+    out.attrs = _measured_attrs(cube, sensor, seen, table, cut_note)
+    ds["harmonised"] = out
+    ds["fwhm_harmonised"] = ("band", width, {
+        "units": "nm", "long_name": "FWHM of the common response of harmonised",
+        "source": f"the width at or above half the maximum of {seen}"})
+    return ds
+
+
+def _widened(sensor, n_eff, f, ref, lens, target, width):
+    """The common responses widened by Gaussians until each is ``target`` wide, within 0.001
+    nm (those as wide already kept): each band's variance found by regula falsi (Illinois) on
+    its width, which for a measured curve does not add in quadrature (a band the edge cuts
+    widens far less)."""
+    from ..optics.measured import common_responses
+
+    def miss(var):
+        out, w = common_responses(sensor.responses, n_eff, f, ref, lens, extra_var_nm2=var)
+        return out, w, w - target
+
+    need = width < target
+    lo, f_lo = np.zeros(target.size), width - target
+    hi = np.where(need, (target**2 - width**2) / (8 * math.log(2)) + 1e-3, 0.0)
+    span = np.ptp(sensor.responses.wavelength_nm)
+    while True:  # a bracket: at least as wide as asked at hi
+        out, w, f_hi = miss(hi)
+        short = need & (f_hi < 0)
+        if not short.any():
+            break
+        if np.any(hi[short] > span**2):  # a Gaussian wider than the whole grid
+            b = np.flatnonzero(short)[0]
+            raise ValueError(f"target_fwhm_nm {target[b]:g} nm: the {sensor.cwl_nm[b]:g} nm "
+                             "band's response behind the band-pass cannot be made that wide")
+        hi = np.where(short, 4.0 * hi, hi)
+    for _ in range(60):
+        done = ~need | (np.abs(f_hi) <= 1e-3)
+        if np.all(done):
+            return out, w
+        mid = np.where(done, hi, hi - f_hi * (hi - lo) / np.where(f_hi > f_lo, f_hi - f_lo, 1))
+        out, w, f_mid = miss(mid)
+        over = f_mid >= 0  # [lo, mid] brackets: mid is the new hi; else lo moves up
+        f_lo = np.where(over & ~done, f_lo / 2, np.where(~over, f_mid, f_lo))  # (Illinois)
+        lo = np.where(~over, mid, lo)
+        hi, f_hi = np.where(over, mid, hi), np.where(over, f_mid, f_hi)
+    raise ValueError("the common responses could not be widened to target_fwhm_nm; this is a "
+                     "bug")
+
+
+def _edge_bands(sensor, n_eff, f, lens, angles):
+    """The bands whose main peak, moved by the kernel mean at some angle of the field, leaves
+    the band-pass (falls where the system transmits less than ``PASSBAND_FRACTION`` of its
+    maximum, the pass band of :meth:`~snapcorr.cube.responses.FilterResponses.main_peaks`):
+    there the edge, not the filter, shapes the band, whose response then changes shape as
+    the field moves rather than only moving and widening. A mask, and what to say of it."""
+    from ..cube.responses import PASSBAND_FRACTION
+    from ..optics.measured import moved_peak_transmission
+
+    cwl = np.asarray(sensor.cwl_nm, float)
+    n = np.broadcast_to(np.asarray(n_eff, float), cwl.shape)
+    scale = np.empty((angles.size, cwl.size))
+    for value in np.unique(n):  # the kernel mean, Eq. 22, as the wavelengths' tables give it
+        scale[:, n == value] = 1.0 + relative_shift(
+            value, f, angles, lens, model="vignetted", tolerance_nm=DEFAULT_TOLERANCE_NM,
+            cwl_max_nm=float(cwl.max()))[:, None]
+    passed = moved_peak_transmission(sensor.responses, scale)
+    least = np.nanmin(np.where(np.isnan(passed), np.inf, passed), axis=0)
+    cut = least < PASSBAND_FRACTION
+    if not cut.any():
+        return cut, ("none: every band's main peak, moved by the kernel mean, stays inside the "
+                     f"band-pass (where it transmits at least {PASSBAND_FRACTION:.0%} of its "
+                     "maximum) over the field")
+    at = angles[np.nanargmin(np.where(np.isnan(passed), np.inf, passed), axis=0)]
+    named = ", ".join(f"{cwl[b]:g} nm (the band-pass passes {least[b]:.0%} of its maximum at "
+                      f"its moved peak, CRA {at[b]:.1f} deg)" for b in np.flatnonzero(cut))
+    return cut, (f"{named}: NaN. The band's main peak, moved by the kernel mean, leaves the "
+                 f"band-pass (below {PASSBAND_FRACTION:.0%} of its maximum) in the field: the "
+                 "edge, not the filter, shapes its response there, which changes shape rather "
+                 "than only moving and widening across the field, and its value rests on where "
+                 "the band-pass edge sits at each angle, which the sensor file gives at normal "
+                 "incidence only")
+
+
+def _measured_attrs(cube, sensor, common, table, cut_note):
+    """The attributes of ``harmonised`` for measured responses: how it was made, the common
+    response, the bands left out, the noise, and what the bands can sample."""
+    cwl = np.sort(np.asarray(sensor.cwl_nm, float))
+    gaps = np.diff(cwl)
+    return {**_units_of(cube),
+            "long_name": f"{cube.attrs.get('long_name', cube.name or 'radiance')} through one "
+                         "response per band",
+            "source": "each band's value through its common response, estimated from all the "
+                      "pixel's bands by the Wiener matrix for their responses behind the lens "
+                      "at the band's chief-ray angle (Pratt & Mancill 1976; the sensor's "
+                      "measured curves, every ray scaling the whole curve, behind the band-pass; "
+                      "the Markov spectrum prior of the virtual bands with its level left free, "
+                      f"band noise variance {table.alpha:g}), on {table.cra_deg.size} "
+                      "chief-ray-angle nodes",
+            "common_response": common,
+            "not_harmonised": cut_note,
+            "noise_gain": f"each value's noise is up to {np.nanmax(table.noise_gain):.2f} x a "
+                          "band's (the largest norm of a matrix row)",
+            "limits": f"{cwl.size} bands {gaps.min():.3g}-{gaps.max():.3g} nm apart (median "
+                      f"{np.median(gaps):.3g} nm): spectra come out the same across the field "
+                      "where their features are wider than about twice the gap between the "
+                      f"bands around them ({2 * np.median(gaps):.3g} nm at the median gap, "
+                      f"{2 * gaps.max():.3g} nm at the largest); narrower ones (the absorption "
+                      "lines of a rare-earth glass) fall between the bands, which cannot sample "
+                      "them, and keep differences however harmonised",
+            "note": "NaN in the bands named in not_harmonised, and where a band the value "
+                    "draws on is NaN"}
 
 
 def _harmonised_attrs(cube, how):

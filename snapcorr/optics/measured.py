@@ -52,7 +52,8 @@ from .lens import Lens
 from .response import kernel_bins
 from .shift import check_n_eff
 
-__all__ = ["LOBE_FRACTION", "MeasuredTable", "main_lobes", "responses_behind_lens"]
+__all__ = ["LOBE_FRACTION", "MeasuredTable", "common_responses", "main_lobes",
+           "moved_peak_transmission", "responses_behind_lens"]
 
 #: A band's main lobe ends where its response (through the system, at normal incidence) falls
 #: below this fraction of the lobe's maximum (Flittner & Slater cut their filter profile at
@@ -190,6 +191,107 @@ def responses_behind_lens(responses, n_eff, f_number, cra_deg, lens: Lens, *,
             R = _spread(curves[bands], offsets, w)
             out[j, bands] = np.stack([np.interp(uo, u, r) for r in R]) * system
     return out
+
+
+def _unmoved_kernel(n_eff, f_number, cra_deg, lens, du):
+    """The kernel without its mean scaling: offsets of the rays ``a_k / E[a]`` (grid steps, of
+    either sign) and weights. A band spread by it keeps its place at normal incidence (its
+    centre, the wavelength of the mean wavenumber, moves by ``E[a]``: module docstring)."""
+    offsets, w = _log_kernel(n_eff, f_number, cra_deg, lens, du)
+    mean_a = float(np.exp(-offsets * du) @ w / w.sum())
+    return offsets + np.log(mean_a) / du, w
+
+
+def _lobe_window(responses, lam, extra_sd_nm):
+    """Where each band's width is read on ``lam`` (n_bands, n): its main lobe through the
+    system at normal incidence, widened by three standard deviations of the extra Gaussian."""
+    peaks = np.array([p.wavelength_nm for p in responses.main_peaks()])
+    lo, hi = main_lobes(responses.wavelength_nm, responses.effective, peaks)
+    reach = 3.0 * extra_sd_nm
+    return (lam >= (lo - reach)[:, None]) & (lam <= (hi + reach)[:, None])
+
+
+def common_responses(responses, n_eff, f_number, cra_deg, lens: Lens, *, extra_var_nm2=0.0):
+    """Each band as the pixel at ``cra_deg`` sees it, moved back to its place at normal
+    incidence: the band's whole curve spread by that pixel's kernel without the kernel's mean
+    scaling, behind the system, optionally widened further by a Gaussian::
+
+        R*_b(lambda) = S(lambda) sum_k w_k T_b(lambda E[a] / a_k)   (* Gaussian)
+
+    A pixel's response differs from it by the kernel's mean scaling (the band's move) and by
+    the kernel's spread beyond the reference pixel's; near a band-pass edge also by how much
+    of the curve the edge cuts, as the pixel's kernel moves the curve against the edge.
+
+    Parameters
+    ----------
+    responses : FilterResponses
+    n_eff : float or array_like, shape (n_bands,)
+    f_number : float
+    cra_deg : float or array_like, shape (n_bands,)
+        The reference pixel's chief-ray angle, for every band or for each.
+    lens : Lens
+    extra_var_nm2 : float or array_like, shape (n_bands,)
+        Variance of a further Gaussian widening, nm^2 (applied in log wavelength about the
+        band's main peak).
+
+    Returns
+    -------
+    responses_nm : ndarray, shape (n_bands, n)
+        On the calibration grid.
+    width_nm : ndarray, shape (n_bands,)
+        Each one's width at or above half its maximum around its main lobe (the width of
+        :class:`MeasuredTable`).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    check_positive("f_number", f_number)
+    grid = responses.wavelength_nm
+    nb = responses.n_bands
+    u = np.arange(np.log(grid[0]), np.log(grid[-1]) + WHOLE_STEP, WHOLE_STEP)
+    lam = np.exp(u)
+    curves = np.stack([np.interp(lam, grid, c, left=0.0, right=0.0) for c in responses.curves])
+    n = np.broadcast_to(np.asarray(check_n_eff(n_eff), float), (nb,))
+    cra = np.broadcast_to(np.asarray(cra_deg, float), (nb,))
+    extra = np.broadcast_to(np.asarray(extra_var_nm2, float), (nb,))
+    peaks = np.array([p.wavelength_nm for p in responses.main_peaks()])
+    R = np.empty_like(curves)
+    for key in {(float(a), float(b)) for a, b in zip(n, cra, strict=True)}:
+        bands = np.flatnonzero((n == key[0]) & (cra == key[1]))
+        offsets, w = _unmoved_kernel(key[0], f_number, key[1], lens, WHOLE_STEP)
+        R[bands] = _spread(curves[bands], offsets, w)
+    for b in np.flatnonzero(extra > 0):  # sd in log wavelength about the band's peak
+        R[b] = gaussian_filter1d(R[b], np.sqrt(extra[b]) / peaks[b] / WHOLE_STEP,
+                                 mode="constant")
+    R *= np.interp(lam, grid, responses.system, left=0.0, right=0.0)
+    width = _above_half(np.broadcast_to(lam, R.shape),
+                        np.where(_lobe_window(responses, lam, np.sqrt(extra)), R, 0.0))
+    return np.stack([np.interp(grid, lam, r) for r in R]), width
+
+
+def moved_peak_transmission(responses, mean_scale):
+    """The system's transmission, over its maximum, at each band's main peak moved by the
+    kernel mean (``lambda_peak E[a]``: how a band away from the system's edges moves): where
+    it is below half, the band-pass edge has passed the band's peak, and the edge, not the
+    filter, shapes the band's response there.
+
+    Parameters
+    ----------
+    responses : FilterResponses
+    mean_scale : array_like, shape (n_cra,) or (n_cra, n_bands)
+        The kernel mean's factor ``E[a] = 1 + mean_shift / cwl`` at each angle (for every band,
+        or for each).
+
+    Returns
+    -------
+    ndarray, shape (n_cra, n_bands)
+        NaN where ``mean_scale`` is.
+    """
+    grid, system = responses.wavelength_nm, responses.system
+    peaks = np.array([p.wavelength_nm for p in responses.main_peaks()])
+    scale = np.asarray(mean_scale, float)
+    moved = peaks * (scale[:, None] if scale.ndim == 1 else scale)
+    out = np.interp(moved, grid, system) / system.max()
+    return np.where(np.isfinite(moved), out, np.nan)
 
 
 def _above_half(lam, R):
