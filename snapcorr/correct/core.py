@@ -514,14 +514,11 @@ def _width_table(sensor, lens, f, cra_max, tolerance_nm):
 
 
 def _one_blas_thread():
-    """BLAS on one thread, for the whole process (threadpoolctl): the tables multiply small
-    matrices only, BLAS threads add nothing there, and woken they keep spinning after it,
-    which slowed the resampling pass that followed by half (measured). Entered on the calling
-    thread only: the limit is the process's, and is not changed while another thread may be
-    inside BLAS."""
-    from threadpoolctl import threadpool_limits
+    """BLAS on one thread (:func:`snapcorr._threads.one_blas_thread`): the tables multiply
+    small matrices only."""
+    from .._threads import one_blas_thread
 
-    return threadpool_limits(1, user_api="blas")
+    return one_blas_thread()
 
 
 def _unlimited_width_table(sensor, lens, f, cra_max, tolerance_nm):

@@ -41,6 +41,7 @@ import numba
 import numpy as np
 import xarray as xr
 
+from .._threads import one_blas_thread
 from .._validation import validate_method
 from ..cube.flatfield import cf_attrs
 
@@ -418,9 +419,11 @@ def _with_error(ds, sample, sensor, A, wl, fw, noise_model, geometry, table=None
     f_number, lens, cra = geometry
     values, angles = _pixels(sample)
     if table is None and all(v is not None for v in geometry) and sensor.n_eff is not None:
-        table = VirtualTable.build(sensor.responses, g, sensor.n_eff, f_number, lens,
-                                   cra_max_deg=max(float(np.nanmax(cra)), 1e-6), alpha=alpha,
-                                   prior=phi, tolerance=VIRTUAL_TOLERANCE, noise_var=noise_var)
+        with one_blas_thread():  # small matrices (module _threads)
+            table = VirtualTable.build(sensor.responses, g, sensor.n_eff, f_number, lens,
+                                       cra_max_deg=max(float(np.nanmax(cra)), 1e-6),
+                                       alpha=alpha, prior=phi, tolerance=VIRTUAL_TOLERANCE,
+                                       noise_var=noise_var)
     if table is not None:
         best = apply_table(values[:, None, :], angles[:, None], table, np.float64)[:, 0]
         best_err = np.stack([np.interp(angles, table.cra_deg, table.stderr[:, v])
@@ -578,9 +581,10 @@ def _estimated(cube, sample, sensor, method, geometry, wavelengths_nm, fwhm_nm, 
         raise ValueError("--virtual-bands angle-aware needs the lens, the f-number and each "
                          "pixel's chief-ray angle (correct_cube gives them)")
     n_eff = sensor.require("n_eff", "--virtual-bands angle-aware (each pixel's responses)")
-    table = VirtualTable.build(sensor.responses, g, n_eff, f_number, lens,
-                               cra_max_deg=max(float(np.nanmax(cra)), 1e-6), alpha=alpha,
-                               prior=phi, tolerance=tolerance, noise_var=noise_var)
+    with one_blas_thread():  # small matrices (module _threads)
+        table = VirtualTable.build(sensor.responses, g, n_eff, f_number, lens,
+                                   cra_max_deg=max(float(np.nanmax(cra)), 1e-6), alpha=alpha,
+                                   prior=phi, tolerance=tolerance, noise_var=noise_var)
     ds = _dataset(cube, _apply(cube, table=table, cra=cra),
                   {"virtual_table": table.matrices, "virtual_cra_deg": table.cra_deg}, wl, fw,
                   method,
