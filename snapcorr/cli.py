@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
 from ._io import check_replaceable
+from ._names import CALIBRATION_METHODS, CORRECTION_MODELS, SHIFT_METHODS
 from ._validation import check_positive
 
 #: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
@@ -1452,8 +1452,6 @@ def _add_flatfield(command):
 
 
 def _add_calibrate(command):
-    from .calibrate import METHODS as CAL_METHODS
-
     p = command("calibrate", "lens profile (vignetting circles P, h) from flat fields at "
                 "several f-numbers (Goossens Sec. 2.7, 3.2)")
     p.add_argument("--flat", type=_flat_arg, action="append", required=True,
@@ -1494,7 +1492,7 @@ def _add_calibrate(command):
     p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
-    p.add_argument("--method", default="auto", choices=list(CAL_METHODS),
+    p.add_argument("--method", default="auto", choices=list(CALIBRATION_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "
                    "the paper's onsets predict flats left out of the fit better)")
     p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
@@ -1513,8 +1511,6 @@ def _add_calibrate(command):
 
 
 def _add_correct(command):
-    from .optics import MODELS
-
     p = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
     p.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
                    "ideally flat-fielded; or a 2-D mosaic frame with a mosaic --sensor")
@@ -1531,7 +1527,7 @@ def _add_correct(command):
                    "converted to this pixel pitch, else the sensor's centre)")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help=ORIGIN_HELP)
-    p.add_argument("--method", default="auto", choices=["auto", *MODELS],
+    p.add_argument("--method", default="auto", choices=["auto", *CORRECTION_MODELS],
                    help="the model, cheapest first (default: %(default)s, the cheapest "
                    "meeting the tolerance; harmonised = vignetted and --harmonise)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.01, metavar="NM",
@@ -1565,8 +1561,6 @@ def _add_correct(command):
 
 
 def _add_shift(command):
-    from .optics import METHODS
-
     p = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     p.add_argument("--lens", default="edmund_optics_16mm",
                    help="lens profile (.toml) or a bundled lens name (default: %(default)s)")
@@ -1579,7 +1573,7 @@ def _add_shift(command):
                    "%(default)s)")
     p.add_argument("--n-eff", type=float, default=1.7,
                    help="the filter's effective refractive index (default: %(default)s)")
-    p.add_argument("--method", default="auto", choices=list(METHODS),
+    p.add_argument("--method", default="auto", choices=list(SHIFT_METHODS),
                    help="how to compute the mean shift (default: %(default)s, the cheapest "
                    "within --tolerance-nm)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.001, metavar="NM",
@@ -1759,6 +1753,17 @@ def _add_budget(command):
     p.set_defaults(func=_cmd_budget)
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed version, looked up only when asked (the lookup costs as
+    much as importing numpy)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from . import __version__
+
+        parser._print_message(f"snapcorr {__version__}\n", sys.stdout)
+        parser.exit()
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage errors as one line, like every other error, with where to read more."""
 
@@ -1775,7 +1780,8 @@ def build_parser():
         "examples):\n" + textwrap.indent(textwrap.dedent(WORKFLOW).strip("\n"), "  "),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the version number and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def command(name, help_):
