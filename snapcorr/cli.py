@@ -316,31 +316,63 @@ def _bundled_folder():
         return None
 
 
+#: Progress bars: None on a terminal only (the default), False never (``--quiet``), True
+#: always, from the start (``--progress``); set by :func:`main` for the command it runs.
+_SHOW_PROGRESS = None
+
+
+def _progress_bar(desc, unit, total):
+    """A tqdm bar on stderr as ``--quiet`` and ``--progress`` say: by default shown after a
+    second of work, on a terminal only (not in logs or pipes)."""
+    from tqdm import tqdm
+
+    asked = _SHOW_PROGRESS is True
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr,
+                delay=0 if asked else _StageBar.DELAY_S, leave=asked, dynamic_ncols=True,
+                disable=None if _SHOW_PROGRESS is None else not _SHOW_PROGRESS,
+                mininterval=0.1 if sys.stderr.isatty() else 1.0)
+
+
 class _StageBar:
-    """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage."""
+    """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage.
+
+    With ``frames``, a stream's: frames done (each computation's share of its tasks done, in
+    frames), frames per second and the time left, bar by bar for each writing pass."""
 
     #: Seconds of work before the bar shows (short stages print nothing).
     DELAY_S = 1.0
 
-    def __init__(self, desc):
-        self.desc = desc
+    def __init__(self, desc, frames=None):
+        self.desc, self.frames = desc, frames
 
     def __enter__(self):
         from dask.callbacks import Callback
-        from tqdm import tqdm
 
-        # shown after a second of work, on a terminal only (not in logs or pipes)
-        self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr,
-                        delay=self.DELAY_S,
-                        leave=False, dynamic_ncols=True, disable=None)
-        bar = self.bar
+        frames, desc = self.frames, self.desc
+        self.bar = bar = _progress_bar(desc, "frame" if frames else "block", frames or 0)
+        counts = {"passes": 0, "done": 0, "tasks": 0}
 
         class _Count(Callback):
             def _start_state(self, dsk, state):
-                bar.total += len(state["ready"]) + len(state["waiting"])
+                tasks = len(state["ready"]) + len(state["waiting"])
+                counts["passes"] += 1
+                if frames is None:
+                    bar.total += tasks
+                    return
+                counts.update(done=0, tasks=max(tasks, 1))
+                if counts["passes"] > 1:  # each writing pass goes through every frame
+                    bar.reset(total=frames)
+                    bar.set_description(f"{desc} (pass {counts['passes']})", refresh=False)
 
             def _posttask(self, key, result, dsk, state, worker_id):
-                bar.update(1)
+                if frames is None:
+                    bar.update(1)
+                    return
+                counts["done"] += 1
+                bar.update(frames * counts["done"] // counts["tasks"] - bar.n)
+
+            def _finish(self, dsk, state, errored):
+                bar.refresh()  # each pass's end is seen (a log keeps it)
 
         self.callback = _Count()
         self.callback.__enter__()
@@ -359,11 +391,7 @@ class _StepBar:
         self.desc, self.total = desc, total
 
     def __enter__(self):
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=self.total, desc=self.desc, unit="step", file=sys.stderr,
-                        delay=_StageBar.DELAY_S, leave=False, dynamic_ncols=True,
-                        disable=None)
+        self.bar = _progress_bar(self.desc, "step", self.total)
         self.started = False
         return self
 
@@ -652,9 +680,9 @@ def _cmd_stream(args):
                     | ({"lens_file": str(args.lens)} if args.lens else {})
                     | {"sensor_file": str(args.sensor)})
     cube = ds["reflectance"]
-    with _StageBar(f"{cube.sizes['frame']} frames: flat-fielding, demosaicking "
-                   f"({args.demosaic}){', correcting' if lens else ''}, writing "
-                   f"{args.out.name}"):
+    with _StageBar(f"flat-fielding, demosaicking ({args.demosaic})"
+                   f"{', correcting' if lens else ''}, writing {args.out.name}",
+                   frames=cube.sizes["frame"]):
         _write_result(args, ds, inputs, RAW_COPIES, args.frames)
     n_masked = _masked_in(args.out)
     print(f"wrote {args.out}: {cube.sizes['frame']} frames of {args.frames}, each "
@@ -1378,6 +1406,17 @@ def _write_result(args, ds, inputs, input_names, source):
                          store_derived=getattr(args, "store_derived", False))
 
 
+def _add_progress_options(p):
+    """``--quiet`` and ``--progress``: the progress bars of a long command."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--quiet", action="store_true",
+                   help="no progress bars (by default they show on stderr after a second of "
+                   "work, when stderr is a terminal)")
+    g.add_argument("--progress", action="store_true",
+                   help="progress bars on stderr from the start, also when stderr is not a "
+                   "terminal (a log file)")
+
+
 def _add_center(p, help_text):
     """``--center ROW,COL`` and its deprecated x-first form ``--center-px CX,CY``."""
     p.add_argument("--center", type=_center_rc_arg, default=None, metavar="ROW,COL",
@@ -1448,6 +1487,7 @@ def _add_flatfield(command):
                    help="quick look: a band image, the mask and a few pixels' spectra")
     _add_output_options(p, input_name="the raw data (raw, filter_white_raw)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_flatfield)
 
 
@@ -1507,6 +1547,7 @@ def _add_calibrate(command):
                    "(1000 nm filter, n_eff 1.5) by more than this (default: %(default)s)")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
 
@@ -1557,6 +1598,7 @@ def _add_correct(command):
                    "(default: in-process threads)")
     _add_output_options(p, input_name="the input cube", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_correct)
 
 
@@ -1643,6 +1685,7 @@ def _add_pupil(command):
                    help="an f-number you would measure at (repeat)")
     g.add_argument("--noise-pct", type=_positive, default=1.0,
                    help="per-pixel noise, %% of the brightest band (default: %(default)s)")
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_pupil)
 
 
@@ -1680,6 +1723,7 @@ def _add_stream(command):
     p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
     _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_stream)
 
 
@@ -1813,6 +1857,9 @@ def main(argv=None):
     if not getattr(args, "command", None):
         parser.print_help()
         return 0
+    global _SHOW_PROGRESS
+    _SHOW_PROGRESS = (False if getattr(args, "quiet", False) else
+                      True if getattr(args, "progress", False) else None)
     try:
         with cleanup_on_signals(), warnings.catch_warnings():
             warnings.simplefilter("always")
@@ -1838,6 +1885,8 @@ def main(argv=None):
             signal.signal(signal.SIGINT, previous)
             sys.unraisablehook = hook
         return 130
+    finally:
+        _SHOW_PROGRESS = None
 
 
 def _quiet_unraisable(unraisable):
