@@ -22,8 +22,8 @@ import xarray as xr
 
 from ._io import save_png
 
-__all__ = ["MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRUM_WINDOW_PX", "plot_correction",
-           "plot_flatfield", "plot_sensor"]
+__all__ = ["CANDIDATES_PX", "MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRA_SHOWN",
+           "SPECTRUM_WINDOW_PX", "plot_correction", "plot_flatfield", "plot_sensor"]
 
 #: Largest number of pixels drawn along either side of an image.
 MAX_PX = 1024
@@ -179,19 +179,6 @@ def _figure(figsize):
     return Figure(figsize=figsize, layout="constrained")
 
 
-def _nearest(valid, targets):
-    """For each target (row, col) on the grid, the nearest ``valid`` grid point, deduplicated."""
-    rows, cols = np.nonzero(valid)
-    picked = []
-    for r, c in targets:
-        if rows.size:
-            k = int(np.argmin((rows - r) ** 2 + (cols - c) ** 2))
-            r, c = int(rows[k]), int(cols[k])
-        if (r, c) not in picked:
-            picked.append((r, c))
-    return picked
-
-
 # --------------------------------------------------------------------------- flat field
 
 def _result_name(ds):
@@ -211,9 +198,11 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
 
     Three panels: the band nearest the middle wavelength (colour limits from the 1st and
     99th percentiles of its finite values, masked pixels in magenta), the percentage of
-    masked values in every band, and the spectra of up to five pixels (the centre and four
-    points near the corners, each moved to the nearest pixel with unmasked values) with
-    their ``(y, x)`` in the legend.
+    masked values in every band, and the spectra of up to :data:`SPECTRA_SHOWN` pixels
+    chosen by what they hold (:func:`_pick_by_content`, among at most :data:`CANDIDATES_PX`
+    a side whose bands together hold no more values than the band image drawn, unmasked in
+    every band where there are such): bright, spread across the field
+    and with spectra that differ, with their ``(y, x)`` in the legend.
 
     Parameters
     ----------
@@ -252,8 +241,13 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
     b = _middle_band(wl)
     s = _stride(ny, nx)
     msub = mask.isel(y=slice(None, None, s), x=slice(None, None, s))
-    img, mimg, n_masked_band, n_masked_px = _load(
-        _image(result, s, b), _image(mask, s, b), msub.sum(("y", "x")), msub.sum("band"))
+    # the candidates' stride: at most CANDIDATES_PX a side, all their bands no more values
+    # than the band image drawn
+    c = s * max(math.ceil(max(ny, nx) / s / CANDIDATES_PX), math.ceil(math.sqrt(nb)), 1)
+    coarse = {"y": slice(None, None, c), "x": slice(None, None, c)}
+    img, mimg, n_masked_band, candidates, cmask = _load(
+        _image(result, s, b), _image(mask, s, b), msub.sum(("y", "x")),
+        result.isel(coarse), mask.isel(coarse))
     n_sample = msub.sizes["y"] * msub.sizes["x"]
     frac = 100.0 * n_masked_band.astype(float) / max(1, n_sample)
     all_masked = bool(n_sample * nb == 0 or np.all(n_masked_band == n_sample))
@@ -273,8 +267,14 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
     # 2. the masked fraction per band
     _draw_masked_fraction(a_frac, wl, order, frac, n_masked_band, n_sample * nb, s)
 
-    # 3. spectra of a few pixels: centre and near the corners, moved to unmasked ones
-    _draw_flat_spectra(a_spec, a_img, result, name, n_masked_px < nb, s, wl, order, all_masked)
+    # 3. spectra of a few pixels chosen by what they hold: bright, different, spread out
+    candidates = np.asarray(candidates, float)
+    usable = ~np.asarray(cmask, bool) & np.isfinite(candidates)
+    valid = usable.all(axis=2)
+    if not valid.any():  # every pixel masked somewhere: those with some values
+        valid = usable.any(axis=2)
+    _draw_flat_spectra(a_spec, a_img, result, name, _pick_by_content(candidates, valid), c,
+                       wl, order, all_masked)
 
     fig.suptitle(title or f"Flat-field quick look: {name}, {ny} x {nx} px, {nb} bands",
                  fontsize=12)
@@ -297,34 +297,81 @@ def _draw_masked_fraction(ax, wl, order, frac, n_masked_band, n_values, s):
     ax.grid(alpha=0.3)
 
 
-def _draw_flat_spectra(a_spec, a_img, result, name, valid, s, wl, order, all_masked):
-    """The panel of up to five pixels' spectra, each pixel circled on the image."""
+#: Pixels whose spectra :func:`plot_flatfield` draws, and the most candidates along either side
+#: of the image they are chosen from.
+SPECTRA_SHOWN = 5
+CANDIDATES_PX = 48
+#: Candidates keep this share of the image's height and width from its edges, where any
+#: are left.
+EDGE_SHARE = 0.04
+
+
+def _pick_by_content(values, valid, n=SPECTRA_SHOWN):
+    """Up to ``n`` grid pixels whose spectra are worth seeing: bright (mean value at least the
+    median and half the 99th percentile of the valid pixels' and at most that percentile: not
+    dark, not a hot pixel), off
+    the edges (:data:`EDGE_SHARE`) where there are such, and, one after another, the
+    candidate farthest from those picked, in place (over the image's diagonal) plus in
+    spectral angle (over the widest angle from the first): spread across the field, with
+    spectra that differ. The first is the brightest candidate."""
+    values = np.asarray(values, float)
     h, w = valid.shape
-    targets = [((h - 1) / 2, (w - 1) / 2)]
-    for fy in (0.1, 0.9):
-        for fx in (0.1, 0.9):
-            targets.append((fy * (h - 1), fx * (w - 1)))
-    picked = _nearest(valid, [(round(r), round(c)) for r, c in targets])
+    if not valid.any():
+        return []
+    finite = np.isfinite(values)
+    mean = np.where(finite, values, 0.0).sum(axis=2) / np.maximum(finite.sum(axis=2), 1)
+    rows, cols = np.nonzero(valid)
+    inner = ((np.minimum(rows, h - 1 - rows) >= EDGE_SHARE * h)
+             & (np.minimum(cols, w - 1 - cols) >= EDGE_SHARE * w))
+    if inner.any():  # not on the very edge, where a marker is hard to see
+        rows, cols = rows[inner], cols[inner]
+    level = mean[rows, cols]
+    median, hi = np.percentile(level, [50.0, 99.0])
+    keep = (level >= max(median, 0.5 * hi)) & (level <= hi)
+    rows, cols, level = rows[keep], cols[keep], level[keep]
+    spectra = np.nan_to_num(values[rows, cols])
+    unit = spectra / np.maximum(np.linalg.norm(spectra, axis=1, keepdims=True), 1e-30)
+    diagonal = max(math.hypot(h - 1, w - 1), 1.0)
+    picked = [int(np.argmax(level))]
+    angle_scale = None
+    place = np.full(rows.size, np.inf)
+    angle = np.full(rows.size, np.inf)
+    while len(picked) < min(n, rows.size):
+        k = picked[-1]
+        place = np.minimum(place, np.hypot(rows - rows[k], cols - cols[k]) / diagonal)
+        angle = np.minimum(angle, np.arccos(np.clip(unit @ unit[k], -1.0, 1.0)))
+        if angle_scale is None:  # the widest angle from the first: spectra's own spread
+            angle_scale = max(float(angle.max()), 1e-6)
+        score = place + angle / angle_scale
+        score[picked] = -np.inf
+        picked.append(int(np.argmax(score)))
+    return [(int(rows[k]), int(cols[k])) for k in picked]
+
+
+def _draw_flat_spectra(a_spec, a_img, result, name, picked, s, wl, order, all_masked):
+    """The panel of the spectra of the pixels ``picked`` (grid rows and columns of stride
+    ``s``), each circled on the image."""
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
-    (spectra,) = _load(_points(result, ys, xs))
+    (spectra,) = _load(_points(result, ys, xs)) if picked else (np.empty((0, wl.size)),)
     shown = 0
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         spec = np.asarray(spectra[k], float)[order]
         if not np.any(np.isfinite(spec)):
             continue
-        label = ("centre " if k == 0 else "") + f"(y, x) = ({y}, {x})"
+        label = f"(y, x) = ({y}, {x})"
         a_spec.plot(wl[order], spec, "o-" if wl.size <= MARKER_MAX_BANDS else "-", ms=3,
                     lw=1.2, color=f"C{k}", label=label)
         a_img.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
         shown += 1
     if shown:
-        a_spec.legend(fontsize=8)
+        a_spec.legend(fontsize=8, loc="best")
     else:
         _note(a_spec, "every value is masked:\nno spectrum to show" if all_masked
               else "these pixels are masked\nin every band")
     a_spec.set_xlabel("wavelength (nm)")
     a_spec.set_ylabel(_label(result, name))
-    a_spec.set_title("spectra of a few pixels (gaps: masked)", fontsize=10)
+    a_spec.set_title("spectra of bright, different pixels across the field\n(gaps: masked)",
+                     fontsize=10)
     a_spec.grid(alpha=0.3)
 
 
@@ -612,6 +659,35 @@ def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cr
     a_spec.grid(alpha=0.3)
 
 
+#: The wavelength axis of :func:`plot_sensor` spans where some curve reaches this share of its
+#: peak, with a margin of :data:`RESPONSE_MARGIN` of that span on each side.
+RESPONSE_FLOOR = 0.02
+RESPONSE_MARGIN = 0.04
+
+
+def _response_span(grid, curves):
+    """The wavelengths where any of ``curves`` (rows over ``grid``) reaches
+    :data:`RESPONSE_FLOOR` of its own peak, widened by :data:`RESPONSE_MARGIN` and clipped to
+    the grid; the whole grid when none does."""
+    grid = np.asarray(grid, float)
+    a = np.abs(np.atleast_2d(np.asarray(curves, float)))
+    peak = np.nanmax(a, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        reached = np.any(a >= RESPONSE_FLOOR * np.where(peak > 0, peak, np.inf), axis=0)
+    if not reached.any():
+        return float(grid.min()), float(grid.max())
+    lo, hi = float(grid[reached].min()), float(grid[reached].max())
+    pad = max(RESPONSE_MARGIN * (hi - lo), 2.0)
+    return max(float(grid.min()), lo - pad), min(float(grid.max()), hi + pad)
+
+
+def _wrapped(text, width=88):
+    """A title broken into lines of at most ``width`` characters (never cut off)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width))
+
+
 def plot_sensor(sensor, path, *, overwrite=False):
     """A picture of a sensor's filters: each band's measured response through the system (or
     its modelled curve), the system's response, and what each correction matrix makes of the
@@ -646,8 +722,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
             ax.plot(grid, eff[b] / np.max(eff[b]), color=cmap(shade[b]), lw=0.8)
         ax.plot(grid, r.system / np.max(r.system), "k--", lw=1.2, label=r.system_name)
         ax.legend(loc="upper right", fontsize=8)
-        ax.set_title(f"{sensor.name}: {sensor.n_bands} measured responses through the system "
-                     "(each scaled to its peak)")
+        ax.set_title(_wrapped(f"{sensor.name}: {sensor.n_bands} measured responses through "
+                              "the system (each scaled to its peak)"), fontsize=10)
+        span = _response_span(grid, np.vstack([eff, *(m.coefficients @ eff
+                                                       for m in sensor.matrices)]))
     else:
         from .optics.bandwidth import band_profile
 
@@ -658,7 +736,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
             curve = band_profile(sensor.profile_shape, cwl[b], sensor.fwhm_nm[b],
                                  np.broadcast_to(n, cwl.shape)[b])(grid)
             ax.plot(grid, curve / np.max(curve), color=cmap(shade[b]), lw=0.8)
-        ax.set_title(f"{sensor.name}: {sensor.n_bands} {sensor.profile} filters")
+        ax.set_title(_wrapped(f"{sensor.name}: {sensor.n_bands} {sensor.profile} filters"),
+                     fontsize=10)
+        span = (float(grid.min()), float(grid.max()))
+    ax.set_xlim(*span)
     ax.set_xlabel("wavelength (nm)")
     ax.set_ylabel("relative response")
     for ax, m in zip(axes[1:], sensor.matrices, strict=False):
@@ -672,8 +753,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
                 ax.plot(r.wavelength_nm, np.exp(-4 * np.log(2) * u * u), color=colour, lw=0.6,
                         ls=":")
         ax.axhline(0.0, color="0.5", lw=0.5)
-        ax.set_title(f"correction matrix {m.name!r} ({m.kind}): its virtual bands' responses "
-                     "(solid) and Gaussians of their widths (dotted)")
+        ax.set_title(_wrapped(f"correction matrix {m.name!r} ({m.kind}): its virtual bands' "
+                              "responses (solid) and Gaussians of their widths (dotted)"),
+                     fontsize=10)
+        ax.set_xlim(*span)
         ax.set_xlabel("wavelength (nm)")
         ax.set_ylabel("relative response")
     return _save(fig, path)
