@@ -4,7 +4,8 @@
 masked fraction of every band and a few pixels' spectra. :func:`plot_correction` shows a
 result of :func:`snapcorr.correct.correct_cube`: one band of the cube, the chief-ray angle,
 the shift of the band that moves most and mean spectra around three pixels at their nominal
-and corrected wavelengths.
+and corrected wavelengths (and their virtual bands, when computed). :func:`plot_sensor` shows
+a sensor's filters.
 
 Both read only what they draw: images are subsampled with a stride to at most
 :data:`MAX_PX` pixels a side and selected before they are loaded, so a dask-backed cube
@@ -407,13 +408,15 @@ def _subtitle(attrs):
 def plot_correction(ds, path, *, overwrite=False, title=None):
     """Quick look of a wavelength correction, written as PNG.
 
-    Four panels: the band of the input cube nearest the middle wavelength (colour limits from
-    the 1st and 99th percentiles of its finite values); the chief-ray angle (deg; the first
-    band's when it differs per band); the shift ``wavelength_corrected - wavelength`` (nm) of
-    the band that moves most; and spectra at three pixels chosen by their chief-ray angle
-    (lowest, halfway between lowest and highest, highest) against the nominal wavelengths
-    (dashed) and against their corrected wavelengths (solid), with the ``resampled`` spectra
-    (dotted) when present.
+    Three images side by side, their row as high as the cube's shape needs: the band of the
+    input cube nearest the middle wavelength (colour limits from the 1st and 99th percentiles
+    of its finite values); the chief-ray angle (deg; the first band's when it differs per
+    band); the shift ``wavelength_corrected - wavelength`` (nm) of the band that moves most.
+    Below them, spectra at three pixels chosen by their chief-ray angle (lowest, halfway
+    between lowest and highest, highest) against the nominal wavelengths (dashed) and
+    against their corrected wavelengths (solid), with the ``resampled`` spectra (dotted) when
+    present; the virtual bands of the same windows against their wavelengths when the result
+    has them (``virtual(y, x, virtual_band)``); and the legend in a cell of its own.
 
     Each spectrum is the mean over a window of :data:`SPECTRUM_WINDOW_PX` pixels a side (the
     stride when that is larger) around the chosen pixel, clipped to the image, of the values
@@ -481,8 +484,9 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     (shift_img,) = _load(_image(corrected, s, b_shift))
     shift_img = np.asarray(shift_img, float) - wl[b_shift]
 
-    fig = _figure((13, 9.5))
-    (a_cube, a_cra), (a_shift, a_spec) = fig.subplots(2, 2)
+    virtual = _virtual_means(ds, boxes) if picked else None
+    fig, (a_cube, a_cra, a_shift, a_spec, a_virt, a_key) = _correction_axes(
+        ny, nx, virtual is not None)
     _show(fig, a_cube, img, s, cbar_label=_label(cube, name),
           title=f"{name}, band {b} ({_num(wl[b], '.1f')} nm)")
     cra_title = "chief-ray angle" + (" (first band)" if "band" in cra.dims else "")
@@ -495,13 +499,67 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
 
-    _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles,
+    _draw_corrected_spectra(a_spec, a_key, ys, xs, boxes, spectra, wl, order, roles,
                             [cra_img[rc] for rc in picked], has_resampled, _label(cube, name))
+    if virtual is not None:
+        _draw_virtual(a_virt, ds["virtual"], *virtual)
 
     head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
     sub = _subtitle(ds.attrs)
     fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
     return _save(fig, path)
+
+
+#: Width of :func:`plot_correction`'s figure (inches) and the height of its row of spectra.
+CORRECTION_WIDTH_IN = 16.0
+SPECTRA_HEIGHT_IN = 4.6
+
+
+def _correction_axes(ny, nx, with_virtual):
+    """The figure of :func:`plot_correction` and its axes: the three images side by side,
+    their row as high as the images need (no empty band around them); below them the spectra,
+    the virtual bands' spectra (or None) and the legend's own cell."""
+    # an image panel is about a third of the width, less its colour bar
+    image_h = min(max(0.27 * CORRECTION_WIDTH_IN * ny / max(nx, 1), 1.6), 6.0) + 0.9
+    fig = _figure((CORRECTION_WIDTH_IN, image_h + SPECTRA_HEIGHT_IN + 0.7))
+    grid = fig.add_gridspec(2, 3, height_ratios=[image_h, SPECTRA_HEIGHT_IN])
+    images = [fig.add_subplot(grid[0, k]) for k in range(3)]
+    if with_virtual:
+        spec, virt = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
+    else:
+        spec, virt = fig.add_subplot(grid[1, :2]), None
+    key = fig.add_subplot(grid[1, 2])
+    key.set_axis_off()
+    return fig, (*images, spec, virt, key)
+
+
+def _virtual_means(ds, boxes):
+    """The virtual bands' mean over each window (finite values), and their wavelengths; None
+    without virtual bands (a ``virtual(y, x, virtual_band)`` and ``virtual_wavelength``)."""
+    if "virtual" not in ds.variables or "virtual_wavelength" not in ds.variables:
+        return None
+    v = ds["virtual"]
+    if set(v.dims) != {"y", "x", "virtual_band"}:
+        return None
+    v = v.transpose("y", "x", "virtual_band")
+    loaded = _load(*[v.isel(y=slice(y0, y1), x=slice(x0, x1)) for y0, y1, x0, x1 in boxes])
+    means = np.asarray([_nanmean(a, True) for a in loaded], float).reshape(len(boxes), -1)
+    return means, np.asarray(ds["virtual_wavelength"].values, float)
+
+
+def _draw_virtual(ax, virtual, means, wl):
+    """The panel of the virtual bands over the same windows, in the same colours."""
+    few = wl.size <= MARKER_MAX_BANDS
+    o = np.argsort(wl, kind="stable")
+    for k, m in enumerate(means):
+        if np.any(np.isfinite(m)):
+            ax.plot(wl[o], m[o], "-", color=f"C{k}", lw=1.4,
+                    **({"marker": "s", "ms": 3} if few else {}))
+    how = virtual.attrs.get("virtual_bands")
+    ax.set_title(f"virtual bands{f' ({how})' if how else ''}: the same windows", fontsize=10)
+    ax.set_xlabel("virtual band wavelength (nm)")
+    ax.set_ylabel(_label(virtual, "virtual"))
+    ax.grid(alpha=0.3)
 
 
 def _spectra_at(ds, cube, corrected, boxes, has_resampled):
@@ -617,10 +675,11 @@ def _where(box, y, x):
     return f"mean of {h} x {w} px around (y, x) = ({y}, {x})"
 
 
-def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cra_deg,
+def _draw_corrected_spectra(a_spec, a_key, ys, xs, boxes, spectra, wl, order, roles, cra_deg,
                             has_resampled, ylabel):
     """The panel of the windows' mean spectra at nominal and corrected wavelengths (and
-    resampled); every band marked only up to :data:`MARKER_MAX_BANDS` bands."""
+    resampled), its legend in the cell ``a_key``; every band marked only up to
+    :data:`MARKER_MAX_BANDS` bands."""
     from matplotlib.lines import Line2D
 
     few = wl.size <= MARKER_MAX_BANDS
@@ -647,9 +706,9 @@ def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cr
         if has_resampled:
             styles.append(Line2D([], [], color="0.3", ls=":", label="resampled onto nominal",
                                  **({"marker": "x"} if few else {})))
-        # below the panel, so it never hides a spectrum
-        a_spec.legend(handles=handles + styles, fontsize=8, ncols=1, loc="upper center",
-                      bbox_to_anchor=(0.5, -0.12))
+        # in a cell of its own, so it never hides a spectrum
+        a_key.legend(handles=handles + styles, fontsize=8, ncols=1, loc="center left",
+                     frameon=False)
     else:
         _note(a_spec, "no finite values around these pixels:\nno spectrum to show")
     a_spec.set_xlabel("wavelength (nm)")

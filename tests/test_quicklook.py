@@ -102,7 +102,7 @@ def test_flatfield_quicklook(flat, figures, tmp_path):
 
 def test_correction_quicklook(corrected, figures, tmp_path):
     out = plot_correction(corrected, tmp_path / "corr.png", title="Test scene")
-    _check_png(out, (13, 9.5))
+    _check_png(out, figures[0].get_size_inches())
     fig = figures[0]
     text = _texts(fig)
     for want in ("Test scene", "lens Edmund", "f/1.4", f"method {corrected.attrs['method']}",
@@ -182,7 +182,7 @@ def test_dask_inputs_read_by_parts(corrected, tmp_path):
     assert lazy_flat["reflectance"].chunks is not None
     assert lazy_corr["wavelength_corrected"].chunks is not None
     _check_png(tmp_path / "ff.png", (15.5, 4.8))
-    _check_png(tmp_path / "corr.png", (13, 9.5))
+    _check_png(tmp_path / "corr.png", (16.0, 0.27 * 16 * NY / NX + 0.9 + 4.6 + 0.7))
 
 
 def test_large_images_drawn_with_a_stride(figures, tmp_path):
@@ -241,10 +241,17 @@ def _spectra_axes(fig):
     return next(ax for ax in fig.axes if ax.get_title().startswith("spectra by chief-ray"))
 
 
+def _spectra_legend(fig):
+    """The spectra panel's legend (in a cell of its own, beside the spectra)."""
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    return next(leg for leg in legends
+                if any(t.get_text() == "at nominal wavelengths" for t in leg.get_texts()))
+
+
 def _windows_in_legend(ax):
     """(role, (y0, y1, x0, x1), (y, x)) of every pixel entry in the spectra panel's legend."""
     out = []
-    for entry in (t.get_text() for t in ax.get_legend().get_texts()):
+    for entry in (t.get_text() for t in _spectra_legend(ax.figure).get_texts()):
         if "(y, x)" not in entry:
             continue
         role, rest = entry.split(": ", 1)
@@ -350,7 +357,7 @@ def test_markers_only_for_few_bands(figures, tmp_path, nb, marked):
     ax = _spectra_axes(figures[0])
     markers = {line.get_marker() for line in ax.get_lines()}
     assert markers == ({".", "o", "x"} if marked else {"None"})
-    legend_markers = {h.get_marker() for h in ax.get_legend().legend_handles}
+    legend_markers = {h.get_marker() for h in _spectra_legend(ax.figure).legend_handles}
     assert ("x" in legend_markers) == marked
 
 
@@ -411,3 +418,36 @@ def test_sensor_quicklook_fits_the_wavelengths_and_cuts_no_title(figures, tmp_pa
         box = ax.title.get_window_extent(renderer)
         assert 0 <= box.x0 and box.x1 <= width and box.y1 <= height, ax.get_title()
     assert out.exists()
+
+
+def test_correction_quicklook_draws_virtual_bands_and_leaves_no_empty_band(figures, tmp_path):
+    """A tile cube of the 5x5 vendor sensor (216 x 409 px, wide) with vendor virtual bands:
+    their panel is drawn from the same windows, and under every image the next panel starts
+    within half an inch (the images' row is as high as they need)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from snapcorr import data
+
+    nir = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    from snapcorr.cube import mosaic_to_cube
+
+    rng = np.random.default_rng(2)
+    frame = (0.3 + 0.2 * np.linspace(0, 1, nir.size_px[1])[None, :]
+             + rng.normal(0, 0.005, nir.size_px)).astype(np.float32)
+    cube = mosaic_to_cube(frame, nir)  # 216 x 409 tiles of 25 bands, placed on the sensor
+    ds = correct_cube(cube, nir, 2.8, LENS, virtual_bands="vendor")
+    plot_correction(ds, tmp_path / "c.png")
+    fig = figures[0]
+    virtual = next(ax for ax in fig.axes if ax.get_title().startswith("virtual bands (vendor)"))
+    assert len(virtual.lines) == len(_windows_in_legend(_spectra_axes(fig)))
+    drawn = np.sort(virtual.lines[0].get_xdata())
+    np.testing.assert_allclose(drawn, np.sort(ds["virtual_wavelength"].values))
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    boxes = {ax: ax.get_tightbbox(renderer) for ax in fig.axes if ax.axison}
+    for ax in [ax for ax in fig.axes if ax.images]:
+        below = [b.y1 for other, b in boxes.items()
+                 if other is not ax and b.y1 <= boxes[ax].y0 + 1]
+        gap = (boxes[ax].y0 - max(below, default=0.0)) / fig.dpi
+        assert gap < 0.5, (ax.get_title(), gap)
