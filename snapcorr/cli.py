@@ -321,7 +321,7 @@ def _bundled_folder():
 _SHOW_PROGRESS = None
 
 
-def _progress_bar(desc, unit, total):
+def _progress_bar(desc, unit, total, **options):
     """A tqdm bar on stderr as ``--quiet`` and ``--progress`` say: by default shown after a
     second of work, on a terminal only (not in logs or pipes)."""
     from tqdm import tqdm
@@ -330,7 +330,35 @@ def _progress_bar(desc, unit, total):
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr,
                 delay=0 if asked else _StageBar.DELAY_S, leave=asked, dynamic_ncols=True,
                 disable=None if _SHOW_PROGRESS is None else not _SHOW_PROGRESS,
-                mininterval=0.1 if sys.stderr.isatty() else 1.0)
+                mininterval=0.1 if sys.stderr.isatty() else 1.0, **options)
+
+
+class _Ticking:
+    """Redraws a bar every few seconds while a long step gives it nothing to count, so its
+    elapsed time shows that the work goes on (after the bar's delay, as tqdm would)."""
+
+    def __init__(self, bar, every_s=1.0):
+        import threading
+
+        self.bar, self.every_s = bar, every_s
+        self.stop = threading.Event()
+        self.thread = None
+        if not bar.disable:
+            self.thread = threading.Thread(target=self._run, name="snapcorr-progress",
+                                           daemon=True)
+            self.thread.start()
+
+    def _run(self):
+        import time
+
+        while not self.stop.wait(self.every_s):
+            if time.time() - self.bar.start_t >= self.bar.delay:
+                self.bar.refresh()
+
+    def close(self):
+        self.stop.set()
+        if self.thread is not None:
+            self.thread.join()
 
 
 class _StageBar:
@@ -342,18 +370,24 @@ class _StageBar:
     #: Seconds of work before the bar shows (short stages print nothing).
     DELAY_S = 1.0
 
-    def __init__(self, desc, frames=None):
-        self.desc, self.frames = desc, frames
+    def __init__(self, desc, frames=None, count=True):
+        self.desc, self.frames, self.count = desc, frames, count
 
     def __enter__(self):
         from dask.callbacks import Callback
 
         frames, desc = self.frames, self.desc
-        self.bar = bar = _progress_bar(desc, "frame" if frames else "block", frames or 0)
+        # work that gives nothing to count shows the time it has taken
+        self.bar = bar = _progress_bar(desc, "frame" if frames else "block", frames or 0,
+                                       **({} if self.count else
+                                          {"bar_format": "{desc} ({elapsed})"}))
         counts = {"passes": 0, "done": 0, "tasks": 0}
+        stage = self
 
         class _Count(Callback):
             def _start_state(self, dsk, state):
+                if not stage.count:
+                    return
                 tasks = len(state["ready"]) + len(state["waiting"])
                 counts["passes"] += 1
                 if frames is None:
@@ -365,6 +399,8 @@ class _StageBar:
                     bar.set_description(f"{desc} (pass {counts['passes']})", refresh=False)
 
             def _posttask(self, key, result, dsk, state, worker_id):
+                if not stage.count:
+                    return
                 if frames is None:
                     bar.update(1)
                     return
@@ -376,9 +412,11 @@ class _StageBar:
 
         self.callback = _Count()
         self.callback.__enter__()
+        self.ticking = _Ticking(bar)
         return self
 
     def __exit__(self, *exc):
+        self.ticking.close()
         self.callback.__exit__(*exc)
         self.bar.close()
 
@@ -393,6 +431,7 @@ class _StepBar:
     def __enter__(self):
         self.bar = _progress_bar(self.desc, "step", self.total)
         self.started = False
+        self.ticking = _Ticking(self.bar)
         return self
 
     def step(self, what=""):
@@ -402,6 +441,7 @@ class _StepBar:
         self.bar.set_postfix_str(what, refresh=True)
 
     def __exit__(self, *exc):
+        self.ticking.close()
         self.bar.close()
 
 
@@ -773,13 +813,15 @@ def _cmd_correct(args):
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
             center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
     _check_virtual_options(args, sensor)
-    ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
-                      tolerance_nm=args.tolerance_nm, center_px=args.center_px,
-                      sensor_origin_px=args.sensor_origin_px, resample=args.resample,
-                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm, mask=mask,
-                      virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
-                      virtual_wavelengths_nm=args.virtual_wavelengths,
-                      virtual_fwhm_nm=args.virtual_fwhm_nm)
+    with _StageBar("correcting: chief-ray angles, models and tables", count=False):
+        ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
+                          tolerance_nm=args.tolerance_nm, center_px=args.center_px,
+                          sensor_origin_px=args.sensor_origin_px, resample=args.resample,
+                          harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm,
+                          mask=mask, virtual_bands=args.virtual_bands,
+                          virtual_matrix=args.virtual_matrix,
+                          virtual_wavelengths_nm=args.virtual_wavelengths,
+                          virtual_fwhm_nm=args.virtual_fwhm_nm)
     ds.attrs.update({**provenance, "cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
