@@ -34,11 +34,19 @@ def _version():
         return "0+unknown"
 
 
+def _is_module(name):
+    from importlib.util import find_spec
+
+    return find_spec(f"snapcorr.{name}") is not None
+
+
 def __getattr__(name):
     if name == "__version__":
         value = _version()
     elif name in _LAZY:
         value = getattr(import_module(_LAZY[name]), name)
+    elif not name.startswith("_") and _is_module(name):  # ``snapcorr.cube`` after ``import
+        value = import_module(f"snapcorr.{name}")      # snapcorr``, as before
     else:
         raise AttributeError(f"module 'snapcorr' has no attribute {name!r}")
     globals()[name] = value  # imported once

@@ -67,6 +67,7 @@ from snapcorr import *
 from snapcorr.optics import Lens, mean_shift
 assert snapcorr.Lens is Lens and snapcorr.mean_shift is mean_shift
 assert set(snapcorr.__all__) <= set(dir(snapcorr))
+assert snapcorr.cube.read_dataset is __import__("snapcorr.cube").cube.read_dataset
 print(snapcorr.__version__)
 """
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
