@@ -334,7 +334,7 @@ def _progress_bar(desc, unit, total, **options):
 
 
 class _Ticking:
-    """Redraws a bar every few seconds while a long step gives it nothing to count, so its
+    """Redraws a bar every second while a long step gives it nothing to count, so its
     elapsed time shows that the work goes on (after the bar's delay, as tqdm would)."""
 
     def __init__(self, bar, every_s=1.0):
