@@ -19,6 +19,7 @@ from . import (
     scaling,
     speed_accuracy,
     stability,
+    startup,
     stream,
     unknown_lens,
     virtual_bands,
@@ -57,5 +58,7 @@ print()
 demosaic.run(quick=args.quick, write=not args.quick)
 print()
 stream.run(quick=args.quick, write=not args.quick)
+print()
+startup.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

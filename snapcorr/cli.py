@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
 from ._io import check_replaceable
+from ._names import CALIBRATION_METHODS, CORRECTION_MODELS, SHIFT_METHODS
 from ._validation import check_positive
 
 #: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
@@ -316,37 +316,107 @@ def _bundled_folder():
         return None
 
 
+#: Progress bars: None on a terminal only (the default), False never (``--quiet``), True
+#: always, from the start (``--progress``); set by :func:`main` for the command it runs.
+_SHOW_PROGRESS = None
+
+
+def _progress_bar(desc, unit, total, **options):
+    """A tqdm bar on stderr as ``--quiet`` and ``--progress`` say: by default shown after a
+    second of work, on a terminal only (not in logs or pipes)."""
+    from tqdm import tqdm
+
+    asked = _SHOW_PROGRESS is True
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr,
+                delay=0 if asked else _StageBar.DELAY_S, leave=asked, dynamic_ncols=True,
+                disable=None if _SHOW_PROGRESS is None else not _SHOW_PROGRESS,
+                mininterval=0.1 if sys.stderr.isatty() else 1.0, **options)
+
+
+class _Ticking:
+    """Redraws a bar every second while a long step gives it nothing to count, so its
+    elapsed time shows that the work goes on (after the bar's delay, as tqdm would)."""
+
+    def __init__(self, bar, every_s=1.0):
+        import threading
+
+        self.bar, self.every_s = bar, every_s
+        self.stop = threading.Event()
+        self.thread = None
+        if not bar.disable:
+            self.thread = threading.Thread(target=self._run, name="snapcorr-progress",
+                                           daemon=True)
+            self.thread.start()
+
+    def _run(self):
+        import time
+
+        while not self.stop.wait(self.every_s):
+            if time.time() - self.bar.start_t >= self.bar.delay:
+                self.bar.refresh()
+
+    def close(self):
+        self.stop.set()
+        if self.thread is not None:
+            self.thread.join()
+
+
 class _StageBar:
-    """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage."""
+    """One labelled progress bar (tqdm, on stderr) over every dask computation of a stage.
+
+    With ``frames``, a stream's: frames done (each computation's share of its tasks done, in
+    frames), frames per second and the time left, bar by bar for each writing pass."""
 
     #: Seconds of work before the bar shows (short stages print nothing).
     DELAY_S = 1.0
 
-    def __init__(self, desc):
-        self.desc = desc
+    def __init__(self, desc, frames=None, count=True):
+        self.desc, self.frames, self.count = desc, frames, count
 
     def __enter__(self):
         from dask.callbacks import Callback
-        from tqdm import tqdm
 
-        # shown after a second of work, on a terminal only (not in logs or pipes)
-        self.bar = tqdm(total=0, desc=self.desc, unit="block", file=sys.stderr,
-                        delay=self.DELAY_S,
-                        leave=False, dynamic_ncols=True, disable=None)
-        bar = self.bar
+        frames, desc = self.frames, self.desc
+        # work that gives nothing to count shows the time it has taken
+        self.bar = bar = _progress_bar(desc, "frame" if frames else "block", frames or 0,
+                                       **({} if self.count else
+                                          {"bar_format": "{desc} ({elapsed})"}))
+        counts = {"passes": 0, "done": 0, "tasks": 0}
+        stage = self
 
         class _Count(Callback):
             def _start_state(self, dsk, state):
-                bar.total += len(state["ready"]) + len(state["waiting"])
+                if not stage.count:
+                    return
+                tasks = len(state["ready"]) + len(state["waiting"])
+                counts["passes"] += 1
+                if frames is None:
+                    bar.total += tasks
+                    return
+                counts.update(done=0, tasks=max(tasks, 1))
+                if counts["passes"] > 1:  # each writing pass goes through every frame
+                    bar.reset(total=frames)
+                    bar.set_description(f"{desc} (pass {counts['passes']})", refresh=False)
 
             def _posttask(self, key, result, dsk, state, worker_id):
-                bar.update(1)
+                if not stage.count:
+                    return
+                if frames is None:
+                    bar.update(1)
+                    return
+                counts["done"] += 1
+                bar.update(frames * counts["done"] // counts["tasks"] - bar.n)
+
+            def _finish(self, dsk, state, errored):
+                bar.refresh()  # each pass's end is seen (a log keeps it)
 
         self.callback = _Count()
         self.callback.__enter__()
+        self.ticking = _Ticking(bar)
         return self
 
     def __exit__(self, *exc):
+        self.ticking.close()
         self.callback.__exit__(*exc)
         self.bar.close()
 
@@ -359,12 +429,9 @@ class _StepBar:
         self.desc, self.total = desc, total
 
     def __enter__(self):
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=self.total, desc=self.desc, unit="step", file=sys.stderr,
-                        delay=_StageBar.DELAY_S, leave=False, dynamic_ncols=True,
-                        disable=None)
+        self.bar = _progress_bar(self.desc, "step", self.total)
         self.started = False
+        self.ticking = _Ticking(self.bar)
         return self
 
     def step(self, what=""):
@@ -374,6 +441,7 @@ class _StepBar:
         self.bar.set_postfix_str(what, refresh=True)
 
     def __exit__(self, *exc):
+        self.ticking.close()
         self.bar.close()
 
 
@@ -652,9 +720,9 @@ def _cmd_stream(args):
                     | ({"lens_file": str(args.lens)} if args.lens else {})
                     | {"sensor_file": str(args.sensor)})
     cube = ds["reflectance"]
-    with _StageBar(f"{cube.sizes['frame']} frames: flat-fielding, demosaicking "
-                   f"({args.demosaic}){', correcting' if lens else ''}, writing "
-                   f"{args.out.name}"):
+    with _StageBar(f"flat-fielding, demosaicking ({args.demosaic})"
+                   f"{', correcting' if lens else ''}, writing {args.out.name}",
+                   frames=cube.sizes["frame"]):
         _write_result(args, ds, inputs, RAW_COPIES, args.frames)
     n_masked = _masked_in(args.out)
     print(f"wrote {args.out}: {cube.sizes['frame']} frames of {args.frames}, each "
@@ -745,13 +813,15 @@ def _cmd_correct(args):
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
             center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
     _check_virtual_options(args, sensor)
-    ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
-                      tolerance_nm=args.tolerance_nm, center_px=args.center_px,
-                      sensor_origin_px=args.sensor_origin_px, resample=args.resample,
-                      harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm, mask=mask,
-                      virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
-                      virtual_wavelengths_nm=args.virtual_wavelengths,
-                      virtual_fwhm_nm=args.virtual_fwhm_nm)
+    with _StageBar("correcting: chief-ray angles, models and tables", count=False):
+        ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
+                          tolerance_nm=args.tolerance_nm, center_px=args.center_px,
+                          sensor_origin_px=args.sensor_origin_px, resample=args.resample,
+                          harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm,
+                          mask=mask, virtual_bands=args.virtual_bands,
+                          virtual_matrix=args.virtual_matrix,
+                          virtual_wavelengths_nm=args.virtual_wavelengths,
+                          virtual_fwhm_nm=args.virtual_fwhm_nm)
     ds.attrs.update({**provenance, "cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
     if args.scheduler:
@@ -1378,6 +1448,17 @@ def _write_result(args, ds, inputs, input_names, source):
                          store_derived=getattr(args, "store_derived", False))
 
 
+def _add_progress_options(p):
+    """``--quiet`` and ``--progress``: the progress bars of a long command."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--quiet", action="store_true",
+                   help="no progress bars (by default they show on stderr after a second of "
+                   "work, when stderr is a terminal)")
+    g.add_argument("--progress", action="store_true",
+                   help="progress bars on stderr from the start, also when stderr is not a "
+                   "terminal (a log file)")
+
+
 def _add_center(p, help_text):
     """``--center ROW,COL`` and its deprecated x-first form ``--center-px CX,CY``."""
     p.add_argument("--center", type=_center_rc_arg, default=None, metavar="ROW,COL",
@@ -1448,12 +1529,11 @@ def _add_flatfield(command):
                    help="quick look: a band image, the mask and a few pixels' spectra")
     _add_output_options(p, input_name="the raw data (raw, filter_white_raw)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_flatfield)
 
 
 def _add_calibrate(command):
-    from .calibrate import METHODS as CAL_METHODS
-
     p = command("calibrate", "lens profile (vignetting circles P, h) from flat fields at "
                 "several f-numbers (Goossens Sec. 2.7, 3.2)")
     p.add_argument("--flat", type=_flat_arg, action="append", required=True,
@@ -1494,7 +1574,7 @@ def _add_calibrate(command):
     p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
-    p.add_argument("--method", default="auto", choices=list(CAL_METHODS),
+    p.add_argument("--method", default="auto", choices=list(CALIBRATION_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "
                    "the paper's onsets predict flats left out of the fit better)")
     p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
@@ -1509,12 +1589,11 @@ def _add_calibrate(command):
                    "(1000 nm filter, n_eff 1.5) by more than this (default: %(default)s)")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
 
 def _add_correct(command):
-    from .optics import MODELS
-
     p = command("correct", "corrected central wavelength of every pixel and band (Eq. 23)")
     p.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
                    "ideally flat-fielded; or a 2-D mosaic frame with a mosaic --sensor")
@@ -1531,7 +1610,7 @@ def _add_correct(command):
                    "converted to this pixel pitch, else the sensor's centre)")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help=ORIGIN_HELP)
-    p.add_argument("--method", default="auto", choices=["auto", *MODELS],
+    p.add_argument("--method", default="auto", choices=["auto", *CORRECTION_MODELS],
                    help="the model, cheapest first (default: %(default)s, the cheapest "
                    "meeting the tolerance; harmonised = vignetted and --harmonise)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.01, metavar="NM",
@@ -1561,12 +1640,11 @@ def _add_correct(command):
                    "(default: in-process threads)")
     _add_output_options(p, input_name="the input cube", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_correct)
 
 
 def _add_shift(command):
-    from .optics import METHODS
-
     p = command("shift", "mean central-wavelength shift at chief-ray angles (Eq. 22-23)")
     p.add_argument("--lens", default="edmund_optics_16mm",
                    help="lens profile (.toml) or a bundled lens name (default: %(default)s)")
@@ -1579,7 +1657,7 @@ def _add_shift(command):
                    "%(default)s)")
     p.add_argument("--n-eff", type=float, default=1.7,
                    help="the filter's effective refractive index (default: %(default)s)")
-    p.add_argument("--method", default="auto", choices=list(METHODS),
+    p.add_argument("--method", default="auto", choices=list(SHIFT_METHODS),
                    help="how to compute the mean shift (default: %(default)s, the cheapest "
                    "within --tolerance-nm)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.001, metavar="NM",
@@ -1649,6 +1727,7 @@ def _add_pupil(command):
                    help="an f-number you would measure at (repeat)")
     g.add_argument("--noise-pct", type=_positive, default=1.0,
                    help="per-pixel noise, %% of the brightest band (default: %(default)s)")
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_pupil)
 
 
@@ -1686,6 +1765,7 @@ def _add_stream(command):
     p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
     _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
+    _add_progress_options(p)
     p.set_defaults(func=_cmd_stream)
 
 
@@ -1759,6 +1839,17 @@ def _add_budget(command):
     p.set_defaults(func=_cmd_budget)
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed version, looked up only when asked (the lookup costs as
+    much as importing numpy)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from . import __version__
+
+        parser._print_message(f"snapcorr {__version__}\n", sys.stdout)
+        parser.exit()
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage errors as one line, like every other error, with where to read more."""
 
@@ -1775,7 +1866,8 @@ def build_parser():
         "examples):\n" + textwrap.indent(textwrap.dedent(WORKFLOW).strip("\n"), "  "),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"snapcorr {__version__}")
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the version number and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def command(name, help_):
@@ -1807,6 +1899,9 @@ def main(argv=None):
     if not getattr(args, "command", None):
         parser.print_help()
         return 0
+    global _SHOW_PROGRESS
+    _SHOW_PROGRESS = (False if getattr(args, "quiet", False) else
+                      True if getattr(args, "progress", False) else None)
     try:
         with cleanup_on_signals(), warnings.catch_warnings():
             warnings.simplefilter("always")
@@ -1832,6 +1927,8 @@ def main(argv=None):
             signal.signal(signal.SIGINT, previous)
             sys.unraisablehook = hook
         return 130
+    finally:
+        _SHOW_PROGRESS = None
 
 
 def _quiet_unraisable(unraisable):

@@ -4,7 +4,8 @@
 masked fraction of every band and a few pixels' spectra. :func:`plot_correction` shows a
 result of :func:`snapcorr.correct.correct_cube`: one band of the cube, the chief-ray angle,
 the shift of the band that moves most and mean spectra around three pixels at their nominal
-and corrected wavelengths.
+and corrected wavelengths (and their virtual bands, when computed). :func:`plot_sensor` shows
+a sensor's filters.
 
 Both read only what they draw: images are subsampled with a stride to at most
 :data:`MAX_PX` pixels a side and selected before they are loaded, so a dask-backed cube
@@ -22,8 +23,8 @@ import xarray as xr
 
 from ._io import save_png
 
-__all__ = ["MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRUM_WINDOW_PX", "plot_correction",
-           "plot_flatfield", "plot_sensor"]
+__all__ = ["CANDIDATES_PX", "MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRA_SHOWN",
+           "SPECTRUM_WINDOW_PX", "plot_correction", "plot_flatfield", "plot_sensor"]
 
 #: Largest number of pixels drawn along either side of an image.
 MAX_PX = 1024
@@ -179,19 +180,6 @@ def _figure(figsize):
     return Figure(figsize=figsize, layout="constrained")
 
 
-def _nearest(valid, targets):
-    """For each target (row, col) on the grid, the nearest ``valid`` grid point, deduplicated."""
-    rows, cols = np.nonzero(valid)
-    picked = []
-    for r, c in targets:
-        if rows.size:
-            k = int(np.argmin((rows - r) ** 2 + (cols - c) ** 2))
-            r, c = int(rows[k]), int(cols[k])
-        if (r, c) not in picked:
-            picked.append((r, c))
-    return picked
-
-
 # --------------------------------------------------------------------------- flat field
 
 def _result_name(ds):
@@ -211,9 +199,11 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
 
     Three panels: the band nearest the middle wavelength (colour limits from the 1st and
     99th percentiles of its finite values, masked pixels in magenta), the percentage of
-    masked values in every band, and the spectra of up to five pixels (the centre and four
-    points near the corners, each moved to the nearest pixel with unmasked values) with
-    their ``(y, x)`` in the legend.
+    masked values in every band, and the spectra of up to :data:`SPECTRA_SHOWN` pixels
+    chosen by what they hold (:func:`_pick_by_content`, among at most :data:`CANDIDATES_PX`
+    a side whose bands together hold no more values than the band image drawn, unmasked in
+    every band where there are such): bright, spread across the field
+    and with spectra that differ, with their ``(y, x)`` in the legend.
 
     Parameters
     ----------
@@ -252,8 +242,13 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
     b = _middle_band(wl)
     s = _stride(ny, nx)
     msub = mask.isel(y=slice(None, None, s), x=slice(None, None, s))
-    img, mimg, n_masked_band, n_masked_px = _load(
-        _image(result, s, b), _image(mask, s, b), msub.sum(("y", "x")), msub.sum("band"))
+    # the candidates' stride: at most CANDIDATES_PX a side, all their bands no more values
+    # than the band image drawn
+    c = s * max(math.ceil(max(ny, nx) / s / CANDIDATES_PX), math.ceil(math.sqrt(nb)), 1)
+    coarse = {"y": slice(None, None, c), "x": slice(None, None, c)}
+    img, mimg, n_masked_band, candidates, cmask = _load(
+        _image(result, s, b), _image(mask, s, b), msub.sum(("y", "x")),
+        result.isel(coarse), mask.isel(coarse))
     n_sample = msub.sizes["y"] * msub.sizes["x"]
     frac = 100.0 * n_masked_band.astype(float) / max(1, n_sample)
     all_masked = bool(n_sample * nb == 0 or np.all(n_masked_band == n_sample))
@@ -273,8 +268,14 @@ def plot_flatfield(ds, path, *, overwrite=False, title=None):
     # 2. the masked fraction per band
     _draw_masked_fraction(a_frac, wl, order, frac, n_masked_band, n_sample * nb, s)
 
-    # 3. spectra of a few pixels: centre and near the corners, moved to unmasked ones
-    _draw_flat_spectra(a_spec, a_img, result, name, n_masked_px < nb, s, wl, order, all_masked)
+    # 3. spectra of a few pixels chosen by what they hold: bright, different, spread out
+    candidates = np.asarray(candidates, float)
+    usable = ~np.asarray(cmask, bool) & np.isfinite(candidates)
+    valid = usable.all(axis=2)
+    if not valid.any():  # every pixel masked somewhere: those with some values
+        valid = usable.any(axis=2)
+    _draw_flat_spectra(a_spec, a_img, result, name, _pick_by_content(candidates, valid), c,
+                       wl, order, all_masked)
 
     fig.suptitle(title or f"Flat-field quick look: {name}, {ny} x {nx} px, {nb} bands",
                  fontsize=12)
@@ -297,34 +298,81 @@ def _draw_masked_fraction(ax, wl, order, frac, n_masked_band, n_values, s):
     ax.grid(alpha=0.3)
 
 
-def _draw_flat_spectra(a_spec, a_img, result, name, valid, s, wl, order, all_masked):
-    """The panel of up to five pixels' spectra, each pixel circled on the image."""
+#: Pixels whose spectra :func:`plot_flatfield` draws, and the most candidates along either side
+#: of the image they are chosen from.
+SPECTRA_SHOWN = 5
+CANDIDATES_PX = 48
+#: Candidates keep this share of the image's height and width from its edges, where any
+#: are left.
+EDGE_SHARE = 0.04
+
+
+def _pick_by_content(values, valid, n=SPECTRA_SHOWN):
+    """Up to ``n`` grid pixels whose spectra are worth seeing: bright (mean value at least the
+    median and half the 99th percentile of the valid pixels' and at most that percentile: not
+    dark, not a hot pixel), off
+    the edges (:data:`EDGE_SHARE`) where there are such, and, one after another, the
+    candidate farthest from those picked, in place (over the image's diagonal) plus in
+    spectral angle (over the widest angle from the first): spread across the field, with
+    spectra that differ. The first is the brightest candidate."""
+    values = np.asarray(values, float)
     h, w = valid.shape
-    targets = [((h - 1) / 2, (w - 1) / 2)]
-    for fy in (0.1, 0.9):
-        for fx in (0.1, 0.9):
-            targets.append((fy * (h - 1), fx * (w - 1)))
-    picked = _nearest(valid, [(round(r), round(c)) for r, c in targets])
+    if not valid.any():
+        return []
+    finite = np.isfinite(values)
+    mean = np.where(finite, values, 0.0).sum(axis=2) / np.maximum(finite.sum(axis=2), 1)
+    rows, cols = np.nonzero(valid)
+    inner = ((np.minimum(rows, h - 1 - rows) >= EDGE_SHARE * h)
+             & (np.minimum(cols, w - 1 - cols) >= EDGE_SHARE * w))
+    if inner.any():  # not on the very edge, where a marker is hard to see
+        rows, cols = rows[inner], cols[inner]
+    level = mean[rows, cols]
+    median, hi = np.percentile(level, [50.0, 99.0])
+    keep = (level >= max(median, 0.5 * hi)) & (level <= hi)
+    rows, cols, level = rows[keep], cols[keep], level[keep]
+    spectra = np.nan_to_num(values[rows, cols])
+    unit = spectra / np.maximum(np.linalg.norm(spectra, axis=1, keepdims=True), 1e-30)
+    diagonal = max(math.hypot(h - 1, w - 1), 1.0)
+    picked = [int(np.argmax(level))]
+    angle_scale = None
+    place = np.full(rows.size, np.inf)
+    angle = np.full(rows.size, np.inf)
+    while len(picked) < min(n, rows.size):
+        k = picked[-1]
+        place = np.minimum(place, np.hypot(rows - rows[k], cols - cols[k]) / diagonal)
+        angle = np.minimum(angle, np.arccos(np.clip(unit @ unit[k], -1.0, 1.0)))
+        if angle_scale is None:  # the widest angle from the first: spectra's own spread
+            angle_scale = max(float(angle.max()), 1e-6)
+        score = place + angle / angle_scale
+        score[picked] = -np.inf
+        picked.append(int(np.argmax(score)))
+    return [(int(rows[k]), int(cols[k])) for k in picked]
+
+
+def _draw_flat_spectra(a_spec, a_img, result, name, picked, s, wl, order, all_masked):
+    """The panel of the spectra of the pixels ``picked`` (grid rows and columns of stride
+    ``s``), each circled on the image."""
     ys, xs = [r * s for r, _ in picked], [c * s for _, c in picked]
-    (spectra,) = _load(_points(result, ys, xs))
+    (spectra,) = _load(_points(result, ys, xs)) if picked else (np.empty((0, wl.size)),)
     shown = 0
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         spec = np.asarray(spectra[k], float)[order]
         if not np.any(np.isfinite(spec)):
             continue
-        label = ("centre " if k == 0 else "") + f"(y, x) = ({y}, {x})"
+        label = f"(y, x) = ({y}, {x})"
         a_spec.plot(wl[order], spec, "o-" if wl.size <= MARKER_MAX_BANDS else "-", ms=3,
                     lw=1.2, color=f"C{k}", label=label)
         a_img.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
         shown += 1
     if shown:
-        a_spec.legend(fontsize=8)
+        a_spec.legend(fontsize=8, loc="best")
     else:
         _note(a_spec, "every value is masked:\nno spectrum to show" if all_masked
               else "these pixels are masked\nin every band")
     a_spec.set_xlabel("wavelength (nm)")
     a_spec.set_ylabel(_label(result, name))
-    a_spec.set_title("spectra of a few pixels (gaps: masked)", fontsize=10)
+    a_spec.set_title("spectra of bright, different pixels across the field\n(gaps: masked)",
+                     fontsize=10)
     a_spec.grid(alpha=0.3)
 
 
@@ -360,13 +408,15 @@ def _subtitle(attrs):
 def plot_correction(ds, path, *, overwrite=False, title=None):
     """Quick look of a wavelength correction, written as PNG.
 
-    Four panels: the band of the input cube nearest the middle wavelength (colour limits from
-    the 1st and 99th percentiles of its finite values); the chief-ray angle (deg; the first
-    band's when it differs per band); the shift ``wavelength_corrected - wavelength`` (nm) of
-    the band that moves most; and spectra at three pixels chosen by their chief-ray angle
-    (lowest, halfway between lowest and highest, highest) against the nominal wavelengths
-    (dashed) and against their corrected wavelengths (solid), with the ``resampled`` spectra
-    (dotted) when present.
+    Three images side by side, their row as high as the cube's shape needs: the band of the
+    input cube nearest the middle wavelength (colour limits from the 1st and 99th percentiles
+    of its finite values); the chief-ray angle (deg; the first band's when it differs per
+    band); the shift ``wavelength_corrected - wavelength`` (nm) of the band that moves most.
+    Below them, spectra at three pixels chosen by their chief-ray angle (lowest, halfway
+    between lowest and highest, highest) against the nominal wavelengths (dashed) and
+    against their corrected wavelengths (solid), with the ``resampled`` spectra (dotted) when
+    present; the virtual bands of the same windows against their wavelengths when the result
+    has them (``virtual(y, x, virtual_band)``); and the legend in a cell of its own.
 
     Each spectrum is the mean over a window of :data:`SPECTRUM_WINDOW_PX` pixels a side (the
     stride when that is larger) around the chosen pixel, clipped to the image, of the values
@@ -434,8 +484,9 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     (shift_img,) = _load(_image(corrected, s, b_shift))
     shift_img = np.asarray(shift_img, float) - wl[b_shift]
 
-    fig = _figure((13, 9.5))
-    (a_cube, a_cra), (a_shift, a_spec) = fig.subplots(2, 2)
+    virtual = _virtual_means(ds, boxes) if picked else None
+    fig, (a_cube, a_cra, a_shift, a_spec, a_virt, a_key) = _correction_axes(
+        ny, nx, virtual is not None)
     _show(fig, a_cube, img, s, cbar_label=_label(cube, name),
           title=f"{name}, band {b} ({_num(wl[b], '.1f')} nm)")
     cra_title = "chief-ray angle" + (" (first band)" if "band" in cra.dims else "")
@@ -448,13 +499,67 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
         a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
 
-    _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles,
+    _draw_corrected_spectra(a_spec, a_key, ys, xs, boxes, spectra, wl, order, roles,
                             [cra_img[rc] for rc in picked], has_resampled, _label(cube, name))
+    if virtual is not None:
+        _draw_virtual(a_virt, ds["virtual"], *virtual)
 
     head = title or f"Wavelength correction of {name}, {ny} x {nx} px, {nb} bands"
     sub = _subtitle(ds.attrs)
     fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
     return _save(fig, path)
+
+
+#: Width of :func:`plot_correction`'s figure (inches) and the height of its row of spectra.
+CORRECTION_WIDTH_IN = 16.0
+SPECTRA_HEIGHT_IN = 4.6
+
+
+def _correction_axes(ny, nx, with_virtual):
+    """The figure of :func:`plot_correction` and its axes: the three images side by side,
+    their row as high as the images need (no empty band around them); below them the spectra,
+    the virtual bands' spectra (or None) and the legend's own cell."""
+    # an image panel is about a third of the width, less its colour bar
+    image_h = min(max(0.27 * CORRECTION_WIDTH_IN * ny / max(nx, 1), 1.6), 6.0) + 0.9
+    fig = _figure((CORRECTION_WIDTH_IN, image_h + SPECTRA_HEIGHT_IN + 0.7))
+    grid = fig.add_gridspec(2, 3, height_ratios=[image_h, SPECTRA_HEIGHT_IN])
+    images = [fig.add_subplot(grid[0, k]) for k in range(3)]
+    if with_virtual:
+        spec, virt = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
+    else:
+        spec, virt = fig.add_subplot(grid[1, :2]), None
+    key = fig.add_subplot(grid[1, 2])
+    key.set_axis_off()
+    return fig, (*images, spec, virt, key)
+
+
+def _virtual_means(ds, boxes):
+    """The virtual bands' mean over each window (finite values), and their wavelengths; None
+    without virtual bands (a ``virtual(y, x, virtual_band)`` and ``virtual_wavelength``)."""
+    if "virtual" not in ds.variables or "virtual_wavelength" not in ds.variables:
+        return None
+    v = ds["virtual"]
+    if set(v.dims) != {"y", "x", "virtual_band"}:
+        return None
+    v = v.transpose("y", "x", "virtual_band")
+    loaded = _load(*[v.isel(y=slice(y0, y1), x=slice(x0, x1)) for y0, y1, x0, x1 in boxes])
+    means = np.asarray([_nanmean(a, True) for a in loaded], float).reshape(len(boxes), -1)
+    return means, np.asarray(ds["virtual_wavelength"].values, float)
+
+
+def _draw_virtual(ax, virtual, means, wl):
+    """The panel of the virtual bands over the same windows, in the same colours."""
+    few = wl.size <= MARKER_MAX_BANDS
+    o = np.argsort(wl, kind="stable")
+    for k, m in enumerate(means):
+        if np.any(np.isfinite(m)):
+            ax.plot(wl[o], m[o], "-", color=f"C{k}", lw=1.4,
+                    **({"marker": "s", "ms": 3} if few else {}))
+    how = virtual.attrs.get("virtual_bands")
+    ax.set_title(f"virtual bands{f' ({how})' if how else ''}: the same windows", fontsize=10)
+    ax.set_xlabel("virtual band wavelength (nm)")
+    ax.set_ylabel(_label(virtual, "virtual"))
+    ax.grid(alpha=0.3)
 
 
 def _spectra_at(ds, cube, corrected, boxes, has_resampled):
@@ -570,10 +675,11 @@ def _where(box, y, x):
     return f"mean of {h} x {w} px around (y, x) = ({y}, {x})"
 
 
-def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cra_deg,
+def _draw_corrected_spectra(a_spec, a_key, ys, xs, boxes, spectra, wl, order, roles, cra_deg,
                             has_resampled, ylabel):
     """The panel of the windows' mean spectra at nominal and corrected wavelengths (and
-    resampled); every band marked only up to :data:`MARKER_MAX_BANDS` bands."""
+    resampled), its legend in the cell ``a_key``; every band marked only up to
+    :data:`MARKER_MAX_BANDS` bands."""
     from matplotlib.lines import Line2D
 
     few = wl.size <= MARKER_MAX_BANDS
@@ -600,9 +706,9 @@ def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cr
         if has_resampled:
             styles.append(Line2D([], [], color="0.3", ls=":", label="resampled onto nominal",
                                  **({"marker": "x"} if few else {})))
-        # below the panel, so it never hides a spectrum
-        a_spec.legend(handles=handles + styles, fontsize=8, ncols=1, loc="upper center",
-                      bbox_to_anchor=(0.5, -0.12))
+        # in a cell of its own, so it never hides a spectrum
+        a_key.legend(handles=handles + styles, fontsize=8, ncols=1, loc="center left",
+                     frameon=False)
     else:
         _note(a_spec, "no finite values around these pixels:\nno spectrum to show")
     a_spec.set_xlabel("wavelength (nm)")
@@ -610,6 +716,35 @@ def _draw_corrected_spectra(a_spec, ys, xs, boxes, spectra, wl, order, roles, cr
     a_spec.set_title("spectra by chief-ray angle (CRA): means over small windows\n"
                      "of the finite, unmasked values", fontsize=10)
     a_spec.grid(alpha=0.3)
+
+
+#: The wavelength axis of :func:`plot_sensor` spans where some curve reaches this share of its
+#: peak, with a margin of :data:`RESPONSE_MARGIN` of that span on each side.
+RESPONSE_FLOOR = 0.02
+RESPONSE_MARGIN = 0.04
+
+
+def _response_span(grid, curves):
+    """The wavelengths where any of ``curves`` (rows over ``grid``) reaches
+    :data:`RESPONSE_FLOOR` of its own peak, widened by :data:`RESPONSE_MARGIN` and clipped to
+    the grid; the whole grid when none does."""
+    grid = np.asarray(grid, float)
+    a = np.abs(np.atleast_2d(np.asarray(curves, float)))
+    peak = np.nanmax(a, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        reached = np.any(a >= RESPONSE_FLOOR * np.where(peak > 0, peak, np.inf), axis=0)
+    if not reached.any():
+        return float(grid.min()), float(grid.max())
+    lo, hi = float(grid[reached].min()), float(grid[reached].max())
+    pad = max(RESPONSE_MARGIN * (hi - lo), 2.0)
+    return max(float(grid.min()), lo - pad), min(float(grid.max()), hi + pad)
+
+
+def _wrapped(text, width=88):
+    """A title broken into lines of at most ``width`` characters (never cut off)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width))
 
 
 def plot_sensor(sensor, path, *, overwrite=False):
@@ -646,8 +781,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
             ax.plot(grid, eff[b] / np.max(eff[b]), color=cmap(shade[b]), lw=0.8)
         ax.plot(grid, r.system / np.max(r.system), "k--", lw=1.2, label=r.system_name)
         ax.legend(loc="upper right", fontsize=8)
-        ax.set_title(f"{sensor.name}: {sensor.n_bands} measured responses through the system "
-                     "(each scaled to its peak)")
+        ax.set_title(_wrapped(f"{sensor.name}: {sensor.n_bands} measured responses through "
+                              "the system (each scaled to its peak)"), fontsize=10)
+        span = _response_span(grid, np.vstack([eff, *(m.coefficients @ eff
+                                                       for m in sensor.matrices)]))
     else:
         from .optics.bandwidth import band_profile
 
@@ -658,7 +795,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
             curve = band_profile(sensor.profile_shape, cwl[b], sensor.fwhm_nm[b],
                                  np.broadcast_to(n, cwl.shape)[b])(grid)
             ax.plot(grid, curve / np.max(curve), color=cmap(shade[b]), lw=0.8)
-        ax.set_title(f"{sensor.name}: {sensor.n_bands} {sensor.profile} filters")
+        ax.set_title(_wrapped(f"{sensor.name}: {sensor.n_bands} {sensor.profile} filters"),
+                     fontsize=10)
+        span = (float(grid.min()), float(grid.max()))
+    ax.set_xlim(*span)
     ax.set_xlabel("wavelength (nm)")
     ax.set_ylabel("relative response")
     for ax, m in zip(axes[1:], sensor.matrices, strict=False):
@@ -672,8 +812,10 @@ def plot_sensor(sensor, path, *, overwrite=False):
                 ax.plot(r.wavelength_nm, np.exp(-4 * np.log(2) * u * u), color=colour, lw=0.6,
                         ls=":")
         ax.axhline(0.0, color="0.5", lw=0.5)
-        ax.set_title(f"correction matrix {m.name!r} ({m.kind}): its virtual bands' responses "
-                     "(solid) and Gaussians of their widths (dotted)")
+        ax.set_title(_wrapped(f"correction matrix {m.name!r} ({m.kind}): its virtual bands' "
+                              "responses (solid) and Gaussians of their widths (dotted)"),
+                     fontsize=10)
+        ax.set_xlim(*span)
         ax.set_xlabel("wavelength (nm)")
         ax.set_ylabel("relative response")
     return _save(fig, path)

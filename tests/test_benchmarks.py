@@ -134,6 +134,18 @@ def test_quick_stream_benchmark_runs_zarr_to_zarr():
     assert any("peak memory" in line for line in lines)
 
 
+def test_quick_startup_benchmark_runs_and_reports_every_ratio():
+    from benchmarks import startup
+
+    lines = []
+    rows = startup.run(quick=True, echo=lines.append, write=False)
+    assert {r["figure"] for r in rows} == {"numpy", "help", "command_help", "usage_error",
+                                           "first_flatfield", "second_flatfield", "work"}
+    for r in rows:
+        assert np.isfinite(r["seconds"]) and r["seconds"] > 0 and r["ratio"] > 0
+    assert sum("target <= 3 x" in line for line in lines) == 2
+
+
 def test_quick_unknown_lens_benchmark_runs_and_reports_every_parameter():
     from benchmarks import unknown_lens
 

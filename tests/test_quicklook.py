@@ -87,7 +87,7 @@ def test_flatfield_quicklook(flat, figures, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ff.png"]  # no temporary left
     text = _texts(figures[0])
     for want in ("x (px)", "y (px)", "reflectance", "band 2 (700.0 nm)", "masked values (%)",
-                 "centre (y, x) = (12, 16)", "masked"):
+                 "masked"):
         assert want in text
     img_ax = figures[0].axes[0]
     assert img_ax.images[0].get_array().shape == (NY, NX)
@@ -102,7 +102,7 @@ def test_flatfield_quicklook(flat, figures, tmp_path):
 
 def test_correction_quicklook(corrected, figures, tmp_path):
     out = plot_correction(corrected, tmp_path / "corr.png", title="Test scene")
-    _check_png(out, (13, 9.5))
+    _check_png(out, figures[0].get_size_inches())
     fig = figures[0]
     text = _texts(fig)
     for want in ("Test scene", "lens Edmund", "f/1.4", f"method {corrected.attrs['method']}",
@@ -182,7 +182,7 @@ def test_dask_inputs_read_by_parts(corrected, tmp_path):
     assert lazy_flat["reflectance"].chunks is not None
     assert lazy_corr["wavelength_corrected"].chunks is not None
     _check_png(tmp_path / "ff.png", (15.5, 4.8))
-    _check_png(tmp_path / "corr.png", (13, 9.5))
+    _check_png(tmp_path / "corr.png", (16.0, 0.27 * 16 * NY / NX + 0.9 + 4.6 + 0.7))
 
 
 def test_large_images_drawn_with_a_stride(figures, tmp_path):
@@ -241,10 +241,17 @@ def _spectra_axes(fig):
     return next(ax for ax in fig.axes if ax.get_title().startswith("spectra by chief-ray"))
 
 
+def _spectra_legend(fig):
+    """The spectra panel's legend (in a cell of its own, beside the spectra)."""
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    return next(leg for leg in legends
+                if any(t.get_text() == "at nominal wavelengths" for t in leg.get_texts()))
+
+
 def _windows_in_legend(ax):
     """(role, (y0, y1, x0, x1), (y, x)) of every pixel entry in the spectra panel's legend."""
     out = []
-    for entry in (t.get_text() for t in ax.get_legend().get_texts()):
+    for entry in (t.get_text() for t in _spectra_legend(ax.figure).get_texts()):
         if "(y, x)" not in entry:
             continue
         role, rest = entry.split(": ", 1)
@@ -350,5 +357,97 @@ def test_markers_only_for_few_bands(figures, tmp_path, nb, marked):
     ax = _spectra_axes(figures[0])
     markers = {line.get_marker() for line in ax.get_lines()}
     assert markers == ({".", "o", "x"} if marked else {"None"})
-    legend_markers = {h.get_marker() for h in ax.get_legend().legend_handles}
+    legend_markers = {h.get_marker() for h in _spectra_legend(ax.figure).legend_handles}
     assert ("x" in legend_markers) == marked
+
+
+def _legend_pixels(ax):
+    return [tuple(int(v) for v in t.get_text().split("= (")[1].rstrip(")").split(", "))
+            for t in ax.get_legend().get_texts()]
+
+
+def test_flatfield_spectra_come_from_bright_different_pixels_across_the_field(figures, tmp_path):
+    """A dark scene (reflectance 0.01, as a real one was at the centre and corners) with six
+    bright patches of three spectra: the pixels drawn are on the patches, far apart, and show
+    every spectrum, not noise around 0.01."""
+    ny, nx, nb = 90, 120, 8
+    refl = np.full((ny, nx, nb), 0.01)
+    spectra = [np.linspace(0.3, 0.6, nb), np.linspace(0.6, 0.3, nb),
+               0.45 + 0.15 * np.sin(np.linspace(0, 3 * np.pi, nb))]
+    patches = [(15, 25), (15, 95), (45, 60), (75, 20), (75, 100), (45, 10)]
+    yy, xx = np.mgrid[:ny, :nx]
+    which = np.full((ny, nx), -1)
+    for k, (cy, cx) in enumerate(patches):
+        inside = (abs(yy - cy) <= 6) & (abs(xx - cx) <= 8)
+        refl[inside] = spectra[k % 3]
+        which[inside] = k % 3
+    noise = np.random.default_rng(5).normal(0, 0.003, refl.shape)
+    raw = (10 + (refl + noise) * 1190).astype(np.float32)
+    plot_flatfield(_flat(raw, white=1200.0), tmp_path / "ff.png")
+    picked = _legend_pixels(figures[0].axes[2])
+    assert len(picked) == 5
+    assert all(which[y, x] >= 0 for y, x in picked), picked  # on a bright patch each
+    assert {which[y, x] for y, x in picked} == {0, 1, 2}  # every spectrum shown
+    far = min(np.hypot(a[0] - b[0], a[1] - b[1]) for i, a in enumerate(picked)
+              for b in picked[i + 1:])
+    assert far > 20, picked  # spread out, not five pixels of one patch
+
+
+def test_sensor_quicklook_fits_the_wavelengths_and_cuts_no_title(figures, tmp_path):
+    """A vendor file whose responses lie at 455-635 nm on a 400-1000 nm grid: the axis spans
+    the responses (and a margin), and every title lies inside the picture."""
+    import vendorfiles
+
+    from snapcorr.quicklook import plot_sensor
+
+    sensor = Sensor.load(vendorfiles.write_newer(tmp_path / "imec.xml", vendorfiles.imec_4x4()))
+    out = plot_sensor(sensor, tmp_path / "s.png")
+    fig = figures[0]
+    assert len(fig.axes) == 1 + len(sensor.matrices)
+    lo, hi = min(sensor.cwl_nm), max(sensor.cwl_nm)
+    for ax in fig.axes:
+        left, right = ax.get_xlim()
+        assert 430 < left < lo and hi < right < 680, (left, right)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()  # laid out as written
+    renderer = canvas.get_renderer()
+    width, height = fig.bbox.width, fig.bbox.height
+    for ax in fig.axes:
+        box = ax.title.get_window_extent(renderer)
+        assert 0 <= box.x0 and box.x1 <= width and box.y1 <= height, ax.get_title()
+    assert out.exists()
+
+
+def test_correction_quicklook_draws_virtual_bands_and_leaves_no_empty_band(figures, tmp_path):
+    """A tile cube of the 5x5 vendor sensor (216 x 409 px, wide) with vendor virtual bands:
+    their panel is drawn from the same windows, and under every image the next panel starts
+    within half an inch (the images' row is as high as they need)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from snapcorr import data
+
+    nir = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    from snapcorr.cube import mosaic_to_cube
+
+    rng = np.random.default_rng(2)
+    frame = (0.3 + 0.2 * np.linspace(0, 1, nir.size_px[1])[None, :]
+             + rng.normal(0, 0.005, nir.size_px)).astype(np.float32)
+    cube = mosaic_to_cube(frame, nir)  # 216 x 409 tiles of 25 bands, placed on the sensor
+    ds = correct_cube(cube, nir, 2.8, LENS, virtual_bands="vendor")
+    plot_correction(ds, tmp_path / "c.png")
+    fig = figures[0]
+    virtual = next(ax for ax in fig.axes if ax.get_title().startswith("virtual bands (vendor)"))
+    assert len(virtual.lines) == len(_windows_in_legend(_spectra_axes(fig)))
+    drawn = np.sort(virtual.lines[0].get_xdata())
+    np.testing.assert_allclose(drawn, np.sort(ds["virtual_wavelength"].values))
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    boxes = {ax: ax.get_tightbbox(renderer) for ax in fig.axes if ax.axison}
+    for ax in [ax for ax in fig.axes if ax.images]:
+        below = [b.y1 for other, b in boxes.items()
+                 if other is not ax and b.y1 <= boxes[ax].y0 + 1]
+        gap = (boxes[ax].y0 - max(below, default=0.0)) / fig.dpi
+        assert gap < 0.5, (ax.get_title(), gap)

@@ -41,6 +41,7 @@ import numpy as np
 
 from .. import __version__
 from .._coords import accepts_center_rc
+from .._names import CALIBRATION_METHODS
 from .._validation import check_center, check_pixel_pitch_um, check_positive
 from ..optics.chief_ray import cra_map
 from ..optics.lens import Lens
@@ -51,7 +52,7 @@ from .joint_fit import N_CIRCLES, ModelFit, param_names
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
 
-METHODS = ("auto", "joint", "onset-ratio", "onset-model")
+METHODS = CALIBRATION_METHODS
 #: Reduced chi-square above which a note says the area model leaves a misfit (the estimator
 #: is chosen by prediction, not by this).
 MISFIT_CHI2 = 1.5

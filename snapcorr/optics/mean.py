@@ -11,6 +11,7 @@ import functools
 
 import numpy as np
 
+from .._names import CORRECTION_MODELS
 from .._validation import check_positive, check_positive_array, validate_method
 from . import goossens2019 as g19
 from .lens import Lens
@@ -232,7 +233,7 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
 #: ``"vignetted"`` the exact mean of the vignetted pupil (Eq. 22); ``"harmonised"`` that mean
 #: and one common response per band (:mod:`snapcorr.correct.harmonise`), for scenes where the
 #: widening of the response matters too.
-MODELS = ("none", "asymptotic", "ideal", "vignetted", "harmonised")
+MODELS = CORRECTION_MODELS
 
 
 def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
