@@ -7,11 +7,34 @@ import warnings
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
-import pytest
-from flatsim import LensTruth
 
-from snapcorr import Lens
+def _share_the_cores():
+    """Under pytest-xdist, each worker's share of the cores for BLAS, OpenMP and numba's
+    threads (set before numpy and numba load, and inherited by the command lines the tests
+    start): ``-n auto`` already runs a worker per core, and threads beyond that only wait for
+    one another. Idle threads also wait passively instead of spinning on the cores the other
+    workers need. A variable already set is kept."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
+    if not os.environ.get("PYTEST_XDIST_WORKER") or workers < 1:
+        return
+    share = str(max(1, (os.cpu_count() or 1) // workers))
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(var, share)
+    os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+    # a plugin may have loaded numpy already: its BLAS is limited in place
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(int(os.environ["OPENBLAS_NUM_THREADS"]), user_api="blas")
+
+
+_share_the_cores()
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from flatsim import LensTruth  # noqa: E402
+
+from snapcorr import Lens  # noqa: E402
 
 #: The paper's lens, the Edmund Optics 16 mm (Goossens 2019, Sec. 3.2, Eq. 31): exit pupil x,
 #: vignetting circle (P, h), magnification m and pupil magnification m_P. Tests use these, the
