@@ -7,11 +7,101 @@ import warnings
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
-import pytest
-from flatsim import LensTruth
 
-from snapcorr import Lens
+def _share_the_cores():
+    """Under pytest-xdist, each worker's share of the cores for BLAS, OpenMP and numba's
+    threads (set before numpy and numba load, and inherited by the command lines the tests
+    start): ``-n auto`` already runs a worker per core, and threads beyond that only wait for
+    one another. Idle threads also wait passively instead of spinning on the cores the other
+    workers need. A variable already set is kept."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
+    if not os.environ.get("PYTEST_XDIST_WORKER") or workers < 1:
+        return
+    share = str(max(1, (os.cpu_count() or 1) // workers))
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(var, share)
+    os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+    # a plugin may have loaded numpy already: its BLAS is limited in place
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(int(os.environ["OPENBLAS_NUM_THREADS"]), user_api="blas")
+
+
+_share_the_cores()
+
+
+#: The environment variable naming the folder of the compile locks (:func:`_compile_once`).
+_LOCKS = "SNAPCORR_TEST_COMPILE_LOCKS"
+
+
+def pytest_configure(config):
+    """The folder for the workers' compile locks, made before pytest-xdist starts them (they
+    inherit the environment) and removed at the end."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or not getattr(config.option, "numprocesses", 0):
+        return
+    import shutil
+    import tempfile
+
+    folder = tempfile.mkdtemp(prefix="numba-compile-locks-")
+    os.environ[_LOCKS] = folder
+    config.add_cleanup(lambda: (os.environ.pop(_LOCKS, None),
+                                shutil.rmtree(folder, ignore_errors=True)))
+
+
+def _compile_once():
+    """Under pytest-xdist, a compiled function (numba, ``cache=True``) compiled by one worker
+    at a time: a worker that needs one another is compiling waits for it and loads it from
+    the cache (the tabulated harmonising pass takes over half a minute of CPU to compile)
+    instead of compiling it a second time. One lock file per function; a function's lock is
+    taken before those of the functions it calls (acyclic: no deadlock); after ten minutes a
+    worker compiles without it. The lock files' folder is the run's (:func:`pytest_configure`)."""
+    folder = os.environ.get(_LOCKS)
+    if not os.environ.get("PYTEST_XDIST_WORKER") or not folder or not os.path.isdir(folder):
+        return
+    import fcntl
+    import hashlib
+    import time
+
+    from numba.core.caching import NullCache
+    from numba.core.dispatcher import Dispatcher
+
+    folder = Path(folder)
+    held = set()
+    compile_ = Dispatcher.compile
+
+    def compile(self, sig):
+        func = self.py_func
+        key = hashlib.sha1(f"{func.__module__}.{func.__qualname__}".encode()).hexdigest()
+        if isinstance(self._cache, NullCache) or key in held:
+            return compile_(self, sig)
+        with open(folder / key, "w") as lock:
+            end = time.monotonic() + 600
+            while True:
+                try:
+                    fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > end:
+                        return compile_(self, sig)
+                    time.sleep(0.05)
+            held.add(key)
+            try:
+                return compile_(self, sig)
+            finally:
+                held.discard(key)
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    Dispatcher.compile = compile
+
+
+_compile_once()
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from flatsim import LensTruth  # noqa: E402
+
+from snapcorr import Lens  # noqa: E402
 
 #: The paper's lens, the Edmund Optics 16 mm (Goossens 2019, Sec. 3.2, Eq. 31): exit pupil x,
 #: vignetting circle (P, h), magnification m and pupil magnification m_P. Tests use these, the
