@@ -151,6 +151,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         response) on request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the
         matrix used, on request; provenance in attrs.
     """
+    if isinstance(sensor, Sensor):  # a mosaic cube in the vendor's order: the sensor's
+        cube, mask = sensor.in_band_order(cube, mask)
     f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                       harmonise, mask, resample)
     cwl = np.asarray(sensor.cwl_nm, float)
