@@ -415,8 +415,19 @@ def _netcdf_encoding(ds, compression="auto"):
     if compression == "none":
         return {name: {**_storage_keys(ds[name]), "zlib": False}
                 for name in _compressible(ds, compression)}
-    return {name: {**_storage_keys(ds[name]), "zlib": True, "complevel": 1, "shuffle": True}
+    return {name: {**_storage_keys(ds[name]), "zlib": True, "complevel": 1, "shuffle": True,
+                   **_hdf5_chunks(ds[name])}
             for name in _compressible(ds, compression)}
+
+
+def _hdf5_chunks(var):
+    """``{"chunksizes": ...}``: a compressed lazy variable stored in HDF5 chunks of its own
+    blocks, so that each block written fills whole chunks. Left to h5py's guess (chunks of a
+    few frames of a stream), every block would rewrite, decompressing and compressing again,
+    chunks it shares with the next: a 100-frame stream took 29 x the plain write."""
+    if var.chunks is None:
+        return {}
+    return {"chunksizes": tuple(int(c[0]) for c in var.chunks)}
 
 
 #: A lazy variable whose attrs name another in this key (``mask`` computed from
