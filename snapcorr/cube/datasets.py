@@ -259,8 +259,19 @@ def _in_counts(name, var):
 
 def check_storage(dtype, pack_range=None, fmt=None, what="dtype"):
     """Refuse a storage type the format cannot hold, or a packing range that is no range,
-    before any work. ``what`` names the option in the messages (``--dtype`` from the
-    command line)."""
+    before any work.
+
+    Parameters
+    ----------
+    dtype : {None, "float32", "float16", "uint16"}
+        The type asked for (:func:`~snapcorr.cube.write_dataset`'s ``dtype``).
+    pack_range : (float, float), optional
+        ``(lo, hi)`` for uint16.
+    fmt : {"netcdf", "zarr", "envi"}, optional
+        The output's format.
+    what : str
+        The option's name in the messages (``--dtype`` from the command line).
+    """
     if dtype is None:
         if pack_range is not None:
             raise ValueError(f"a packing range goes with {what} uint16")

@@ -301,7 +301,21 @@ class Sensor:
         """``cube`` (and ``mask``) with the bands in this sensor's order: a cube whose
         ``wavelength`` lists the sensor's bands in another order (the vendor's tile order, as
         files written before bands were ordered by wavelength hold them) is reordered; any
-        other is returned as it is, for :meth:`check_cube` to judge."""
+        other is returned as it is, for :meth:`check_cube` to judge.
+
+        Parameters
+        ----------
+        cube : xarray.DataArray
+            ``(y, x, band)`` with a ``wavelength`` coordinate, nm.
+        mask : xarray.DataArray, optional
+            Reordered with the cube where it has a ``band`` dim.
+        what : str
+            What the cube is (kept for the messages of callers).
+
+        Returns
+        -------
+        (xarray.DataArray, xarray.DataArray or None)
+        """
         if "wavelength" not in cube.coords or cube.sizes.get("band") != self.n_bands:
             return cube, mask
         wl = np.asarray(cube["wavelength"].values, float)
