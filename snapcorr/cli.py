@@ -1365,7 +1365,7 @@ def _print_budget(args, b, sensor, lens, source, field, ranges):
 STORAGE_CHOICES = ("float32", "float16", "uint16")
 DTYPE_HELP = ("type the values are stored as: float32; float16 (.zarr only, relative error "
               "4.9e-4); uint16 (.nc, .zarr: packed by CF scale_factor/add_offset that readers "
-              "apply, reflectance at most 3.1e-5 from the value); raw counts are kept as they "
+              "apply, reflectance at most 3.2e-5 from the value); raw counts are kept as they "
               "are")
 SENSOR_HELP = ("sensor description (.toml), the vendor's calibration file (.xml) or a bundled "
                "sensor (snapscan_vnir, mosaic_4x4_vis, imec_5x5_nir, ...)")

@@ -501,9 +501,10 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
         keeps each variable's own. ``"uint16"`` packs them by CF ``scale_factor`` and
         ``add_offset`` (NaN as ``_FillValue`` 65535, codes 0-65534 in ``valid_range``), which
         xarray and netCDF readers apply: ratios (units ``"1"``) over -0.5 to 3.5 by default,
-        a step of 6.1e-5, at most 3.05e-5 from the value computed; values outside the range
-        are stored as its ends (clipped). Each packed variable says its packing, its error and
-        the clipping in its ``storage`` and ``packing_error`` attributes. ``"float16"``
+        a step of 6.1e-5, at most 3.2e-5 from the value computed (half a step and float32's
+        rounding); values outside the range are stored as its ends (clipped). Each packed
+        variable says its packing, its error and the clipping in its ``storage`` and
+        ``packing_error`` attributes. ``"float16"``
         (Zarr only; netCDF has no such type): relative error at most 4.9e-4. A camera's
         numbers are never stored as either: the input's copy (``raw``) keeps its type, and
         other values in counts (or without units) are refused.
