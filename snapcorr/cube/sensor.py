@@ -279,8 +279,9 @@ class Sensor:
 
     def band_coords(self):
         """``{"vendor_band": ...}``: the coordinate a cube built from a frame carries along
-        ``band`` (empty when the sensor gives no numbers)."""
-        if self.vendor_band is None:
+        ``band`` where the file numbers the bands in another order (empty where its order is
+        the wavelengths')."""
+        if self.vendor_band is None or self.vendor_band == tuple(range(self.n_bands)):
             return {}
         return {"vendor_band": ("band", np.asarray(self.vendor_band, np.int32), {
             "long_name": "the band's number in the sensor's calibration file (its tile order)",
@@ -462,13 +463,15 @@ class Sensor:
                          f"{r.wavelength_nm[-1]:g} nm ({r.wavelength_nm.size} samples); in "
                          f"front of every band: {r.system_name}, above half its maximum "
                          f"{on[0]:g}-{on[-1]:g} nm")
-        lines.append("  band  tile     centre nm  FWHM nm" + ("  peaks" if r is not None else ""))
+        lines.append("  band  file  tile     centre nm  FWHM nm"
+                     + ("  peaks" if r is not None else ""))
         for b in range(self.n_bands):
             tile = f"({self.band_offset[b][0]},{self.band_offset[b][1]})" if self.band_offset \
                 else "-"
             peaks = f"  {len(r.peaks[b])}" if r is not None else ""
-            lines.append(f"  {b:4d}  {tile:7s}  {self.cwl_nm[b]:9.2f}  {self.fwhm_nm[b]:7.2f}"
-                         f"{peaks}")
+            number = self.vendor_band[b] if self.vendor_band is not None else b
+            lines.append(f"  {b:4d}  {number:4d}  {tile:7s}  {self.cwl_nm[b]:9.2f}  "
+                         f"{self.fwhm_nm[b]:7.2f}{peaks}")
         for m in self.matrices:
             fw = ("FWHM not given" if not np.all(np.isfinite(m.fwhm_nm))
                   else f"FWHM {span(m.fwhm_nm)} nm")
