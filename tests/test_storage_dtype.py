@@ -154,3 +154,32 @@ def test_the_command_line_stores_as_asked_and_refuses_envi_packing(tmp_path, cli
     for dtype in ("uint16", "float16"):
         with pytest.raises(ValueError, match="ENVI has no packing"):
             check_storage(dtype, None, "envi", what="--dtype")
+
+
+def test_an_envi_result_is_float32_as_spectral_python_reads_it_and_never_packed(tmp_path, cli):
+    """ENVI has no packing a reader applies: ``--dtype float32`` writes float32 pairs that
+    Spectral Python (not snapcorr's reader) reads as the values; uint16 and float16 are
+    refused before any work, in one line."""
+    spectral = pytest.importorskip("spectral")
+    from snapcorr import data
+    from snapcorr.cube import Sensor
+
+    sensor = Sensor.load(data.sensor_path("snapscan_vnir"))
+    rng = np.random.default_rng(5)
+    values = rng.uniform(0.05, 0.9, (6, 5, sensor.n_bands))  # float64
+    write_cube(make_cube(values, sensor.cwl_nm, name="reflectance",
+                         attrs={"units": "1"}), tmp_path / "cube.nc")
+    args = ["correct", "cube.nc", "--lens", "edmund_optics_16mm", "--sensor", "snapscan_vnir",
+            "--f-number", "2", "--sensor-origin-px", "1000,1000"]
+    for dtype in ("uint16", "float16"):
+        res = cli(*args, "--dtype", dtype, "--out", f"{dtype}.hdr", cwd=tmp_path)
+        assert res.returncode == 1 and "ENVI has no packing" in res.stderr, res.stderr
+        assert res.stderr.count("\n") == 1 and not list(tmp_path.glob(f"{dtype}*"))
+    res = cli(*args, "--dtype", "float32", "--out", "r.hdr", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    img = spectral.open_image(str(tmp_path / "r.hdr"))
+    got = np.asarray(img.load())
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, values.astype(np.float32))
+    # the nominal wavelengths (each pixel has its own, in r_wavelength_corrected.hdr)
+    assert np.all(np.diff(np.asarray(img.metadata["snapcorr nominal wavelength"], float)) > 0)
