@@ -14,6 +14,7 @@ from . import (
     demosaic,
     io_memory,
     mean_shift,
+    output_size,
     pupil,
     pupil_model,
     scaling,
@@ -60,5 +61,7 @@ print()
 stream.run(quick=args.quick, write=not args.quick)
 print()
 startup.run(quick=args.quick, write=not args.quick)
+print()
+output_size.run(quick=args.quick, write=not args.quick)
 if args.quick:
     print("(quick mode: sizes are too small for the rates to be representative)")

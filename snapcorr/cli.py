@@ -234,6 +234,18 @@ _center_rc_arg = _pair_arg("centre", "ROW,COL")
 _origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
 
 
+def _pack_range_arg(value):
+    """``--pack-range LO,HI``: two finite numbers, LO < HI."""
+    try:
+        lo, hi = (float(v) for v in value.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI (two numbers), got {value!r}") \
+            from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise argparse.ArgumentTypeError(f"expected finite LO < HI, got {value!r}")
+    return lo, hi
+
+
 def _number(text):
     """A command-line string as a float (NaN for text that is not one, refused after)."""
     try:
@@ -518,6 +530,20 @@ def _frame_rows(frame, sensor):
 # -- subcommands -------------------------------------------------------------------------------
 
 
+def _check_storage_option(args):
+    """``--dtype`` and ``--pack-range`` for ``--out``'s format, before any work; ``--dtype``
+    float16 or uint16 computes in float32 and stores as asked (``args.storage``)."""
+    from .cube.datasets import check_storage
+
+    dtype = getattr(args, "dtype", None)
+    args.storage = dtype if dtype in ("float32", "float16", "uint16") else None
+    if dtype in ("float16", "uint16"):
+        args.dtype = "float32"
+    suffix = args.out.suffix.lower()
+    fmt = {".nc": "netcdf", ".zarr": "zarr", ".hdr": "envi"}.get(suffix)
+    check_storage(args.storage, args.pack_range, fmt, what="--dtype")
+
+
 def _cmd_demo(args):
     from .demo import run_demo
 
@@ -531,6 +557,7 @@ def _cmd_flatfield(args):
 
     inputs = [p for p in (args.raw, *args.dark, *args.white, args.filter_white) if p]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
+    _check_storage_option(args)
     sensor = _sensor(args.sensor) if args.sensor else None
     if args.sensor_origin_px is not None and sensor is None:
         raise ValueError("--sensor-origin-px needs --sensor (the layout places the pixels)")
@@ -693,6 +720,7 @@ def _cmd_stream(args):
 
     inputs = [args.frames, *args.dark, *args.white]
     _check_outputs([args.out], inputs, args.overwrite, [(".zarr", ".nc")])
+    _check_storage_option(args)
     sensor = _sensor(args.sensor)
     if sensor.layout != "mosaic":
         raise ValueError(f"stream takes raw mosaic frames: --sensor {args.sensor} is not a "
@@ -746,10 +774,12 @@ def _correct_input(args, sensor):
 def _write_correction(args, ds, inputs, cube_name):
     """``correct``'s result as ``--out`` asks: a .nc or .zarr, or ENVI pairs; the paths."""
     if args.out.suffix.lower() == ".hdr":
+        from .cube.datasets import _stored_as
         from .cube.envi_result import write_envi_result
 
         if args.no_input:
             ds.attrs["input_left_out"] = f"{cube_name} (--no-input); the input is {args.cube}"
+        ds = _stored_as(ds, args.storage, None, "envi")
         return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
                                  include_input=not args.no_input, input_name=cube_name)
     return [_write_result(args, ds, inputs, [cube_name], args.cube)]
@@ -794,6 +824,7 @@ def _cmd_correct(args):
     if args.out.suffix.lower() == ".hdr" and (args.compression != "auto" or args.store_derived):
         raise ValueError("an ENVI result is written plainly and whole: --compression and "
                          "--store-derived go with .nc or .zarr")
+    _check_storage_option(args)
     if args.source is not None and args.method != "auto":
         raise ValueError("--source chooses the model: use it with --method auto")
     if args.tolerance_pct is not None and args.source is None:
@@ -1400,6 +1431,12 @@ def _print_budget(args, b, sensor, lens, source, field, ranges):
 
 # -- the parser --------------------------------------------------------------------------------
 
+#: What ``--dtype`` may store a result's values as.
+STORAGE_CHOICES = ("float32", "float16", "uint16")
+DTYPE_HELP = ("type the values are stored as: float32; float16 (.zarr only, relative error "
+              "4.9e-4); uint16 (.nc, .zarr: packed by CF scale_factor/add_offset that readers "
+              "apply, reflectance at most 3.2e-5 from the value); raw counts are kept as they "
+              "are")
 SENSOR_HELP = ("sensor description (.toml), the vendor's calibration file (.xml) or a bundled "
                "sensor (snapscan_vnir, mosaic_4x4_vis, imec_5x5_nir, ...)")
 OVERWRITE_HELP = "replace an existing --out (or --plot) that snapcorr wrote; never an input"
@@ -1407,13 +1444,20 @@ ORIGIN_HELP = ("sensor row and column of the cube's first pixel (of its tile, fo
                "for a crop that does not record where it sits")
 
 
-def _add_output_options(p, *, input_name, derived=False):
-    """``--compression`` and ``--no-input`` (and ``--store-derived``) for a result."""
+def _add_output_options(p, *, input_name, derived=False, dtype=False):
+    """``--compression``, ``--pack-range`` and ``--no-input`` (and ``--store-derived``,
+    ``--dtype``) for a result."""
     g = p.add_argument_group("output")
+    if dtype:
+        g.add_argument("--dtype", default=None, choices=list(STORAGE_CHOICES),
+                       help=DTYPE_HELP + " (default: the input's own type)")
     g.add_argument("--compression", default="auto", choices=["auto", "all", "none"],
-                   help="auto (default): where it pays (every variable of .zarr, fast LZ4; in "
-                   ".nc, integers, masks and stored derived variables, as noisy floats "
-                   "shrink to about 3/4 for 6 x the writing time); all; none")
+                   help="auto (default): every numeric variable (.zarr: Blosc LZ4 with bit "
+                   "shuffle; .nc: DEFLATE level 1 with byte shuffle), except a copy its "
+                   "source compressed already; all; none")
+    g.add_argument("--pack-range", type=_pack_range_arg, default=None, metavar="LO,HI",
+                   help="with --dtype uint16: the values packed (default for reflectance and "
+                   "transmittance: -0.5,3.5); values outside are stored as LO or HI")
     g.add_argument("--no-input", action="store_true",
                    help=f"leave out the copy of {input_name} (by default kept next to the "
                    "result); its path stays in the attributes")
@@ -1445,7 +1489,9 @@ def _write_result(args, ds, inputs, input_names, source):
         ds = _without_input(ds, input_names, source)
     return write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs,
                          compression=args.compression,
-                         store_derived=getattr(args, "store_derived", False))
+                         store_derived=getattr(args, "store_derived", False),
+                         dtype=getattr(args, "storage", None),
+                         pack_range=getattr(args, "pack_range", None))
 
 
 def _add_progress_options(p):
@@ -1516,8 +1562,9 @@ def _add_flatfield(command):
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="digital number at or above which a pixel is saturated (default: the "
                    "sensor's largest code, from its bit_depth, where it gives one)")
-    p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
-                   help="type of the result (default: %(default)s)")
+    p.add_argument("--dtype", default="float32", choices=["float64", *STORAGE_CHOICES],
+                   help=DTYPE_HELP + "; float64 computes and stores in double precision "
+                   "(default: %(default)s)")
     p.add_argument("--demosaic", default=None, metavar="METHOD",
                    choices=["nearest", "bilinear", "ppid", "ri"],
                    help="a raw mosaic frame (with a mosaic --sensor): flat-field it pixel by "
@@ -1638,7 +1685,7 @@ def _add_correct(command):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler to run on, e.g. tcp://host:8786 "
                    "(default: in-process threads)")
-    _add_output_options(p, input_name="the input cube", derived=True)
+    _add_output_options(p, input_name="the input cube", derived=True, dtype=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     _add_progress_options(p)
     p.set_defaults(func=_cmd_correct)
@@ -1760,8 +1807,9 @@ def _add_stream(command):
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="digital number at or above which a pixel is saturated (default: the "
                    "sensor's largest code, from its bit_depth, where it gives one)")
-    p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
-                   help="type of the result (default: %(default)s)")
+    p.add_argument("--dtype", default="float32", choices=["float64", *STORAGE_CHOICES],
+                   help=DTYPE_HELP + "; float64 computes and stores in double precision "
+                   "(default: %(default)s)")
     p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
     _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)

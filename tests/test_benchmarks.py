@@ -146,6 +146,20 @@ def test_quick_startup_benchmark_runs_and_reports_every_ratio():
     assert sum("target <= 3 x" in line for line in lines) == 2
 
 
+@pytest.mark.slow
+def test_quick_output_size_benchmark_runs_every_type_and_codec():
+    from benchmarks import output_size
+
+    lines = []
+    rows, codecs = output_size.run(quick=True, echo=lines.append, write=False)
+    assert [(r["format"], r["dtype"], r["compression"]) for r in rows] == output_size.RUNS
+    for r in rows:
+        assert 0 < r["x_float32_plain"] <= 1.0 and np.isfinite(r["x_time"])
+        if r["dtype"] == "uint16":  # within the error the file states
+            assert float(r["max_error"]) <= float(r["stated_error"])
+    assert {c["data"] for c in codecs} == {"float32", "uint16"}
+
+
 def test_quick_unknown_lens_benchmark_runs_and_reports_every_parameter():
     from benchmarks import unknown_lens
 

@@ -89,8 +89,8 @@ def test_the_simulator_places_bands_as_the_file_says(vendor):
     fx, sensor, _ = vendor
     assert sensor.mosaic_shape == TILE
     want = band_at_position(fx)
-    for b, (r, c) in enumerate(sensor.band_offset):
-        assert want[r, c] == b
+    for b, (r, c) in enumerate(sensor.band_offset):  # band b: the file's band vendor_band[b]
+        assert want[r, c] == sensor.vendor_band[b]
 
 
 @pytest.mark.parametrize("light", ["tungsten", "D65", "LED-B3"])
@@ -238,7 +238,7 @@ def test_a_tile_of_too_few_bands_cannot_tell(vendor):
     few = FilterResponses(r.wavelength_nm, r.curves[:4], r.system, r.peaks[:4], r.system_name)
     tiny = dataclasses.replace(sensor, cwl_nm=sensor.cwl_nm[:4], fwhm_nm=sensor.fwhm_nm[:4],
                                mosaic_shape=(2, 2), band_offset=((0, 0), (0, 1), (1, 0), (1, 1)),
-                               responses=few, matrices=())
+                               responses=few, matrices=(), vendor_band=None)
     white = np.random.default_rng(0).uniform(100, 200, (32, 32))
     found = mosaic_phase(white, tiny)
     assert found.phase_px is None and "too few to tell" in found.describe()

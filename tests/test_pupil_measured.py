@@ -75,7 +75,8 @@ def cubes(folder, target, f_numbers, *, noise, seed, n_nodes=96):
     path, _ = vendor_file(folder)
     sensor = Sensor.load(path)
     # the frame's layout above is the file's: pattern positions in reading order
-    assert [tuple(o) for o in sensor.band_offset] == [(i // 4, i % 4) for i in range(16)]
+    assert [tuple(o) for o in sensor.in_file_order(sensor.band_offset)] == \
+        [(i // 4, i % 4) for i in range(16)]
     rng = np.random.default_rng(seed)
     return {f: mosaic_to_cube(raw_frame(folder, target, f, noise, rng, n_nodes), sensor)
             for f in f_numbers}, sensor

@@ -32,8 +32,13 @@ def test_the_real_older_file_reads_as_its_elements_say():
     assert np.all(m.fwhm_nm == 15.0)
     assert m.coefficients[0, 11] == 9.6813e-005  # the file's "9.6813e-005"
     sensor = Sensor.load(VENDOR_XML)
-    assert sensor.cwl_nm == tuple(peaks) and sensor.n_eff is None
-    assert sensor.band_offset[7] == (1, 2) and sensor.profile == "measured"
+    # the bands in order of wavelength, each with its number in the file
+    v = list(sensor.vendor_band)
+    assert sorted(v) == list(range(25)) and np.all(np.diff(sensor.cwl_nm) > 0)
+    assert sensor.cwl_nm == tuple(np.asarray(peaks)[v]) and sensor.n_eff is None
+    assert sensor.band_offset[v.index(7)] == (1, 2) and sensor.profile == "measured"
+    assert_array_equal(sensor.matrices[0].coefficients, coeffs[:, v])
+    assert_array_equal(sensor.responses.curves, curves[v])
     # why it is an irradiance matrix: it turns the measured responses (band-pass included)
     # into single peaks of about 1 at its virtual bands, and its rows do not sum to 1 (a
     # matrix for flat-fielded values would leave a flat spectrum flat)
@@ -49,34 +54,36 @@ def test_both_variants_give_back_what_was_written(tmp_path, write):
     fx.area = (2, 1, 1084, 2044)
     sensor = Sensor.load(write(tmp_path / "s.xml", fx))
     r = sensor.responses
+    v = list(sensor.vendor_band)  # the bands in order of wavelength: the file's numbers
     assert_array_equal(r.wavelength_nm, fx.grid)
-    assert_array_equal(r.curves, fx.curves)
+    assert_array_equal(r.curves, fx.curves[v])
     bp = np.interp(fx.grid, fx.components[0][1], fx.components[0][2])
     np.testing.assert_allclose(r.system, bp, rtol=0, atol=1e-15)
     assert sensor.filter_area_px == (2, 1, 1084, 2044) and sensor.tile_origin_px == (2, 1)
     assert sensor.size_px == (1088, 2048) and sensor.pixel_pitch_um == 5.5
-    assert sensor.band_offset[6] == (1, 2)
-    assert sensor.cwl_nm == tuple(p[0][0] for p in fx.peaks)
+    assert sensor.band_offset[v.index(6)] == (1, 2)
+    assert sensor.cwl_nm == tuple(fx.peaks[i][0][0] for i in v)
     # band 3's second peak (the leak) lies outside the band-pass: its main peak is the first
-    assert sensor.cwl_nm[3] == fx.peaks[3][0][0]
+    assert sensor.cwl_nm[v.index(3)] == fx.peaks[3][0][0]
     names = [m.name for m in sensor.matrices]
     if write is write_newer:
         assert names == ["hsi_reflectance", "hsi_irradiance"]
         assert [m.kind for m in sensor.matrices] == ["reflectance", "irradiance"]
         for m, (_, _, wl, fw, coeffs) in zip(sensor.matrices, fx.matrices, strict=True):
-            assert_array_equal(m.coefficients, coeffs)
+            assert_array_equal(m.coefficients, coeffs[:, v])
             assert_array_equal(m.wavelength_nm, wl)
             assert_array_equal(m.fwhm_nm, fw)
     else:
         assert names == ["custom"] and sensor.matrices[0].kind == "irradiance"
-        assert_array_equal(sensor.matrices[0].coefficients, fx.matrices[-1][4])
+        assert_array_equal(sensor.matrices[0].coefficients, fx.matrices[-1][4][:, v])
 
 
 def test_a_main_peak_is_the_strongest_inside_the_pass_band(tmp_path):
     fx = imec_4x4()
     fx.peaks[0] = [(900.0, 30.0, 80.0), (fx.peaks[0][0][0], 8.0, 40.0)]  # stronger, outside
     sensor = Sensor.load(write_newer(tmp_path / "s.xml", fx))
-    assert sensor.cwl_nm[0] == fx.peaks[0][1][0] and sensor.fwhm_nm[0] == 8.0
+    b = sensor.vendor_band.index(0)
+    assert sensor.cwl_nm[b] == fx.peaks[0][1][0] and sensor.fwhm_nm[b] == 8.0
 
 
 # -- sensor TOMLs naming a vendor file ----------------------------------------------------------

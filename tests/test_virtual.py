@@ -36,7 +36,9 @@ def scene():
 
 
 def _cube(values, sensor, name="reflectance"):
-    return make_cube(values[:, None, :].astype(np.float32), sensor.cwl_nm, name=name)
+    """Band values in the file's order (the simulator's) as a cube in the sensor's."""
+    return make_cube(values[:, None, sensor.vendor_band].astype(np.float32), sensor.cwl_nm,
+                     name=name)
 
 
 def _bands(mf, X, f_number, cra, seed):
@@ -94,15 +96,16 @@ def test_the_vendor_matrices_are_applied_exactly(tmp_path, nir):
     sensor = Sensor.load(write_newer(tmp_path / "s.xml", fx))
     rng = np.random.default_rng(1)
     values = rng.uniform(0.05, 0.9, (6, 5, 16)).astype(np.float32)
-    flat = make_cube(values, sensor.cwl_nm, name="reflectance")
+    v = list(sensor.vendor_band)  # the file's order of the bands, the simulator's
+    flat = make_cube(values[..., v], sensor.cwl_nm, name="reflectance")
     ds = virtual_bands(flat, sensor, "vendor")  # flat-fielded: the reflectance matrix
     ref = np.einsum("vb,yxb->yxv", fx.matrices[0][4], values.astype(float))
     assert_allclose(ds["virtual"].values, ref, rtol=1e-6, atol=1e-6)
     assert_allclose(ds["virtual_wavelength"].values, fx.matrices[0][2])
-    counts = make_cube(rng.integers(0, 1023, (6, 5, 16)).astype(np.uint16), sensor.cwl_nm,
-                       name="radiance")
+    dn = rng.integers(0, 1023, (6, 5, 16)).astype(np.uint16)
+    counts = make_cube(dn[..., v], sensor.cwl_nm, name="radiance")
     ds = virtual_bands(counts, sensor, "vendor")  # counts: the irradiance matrix
-    ref = np.einsum("vb,yxb->yxv", fx.matrices[1][4], counts.values.astype(float))
+    ref = np.einsum("vb,yxb->yxv", fx.matrices[1][4], dn.astype(float))
     assert_allclose(ds["virtual"].values, ref, rtol=1e-6, atol=1e-6)
     assert "virtual_stderr" not in ds  # no prior for counts: no error bar claimed
     ds = virtual_bands(flat, sensor, "vendor", matrix="hsi_irradiance")

@@ -151,8 +151,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         response) on request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the
         matrix used, on request; provenance in attrs.
     """
-    f = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
-                      harmonise, mask, resample)
+    f, cube, mask = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm,
+                                  target_fwhm_nm, harmonise, mask, resample)
     cwl = np.asarray(sensor.cwl_nm, float)
     cra_max = _field_max_deg(_largest_cra_deg(cube, sensor, lens, center_px, sensor_origin_px),
                              f, lens)
@@ -414,7 +414,11 @@ RESULT_NAMES = ("wavelength_corrected", "fwhm_corrected", "resampled", "harmonis
 
 def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwhm_nm,
                   harmonise, mask=None, resample=False):
-    """The checks every correction makes first; returns the f-number as a float."""
+    """The checks every correction makes first; returns the f-number as a float, and the cube
+    and mask with the bands in the sensor's order (a mosaic cube in the vendor's tile order,
+    :meth:`Sensor.in_band_order`)."""
+    if isinstance(sensor, Sensor):
+        cube, mask = sensor.in_band_order(cube, mask)
     check_cube(cube)
     if cube.name in RESULT_NAMES:  # e.g. a resampled cube read back from its own file
         raise ValueError(f"the cube is named {cube.name!r}, a name the result gives another "
@@ -438,7 +442,7 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
     sensor.check_cube(cube)
     if mask is not None and (tuple(mask.dims) != ("y", "x", "band") or mask.shape != cube.shape):
         raise ValueError(f"the mask has shape {mask.shape}, the cube {cube.shape}")
-    return f
+    return f, cube, mask
 
 
 def _scale_function(sensor, f, lens, used, tolerance_nm, cra_max, widths):

@@ -14,6 +14,7 @@ import json
 import warnings
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from .._io import atomic_write, atomic_write_dir
@@ -22,7 +23,8 @@ from .derived import rebuildable, with_fwhm_table
 from .formats import _File, _Rows
 from .model import DIMS
 
-__all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORED_FROM", "refuse_packed_counts"]
+__all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORAGE_DTYPES", "STORED_FROM",
+           "check_storage", "refuse_packed_counts"]
 
 
 # -- reading ---------------------------------------------------------------------------------
@@ -222,6 +224,145 @@ def _encoded(ds, store_derived=False):
 COMPRESSIONS = ("auto", "all", "none")
 
 
+# -- the type a result's values are stored as ------------------------------------------------
+
+#: ``dtype`` of :func:`write_dataset`: the type the physical values (the cube and the spectra
+#: computed from it) are stored as. None keeps each variable's own.
+STORAGE_DTYPES = ("float32", "float16", "uint16")
+#: uint16 packing: stored codes ``0 .. PACKED_TOP`` (``valid_range``); ``PACKED_FILL`` is NaN.
+PACKED_TOP, PACKED_FILL = 65534, 65535
+#: The range uint16 packs ratios (units ``"1"``: reflectance, transmittance) into by default:
+#: a step of 6.1e-5, about a quarter of one digital number of a 12-bit camera's white.
+RATIO_PACK_RANGE = (-0.5, 3.5)
+#: The input's copy a result keeps (raw counts, also any ``*_raw``): never packed.
+RAW_NAMES = ("raw",)
+#: The largest finite float16.
+FLOAT16_MAX = 65504.0
+#: Units of a variable that places or describes the data rather than holding its values.
+_GEOMETRY_UNITS = ("degree", "degrees", "nm", "um", "mm", "px")
+
+
+def _holds_values(name, var):
+    """Whether ``var`` holds the scene's values (a cube, its resampled, harmonised or virtual
+    spectra): floating point on ``y`` and ``x`` and a band dimension last, not a quantity that
+    places or describes the data (angles, wavelengths), not a stored derived variable."""
+    return (var.dtype.kind == "f" and {"y", "x"} <= set(var.dims)
+            and var.dims[-1] in ("band", "virtual_band")
+            and str(var.attrs.get("units", "")).strip().lower() not in _GEOMETRY_UNITS
+            and STORED_FROM not in var.attrs)
+
+
+def _in_counts(name, var):
+    """Whether ``var`` holds a camera's numbers: its units say so, or it has none."""
+    return str(var.attrs.get("units", "")).strip().lower() in COUNT_UNITS
+
+
+def check_storage(dtype, pack_range=None, fmt=None, what="dtype"):
+    """Refuse a storage type the format cannot hold, or a packing range that is no range,
+    before any work.
+
+    Parameters
+    ----------
+    dtype : {None, "float32", "float16", "uint16"}
+        The type asked for (:func:`~snapcorr.cube.write_dataset`'s ``dtype``).
+    pack_range : (float, float), optional
+        ``(lo, hi)`` for uint16.
+    fmt : {"netcdf", "zarr", "envi"}, optional
+        The output's format.
+    what : str
+        The option's name in the messages (``--dtype`` from the command line).
+    """
+    if dtype is None:
+        if pack_range is not None:
+            raise ValueError(f"a packing range goes with {what} uint16")
+        return
+    if dtype not in STORAGE_DTYPES:
+        raise ValueError(f"{what} must be one of {', '.join(STORAGE_DTYPES)}, got {dtype!r}")
+    if pack_range is not None:
+        if dtype != "uint16":
+            raise ValueError(f"a packing range goes with {what} uint16, not {dtype}")
+        lo, hi = (float(v) for v in pack_range)
+        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+            raise ValueError(f"the packing range must be two finite numbers LO < HI, got "
+                             f"{lo:g}, {hi:g}")
+    if fmt == "envi" and dtype != "float32":
+        raise ValueError(f"{what} {dtype}: ENVI has no packing a reader applies (no scale, "
+                         "offset or fill value every ENVI reader honours) and no 16-bit "
+                         "float, so ENVI readers would see the stored codes, not the values; "
+                         f"write .nc or .zarr for {dtype}, or ENVI as float32")
+    if fmt == "netcdf" and dtype == "float16":
+        raise ValueError(f"{what} float16: netCDF has no 16-bit float type (netCDF tools "
+                         "cannot read HDF5's); write .zarr for float16, or .nc as uint16")
+
+
+def _stored_as(ds, dtype, pack_range=None, fmt=None):
+    """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
+    cast, or clipped and given the CF packing (``scale_factor``, ``add_offset``,
+    ``_FillValue``, ``valid_range``) a reader applies, the packing error and the clipping
+    said in the variable's attributes. A camera's numbers are never packed: the input's
+    copy (raw counts) keeps its own type, and a cube of counts is refused."""
+    check_storage(dtype, pack_range, fmt)
+    if dtype is None:
+        return ds
+    ds = ds.copy()
+    for name in list(ds.data_vars):
+        var = ds[name]
+        if not _holds_values(name, var) or name in RAW_NAMES or name.endswith("_raw"):
+            continue  # the input's copy (raw counts) is kept as it is
+        attrs = dict(var.attrs)
+        encoding = {k: v for k, v in var.encoding.items()
+                    if k not in (*PACKING, "dtype", "valid_range")}
+        if dtype != "float32" and _in_counts(name, var):
+            units = attrs.get("units")
+            said = f"units {units!r}" if units else "no units"
+            raise ValueError(f"{name} has {said}, which says it holds a camera's numbers: "
+                             f"those are stored as they are, never as {dtype}; {dtype} is for "
+                             "physical values (flat-field the counts first, or give the cube "
+                             "its units)")
+        if dtype == "float32":
+            var = var.astype(np.float32)
+            encoding["dtype"] = "float32"
+        elif dtype == "float16":
+            var = var.clip(-FLOAT16_MAX, FLOAT16_MAX)
+            encoding["dtype"] = "float16"
+            attrs["storage"] = ("float16: relative error at most 2**-11 (4.9e-4) of the value "
+                                f"(absolute 6e-8 below 6.1e-5); values beyond +-{FLOAT16_MAX:g} "
+                                "are stored as +-65504 (clipped)")
+            attrs["packing_error"] = "relative 4.9e-4"
+        else:
+            lo, hi = _pack_range(name, var, pack_range)
+            scale = (hi - lo) / PACKED_TOP
+            # half a step, and float32's rounding in packing and unpacking
+            error = scale / 2 + 4 * float(np.finfo(np.float32).eps) * max(abs(lo), abs(hi))
+            var = var.clip(lo, hi)
+            encoding.update(dtype="uint16", scale_factor=np.float32(scale),
+                            add_offset=np.float32(lo), _FillValue=np.uint16(PACKED_FILL))
+            attrs["valid_range"] = np.array([0, PACKED_TOP], np.uint16)
+            attrs["packing_error"] = error
+            attrs["storage"] = (
+                f"uint16 packed: value = code * scale_factor + add_offset (scale_factor "
+                f"{scale:.6g}, add_offset {lo:g}), at most {error:.3g} (half a step) from "
+                f"the value computed; values below {lo:g} stored as {lo:g}, above {hi:g} as "
+                f"{hi:g} (clipped); NaN stored as {PACKED_FILL} (_FillValue)")
+        var.attrs = attrs
+        var.encoding = encoding
+        ds[name] = var
+    return ds
+
+
+def _pack_range(name, var, pack_range):
+    """``(lo, hi)`` uint16 packs ``var`` into: the one given, else :data:`RATIO_PACK_RANGE`
+    for ratios (units ``"1"``); other units need one given."""
+    if pack_range is not None:
+        return tuple(float(v) for v in pack_range)
+    units = str(var.attrs.get("units", "")).strip()
+    if units == "1":
+        return RATIO_PACK_RANGE
+    raise ValueError(f"{name} is in units {units!r}: uint16 packs a range of values, chosen "
+                     "for ratios (units '1': -0.5 to 3.5) but not known for these; give the "
+                     "range (--pack-range LO,HI from the command line)")
+
+
 def _store(ds, path, fmt, compression="auto"):
     try:
         return _store_dataset(ds, path, fmt, compression)
@@ -252,25 +393,52 @@ def _zarr_encoding(ds, compression="auto"):
     """Blosc LZ4 with bit shuffling for numeric variables without an encoding of their own:
     on cubes it writes about 4 x faster than zarr's default Zstandard for files about a tenth
     larger (measured on flat-fielded reflectance, raw counts and masks), and the writing is
-    what a file-to-file run spends its time on. ``compression="none"``: no compressor."""
+    what a file-to-file run spends its time on. Noisy float32 reflectance: 0.70 of its bytes
+    (no shuffle: 1.00, byte shuffle 0.76); uint16-packed, level 9 (for types of 2 bytes or
+    less): 0.57 of the codes, level 5 0.59 (``benchmarks/output_size.py``).
+    ``compression="none"``: no compressor."""
     from zarr.codecs import BloscCodec
 
     if compression == "none":
-        return {name: {"compressors": None} for name in _compressible(ds, compression)}
-    codec = BloscCodec(cname="lz4", clevel=5, shuffle="bitshuffle")
-    return {name: {"compressors": [codec]} for name in _compressible(ds, compression)}
+        return {name: {**_storage_keys(ds[name]), "compressors": None}
+                for name in _compressible(ds, compression)}
+    def codec(var):
+        stored = np.dtype(var.encoding.get("dtype", var.dtype))
+        return BloscCodec(cname="lz4", clevel=9 if stored.itemsize <= 2 else 5,
+                          shuffle="bitshuffle")
+
+    return {name: {**_storage_keys(ds[name]), "compressors": [codec(ds[name])]}
+            for name in _compressible(ds, compression)}
+
+
+def _storage_keys(var):
+    """How ``var`` is to be stored (its type, CF packing and fill value): an encoding given
+    for writing replaces the variable's own, so these are carried into it."""
+    return {k: var.encoding[k] for k in ("dtype", *PACKING) if k in var.encoding}
 
 
 def _netcdf_encoding(ds, compression="auto"):
-    """DEFLATE level 1 with byte shuffling (readable by every netCDF-4 reader) where it pays:
-    integer and boolean variables and stored derived ones for ``"auto"``, every numeric one
-    for ``"all"`` (see :func:`write_dataset`); ``"none"`` turns a source's own off."""
+    """DEFLATE level 1 with byte shuffling (readable by every netCDF-4 reader) for every
+    numeric variable of two or more dims (``"auto"``: those whose source does not compress
+    them already). On noisy float32 reflectance it stores 0.69 of the bytes, levels 2-6 no
+    better than 0.686 for more time; on uint16-packed values about 0.4 (measured:
+    ``benchmarks/output_size.py``). ``"none"`` turns a source's own off."""
     if compression == "none":
-        return {name: {"zlib": False} for name in _compressible(ds, compression)}
-    return {name: {"zlib": True, "complevel": 1, "shuffle": True}
-            for name in _compressible(ds, compression)
-            if compression == "all" or ds[name].dtype.kind in "biu"
-            or STORED_FROM in ds[name].attrs}
+        return {name: {**_storage_keys(ds[name]), "zlib": False}
+                for name in _compressible(ds, compression)}
+    return {name: {**_storage_keys(ds[name]), "zlib": True, "complevel": 1, "shuffle": True,
+                   **_hdf5_chunks(ds[name])}
+            for name in _compressible(ds, compression)}
+
+
+def _hdf5_chunks(var):
+    """``{"chunksizes": ...}``: a compressed lazy variable stored in HDF5 chunks of its own
+    blocks, so that each block written fills whole chunks. Left to h5py's guess (chunks of a
+    few frames of a stream), every block would rewrite, decompressing and compressing again,
+    chunks it shares with the next: a 100-frame stream took 29 x the plain write."""
+    if var.chunks is None:
+        return {}
+    return {"chunksizes": tuple(int(c[0]) for c in var.chunks)}
 
 
 #: A lazy variable whose attrs name another in this key (``mask`` computed from

@@ -221,7 +221,7 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     nb = sensor.n_bands
     rows_px = np.repeat((r0 + np.arange(rows))[:, None], nb, axis=1)
     cols_px = np.repeat((c0 + np.arange(cols))[:, None], nb, axis=1)
-    cube = with_positions(cube, rows_px, cols_px)
+    cube = with_positions(cube, rows_px, cols_px).assign_coords(sensor.band_coords())
     if stream:  # the same coordinates, each frame a cube, and the frames' own (times, ...)
         along = {c: frame[c] for c in frame.coords if frame[c].dims == ("frame",)}
         cube = xr.DataArray(cube_data, dims=("frame", *cube.dims),

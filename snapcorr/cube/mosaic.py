@@ -72,7 +72,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
                      attrs={"sensor": sensor.name, **(attrs or {}),
                             "mosaic_area_px": [lo_r, lo_c, ny * tr, nx * tc]})
     rows, cols = sensor_positions(sensor, ny, nx, (lo_r, lo_c))
-    return with_positions(cube, rows, cols)
+    return with_positions(cube, rows, cols).assign_coords(sensor.band_coords())
 
 
 def _origin(shape, sensor, origin_px):

@@ -121,6 +121,12 @@ class Sensor:
         Bits of the camera's digital numbers (a vendor file's ``bit_depth``/``input_bpp``):
         a raw pixel at the largest code, ``2**bit_depth - 1`` (:attr:`full_scale_dn`), is
         saturated, the default saturation of flat-fielding.
+    vendor_band : sequence of int, optional
+        Each band's number in the file that described the sensor (the vendor's band index).
+        A mosaic's bands are kept in order of wavelength (``cwl_nm`` increasing), whatever
+        order the file lists them in: their tile positions, widths, indices, measured
+        responses and correction-matrix columns move with them, and ``vendor_band`` says where
+        each came from (set from the file's order when not given).
     """
 
     name: str
@@ -139,6 +145,7 @@ class Sensor:
     matrices: tuple = field(default=(), repr=False, kw_only=True)
     vendor_file: str | None = field(default=None, compare=False, kw_only=True)
     bit_depth: int | None = field(default=None, kw_only=True)
+    vendor_band: tuple | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -192,6 +199,7 @@ class Sensor:
                                  f"got {shown(self.bit_depth)}")
             set_(self, "bit_depth", int(bits))
         self._check_vendor_parts(n)
+        self._in_wavelength_order(n)
         if self.profile not in (*PROFILE_NAMES, MEASURED):
             _read_shape(self.profile)  # read and checked now: a bad file fails at load
         set_(self, "calibration", dict(self.calibration or {}))
@@ -232,6 +240,94 @@ class Sensor:
                 raise ValueError(f"filter_area_px {area.tolist()} extends beyond size_px "
                                  f"{list(self.size_px)}")
             set_(self, "filter_area_px", tuple(int(v) for v in area))
+
+    def _in_wavelength_order(self, n):
+        """A mosaic's bands put in order of wavelength, each with its place in the file that
+        described it (``vendor_band``): its tile position, width, index, measured response
+        and correction-matrix column moved with it, so that every cube built from a frame
+        lists its bands by wavelength and the vendor's matrices give the same virtual bands."""
+        set_ = object.__setattr__
+        if self.vendor_band is not None:
+            given = check_integers("vendor_band", self.vendor_band)
+            if given.shape != (n,) or sorted(given.tolist()) != list(range(n)):
+                raise ValueError(f"vendor_band must number the {n} bands 0-{n - 1}, each once, "
+                                 f"got {shown(self.vendor_band)}")
+            set_(self, "vendor_band", tuple(int(v) for v in given))
+        if self.layout != "mosaic":
+            return
+        order = np.argsort(np.asarray(self.cwl_nm), kind="stable")
+        vendor = np.arange(n) if self.vendor_band is None else np.asarray(self.vendor_band)
+        set_(self, "vendor_band", tuple(int(v) for v in vendor[order]))
+        if np.array_equal(order, np.arange(n)):
+            return
+
+        def moved(values):
+            return tuple(values[i] for i in order)
+
+        set_(self, "cwl_nm", moved(self.cwl_nm))
+        set_(self, "fwhm_nm", moved(self.fwhm_nm))
+        if self.n_eff is not None:
+            set_(self, "n_eff", moved(self.n_eff))
+        set_(self, "band_offset", moved(self.band_offset))
+        r = self.responses
+        if r is not None:
+            set_(self, "responses", FilterResponses(r.wavelength_nm, r.curves[order], r.system,
+                                                    moved(r.peaks), r.system_name))
+        set_(self, "matrices", tuple(
+            CorrectionMatrix(m.name, m.kind, m.wavelength_nm, m.fwhm_nm, m.coefficients[:, order])
+            for m in self.matrices))
+
+    def band_coords(self):
+        """``{"vendor_band": ...}``: the coordinate a cube built from a frame carries along
+        ``band`` where the file numbers the bands in another order (empty where its order is
+        the wavelengths')."""
+        if self.vendor_band is None or self.vendor_band == tuple(range(self.n_bands)):
+            return {}
+        return {"vendor_band": ("band", np.asarray(self.vendor_band, np.int32), {
+            "long_name": "the band's number in the sensor's calibration file (its tile order)",
+            "units": "1"})}
+
+    def in_file_order(self, values):
+        """Per-band ``values`` (in this sensor's wavelength order) in the order of the file
+        that described it (the vendor's band numbers)."""
+        values = list(values)
+        if self.vendor_band is None:
+            return values
+        out = [None] * len(values)
+        for v, i in zip(values, self.vendor_band, strict=True):
+            out[i] = v
+        return out
+
+    def in_band_order(self, cube, mask=None, what="the cube"):
+        """``cube`` (and ``mask``) with the bands in this sensor's order: a cube whose
+        ``wavelength`` lists the sensor's bands in another order (the vendor's tile order, as
+        files written before bands were ordered by wavelength hold them) is reordered; any
+        other is returned as it is, for :meth:`check_cube` to judge.
+
+        Parameters
+        ----------
+        cube : xarray.DataArray
+            ``(y, x, band)`` with a ``wavelength`` coordinate, nm.
+        mask : xarray.DataArray, optional
+            Reordered with the cube where it has a ``band`` dim.
+        what : str
+            What the cube is (kept for the messages of callers).
+
+        Returns
+        -------
+        (xarray.DataArray, xarray.DataArray or None)
+        """
+        if "wavelength" not in cube.coords or cube.sizes.get("band") != self.n_bands:
+            return cube, mask
+        wl = np.asarray(cube["wavelength"].values, float)
+        order = np.argsort(wl, kind="stable")
+        if np.array_equal(order, np.arange(wl.size)):
+            return cube, mask
+        if not np.max(np.abs(wl[order] - np.asarray(self.cwl_nm, float))) <= 0.05:
+            return cube, mask
+        if mask is not None and "band" in mask.dims:
+            mask = mask.isel(band=order)
+        return cube.isel(band=order), mask
 
     def require(self, key, what):
         """The value of ``key`` (``"n_eff"`` or ``"pixel_pitch_um"``), or a ``ValueError``
@@ -367,13 +463,15 @@ class Sensor:
                          f"{r.wavelength_nm[-1]:g} nm ({r.wavelength_nm.size} samples); in "
                          f"front of every band: {r.system_name}, above half its maximum "
                          f"{on[0]:g}-{on[-1]:g} nm")
-        lines.append("  band  tile     centre nm  FWHM nm" + ("  peaks" if r is not None else ""))
+        lines.append("  band  file  tile     centre nm  FWHM nm"
+                     + ("  peaks" if r is not None else ""))
         for b in range(self.n_bands):
             tile = f"({self.band_offset[b][0]},{self.band_offset[b][1]})" if self.band_offset \
                 else "-"
             peaks = f"  {len(r.peaks[b])}" if r is not None else ""
-            lines.append(f"  {b:4d}  {tile:7s}  {self.cwl_nm[b]:9.2f}  {self.fwhm_nm[b]:7.2f}"
-                         f"{peaks}")
+            number = self.vendor_band[b] if self.vendor_band is not None else b
+            lines.append(f"  {b:4d}  {number:4d}  {tile:7s}  {self.cwl_nm[b]:9.2f}  "
+                         f"{self.fwhm_nm[b]:7.2f}{peaks}")
         for m in self.matrices:
             fw = ("FWHM not given" if not np.all(np.isfinite(m.fwhm_nm))
                   else f"FWHM {span(m.fwhm_nm)} nm")
@@ -394,7 +492,7 @@ class Sensor:
             d = {"vendor_file": Path(path).as_posix(), "name": self.name}
             if self.n_eff is not None:
                 d["n_eff"] = (self.n_eff[0] if len(set(self.n_eff)) == 1
-                              else list(self.n_eff))
+                              else self.in_file_order(self.n_eff))
             if self.pixel_pitch_um is not None:
                 d["pixel_pitch_um"] = self.pixel_pitch_um
             if self.size_px is not None:
@@ -407,14 +505,15 @@ class Sensor:
                              "matrices but no vendor file to name; a sensor TOML holds them only "
                              "as the vendor's file it names (vendor_file)")
         d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
-             "cwl_nm": list(self.cwl_nm), "fwhm_nm": list(self.fwhm_nm)}
+             "cwl_nm": self.in_file_order(self.cwl_nm),
+             "fwhm_nm": self.in_file_order(self.fwhm_nm)}
         if self.pixel_pitch_um is None:
             del d["pixel_pitch_um"]
         if self.n_eff is not None:
-            d["n_eff"] = list(self.n_eff)
+            d["n_eff"] = self.in_file_order(self.n_eff)
         if self.layout == "mosaic":
             d["mosaic_shape"] = list(self.mosaic_shape)
-            d["band_offset"] = [list(o) for o in self.band_offset]
+            d["band_offset"] = [list(o) for o in self.in_file_order(self.band_offset)]
             if self.filter_area_px is not None:
                 d["filter_area_px"] = list(self.filter_area_px)
         if self.size_px is not None:
