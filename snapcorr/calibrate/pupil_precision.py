@@ -186,3 +186,83 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     cov = np.linalg.inv(F)
     n_err = float(math.sqrt(cov[1, 1]) * np.mean(n_design)) if fit_n_eff else None
     return Precision(float(math.sqrt(cov[0, 0])), n_err, spectrum_known, noise, x)
+
+
+# -- the precision of the cubes given, before the fit -----------------------------------------
+#: The shift precision (nm, one standard deviation, the chief ray at the sensor's corner in
+#: the longest band) a target must be able to give x and n_eff to, by default (the command
+#: line's ``--tolerance-nm``): five times the lens calibration's own precision from flats
+#: (~0.01 nm). On the 128 x 160 binned field of ``tests/test_pupil_coverage.py`` at 1 % noise,
+#: f/1.4 + f/8, a rare-earth glass gives 0.009 nm and a straight-line reflectance 0.17 nm.
+DEFAULT_TOLERANCE_NM = 0.05
+
+
+@dataclass(frozen=True)
+class TargetPrecision:
+    """What the cubes of a target can give, from the model's Fisher information at the
+    search's start (:func:`target_precision`).
+
+    ``shift_stderr_nm``: the standard error of the chief ray's shift at ``edge_mm`` from the
+    axis for the longest band (``cwl_nm``), from the covariance of ``x`` and ``n_eff``.
+    """
+
+    x_mm: float
+    x_stderr_mm: float
+    n_eff: float
+    n_eff_stderr: float | None
+    shift_stderr_nm: float
+    edge_mm: float
+    cwl_nm: float
+
+    def summary(self) -> str:
+        def rel(v, of, unit=""):
+            return (f"{v:.2g}{unit} ({100 * v / of:.2g} %)" if math.isfinite(v)
+                    else "(no information)")
+
+        n = ("" if self.n_eff_stderr is None else
+             f", n_eff +- {rel(self.n_eff_stderr, self.n_eff)}")
+        return (f"predicted: this target can give x +- {rel(self.x_stderr_mm, self.x_mm, ' mm')}"
+                f"{n}; the "
+                f"shift at {self.edge_mm:.3g} mm from the axis ({self.cwl_nm:.4g} nm) to +- "
+                f"{self.shift_stderr_nm:.2g} nm (Fisher information at x = {self.x_mm:.4g} mm, "
+                "the noise measured in the cubes)")
+
+
+def _edge_shift_nm(x, n, d, cwl):
+    sin2 = d * d / (d * d + x * x)
+    return cwl * (1.0 - math.sqrt(max(1.0 - sin2 / (n * n), 1e-12)))
+
+
+def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
+    """:class:`TargetPrecision` of the cubes in ``problem`` (a ``_Problem``) at trial ``x``.
+
+    The Jacobian of the profiled residuals (the target's spectrum solved for at every step,
+    as the fit does) in ``x`` and, with ``fit_k``, the index's common scale, by central
+    differences; its information matrix, with the noise the annuli show, inverted.
+    """
+    e = 1e-5
+    cols = [(problem.residuals(x * (1 + e))[0] - problem.residuals(x * (1 - e))[0])
+            / (2 * e * x)]
+    if fit_k:
+        cols.append((problem.residuals(x, 1 + e)[0] - problem.residuals(x, 1 - e)[0])
+                    / (2 * e))
+    J = np.column_stack(cols)
+    F = J.T @ J
+    n = float(np.mean(problem.n_design))
+    inf = TargetPrecision(x, math.inf, n, math.inf if fit_k else None, math.inf, edge_mm,
+                          cwl_nm)
+    if not np.all(np.isfinite(F)) or F[0, 0] <= 0 or np.linalg.cond(F) > 1e14:
+        return inf
+    cov = np.linalg.inv(F)
+    if np.any(np.diag(cov) <= 0):
+        return inf
+    g = [(_edge_shift_nm(x * (1 + e), n, edge_mm, cwl_nm)
+          - _edge_shift_nm(x * (1 - e), n, edge_mm, cwl_nm)) / (2 * e * x)]
+    if fit_k:
+        g.append((_edge_shift_nm(x, n * (1 + e), edge_mm, cwl_nm)
+                  - _edge_shift_nm(x, n * (1 - e), edge_mm, cwl_nm)) / (2 * e))
+    g = np.array(g)
+    shift_err = float(math.sqrt(max(g @ cov @ g, 0.0)))
+    return TargetPrecision(x, float(math.sqrt(cov[0, 0])), n,
+                           float(math.sqrt(cov[1, 1]) * n) if fit_k else None, shift_err,
+                           edge_mm, cwl_nm)

@@ -32,6 +32,11 @@ class FeaturelessTargetError(ValueError):
     """The target's spectrum shows no shift over the field above the noise."""
 
 
+class ImpreciseTargetError(FeaturelessTargetError):
+    """The target's features cannot pin x and n_eff to the shift precision asked for
+    (refused before the fit, from the predicted precision)."""
+
+
 # -- the inputs ---------------------------------------------------------------------------
 #: Where the sensor gives no effective index and it is fitted (two f-numbers or more), the
 #: fit starts here (a thin-film filter's typical value; the fit spans 0.6-1.6 times it).
