@@ -1178,10 +1178,9 @@ def _pupil_predict(args):
     if not args.f_number:
         raise ValueError("give the f-numbers you would measure at: --f-number F (repeat)")
     sensor = _sensor(args.sensor)
-    from .calibrate.exit_pupil import check_modelled
-
-    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
-                   measured=False)
+    if sensor.size_px is None:
+        raise ValueError(f"--predict needs the sensor's size: {args.sensor} gives no size_px "
+                         "(add size_px = [ROWS, COLS] to a sensor TOML)")
     lens = _lens(args.lens or "edmund_optics_16mm")
     targets = dict(CANDIDATE_TARGETS)
     if args.target_spectrum is not None:

@@ -98,3 +98,24 @@ def test_predicted_precision_is_what_the_fit_reports():
     assert 0.7 < got.exit_pupil_stderr_mm / p.x_stderr_mm < 1.4, (got.exit_pupil_stderr_mm, p)
     assert 0.7 < got.n_eff_stderr[0] / p.n_eff_stderr < 1.4
     assert got.lens.calibration["predicted_before_fit"]["tolerance_nm"] == DEFAULT_TOLERANCE_NM
+
+
+@pytest.mark.slow  # the measured curves' offset tables for two models: about a minute
+def test_predict_for_a_sensor_with_measured_responses(tmp_path):
+    import test_pupil_measured as tpm
+
+    from snapcorr.calibrate import pupil_precision
+    from snapcorr.calibrate.pupil_precision import rare_earth_glass, white_tile
+
+    path, _ = tpm.vendor_file(tmp_path)
+    vendor = Sensor.load(path)
+    assert vendor.responses is not None and vendor.n_eff is None
+    glass = pupil_precision(rare_earth_glass, vendor, (1.4, 8.0), PAPER_LENS, noise=0.005,
+                            fit_n_eff=True, n_bins=16)
+    white = pupil_precision(white_tile, vendor, (1.4, 8.0), PAPER_LENS, noise=0.005,
+                            fit_n_eff=True, n_bins=16)
+    assert glass.informative and not white.informative
+    # the fit on cubes of this sensor at 0.5 % reports 0.041-0.046 mm (16 annuli, a crop)
+    assert 0.001 < glass.x_stderr_mm < 0.2
+    with pytest.raises(ValueError, match="n_eff"):  # no index and none fitted: refused
+        pupil_precision(rare_earth_glass, vendor, (8.0,), PAPER_LENS)

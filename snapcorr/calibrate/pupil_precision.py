@@ -17,10 +17,11 @@ import numpy as np
 
 from ..optics.lens import Lens
 from ..spectra import colour_filter
-from .pupil_fit import MAX_REL_STDERR, _one_blas_thread
+from .measured_target import target_model
+from .pupil_fit import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
 from .pupil_solver import _pinv_solve, _project_off, _whiten
 from .pupil_target import check_modelled
-from .target_model import PRIOR_SD, RadialBins, TargetModel
+from .target_model import PRIOR_SD, RadialBins
 
 __all__ = ["CANDIDATE_TARGETS", "Precision", "pupil_precision"]
 
@@ -152,18 +153,23 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     if not (math.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be > 0, got {noise!r}")
     n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
-                              measured=False)
+                              fit_n_eff=fit_n_eff)
     bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
     x = float(lens.exit_pupil_mm)
-    truth = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens, spectrum=spectrum,
-                        profile=profile, n_eff_design=n_design, max_shift_rel=0.15)
+    # the largest shift these f-numbers and this field give (the tables' reach: a fixed 0.15
+    # made a vendor sensor's offset tables several times longer than needed)
+    cone = math.radians(float(lens.cone_angle_deg(min(f_numbers))))
+    reach = min(0.15, _max_shift_rel(math.sqrt(max(float(np.max(b.rho)) for b in bins)), x,
+                                     np.asarray(n_design, float), cone))
+    # a sensor with measured responses: each band's whole curve behind the band-pass
+    truth = target_model(bins, sensor, lens, spectrum=spectrum, profile=profile,
+                         n_eff_design=n_design, max_shift_rel=reach)
     y = np.asarray(truth.design(x, n_design).sum(axis=1)).ravel()
     sigma_px = noise * (1.0 if absolute_noise else float(np.max(np.abs(y))))
     for b in bins:
         b.mean[:] = 0.0
-    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens,
-                        spectrum=spectrum if spectrum_known else None, profile=profile,
-                        n_eff_design=n_design, max_shift_rel=0.15)
+    model = target_model(bins, sensor, lens, spectrum=spectrum if spectrum_known else None,
+                         profile=profile, n_eff_design=n_design, max_shift_rel=reach)
     if model.prior_sd is not None:  # the fit's prior, for the signal the target gives
         model.prior_mean = float(np.median(y))
         model.prior_sd = PRIOR_SD * float(np.max(np.abs(y)))

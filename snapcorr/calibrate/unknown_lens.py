@@ -295,7 +295,11 @@ def _joint_covariance(cal: LensCalibration, pupil: PupilFit, sensor):
     pvals = [x]
     pcov = np.array([[pupil.exit_pupil_stderr_mm ** 2]])
     if pupil.n_eff_fitted == "one":
-        design = np.asarray(sensor.n_eff, float)
+        from .pupil_target import N_EFF_START
+
+        # a vendor file gives no index: the fit's scale is of its start value
+        design = np.asarray(sensor.n_eff if sensor.n_eff is not None
+                            else np.full(sensor.n_bands, N_EFF_START), float)
         k_cov = np.asarray(pupil.covariance, float)[:2, :2]
         if np.ptp(design) == 0:
             pnames.append("n_eff")
