@@ -830,7 +830,8 @@ def _cmd_sensor(args):
     if args.toml:
         sensor.save(args.toml, overwrite=args.overwrite)
         note = ("" if sensor.n_eff is not None else
-                "; add n_eff to it (snapcorr pupil --fit-n-eff finds it)")
+                "; its n_eff line is commented out: snapcorr pupil --fit-n-eff --sensor-out "
+                "measures it and writes it")
         print(f"wrote {args.toml}{note}")
     _quicklook(args, "plot_sensor", sensor)
     return 0
