@@ -67,6 +67,10 @@ def test_a_wavelength_standard_reaches_the_default_and_a_straight_line_does_not(
     assert line.shift_stderr_nm > 2 * DEFAULT_TOLERANCE_NM, line
     assert line.x_stderr_mm > 5 * glass.x_stderr_mm
     assert "predicted: this target can give x +-" in glass.summary()
+    # one index per band: a glass with 11 absorption bands does not pin all 30 bands' to 1 %
+    assert glass.n_eff_band_stderr.shape == (CWL.size,)
+    assert np.max(glass.n_eff_band_stderr) > 0.01 * 1.7
+    assert "above 1 %: one for the sensor" in glass.summary()
 
 
 @pytest.mark.slow  # the coarse scan before the refusal: ~20 s of CPU

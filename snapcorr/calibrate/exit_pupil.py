@@ -340,6 +340,9 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
         **({} if pred.n_eff_stderr is None else
            {"n_eff_stderr": float(f"{pred.n_eff_stderr:.3g}")}),
         "shift_stderr_nm": float(f"{pred.shift_stderr_nm:.3g}"),
+        **({} if pred.n_eff_band_stderr is None else {"n_eff_per_band_stderr_range": [
+            float(f"{np.min(pred.n_eff_band_stderr):.3g}"),
+            float(f"{np.max(pred.n_eff_band_stderr):.3g}")]}),
         "at_mm": float(f"{pred.edge_mm:.4g}"), "cwl_nm": float(f"{pred.cwl_nm:.5g}"),
         **({} if tolerance_nm is None else {"tolerance_nm": float(tolerance_nm)})}
     return PupilFit(x, float(err[0]), np.asarray(n, float),

@@ -19,6 +19,7 @@ from ..optics.lens import Lens
 from ..spectra import colour_filter
 from .measured_target import target_model
 from .pupil_fit import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
+from .pupil_index import N_EFF_REL_STDERR
 from .pupil_solver import _pinv_solve, _project_off, _whiten
 from .pupil_target import check_modelled
 from .target_model import PRIOR_SD, RadialBins
@@ -219,6 +220,8 @@ class TargetPrecision:
     shift_stderr_nm: float
     edge_mm: float
     cwl_nm: float
+    n_eff_band_stderr: np.ndarray | None = None
+    """With the index fitted: each band's own index's standard error, all fitted at once."""
 
     def summary(self) -> str:
         def rel(v, of, unit=""):
@@ -227,6 +230,13 @@ class TargetPrecision:
 
         n = ("" if self.n_eff_stderr is None else
              f", n_eff +- {rel(self.n_eff_stderr, self.n_eff)}")
+        band = self.n_eff_band_stderr
+        if band is not None:
+            lo, hi = (100 * float(v) / self.n_eff for v in (np.min(band), np.max(band)))
+            can = bool(np.all(band < N_EFF_REL_STDERR * self.n_eff))
+            n += (f" (one per band: {lo:.2g}-{hi:.2g} %, "
+                  + ("so per band where the data ask for it)" if can else
+                     f"above {100 * N_EFF_REL_STDERR:g} %: one for the sensor)"))
         return (f"predicted: this target can give x +- {rel(self.x_stderr_mm, self.x_mm, ' mm')}"
                 f"{n}; the "
                 f"shift at {self.edge_mm:.3g} mm from the axis ({self.cwl_nm:.4g} nm) to +- "
@@ -269,6 +279,15 @@ def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
                   - _edge_shift_nm(x, n * (1 - e), edge_mm, cwl_nm)) / (2 * e))
     g = np.array(g)
     shift_err = float(math.sqrt(max(g @ cov @ g, 0.0)))
+    band = None
+    if fit_k and problem.n_design.size >= 2:
+        from .pupil_index import _per_band_jacobian
+
+        _, Jp = _per_band_jacobian(problem.model, x, problem.n_design)
+        with np.errstate(all="ignore"):
+            Fb = Jp.T @ Jp
+            band = (np.sqrt(np.clip(np.diag(np.linalg.pinv(Fb)), 0, None))[1:]
+                    if np.all(np.isfinite(Fb)) else np.full(problem.n_design.size, np.inf))
     return TargetPrecision(x, float(math.sqrt(cov[0, 0])), n,
                            float(math.sqrt(cov[1, 1]) * n) if fit_k else None, shift_err,
-                           edge_mm, cwl_nm)
+                           edge_mm, cwl_nm, band)
