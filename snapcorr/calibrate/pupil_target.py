@@ -83,6 +83,9 @@ def _check_cubes(cubes, sensor):
         if fv in out:
             raise ValueError(f"f/{fv:g} given twice")
         sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
+        if not bool(np.isfinite(cube).any()):
+            raise ValueError(f"the f/{fv:g} cube has no finite value (every pixel NaN or "
+                             "infinite): nothing to fit")
         out[fv] = cube
     return dict(sorted(out.items()))
 
