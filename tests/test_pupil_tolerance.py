@@ -61,6 +61,7 @@ def predicted(target, fs=FS):
     return target_precision(problem, 21.0, len(fs) > 1, 4.6, float(CWL.max()))
 
 
+@pytest.mark.slow  # two targets' 30-band cubes and models: about 16 s of CPU
 def test_a_wavelength_standard_reaches_the_default_and_a_straight_line_does_not():
     glass, line = predicted("glass"), predicted("line")
     assert glass.shift_stderr_nm < DEFAULT_TOLERANCE_NM / 2, glass
