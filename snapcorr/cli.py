@@ -931,7 +931,8 @@ def _cmd_sensor(args):
     if args.toml:
         sensor.save(args.toml, overwrite=args.overwrite)
         note = ("" if sensor.n_eff is not None else
-                "; add n_eff to it (snapcorr pupil --fit-n-eff finds it)")
+                "; its n_eff line is commented out: snapcorr pupil --fit-n-eff --sensor-out "
+                "measures it and writes it")
         print(f"wrote {args.toml}{note}")
     _quicklook(args, "plot_sensor", sensor)
     return 0
@@ -1045,7 +1046,7 @@ def _cmd_calibrate(args):
     return 0
 
 
-_TARGET_OPTIONS = ("fit_n_eff", "sensor_out", "target_spectrum")
+_TARGET_OPTIONS = ("fit_n_eff", "sensor_out", "target_spectrum", "target_tolerance_nm")
 
 
 def _flat_sensor(args):
@@ -1153,7 +1154,9 @@ def _calibrate_with_target(args):
                 max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
                 target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
                 name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
-                target_inputs=seen, progress=bar.step, pupil=args.pupil or "auto")
+                target_inputs=seen, progress=bar.step, pupil=args.pupil or "auto",
+                target_tolerance_nm=_target_tolerance(args.target_tolerance_nm),
+                report=_say_precision)
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
@@ -1213,7 +1216,9 @@ def _cmd_pupil(args):
                                inputs=seen, name=args.name or args.out.stem,
                                progress=bar.step, pupil=args.pupil or (
                                    lens.pupil if lens is not None and lens.has_vignetting
-                                   else "auto"))
+                                   else "auto"),
+                               tolerance_nm=_target_tolerance(args.tolerance_nm),
+                               report=_say_precision)
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
     fit.lens.save(args.out, overwrite=args.overwrite)
@@ -1227,6 +1232,18 @@ def _cmd_pupil(args):
     print(fit.summary())
     print("wrote " + ", ".join(str(w) for w in written))
     return 0
+
+
+def _target_tolerance(value):
+    """``--tolerance-nm`` / ``--target-tolerance-nm``, or the default."""
+    from .calibrate.pupil_precision import DEFAULT_TOLERANCE_NM
+
+    return DEFAULT_TOLERANCE_NM if value is None else value
+
+
+def _say_precision(text):
+    """The precision a target's cubes can give, said before the fit."""
+    print(text, flush=True)
 
 
 def _fitted_sensor(sensor, fit, args):
@@ -1263,10 +1280,9 @@ def _pupil_predict(args):
     if not args.f_number:
         raise ValueError("give the f-numbers you would measure at: --f-number F (repeat)")
     sensor = _sensor(args.sensor)
-    from .calibrate.exit_pupil import check_modelled
-
-    check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
-                   measured=False)
+    if sensor.size_px is None:
+        raise ValueError(f"--predict needs the sensor's size: {args.sensor} gives no size_px "
+                         "(add size_px = [ROWS, COLS] to a sensor TOML)")
     lens = _lens(args.lens or "edmund_optics_16mm")
     targets = dict(CANDIDATE_TARGETS)
     if args.target_spectrum is not None:
@@ -1608,6 +1624,8 @@ def _add_calibrate(command):
                    "divided out, pixels outside its filter area left out (a sensor of "
                    "another layout is refused: its flats have no tile pattern)")
     _add_target_fit_options(t, "with --target-cube: ")
+    t.add_argument("--target-tolerance-nm", type=_positive, default=None, metavar="NM",
+                   help="with --target-cube: " + TARGET_TOLERANCE_HELP)
     _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
                    help="pixel pitch of the flats, micrometres")
@@ -1742,6 +1760,13 @@ def _add_target_fit_options(group, when=""):
                           else ""))
 
 
+TARGET_TOLERANCE_HELP = (
+    "the shift precision x and n_eff must give (nm, one standard deviation, the chief ray at "
+    "the sensor's corner in the longest band): before the fit the precision the cubes can "
+    "give is predicted and printed, and a target that cannot reach it is refused (default: "
+    "0.05)")
+
+
 def _add_pupil(command):
     p = command("pupil", "exit pupil distance x (and n_eff) from flat-fielded cubes of a "
                 "spectral target (Goossens et al., OSA Continuum 2019)")
@@ -1762,6 +1787,8 @@ def _add_pupil(command):
                    help="linear magnification m without --lens (default 0)")
     p.add_argument("--pupil-magnification", type=_positive, default=None,
                    help="pupil magnification m_P without --lens (default 1)")
+    p.add_argument("--tolerance-nm", type=_positive, default=None, metavar="NM",
+                   help=TARGET_TOLERANCE_HELP)
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the target over the field and chi-square in x")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")

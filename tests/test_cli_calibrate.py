@@ -252,6 +252,8 @@ def test_raw_mosaic_flats_with_their_sensor(mosaic_flats, cli):
     (["--sensor", "mosaic_4x4_vis"], "give the sensor row and column of its first pixel"),
     (["--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "1000,0"], "reaches beyond the sensor"),
     (["--sensor", "raw4x4.toml", "--fit-n-eff"], "--fit-n-eff goes with --target-cube"),
+    (["--sensor", "raw4x4.toml", "--target-tolerance-nm", "0.05"],
+     "--target-tolerance-nm goes with --target-cube"),
 ])
 def test_raw_mosaic_flat_mistakes_are_one_line(mosaic_flats, cli, extra, words):
     res = cli("calibrate", *MOSAIC, *extra, "--out", "bad.toml", cwd=mosaic_flats)

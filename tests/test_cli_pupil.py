@@ -71,6 +71,10 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, cli):
     assert cal["f_numbers"] == [2.0, 8.0]
     assert plot.stat().st_size > 10_000
     assert "exit pupil x =" in text and "n_eff =" in text
+    # the precision the cubes can give, said before the fit, and recorded
+    assert "predicted: this target can give x +-" in text
+    assert text.index("predicted:") < text.index("exit pupil x =")
+    assert cal["predicted_before_fit"]["tolerance_nm"] == 0.05
     # the circles of --lens belong to its pupil: kept, not chosen again
     assert lens.pupil == "paper" and "pupil_choice" not in cal
     # the sensor with the fitted index, for `snapcorr correct`, says where it came from
@@ -101,7 +105,7 @@ def test_a_known_spectrum_from_a_file(files, cli):
 
 @pytest.mark.parametrize(("args", "message"), [
     (["--cube", "2={d}/white_f2.nc", "--cube", "8={d}/white_f8.nc", "--sensor",
-      "{d}/sensor_white.toml"], "fitted on every other annulus"),
+      "{d}/sensor_white.toml"], "cannot pin x to the shift precision asked"),
     (["--cube", "2={d}/glass_f2.nc", "--cube", "2={d}/glass_f8.nc"], "given twice"),
     (["--cube", "2={d}/missing.nc"], "missing.nc"),
     ([], "give --cube"),
@@ -113,6 +117,11 @@ def test_a_known_spectrum_from_a_file(files, cli):
      "two or more f-numbers"),
     (["--cube", "2={d}/glass_f2.nc", "--lens", "{d}/lens_ph.toml", "--pupil", "lambertian"],
      "belong to the paper pupil"),
+    # a precision no target reaches: refused before the fit, saying what it would give
+    (["--cube", "2={d}/glass_f2.nc", "--lens", "{d}/lens_ph.toml", "--tolerance-nm", "1e-6"],
+     "above the tolerance of 1e-06 nm"),
+    (["--cube", "2={d}/glass_f2.nc", "--tolerance-nm", "0"], "--tolerance-nm"),
+    (["--cube", "2={d}/glass_f2.nc", "--tolerance-nm", "nan"], "--tolerance-nm"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, cli, args, message):
     before = snapshot(files)

@@ -290,7 +290,7 @@ def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_number
     """The fit models measured responses (tests/test_pupil_measured.py); the index it starts
     from is the sensor's, or, where the file gives none, a typical one, but only where it is
     fitted (two f-numbers): otherwise x would rest on a guess. The precision's prediction
-    does not model them yet, and says so."""
+    models them (tests/test_pupil_tolerance.py) but needs the pitch this file gives as 0."""
     import dataclasses
 
     from conftest import PAPER_LENS
@@ -301,6 +301,6 @@ def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_number
     for fit in (False, True):
         with pytest.raises(ValueError, match="effective index n_eff"):
             locate_pupil({2.0: None}, s, fit_n_eff=fit)
-    with pytest.raises(ValueError, match="does not model yet"):
+    with pytest.raises(ValueError, match="pixel pitch, which its file gives as 0"):
         pupil_precision(lambda lam: lam, dataclasses.replace(s, n_eff=1.8), (2.0, 8.0),
                         PAPER_LENS)

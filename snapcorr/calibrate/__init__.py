@@ -4,6 +4,7 @@ from .choice import ModelVerdict
 from .exit_pupil import (
     CANDIDATE_TARGETS,
     FeaturelessTargetError,
+    ImpreciseTargetError,
     Precision,
     PupilFit,
     estimate_target_center,
@@ -29,6 +30,7 @@ __all__ = [
     "CANDIDATE_TARGETS",
     "METHODS",
     "FeaturelessTargetError",
+    "ImpreciseTargetError",
     "LensAndPupil",
     "LensCalibration",
     "ModelFit",

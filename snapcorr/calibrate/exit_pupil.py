@@ -69,9 +69,11 @@ from .pupil_fit import (
 from .pupil_index import N_EFF_P as N_EFF_P
 from .pupil_index import N_EFF_REL_STDERR as N_EFF_REL_STDERR
 from .pupil_index import _index_ladder
-from .pupil_precision import CANDIDATE_TARGETS, Precision, pupil_precision
+from .pupil_precision import CANDIDATE_TARGETS, Precision, pupil_precision, target_precision
+from .pupil_precision import DEFAULT_TOLERANCE_NM as DEFAULT_TOLERANCE_NM
 from .pupil_precision import LAMP_LINES_NM as LAMP_LINES_NM
 from .pupil_precision import RARE_EARTH_BANDS as RARE_EARTH_BANDS
+from .pupil_precision import TargetPrecision as TargetPrecision
 from .pupil_precision import line_lamp as line_lamp
 from .pupil_precision import rare_earth_glass as rare_earth_glass
 from .pupil_precision import white_tile as white_tile
@@ -79,6 +81,7 @@ from .pupil_solver import _Problem
 from .pupil_target import IN_MEMORY_BYTES as IN_MEMORY_BYTES
 from .pupil_target import (
     FeaturelessTargetError,
+    ImpreciseTargetError,
     _annuli,
     _check_cubes,
     _spectrum,
@@ -90,6 +93,7 @@ from .target_model import TargetModel, scaled_circles
 __all__ = [
     "CANDIDATE_TARGETS",
     "FeaturelessTargetError",
+    "ImpreciseTargetError",
     "Precision",
     "PupilFit",
     "estimate_target_center",
@@ -141,6 +145,8 @@ class PupilFit:
     notes: list = field(default_factory=list)
     covariance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((1, 1)))
     """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
+    predicted: object = None
+    """The precision predicted before the least squares (:class:`TargetPrecision`)."""
 
     @property
     def center_rc(self) -> tuple:
@@ -190,7 +196,8 @@ class PupilFit:
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
-                 name=None, progress=None, scale_circles=None, pupil=None) -> PupilFit:
+                 name=None, progress=None, scale_circles=None, pupil=None, tolerance_nm=None,
+                 report=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -239,6 +246,17 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         same parameters); the choice and the two chi-squares are in the notes and the profile.
         A lens with circles keeps its own pupil (they were found with its radius).
 
+    tolerance_nm : float, optional
+        The shift precision needed (nm, one standard deviation). Before the least squares the
+        precision the cubes can give is predicted (:func:`~snapcorr.calibrate.pupil_precision.
+        target_precision`: the model's Fisher information at the search's start, with the
+        noise the annuli show), as the chief ray's shift at the sensor's corner (the cubes'
+        field without a sensor size) in the longest band; a target that cannot reach
+        ``tolerance_nm`` is refused (:class:`ImpreciseTargetError`). None: not checked (the
+        prediction is in ``PupilFit.predicted`` all the same).
+    report : callable, optional
+        ``report(text)`` with the prediction, before the least squares.
+
     Returns
     -------
     PupilFit
@@ -247,6 +265,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     ------
     FeaturelessTargetError
         The target's signal does not change over the field above the noise.
+    ImpreciseTargetError
+        (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
     """
     if lens is not None and lens.has_vignetting and pupil not in (None, lens.pupil):
         raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil} pupil (its "
@@ -260,7 +280,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
 
 def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, sensor_origin_px,
             magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
-            scale_circles, pupil):
+            scale_circles, pupil, tolerance_nm, report):
     """:func:`locate_pupil` for one pupil (its body)."""
     n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
                               fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
@@ -285,7 +305,10 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
     problem = _Problem(model, n_design, progress)
     several = len(cubes) >= 2
     fit_k = bool(fit_n_eff) and several
-    p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k)
+    predicted = []
+    before = _precision_check(problem, fit_k, _edge_mm(sensor, center, r_max),
+                              float(np.max(sensor.cwl_nm)), tolerance_nm, report, predicted)
+    p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k, before)
     x, k = float(p[0]), float(p[1]) if fit_k else 1.0
     chi2 = float(r @ r)
     dof = max(round(model.n_rows - rank - len(p)), 1)
@@ -311,10 +334,57 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
                             inputs, name, circles_at)
+    pred = predicted[0]
+    out_lens.calibration["predicted_before_fit"] = {
+        "x_stderr_mm": float(f"{pred.x_stderr_mm:.3g}"),
+        **({} if pred.n_eff_stderr is None else
+           {"n_eff_stderr": float(f"{pred.n_eff_stderr:.3g}")}),
+        "shift_stderr_nm": float(f"{pred.shift_stderr_nm:.3g}"),
+        **({} if pred.n_eff_band_stderr is None else {"n_eff_per_band_stderr_range": [
+            float(f"{np.min(pred.n_eff_band_stderr):.3g}"),
+            float(f"{np.max(pred.n_eff_band_stderr):.3g}")]}),
+        "at_mm": float(f"{pred.edge_mm:.4g}"), "cwl_nm": float(f"{pred.cwl_nm:.5g}"),
+        **({} if tolerance_nm is None else {"tolerance_nm": float(tolerance_nm)})}
     return PupilFit(x, float(err[0]), np.asarray(n, float),
                     None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
                     chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
-                    notes, cov * scale)
+                    notes, cov * scale, pred)
+
+
+def _edge_mm(sensor, center, r_max):
+    """The distance from the axis the prediction speaks of: the sensor's farthest corner
+    (the field the lens profile serves), or the cubes' field without a sensor size."""
+    if sensor.size_px is None:
+        return r_max
+    rows, cols = sensor.size_px
+    cx, cy = center
+    far = max(math.hypot(r - cy, c - cx) for r in (-0.5, rows - 0.5) for c in (-0.5, cols - 0.5))
+    return max(far * sensor.pixel_pitch_mm, r_max)
+
+
+def _precision_check(problem, fit_k, edge_mm, cwl_nm, tolerance_nm, report, keep):
+    """``before(x0)`` for the search: the precision predicted at ``x0`` (kept in ``keep``),
+    reported, and a target that cannot reach ``tolerance_nm`` refused."""
+    if tolerance_nm is not None and not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
+        raise ValueError(f"tolerance_nm must be > 0 nm, got {tolerance_nm!r}")
+
+    def before(x0):
+        pred = target_precision(problem, float(x0), fit_k, edge_mm, cwl_nm)
+        keep.append(pred)
+        if report is not None:
+            report(pred.summary())
+        if tolerance_nm is not None and not pred.shift_stderr_nm <= tolerance_nm:
+            what = "x and n_eff" if fit_k else "x"
+            raise ImpreciseTargetError(
+                f"the target cannot pin {what} to the shift precision asked: the shift at "
+                f"{edge_mm:.3g} mm from the axis ({cwl_nm:.4g} nm) to +- "
+                f"{pred.shift_stderr_nm:.2g} nm at best, above the tolerance of "
+                f"{tolerance_nm:g} nm (x +- {pred.x_stderr_mm:.2g} mm, predicted from the "
+                "target's features and the cubes' noise): use a target with narrow features "
+                "inside the bands (a rare-earth glass, a line lamp), less noise (average "
+                "frames), or a looser tolerance")
+
+    return before
 
 
 #: ``pupil="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more than this

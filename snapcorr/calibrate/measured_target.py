@@ -115,7 +115,7 @@ class MeasuredTargetModel(TargetModel):
         """Rows for every bin of one cube and band ``k``: the kernel's masses read band
         ``k``'s table at their offsets ``-log a / du`` (linear interpolation), summed per bin
         and divided by the white's."""
-        u, w, owner, nb = kern
+        u, w, owner, nb = kern[:4]
         Q = self.Q[k]
         if u.size == 0:
             return 0, np.zeros((nb, Q.shape[1] - 1))

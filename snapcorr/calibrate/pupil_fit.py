@@ -148,8 +148,10 @@ def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
     return sol.x, cov, r, s, rank
 
 
-def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k):
-    """Least squares in ``x`` (and the index scale) from the best minimum of a coarse scan."""
+def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k, before=None):
+    """Least squares in ``x`` (and the index scale) from the best minimum of a coarse scan;
+    ``before(x0)`` is called at the scan's best ``x0``, before the least squares (it may
+    refuse the target)."""
     n_design = problem.n_design
     # the start: a scan of a coarse copy (four annuli in one), its minima refined
     coarse = _Problem(coarse_model, n_design, problem.progress)
@@ -158,6 +160,8 @@ def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EffectiveIndexWarning)  # trials beyond 40 degrees
         x0 = _start(coarse, grid)
+        if before is not None:
+            before(x0)
         return _fit(problem, x0, fit_k, x_lo, x_hi)
 
 

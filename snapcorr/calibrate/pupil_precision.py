@@ -17,10 +17,12 @@ import numpy as np
 
 from ..optics.lens import Lens
 from ..spectra import colour_filter
-from .pupil_fit import MAX_REL_STDERR, _one_blas_thread
+from .measured_target import target_model
+from .pupil_fit import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
+from .pupil_index import N_EFF_REL_STDERR
 from .pupil_solver import _pinv_solve, _project_off, _whiten
 from .pupil_target import check_modelled
-from .target_model import PRIOR_SD, RadialBins, TargetModel
+from .target_model import PRIOR_SD, RadialBins
 
 __all__ = ["CANDIDATE_TARGETS", "Precision", "pupil_precision"]
 
@@ -152,18 +154,23 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     if not (math.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be > 0, got {noise!r}")
     n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
-                              measured=False)
+                              fit_n_eff=fit_n_eff)
     bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
     x = float(lens.exit_pupil_mm)
-    truth = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens, spectrum=spectrum,
-                        profile=profile, n_eff_design=n_design, max_shift_rel=0.15)
+    # the largest shift these f-numbers and this field give (the tables' reach: a fixed 0.15
+    # made a vendor sensor's offset tables several times longer than needed)
+    cone = math.radians(float(lens.cone_angle_deg(min(f_numbers))))
+    reach = min(0.15, _max_shift_rel(math.sqrt(max(float(np.max(b.rho)) for b in bins)), x,
+                                     np.asarray(n_design, float), cone))
+    # a sensor with measured responses: each band's whole curve behind the band-pass
+    truth = target_model(bins, sensor, lens, spectrum=spectrum, profile=profile,
+                         n_eff_design=n_design, max_shift_rel=reach)
     y = np.asarray(truth.design(x, n_design).sum(axis=1)).ravel()
     sigma_px = noise * (1.0 if absolute_noise else float(np.max(np.abs(y))))
     for b in bins:
         b.mean[:] = 0.0
-    model = TargetModel(bins, sensor.cwl_nm, sensor.fwhm_nm, lens,
-                        spectrum=spectrum if spectrum_known else None, profile=profile,
-                        n_eff_design=n_design, max_shift_rel=0.15)
+    model = target_model(bins, sensor, lens, spectrum=spectrum if spectrum_known else None,
+                         profile=profile, n_eff_design=n_design, max_shift_rel=reach)
     if model.prior_sd is not None:  # the fit's prior, for the signal the target gives
         model.prior_mean = float(np.median(y))
         model.prior_sd = PRIOR_SD * float(np.max(np.abs(y)))
@@ -186,3 +193,101 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     cov = np.linalg.inv(F)
     n_err = float(math.sqrt(cov[1, 1]) * np.mean(n_design)) if fit_n_eff else None
     return Precision(float(math.sqrt(cov[0, 0])), n_err, spectrum_known, noise, x)
+
+
+# -- the precision of the cubes given, before the fit -----------------------------------------
+#: The shift precision (nm, one standard deviation, the chief ray at the sensor's corner in
+#: the longest band) a target must be able to give x and n_eff to, by default (the command
+#: line's ``--tolerance-nm``): five times the lens calibration's own precision from flats
+#: (~0.01 nm). On the 128 x 160 binned field of ``tests/test_pupil_coverage.py`` at 1 % noise,
+#: f/1.4 + f/8, a rare-earth glass gives 0.009 nm and a straight-line reflectance 0.17 nm.
+DEFAULT_TOLERANCE_NM = 0.05
+
+
+@dataclass(frozen=True)
+class TargetPrecision:
+    """What the cubes of a target can give, from the model's Fisher information at the
+    search's start (:func:`target_precision`).
+
+    ``shift_stderr_nm``: the standard error of the chief ray's shift at ``edge_mm`` from the
+    axis for the longest band (``cwl_nm``), from the covariance of ``x`` and ``n_eff``.
+    """
+
+    x_mm: float
+    x_stderr_mm: float
+    n_eff: float
+    n_eff_stderr: float | None
+    shift_stderr_nm: float
+    edge_mm: float
+    cwl_nm: float
+    n_eff_band_stderr: np.ndarray | None = None
+    """With the index fitted: each band's own index's standard error, all fitted at once."""
+
+    def summary(self) -> str:
+        def rel(v, of, unit=""):
+            return (f"{v:.2g}{unit} ({100 * v / of:.2g} %)" if math.isfinite(v)
+                    else "(no information)")
+
+        n = ("" if self.n_eff_stderr is None else
+             f", n_eff +- {rel(self.n_eff_stderr, self.n_eff)}")
+        band = self.n_eff_band_stderr
+        if band is not None:
+            lo, hi = (100 * float(v) / self.n_eff for v in (np.min(band), np.max(band)))
+            can = bool(np.all(band < N_EFF_REL_STDERR * self.n_eff))
+            n += (f" (one per band: {lo:.2g}-{hi:.2g} %, "
+                  + ("so per band where the data ask for it)" if can else
+                     f"above {100 * N_EFF_REL_STDERR:g} %: one for the sensor)"))
+        return (f"predicted: this target can give x +- {rel(self.x_stderr_mm, self.x_mm, ' mm')}"
+                f"{n}; the "
+                f"shift at {self.edge_mm:.3g} mm from the axis ({self.cwl_nm:.4g} nm) to +- "
+                f"{self.shift_stderr_nm:.2g} nm (Fisher information at x = {self.x_mm:.4g} mm, "
+                "the noise measured in the cubes)")
+
+
+def _edge_shift_nm(x, n, d, cwl):
+    sin2 = d * d / (d * d + x * x)
+    return cwl * (1.0 - math.sqrt(max(1.0 - sin2 / (n * n), 1e-12)))
+
+
+def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
+    """:class:`TargetPrecision` of the cubes in ``problem`` (a ``_Problem``) at trial ``x``.
+
+    The Jacobian of the profiled residuals (the target's spectrum solved for at every step,
+    as the fit does) in ``x`` and, with ``fit_k``, the index's common scale, by central
+    differences; its information matrix, with the noise the annuli show, inverted.
+    """
+    e = 1e-5
+    cols = [(problem.residuals(x * (1 + e))[0] - problem.residuals(x * (1 - e))[0])
+            / (2 * e * x)]
+    if fit_k:
+        cols.append((problem.residuals(x, 1 + e)[0] - problem.residuals(x, 1 - e)[0])
+                    / (2 * e))
+    J = np.column_stack(cols)
+    F = J.T @ J
+    n = float(np.mean(problem.n_design))
+    inf = TargetPrecision(x, math.inf, n, math.inf if fit_k else None, math.inf, edge_mm,
+                          cwl_nm)
+    if not np.all(np.isfinite(F)) or F[0, 0] <= 0 or np.linalg.cond(F) > 1e14:
+        return inf
+    cov = np.linalg.inv(F)
+    if np.any(np.diag(cov) <= 0):
+        return inf
+    g = [(_edge_shift_nm(x * (1 + e), n, edge_mm, cwl_nm)
+          - _edge_shift_nm(x * (1 - e), n, edge_mm, cwl_nm)) / (2 * e * x)]
+    if fit_k:
+        g.append((_edge_shift_nm(x, n * (1 + e), edge_mm, cwl_nm)
+                  - _edge_shift_nm(x, n * (1 - e), edge_mm, cwl_nm)) / (2 * e))
+    g = np.array(g)
+    shift_err = float(math.sqrt(max(g @ cov @ g, 0.0)))
+    band = None
+    if fit_k and problem.n_design.size >= 2:
+        from .pupil_index import _per_band_jacobian
+
+        _, Jp = _per_band_jacobian(problem.model, x, problem.n_design)
+        with np.errstate(all="ignore"):
+            Fb = Jp.T @ Jp
+            band = (np.sqrt(np.clip(np.diag(np.linalg.pinv(Fb)), 0, None))[1:]
+                    if np.all(np.isfinite(Fb)) else np.full(problem.n_design.size, np.inf))
+    return TargetPrecision(x, float(math.sqrt(cov[0, 0])), n,
+                           float(math.sqrt(cov[1, 1]) * n) if fit_k else None, shift_err,
+                           edge_mm, cwl_nm, band)

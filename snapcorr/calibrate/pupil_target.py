@@ -32,6 +32,11 @@ class FeaturelessTargetError(ValueError):
     """The target's spectrum shows no shift over the field above the noise."""
 
 
+class ImpreciseTargetError(FeaturelessTargetError):
+    """The target's features cannot pin x and n_eff to the shift precision asked for
+    (refused before the fit, from the predicted precision)."""
+
+
 # -- the inputs ---------------------------------------------------------------------------
 #: Where the sensor gives no effective index and it is fitted (two f-numbers or more), the
 #: fit starts here (a thin-film filter's typical value; the fit spans 0.6-1.6 times it).
@@ -78,6 +83,9 @@ def _check_cubes(cubes, sensor):
         if fv in out:
             raise ValueError(f"f/{fv:g} given twice")
         sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
+        if not bool(np.isfinite(cube).any()):
+            raise ValueError(f"the f/{fv:g} cube has no finite value (every pixel NaN or "
+                             "infinite): nothing to fit")
         out[fv] = cube
     return dict(sorted(out.items()))
 

@@ -21,6 +21,7 @@ projection), and only what the bands see of it matters.
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from dataclasses import dataclass
@@ -256,6 +257,45 @@ def scaled_circles(circles, x_from, x_to):
     return [(round(P * k, 12), round(h * k * k, 12)) for P, h in circles]
 
 
+#: Gauss-Legendre nodes on either side of a vignetting onset inside an annulus.
+ONSET_NODES = 4
+
+
+def _onset_nodes(b, x, lens):
+    """Nodes in ``d^2`` (and weights) for the annuli of ``b`` that a vignetting onset crosses.
+
+    Where a circle starts to cut the pupil (at ``d_e = x tan(onset CRA)``, Eq. 24-25) a
+    bin's curve goes as ``smooth + c (d^2 - d_e^2)^(3/2)``: a Taylor step from the bin's mean
+    with the curvature between neighbouring bins misses it. Such a bin (its pixels spread
+    uniformly in ``d^2`` over ``mean +- sqrt(3 var)``, as an annulus of equal area is) is
+    averaged instead over :data:`ONSET_NODES` Gauss-Legendre nodes on either side of the
+    onset. Returns a list of ``(bin, d^2, weight)``, the weights of a bin summing to 1.
+    """
+    if not lens.has_vignetting:
+        return []
+    onsets = np.atleast_1d(lens.circle_onsets_cra_deg(b.f_number)).ravel()
+    rho_e = [(x * math.tan(math.radians(c))) ** 2 for c in onsets
+             if math.isfinite(c) and 0.0 < c < 89.0]
+    if not rho_e:
+        return []
+    ok = np.isfinite(b.var_rho)
+    var = np.where(ok, b.var_rho, 0.0).sum(axis=0) / np.maximum(ok.sum(axis=0), 1)
+    half = np.sqrt(3.0 * var)
+    lo, hi = b.rho - half, b.rho + half
+    xi, wi = np.polynomial.legendre.leggauss(ONSET_NODES)
+    out = []
+    for i in range(b.rho.size):
+        cuts = sorted(r for r in rho_e if lo[i] < r < hi[i])
+        if not cuts or not half[i] > 0:
+            continue
+        edges = [max(lo[i], 0.0), *cuts, hi[i]]
+        span = edges[-1] - edges[0]
+        for a, c in itertools.pairwise(edges):
+            for t, wt in zip(xi, wi, strict=True):
+                out.append((i, a + (c - a) * (t + 1) / 2, wt * (c - a) / (2 * span)))
+    return out
+
+
 class TargetModel:
     """The binned cubes of a uniform target as a function of ``x`` and ``n_eff``.
 
@@ -394,7 +434,9 @@ class TargetModel:
 
     def kernels(self, x, *, field=True):
         """Per cube: the kernels of every bin as masses ``w`` at ``sin^2(phi) = u``,
-        concatenated: ``(u, w, bin index, number of bins)``.
+        concatenated: ``(u, w, bin index, number of bins and nodes, combine)``; ``combine``
+        lists ``(bin, node, weight)``: the rows of the bins an onset crosses are the weighted
+        sums of their nodes' rows (:func:`_onset_nodes`).
 
         ``field=False`` puts every bin on the axis (no chief-ray angle): the model of a target
         whose spectrum does not change over the field.
@@ -418,10 +460,15 @@ class TargetModel:
 
     @staticmethod
     def _cube_kernels(b, x, lens, field, step):
-        """One cube's kernels at every bin, concatenated (see :meth:`kernels`)."""
+        """One cube's kernels at every bin, concatenated (see :meth:`kernels`), then those of
+        the nodes inside the bins a vignetting onset crosses (:func:`_onset_nodes`): the last
+        item says which bin each node's row goes to and with what weight."""
+        cra_of = (lambda rho: np.rad2deg(np.arctan(np.sqrt(rho) / x))) if field else (
+            lambda rho: np.zeros_like(rho))
+        extra = _onset_nodes(b, x, lens) if field else []
+        rho = np.concatenate([b.rho, [r for _, r, _ in extra]])
         per_bin = []
-        cra = np.rad2deg(np.arctan(np.sqrt(b.rho) / x)) if field else np.zeros_like(b.rho)
-        for c in cra:
+        for c in cra_of(rho):
             try:
                 mu, w = kernel_bins(1.0, N_REF, b.f_number, float(c), lens,
                                     step_nm=step)
@@ -434,7 +481,12 @@ class TargetModel:
         w = np.concatenate([kw[1] for _, kw in lit]) if lit else np.zeros(0)
         owner = (np.concatenate([np.full(kw[1].size, i) for i, kw in lit]) if lit
                  else np.zeros(0, int))
-        return u, w, owner, len(per_bin)
+        dark = {i for i, kw in enumerate(per_bin) if kw is None}
+        combine = [(i, b.rho.size + q, wq) for q, (i, _, wq) in enumerate(extra)]
+        # a bin whose node gets no light keeps its Taylor step (the cut-off is not an onset)
+        bad = {i for i, node, _ in combine if node in dark}
+        combine = [c for c in combine if c[0] not in bad]
+        return u, w, owner, len(per_bin), combine
 
     # -- the model -------------------------------------------------------------------------
     def design(self, x, n_eff, *, field=True):
@@ -465,14 +517,24 @@ class TargetModel:
         for j, k, rows, ok in self.blocks:
             if ok.size == 0:
                 continue
-            first, block = self._band_block(kern[j], k, n[k])
+            first, full = self._band_block(kern[j], k, n[k])
             D1, D2 = self._D[j]
             b = self.bins[j]
+            nbin = b.rho.size
+            block = full[:nbin]
             d = np.nan_to_num(b.rho_band[k] - b.rho)
             v = np.nan_to_num(b.var_rho[k])
             # the mean over a bin of a curve, from its value at the pooled mean d^2: a Taylor
             # step to the band's own mean plus half the curvature times the spread
             block = block + d[:, None] * (D1 @ block) + 0.5 * (v + d * d)[:, None] * (D2 @ block)
+            combine = kern[j][4]
+            if combine:  # a bin an onset crosses: the curve is not smooth there, its nodes'
+                # rows averaged instead (the Taylor step's curvature, taken across the onset,
+                # biased x by half its standard error at f/1.4 behind the paper lens)
+                at = sorted({i for i, _, _ in combine})
+                block[at] = 0.0
+                for i, node, wq in combine:
+                    block[i] += wq * full[node]
             block = block[ok]
             r = np.arange(rows.start, rows.stop)
             c = np.full(1, j) if self.known else first + np.arange(block.shape[1])
@@ -494,7 +556,7 @@ class TargetModel:
         """Rows for every bin of one cube and band ``k``: every kernel mass reads the band's
         response table at its filter centre (linear interpolation on the fine grid). Returns the
         first column (hat) the block covers and the block."""
-        u, w, owner, nb = kern
+        u, w, owner, nb = kern[:4]
         cwl = self.cwl[k]
         if u.size == 0:
             return 0, np.zeros((nb, 1))

@@ -125,7 +125,8 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
                           name="calibrated lens", inputs=None, target_inputs=None,
-                          progress=None, pupil="paper") -> LensAndPupil:
+                          progress=None, pupil="paper", target_tolerance_nm=None,
+                          report=None) -> LensAndPupil:
     """Characterise a lens whose exit pupil distance is unknown: flats plus target cubes.
 
     Parameters
@@ -161,6 +162,11 @@ tolerance_nm
         Lambertian pupil is kept only where the target's chi-square falls by more than
         :data:`~snapcorr.calibrate.exit_pupil.PUPIL_CHI2_GAIN` (the flats hardly tell them
         apart; the target's spectral structure does).
+    target_tolerance_nm, report
+        The shift precision the target must be able to give, and where its prediction is
+        said: ``tolerance_nm`` and ``report`` of :func:`~snapcorr.calibrate.locate_pupil`
+        (checked before any flat is fitted only as far as the target's own fit goes: the
+        prediction needs the flats' circles).
 
     Returns
     -------
@@ -193,7 +199,8 @@ tolerance_nm
         return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_px=centre,
                             target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
                             profile=profile, inputs=target_inputs, name=name,
-                            progress=progress, scale_circles=True)
+                            progress=progress, scale_circles=True,
+                            tolerance_nm=target_tolerance_nm, report=report)
 
     pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
@@ -288,7 +295,11 @@ def _joint_covariance(cal: LensCalibration, pupil: PupilFit, sensor):
     pvals = [x]
     pcov = np.array([[pupil.exit_pupil_stderr_mm ** 2]])
     if pupil.n_eff_fitted == "one":
-        design = np.asarray(sensor.n_eff, float)
+        from .pupil_target import N_EFF_START
+
+        # a vendor file gives no index: the fit's scale is of its start value
+        design = np.asarray(sensor.n_eff if sensor.n_eff is not None
+                            else np.full(sensor.n_bands, N_EFF_START), float)
         k_cov = np.asarray(pupil.covariance, float)[:2, :2]
         if np.ptp(design) == 0:
             pnames.append("n_eff")

@@ -488,7 +488,9 @@ class Sensor:
         if self.vendor_file is not None:
             path = self.vendor_file
             if folder is not None:
-                path = os.path.relpath(os.path.abspath(path), os.path.abspath(folder))
+                # from the folders as the system resolves them (symlinks followed): a TOML
+                # written into a linked folder is read from its real place, where '..' leads
+                path = os.path.relpath(os.path.realpath(path), os.path.realpath(folder))
             d = {"vendor_file": Path(path).as_posix(), "name": self.name}
             if self.n_eff is not None:
                 d["n_eff"] = (self.n_eff[0] if len(set(self.n_eff)) == 1
@@ -616,10 +618,25 @@ class Sensor:
     def save(self, path, *, overwrite=False) -> Path:
         """Write the description as TOML, atomically; never replaces a file unless asked.
         A sensor read from a vendor file is written as a TOML naming that file."""
-        doc = {"sensor": self.to_dict(folder=Path(path).parent)}
+        table = self.to_dict(folder=Path(path).parent)
+        if self.vendor_file is None:
+            doc = {"sensor": table}
+            if self.calibration:
+                doc["calibration"] = self.calibration
+            return write_toml(path, doc, overwrite=overwrite)
+        import tomli_w
+
+        # the index the vendor's file does not give: a line to fill in, and how to measure it
+        how = (f"# n_eff: the filters' effective index, which {Path(self.vendor_file).name} "
+               "does not give;\n# `snapcorr pupil --fit-n-eff` (target cubes at two f-numbers "
+               "far apart) measures it,\n# and its --sensor-out writes this file with it\n")
+        body = tomli_w.dumps({"sensor": table}) + how
+        if self.n_eff is None:
+            body += "# n_eff = 1.7\n"
+        parts = [body]
         if self.calibration:
-            doc["calibration"] = self.calibration
-        return write_toml(path, doc, overwrite=overwrite)
+            parts.append(tomli_w.dumps({"calibration": self.calibration}))
+        return write_toml(path, parts, overwrite=overwrite)
 
 
 def _read_shape(path):
