@@ -237,3 +237,18 @@ def main(quick=False, echo=print, workers=2, out="calibration_rays.csv", seeds=S
 
 if __name__ == "__main__":
     main(quick="--quick" in sys.argv)
+
+
+def markdown(rows):
+    """The summary as the rows of a Markdown table (for benchmarks/README.md)."""
+    out = ["| lens | noise | seeds | models chosen | max error nm | median reported nm | "
+           "RMS z shift | RMS z P (per circle) | RMS z h (per circle) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for line in summarise(rows, echo=lambda *_: None):
+        seeds = sorted(r["seed"] for r in rows
+                       if r["case"] == line["case"] and r["noise"] == line["noise"])
+        out.append(f"| {line['case']} | {100 * line['noise']:g} % | "
+                   f"{','.join(map(str, seeds))} | {line['models']} | {line['max_err']:.4f} | "
+                   f"{line['reported']:.4f} | {line['z_shift']:.2f} | {line['z_P']} | "
+                   f"{line['z_h']} |")
+    return "\n".join(out)
