@@ -635,9 +635,9 @@ def test_shift_error_bars_cover_over_seeds(key, noise):
 
 @pytest.mark.parametrize("key", ["one_h_lt_x", "one_h_gt_x_m"])
 def test_reported_shift_error_is_never_below_the_bound(key):
-    """At low noise the reported errors of P and h are mostly their systematic floor; the
-    shift's standard error must still not fall below what the flats allow (it did, to 0.7 of
-    the bound, when each variance was scaled to its floored error on its own)."""
+    """At low noise the shift's standard error must not fall below what the flats allow (it
+    did, to 0.7 of the bound, when each variance of P and h was scaled on its own to an error
+    with a floor); the block model's approximation enters as one correlated direction."""
     out = calibrate(TRUTHS[key], noise=0.005, seed=0, scene=QUARTER)
     sd_bound, _ = cramer_rao(out)
     reported = float(np.nanmax(out.res.shift_stderr_nm))

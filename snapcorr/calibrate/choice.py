@@ -259,12 +259,13 @@ def shift_stderr_nm(fit: ModelFit, base: Lens, f_numbers, max_cra_deg, *,
     """Standard error of the predicted mean shift that the fit's uncertainty in P and h leaves,
     largest over the field, for each f-number (nm; NaN where it cannot be propagated).
 
-    The covariance of the circles' parameters is the fit's, scaled up as a whole by the
-    largest ratio of a reported standard error (which carries the systematic floor) to the
-    fit's own. Scaling each variance by its own ratio, keeping the correlations, would upset
-    the cancellation between strongly correlated P and h, and could report less than the
-    noise allows; scaling as a whole keeps the shape, so the result is never below the
-    fit's. It is carried through the mean shift by finite differences:
+    The covariance of the circles' parameters is the fit's: the noise's, scaled by the
+    misfit, plus the block model's approximation as one correlated direction
+    (:func:`~snapcorr.calibrate.joint_fit._rule_bias`), so the reported standard errors are
+    the square roots of its diagonal. Where a reported error is larger than that (a fit made
+    elsewhere, with its own errors), the covariance is scaled up as a whole by the largest
+    ratio: scaling each variance by its own would upset the cancellation between strongly
+    correlated P and h. It is carried through the mean shift by finite differences:
     ``sqrt(diag(J C J^T))`` on a grid of CRAs.
 
     Parameters

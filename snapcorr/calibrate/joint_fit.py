@@ -46,10 +46,11 @@ N_CIRCLES = {name: i for i, name in enumerate(MODELS)}
 SCREEN_BLOCKS = 3000
 #: Most evaluations of the polish on all blocks (from a minimum it takes a few).
 POLISH_NFEV = 60
-#: Relative floor added to the standard errors of P and h: what the block model leaves (its
-#: radial rule, the tabulated area, the outlier mask's choice of pixels; measured at up to
-#: 3e-5 relative on flats near a full cut-off).
-SYSTEMATIC_REL = 1e-4
+#: Block sides up to this are averaged pixel by pixel when the block rule's own error is
+#: measured (:func:`_rule_bias`); larger blocks by a product Gauss-Legendre rule of
+#: ``_EXACT_NODES`` squared points.
+_EXACT_SIDE = 8
+_EXACT_NODES = 6
 
 
 @dataclass
@@ -267,7 +268,8 @@ def _block_radii(X, Y, sx, sy):
     return radii, w / 2.0
 
 
-def model_ratio(data: BlockData, model, p, tan_cra, weights=None, per_flat=False):
+def model_ratio(data: BlockData, model, p, tan_cra, weights=None, per_flat=False,
+                grid_points=GRID_POINTS):
     """Model ratio image(s) A_F / A_ref (times cos^4 for a single flat), shape (n_f, n).
 
     ``tan_cra`` is ``(n,)``, or ``(k, n)`` with ``weights`` ``(k,)``: then each block's model
@@ -278,7 +280,7 @@ def model_ratio(data: BlockData, model, p, tan_cra, weights=None, per_flat=False
     circles = circles_of(model, p)
     tan_cra = np.asarray(tan_cra, float)
     tmax = float(np.max(tan_cra)) * 1.0001 + 1e-9
-    n_grid = GRID_POINTS
+    n_grid = grid_points
     grid = np.linspace(0.0, tmax, n_grid + 1)
     # linear interpolation on the uniform grid (np.interp's search is slow on unsorted points)
     pos = tan_cra * (n_grid / tmax)
@@ -395,9 +397,50 @@ def _weights(q, sigma):
     return w, np.sqrt(w), w * q
 
 
+def _every_pixel_model(data: BlockData, model, p, cx, cy):
+    """The model of every block as the mean over all its pixels (each at its own radius, on
+    a table four times finer), what :func:`_block_model`'s radial rule approximates."""
+    b = data.block_px
+    if b <= _EXACT_SIDE:
+        offs = np.arange(b) - (b - 1) / 2.0
+        w1 = np.full(b, 1.0 / b)
+    else:
+        u, w = np.polynomial.legendre.leggauss(_EXACT_NODES)
+        offs, w1 = u * (b / 2.0), w / 2.0
+    dx, dy = np.meshgrid(offs, offs)
+    X = (data.xpix - cx)[None, :] + dx.ravel()[:, None]
+    Y = (data.ypix - cy)[None, :] + dy.ravel()[:, None]
+    tan = np.hypot(X, Y) * (data.pitch_mm / data.x_mm)
+    return model_ratio(data, model, p, tan, np.outer(w1, w1).ravel(),
+                       grid_points=4 * GRID_POINTS)
+
+
+def _rule_bias(data: BlockData, model, p, center, J, free):
+    """How far the block model's approximations (its radial rule and tabulated area) move
+    the fitted parameters: the least-squares step, through the fit's Jacobian ``J`` (free
+    parameters), that the residuals' change from the block model to the mean over every
+    pixel of each block asks for (all pixels of a block taken as valid, for both). A vector
+    over the free parameters, one systematic direction with its correlations, not a floor
+    on each: it is added to the covariance as its outer product."""
+    if data.block_px <= 1 or J is None or not np.size(J):
+        return np.zeros(len(free))
+    cx, cy = center if center is not None else (p[2], p[3])
+    full = replace(data, xoff=None, yoff=None, xsd=None, ysd=None, warm={})
+    r_rule, _ = _model_residuals(full, _block_model(full, model, p, cx, cy), model)
+    r_fine, _ = _model_residuals(full, _every_pixel_model(full, model, p, cx, cy), model)
+    J = np.asarray(J.toarray() if hasattr(J, "toarray") else J, float)
+    step, *_ = np.linalg.lstsq(J, r_fine - r_rule, rcond=None)
+    return np.where(np.isfinite(step), step, 0.0)
+
+
 def _residuals(data, model, p, center):
     cx, cy = center if center is not None else (p[2], p[3])
     m = _block_model(data, model, p, cx, cy)
+    return _model_residuals(data, m, model)
+
+
+def _model_residuals(data, m, model):
+    """Residuals of block model values ``m`` and the scales (exposures) that go with them."""
     if data.gains:
         r, e = _profiled(data.q, data.sigma, m, data.warm.get(model), data.weights)
         data.warm[model] = np.log(e)
@@ -520,11 +563,17 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     r, s = _residuals(data, model, p, center)
     chi2 = float(r @ r)
     k = len(free) + data.n_nuisance
-    cov, err = _covariance(res.jac, p, free, names, chi2 / max(n - k, 1))
+    bias = _rule_bias(data, model, p, center, res.jac, free)
+    cov, err, noise_cov = _covariance(res.jac, p, free, names, chi2 / max(n - k, 1), bias)
     params = dict(zip(names, map(float, p), strict=True))
     stderr = dict(zip(names, map(float, err), strict=True))
+    extra = {"held": dict(fixed)} if fixed else {}
+    # the parts of the covariance: the noise's (scaled by the misfit) and the block rule's
+    extra["noise_covariance"] = noise_cov
+    extra["rule_bias"] = dict(zip([names[i] for i in free], map(float, bias), strict=True))
+    extra["misfit_scale"] = float(max(chi2 / max(n - k, 1), 1.0))
     return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
-                    str(res.message), extra={"held": dict(fixed)} if fixed else {})
+                    str(res.message), extra=extra)
 
 
 def _screening_subset(data: BlockData):
@@ -538,8 +587,10 @@ def _screening_subset(data: BlockData):
     return step, screen
 
 
-def _covariance(J, p, free, names, reduced_chi2):
-    """Covariance of all parameters (zero for the fixed ones) and their standard errors."""
+def _covariance(J, p, free, names, reduced_chi2, bias=None):
+    """Covariance of all parameters (zero for the fixed ones), their standard errors, and the
+    noise's part of the covariance alone. ``bias``: the block rule's systematic step over
+    the free parameters (:func:`_rule_bias`), added as its outer product."""
     # Covariance from the SVD of the Jacobian in relative units (a change of each parameter by
     # its own size), so that no parameter's scale decides what counts as constrained.
     scale = np.maximum(np.abs(p[free]), 1e-3)
@@ -547,8 +598,11 @@ def _covariance(J, p, free, names, reduced_chi2):
     strong = sv > 1e-9 * max(sv.max(), 1e-300)
     inv = (vt[strong].T / sv[strong] ** 2) @ vt[strong]
     cov_free = inv * np.outer(scale, scale) * max(reduced_chi2, 1.0)
-    cov = np.full((len(names), len(names)), 0.0)
-    cov[np.ix_(free, free)] = cov_free
+    noise = np.full((len(names), len(names)), 0.0)
+    noise[np.ix_(free, free)] = cov_free
+    cov = noise.copy()
+    if bias is not None:
+        cov[np.ix_(free, free)] += np.outer(bias, bias)
     err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     # Parameters along directions the data do not (or hardly) constrain have no standard
     # error: a second circle that cuts no ray in the field, say.
@@ -556,9 +610,4 @@ def _covariance(J, p, free, names, reduced_chi2):
     if weak.size:
         loose = np.abs(weak).max(axis=0) > 0.1
         err[np.asarray(free)[loose]] = np.inf
-    # The block model's approximations bias P and h by up to a few 1e-5 relative (measured):
-    # a floor keeps the errors honest.
-    for j, nm in enumerate(names):
-        if nm.endswith("_mm") and j in free:
-            err[j] = np.hypot(err[j], SYSTEMATIC_REL * p[j])
-    return cov, err
+    return cov, err, noise

@@ -97,7 +97,10 @@ class LensCalibration:
         ``shift_stderr_fit_nm`` (what the uncertainty of P and h leaves, for the estimator
         used, scaled up by the fit's misfit) and ``shift_stderr_model_nm`` (the models the
         rules could not rule out: see :func:`_model_choice_stderr`) in quadrature. Empty
-        where there is neither (no circle, and no other model in question).
+        where there is neither (no circle, and no other model in question). The fit's part
+        is in turn ``shift_stderr_noise_nm`` (the flats' noise, scaled by the misfit: the
+        part that averaging frames lowers) and the block model's approximation
+        (:func:`~snapcorr.calibrate.joint_fit._rule_bias`), in quadrature.
     rivals : dict
         Name -> ``(ModelFit, floored BIC)`` of models never chosen that count in the model
         choice's error, where two circles were fitted: ``"pixel"``, the first circle plus
@@ -142,6 +145,7 @@ class LensCalibration:
     exit_pupil_stderr_mm: float | None = None
     shift_stderr_fit_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shift_stderr_model_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shift_stderr_noise_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rivals: dict = field(default_factory=dict)
     mosaic: dict = field(default_factory=dict)
 
@@ -335,8 +339,9 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
                                  fs, max_cra)
     errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
                          rivals)
-    notes += _precision_notes(verdicts, model, next_best, diff, errs["shift_stderr_nm"], fs,
-                              tolerance_nm) + _x_notes(exit_pupil_mm, exit_pupil_stderr_mm, circles)
+    notes += _precision_notes(verdicts, model, next_best, diff, errs, fs, tolerance_nm,
+                              fits[model].extra.get("misfit_scale", 1.0) if used == "joint"
+                              else 1.0) + _x_notes(exit_pupil_mm, exit_pupil_stderr_mm, circles)
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
         reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
@@ -367,10 +372,21 @@ def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs,
     """The shift's standard error per f-number: the fit's part, the model choice's part, and
     both in quadrature (as :class:`LensCalibration` fields)."""
     fit_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
+    noise_err = fit_err
+    if used == "joint" and fit_err.size and "noise_covariance" in fits[model].extra:
+        fit = fits[model]
+        noise = np.asarray(fit.extra["noise_covariance"], float)
+        sd = np.sqrt(np.clip(np.diag(noise), 0.0, None))
+        stderr = {k: (v if not np.isfinite(fit.stderr[k]) else float(sd[i]))
+                  for i, (k, v) in enumerate(fit.stderr.items())}
+        noise_err = _shift_stderr(used, dataclasses.replace(fit, covariance=noise,
+                                                            stderr=stderr),
+                                  ons.fits, center, base, fs, max_cra)
     model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra,
                                       rivals)
                  if used == "joint" else np.zeros(0))
     return {"shift_stderr_fit_nm": fit_err, "shift_stderr_model_nm": model_err,
+            "shift_stderr_noise_nm": noise_err,
             "shift_stderr_nm": _combine(fit_err, model_err)}
 
 
@@ -492,9 +508,12 @@ def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_sour
     return center, center_source, model, verdicts, ons, max_cra
 
 
-def _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_nm):
-    """Notes where the flats are too noisy to settle the model or to pin the mean shift."""
+def _precision_notes(verdicts, model, next_best, diff, errs, fs, tolerance_nm,
+                     misfit_scale=1.0):
+    """Notes where the flats are too noisy to settle the model or to pin the mean shift; the
+    advice says which part of the error sets it, and what lowers that part."""
     notes = []
+    shift_err = errs["shift_stderr_nm"]
     rival = verdicts.get(next_best) if next_best is not None else None
     if (rival is not None and not rival.problems and N_CIRCLES[next_best] > N_CIRCLES[model]
             and np.nanmax(diff, initial=0.0) > tolerance_nm):
@@ -508,9 +527,52 @@ def _precision_notes(verdicts, model, next_best, diff, shift_err, fs, tolerance_
         notes.append(
             f"the flats pin the mean shift only to +- {shift_err[worst]:.3g} nm (one standard "
             f"error, at f/{fs[worst]:g} for a {choice.REFERENCE_CWL_NM:g} nm filter), more "
-            f"than the {tolerance_nm:g} nm tolerance: averaging k frames at every f-number "
-            "divides it by sqrt(k)")
+            f"than the {tolerance_nm:g} nm tolerance: "
+            + _what_sets_it(errs, worst, misfit_scale))
     return notes
+
+
+def _part(errs, key, k):
+    v = errs.get(key, np.zeros(0))
+    return float(v[k]) if v.size > k and np.isfinite(v[k]) else 0.0
+
+
+def _what_sets_it(errs, k, misfit_scale):
+    """Which part of the shift's error at f-number index ``k`` dominates, and what lowers
+    it: the noise's (averaging frames, by sqrt(k) for that part only), the block model's
+    approximation (nothing the user does), the choice between models the flats cannot tell
+    apart (less noise settles it; it does not shrink as sqrt(k)), or a misfit (the area model
+    misses something; more frames do not help)."""
+    total = _part(errs, "shift_stderr_nm", k)
+    fit = _part(errs, "shift_stderr_fit_nm", k)
+    noise = min(_part(errs, "shift_stderr_noise_nm", k), fit)
+    model = _part(errs, "shift_stderr_model_nm", k)
+    rule = math.sqrt(max(fit * fit - noise * noise, 0.0))
+    # the noise alone, without the misfit's scaling where that is a misfit, not chance
+    pure = noise / math.sqrt(misfit_scale) if misfit_scale > MISFIT_CHI2 else noise
+    misfit = math.sqrt(max(noise * noise - pure * pure, 0.0))
+    parts = {"noise": pure, "misfit": misfit, "rule": rule, "model": model}
+    lead = max(parts, key=parts.get)
+    share = ", ".join(f"{v:.2g} nm {name}" for name, v in (
+        ("from the flats' noise", pure), ("from the area model's misfit", misfit),
+        ("from the block model's approximation", rule),
+        ("from the choice between models", model)) if v > 0.01 * total)
+    rest = math.sqrt(max(total * total - pure * pure, 0.0))
+    if lead == "noise":
+        advice = ("the flats' noise sets it: averaging k frames at every f-number divides that "
+                  "part by sqrt(k)" + (f" (the rest, {rest:.2g} nm, does not shrink so)"
+                                        if rest > 0.2 * total else ""))
+    elif lead == "model":
+        advice = ("the choice between models the flats cannot tell apart sets it: flats with "
+                  "less noise would settle the choice (it does not shrink as sqrt(k) with k "
+                  "frames; it falls away once one model is ruled out)")
+    elif lead == "misfit":
+        advice = ("the area model's misfit sets it (the errors are scaled by a reduced chi2 of "
+                  f"{misfit_scale:.3g}): more frames do not lower it; check the flats for "
+                  "what the model lacks (a source that changes with the f-number, aberrations)")
+    else:
+        advice = ("the block model's approximation sets it: more frames do not lower it")
+    return f"{advice} ({share})"
 
 
 def _fitted_center(fit):
@@ -752,6 +814,8 @@ def _calibration_table(res: LensCalibration, inputs):
         table["shift_stderr_filter"] = [choice.REFERENCE_CWL_NM, choice.REFERENCE_N_EFF]
         if res.shift_stderr_fit_nm.size:
             table["shift_stderr_fit_nm"] = [_clean(v) for v in res.shift_stderr_fit_nm]
+        if res.shift_stderr_noise_nm.size:
+            table["shift_stderr_noise_nm"] = [_clean(v) for v in res.shift_stderr_noise_nm]
         if res.shift_stderr_model_nm.size:
             table["shift_stderr_model_choice_nm"] = [
                 _clean(v) for v in res.shift_stderr_model_nm]

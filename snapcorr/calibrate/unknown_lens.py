@@ -261,8 +261,9 @@ def _consistency(first, final, x0, x):
 
 def _flat_block(cal: LensCalibration):
     """Names, values and covariance of the circles (and centre) the flats gave at their x,
-    rescaled to the standard errors the calibration reports (which add its systematic floor
-    to the fit's misfit-scaled covariance). Refused if the flats' fit has no finite one."""
+    rescaled to the standard errors the calibration reports (the covariance's own diagonal:
+    the noise's part scaled by the misfit, plus the block model's approximation). Refused if
+    the flats' fit has no finite one."""
     if cal.method == "joint":
         fit = cal.fits[cal.model]  # without a circle: the centre alone, if it was fitted
         names = list(fit.names)

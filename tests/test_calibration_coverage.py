@@ -1,0 +1,104 @@
+"""Do the lens calibration's error bars cover? Judged on flats from rays counted through the
+pupil (``tests/raysim.py``), over lens types and noise levels (``benchmarks/
+calibration_coverage.py`` runs the table; the full table is ``slow``).
+
+The default tests check the simulator itself (its row-by-row count is the ray-by-ray count;
+it agrees with ``tests/flatsim.py``'s quadrature, a different method) and what the profile
+says its error is made of: the advice of the note is true for the part that sets it.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import raysim
+from flatsim import LensTruth, mean_shift_nm, relative_illumination
+
+from snapcorr.calibrate.lens_calibration import _what_sets_it
+
+THREE = ((6.2, 12.0), (10.0, 30.0), (6.5, -10.0))
+
+
+@pytest.mark.parametrize("t", [0.0, 0.09, 0.17, 0.21, 0.26, 0.29])
+def test_row_counts_are_the_ray_by_ray_count(t):
+    n, _ = raysim.count_rays(21.0, THREE, 0.0, 1.0, 2.0, [t], rows=80)
+    assert n[0] == raysim.count_rays_loop(21.0, THREE, 0.0, 1.0, 2.0, t, rows=80)
+    assert n[0] > 0
+
+
+def test_counted_rays_agree_with_the_quadrature():
+    """Two methods, neither snapcorr's: the ray count and flatsim's Gauss-Legendre quadrature
+    of the half-chords (to the count's quantisation, ~1e-5 at 2000 rows)."""
+    truth = LensTruth(21.0, THREE, 0.06, 1.3)
+    t = np.linspace(0.0, 0.3, 40)
+    for f in (2.0, 2.8, 5.6):
+        ri = raysim.relative_illumination(21.0, THREE, 0.06, 1.3, f, t, rows=2000)
+        assert np.max(np.abs(ri - relative_illumination(truth, f, t))) < 2e-5
+    # the mean shift averaged over the same rays, against the quadrature's
+    cra = np.array([0.0, 8.0, 14.0])
+    got = raysim.mean_shift_rays(21.0, THREE, 0.06, 1.3, 2.0, cra, rows=600)
+    assert np.max(np.abs(got - mean_shift_nm(truth, 1000.0, 1.5, 2.0, cra))) < 2e-3
+
+
+def test_flats_follow_the_counts():
+    """Noise-free flats are the count times cos^4 times the exposure, and the noise is the
+    fraction asked for."""
+    fl, e = raysim.flats(21.0, ((9.5, 26.0),), shape=(16, 20), pitch_um=300.0,
+                         center_rc=(8.0, 10.0), noise=0.0, rows=1000, n_table=400,
+                         f_numbers=(2.0,))
+    fn, _ = raysim.flats(21.0, ((9.5, 26.0),), shape=(16, 20), pitch_um=300.0,
+                         center_rc=(8.0, 10.0), noise=0.02, rows=1000, n_table=400,
+                         f_numbers=(2.0,))
+    rr, cc = np.mgrid[0:16, 0:20]
+    tan = np.hypot(rr - 8.0, cc - 10.0) * 0.3 / 21.0
+    ri = raysim.relative_illumination(21.0, ((9.5, 26.0),), 0.0, 1.0, 2.0, tan.ravel(), 1000)
+    want = 40000.0 * e[2.0] * ri.reshape(tan.shape) / (1 + tan**2) ** 2
+    # whole DN, and the table's linear interpolation (400 points)
+    assert np.max(np.abs(fl[2.0] - want)) <= 0.5 + 40000.0 * 5e-5
+    rel = (fn[2.0] - fl[2.0]) / np.maximum(fl[2.0], 1.0)
+    assert 0.015 < np.std(rel) < 0.025
+
+
+def _errs(total, fit, noise, model):
+    return {"shift_stderr_nm": np.array([total]), "shift_stderr_fit_nm": np.array([fit]),
+            "shift_stderr_noise_nm": np.array([noise]),
+            "shift_stderr_model_nm": np.array([model]) if model else np.zeros(0)}
+
+
+def test_the_note_names_the_part_that_sets_the_error():
+    # the noise's part: averaging k frames divides it by sqrt(k)
+    note = _what_sets_it(_errs(0.008, 0.008, 0.008, 0.0), 0, 1.0)
+    assert "noise sets it" in note and "sqrt(k)" in note and "rest" not in note
+    # the choice between models dominates: averaging is not said to divide it by sqrt(k)
+    model = 0.0075
+    note = _what_sets_it(_errs(math.hypot(0.002, model), 0.002, 0.002, model), 0, 1.0)
+    assert "choice between models" in note and "does not shrink as sqrt(k)" in note
+    # a misfit: more frames do not lower it
+    note = _what_sets_it(_errs(0.009, 0.009, 0.009, 0.0), 0, 9.0)
+    assert "misfit sets it" in note and "more frames do not lower it" in note
+    # noise leads but the rest is large: the note says the rest does not shrink
+    note = _what_sets_it(_errs(0.01, 0.01, 0.008, 0.0), 0, 1.0)
+    assert "noise sets it" in note and "does not shrink so" in note
+
+
+@pytest.mark.slow
+def test_every_reported_error_covers():
+    """The table of benchmarks/README.md: in every cell (lens type x noise, four seeds), the
+    RMS of error over reported error of the shift, of each P and of each h is in
+    [0.5, 2]."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks import calibration_coverage as cc
+
+    rows = cc.main(workers=2, out="calibration_rays_test.csv")
+    (Path(cc.HERE) / "calibration_rays_test.csv").unlink(missing_ok=True)
+    bad = []
+    for line in cc.summarise(rows, echo=lambda *_: None):
+        values = [line["z_shift"]] + [float(v) for col in ("z_P", "z_h")
+                                      for v in line[col].split() if line[col] != "-"]
+        if not all(0.5 <= v <= 2.0 for v in values if np.isfinite(v)):
+            bad.append(line)
+    assert not bad, bad
