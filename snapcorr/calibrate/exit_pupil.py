@@ -401,6 +401,7 @@ def _either_pupil(args):
     for name in ("paper", "lambertian"):
         try:
             fits[name] = locate_pupil(**args, pupil=name)
+            args["report"] = None  # the precision said once, for the first pupil fitted
         except FeaturelessTargetError:
             raise
         except ValueError as err:  # e.g. a numerical aperture of 1 for one of them
