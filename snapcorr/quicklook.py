@@ -487,18 +487,10 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     virtual = _virtual_means(ds, boxes) if picked else None
     fig, (a_cube, a_cra, a_shift, a_spec, a_virt, a_key) = _correction_axes(
         ny, nx, virtual is not None)
-    _show(fig, a_cube, img, s, cbar_label=_label(cube, name),
-          title=f"{name}, band {b} ({_num(wl[b], '.1f')} nm)")
-    cra_title = "chief-ray angle" + (" (first band)" if "band" in cra.dims else "")
-    _show(fig, a_cra, cra_img, s, robust=False, cmap="cividis", cbar_label="CRA (deg)",
-          title=cra_title, bad_label=None)
-    _show(fig, a_shift, shift_img, s, robust=False, cmap="magma",
-          cbar_label="shift (nm)", bad_label=None,
-          title=f"shift of band {b_shift} ({_num(wl[b_shift], '.1f')} nm): "
-                "corrected - nominal")
-    for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
-        a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
-
+    _draw_correction_images(fig, (a_cube, a_cra, a_shift), (img, cra_img, shift_img), s,
+                            _label(cube, name), f"{name}, band {b} ({_num(wl[b], '.1f')} nm)",
+                            "band" in cra.dims, f"{b_shift} ({_num(wl[b_shift], '.1f')} nm)",
+                            ys, xs)
     _draw_corrected_spectra(a_spec, a_key, ys, xs, boxes, spectra, wl, order, roles,
                             [cra_img[rc] for rc in picked], has_resampled, _label(cube, name))
     if virtual is not None:
@@ -508,6 +500,23 @@ def plot_correction(ds, path, *, overwrite=False, title=None):
     sub = _subtitle(ds.attrs)
     fig.suptitle(head + (f"\n{sub}" if sub else ""), fontsize=12)
     return _save(fig, path)
+
+
+def _draw_correction_images(fig, axes, images, s, cube_label, cube_title, cra_per_band,
+                            shift_band, ys, xs):
+    """:func:`plot_correction`'s row of images: the cube's band, the chief-ray angle with the
+    chosen pixels circled, and the shift of the band that moves most."""
+    a_cube, a_cra, a_shift = axes
+    img, cra_img, shift_img = images
+    _show(fig, a_cube, img, s, cbar_label=cube_label, title=cube_title)
+    cra_title = "chief-ray angle" + (" (first band)" if cra_per_band else "")
+    _show(fig, a_cra, cra_img, s, robust=False, cmap="cividis", cbar_label="CRA (deg)",
+          title=cra_title, bad_label=None)
+    _show(fig, a_shift, shift_img, s, robust=False, cmap="magma",
+          cbar_label="shift (nm)", bad_label=None,
+          title=f"shift of band {shift_band}: corrected - nominal")
+    for k, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        a_cra.plot(x, y, marker="o", ms=7, mfc="none", mec=f"C{k}", mew=2)
 
 
 #: Width of :func:`plot_correction`'s figure (inches) and the height of its row of spectra.

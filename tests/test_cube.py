@@ -168,8 +168,12 @@ def test_a_whole_sensor_frame_is_cut_to_the_vendor_files_filter_area():
     cube = mosaic_to_cube(raw, s)
     assert cube.shape == (216, 409, 25)
     assert cube.attrs["mosaic_area_px"] == [3, 0, 1080, 2045]
-    # band i at tile row i // 5, column i % 5 from the area's corner (row 3)
-    assert cube.sensor_row.values[0, 7] == 3 + 1 and cube.sensor_col.values[0, 7] == 2
+    # the file's band i at tile row i // 5, column i % 5 from the area's corner (row 3); the
+    # cube's bands in order of wavelength, each with its file number
+    b = s.vendor_band.index(7)
+    assert cube.vendor_band.values[b] == 7
+    assert cube.sensor_row.values[0, b] == 3 + 1 and cube.sensor_col.values[0, b] == 2
+    assert np.all(np.diff(cube.wavelength.values) > 0)
     assert cube.sensor_row.values[-1].max() == 1082 and cube.sensor_col.values[-1].max() == 2044
     lazy = mosaic_to_cube(da.from_array(raw, chunks=(256, -1)), s)
     xr.testing.assert_identical(lazy.compute(), cube)

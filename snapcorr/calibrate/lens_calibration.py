@@ -327,12 +327,11 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         center, center_source, model, verdicts, ons, max_cra = _recenter_on_fit(
             fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
             pixel_pitch_um, vignetting_distance_mm, decide)
-    notes += fit_notes
     predict = functools.partial(_predict, data, fs, fits[model], ons, base, center, fix_center,
                                 vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
-    notes += method_notes
+    notes += fit_notes + method_notes
     model = _unless_joint(used, verdicts, model)
     lens = dataclasses.replace(base, vignetting=circles)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
