@@ -417,7 +417,8 @@ def test_calibration_predicts_the_true_shift(key, noise, seed):
     check(calibrate(TRUTHS[key], noise=noise, seed=seed))
 
 
-@pytest.mark.parametrize("key", ["one_h_gt_x", "one_h_gt_x_m"])
+@pytest.mark.parametrize("key", ["one_h_gt_x", pytest.param("one_h_gt_x_m",
+                                                             marks=pytest.mark.slow)])
 def test_users_scene_chooses_no_stop_like_circle(key):
     """The user's report: one circle with h > x, f/2-f/11, 0.5 % noise, off-centre axis.
 
@@ -540,7 +541,7 @@ def test_standard_errors_are_honest(key):
 
 # -- efficiency: the reported standard errors against the Cramér-Rao bound -------------------
 @pytest.mark.parametrize("key", [
-    "one_h_gt_x_m", "circle_pixel",
+    "circle_pixel", pytest.param("one_h_gt_x_m", marks=pytest.mark.slow),
     pytest.param("one_h_lt_x", marks=pytest.mark.slow),
     pytest.param("one_weak", marks=pytest.mark.slow),
     pytest.param("two_front_rear", marks=pytest.mark.slow)])
@@ -633,7 +634,8 @@ def test_shift_error_bars_cover_over_seeds(key, noise):
     assert 0.5 <= rms <= 2.0, (np.round(z, 2), rms)
 
 
-@pytest.mark.parametrize("key", ["one_h_lt_x", "one_h_gt_x_m"])
+@pytest.mark.parametrize("key", ["one_h_lt_x", pytest.param("one_h_gt_x_m",
+                                                             marks=pytest.mark.slow)])
 def test_reported_shift_error_is_never_below_the_bound(key):
     """At low noise the shift's standard error must not fall below what the flats allow (it
     did, to 0.7 of the bound, when each variance of P and h was scaled on its own to an error

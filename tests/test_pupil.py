@@ -293,6 +293,7 @@ def test_precision_on_a_small_sensor_with_empty_annuli():
     assert pred.informative and pred.x_stderr_mm > 0
 
 
+@pytest.mark.slow  # the same workflow as test_unknown_lens.py's default tests
 def test_flats_at_a_guessed_x_then_the_target_give_a_consistent_profile_in_one_run():
     """An unknown lens: flats calibrated with x guessed 14 % wrong (P and h then come out
     14 % and 31 % off, fitting just as well), then the target cubes with that profile. The
