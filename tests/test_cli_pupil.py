@@ -97,6 +97,7 @@ def test_a_known_spectrum_from_a_file(files, cli):
     # these cubes of the paper's pupil
     choice = lens.calibration["pupil_choice"]
     assert "pupil: paper" in res.stdout and choice["chosen"] == "paper" == lens.pupil
+    assert res.stdout.count("predicted:") == 1  # the precision said once, not per pupil
     assert choice["chi2"]["lambertian"] > choice["chi2"]["paper"] + 10
     assert abs(lens.exit_pupil_mm - 21.0) < 0.21
     assert "given" in lens.calibration["target_spectrum"]
