@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import pyplot, write_csv
+from . import cpu_seconds, others_share, pyplot, write_csv
 from .io_memory import _status
 
 HERE = Path(__file__).parent
@@ -137,29 +137,6 @@ def _least_times(fns, repeat=3):
     return best
 
 
-def _cpu_seconds():
-    """(CPU seconds all processes have used, of this process, wall clock): Linux's
-    ``/proc/stat``; None elsewhere."""
-    try:
-        with open("/proc/stat") as fh:
-            busy = [int(v) for v in fh.readline().split()[1:]]
-    except (OSError, ValueError):
-        return None
-    idle = busy[3] + busy[4]  # idle, iowait
-    own = os.times()
-    return ((sum(busy[:8]) - idle) / os.sysconf("SC_CLK_TCK"), own.user + own.system,
-            time.perf_counter())
-
-
-def _others_share(start):
-    """The share of the machine's CPUs other processes used since ``start``."""
-    end = _cpu_seconds()
-    if start is None or end is None:
-        return float("nan")
-    busy, own, wall = (b - a for a, b in zip(start, end, strict=True))
-    return max(busy - own, 0.0) / (wall * (os.cpu_count() or 1))
-
-
 def _frame(shape):
     return np.random.default_rng(1).random(shape, dtype=np.float32)
 
@@ -175,9 +152,9 @@ def speed(*, quick=False, echo=print):
         fns = {"copy": cube.copy}
         for m in METHODS:
             fns[m] = functools.partial(demosaic_array, frame, y0, x0, n, n, m)
-        start = _cpu_seconds()
+        start = cpu_seconds()
         t = out[f"{n}x{n}"] = _least_times(fns)
-        t["others_cpu"] = _others_share(start)
+        t["others_cpu"] = others_share(start)
         del cube, fns
         echo(f"demosaic {n}x{n}, a {shape[1]} x {shape[0]} frame (other processes used "
              f"{100 * t['others_cpu']:.0f} % of the CPUs meanwhile): copy of the "

@@ -38,8 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import write_csv
-from .demosaic import _cpu_seconds, _others_share
+from . import cpu_seconds, others_share, write_csv
 from .stream import LENS, SENSOR, write_stream
 
 HERE = Path(__file__).parent
@@ -68,14 +67,14 @@ def _args(folder, frames, out, dtype, compression):
 def _run(args):
     from snapcorr.cli import main
 
-    start = _cpu_seconds()
+    start = cpu_seconds()
     t = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         rc = main(args)
     seconds = time.perf_counter() - t
     if rc:
         raise RuntimeError("snapcorr " + " ".join(args) + f" returned {rc}")
-    return seconds, _others_share(start)
+    return seconds, others_share(start)
 
 
 def _reflectance(path):

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import write_csv
+from . import cpu_seconds, others_share, write_csv
 
 HERE = Path(__file__).parent
 ROOT = HERE.parent
@@ -48,29 +48,6 @@ QUICK_ONES = {
     "command_help": ["-m", "snapcorr", "correct", "--help"],
     "usage_error": ["-m", "snapcorr", "flatfield", "--bogus"],
 }
-
-
-def _cpu_seconds():
-    """(CPU seconds all processes have used, of this process and its waited-for children,
-    wall clock): Linux's ``/proc/stat``; None elsewhere."""
-    try:
-        with open("/proc/stat") as fh:
-            busy = [int(v) for v in fh.readline().split()[1:]]
-    except (OSError, ValueError):
-        return None
-    idle = busy[3] + busy[4]  # idle, iowait
-    t = os.times()
-    return ((sum(busy[:8]) - idle) / os.sysconf("SC_CLK_TCK"),
-            t.user + t.system + t.children_user + t.children_system, time.perf_counter())
-
-
-def _others_share(start):
-    """The share of the machine's CPUs other processes used since ``start``."""
-    end = _cpu_seconds()
-    if start is None or end is None:
-        return float("nan")
-    busy, own, wall = (b - a for a, b in zip(start, end, strict=True))
-    return max(busy - own, 0.0) / (wall * (os.cpu_count() or 1))
 
 
 def _env(tmp, fresh_kernels=True):
@@ -128,14 +105,14 @@ def run(*, quick=False, echo=print, write=True):
         _inputs(tmp, shape)
         for args in QUICK_ONES.values():  # bytecode compiled and cached, not timed
             _run(args, env, tmp, tmp)
-        start = _cpu_seconds()
+        start = cpu_seconds()
         times = {k: [] for k in QUICK_ONES}
         for _ in range(rounds):
             for name, args in QUICK_ONES.items():
                 times[name].append(_run(args, env, tmp, tmp)[0])
         t = {k: min(v) for k, v in times.items()}
-        others_quick = _others_share(start)
-        start = _cpu_seconds()
+        others_quick = others_share(start)
+        start = cpu_seconds()
         first, res = _run(["-m", "snapcorr", *FLATFIELD], env, tmp, tmp)
         if res.returncode:
             raise RuntimeError(f"flatfield --demosaic failed: {res.stderr}")
@@ -145,7 +122,7 @@ def run(*, quick=False, echo=print, write=True):
         if res.returncode:
             raise RuntimeError(f"the in-process run failed: {res.stderr}")
         work = float(res.stderr.strip().splitlines()[-1])
-        others_demosaic = _others_share(start)
+        others_demosaic = others_share(start)
     t["first_flatfield"], t["second_flatfield"], t["work"] = first, min(later), work
     bound = t["help"] + work
     rows = [{"figure": k, "seconds": t[k], "ratio": t[k] / t["numpy"], "of": "numpy",
