@@ -162,6 +162,17 @@ def test_a_band_whose_peaks_lie_outside_the_grid_is_refused(tmp_path, writer):
                    r"\(400-1000 nm\)")
 
 
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_a_virtual_band_outside_the_grid_is_refused(tmp_path, writer):
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[-1]
+    wl = wl.copy()
+    wl[5] = 5000.0
+    fx = dataclasses.replace(fx, matrices=[*fx.matrices[:-1], (name, kind, wl, fw, coeffs)])
+    _refused(writer(tmp_path / "vb.xml", fx), "has a virtual band at 5000 nm, outside the "
+                                              "responses' 400-1000 nm")
+
+
 def test_an_older_grid_of_a_picometre_span_is_refused(tmp_path):
     """601 samples 1e-12 nm apart: the whole grid at 400 nm, every band's peak outside."""
     path = write_older(tmp_path / "pico.xml", imec_4x4(), replace={

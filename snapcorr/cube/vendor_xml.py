@@ -400,6 +400,7 @@ def _older(f, root, info):
         fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
                         required=False, default=np.nan)
         matrices = (_older_matrix(f, sci, n_bands, fwhm),)
+    _matrices_on_grid(f, matrices, grid, "spectral_correction_info/virtual_bands")
     return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
                              matrices, bits)
 
@@ -427,6 +428,16 @@ def _older_matrix(f, sci, n_bands, fwhm):
         return CorrectionMatrix("custom", "irradiance", wl, np.full(len(wl), fwhm), rows)
     except ValueError as err:
         f.fail(str(err))
+
+
+def _matrices_on_grid(f, matrices, grid, where):
+    """Refuse a virtual band centred outside the measured responses: the matrix makes it from
+    the bands, which see nothing there, and its wavelength would label the output."""
+    for m in matrices:
+        out = [w for w in np.asarray(m.wavelength_nm, float) if not grid[0] <= w <= grid[-1]]
+        if out:
+            f.fail(f"<{where}> {m.name!r} has a virtual band at {out[0]:g} nm, outside the "
+                   f"responses' {grid[0]:g}-{grid[-1]:g} nm")
 
 
 def _on_grid(f, own, values, grid, where):
@@ -476,6 +487,7 @@ def _newer(f, root, info):
     names_seen = [m.name for m in matrices]
     if len(set(names_seen)) != len(names_seen):
         f.fail(f"two correction matrices share a name ({names_seen})")
+    _matrices_on_grid(f, matrices, grid, "correction_matrices/correction_matrix")
     return VendorCalibration(str(f.path), "newer", size, pitch, area, tile, responses,
                              matrices, bits)
 
