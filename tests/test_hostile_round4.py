@@ -107,6 +107,18 @@ def test_a_pack_range_float32_cannot_hold_is_a_usage_error(tmp_path, capsys):
     assert not (tmp_path / "ff.nc").exists()
 
 
+@pytest.mark.parametrize("dtype", [[], ["--dtype", "float32"], ["--dtype", "float16"]])
+def test_a_pack_range_without_uint16_names_the_option(tmp_path, capsys, dtype):
+    from snapcorr.cli import main
+
+    f = _tiny_mosaic(tmp_path)
+    rc = main(["flatfield", str(f["raw"]), "--dark", str(f["dark"]), "--white", str(f["white"]),
+               "--sensor", "mosaic_4x4_vis", *dtype, "--pack-range", "0,1", "--out",
+               str(tmp_path / "ff.zarr")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "--pack-range goes with --dtype uint16" in err, err
+
+
 # --- vendor files --------------------------------------------------------------------------
 
 
