@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 
-__all__ = ["WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers",
-           "check_numbers", "check_pair", "check_positive", "check_positive_array",
+__all__ = ["SENSOR_PX_MAX", "WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers",
+           "check_numbers", "check_pack_range", "check_pair", "check_positive",
+           "check_positive_array",
            "check_wavelengths_nm", "shown", "validate_method"]
 
 
@@ -34,6 +35,10 @@ def check_positive(name, value):
         raise ValueError(f"{name} must be a finite number > 0, got {shown(value)}")
     return v
 
+
+#: No sensor is more pixels across than this (the largest made are near 20 000): a size read
+#: from a file beyond it is a mistake, refused before anything is sized by it.
+SENSOR_PX_MAX = 100_000
 
 #: No thin-film filter's effective index reaches this (its layers' indices stay below about 4.5).
 N_EFF_MAX = 5.0
@@ -226,3 +231,53 @@ def check_integers(name, value):
     if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
         raise ValueError(f"{name} must be whole numbers, got {shown(value)}")
     return arr.astype(np.int64)
+
+
+def check_pack_range(name, lo, hi, codes=65534):
+    """``(lo, hi)`` as floats, refused unless ``codes`` uint16 steps between them can be
+    written and read back as CF packing does it: ``scale_factor`` and ``add_offset`` are
+    float32 (so both ends must be float32 numbers, and the step a normal float32, not one
+    that rounds to 0 or to a subnormal), and neighbouring codes must unpack to different
+    float32 values (a step finer than float32 resolves at the range's size is no packing).
+    A range that passed would otherwise be stored with a step of 0 or infinity, and read back
+    as one value or NaN everywhere.
+
+    Parameters
+    ----------
+    name : str
+        The option or argument, for the messages.
+    lo, hi : float
+        The range packed.
+    codes : int
+        Steps between ``lo`` and ``hi`` (uint16 codes 0-65534, 65535 the fill value).
+
+    Returns
+    -------
+    (float, float)
+
+    >>> check_pack_range("--pack-range", -0.5, 3.5)
+    (-0.5, 3.5)
+    >>> check_pack_range("--pack-range", 0, 1e-40)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: --pack-range 0,1e-40: a step of 1.5e-45 per code is below float32's ...
+    """
+    lo, hi = float(lo), float(hi)
+    said = f"{name} {lo:.9g},{hi:.9g}"
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise ValueError(f"{said}: expected finite LO < HI")
+    f32 = np.finfo(np.float32)
+    if max(abs(lo), abs(hi), hi - lo) > float(f32.max):  # codes * scale_factor too
+        raise ValueError(f"{said}: the CF add_offset and scale_factor are float32, whose "
+                         f"largest number is {float(f32.max):.3g}; give a range inside it")
+    step = (hi - lo) / codes
+    if step < float(f32.tiny):
+        raise ValueError(f"{said}: a step of {step:.2g} per code is below float32's smallest "
+                         f"normal number ({float(f32.tiny):.2g}), so the CF scale_factor "
+                         "cannot hold it; give a wider range")
+    if step < 2 * float(f32.eps) * max(abs(lo), abs(hi)):
+        raise ValueError(f"{said}: a step of {step:.3g} per code is finer than float32 "
+                         f"resolves at {max(abs(lo), abs(hi)):g} (the CF packing unpacks in "
+                         "float32), so neighbouring codes read back as one value; give a "
+                         "wider range, or one nearer 0")
+    return lo, hi

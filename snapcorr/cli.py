@@ -18,7 +18,7 @@ import numpy as np
 
 from ._io import check_replaceable
 from ._names import CALIBRATION_METHODS, CORRECTION_MODELS, SHIFT_METHODS
-from ._validation import check_positive
+from ._validation import check_pack_range, check_positive
 
 #: Each subcommand's examples (its --help shows its own; ``snapcorr --help`` shows all).
 EXAMPLES = {
@@ -243,7 +243,10 @@ def _pack_range_arg(value):
             from None
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise argparse.ArgumentTypeError(f"expected finite LO < HI, got {value!r}")
-    return lo, hi
+    try:  # what the float32 CF packing can hold
+        return check_pack_range("--pack-range", lo, hi)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err).removeprefix("--pack-range ")) from None
 
 
 def _number(text):
@@ -541,6 +544,9 @@ def _check_storage_option(args):
         args.dtype = "float32"
     suffix = args.out.suffix.lower()
     fmt = {".nc": "netcdf", ".zarr": "zarr", ".hdr": "envi"}.get(suffix)
+    if args.pack_range is not None and args.storage != "uint16":
+        raise ValueError(f"--pack-range goes with --dtype uint16"
+                         f"{'' if args.storage is None else f', not {args.storage}'}")
     check_storage(args.storage, args.pack_range, fmt, what="--dtype")
 
 
@@ -1963,10 +1969,28 @@ def _message(err):
     return message
 
 
+def _negative_pairs(argv):
+    """``--pack-range -0.5,3.5`` as ``--pack-range=-0.5,3.5``: argparse takes a value that
+    starts with ``-`` and is not a plain number for an option, and the default range starts
+    with one."""
+    out, rest = [], iter(argv)
+    for arg in rest:
+        if arg == "--pack-range":
+            value = next(rest, None)
+            if value is not None and value.startswith("-") and not value.startswith("--"):
+                out.append(f"--pack-range={value}")
+                continue
+            out.extend([arg] if value is None else [arg, value])
+            continue
+        out.append(arg)
+    return out
+
+
 def main(argv=None):
     from ._io import cleanup_on_signals
 
     parser = build_parser()
+    argv = _negative_pairs(sys.argv[1:] if argv is None else list(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # usage errors and --help: argparse has printed them

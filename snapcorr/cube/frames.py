@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 import re
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -32,12 +33,17 @@ __all__ = ["natural_order", "read_frames"]
 FRAME_SUFFIXES = (".npy", ".tif", ".tiff", ".exr", ".hdr")
 
 
-#: A number in a file name: digits, with a decimal part where a point is followed by digits,
-#: and the sign before it kept apart (whether it is a sign is decided over all the names).
-_NUMBER = re.compile(r"([+-]?)([0-9]+(?:\.[0-9]+)?)")
+#: A number in a file name: digits, with a decimal part where a point (or a comma) is followed
+#: by digits, and an exponent (``1e-3``); the sign before it kept apart (whether it is a sign
+#: is decided over all the names).
+_NUMBER = re.compile(r"([+-]?)([0-9]+(?:[.,][0-9]+)?(?:[eE][+-]?[0-9]+)?)")
 #: How a folder's frames are ordered, recorded with them (``frame_order``).
-FRAME_ORDER = ("by name, numbers compared as numbers (decimal points read as such; a '-' or "
-               "'+' before a number read as its sign only where names differ by it)")
+FRAME_ORDER = ("by name, numbers compared as numbers, exactly (decimal points and exponents "
+               "read as such, a decimal comma where every name's has as many digits after it; "
+               "a '-' or '+' before a number read as its sign only where names differ by it)")
+
+
+_ZERO = Decimal(0)
 
 
 def _tokens(name):
@@ -54,7 +60,11 @@ def _tokens(name):
 def natural_order(names):
     """``names`` in natural order: numbers in them compared as numbers.
 
-    Decimal parts count (``t0.25`` before ``t0.5`` before ``t1``). A ``-`` or ``+`` right
+    Decimal parts count (``t0.25`` before ``t0.5`` before ``t1``), and so do exponents
+    (``1e-3`` before ``1e-2``); numbers are compared exactly (nanosecond times of 19 digits
+    stay apart). A decimal comma (``t0,25``) is read as one where every name has as many
+    digits after its comma, which orders the names the same whether it is a decimal comma or
+    a separator; otherwise the order is ambiguous, and refused. A ``-`` or ``+`` right
     before a number is its sign only where the names differ by it at that place (``z-0.5``,
     ``z+0``, ``z+0.5``); where every name has it (``frame-1``, ``2026-12-01``) it is a
     separator. Names whose numbers are equal but written differently (``f1``, ``f01``) are
@@ -74,6 +84,14 @@ def natural_order(names):
         Two names that compare equal.
     """
     tokens = [_tokens(n) for n in names]
+    after_comma = {(n, len(d.partition(",")[2].split("e")[0].split("E")[0]))
+                   for n, t in zip(names, tokens, strict=True) for _, d in t[1::2] if "," in d}
+    if len({k for _, k in after_comma}) > 1:
+        shown_ = sorted(after_comma, key=lambda nk: nk[1])
+        raise ValueError(f"frames {shown_[0][0]!r} and {shown_[-1][0]!r}: a comma between digits "
+                         "may be a decimal comma or a separator, and with different numbers of "
+                         "digits after it the two orders differ; rename them (decimal points, "
+                         "or zero-padded numbers)")
     signed = set()  # number places (by position in the names' pieces) whose sign varies
     if len({len(t) for t in tokens}) == 1 and tokens:
         for k in range(1, len(tokens[0]), 2):
@@ -84,15 +102,15 @@ def natural_order(names):
         out = []
         for k, piece in enumerate(t):
             if k % 2 == 0:
-                out.append((0, piece, 0.0))
+                out.append((0, piece, _ZERO))
                 continue
             sign, digits = piece
+            value = Decimal(digits.replace(",", "."))  # exact: 19-digit times stay apart
             if k in signed:
-                value = -float(digits) if sign == "-" else float(digits)
-                out.append((1, "", value))
+                out.append((1, "", value.copy_negate() if sign == "-" else value))
             else:  # the sign is part of the text before
-                out.append((0, sign, 0.0))
-                out.append((1, "", float(digits)))
+                out.append((0, sign, _ZERO))
+                out.append((1, "", value))
         return out
 
     keyed = sorted(zip((key(t) for t in tokens), names, strict=True), key=lambda kv: kv[0])
@@ -135,6 +153,8 @@ def read_frames(path, *, frames_per_chunk=1):
         raise ValueError(f"frames_per_chunk must be at least 1, got {frames_per_chunk!r}")
     attrs = {"source": str(path)}
     coords = {}
+    if not path.exists() and not path.is_symlink():
+        raise FileNotFoundError(f"no such file or folder of frames: {path}")
     if path.is_dir() and path.suffix.lower() != ".zarr":
         check_input(path, directory=True, what="folder of frames")
         found = {p.name: p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES}

@@ -92,7 +92,8 @@ class FilterResponses:
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"the {name} must be finite numbers")
             top = np.max(a, axis=-1)
-            if not np.all(top > 0) or np.any(np.min(a, axis=-1) < -NOISE_FRACTION * top):
+            low = np.min(a, axis=-1)
+            if not np.all(top >= np.finfo(float).tiny) or np.any(low < -NOISE_FRACTION * top):
                 raise ValueError(f"the {name} must be positive somewhere and not negative "
                                  f"beyond noise ({NOISE_FRACTION:g} of the largest value)")
         with np.errstate(over="ignore"):
@@ -106,13 +107,24 @@ class FilterResponses:
         for band in peaks:
             for p in band:
                 check_wavelengths_nm("a peak's wavelength", [p.wavelength_nm])
-                if not (np.isfinite(p.fwhm_nm) and p.fwhm_nm > 0 and np.isfinite(p.qe)):
-                    raise ValueError(f"a peak's fwhm_nm must be > 0 and its QE finite, got "
-                                     f"{p}")
+                if not (np.isfinite(p.fwhm_nm) and p.fwhm_nm > 0 and np.isfinite(p.qe)
+                        and p.qe >= 0):
+                    raise ValueError(f"a peak's fwhm_nm must be > 0 and its QE finite and not "
+                                     f"negative, got {p}")
+        for b, band in enumerate(peaks):
+            if not any(grid[0] <= p.wavelength_nm <= grid[-1] for p in band):
+                where = ", ".join(f"{p.wavelength_nm:g}" for p in band)
+                raise ValueError(f"band {b}: its peaks ({where} nm) all lie outside the response "
+                                 f"grid ({grid[0]:g}-{grid[-1]:g} nm): the curve does not show "
+                                 "the band")
         step = np.diff(grid)
+        typical = float(np.median(step))
         for b, band in enumerate(peaks):
             for p in band:
-                at = float(np.interp(p.wavelength_nm, grid[1:], step))
+                # the grid's own step there, and never below its typical step: one step made
+                # tiny at a peak would otherwise let its stated width size the fine grids of
+                # the centre and width computations without bound
+                at = max(float(np.interp(p.wavelength_nm, grid[1:], step)), typical)
                 if p.fwhm_nm < at:
                     raise ValueError(f"band {b}: a peak's FWHM of {p.fwhm_nm:g} nm is narrower "
                                      f"than the grid's {at:g} nm step at {p.wavelength_nm:g} "

@@ -18,6 +18,7 @@ import numpy as np
 from .._io import read_toml, write_toml
 from .._validation import (
     N_EFF_MAX,
+    SENSOR_PX_MAX,
     check_integers,
     check_numbers,
     check_pixel_pitch_um,
@@ -187,9 +188,9 @@ class Sensor:
             raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
         if self.size_px is not None:
             size = check_integers("size_px", self.size_px)
-            if size.shape != (2,) or np.any(size < 1):
-                raise ValueError(f"size_px must be [rows, cols], whole numbers >= 1, got "
-                                 f"{shown(self.size_px)}")
+            if size.shape != (2,) or np.any(size < 1) or np.any(size > SENSOR_PX_MAX):
+                raise ValueError(f"size_px must be [rows, cols], whole numbers 1-"
+                                 f"{SENSOR_PX_MAX}, got {shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
         if self.bit_depth is not None:

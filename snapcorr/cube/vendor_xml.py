@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .._io import check_input
+from .._validation import SENSOR_PX_MAX
 from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
@@ -115,7 +116,7 @@ class _File:
             return default
         text = (node.text or "").strip()
         try:
-            value = float(text)
+            value = float(text) if "_" not in text else float("x")
         except ValueError:
             self.fail(f"<{where}/{tags[0]}> must be a number, got {text[:40]!r}")
         if not np.isfinite(value):
@@ -151,6 +152,8 @@ class _File:
             self.fail(f"<{where}> holds {len(parts)} values; no calibration curve has more "
                       f"than {MAX_SAMPLES}")
         try:
+            if "_" in text:  # Python reads 1_0 as 10; no file writes numbers so
+                raise ValueError
             values = np.array([float(p) for p in parts])
         except ValueError:
             bad = next(p for p in parts if not _is_float(p))
@@ -166,7 +169,7 @@ class _File:
         (:data:`~snapcorr.cube.responses.NOISE_FRACTION` of its largest value) and not zero
         everywhere, so that what multiplies it stays a physical response."""
         top = float(np.max(values))
-        if not top > 0:
+        if not top >= np.finfo(float).tiny:  # a subnormal largest value is no response either
             self.fail(f"<{where}> is nowhere positive (largest value {top:g}): not a "
                       "response")
         low = float(np.min(values))
@@ -178,7 +181,7 @@ class _File:
 
 def _is_float(text):
     try:
-        float(text)
+        float(text.replace("_", "x"))
     except ValueError:
         return False
     return True
@@ -243,6 +246,10 @@ def _sensor_info(f, root, variant):
 
     rows = f.number(si, "sensor_info", *tags("height_px", "height"), integer=True, minimum=1)
     cols = f.number(si, "sensor_info", *tags("width_px", "width"), integer=True, minimum=1)
+    for tag, n in ((tags("height_px", "height")[0], rows), (tags("width_px", "width")[0], cols)):
+        if n > SENSOR_PX_MAX:
+            f.fail(f"<sensor_info/{tag}> is {n} px; no sensor is more than {SENSOR_PX_MAX} px "
+                   "across")
     pitch = f.number(si, "sensor_info", *tags("pixel_pitch_um", "pixel_pitch"), minimum=0,
                      required=False, default=0.0)
     bits = f.number(si, "sensor_info", *tags("bit_depth", "input_bpp"), integer=True,
@@ -289,6 +296,9 @@ def _peaks(f, band, where):
     if not out:
         f.fail(f"<{where}/peaks> lists no peak")
     for p in out:
+        if np.isfinite(p.qe) and p.qe < 0:
+            f.fail(f"<{where}/peaks> has a peak at {p.wavelength_nm:g} nm with QE {p.qe:g}: a "
+                   "quantum efficiency is not negative")
         if not (p.fwhm_nm > 0 and 100 <= p.wavelength_nm <= 1e5):
             f.fail(f"<{where}/peaks> has a peak at {p.wavelength_nm:g} nm, FWHM "
                    f"{p.fwhm_nm:g} nm: not a wavelength in nm and a width > 0")
@@ -299,8 +309,9 @@ def _resolved(f, peaks, grid, where):
     """Refuse a peak narrower than the grid's step where it sits: the file's curve cannot
     show it, and what is sized by a band's width (the centres' and widths' fine grid) would
     grow without bound as the stated width falls."""
+    typical = float(np.median(np.diff(grid)))  # one step made tiny at a peak is no licence
     for k, p in enumerate(peaks):
-        step = float(np.interp(p.wavelength_nm, grid[1:], np.diff(grid)))
+        step = max(float(np.interp(p.wavelength_nm, grid[1:], np.diff(grid))), typical)
         if p.fwhm_nm < step:
             f.fail(f"<{where}/peaks/peak[{k}]/fwhm_nm> is {p.fwhm_nm:g} nm, narrower than the "
                    f"response grid's {step:g} nm step at {p.wavelength_nm:g} nm: the measured "
@@ -318,7 +329,7 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         if i in by_index:
             f.fail(f"<{where}> lists band {i} twice")
         by_index[i] = band
-    if sorted(by_index) != list(range(n_bands)):
+    if len(by_index) != n_bands or sorted(by_index) != list(range(n_bands)):
         f.fail(f"<{where}> lists bands {sorted(by_index)[:6]}{'...' if len(by_index) > 6 else ''}"
                f" ({len(by_index)}), but a {n_bands}-band tile needs indices 0-{n_bands - 1}")
     curves, peaks = [], []
@@ -389,6 +400,7 @@ def _older(f, root, info):
         fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
                         required=False, default=np.nan)
         matrices = (_older_matrix(f, sci, n_bands, fwhm),)
+    _matrices_on_grid(f, matrices, grid, "spectral_correction_info/virtual_bands")
     return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
                              matrices, bits)
 
@@ -416,6 +428,16 @@ def _older_matrix(f, sci, n_bands, fwhm):
         return CorrectionMatrix("custom", "irradiance", wl, np.full(len(wl), fwhm), rows)
     except ValueError as err:
         f.fail(str(err))
+
+
+def _matrices_on_grid(f, matrices, grid, where):
+    """Refuse a virtual band centred outside the measured responses: the matrix makes it from
+    the bands, which see nothing there, and its wavelength would label the output."""
+    for m in matrices:
+        out = [w for w in np.asarray(m.wavelength_nm, float) if not grid[0] <= w <= grid[-1]]
+        if out:
+            f.fail(f"<{where}> {m.name!r} has a virtual band at {out[0]:g} nm, outside the "
+                   f"responses' {grid[0]:g}-{grid[-1]:g} nm")
 
 
 def _on_grid(f, own, values, grid, where):
@@ -465,6 +487,7 @@ def _newer(f, root, info):
     names_seen = [m.name for m in matrices]
     if len(set(names_seen)) != len(names_seen):
         f.fail(f"two correction matrices share a name ({names_seen})")
+    _matrices_on_grid(f, matrices, grid, "correction_matrices/correction_matrix")
     return VendorCalibration(str(f.path), "newer", size, pitch, area, tile, responses,
                              matrices, bits)
 

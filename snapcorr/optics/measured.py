@@ -63,6 +63,9 @@ LOBE_FRACTION = 0.05
 #: band's FWHM (in log wavelength): 0.01 of a 3 nm band at 690 nm is 0.03 nm, for curves
 #: known at 1 nm steps.
 LOBE_STEP_FWHM = 1 / 100
+#: Most samples the bands' lobe windows take together (a few hundred MiB across the arrays
+#: made from them); real responses take a few tens of thousands.
+LOBE_SAMPLES_MAX = 2**23
 #: The widths' interpolation tolerance is at least this fraction of the band's width at normal
 #: incidence: a measured response's width, which shoulders and leaks can move by nanometres
 #: within a degree, is known no better than its 1 nm samples allow.
@@ -326,11 +329,17 @@ class _Lobes:
         peaks = np.array([p.wavelength_nm for p in responses.main_peaks()])
         lo, hi = main_lobes(grid, eff, peaks)
         fwhm = np.array([p.fwhm_nm for p in responses.main_peaks()])
-        # never finer than the curves' own sampling can matter (a hundredth of their finest
-        # step): a stated width far below it would otherwise size these windows without bound
-        finest = float(np.min(np.diff(np.log(grid))))
-        self.du = max(float(np.min(np.log1p(fwhm / peaks))), finest) * LOBE_STEP_FWHM
+        # never finer than the curves' own sampling can matter (a hundredth of their typical
+        # step; not of their finest, which one step made tiny would set): a stated width far
+        # below it would otherwise size these windows without bound
+        typical = float(np.median(np.diff(np.log(grid))))
+        self.du = max(float(np.min(np.log1p(fwhm / peaks))), typical) * LOBE_STEP_FWHM
         n = int(np.ceil((np.max(np.log(hi / lo)) + 2 * reach) / self.du)) + 2
+        if n * fwhm.size > LOBE_SAMPLES_MAX:
+            raise ValueError(f"the bands' main lobes (widest {np.max(hi - lo):.4g} nm) would take "
+                             f"{n * fwhm.size:,} samples at a step of {LOBE_STEP_FWHM:g} of the "
+                             f"narrowest FWHM ({np.min(fwhm):.4g} nm): more than "
+                             f"{LOBE_SAMPLES_MAX:,}; are the responses' widths and grid in nm?")
         # window b reaches `reach` beyond its lobe on both sides: a ray scaled by
         # a >= exp(-reach) brings the lobe down to its start, and the response at the lobe's
         # end takes the curve from up to `reach` beyond it
