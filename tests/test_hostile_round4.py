@@ -257,3 +257,15 @@ def test_a_stream_that_is_not_there_is_said_to_be_missing(tmp_path):
 
     with pytest.raises(FileNotFoundError, match="no such file or folder of frames"):
         read_frames(tmp_path / "frames")
+
+
+def test_a_pickled_npy_is_refused_without_numpys_advice(tmp_path):
+    """A .npy of Python objects (or an AppleDouble ``._`` file beside the frames) is refused
+    in one line that gives no Python argument and no unsafe advice (``allow_pickle=``)."""
+    from snapcorr.cube import read_cube
+
+    path = tmp_path / "objects.npy"
+    np.save(path, np.array([{"a": 1}, None], dtype=object), allow_pickle=True)
+    with pytest.raises(ValueError, match="pickled Python objects") as info:
+        read_cube(path)
+    assert "allow_pickle" not in str(info.value) and "\n" not in str(info.value)

@@ -57,6 +57,9 @@ def _read_npy(path, chunks):
     try:
         data = np.load(path, mmap_mode="r", allow_pickle=False)
     except Exception as err:  # numpy raises several types for a bad or empty file
+        if "pickle" in str(err) or "Python objects" in str(err):  # (never unpickled)
+            raise ValueError(f"{path}: holds pickled Python objects, or is not a .npy file "
+                             "at all; snapcorr never loads pickles") from None
         raise ValueError(f"{path}: not a numpy array file ({type(err).__name__}: "
                          f"{_one_line(err)})") from None
     if not isinstance(data, np.ndarray):
