@@ -153,7 +153,12 @@ def _gain_groups(gain, ok):
 
 def _fit_noise_curve(rows, v, n):
     """``a, b, c`` >= 0 (scipy ``nnls``) of ``v ~ a rows[:, 0] + b rows[:, 1] + c rows[:, 2]``,
-    each bin weighted by its variance's precision (about sqrt(2 / n) of itself)."""
+    each bin weighted by its variance's precision (about sqrt(2 / n) of the variance).
+
+    The precision is that of the curve's variance at the bin, not of the bin's own estimate
+    (iteratively reweighted): a bin whose measured variance is zero (pixels cut off by
+    vignetting, noise below one count) would otherwise weigh without bound and crush the
+    whole curve to zero. Weights are floored at 1e-6 of the largest variance."""
     from scipy.optimize import nnls
 
     if v.size == 0:
@@ -161,10 +166,16 @@ def _fit_noise_curve(rows, v, n):
     levels = np.sqrt(rows[:, 2])
     if v.size < 2 or np.ptp(levels) == 0:  # no spread of signal to fit a curve to
         return float(np.mean(v)), 0.0, 0.0
-    w = np.sqrt(n) / np.maximum(v, 1e-30)
+    tiny = max(1e-6 * float(np.max(v)), 1e-300)
     scale = max(float(np.max(levels)), 1e-30)
     design = rows / np.array([1.0, scale, scale * scale])
-    coef, _ = nnls(design * w[:, None], v * w)
+    pred = np.maximum(v, tiny)
+    pred = np.where(v > 0, pred, max(float(np.median(v[v > 0])) if (v > 0).any() else tiny,
+                                     tiny))
+    for _ in range(4):
+        w = np.sqrt(n) / np.maximum(pred, tiny)
+        coef, _ = nnls(design * w[:, None], v * w)
+        pred = design @ coef
     return float(coef[0]), float(coef[1] / scale), float(coef[2] / scale**2)
 
 
