@@ -229,12 +229,68 @@ def clean_flat(image, *, dark=None, saturation=None, gain=None):
     level = np.maximum(med, 0.0)
     g = 1.0 if gain is None else np.where(valid, gain, 1.0)
     var = (a / g**2 + (b / g + c * level) * level + floor).astype(np.float32)
-    valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
+    outlier = np.abs(img - med) > OUTLIER_SIGMA * np.sqrt(var)
+    if min(img.shape) >= 5:
+        # ... and off the surface its neighbours follow: a 5 x 5 median departs from a
+        # steep, curved fall-off (far from the axis), and masking there kept only the
+        # pixels on one side of it
+        pred, spread = _local_quadratic(img)
+        outlier &= np.abs(img - pred) > OUTLIER_SIGMA * np.sqrt(var * (1.0 + spread))
+    valid &= ~outlier
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)
     valid &= cv2.dilate(bad, np.ones((3, 3), np.uint8)) == 0
     img[~valid] = 0.0
     return img, valid, var
+
+
+def _quadratic_kernels(side=5):
+    """Weights that predict a pixel from the other pixels of a ``side x side`` window by a
+    least-squares quadratic surface, for each place of the pixel in the window."""
+    yy, xx = np.mgrid[0:side, 0:side]
+    out = np.zeros((side, side, side, side))
+    for py in range(side):
+        for px in range(side):
+            x, y = (xx - px).ravel(), (yy - py).ravel()
+            A = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1).astype(float)
+            keep = (x != 0) | (y != 0)
+            w = np.zeros(side * side)
+            w[keep] = np.linalg.pinv(A[keep])[0]  # the surface's value at the pixel
+            out[py, px] = w.reshape(side, side)
+    return out
+
+
+def _local_quadratic(img, side=5):
+    """Each pixel as the quadratic surface through the other pixels of the ``side x side``
+    window about it (the window kept inside the frame at its edges), and the variance of
+    that prediction in units of one pixel's (the sum of the squared weights): a residual
+    that follows gradients and curvature, where a median does not."""
+    kern = _quadratic_kernels(side)
+    h, w = img.shape
+    half = side // 2
+    pred = np.zeros(img.shape, np.float64)
+    spread = np.zeros(img.shape, np.float64)
+
+    def span(p, n):  # the pixels that sit at place p of their window along an axis
+        if p < half:
+            return p, p + 1
+        if p == half:
+            return half, n - half
+        return n - side + p, n - side + p + 1
+
+    for py in range(side):
+        r0, r1 = span(py, h)
+        for px in range(side):
+            c0, c1 = span(px, w)
+            k = kern[py, px]
+            acc = np.zeros((r1 - r0, c1 - c0))
+            for a in range(side):
+                for b in range(side):
+                    if k[a, b] != 0.0:
+                        acc += k[a, b] * img[r0 - py + a : r1 - py + a, c0 - px + b : c1 - px + b]
+            pred[r0:r1, c0:c1] = acc
+            spread[r0:r1, c0:c1] = float(np.sum(k * k))
+    return pred, spread
 
 
 def estimate_center(images, valids=None, *, levels=12):
