@@ -184,9 +184,11 @@ def clean_flat(image, *, dark=None, saturation=None, gain=None):
 
     Hot and dead pixels are those further than ``OUTLIER_SIGMA`` standard deviations of the
     local noise (:func:`noise_model` at the pixel's signal) from the 5 x 5 median of their
-    neighbourhood (OpenCV ``medianBlur``); they are masked, not replaced, so the noise of the
-    pixels kept is untouched. Dark areas (a reference cut off by vignetting, an image circle
-    smaller than the sensor) get their own, smaller noise, not the image's.
+    neighbourhood (OpenCV ``medianBlur``) and from the quadratic surface through the other
+    pixels of that window (which follows a steep, curved fall-off where the median does
+    not); they are masked, not replaced, so the noise of the pixels kept is untouched. Dark
+    areas (a reference cut off by vignetting, an image circle smaller than the sensor) get
+    their own, smaller noise, not the image's.
 
     Parameters
     ----------
