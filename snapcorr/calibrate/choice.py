@@ -446,14 +446,16 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
     blocks) is the price of a strong claim that a circle is there, right for choosing; as
     the weight of "a circle may be there" alone, it made a pixel circle that lowers the
     chi-square by 6 weigh 0.07, and a 0.2 nm error was reported as 0.05 nm. A circle fitted
-    to noise (``G`` about ``dk``) adds nothing.
+    to noise (``G`` about ``dk``) adds nothing. Where the weights add up to more than 1 (two
+    forms of the same dropped circle), they are scaled to 1: the error is then at most the
+    largest difference.
 
     The rivals (``{name: (fit, floored BIC)}``, :func:`~snapcorr.calibrate.stages.joint_fits`)
     count the same way where their circles are identifiable: the first circle plus pixel
     vignetting (``h = x``, one parameter) carries a pixel circle at the detection limit,
     which a free second circle (two parameters, and a valley of P and h) often cannot.
     """
-    var = np.zeros(len(fs))
+    var, total = np.zeros(len(fs)), 0.0
     used = False
     candidates = [(fit, bic[m]) for m, fit in fits.items()
                   if m != model and (v := verdicts.get(m)) is not None and not v.problems]
@@ -469,8 +471,11 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
             warnings.simplefilter("ignore", EffectiveIndexWarning)
             d = shift_difference_nm(lens, lens_of(fit, base), fs, max_cra)
         var += weight * np.nan_to_num(d) ** 2
+        total += weight
         used = True
-    return np.sqrt(var) if used else np.zeros(0)
+    # the rivals are alternatives to one another (a pixel circle held at h = x or free):
+    # their weights share at most the whole
+    return np.sqrt(var / max(total, 1.0)) if used else np.zeros(0)
 
 
 def _choice_weight(fit, b, chosen, b_chosen):
