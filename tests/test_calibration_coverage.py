@@ -107,9 +107,9 @@ def test_the_note_names_the_part_that_sets_the_error():
 def test_a_dropped_circle_weighs_what_of_its_difference_is_not_noise():
     """The model choice's part of the shift's error: a pixel circle (one parameter more) that
     lowers the floored chi-square by G = 6.3 over 102400 blocks is 5.2 worse by the BIC,
-    whose weight (0.068) reported a 0.2 nm error as 0.05 nm (z about 4); it now weighs
-    1 - 1 / G. A circle fitted to noise (G = 0.34) and a rival with as many circles (a free
-    h instead of h = x) keep the BIC's weight."""
+    whose weight (0.068) reported a 0.19 nm error as 0.065 nm (z 3.0); it now weighs
+    1 - 2 / G (its gain beyond the AIC's price). A circle fitted to noise (G = 1.6, 0.34)
+    and a rival with as many circles (a free h instead of h = x) keep the BIC's weight."""
     from types import SimpleNamespace as Fit
 
     from snapcorr.calibrate.choice import _choice_weight
@@ -118,10 +118,11 @@ def test_a_dropped_circle_weighs_what_of_its_difference_is_not_noise():
     pixel = Fit(model="two", k=20489, n=n)
     bic_gap = math.log(n) - 6.3
     assert 1.0 / (1.0 + math.exp(bic_gap / 2)) < 0.07
-    assert _choice_weight(pixel, bic_gap, one, 0.0) == pytest.approx(1.0 - 1.0 / 6.3)
-    noise_gap = math.log(n) - 0.34
-    assert _choice_weight(pixel, noise_gap, one, 0.0) == pytest.approx(
-        1.0 / (1.0 + math.exp(noise_gap / 2)))
+    assert _choice_weight(pixel, bic_gap, one, 0.0) == pytest.approx(1.0 - 2.0 / 6.3)
+    for g in (1.6, 0.34):
+        noise_gap = math.log(n) - g
+        assert _choice_weight(pixel, noise_gap, one, 0.0) == pytest.approx(
+            1.0 / (1.0 + math.exp(noise_gap / 2)))
     free = Fit(model="two", k=20490, n=n)
     assert _choice_weight(free, math.log(n) - 2.5, pixel, 0.0) == pytest.approx(
         1.0 / (1.0 + math.exp((math.log(n) - 2.5) / 2)))

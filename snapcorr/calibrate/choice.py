@@ -438,15 +438,16 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
     about half. Empty when no model counts.
 
     A model with more circles than the chosen one (a circle the choice may have dropped)
-    weighs at least the share of its shift difference that is not noise: the chosen model's
-    squared error, if that model is the lens, is ``d^2`` less the noise of ``d`` itself,
-    ``d^2 / G`` per extra parameter for a floored chi-square ``G`` lower by its ``dk``
-    extra parameters (as a difference of two nested fits, ``d / sd(d)`` is about
-    ``sqrt(G / dk)``), so ``p >= 1 - dk / G``. The BIC's ``ln n`` per parameter (11.5 for 1e5
-    blocks) is the price of a strong claim that a circle is there, right for choosing; as
-    the weight of "a circle may be there" alone, it made a pixel circle that lowers the
-    chi-square by 6 weigh 0.07, and a 0.2 nm error was reported as 0.05 nm. A circle fitted
-    to noise (``G`` about ``dk``) adds nothing. Where the weights add up to more than 1 (two
+    weighs at least ``1 - 2 dk / G``: the share of its floored chi-square's fall ``G`` (for
+    ``dk`` more parameters) beyond the price the AIC asks, ``2 dk``; it counts where the AIC
+    would keep the circle the BIC's rules dropped. The chosen model's squared error, were
+    the richer one the lens, is ``d^2`` less the noise of ``d`` itself, which is about
+    ``d^2 dk / G`` (as a difference of two nested fits, ``d / sd(d)`` is about
+    ``sqrt(G / dk)``); the AIC's price keeps a circle fitted to noise (``G`` about ``dk``)
+    out. The BIC's ``ln n`` per parameter (11.5 for 1e5 blocks) is the price of a strong
+    claim that a circle is there, right for choosing; as the weight of "a circle may be
+    there" alone, it made a pixel circle that lowers the chi-square by 6.3 weigh 0.07, and a
+    0.19 nm error was reported as 0.065 nm. Where the weights add up to more than 1 (two
     forms of the same dropped circle), they are scaled to 1: the error is then at most the
     largest difference.
 
@@ -480,12 +481,12 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
 
 def _choice_weight(fit, b, chosen, b_chosen):
     """A model's weight against the chosen one (:func:`model_choice_stderr`): from the
-    floored BIC, and for a model with more circles at least ``1 - dk / G``."""
+    floored BIC, and for a model with more circles at least ``1 - 2 dk / G``."""
     delta = float(b - b_chosen)
     weight = 1.0 / (1.0 + math.exp(min(delta / 2.0, 700.0)))
     dk = fit.k - chosen.k
     if N_CIRCLES[fit.model] > N_CIRCLES[chosen.model] and dk > 0 and fit.n > 1:
         gain = dk * math.log(fit.n) - delta  # how much lower its floored chi-square is
-        if gain > dk:
-            weight = max(weight, 1.0 - dk / gain)
+        if gain > 2 * dk:
+            weight = max(weight, 1.0 - 2 * dk / gain)
     return weight
