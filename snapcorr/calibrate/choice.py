@@ -455,6 +455,26 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
     count the same way where their circles are identifiable: the first circle plus pixel
     vignetting (``h = x``, one parameter) carries a pixel circle at the detection limit,
     which a free second circle (two parameters, and a valley of P and h) often cannot.
+
+    Parameters
+    ----------
+    fits, bic, verdicts : dict
+        Model name -> :class:`ModelFit`, its floored BIC and its :class:`ModelVerdict`.
+    model : str
+        The model chosen.
+    lens, base : Lens
+        The profile of the chosen model; the exit pupil and magnifications alone.
+    fs : array_like
+        Nominal f-numbers (1-D).
+    max_cra : float
+        Largest chief-ray angle of the field, degrees.
+    rivals : dict, optional
+        Name -> (fit, floored BIC) of further models.
+
+    Returns
+    -------
+    ndarray
+        nm per f-number; empty when no model counts.
     """
     var, total = np.zeros(len(fs)), 0.0
     used = False
