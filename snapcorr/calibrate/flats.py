@@ -153,7 +153,12 @@ def _gain_groups(gain, ok):
 
 def _fit_noise_curve(rows, v, n):
     """``a, b, c`` >= 0 (scipy ``nnls``) of ``v ~ a rows[:, 0] + b rows[:, 1] + c rows[:, 2]``,
-    each bin weighted by its variance's precision (about sqrt(2 / n) of itself)."""
+    each bin weighted by its variance's precision (about sqrt(2 / n) of the variance).
+
+    The precision is that of the curve's variance at the bin, not of the bin's own estimate
+    (iteratively reweighted): a bin whose measured variance is zero (pixels cut off by
+    vignetting, noise below one count) would otherwise weigh without bound and crush the
+    whole curve to zero. Weights are floored at 1e-6 of the largest variance."""
     from scipy.optimize import nnls
 
     if v.size == 0:
@@ -161,10 +166,16 @@ def _fit_noise_curve(rows, v, n):
     levels = np.sqrt(rows[:, 2])
     if v.size < 2 or np.ptp(levels) == 0:  # no spread of signal to fit a curve to
         return float(np.mean(v)), 0.0, 0.0
-    w = np.sqrt(n) / np.maximum(v, 1e-30)
+    tiny = max(1e-6 * float(np.max(v)), 1e-300)
     scale = max(float(np.max(levels)), 1e-30)
     design = rows / np.array([1.0, scale, scale * scale])
-    coef, _ = nnls(design * w[:, None], v * w)
+    pred = np.maximum(v, tiny)
+    pred = np.where(v > 0, pred, max(float(np.median(v[v > 0])) if (v > 0).any() else tiny,
+                                     tiny))
+    for _ in range(4):
+        w = np.sqrt(n) / np.maximum(pred, tiny)
+        coef, _ = nnls(design * w[:, None], v * w)
+        pred = design @ coef
     return float(coef[0]), float(coef[1] / scale), float(coef[2] / scale**2)
 
 
@@ -173,9 +184,11 @@ def clean_flat(image, *, dark=None, saturation=None, gain=None):
 
     Hot and dead pixels are those further than ``OUTLIER_SIGMA`` standard deviations of the
     local noise (:func:`noise_model` at the pixel's signal) from the 5 x 5 median of their
-    neighbourhood (OpenCV ``medianBlur``); they are masked, not replaced, so the noise of the
-    pixels kept is untouched. Dark areas (a reference cut off by vignetting, an image circle
-    smaller than the sensor) get their own, smaller noise, not the image's.
+    neighbourhood (OpenCV ``medianBlur``) and from the quadratic surface through the other
+    pixels of that window (which follows a steep, curved fall-off where the median does
+    not); they are masked, not replaced, so the noise of the pixels kept is untouched. Dark
+    areas (a reference cut off by vignetting, an image circle smaller than the sensor) get
+    their own, smaller noise, not the image's.
 
     Parameters
     ----------
@@ -218,12 +231,68 @@ def clean_flat(image, *, dark=None, saturation=None, gain=None):
     level = np.maximum(med, 0.0)
     g = 1.0 if gain is None else np.where(valid, gain, 1.0)
     var = (a / g**2 + (b / g + c * level) * level + floor).astype(np.float32)
-    valid &= np.abs(img - med) <= OUTLIER_SIGMA * np.sqrt(var)
+    outlier = np.abs(img - med) > OUTLIER_SIGMA * np.sqrt(var)
+    if min(img.shape) >= 5:
+        # ... and off the surface its neighbours follow: a 5 x 5 median departs from a
+        # steep, curved fall-off (far from the axis), and masking there kept only the
+        # pixels on one side of it
+        pred, spread = _local_quadratic(img)
+        outlier &= np.abs(img - pred) > OUTLIER_SIGMA * np.sqrt(var * (1.0 + spread))
+    valid &= ~outlier
     # Saturated neighbours drag the median: drop a one-pixel rim around masked areas too.
     bad = (~valid).astype(np.uint8)
     valid &= cv2.dilate(bad, np.ones((3, 3), np.uint8)) == 0
     img[~valid] = 0.0
     return img, valid, var
+
+
+def _quadratic_kernels(side=5):
+    """Weights that predict a pixel from the other pixels of a ``side x side`` window by a
+    least-squares quadratic surface, for each place of the pixel in the window."""
+    yy, xx = np.mgrid[0:side, 0:side]
+    out = np.zeros((side, side, side, side))
+    for py in range(side):
+        for px in range(side):
+            x, y = (xx - px).ravel(), (yy - py).ravel()
+            A = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1).astype(float)
+            keep = (x != 0) | (y != 0)
+            w = np.zeros(side * side)
+            w[keep] = np.linalg.pinv(A[keep])[0]  # the surface's value at the pixel
+            out[py, px] = w.reshape(side, side)
+    return out
+
+
+def _local_quadratic(img, side=5):
+    """Each pixel as the quadratic surface through the other pixels of the ``side x side``
+    window about it (the window kept inside the frame at its edges), and the variance of
+    that prediction in units of one pixel's (the sum of the squared weights): a residual
+    that follows gradients and curvature, where a median does not."""
+    kern = _quadratic_kernels(side)
+    h, w = img.shape
+    half = side // 2
+    pred = np.zeros(img.shape, np.float64)
+    spread = np.zeros(img.shape, np.float64)
+
+    def span(p, n):  # the pixels that sit at place p of their window along an axis
+        if p < half:
+            return p, p + 1
+        if p == half:
+            return half, n - half
+        return n - side + p, n - side + p + 1
+
+    for py in range(side):
+        r0, r1 = span(py, h)
+        for px in range(side):
+            c0, c1 = span(px, w)
+            k = kern[py, px]
+            acc = np.zeros((r1 - r0, c1 - c0))
+            for a in range(side):
+                for b in range(side):
+                    if k[a, b] != 0.0:
+                        acc += k[a, b] * img[r0 - py + a : r1 - py + a, c0 - px + b : c1 - px + b]
+            pred[r0:r1, c0:c1] = acc
+            spread[r0:r1, c0:c1] = float(np.sum(k * k))
+    return pred, spread
 
 
 def estimate_center(images, valids=None, *, levels=12):

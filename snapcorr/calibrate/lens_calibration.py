@@ -96,7 +96,8 @@ class LensCalibration:
         f-number, for a filter at ``choice.REFERENCE_CWL_NM`` with ``choice.REFERENCE_N_EFF``:
         ``shift_stderr_fit_nm`` (what the uncertainty of P and h leaves, for the estimator
         used, scaled up by the fit's misfit) and ``shift_stderr_model_nm`` (the models the
-        rules could not rule out: see :func:`_model_choice_stderr`) in quadrature. Empty
+        rules could not rule out: see
+        :func:`~snapcorr.calibrate.choice.model_choice_stderr`) in quadrature. Empty
         where there is neither (no circle, and no other model in question). The fit's part
         is in turn ``shift_stderr_noise_nm`` (the flats' noise, scaled by the misfit: the
         part that averaging frames lowers) and the block model's approximation
@@ -381,8 +382,8 @@ def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs,
         noise_err = _shift_stderr(used, dataclasses.replace(fit, covariance=noise,
                                                             stderr=stderr),
                                   ons.fits, center, base, fs, max_cra)
-    model_err = (_model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra,
-                                      rivals)
+    model_err = (choice.model_choice_stderr(fits, bic, verdicts, model, lens, base, fs,
+                                            max_cra, rivals)
                  if used == "joint" else np.zeros(0))
     return {"shift_stderr_fit_nm": fit_err, "shift_stderr_model_nm": model_err,
             "shift_stderr_noise_nm": noise_err,
@@ -646,49 +647,6 @@ def _by_prediction(model, verdicts, ons, x, predict):
     return ("joint",
             f"{why}; it predicts the flats left out ({left}) with chi2 {joint.total:.1f} "
             f"against {onsets.total:.1f} for the paper's onsets", scores, None)
-
-
-#: Models whose weight (from the floored BIC) is below this add nothing to the error bar.
-MIN_MODEL_WEIGHT = 1e-4
-
-
-def _model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, rivals=None):
-    """The error of the predicted mean shift that the choice of model leaves, per f-number.
-
-    The rules choose a richer model only on strong evidence; where the flats cannot decide
-    (a circle's effect near the noise), the model chosen may lack a circle that is there, and
-    its own standard error knows nothing of it: at 5 % noise per pixel a missed pixel-
-    vignetting circle left errors of 0.2 nm under error bars of 0.011 nm. So every other
-    model that is a lens (its circles identifiable) contributes ``p * d^2``: ``d`` the
-    largest difference of the mean shift it predicts from the chosen one's, ``p`` its
-    weight from the floored BIC, ``1 / (1 + exp((BIC_m - BIC_chosen) / 2))``. A model far
-    worse by the criterion weighs nothing; one the flats cannot tell from the chosen one
-    weighs about half. Empty when no model counts.
-
-    The rivals (``{name: (fit, floored BIC)}``, :func:`~snapcorr.calibrate.stages.joint_fits`)
-    count the same way where their circles are identifiable: the first circle plus pixel
-    vignetting (``h = x``, one parameter) carries a pixel circle at the detection limit,
-    which a free second circle (two parameters, and a valley of P and h) often cannot.
-    """
-    var = np.zeros(len(fs))
-    used = False
-    candidates = [(fit, bic[m]) for m, fit in fits.items()
-                  if m != model and (v := verdicts.get(m)) is not None and not v.problems]
-    candidates += [(fit, b) for fit, b in (rivals or {}).values()
-                   if not choice.check_circles(fit, base, fs, max_cra)]
-    for fit, b in candidates:
-        if not fit.success:
-            continue
-        delta = float(b - bic[model])
-        weight = 1.0 / (1.0 + math.exp(min(delta / 2.0, 700.0)))
-        if weight < MIN_MODEL_WEIGHT:
-            continue
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", EffectiveIndexWarning)
-            d = choice.shift_difference_nm(lens, choice.lens_of(fit, base), fs, max_cra)
-        var += weight * np.nan_to_num(d) ** 2
-        used = True
-    return np.sqrt(var) if used else np.zeros(0)
 
 
 def _combine(fit_err, model_err):

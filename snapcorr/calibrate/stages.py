@@ -495,7 +495,7 @@ def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center=None):
     0.2 % and the evidence clears one ``ln n``. Where its BIC is lower than the free fit's it
     is the two-circle model (the cheaper of two that fit alike); else it is a rival of the
     model chosen in the error of the shift
-    (:func:`~snapcorr.calibrate.lens_calibration._model_choice_stderr`).
+    (:func:`~snapcorr.calibrate.choice.model_choice_stderr`).
 
     Parameters
     ----------
