@@ -100,6 +100,7 @@ def test_the_model_choice_options_reach_the_profile(flats, cli):
     (["--flat", "1.4=f1.4.npy", "--flat", "8=notes.txt"], "unknown flat-field format"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--dark", "small.npy"], "dark frame"),
     (["--flat", "1.4=f1.4.npy", "--flat", "8=empty.npy"], "not a numpy array file"),
+    (["--flat", "2=f8.npy", "--flat", "8=f8.npy"], "are they the same frames"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(flats, args, message, cli):
     np.save(flats / "small.npy", np.ones((10, 12)))

@@ -318,6 +318,12 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_
             prof = radial_profile(pimgs[i], pvalid[i] & pvalid[-1], cra, bin_deg=BIN_DEG,
                                   denominator=ref_img)
             ratio_profiles[f] = prof
+            if np.count_nonzero(np.isfinite(prof.value) & (prof.stderr > 0)) < 8:
+                raise ValueError(
+                    f"the flat at f/{f:g} divided by the flat at f/{float(fs[-1]):g} leaves no "
+                    "profile with a spread to read an onset from (fewer than 8 bins that vary"
+                    "): are they the same frames? Each --flat must be taken at its own "
+                    "f-number")
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
         onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,
                                           fixed_h=fixed_h, natural=single)
