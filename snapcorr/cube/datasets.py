@@ -457,10 +457,36 @@ def _write_groups(ds, lazy):
     return list(groups.values())
 
 
+def _zarr_blocks(blocks):
+    """Whether dask ``blocks`` along one dim are Zarr chunks: all equal but a smaller last."""
+    return all(b == blocks[0] for b in blocks[:-1]) and blocks[-1] <= blocks[0]
+
+
+def _in_zarr_blocks(ds):
+    """``ds`` with every dask variable in blocks a Zarr store can hold, one chunk per block
+    (equal along each dim but the last one): a selection or a crop cut from blocks of rows
+    leaves them uneven, which zarr refuses. Each uneven dim goes to its largest block."""
+    out = ds.copy()
+    for name, var in ds.variables.items():
+        if var.chunks is None:
+            continue
+        sizes = {d: max(b) for d, b in zip(var.dims, var.chunks, strict=True)
+                 if not _zarr_blocks(b)}
+        if not sizes:
+            continue
+        if name in ds.coords:
+            out = out.assign_coords({name: var.chunk(sizes)})
+        else:
+            out[name] = var.chunk(sizes)
+    return out
+
+
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
     # which can hold the whole cube. Apart, each streams through in bounded memory.
+    if fmt == "zarr":
+        ds = _in_zarr_blocks(ds)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()
