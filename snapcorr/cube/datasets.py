@@ -124,7 +124,10 @@ def _read_xarray(path, fmt, chunks):
     ds = _open_dataset(path, fmt, chunks)
     for var in ds.variables.values():
         var.attrs = decode_attrs(var.attrs)
-    cubes = [v for v in ds.data_vars if tuple(ds[v].dims) == DIMS]
+    cubes = [v for v in ds.data_vars if tuple(ds[v].dims) == DIMS and ds[v].dtype.kind != "b"]
+    left_out = ds.attrs.get("input_left_out")
+    if not cubes and left_out:  # a result without its input: its mask or angles are no cube
+        raise ValueError(f"{path} holds no cube: its input was left out ({left_out})")
     if cubes:
         preferred = [n for n in ("radiance", "reflectance", "transmittance") if n in cubes]
         var = _rows(ds[(preferred or cubes)[0]], chunks)
@@ -295,6 +298,12 @@ def check_storage(dtype, pack_range=None, fmt=None, what="dtype"):
                          "cannot read HDF5's); write .zarr for float16, or .nc as uint16")
 
 
+#: Encoding keys a file read sets for the type it stored a variable as (Zarr's fill value,
+#: codecs and their element size, HDF5 filters): dropped where another type is stored.
+STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer", "zlib",
+               "complevel", "shuffle", "compression", "compression_opts", "fletcher32")
+
+
 def _stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
     cast, or clipped and given the CF packing (``scale_factor``, ``add_offset``,
@@ -310,8 +319,10 @@ def _stored_as(ds, dtype, pack_range=None, fmt=None):
         if not _holds_values(name, var) or name in RAW_NAMES or name.endswith("_raw"):
             continue  # the input's copy (raw counts) is kept as it is
         attrs = dict(var.attrs)
+        # how the input stored its values (its type, Zarr's fill value, codecs set for that
+        # type) is not how these are stored: a float's NaN fill value cast to uint16
         encoding = {k: v for k, v in var.encoding.items()
-                    if k not in (*PACKING, "dtype", "valid_range")}
+                    if k not in (*PACKING, *STORED_TYPE, "dtype", "valid_range")}
         if dtype != "float32" and _in_counts(name, var):
             units = attrs.get("units")
             said = f"units {units!r}" if units else "no units"
