@@ -280,9 +280,8 @@ CORRECT_ALL = [(k, dm, f, lay, out, v) for (k, dm), f, lay, out, v
 CORRECT_DEFAULT = [("whole", "bilinear", ".zarr", "native", ".zarr", "plain"),
                    ("crop", None, ".zarr", "blocks", ".zarr", "resample"),
                    ("scan", None, ".zarr", "blocks", ".zarr", "none"),
-                   ("imec", "bilinear", ".zarr", "blocks", ".zarr", "virtual"),
                    ("whole", None, ".nc", "whole", ".zarr", "resample"),
-                   ("whole", "bilinear", ".zarr", "blocks", ".zarr", "uint16"),
+                   ("whole", "bilinear", ".zarr", "native", ".zarr", "uint16"),
                    ("crop", None, ".tif", "whole", ".nc", "resample")]
 CORRECT_CASES = CORRECT_DEFAULT + [pytest.param(*c, marks=pytest.mark.slow)
                                    for c in CORRECT_ALL if c not in CORRECT_DEFAULT] + [
@@ -386,7 +385,7 @@ STREAM_ALL = [(k, f, lay, out, v) for k, (f, lay), out, v
     ("whole", f, lay, out, v) for (f, lay), out, v
     in itertools.product(STREAM_INPUTS, (".zarr", ".nc"), ("uint16", "no-input"))]
 STREAM_DEFAULT = [("whole", ".zarr", "blocks", ".zarr", "lens"),
-                  ("imec", ".zarr", "blocks", ".nc", "virtual")]
+                  ("imec", ".zarr", "blocks", ".zarr", "virtual")]
 STREAM_CASES = STREAM_DEFAULT + [pytest.param(*c, marks=pytest.mark.slow)
                                  for c in STREAM_ALL if c not in STREAM_DEFAULT]
 N_FRAMES = 3
