@@ -124,7 +124,10 @@ def _read_xarray(path, fmt, chunks):
     ds = _open_dataset(path, fmt, chunks)
     for var in ds.variables.values():
         var.attrs = decode_attrs(var.attrs)
-    cubes = [v for v in ds.data_vars if tuple(ds[v].dims) == DIMS]
+    cubes = [v for v in ds.data_vars if tuple(ds[v].dims) == DIMS and ds[v].dtype.kind != "b"]
+    left_out = ds.attrs.get("input_left_out")
+    if not cubes and left_out:  # a result without its input: its mask or angles are no cube
+        raise ValueError(f"{path} holds no cube: its input was left out ({left_out})")
     if cubes:
         preferred = [n for n in ("radiance", "reflectance", "transmittance") if n in cubes]
         var = _rows(ds[(preferred or cubes)[0]], chunks)
@@ -295,6 +298,12 @@ def check_storage(dtype, pack_range=None, fmt=None, what="dtype"):
                          "cannot read HDF5's); write .zarr for float16, or .nc as uint16")
 
 
+#: Encoding keys a file read sets for the type it stored a variable as (Zarr's fill value,
+#: codecs and their element size, HDF5 filters): dropped where another type is stored.
+STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer", "zlib",
+               "complevel", "shuffle", "compression", "compression_opts", "fletcher32")
+
+
 def _stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
     cast, or clipped and given the CF packing (``scale_factor``, ``add_offset``,
@@ -310,8 +319,10 @@ def _stored_as(ds, dtype, pack_range=None, fmt=None):
         if not _holds_values(name, var) or name in RAW_NAMES or name.endswith("_raw"):
             continue  # the input's copy (raw counts) is kept as it is
         attrs = dict(var.attrs)
+        # how the input stored its values (its type, Zarr's fill value, codecs set for that
+        # type) is not how these are stored: a float's NaN fill value cast to uint16
         encoding = {k: v for k, v in var.encoding.items()
-                    if k not in (*PACKING, "dtype", "valid_range")}
+                    if k not in (*PACKING, *STORED_TYPE, "dtype", "valid_range")}
         if dtype != "float32" and _in_counts(name, var):
             units = attrs.get("units")
             said = f"units {units!r}" if units else "no units"
@@ -457,10 +468,36 @@ def _write_groups(ds, lazy):
     return list(groups.values())
 
 
+def _zarr_blocks(blocks):
+    """Whether dask ``blocks`` along one dim are Zarr chunks: all equal but a smaller last."""
+    return all(b == blocks[0] for b in blocks[:-1]) and blocks[-1] <= blocks[0]
+
+
+def _in_zarr_blocks(ds):
+    """``ds`` with every dask variable in blocks a Zarr store can hold, one chunk per block
+    (equal along each dim but the last one): a selection or a crop cut from blocks of rows
+    leaves them uneven, which zarr refuses. Each uneven dim goes to its largest block."""
+    out = ds.copy()
+    for name, var in ds.variables.items():
+        if var.chunks is None:
+            continue
+        sizes = {d: max(b) for d, b in zip(var.dims, var.chunks, strict=True)
+                 if not _zarr_blocks(b)}
+        if not sizes:
+            continue
+        if name in ds.coords:
+            out = out.assign_coords({name: var.chunk(sizes)})
+        else:
+            out[name] = var.chunk(sizes)
+    return out
+
+
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
     # which can hold the whole cube. Apart, each streams through in bounded memory.
+    if fmt == "zarr":
+        ds = _in_zarr_blocks(ds)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()

@@ -435,6 +435,9 @@ def write_cube(cube, path, *, overwrite=False, inputs=(), interleave="bsq"):
                          f"{path.with_suffix('.hdr')} (its data go to "
                          f"{path.with_suffix('.raw').name}), not {path.name}")
     fmt, path, _ = _format(path)
+    if fmt in ("tiff", "exr"):  # written whole: the values in the machine's own byte order
+        values = np.asarray(cube.values)  # (zarr gives an explicit "<f4", OpenImageIO
+        cube = cube.copy(data=values.astype(values.dtype.newbyteorder("=")))  # refuses it)
     _check_writable(fmt, cube, path, interleave)
     name = cube.name or "radiance"
     if fmt in ("netcdf", "zarr"):
