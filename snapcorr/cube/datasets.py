@@ -134,9 +134,9 @@ def _read_xarray(path, fmt, chunks):
     else:
         frames = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x")]
         if any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars):
-            raise ValueError(f"{path} holds a stream of cubes (frame, y, x, band): open it with "
-                             "read_dataset; snapcorr stream --lens LENS --f-number F corrects "
-                             "a stream")
+            raise ValueError(f"{path} holds a stream of cubes (frame, y, x, band), not one "
+                             "cube: snapcorr stream --lens LENS --f-number F corrects a stream "
+                             "(in Python, snapcorr.cube.read_dataset opens it)")
         if not frames:
             raise ValueError(f"{path} holds no (y, x, band) variable")
         # chunked first: expand_dims would read a variable that is not a dask array whole
