@@ -533,6 +533,16 @@ def _frame_rows(frame, sensor):
 # -- subcommands -------------------------------------------------------------------------------
 
 
+def _stored_type(args, computed):
+    """The type the values are written in, as a summary line says it (``--dtype`` float16 or
+    uint16 compute in float32)."""
+    stored = getattr(args, "storage", None)
+    if stored is None or stored == str(computed):
+        return str(computed)
+    return f"stored as {stored}{', CF-packed' if stored == 'uint16' else ''}, computed in " \
+        f"{computed}"
+
+
 def _check_storage_option(args):
     """``--dtype`` and ``--pack-range`` for ``--out``'s format, before any work; ``--dtype``
     float16 or uint16 computes in float32 and stores as asked (``args.storage``)."""
@@ -604,7 +614,8 @@ def _cmd_flatfield(args):
     with _StageBar(f"writing {args.out.name}"):
         _write_result(args, ds, inputs, RAW_COPIES, args.raw)
     print(f"wrote {args.out}: {ds.attrs.get('name', 'reflectance')} of {args.raw} "
-          f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, {ds['reflectance'].dtype}), "
+          f"({raw.shape[0]} x {raw.shape[1]} x {raw.shape[2]}, "
+          f"{_stored_type(args, ds['reflectance'].dtype)}), "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
     _quicklook(args, "plot_flatfield", ds)
@@ -712,7 +723,8 @@ def _flatfield_demosaic(args, sensor, inputs):
         _write_result(args, ds, inputs, RAW_COPIES, args.raw)
     n_masked, total = _masked_in(args.out), cube.size
     print(f"wrote {args.out}: reflectance of {args.raw}, demosaicked ({args.demosaic}) to "
-          f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} ({cube.dtype}), sensor rows "
+          f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} "
+          f"({_stored_type(args, cube.dtype)}), sensor rows "
           f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")

@@ -140,6 +140,7 @@ def test_the_command_line_stores_as_asked_and_refuses_envi_packing(tmp_path, cli
     args = ["flatfield", "raw.hdr", "--dark", "dark.hdr", "--white", "white.hdr"]
     res = cli(*args, "--dtype", "uint16", "--out", "r.nc", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
+    assert "stored as uint16, CF-packed, computed in float32" in res.stdout  # the summary
     with _open(tmp_path / "r.nc") as back:
         assert back["reflectance"].encoding["dtype"] == np.uint16
         assert back["raw"].dtype == np.uint16
