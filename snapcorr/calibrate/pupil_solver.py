@@ -82,6 +82,30 @@ def _project_off(Aw, J):
     return J - Aw @ z
 
 
+def _row_bands(model):
+    """The band of every row of ``model``'s data."""
+    out = np.zeros(model.n_rows, int)
+    for _, k, rows, _ in model.blocks:
+        out[rows] = k
+    return out
+
+
+def _prediction_derivatives(model, x, n, A, s, *, eps_x=1e-5, eps_n=1e-4):
+    """The derivatives of the whitened prediction ``A s / sigma`` at fixed ``s``: in ``x``
+    (a forward difference: the kernels are new at every ``x``), and every row in its own
+    band's index (the model's analytic derivative where it has one, else a forward
+    difference; every band's rows depend on its own index only, so one evaluation serves
+    every band)."""
+    base = A @ s
+    dx = (model.design(x * (1 + eps_x), n) @ s - base) / (x * eps_x)
+    if getattr(model, "analytic_dn", False):
+        dn = model.design(x, n, dn=True) @ s
+    else:
+        step = eps_n * n
+        dn = (model.design(x, n + step) @ s - base) / step[_row_bands(model)]
+    return dx / model.sigma, dn / model.sigma
+
+
 class _Problem:
     """``x`` (and a common scale of ``n_eff``, or one index per band) -> whitened residuals,
     the target's coefficients profiled out."""
@@ -91,13 +115,27 @@ class _Problem:
         self.n_design = np.asarray(n_design, float)
         self.progress = progress
 
-    def residuals(self, x, k=1.0, *, field=True, rank=False):
+    def evaluate(self, x, k=1.0, *, field=True, rank=False):
+        """``(r, s, rank, A)``: :meth:`residuals` and the design they came from."""
         if self.progress is not None:
             self.progress(f"model at x = {float(x):.3f} mm")
         A = self.model.design(x, self.n_design * k, field=field)
         s, r, used = _solve(self.model, A, rank=rank)
-        return r, s, used
+        return r, s, used, A
+
+    def residuals(self, x, k=1.0, *, field=True, rank=False):
+        return self.evaluate(x, k, field=field, rank=rank)[:3]
 
     def chi2(self, x, k=1.0, *, field=True):
         r, _, _ = self.residuals(x, k, field=field)
         return float(r @ r)
+
+    def jacobian(self, x, k, A, s, fit_k):
+        """The Jacobian of the profiled residuals in ``x`` (and the index scale ``k``): the
+        prediction's derivatives at fixed ``s`` projected off the target's columns
+        (variable projection in Kaufman's form, whose ``J^T J`` is the Fisher information of
+        ``x`` and ``k`` with the target's coefficients unknown)."""
+        model = self.model
+        dx, dn = _prediction_derivatives(model, x, self.n_design * k, A, s)
+        cols = [dx] + ([dn * self.n_design[_row_bands(model)]] if fit_k else [])
+        return _project_off(_whiten(model, A), np.column_stack(cols))
