@@ -27,7 +27,6 @@ from typing import ClassVar
 
 import numpy as np
 from scipy import sparse
-from scipy.signal import fftconvolve
 
 from .target_model import PROFILE_CUT, TargetModel
 
@@ -93,11 +92,13 @@ class MeasuredTargetModel(TargetModel):
         cols = self._columns(lam, spectrum) * (B * lam * self.du)[:, None]
         self.Q = []
         self._tables_cache[key] = (R, spectrum, self.Q)
+        # Q[j, m] = sum_i T[i + j] cols[i, m]: the curve's shifted copies (a strided view)
+        # times the columns, each hat a few fine steps wide (a sparse product)
+        C = sparse.csr_array(np.where(np.abs(cols) > 0, cols, 0.0).T)
         for curve in R.curves:
             T = np.interp(ext, R.wavelength_nm, curve, left=0.0, right=0.0)
-            # Q[j, m] = sum_i T[i + j] cols[i, m]: a correlation for every column
-            full = fftconvolve(T[None, :], cols.T[:, ::-1], axes=1)
-            Q = full[:, n_t - 1:n_t - 1 + self.n_off + 1].T
+            shifted = np.lib.stride_tricks.sliding_window_view(T, n_t)[:self.n_off + 1]
+            Q = (C @ np.ascontiguousarray(shifted.T)).T
             Q[np.abs(Q) < 1e-13 * np.max(np.abs(Q))] = 0.0
             self.Q.append(np.ascontiguousarray(Q))
 

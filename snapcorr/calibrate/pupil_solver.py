@@ -12,6 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
+#: A design filled above this fraction, and of at most DENSE_MAX entries, is solved as a dense
+#: matrix (the sparse product of such a matrix with itself took most of a whole-sensor fit
+#: with measured responses, whose curves reach most of the target's hats).
+DENSE_FILL = 0.02
+DENSE_MAX = 25_000_000
+
 
 def _pinv_solve(Aw, rhs):
     """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
@@ -19,6 +25,9 @@ def _pinv_solve(Aw, rhs):
     with its prior) is solved by Cholesky, anything else by eigenvalues."""
     from scipy import linalg
 
+    size = Aw.shape[0] * Aw.shape[1]
+    if hasattr(Aw, "toarray") and DENSE_FILL * size < Aw.nnz and size <= DENSE_MAX:
+        Aw = Aw.toarray()
     N = (Aw.T @ Aw)
     N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
     b = Aw.T @ rhs
