@@ -4,8 +4,8 @@ From the annuli of the input stage (:mod:`~snapcorr.calibrate.pupil_target`) the
 models are built (:func:`_target_models`: every annulus, and a coarse copy for the scan), the
 trial range of ``x`` is set by the chief-ray angles at the field's edge
 (:data:`EDGE_CRA_DEG`), a coarse scan evenly spaced in the edge's shift finds the deepest
-minima (:func:`_scan_grid`, :func:`_start`), and least squares in ``x`` (and one scale of the
-index) refines the best (:func:`_fit`, :func:`_fit_x`). :func:`_check_shift_seen` then
+minima (:func:`_scan_grid`, :func:`_start`), and damped Gauss-Newton in ``x`` (and one scale of
+the index) refines the best (:func:`_fit`, :func:`_fit_x`). :func:`_check_shift_seen` then
 refuses a target whose field explains the data no better than a field without shift, in
 sample and held out (:func:`_heldout_gain`). The richer index models come after, in
 :mod:`~snapcorr.calibrate.pupil_index`.
