@@ -19,17 +19,28 @@ DENSE_FILL = 0.02
 DENSE_MAX = 25_000_000
 
 
+def _dense_if_filled(A):
+    """``A`` as a dense array when it is filled above DENSE_FILL (and small enough)."""
+    size = A.shape[0] * A.shape[1]
+    if hasattr(A, "toarray") and DENSE_FILL * size < A.nnz and size <= DENSE_MAX:
+        return A.toarray()
+    return A
+
+
+def _gram(A):
+    """``A^T A`` as a dense array."""
+    N = A.T @ A
+    return N.toarray() if hasattr(N, "toarray") else np.asarray(N)
+
+
 def _pinv_solve(Aw, rhs):
     """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
     normal equations; also the rank used. A well-conditioned system (the unknown target
     with its prior) is solved by Cholesky, anything else by eigenvalues."""
     from scipy import linalg
 
-    size = Aw.shape[0] * Aw.shape[1]
-    if hasattr(Aw, "toarray") and DENSE_FILL * size < Aw.nnz and size <= DENSE_MAX:
-        Aw = Aw.toarray()
-    N = (Aw.T @ Aw)
-    N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
+    Aw = _dense_if_filled(Aw)
+    N = _gram(Aw)
     b = Aw.T @ rhs
     d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
     Ns = N / d[:, None] / d[None, :]
@@ -76,8 +87,8 @@ def _solve(model, A, *, rank=False):
         return s, yw - Aw @ s, None
     rank = used
     if model.prior_sd is not None:  # the prior is isotropic: lambda / (lambda + 1 / sd^2)
-        Ad = Aw[:model.n_rows]
-        lam = np.clip(np.linalg.eigvalsh((Ad.T @ Ad).toarray()), 0.0, None)
+        Ad = _dense_if_filled(Aw[:model.n_rows])
+        lam = np.clip(np.linalg.eigvalsh(_gram(Ad)), 0.0, None)
         rank = float(np.sum(lam / (lam + model.prior_sd**-2)))
     return s, yw - Aw @ s, rank
 
