@@ -156,6 +156,8 @@ def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
         J = problem.jacobian(p[0], p[1] if fit_k else 1.0, A, s, fit_k)
         cov = _inverse(J)
         step = cov @ (J.T @ r)
+        if not np.all(np.isfinite(step)):
+            break  # no information on some parameter: the covariance says so
         step /= max(1.0, float(np.max(np.abs(step) / (MAX_STEP_REL * np.abs(p)))))
         for _ in range(8):
             trial = np.clip(p + step, lo, hi)
