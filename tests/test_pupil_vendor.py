@@ -112,7 +112,7 @@ def test_the_file_layout_is_the_sensors():
         assert band[r0 + r + tr, c0 + c + 2 * tc] == b
 
 
-@pytest.mark.slow  # the whole sensor: three raw flats and two target frames
+@pytest.mark.slow  # the whole sensor: three raw flats, two target frames (23 min, busy machine)
 def test_calibrate_one_command_on_the_vendor_sensor(cli, tmp_path):
     flats, dark = raw_flats()
     args = []
