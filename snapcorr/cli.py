@@ -1155,7 +1155,9 @@ def _calibrate_with_target(args):
                           + [args.dark, args.sensor, args.target_spectrum], "target cubes")
     sensor = _sensor(args.sensor)
     spectrum = _target_spectrum(args.target_spectrum)
-    flats, bands, sat, dark = _read_flats(args)
+    # raw flats of a mosaic saturate at its largest code (calibrate_with_target divides out
+    # the band gains of whole-sensor raw flats)
+    flats, bands, sat, dark = _read_flats(args, sensor if sensor.layout == "mosaic" else None)
     cubes = {f: _read(path, sensor, args.sensor_origin_px)
              for f, path in sorted(args.target_cube)}
     for f, cube in cubes.items():

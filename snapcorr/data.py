@@ -60,7 +60,7 @@ def sensor_path(name: str) -> Path:
 
 
 def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
-                  f_number: float = 2.8, seed=0):
+                  f_number: float = 2.8, seed=0, target=None):
     """Simulated raw frames of a bundled mosaic sensor: a scene, a dark and a white frame.
 
     Whole-sensor frames in 12-bit digital numbers (``uint16``, 0-4095), or in the sensor's
@@ -85,6 +85,9 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     f_number : float
     seed : int or numpy.random.Generator
         Random source of the noise.
+    target : callable, optional
+        ``reflectance(wavelength_nm)`` of the uniform target (a wavelength standard for
+        ``snapcorr pupil``, say); default :func:`mosaic_target`.
 
     Returns
     -------
@@ -112,7 +115,8 @@ def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,
     gain = np.empty(shape)
     for b, (r, c) in enumerate(np.asarray(sens.band_offset)):
         gain[(r + r0) % tr::tr, (c + c0) % tc::tc] = sensitivity[b]
-    refl = mosaic_reflectance(sens, mosaic_target(sens), f_number, the_lens)
+    refl = mosaic_reflectance(sens, mosaic_target(sens) if target is None else target,
+                              f_number, the_lens)
     light = flat_frame(shape, sens.pixel_pitch_um, f_number, the_lens,
                        noise=False, dtype=np.float64,
                        detector=Detector(signal_electrons=3500.0)) * gain

@@ -151,3 +151,25 @@ def test_pupil_fit_n_eff_from_the_command_line(folder, cli, tmp_path):
     from snapcorr import Lens
 
     assert abs(Lens.load(tmp_path / "x.toml").exit_pupil_mm - X_MM) < 0.01 * X_MM
+
+
+def test_the_index_derivative_is_the_models_own(folder):
+    """The fit's analytic derivative of the model in each band's index (``design(dn=True)``)
+    against central differences of the model itself, at any target coefficients."""
+    from snapcorr.calibrate.exit_pupil import _annuli, _check_cubes
+    from snapcorr.calibrate.measured_target import target_model
+
+    data, sensor = cubes(folder, "rare_earth_glass", (1.4, 8.0), noise=0.005, seed=1)
+    bins, _, _ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, 8)
+    n = np.linspace(1.7, 1.9, sensor.n_bands)
+    model = target_model(bins, sensor, PAPER_LENS, n_eff_design=n, max_shift_rel=0.1)
+    s = np.random.default_rng(4).uniform(0.0, 1.0, model.n_columns)
+    step = 1e-5 * n
+    numeric = (model.design(X_MM, n + step) @ s - model.design(X_MM, n - step) @ s)
+    rows = np.zeros(model.n_rows, int)
+    for _, k, r, _ in model.blocks:
+        rows[r] = k
+    numeric /= 2 * step[rows]
+    analytic = model.design(X_MM, n, dn=True) @ s
+    assert np.max(np.abs(analytic - numeric)) < 2e-3 * np.max(np.abs(numeric))
+    assert np.max(np.abs(numeric)) > 0.01  # the index moves the model

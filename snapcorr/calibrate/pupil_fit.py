@@ -4,8 +4,8 @@ From the annuli of the input stage (:mod:`~snapcorr.calibrate.pupil_target`) the
 models are built (:func:`_target_models`: every annulus, and a coarse copy for the scan), the
 trial range of ``x`` is set by the chief-ray angles at the field's edge
 (:data:`EDGE_CRA_DEG`), a coarse scan evenly spaced in the edge's shift finds the deepest
-minima (:func:`_scan_grid`, :func:`_start`), and least squares in ``x`` (and one scale of the
-index) refines the best (:func:`_fit`, :func:`_fit_x`). :func:`_check_shift_seen` then
+minima (:func:`_scan_grid`, :func:`_start`), and damped Gauss-Newton in ``x`` (and one scale of
+the index) refines the best (:func:`_fit`, :func:`_fit_x`). :func:`_check_shift_seen` then
 refuses a target whose field explains the data no better than a field without shift, in
 sample and held out (:func:`_heldout_gain`). The richer index models come after, in
 :mod:`~snapcorr.calibrate.pupil_index`.
@@ -128,24 +128,59 @@ def _start(problem, grid, *, candidates=3):
     return best[1]
 
 
-def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
-    """Least squares in ``x`` (and the index scale ``k``) with numerical derivatives of the
-    profiled residuals; the covariance from their Jacobian (exact for variable projection)."""
-    def fun(p):
-        return problem.residuals(p[0], p[1] if fit_k else 1.0)[0]
+#: The Gauss-Newton search stops when a step moves every parameter by less than this many
+#: standard errors, or after :data:`MAX_STEPS` steps.
+STEP_TOL = 0.01
+MAX_STEPS = 40
+#: A step moves x and the index scale by at most this relative amount.
+MAX_STEP_REL = 0.05
 
-    p0 = [x0, 1.0] if fit_k else [x0]
-    lo = [x_lo, k_bounds[0]] if fit_k else [x_lo]
-    hi = [x_hi, k_bounds[1]] if fit_k else [x_hi]
-    sol = optimize.least_squares(fun, p0, bounds=(lo, hi), x_scale=[x0 * 0.05, 0.02][:len(p0)],
-                                 diff_step=1e-5, method="trf", xtol=1e-10, ftol=1e-12)
-    r, s, rank = problem.residuals(sol.x[0], sol.x[1] if fit_k else 1.0, rank=True)
-    J = sol.jac
+
+def _fit(problem, x0, fit_k, x_lo, x_hi, k_bounds=(0.6, 1.6)):
+    """Least squares in ``x`` (and the index scale ``k``) by damped Gauss-Newton on the
+    profiled residuals (:meth:`~snapcorr.calibrate.pupil_solver._Problem.jacobian`: the
+    index's derivative analytic where the model has it, ``x``'s a forward difference), each
+    step halved until chi-square does not rise; the covariance from the Jacobian at the
+    end. A few steps from the scan's start, where finite differences of every residual
+    took a hundred model evaluations for the same minimum."""
+    p = np.array([x0, 1.0] if fit_k else [x0], float)
+    lo = np.array([x_lo, k_bounds[0]][:p.size])
+    hi = np.array([x_hi, k_bounds[1]][:p.size])
+
+    def at(q):
+        return problem.evaluate(q[0], q[1] if fit_k else 1.0)
+
+    r, s, _, A = at(p)
+    chi2 = float(r @ r)
+    for _ in range(MAX_STEPS):
+        J = problem.jacobian(p[0], p[1] if fit_k else 1.0, A, s, fit_k)
+        cov = _inverse(J)
+        step = cov @ (J.T @ r)
+        if not np.all(np.isfinite(step)):
+            break  # no information on some parameter: the covariance says so
+        step /= max(1.0, float(np.max(np.abs(step) / (MAX_STEP_REL * np.abs(p)))))
+        for _ in range(8):
+            trial = np.clip(p + step, lo, hi)
+            rt, st, _, At = at(trial)
+            if float(rt @ rt) <= chi2 * (1 + 1e-12):
+                break
+            step = step / 2
+        else:
+            break  # no step lowers chi-square: the minimum, to the model's precision
+        moved = trial - p
+        p, r, s, A, chi2 = trial, rt, st, At, float(rt @ rt)
+        if np.all(np.abs(moved) <= STEP_TOL * np.sqrt(np.clip(np.diag(cov), 0, None))):
+            break
+    r, s, rank, A = problem.evaluate(p[0], p[1] if fit_k else 1.0, rank=True)
+    cov = _inverse(problem.jacobian(p[0], p[1] if fit_k else 1.0, A, s, fit_k))
+    return p, cov, r, s, rank
+
+
+def _inverse(J):
     try:
-        cov = np.linalg.inv(J.T @ J)
+        return np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
-        cov = np.full((len(p0), len(p0)), np.inf)
-    return sol.x, cov, r, s, rank
+        return np.full((J.shape[1], J.shape[1]), np.inf)
 
 
 def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k, before=None):

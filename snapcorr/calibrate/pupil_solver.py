@@ -12,6 +12,26 @@ from __future__ import annotations
 
 import numpy as np
 
+#: A design filled above this fraction, and of at most DENSE_MAX entries, is solved as a dense
+#: matrix (the sparse product of such a matrix with itself took most of a whole-sensor fit
+#: with measured responses, whose curves reach most of the target's hats).
+DENSE_FILL = 0.02
+DENSE_MAX = 25_000_000
+
+
+def _dense_if_filled(A):
+    """``A`` as a dense array when it is filled above DENSE_FILL (and small enough)."""
+    size = A.shape[0] * A.shape[1]
+    if hasattr(A, "toarray") and DENSE_FILL * size < A.nnz and size <= DENSE_MAX:
+        return A.toarray()
+    return A
+
+
+def _gram(A):
+    """``A^T A`` as a dense array."""
+    N = A.T @ A
+    return N.toarray() if hasattr(N, "toarray") else np.asarray(N)
+
 
 def _pinv_solve(Aw, rhs):
     """Minimum-norm least squares ``Aw z = rhs`` (``rhs`` 1-D or 2-D) through the scaled
@@ -19,8 +39,8 @@ def _pinv_solve(Aw, rhs):
     with its prior) is solved by Cholesky, anything else by eigenvalues."""
     from scipy import linalg
 
-    N = (Aw.T @ Aw)
-    N = N.toarray() if hasattr(N, "toarray") else np.asarray(N)
+    Aw = _dense_if_filled(Aw)
+    N = _gram(Aw)
     b = Aw.T @ rhs
     d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
     Ns = N / d[:, None] / d[None, :]
@@ -67,8 +87,8 @@ def _solve(model, A, *, rank=False):
         return s, yw - Aw @ s, None
     rank = used
     if model.prior_sd is not None:  # the prior is isotropic: lambda / (lambda + 1 / sd^2)
-        Ad = Aw[:model.n_rows]
-        lam = np.clip(np.linalg.eigvalsh((Ad.T @ Ad).toarray()), 0.0, None)
+        Ad = _dense_if_filled(Aw[:model.n_rows])
+        lam = np.clip(np.linalg.eigvalsh(_gram(Ad)), 0.0, None)
         rank = float(np.sum(lam / (lam + model.prior_sd**-2)))
     return s, yw - Aw @ s, rank
 
@@ -82,6 +102,30 @@ def _project_off(Aw, J):
     return J - Aw @ z
 
 
+def _row_bands(model):
+    """The band of every row of ``model``'s data."""
+    out = np.zeros(model.n_rows, int)
+    for _, k, rows, _ in model.blocks:
+        out[rows] = k
+    return out
+
+
+def _prediction_derivatives(model, x, n, A, s, *, eps_x=1e-5, eps_n=1e-4):
+    """The derivatives of the whitened prediction ``A s / sigma`` at fixed ``s``: in ``x``
+    (a forward difference: the kernels are new at every ``x``), and every row in its own
+    band's index (the model's analytic derivative where it has one, else a forward
+    difference; every band's rows depend on its own index only, so one evaluation serves
+    every band)."""
+    base = A @ s
+    dx = (model.design(x * (1 + eps_x), n) @ s - base) / (x * eps_x)
+    if getattr(model, "analytic_dn", False):
+        dn = model.design(x, n, dn=True) @ s
+    else:
+        step = eps_n * n
+        dn = (model.design(x, n + step) @ s - base) / step[_row_bands(model)]
+    return dx / model.sigma, dn / model.sigma
+
+
 class _Problem:
     """``x`` (and a common scale of ``n_eff``, or one index per band) -> whitened residuals,
     the target's coefficients profiled out."""
@@ -91,13 +135,27 @@ class _Problem:
         self.n_design = np.asarray(n_design, float)
         self.progress = progress
 
-    def residuals(self, x, k=1.0, *, field=True, rank=False):
+    def evaluate(self, x, k=1.0, *, field=True, rank=False):
+        """``(r, s, rank, A)``: :meth:`residuals` and the design they came from."""
         if self.progress is not None:
             self.progress(f"model at x = {float(x):.3f} mm")
         A = self.model.design(x, self.n_design * k, field=field)
         s, r, used = _solve(self.model, A, rank=rank)
-        return r, s, used
+        return r, s, used, A
+
+    def residuals(self, x, k=1.0, *, field=True, rank=False):
+        return self.evaluate(x, k, field=field, rank=rank)[:3]
 
     def chi2(self, x, k=1.0, *, field=True):
         r, _, _ = self.residuals(x, k, field=field)
         return float(r @ r)
+
+    def jacobian(self, x, k, A, s, fit_k):
+        """The Jacobian of the profiled residuals in ``x`` (and the index scale ``k``): the
+        prediction's derivatives at fixed ``s`` projected off the target's columns
+        (variable projection in Kaufman's form, whose ``J^T J`` is the Fisher information of
+        ``x`` and ``k`` with the target's coefficients unknown)."""
+        model = self.model
+        dx, dn = _prediction_derivatives(model, x, self.n_design * k, A, s)
+        cols = [dx] + ([dn * self.n_design[_row_bands(model)]] if fit_k else [])
+        return _project_off(_whiten(model, A), np.column_stack(cols))

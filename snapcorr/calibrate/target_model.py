@@ -32,7 +32,7 @@ from .._coords import accepts_center_rc
 from ..optics.goossens2019 import PupilCutOffError
 from ..optics.lens import Lens
 from ..optics.profiles import PROFILES
-from ..optics.response import kernel_bins
+from ..optics.response import kernel_bins, kernel_bins_batch
 from ..optics.shift import EffectiveIndexWarning
 
 __all__ = ["RadialBins", "TargetModel", "radial_bins", "rebin"]
@@ -467,15 +467,19 @@ class TargetModel:
             lambda rho: np.zeros_like(rho))
         extra = _onset_nodes(b, x, lens) if field else []
         rho = np.concatenate([b.rho, [r for _, r, _ in extra]])
-        per_bin = []
-        for c in cra_of(rho):
-            try:
-                mu, w = kernel_bins(1.0, N_REF, b.f_number, float(c), lens,
-                                    step_nm=step)
-            except PupilCutOffError:
-                per_bin.append(None)
-                continue
-            per_bin.append((N_REF**2 * (1.0 - (1.0 + mu) ** 2), w))
+        cra = cra_of(rho)
+        try:  # every angle in one pass; angle by angle where some pixel gets no light
+            kerns = kernel_bins_batch(1.0, N_REF, b.f_number, cra, lens, step_nm=step)
+        except PupilCutOffError:
+            kerns = []
+            for c in cra:
+                try:
+                    kerns.append(kernel_bins(1.0, N_REF, b.f_number, float(c), lens,
+                                             step_nm=step))
+                except PupilCutOffError:
+                    kerns.append(None)
+        per_bin = [None if kw is None else (N_REF**2 * (1.0 - (1.0 + kw[0]) ** 2), kw[1])
+                   for kw in kerns]
         lit = [(i, kw) for i, kw in enumerate(per_bin) if kw is not None]
         u = np.concatenate([kw[0] for _, kw in lit]) if lit else np.zeros(0)
         w = np.concatenate([kw[1] for _, kw in lit]) if lit else np.zeros(0)
@@ -489,7 +493,7 @@ class TargetModel:
         return u, w, owner, len(per_bin), combine
 
     # -- the model -------------------------------------------------------------------------
-    def design(self, x, n_eff, *, field=True):
+    def design(self, x, n_eff, *, field=True, dn=False):
         """The model matrix ``A`` (sparse, rows as :attr:`y`): ``y ~ A @ s``.
 
         ``s`` is the target's hat coefficients (unknown spectrum) or one scale per cube (known
@@ -503,6 +507,9 @@ class TargetModel:
             Trial effective index, one or one per band (shape ``(n_bands,)``).
         field : bool
             False: every bin on the axis (see :meth:`kernels`).
+        dn : bool
+            The derivative of ``A`` in the index instead: each band's rows in its own index
+            (models that have it, :attr:`analytic_dn`; else ``NotImplementedError``).
 
         Returns
         -------
@@ -517,7 +524,7 @@ class TargetModel:
         for j, k, rows, ok in self.blocks:
             if ok.size == 0:
                 continue
-            first, full = self._band_block(kern[j], k, n[k])
+            first, full = self._band_block(kern[j], k, n[k], dn=dn)
             D1, D2 = self._D[j]
             b = self.bins[j]
             nbin = b.rho.size
@@ -552,10 +559,15 @@ class TargetModel:
         A.eliminate_zeros()
         return A
 
-    def _band_block(self, kern, k, n):
+    #: Whether :meth:`design` gives the derivative in the index (``dn=True``).
+    analytic_dn = False
+
+    def _band_block(self, kern, k, n, *, dn=False):
         """Rows for every bin of one cube and band ``k``: every kernel mass reads the band's
         response table at its filter centre (linear interpolation on the fine grid). Returns the
         first column (hat) the block covers and the block."""
+        if dn:
+            raise NotImplementedError("this target model has no analytic index derivative")
         u, w, owner, nb = kern[:4]
         cwl = self.cwl[k]
         if u.size == 0:

@@ -137,7 +137,7 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
         f-number -> flat-fielded cube of a uniform target with spectral features (as
         :func:`~snapcorr.calibrate.locate_pupil`); two f-numbers far apart to fit ``n_eff``.
     sensor : Sensor
-        The camera of the cubes (bands, filters, index, pixel pitch).
+        The cubes' camera; flats of a mosaic's size are its raw frames (band gains divided out).
     pixel_pitch_um : float
         Pixel pitch of the flats.
     fit_n_eff : bool
@@ -190,7 +190,7 @@ tolerance_nm
                   pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
                   saturation=saturation, method=method, max_circles=max_circles,
                   tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress,
-                  pupil=pupil)
+                  pupil=pupil, sensor=_raw_mosaic_of(sensor, shape))
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
@@ -219,6 +219,12 @@ tolerance_nm
     return LensAndPupil(lens, final, pupil, names, values,
                         np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
                         float(provisional_x_mm), notes)
+
+
+def _raw_mosaic_of(sensor, shape):
+    """``sensor`` when flats of ``shape`` are its raw whole-sensor frames, else None."""
+    whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
+    return sensor if getattr(sensor, "layout", None) == "mosaic" and whole else None
 
 
 def _either_pupil(args):
