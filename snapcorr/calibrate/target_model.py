@@ -419,6 +419,11 @@ class TargetModel:
         self.y = np.concatenate(ys)
         self.sigma = np.concatenate(ss)
         self.n_rows = self.y.size
+        if self.n_rows == 0:
+            raise ValueError("no annulus of the target cubes has a mean with a standard error "
+                             "(too few pixels in each, or a field too small or too close to "
+                             "the optical centre): the exit pupil needs cubes that reach well "
+                             "off the centre")
         self._D = [_derivatives(b.rho) for b in self.bins]
 
     @property
