@@ -16,6 +16,7 @@ import xarray as xr
 
 from ._coords import accepts_center_rc
 from .cube import demosaic, flatfield
+from .cube.io import COMPUTED_WITH
 from .cube.mosaic import frame_saturation
 from .cube.phase import check_mosaic_phase
 
@@ -109,18 +110,24 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                "virtual_fwhm_nm": virtual_fwhm_nm}
     if tolerance_nm is not None:
         options["tolerance_nm"] = tolerance_nm
-    geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **options)
+    # the first frame computed once (held in memory while the geometry is found): the
+    # virtual bands' error bars read several patches of it
+    first = cube.isel(frame=0)
+    geometry = correct_cube(first.persist() if first.chunks is not None else first, sensor,
+                            f_number, lens, **options)
     per_frame = ["reflectance"] + (["virtual"] if virtual_bands is not None else [])
     out = ds.merge(geometry.drop_vars(per_frame), compat="override")
     out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
     if resample:
         cwl = sensor.cwl_nm
         scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
-        out["resampled"] = xr.concat(  # frame by frame: each a cube of its own
+        out["resampled"] = xr.concat(  # frame by frame: each a cube of its own, written in
+            # the cube's pass (each frame demosaicked once)
             [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
                 "frame"])], dim="frame")
     if virtual_bands is not None:
-        out["virtual"] = _virtual_frames(cube, geometry)
+        # written in the cube's pass: each frame demosaicked once for both
+        out["virtual"] = _virtual_frames(cube, geometry).assign_attrs({COMPUTED_WITH: cube.name})
     return out
 
 
