@@ -127,6 +127,7 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
             # the cube's pass (each frame demosaicked once)
             [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
                 "frame"])], dim="frame")
+        out["resampled"].attrs[COMPUTED_WITH] = cube.name
     if virtual_bands is not None:
         # written in the cube's pass: each frame demosaicked once for both
         out["virtual"] = _virtual_frames(cube, geometry).assign_attrs({COMPUTED_WITH: cube.name})
