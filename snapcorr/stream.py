@@ -100,7 +100,6 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                              "f-number")
         return ds
     from .correct import correct_cube
-    from .correct.core import _resampled
 
     cube = ds["reflectance"]
     if method in ("harmonised",):
@@ -121,16 +120,22 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     out = ds.merge(geometry.drop_vars(per_frame), compat="override")
     out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
     if resample:
-        cwl = sensor.cwl_nm
-        scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
-        out["resampled"] = xr.concat(  # frame by frame: each a cube of its own, written in
-            # the cube's pass (each frame demosaicked once)
-            [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
-                "frame"])], dim="frame")
-        out["resampled"].attrs[COMPUTED_WITH] = cube.name
+        out["resampled"] = _resampled_frames(cube, geometry, sensor)
     if virtual_bands is not None:
         # written in the cube's pass: each frame demosaicked once for both
         out["virtual"] = _virtual_frames(cube, geometry).assign_attrs({COMPUTED_WITH: cube.name})
+    return out
+
+
+def _resampled_frames(cube, geometry, sensor):
+    """Every frame's spectra on the nominal wavelengths, frame by frame (each a cube of its
+    own), written in the cube's pass (each frame demosaicked once)."""
+    from .correct.core import _resampled
+
+    scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
+    out = xr.concat([_resampled(cube.isel(frame=i), scale, column, sensor.cwl_nm)
+                     for i in range(cube.sizes["frame"])], dim="frame")
+    out.attrs[COMPUTED_WITH] = cube.name
     return out
 
 
