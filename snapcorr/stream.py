@@ -11,11 +11,14 @@ for every frame of a stream and is computed once.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import xarray as xr
 
 from ._coords import accepts_center_rc
 from .cube import demosaic, flatfield
+from .cube.io import COMPUTED_WITH
 from .cube.mosaic import frame_saturation
 from .cube.phase import check_mosaic_phase
 
@@ -97,7 +100,6 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                              "f-number")
         return ds
     from .correct import correct_cube
-    from .correct.core import _resampled
 
     cube = ds["reflectance"]
     if method in ("harmonised",):
@@ -109,18 +111,31 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
                "virtual_fwhm_nm": virtual_fwhm_nm}
     if tolerance_nm is not None:
         options["tolerance_nm"] = tolerance_nm
-    geometry = correct_cube(cube.isel(frame=0), sensor, f_number, lens, **options)
+    # the first frame computed once (held in memory while the geometry is found): the
+    # virtual bands' error bars read several patches of it
+    first = cube.isel(frame=0)
+    geometry = correct_cube(first.persist() if first.chunks is not None else first, sensor,
+                            f_number, lens, **options)
     per_frame = ["reflectance"] + (["virtual"] if virtual_bands is not None else [])
     out = ds.merge(geometry.drop_vars(per_frame), compat="override")
     out.attrs = {**ds.attrs, "flatfield_method": ds.attrs.get("method"), **geometry.attrs}
     if resample:
-        cwl = sensor.cwl_nm
-        scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
-        out["resampled"] = xr.concat(  # frame by frame: each a cube of its own
-            [_resampled(cube.isel(frame=i), scale, column, cwl) for i in range(cube.sizes[
-                "frame"])], dim="frame")
+        out["resampled"] = _resampled_frames(cube, geometry, sensor)
     if virtual_bands is not None:
-        out["virtual"] = _virtual_frames(cube, geometry)
+        # written in the cube's pass: each frame demosaicked once for both
+        out["virtual"] = _virtual_frames(cube, geometry).assign_attrs({COMPUTED_WITH: cube.name})
+    return out
+
+
+def _resampled_frames(cube, geometry, sensor):
+    """Every frame's spectra on the nominal wavelengths, frame by frame (each a cube of its
+    own), written in the cube's pass (each frame demosaicked once)."""
+    from .correct.core import _resampled
+
+    scale, column = geometry["wavelength_scale"].values, geometry["scale_index"].values
+    out = xr.concat([_resampled(cube.isel(frame=i), scale, column, sensor.cwl_nm)
+                     for i in range(cube.sizes["frame"])], dim="frame")
+    out.attrs[COMPUTED_WITH] = cube.name
     return out
 
 
@@ -133,6 +148,50 @@ def _virtual_frames(cube, geometry):
     if "virtual_table" in geometry:  # each pixel at the mean angle of its bands, as correct_cube
         cra = np.asarray(geometry["cra_deg"].transpose("y", "x", ...).values)
         cra = cra.mean(axis=2) if cra.ndim == 3 else cra
-    frames = [apply_virtual(cube.isel(frame=i), geometry, cra).transpose(*first.dims)
-              for i in range(cube.sizes["frame"])]
-    return xr.concat(frames, dim="frame").assign_coords(first.coords).assign_attrs(first.attrs)
+    if cube.chunks is None:
+        frames = [apply_virtual(cube.isel(frame=i), geometry, cra).transpose(*first.dims)
+                  for i in range(cube.sizes["frame"])]
+        return xr.concat(frames, dim="frame").assign_coords(first.coords).assign_attrs(
+            first.attrs)
+    along = {k: cube.coords[k] for k in cube.coords if "band" not in cube.coords[k].dims}
+    out = xr.DataArray(_virtual_blocks(cube.transpose("frame", "y", "x", "band").data,
+                                       geometry, cra),
+                       dims=("frame", "y", "x", "virtual_band"), coords=along)
+    return out.transpose("frame", *first.dims).assign_coords(first.coords).assign_attrs(
+        first.attrs)
+
+
+def _virtual_blocks(data, geometry, cra):
+    """The virtual bands of a dask stream ``(frame, y, x, band)``, block by block: the matrix,
+    or the table and each pixel's angle (in the arithmetic's type), made once for the stream
+    and shared by every block."""
+    import dask.array as da
+
+    from .correct.virtual import apply_table
+
+    dtype = np.float64 if data.dtype == np.float64 else np.float32
+    if "virtual_matrix" in geometry:
+        mat = np.asarray(geometry["virtual_matrix"].values).T.astype(dtype)
+
+        def one(values, rows, cols):
+            return np.asarray(values, dtype) @ mat
+    else:
+        table = SimpleNamespace(matrices=np.asarray(geometry["virtual_table"].values),
+                                cra_deg=np.asarray(geometry["virtual_cra_deg"].values))
+        mat = table.matrices[0].T
+        angle = np.ascontiguousarray(cra, dtype)
+
+        def one(values, rows, cols):
+            return apply_table(values, angle[rows, cols], table, dtype)
+
+    nv = mat.shape[1]
+    data = data.rechunk({3: -1})
+
+    def block(a, block_info=None):
+        (y0, y1), (x0, x1) = block_info[0]["array-location"][1:3]
+        res = np.empty((*a.shape[:3], nv), dtype)
+        for k in range(a.shape[0]):
+            res[k] = one(a[k], slice(y0, y1), slice(x0, x1))
+        return res
+
+    return da.map_blocks(block, data, chunks=(*data.chunks[:3], (nv,)), dtype=dtype)
