@@ -20,6 +20,8 @@ NIR = Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir"))
     ([700.0, 710.0], 0.001, "virtual_fwhm_nm 0.001 nm at 700 nm is narrower than the "
                             "responses' grid resolves"),
     ([405.0], 10.0, "reaches beyond the responses' grid"),
+    ([300.0], None, "virtual_wavelengths_nm must lie inside it"),  # the centre is outside
+    ([700.0], 1e6, "virtual_fwhm_nm must be narrower"),  # the centre inside, the width not
     ([700.0], -3.0, "virtual_fwhm_nm"),
 ])
 def test_targets_that_cannot_be_estimated_are_refused(wl, fwhm, words):

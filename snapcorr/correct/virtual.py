@@ -152,9 +152,20 @@ def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):
         out = np.flatnonzero((wl - 1.5 * fw < grid[0]) | (wl + 1.5 * fw > grid[-1]))
         if out.size:
             b = out[0]
+            vendor = "the vendor file's correction matrix"
+            if not grid[0] <= wl[b] <= grid[-1]:  # the centre itself is outside
+                blame = ("virtual_wavelengths_nm must lie inside it" if wavelengths_nm
+                         is not None else f"the band comes from {vendor}; give "
+                         "virtual_wavelengths_nm inside the grid")
+            elif fwhm_nm is not None:  # the width reaches beyond
+                blame = "virtual_fwhm_nm must be narrower there"
+            else:
+                source = (vendor if wavelengths_nm is None and sensor.matrices
+                          else "the sensor's bands")
+                blame = f"its width comes from {source}; give a narrower virtual_fwhm_nm"
             raise ValueError(f"the virtual band at {wl[b]:g} nm (FWHM {fw[b]:g} nm) reaches "
                              f"beyond the responses' grid ({grid[0]:g}-{grid[-1]:g} nm) within "
-                             "1.5 FWHM: virtual_wavelengths_nm must lie inside it")
+                             f"1.5 FWHM: {blame}")
     return wl, fw
 
 
