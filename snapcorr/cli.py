@@ -800,7 +800,33 @@ def _write_correction(args, ds, inputs, cube_name):
         ds = _stored_as(ds, args.storage, None, "envi")
         return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
                                  include_input=not args.no_input, input_name=cube_name)
-    return [_write_result(args, ds, inputs, [cube_name], args.cube)]
+    return [_write_result(args, ds, inputs, [cube_name, *RAW_COPIES], args.cube)]
+
+
+#: What a flat-field result says of how it was made, kept (as ``input_<name>``) in the
+#: correction of it.
+FLATFIELD_RECORD = ("raw_file", "dark_files", "white_files", "dark_frames", "white_frames",
+                    "filter_white_files", "demosaic_method", "mosaic_area_px", "sensor",
+                    "created", "snapcorr_version")
+
+
+def _keep_flatfield_record(path, ds):
+    """A correction of a flat-field result (.nc or .zarr) keeps its raw counts (lazily, as
+    stored) and its record of the raw, dark and white files: the corrected values sit next to
+    the camera's numbers they came from."""
+    if path.suffix.lower() not in (".nc", ".zarr"):
+        return
+    from .cube import read_dataset
+
+    src = read_dataset(path, chunks={})
+    for name in RAW_COPIES:
+        raw = src.variables.get(name)
+        if raw is not None and name not in ds.variables and all(
+                ds.sizes.get(d) == n for d, n in raw.sizes.items()):
+            ds[name] = src[name].reset_coords(drop=True)
+    for key in FLATFIELD_RECORD:
+        if key in src.attrs:
+            ds.attrs.setdefault(f"input_{key}", src.attrs[key])
 
 
 def _check_virtual_options(args, sensor):
@@ -873,6 +899,7 @@ def _cmd_correct(args):
                           virtual_fwhm_nm=args.virtual_fwhm_nm)
     ds.attrs.update({**provenance, "cube_file": str(args.cube), "lens_file": str(args.lens),
                      "sensor_file": str(args.sensor)})
+    _keep_flatfield_record(args.cube, ds)
     if args.scheduler:
         from distributed import Client
 

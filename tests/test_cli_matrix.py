@@ -332,6 +332,12 @@ def test_correct(work, tmp_path, kind, demosaic, fmt, layout, out, variant):
     ds = _read_back(result)
     ff = read_dataset(first).load()
     assert ds.attrs["cube_file"] == str(src)
+    if variant == "no-input":
+        assert "raw" not in ds
+    elif fmt in (".zarr", ".nc"):  # the camera's numbers and the flat field's record kept
+        np.testing.assert_array_equal(ds["raw"].values, ff["raw"].values)
+        assert ds["raw"].dtype == ff["raw"].dtype
+        assert ds.attrs["input_raw_file"] == ff.attrs["raw_file"]
     if variant == "no-input":  # no cube to correct again: said in one line
         assert "reflectance" not in ds and str(src) in ds.attrs["input_left_out"]
         code, _, err = run_cli("correct", result, *_correct_args(work, kind, "plain"), "--out",
