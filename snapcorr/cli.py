@@ -1035,6 +1035,18 @@ def _one_per_f_number(pairs, what):
     return seen
 
 
+def _pitch_option(args, sensor):
+    """``--pixel-pitch-um``, else the ``--sensor``'s pitch; refused where neither gives one."""
+    if args.pixel_pitch_um is not None:
+        return
+    pitch = getattr(sensor, "pixel_pitch_um", None)
+    if not pitch or not pitch > 0:
+        raise ValueError("give the flats' pixel pitch: --pixel-pitch-um UM"
+                         + ("" if sensor is None else f" (the sensor {args.sensor} gives none)"))
+    args.pixel_pitch_um = float(pitch)
+    print(f"pixel pitch: {pitch:g} um, the sensor's ({args.sensor})", file=sys.stderr)
+
+
 def _cmd_calibrate(args):
     import dataclasses
 
@@ -1063,6 +1075,7 @@ def _cmd_calibrate(args):
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
                          "cannot make: give --target-cube, or --pupil paper or lambertian")
     pupil = args.pupil or (given.pupil if given else "paper")
+    _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
@@ -1181,6 +1194,7 @@ def _calibrate_with_target(args):
     _check_target_outputs(args, seen, [p for _, p in args.flat] + [p for _, p in args.target_cube]
                           + [args.dark, args.sensor, args.target_spectrum], "target cubes")
     sensor = _sensor(args.sensor)
+    _pitch_option(args, sensor)
     spectrum = _target_spectrum(args.target_spectrum)
     # raw flats of a mosaic saturate at its largest code (calibrate_with_target divides out
     # the band gains of whole-sensor raw flats)
@@ -1674,8 +1688,8 @@ def _add_calibrate(command):
     t.add_argument("--target-tolerance-nm", type=_positive, default=None, metavar="NM",
                    help="with --target-cube: " + TARGET_TOLERANCE_HELP)
     _add_pupil_option(t)
-    p.add_argument("--pixel-pitch-um", type=_positive, required=True, metavar="UM",
-                   help="pixel pitch of the flats, micrometres")
+    p.add_argument("--pixel-pitch-um", type=_positive, default=None, metavar="UM",
+                   help="pixel pitch of the flats, micrometres (default: the --sensor's)")
     p.add_argument("--magnification", type=float, default=None,
                    help="linear magnification m (default 0: focused at infinity, or the "
                    "--lens value)")

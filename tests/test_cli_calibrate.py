@@ -261,3 +261,21 @@ def test_raw_mosaic_flat_mistakes_are_one_line(mosaic_flats, cli, extra, words):
     assert res.returncode == 1 and words in res.stderr, res.stderr
     assert "Traceback" not in res.stderr and not (mosaic_flats / "bad.toml").exists()
     assert len([ln for ln in res.stderr.splitlines() if not ln.startswith("read ")]) == 1
+
+
+def test_the_pixel_pitch_is_the_sensors_or_asked_for(flats, cli):
+    """Without --pixel-pitch-um the flats' pitch is the --sensor's (said on stderr); with
+    neither, one line asks for it and nothing is written."""
+    res = cli("calibrate", "--flat", "1.4=f1.4.npy", "--flat", "8=f8.npy", "--exit-pupil-mm",
+              "21", "--out", "nopitch.toml", cwd=flats)
+    assert res.returncode == 1 and "--pixel-pitch-um" in res.stderr
+    assert "Traceback" not in res.stderr and not (flats / "nopitch.toml").exists()
+    import types
+
+    import snapcorr.data
+    from snapcorr.cli import _pitch_option
+    from snapcorr.cube import Sensor
+
+    args = types.SimpleNamespace(pixel_pitch_um=None, sensor="imec_5x5_nir")
+    _pitch_option(args, Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir")))
+    assert args.pixel_pitch_um == 5.5
