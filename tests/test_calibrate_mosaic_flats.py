@@ -140,8 +140,9 @@ def test_sensor_mistakes_are_value_errors(light):
         _calibrate({2.0: raw, 11.0: raw}, sensor=_sensor(CROP_SENSOR, CROP_AREA))
     with pytest.raises(TypeError, match="must be a Sensor"):
         remove_band_gains(raw, "mosaic_4x4_vis")
-    # without the sensor every pixel stands out from its neighbours: the error says why
-    with pytest.raises(ValueError, match="raw frames of a snapshot mosaic, give its sensor"):
+    # without the sensor the flats repeat the tile's gains: the error says why
+    with pytest.raises(ValueError, match=r"repeats a 4 x 4 pattern of pixel gains .* raw "
+                                         "frames of a snapshot mosaic; give its sensor"):
         _calibrate({2.0: raw, 11.0: raw})
 
 
@@ -165,3 +166,22 @@ def test_noise_of_a_flat_with_its_band_gains_divided_out():
     assert np.max(np.abs((a / g**2 + b * level / g + c * level**2) / truth - 1)) < 0.08
     a, b, c = noise_model(flat, ok)
     assert np.max(truth / (a + b * level + c * level**2)) > 2.0
+
+
+def test_a_tile_of_gains_is_told_from_a_sensors_own_fixed_pattern():
+    """A smooth fall-off with 1 % pixel gains (PRNU), 1 % even/odd column gains and shot noise
+    is no mosaic; the same light through a 5 x 5 tile of gains 0.3-1.0 is, with its period
+    (not 10 x 10, where it shows as much)."""
+    from snapcorr.calibrate.stages import _tile_period
+
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[:300, :400]
+    light = 3000.0 * (1 - 0.4 * (((yy - 140) / 300.0) ** 2 + ((xx - 210) / 400.0) ** 2))
+    own = (1 + 0.01 * rng.standard_normal(light.shape)) * np.where(xx % 2, 1.01, 1.0)
+    flat = rng.poisson(light * own).astype(float)
+    ok = np.ones(flat.shape, bool)
+    assert _tile_period(flat, ok) is None
+    tile = rng.uniform(0.3, 1.0, (5, 5))
+    mosaic = rng.poisson(light * own * np.tile(tile, (60, 80))).astype(float)
+    k, spread = _tile_period(mosaic, ok)
+    assert k == 5 and spread > 0.1

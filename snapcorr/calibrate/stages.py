@@ -140,6 +140,48 @@ def _pattern_hint(img, saturation, pixel_gains):
             "divided out")
 
 
+#: A flat whose pixels, grouped by their place in a k x k tile, differ in mean gain by more
+#: than this (relative spread of the k*k means, each against its neighbourhood) is a mosaic's
+#: raw frame; a sensor's own fixed pattern (PRNU, column gains) is a percent or less.
+TILE_SPREAD = 0.05
+
+
+def _tile_period(image, ok, periods=range(2, 9)):
+    """``(k, spread)`` for a flat whose pixels repeat a ``k x k`` tile of gains: the ``k * k``
+    positions' mean gains (each pixel over the mean of its 15 x 15 neighbourhood) spread by
+    more than :data:`TILE_SPREAD` and by more than 10 times their noise; ``k`` the smallest
+    tile with nearly the largest spread (a 4 x 4 tile also shows, less, in 2 x 2 and, as
+    much, in 8 x 8). None for a flat without one."""
+    import cv2
+
+    img = np.where(ok, image, 0.0).astype(np.float32)
+    w = ok.astype(np.float32)
+    local = cv2.blur(img, (15, 15)) / np.maximum(cv2.blur(w, (15, 15)), 1e-6)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = np.where(ok & (local > 0), img / local, np.nan)
+    if np.count_nonzero(np.isfinite(q)) < 64 * 64:
+        return None
+    found = {}
+    for k in periods:
+        means, errs = [], []
+        for i in range(k):
+            for j in range(k):
+                v = q[i::k, j::k]
+                v = v[np.isfinite(v)]
+                if v.size < 16:
+                    return None
+                means.append(v.mean())
+                errs.append(v.std() / np.sqrt(v.size))
+        spread = float(np.std(means) / np.mean(means))
+        if spread > TILE_SPREAD and spread > 10.0 * float(np.mean(errs)) / np.mean(means):
+            found[k] = spread
+    if not found:
+        return None
+    top = max(found.values())
+    k = min(k for k, v in found.items() if v > 0.9 * top)
+    return k, found[k]
+
+
 def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
     """Dark-subtract and mask each flat (:func:`~snapcorr.calibrate.clean_flat`); refuse flats
     with too few usable pixels (< 20 %) or no signal.
@@ -176,6 +218,13 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
             raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
                              "pixels (saturated, dead or non-finite); lower the exposure or "
                              "check the file" + _pattern_hint(img, sat.get(f), pixel_gains))
+        period = None if pixel_gains else _tile_period(image, ok)
+        if period is not None:
+            k, spread = period
+            raise ValueError(f"the flat at f/{f:g} repeats a {k} x {k} pattern of pixel gains "
+                             f"(its positions' means differ by {100 * spread:.0f} %): raw "
+                             "frames of a snapshot mosaic; give its sensor (sensor=, --sensor) "
+                             "so that the band gains are divided out")
         images.append(image)
         valids.append(ok)
         variances.append(var)
