@@ -16,14 +16,18 @@ from snapcorr.data import lens_path, sensor_path
 matplotlib.use("Agg")
 
 README = Path(__file__).resolve().parents[1] / "README.md"
-FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.M | re.S)
+FENCE = re.compile(r"^```(\w*)([^\n]*)\n(.*?)^```", re.M | re.S)
 OPTION = re.compile(r"(?<![\w-])(?:--[a-z][a-z0-9-]*|-[a-zA-Z](?![\w-]))")
 #: Options the parser still takes but the README must not show (deprecated forms).
 DEPRECATED = {"--center-px"}
 
 
-def blocks(language):
-    return [body for lang, body in FENCE.findall(README.read_text()) if lang == language]
+def blocks(language, walkthrough=None):
+    """The README's blocks in ``language``; ``walkthrough`` True or False: only those marked
+    (```` ```python walkthrough ````, run by ``tests/test_readme_walkthrough.py``) or only
+    the others; None: all."""
+    return [body for lang, info, body in FENCE.findall(README.read_text()) if lang == language
+            and (walkthrough is None or ("walkthrough" in info.split()) == walkthrough)]
 
 
 def command_lines(text):
@@ -48,7 +52,7 @@ def test_python_blocks_run_in_order_from_any_folder(tmp_path, monkeypatch):
     """Each block in turn, in one namespace, in an empty folder (not the repository)."""
     import matplotlib.pyplot as plt
 
-    code = blocks("python")
+    code = blocks("python", walkthrough=False)
     assert len(code) >= 4, "the README's python examples went missing"
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__readme__"}
@@ -84,7 +88,7 @@ def synopsis_options():
     """``{subcommand: options shown}`` from the first block of the "Command line" section; a
     line starting ``snapcorr SUB`` opens SUB, the lines after it continue it."""
     section = README.read_text().split("\n## Command line\n", 1)[1]
-    synopsis = FENCE.search(section).group(2)
+    synopsis = FENCE.search(section).group(3)
     shown, command = {}, None
     for line in synopsis.splitlines():
         words = line.split()
