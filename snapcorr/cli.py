@@ -1254,6 +1254,10 @@ def _cmd_pupil(args):
         return _pupil_predict(args)
     from .calibrate import FeaturelessTargetError, locate_pupil
 
+    if args.f_number or args.noise_pct is not None:
+        raise ValueError("--f-number and --noise-pct describe a measurement to plan with "
+                         "--predict; a fit takes its f-numbers from --cube F_NUMBER=PATH and "
+                         "measures the noise in the cubes")
     if not args.cube or args.out is None:
         raise ValueError("give --cube F_NUMBER=PATH (one per f-number) and --out LENS.toml, or "
                          "--predict to compare targets before measuring")
@@ -1349,6 +1353,7 @@ def _pupil_predict(args):
     if args.target_spectrum is not None:
         wl, val = _target_spectrum(args.target_spectrum)
         targets[Path(args.target_spectrum).name] = lambda lam: np.interp(lam, wl, val)
+    args.noise_pct = 1.0 if args.noise_pct is None else args.noise_pct
     noise = args.noise_pct / 100.0
     fs = sorted(set(args.f_number))
     print(f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
@@ -1860,8 +1865,8 @@ def _add_pupil(command):
                    "--target-spectrum) instead of fitting cubes")
     g.add_argument("--f-number", type=_positive, action="append", default=[],
                    help="an f-number you would measure at (repeat)")
-    g.add_argument("--noise-pct", type=_positive, default=1.0,
-                   help="per-pixel noise, %% of the brightest band (default: %(default)s)")
+    g.add_argument("--noise-pct", type=_positive, default=None,
+                   help="per-pixel noise, %% of the brightest band (default: 1)")
     _add_progress_options(p)
     p.set_defaults(func=_cmd_pupil)
 

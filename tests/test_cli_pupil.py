@@ -123,6 +123,10 @@ def test_a_known_spectrum_from_a_file(files, cli):
      "above the tolerance of 1e-06 nm"),
     (["--cube", "2={d}/glass_f2.nc", "--tolerance-nm", "0"], "--tolerance-nm"),
     (["--cube", "2={d}/glass_f2.nc", "--tolerance-nm", "nan"], "--tolerance-nm"),
+    # the planning options of --predict are not taken silently by a fit
+    (["--cube", "2={d}/glass_f2.nc", "--cube", "8={d}/glass_f8.nc", "--f-number", "4"],
+     "--f-number and --noise-pct describe a measurement to plan with --predict"),
+    (["--cube", "2={d}/glass_f2.nc", "--noise-pct", "2"], "--predict"),
 ])
 def test_mistakes_are_one_line_and_write_nothing(files, cli, args, message):
     before = snapshot(files)
