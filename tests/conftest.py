@@ -30,6 +30,23 @@ def _share_the_cores():
 
 _share_the_cores()
 
+
+def _oracles_importable():
+    """The independent simulators of ``tests/oracles/`` (they share no code with snapcorr)
+    imported by their names, ``import flatsim``, from every test folder.
+
+    The layout: ``tests/<package>/test_<module>.py`` (each folder a package, so that files of
+    one name in two folders do not collide), the command line's tests by command in
+    ``tests/cli/``, helpers shared by tests in ``tests/`` itself (importable as this folder is
+    on the path), and ``tests/oracles/`` a plain folder on the path, so its modules have one
+    name whether a test or the doctest collection imports them."""
+    oracles = str(Path(__file__).resolve().parent / "oracles")
+    if oracles not in sys.path:
+        sys.path.insert(0, oracles)
+
+
+_oracles_importable()
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from flatsim import LensTruth  # noqa: E402

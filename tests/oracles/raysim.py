@@ -1,8 +1,8 @@
 """Integrating-sphere flats by counting rays through the exit pupil, for judging error bars.
 
 A second simulator of flats, independent of snapcorr (it must not import it) and of
-``tests/flatsim.py`` (which integrates half-chords by Gauss-Legendre quadrature): here the
-light a pixel gets is the NUMBER of rays of a fixed square grid in the exit-pupil plane that
+``tests/oracles/flatsim.py`` (which integrates half-chords by Gauss-Legendre quadrature): here
+the light a pixel gets is the NUMBER of rays of a fixed square grid in the exit-pupil plane that
 pass every aperture. A ray leaves the pixel for a point ``(u, v)`` of the exit-pupil plane
 (``u`` along the pixel's radial line, from the axis; ``v`` across it) and passes
 

@@ -1,0 +1,81 @@
+"""Command-line values no camera has: numbers that would overflow or exhaust memory, spectrum
+files that are empty, binary or not files at all, an output that would replace a bundled
+profile, two outputs of one command in one another. Each is one line naming what is wrong."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from hostile import refused_in_one_line
+
+from snapcorr.data import lens_path
+
+
+@pytest.fixture
+def small(tmp_path):
+    from snapcorr.cube import make_cube, write_cube
+
+    (tmp_path / "sensor.toml").write_text(
+        '[sensor]\nname = "s"\nlayout = "snapscan"\npixel_pitch_um = 100.0\n'
+        "size_px = [40, 50]\ncwl_nm = [500.0, 550.0, 600.0, 650.0, 700.0]\nfwhm_nm = 10.0\n"
+        "n_eff = 1.7\n")
+    rng = np.random.default_rng(0)
+    write_cube(make_cube(rng.uniform(0.2, 0.8, (40, 50, 5)).astype(np.float32),
+                         [500.0, 550.0, 600.0, 650.0, 700.0]), tmp_path / "ff.nc")
+    return tmp_path
+
+
+@pytest.mark.parametrize(("extra", "match"), [
+    (["--harmonise", "--target-fwhm-nm", "1e300"], "at most 1000 nm"),
+    (["--virtual-bands", "fitted", "--virtual-wavelengths", "600:900:1e-9"],
+     "at most 1,000,000"),
+    (["--sensor-origin-px", "99999999999999999999,0"], "no sensor is wider"),
+    (["--center", "1e300,5"], "no sensor is wider"),
+])
+def test_command_line_numbers_that_would_overflow_are_one_line(small, cli, extra, match):
+    err = refused_in_one_line(cli("correct", "ff.nc", "--lens", str(lens_path()), "--sensor",
+                        "sensor.toml", "--f-number", "2.8", "--out", "o.nc", *extra, cwd=small))
+    assert match in err
+    assert not (small / "o.nc").exists()
+
+
+@pytest.mark.parametrize(("make", "match"), [
+    (lambda p: p.with_suffix(".npy").write_bytes(b""), "not a NumPy array"),
+    (lambda p: p.with_suffix(".csv").write_bytes(os.urandom(400) + b"\xff\xfe"),
+     "not a text file"),
+    (lambda p: os.mkfifo(p.with_suffix(".csv")), "FIFO"),
+])
+def test_spectrum_files_that_are_not_spectra_are_one_line(small, cli, make, match):
+    make(small / "sp")
+    name = next(p.name for p in small.iterdir() if p.stem == "sp")
+    err = refused_in_one_line(cli("budget", "--sensor", "sensor.toml", "--lens", str(lens_path()),
+                        "--f-number", "2.8", "--source", name, cwd=small))
+    assert match in err and name in err
+
+
+def test_an_output_never_replaces_a_bundled_profile(tmp_path, cli):
+    """A bundled lens given by name is an input like any other, and the bundled profiles are
+    never replaced, whatever --overwrite says."""
+    from snapcorr.cli import _check_outputs
+
+    target = lens_path()
+    before = target.read_bytes()
+    with pytest.raises(ValueError, match=r"also an input|bundled"):
+        _check_outputs([target], ["edmund_optics_16mm"], True, [(".toml",)])
+    with pytest.raises(ValueError, match="bundled files"):
+        _check_outputs([target], [], True, [(".toml",)])
+    assert target.read_bytes() == before
+
+
+def test_two_outputs_of_one_command_may_not_meet(small, cli):
+    from snapcorr.cube import make_cube, write_cube
+
+    for name, level in (("raw", 2000), ("dark", 100), ("white", 3000)):
+        write_cube(make_cube(np.full((4, 5, 5), level, np.uint16),
+                             [500.0, 550.0, 600.0, 650.0, 700.0]), small / f"{name}.nc")
+    err = refused_in_one_line(cli("flatfield", "raw.nc", "--dark", "dark.nc", "--white", "white.nc",
+                        "--out", "o.zarr", "--plot", "o.zarr/q.png", cwd=small))
+    assert "one lies in the other" in err
+    assert not (small / "o.zarr").exists()

@@ -1,0 +1,53 @@
+"""Refusals that name the option to give: missing wavelengths name ``--sensor``, a budget
+source without a cube names ``--source-cube``, an unknown bundled lens lists the bundled ones."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile import (
+    assert_refused,
+    correct_args,
+    save_cubes,
+    snapshot,
+)
+
+
+@pytest.mark.parametrize("ext", [".npy", ".tif"])
+def test_missing_wavelengths_name_the_sensor_option(tmp_path, monkeypatch, ext, cli):
+    import tifffile
+
+    monkeypatch.chdir(tmp_path)
+    for name, value in (("raw", 150.0), ("dark", 10.0), ("white", 400.0)):
+        data = np.full((12, 10, 4), value, np.float32)
+        if ext == ".npy":
+            np.save(tmp_path / f"{name}.npy", data)
+        else:
+            tifffile.imwrite(tmp_path / f"{name}.tif", data, photometric="minisblack",
+                             planarconfig="contig")
+    before = snapshot(tmp_path)
+    rc, _, err = cli("flatfield", f"raw{ext}", "--dark", f"dark{ext}", "--white",
+                     f"white{ext}", "--out", "o.nc")
+    line = assert_refused(rc, err, "--sensor")
+    assert "wavelength_nm" not in line
+    assert snapshot(tmp_path) == before
+
+
+def test_budget_source_cube_without_cube_names_the_option(cli):
+    rc, _, err = cli("budget", "--sensor", "snapscan_vnir", "--lens", "edmund_optics_16mm",
+                     "--f-number", "1.4", "--source", "cube")
+    assert_refused(rc, err, "--cube")
+
+
+@pytest.mark.parametrize("command", ["shift", "budget", "correct"])
+def test_unknown_bundled_lens_lists_the_bundled_ones(tmp_path, monkeypatch, command, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    args = {
+        "shift": ("shift", "--lens", "no_such_lens", "--f-number", "1.4", "--cra", "5"),
+        "budget": ("budget", "--sensor", "snapscan_vnir", "--lens", "no_such_lens",
+                   "--f-number", "1.4", "--source", "tungsten:3000", "--cra-max", "5"),
+        "correct": correct_args("raw.npy", "o.nc", lens="no_such_lens"),
+    }[command]
+    rc, _, err = cli(*args)
+    assert_refused(rc, err, "no bundled lens named 'no_such_lens'", "edmund_optics_16mm")

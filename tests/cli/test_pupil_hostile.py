@@ -1,0 +1,24 @@
+"""`snapcorr pupil`: target cubes too small for any annulus are refused in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path, cli):
+    """A 40 x 40 crop of a mosaic (10 x 10 tiles) leaves no annulus with a standard error:
+    the pupil fit is refused saying why, not by numpy's 'zero-size array' of an empty fit."""
+    from snapcorr.data import mosaic_frames
+
+    r0, c0 = 520, 1000
+    for name, frame in zip(("raw", "dark", "white"), mosaic_frames(), strict=True):
+        np.save(tmp_path / f"{name}.npy", frame[r0:r0 + 40, c0:c0 + 40])
+    res = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+              "mosaic_4x4_vis", "--sensor-origin-px", f"{r0},{c0}", "--out", "t.nc", "--quiet",
+              cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    res = cli("pupil", "--cube", "2=t.nc", "--cube", "8=t.nc", "--sensor", "mosaic_4x4_vis",
+              "--out", "x.toml", "--quiet", cwd=tmp_path)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert "no annulus" in res.stderr and "zero-size" not in res.stderr
+    assert not (tmp_path / "x.toml").exists()

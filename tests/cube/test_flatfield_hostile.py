@@ -1,0 +1,65 @@
+"""Flat-fielding refusals: a white not above the dark anywhere, all-NaN inputs, a saturation
+that masks everything, a reference larger than the cube; more than half masked is a loud
+warning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile import FF, assert_refused, read_result, save_cubes, snapshot
+
+
+@pytest.mark.parametrize("white", [10.0, 5.0], ids=["white-equals-dark", "white-below-dark"])
+def test_white_not_above_dark_anywhere_is_refused(tmp_path, monkeypatch, white, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, dark=10.0, white=white)
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*FF, "--out", "o.nc")
+    assert_refused(rc, err)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("which", ["raw", "dark", "white"])
+def test_all_nan_input_is_refused(tmp_path, monkeypatch, which, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    np.save(tmp_path / f"{which}.npy", np.full((12, 10, 4), np.nan, np.float32))
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*FF, "--out", "o.nc")
+    assert_refused(rc, err)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("value", ["nan", "-1"])
+def test_saturation_that_masks_everything_is_refused(tmp_path, monkeypatch, value, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*FF, "--out", "o.nc", f"--saturation={value}")
+    assert_refused(rc, err, "saturation")
+    assert snapshot(tmp_path) == before
+
+
+def test_more_than_half_masked_is_a_loud_warning(tmp_path, monkeypatch, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    white = np.full((12, 10, 4), 400.0, np.float32)
+    white[:7] = 10.0  # 7 of 12 rows: white == dark
+    np.save(tmp_path / "white.npy", white)
+    rc, _, err = cli(*FF, "--out", "o.nc")
+    assert rc == 0, err
+    warned = [ln for ln in err.splitlines() if "warning" in ln.lower() and "mask" in ln.lower()]
+    assert warned, f"no warning about the masked values:\n{err}"
+    assert read_result(tmp_path / "o.nc")["mask"].values.mean() == pytest.approx(7 / 12)
+
+
+@pytest.mark.parametrize("which, value", [("dark", 10.0), ("white", 400.0)])
+def test_reference_with_more_rows_than_the_cube_is_refused(tmp_path, monkeypatch, which,
+                                                          value, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    np.save(tmp_path / f"{which}.npy", np.full((20, 10, 4), value, np.float32))
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*FF, "--out", "o.nc")
+    assert_refused(rc, err, which)
+    assert snapshot(tmp_path) == before

@@ -1,0 +1,79 @@
+"""Sensor files with values no camera has: central wavelengths in micrometres, values of the
+wrong type, integers too large for a float. Each is one line naming the key."""
+
+from __future__ import annotations
+
+import pytest
+from hostile import (
+    HUGE,
+    MOSAIC_WL,
+    SENSOR4,
+    assert_refused,
+    correct_args,
+    refused_in_one_line,
+    save_cubes,
+    snapshot,
+)
+
+
+def mosaic_sensor_text(**override):
+    """A 4 x 4 mosaic sensor written by hand; ``override`` replaces whole lines (raw TOML)."""
+    lines = {
+        "name": '"user-mosaic"',
+        "layout": '"mosaic"',
+        "pixel_pitch_um": "5.5",
+        "cwl_nm": "[" + ", ".join(f"{w:.1f}" for w in MOSAIC_WL) + "]",
+        "fwhm_nm": "12.0",
+        "n_eff": "1.7",
+        "mosaic_shape": "[4, 4]",
+        "band_offset": "[" + ", ".join(f"[{r}, {c}]" for r in range(4) for c in range(4)) + "]",
+    }
+    lines.update(override)
+    return "[sensor]\n" + "".join(f"{k} = {v}\n" for k, v in lines.items())
+
+
+@pytest.mark.parametrize("command", ["correct", "budget"])
+def test_sensor_with_cwl_in_micrometres_is_refused(tmp_path, monkeypatch, command, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    (tmp_path / "um.toml").write_text(SENSOR4.replace("500.0, 520.0, 540.0, 560.0",
+                                                      "0.50, 0.52, 0.54, 0.56"))
+    if command == "correct":
+        args = correct_args("raw.npy", "o.nc", sensor="um.toml")
+    else:
+        args = ("budget", "--sensor", "um.toml", "--lens", "edmund_optics_16mm", "--f-number",
+                "1.4", "--source", "tungsten:3000", "--cra-max", "5")
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args)
+    assert_refused(rc, err, "cwl_nm")
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("key, value", [
+    ("pixel_pitch_um", "true"),
+    ("mosaic_shape", "[4.7, 5]"),
+    ("band_offset", "[" + ", ".join(f"[{r}, {c}]" for r in range(4) for c in range(4))
+     .replace("[3, 3]", "[3, 3.9]") + "]"),
+    ("n_eff", "true"),
+    ("fwhm_nm", "true"),
+    ("cwl_nm", "[" + ", ".join(["true"] * 16) + "]"),
+])
+def test_sensor_value_of_the_wrong_type_is_refused(tmp_path, monkeypatch, key, value, cli):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
+    rc, out, err = cli("budget", "--sensor", "s.toml", "--lens", "edmund_optics_16mm",
+                       "--f-number", "1.4", "--source", "tungsten:3000", "--cra-max", "5")
+    assert_refused(rc, err, key)
+    assert "recommended" not in out
+
+
+@pytest.mark.parametrize("key", ["pixel_pitch_um", "cwl_nm", "size_px", "n_eff", "fwhm_nm"])
+def test_a_huge_integer_in_a_sensor_file_is_one_line(tmp_path, cli, key):
+    table = {"pixel_pitch_um": "5.5", "cwl_nm": "[500.0, 550.0]", "fwhm_nm": "10.0",
+             "n_eff": "1.7", "size_px": "[40, 50]"}
+    table[key] = f"[500.0, {HUGE}]" if key == "cwl_nm" else (
+        f"[{HUGE}, 50]" if key == "size_px" else HUGE)
+    (tmp_path / "s.toml").write_text('[sensor]\nname = "x"\nlayout = "snapscan"\n' + "".join(
+        f"{k} = {v}\n" for k, v in table.items()))
+    err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
+    assert key in err and len(err) < 300

@@ -1,0 +1,112 @@
+"""A vendor file's tile, sensor size, grid, peaks and numbers that would size an allocation or
+break later, refused where the vendor file is read."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from vendorfiles import imec_4x4, write_newer, write_older
+
+from snapcorr.cube import Sensor
+
+
+def _refused(path, words):
+    with pytest.raises(ValueError, match=words) as info:
+        Sensor.load(path)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"{path.name}: "), message
+
+
+def test_a_tile_of_1e18_bands_is_refused_by_counting_the_bands_first(tmp_path):
+    """A tile of 1e5 x 1e5 on a sensor as large: comparing the band indices with
+    ``range(tile bands)`` built a list of 1e10 numbers (a MemoryError) before any count; a
+    tile of 1e9 x 1e9 on a sensor of 1e12 px is refused by the sensor's size first."""
+    fx = dataclasses.replace(imec_4x4(), tile=(10**5, 10**5), size=(10**5, 10**5),
+                             area=(0, 0, 10**5, 10**5))
+    _refused(write_newer(tmp_path / "tile.xml", fx), r"lists bands \[0, 1, 2, 3, 4, 5\]\.\.\. "
+                                                     r"\(16\), but a 10000000000-band tile")
+    fx = dataclasses.replace(imec_4x4(), tile=(10**9, 10**9), size=(10**12, 10**12),
+                             area=(0, 0, 10**12, 10**12))
+    _refused(write_newer(tmp_path / "tile2.xml", fx), "is 1000000000000 px; no sensor")
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_a_sensor_larger_than_any_is_refused(tmp_path, writer):
+    fx = dataclasses.replace(imec_4x4(), size=(10**8, 10**8), area=(0, 0, 1088, 2048))
+    _refused(writer(tmp_path / "big.xml", fx), r"sensor_info/(height_px|height)> is 100000000 px")
+    with pytest.raises(ValueError, match="size_px"):
+        Sensor(name="big", layout="snapscan", cwl_nm=[500.0, 600.0], fwhm_nm=[10.0, 10.0],
+               pixel_pitch_um=5.5, n_eff=1.7, size_px=(10**8, 2048))
+
+
+def test_one_tiny_grid_step_at_a_peak_does_not_license_a_tiny_width(tmp_path):
+    """A grid with one step of 1e-9 nm where a peak of 2e-9 nm FWHM sits: the local step
+    allowed it, and the centres' fine grid then asked for 26 TiB."""
+    fx = imec_4x4()
+    at = fx.peaks[0][0][0]
+    grid = np.unique(np.r_[fx.grid, at - 1e-9, at])
+    curves = np.array([np.interp(grid, fx.grid, c) for c in fx.curves])
+    peaks = [list(p) for p in fx.peaks]
+    peaks[0] = [(at, 2e-9, 0.5)]
+    fx = dataclasses.replace(fx, grid=grid, curves=curves, peaks=peaks)
+    _refused(write_newer(tmp_path / "step.xml", fx), r"fwhm_nm> is 2e-09 nm, narrower than the "
+                                                     r"response grid's 1 nm step")
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_a_band_whose_peaks_lie_outside_the_grid_is_refused(tmp_path, writer):
+    fx = imec_4x4()
+    peaks = [list(p) for p in fx.peaks]
+    peaks[2] = [(5000.0, 8.0, 0.5)]
+    path = writer(tmp_path / "out.xml", dataclasses.replace(fx, peaks=peaks))
+    _refused(path, r"band 2: its peaks \(5000 nm\) all lie outside the response grid "
+                   r"\(400-1000 nm\)")
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_a_virtual_band_outside_the_grid_is_refused(tmp_path, writer):
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[-1]
+    wl = wl.copy()
+    wl[5] = 5000.0
+    fx = dataclasses.replace(fx, matrices=[*fx.matrices[:-1], (name, kind, wl, fw, coeffs)])
+    _refused(writer(tmp_path / "vb.xml", fx), "has a virtual band at 5000 nm, outside the "
+                                              "responses' 400-1000 nm")
+
+
+def test_an_older_grid_of_a_picometre_span_is_refused(tmp_path):
+    """601 samples 1e-12 nm apart: the whole grid at 400 nm, every band's peak outside."""
+    path = write_older(tmp_path / "pico.xml", imec_4x4(), replace={
+        "<measurement_resolution_nm>1.0</measurement_resolution_nm>":
+        "<measurement_resolution_nm>1e-12</measurement_resolution_nm>"})
+    _refused(path, "outside the response grid")
+
+
+def test_a_negative_quantum_efficiency_is_refused(tmp_path):
+    fx = imec_4x4()
+    peaks = [list(p) for p in fx.peaks]
+    peaks[1] = [(peaks[1][0][0], 8.0, -0.3)]
+    _refused(write_newer(tmp_path / "qe.xml", dataclasses.replace(fx, peaks=peaks)),
+             "QE -0.3: a quantum efficiency is not negative")
+
+
+def test_numbers_with_underscores_are_not_numbers(tmp_path):
+    """Python's float() reads '1_0' as 10; a calibration file never writes it so."""
+    fx = imec_4x4()
+    first = repr(float(fx.curves[0][0]))
+    path = write_newer(tmp_path / "us.xml", fx, replace={
+        f'<response values="{first} ': '<response values="1_0 '})
+    _refused(path, "holds '1_0', not a number")
+    path = write_newer(tmp_path / "us2.xml", fx, replace={"<pixel_pitch_um>5.5<":
+                                                          "<pixel_pitch_um>5_5<"})
+    _refused(path, "pixel_pitch_um> must be a number, got '5_5'")
+
+
+def test_a_response_of_subnormal_numbers_is_nowhere_positive(tmp_path):
+    fx = imec_4x4()
+    curves = fx.curves.copy()
+    curves[4] = 1e-320
+    _refused(write_newer(tmp_path / "sub.xml", dataclasses.replace(fx, curves=curves)),
+             "band\\[4\\]/response> is nowhere positive")

@@ -1,0 +1,114 @@
+"""Inputs that are not regular files: a FIFO, a device, a folder named like a cube, a symlink
+loop and unreadable ENVI data are each one error line, promptly, with nothing written.
+
+Every input is built as a user would make it, with other libraries than snapcorr's
+writers (Spectral Python, tifffile, OpenImageIO, numpy, xarray/h5netcdf, TOML written by
+hand); each refusal is the exit status and one error line naming the problem in
+command-line terms, with nothing written."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hostile import (
+    assert_refused,
+    correct_args,
+    save_cubes,
+    snapshot,
+    write_envi,
+)
+
+
+def _run_with_timeout(args, cwd, timeout=120):
+    """``python -m snapcorr ARGS`` in a process of its own, which a read blocked on a FIFO or
+    a device cannot hang; the timeout only guards against that (generous: the machine may be
+    busy), no duration is asserted."""
+    try:
+        return subprocess.run([sys.executable, "-m", "snapcorr", *map(str, args)], cwd=cwd,
+                              capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"still running after {timeout} s (blocked on the FIFO or device)")
+
+
+@pytest.mark.parametrize("where", ["flatfield-raw-npy", "correct-cube-nc", "calibrate-flat",
+                                   "correct-sensor-toml"])
+def test_fifo_input_returns_promptly_with_an_error(tmp_path, where):
+    save_cubes(tmp_path)
+    if where == "flatfield-raw-npy":
+        os.mkfifo(tmp_path / "scene.npy")
+        args = ("flatfield", "scene.npy", "--dark", "dark.npy", "--white", "white.npy",
+                "--sensor", "sensor.toml", "--out", "o.nc")
+    elif where == "correct-cube-nc":
+        os.mkfifo(tmp_path / "scene.nc")
+        args = correct_args("scene.nc", "o.nc")
+    elif where == "correct-sensor-toml":
+        os.mkfifo(tmp_path / "camera.toml")
+        args = correct_args("raw.npy", "o.nc", sensor="camera.toml")
+    else:
+        os.mkfifo(tmp_path / "f14.npy")
+        np.save(tmp_path / "f2.npy", np.full((64, 64), 1000.0))
+        args = ("calibrate", "--flat", "1.4=f14.npy", "--flat", "2=f2.npy", "--exit-pupil-mm",
+                "21", "--pixel-pitch-um", "5.5", "--out", "lens.toml")
+    before = snapshot(tmp_path)
+    res = _run_with_timeout(args, tmp_path)
+    assert_refused(res.returncode, res.stderr)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+def test_a_device_as_the_cube_returns_promptly_with_an_error(tmp_path, device):
+    if not os.path.exists(device):
+        pytest.skip(f"no {device} here")
+    save_cubes(tmp_path)
+    os.symlink(device, tmp_path / "scene.npy")
+    before = snapshot(tmp_path)
+    res = _run_with_timeout(correct_args("scene.npy", "o.nc"), tmp_path)
+    assert_refused(res.returncode, res.stderr, "scene.npy")
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", ["scene.npy", "scene.nc", "scene.hdr", "scene.tif"])
+def test_a_folder_named_like_a_cube_is_one_error_line(tmp_path, monkeypatch, name, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    (tmp_path / name).mkdir()
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*correct_args(name, "o.nc"))
+    assert_refused(rc, err, name)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["flatfield", "correct"])
+def test_symlink_loop_is_one_error_line(tmp_path, monkeypatch, command, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    os.symlink("loop_b.npy", tmp_path / "loop_a.npy")
+    os.symlink("loop_a.npy", tmp_path / "loop_b.npy")
+    args = ("flatfield", "loop_a.npy", "--dark", "dark.npy", "--white", "white.npy",
+            "--sensor", "sensor.toml", "--out", "o.nc") if command == "flatfield" else \
+        correct_args("loop_a.npy", "o.nc")
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args)
+    assert_refused(rc, err, "loop_a.npy")
+    assert snapshot(tmp_path) == before
+
+
+def test_unreadable_envi_data_is_one_error_line(tmp_path, monkeypatch, cli):
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    write_envi(tmp_path / "scene", np.ones((12, 10, 4), np.float32))
+    os.chmod(tmp_path / "scene.raw", 0)
+    try:
+        if os.access(tmp_path / "scene.raw", os.R_OK):
+            pytest.skip("running as a user who reads any file (root): chmod 000 has no effect")
+        before = snapshot(tmp_path)
+        rc, _, err = cli("flatfield", "scene.hdr", "--dark", "dark.npy", "--white", "white.npy",
+                         "--sensor", "sensor.toml", "--out", "o.nc")
+        assert_refused(rc, err, "scene")
+        assert snapshot(tmp_path) == before
+    finally:
+        os.chmod(tmp_path / "scene.raw", 0o644)

@@ -1,0 +1,109 @@
+"""Packing ranges (``--pack-range``) that float32 cannot hold are refused, every accepted range
+unpacks within half a step, and a range starting with a minus is read as a value."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapcorr._validation import check_pack_range
+
+
+@pytest.mark.parametrize("lo, hi, words", [
+    (0.0, 1e-40, "smallest normal"),          # the step rounds to a subnormal float32
+    (-1e300, 1e300, "largest number"),        # add_offset and scale_factor overflow float32
+    (-3.3e38, 3.3e38, "largest number"),      # each end fits, their difference does not
+    (1e6, 1e6 + 1.0, "finer than float32"),   # neighbouring codes unpack to one float32
+])
+def test_a_pack_range_float32_cannot_hold_is_refused(lo, hi, words):
+    with pytest.raises(ValueError, match=words) as info:
+        check_pack_range("--pack-range", lo, hi)
+    assert str(info.value).startswith("--pack-range ") and "\n" not in str(info.value)
+
+
+def test_every_accepted_pack_range_unpacks_within_half_a_step():
+    """Random ranges that pass: codes packed and unpacked in float32, as a CF reader does,
+    land within half a step (plus float32 rounding at the range's size) of the value."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        centre = 10.0 ** rng.uniform(-30, 30) * rng.choice([-1, 1])
+        width = abs(centre) * 10.0 ** rng.uniform(-4, 2) + 1e-30
+        lo, hi = centre - width, centre + width
+        try:
+            lo, hi = check_pack_range("r", lo, hi)
+        except ValueError:
+            continue
+        scale, offset = np.float32((hi - lo) / 65534), np.float32(lo)
+        values = rng.uniform(lo, hi, 50)
+        codes = np.clip(np.rint((values - lo) / float(scale)), 0, 65534).astype(np.uint16)
+        back = codes.astype(np.float32) * scale + offset
+        bound = float(scale) / 2 + 4 * float(np.finfo(np.float32).eps) * max(abs(lo), abs(hi))
+        assert np.all(np.isfinite(back)) and float(scale) > 0
+        assert np.max(np.abs(back.astype(float) - values)) <= 2 * bound
+
+
+def _tiny_mosaic(tmp_path):
+    """An 8 x 8 crop of the 4 x 4 VIS mosaic: raw 1000, dark 64, white 2000 DN everywhere."""
+    files = {}
+    for name, value in (("raw", 1000), ("dark", 64), ("white", 2000)):
+        files[name] = tmp_path / f"{name}.npy"
+        np.save(files[name], np.full((8, 8), value, np.uint16))
+    return files
+
+
+@pytest.mark.parametrize("given", [["--pack-range", "-0.5,3.5"], ["--pack-range=-0.5,3.5"],
+                                   ["--pack-range", "-1,2"]])
+def test_a_pack_range_starting_with_a_minus_is_parsed(given, capsys):
+    """The default range, -0.5,3.5, typed as the help shows it: argparse alone takes the
+    value for an option and stops with 'expected one argument' before it reaches --help."""
+    from snapcorr.cli import main
+
+    assert main(["flatfield", "raw.npy", "--dark", "d.npy", "--white", "w.npy", "--out",
+                 "x.nc", "--dtype", "uint16", *given, "--help"]) == 0
+    assert "expected one argument" not in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_pack_range_starting_with_a_minus_is_read_from_the_command_line(tmp_path):
+    """The range reaches the file: its add_offset, and values within half a step."""
+    import xarray as xr
+
+    from snapcorr.cli import main
+
+    f = _tiny_mosaic(tmp_path)
+    out = tmp_path / "ff.nc"
+    given = ["--pack-range", "-1,2"]
+    rc = main(["flatfield", str(f["raw"]), "--dark", str(f["dark"]), "--white", str(f["white"]),
+               "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "520,1000", "--dtype",
+               "uint16", *given, "--out", str(out), "--quiet"])
+    assert rc == 0
+    lo = float(given[-1].split("=")[-1].split(",")[0])
+    with xr.open_dataset(out, mask_and_scale=False) as ds:
+        assert float(ds.reflectance.attrs["add_offset"]) == lo
+    with xr.open_dataset(out) as ds:  # (1000 - 64) / (2000 - 64), within half a step
+        step = (float(given[-1].split(",")[-1]) - lo) / 65534
+        assert np.allclose(ds.reflectance.values, 936 / 1936, atol=step / 2 + 1e-7)
+
+
+def test_a_pack_range_float32_cannot_hold_is_a_usage_error(tmp_path, capsys):
+    from snapcorr.cli import main
+
+    f = _tiny_mosaic(tmp_path)
+    rc = main(["flatfield", str(f["raw"]), "--dark", str(f["dark"]), "--white", str(f["white"]),
+               "--sensor", "mosaic_4x4_vis", "--dtype", "uint16", "--pack-range=0,1e-40",
+               "--out", str(tmp_path / "ff.nc")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--pack-range" in err and "Traceback" not in err
+    assert not (tmp_path / "ff.nc").exists()
+
+
+@pytest.mark.parametrize("dtype", [[], ["--dtype", "float32"], ["--dtype", "float16"]])
+def test_a_pack_range_without_uint16_names_the_option(tmp_path, capsys, dtype):
+    from snapcorr.cli import main
+
+    f = _tiny_mosaic(tmp_path)
+    rc = main(["flatfield", str(f["raw"]), "--dark", str(f["dark"]), "--white", str(f["white"]),
+               "--sensor", "mosaic_4x4_vis", *dtype, "--pack-range", "0,1", "--out",
+               str(tmp_path / "ff.zarr")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "--pack-range goes with --dtype uint16" in err, err

@@ -1,0 +1,133 @@
+"""Lens files and a lens calibration's placement keys with values of the wrong type or too large
+for a float, and a calibrated lens centre on a binned sensor or one of another size. Each
+refusal is one line naming what is wrong."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile import (
+    HUGE,
+    LENS,
+    assert_refused,
+    correct_args,
+    cra_of,
+    read_result,
+    refused_in_one_line,
+    snapshot,
+)
+
+from snapcorr import Lens
+
+
+def lens_text(**override):
+    lines = {
+        "name": '"user lens"',
+        "exit_pupil_mm": "21.0",
+        "vignetting_radius_mm": "7.4236",
+        "vignetting_distance_mm": "16.991",
+        "magnification": "0.06",
+        "pupil_magnification": "1.3",
+    }
+    lines.update(override)
+    return "[lens]\n" + "".join(f"{k} = {v}\n" for k, v in lines.items())
+
+
+@pytest.mark.parametrize("key, value", [
+    ("exit_pupil_mm", "true"), ("exit_pupil_mm", '"twenty"'), ("vignetting_radius_mm", "true"),
+    ("magnification", "true"), ("pupil_magnification", "false"),
+])
+def test_lens_value_of_the_wrong_type_is_refused(tmp_path, monkeypatch, key, value, cli):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "lens.toml").write_text(lens_text(**{key: value}))
+    rc, out, err = cli("shift", "--lens", "lens.toml", "--f-number", "2", "--cra", "5")
+    assert_refused(rc, err, key)
+    assert out == ""
+
+
+def _calibrated_lens(folder):
+    text = LENS.read_text().split("[calibration]")[0]
+    text += ("[calibration]\ncenter_px = [1100.0, 950.0]\npixel_pitch_um = 5.5\n"
+             "image_size_px = [2048, 2048]\n")
+    (folder / "lens.toml").write_text(text)
+
+
+def _sensor(pitch, size):
+    return (f'[sensor]\nname = "binned"\nlayout = "snapscan"\npixel_pitch_um = {pitch}\n'
+            f"size_px = [{size}, {size}]\ncwl_nm = [550.0, 650.0]\nfwhm_nm = 10.0\n"
+            "n_eff = 1.7\n")
+
+
+def test_lens_center_follows_binning(tmp_path, monkeypatch, cli):
+    monkeypatch.chdir(tmp_path)
+    _calibrated_lens(tmp_path)
+    (tmp_path / "binned.toml").write_text(_sensor(11.0, 1024))
+    np.save(tmp_path / "binned.npy", np.ones((1024, 1024, 2), np.float32))
+    rc, _, err = cli(*correct_args("binned.npy", "c.nc", "--method", "none",
+                                   sensor="binned.toml", lens="lens.toml"))
+    assert rc == 0, err
+    res = read_result(tmp_path / "c.nc")
+    cx, cy = ((1100 + 0.5) * 5.5 / 11 - 0.5, (950 + 0.5) * 5.5 / 11 - 0.5)
+    np.testing.assert_allclose(res.attrs["optical_center_px"], [cx, cy], rtol=0, atol=1e-9)
+    y, x = np.mgrid[0:1024, 0:1024]
+    expected = np.degrees(np.arctan(np.hypot(x - cx, y - cy) * 0.011 / 21.0))
+    np.testing.assert_allclose(cra_of(res).values, expected, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("pitch, size", [(11.0, 512), (5.5, 1024)],
+                         ids=["binned-half-size", "same-pitch-smaller-sensor"])
+def test_lens_center_on_a_sensor_of_another_size_is_refused(tmp_path, monkeypatch, pitch, size,
+                                                            cli):
+    monkeypatch.chdir(tmp_path)
+    _calibrated_lens(tmp_path)
+    (tmp_path / "other.toml").write_text(_sensor(pitch, size))
+    np.save(tmp_path / "cube.npy", np.ones((size, size, 2), np.float32))
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*correct_args("cube.npy", "c.nc", "--method", "none",
+                                   sensor="other.toml", lens="lens.toml"))
+    assert_refused(rc, err, "--center ROW,COL")
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("body", [
+    f"[lens]\nexit_pupil_mm = {HUGE}\n",
+    f"[lens]\nexit_pupil_mm = 21.0\nmagnification = {HUGE}\n",
+    f"[lens]\nexit_pupil_mm = 21.0\n[[lens.vignetting]]\nradius_mm = {HUGE}\n"
+    "distance_mm = 17.0\n",
+])
+def test_a_huge_integer_in_a_lens_file_is_one_line(tmp_path, cli, body):
+    (tmp_path / "l.toml").write_text(body)
+    err = refused_in_one_line(cli("shift", "--lens", "l.toml", "--f-number", "2.8", "--cra", "5",
+                        cwd=tmp_path))
+    assert "finite number" in err and len(err) < 300
+
+
+@pytest.mark.parametrize(("calibration", "match"), [
+    ({"pixel_pitch_um": "100"}, "pixel_pitch_um must be a number, got text"),
+    ({"pixel_pitch_um": True}, "pixel_pitch_um must be a number, got a boolean"),
+    ({"pixel_pitch_um": 10**400}, "pixel_pitch_um must be a finite number"),
+    ({"image_size_px": 5}, "image_size_px must be a list of two numbers"),
+    ({"image_size_px": [1, 2, 3]}, "image_size_px must be two whole numbers"),
+    ({"image_size_px": [640.5, 512]}, "image_size_px must be whole numbers"),
+    ({"center_rc": [1.0, "a"]}, "center_rc must be a number, got text"),
+    ({"center_px": 3}, "center_px must be a list of two numbers"),
+])
+def test_the_placement_keys_of_a_calibration_are_checked(calibration, match):
+    """These keys place the optical axis on another sensor (correct reads them), so a wrong
+    type is refused when the lens is made, not used as 1 um or as garbage later."""
+    with pytest.raises(ValueError, match=match):
+        Lens(21.0, calibration=calibration)
+
+
+def test_other_calibration_keys_stay_free_form_and_good_ones_load():
+    lens = Lens(21.0, calibration={"center_rc": [250.5, 320.0], "pixel_pitch_um": 5.5,
+                                   "image_size_px": [640, 512], "notes": True, "x": "free"})
+    assert lens.calibration["notes"] is True
+
+
+def test_a_lens_file_with_a_pitch_as_text_is_refused(tmp_path, cli):
+    (tmp_path / "l.toml").write_text('[lens]\nexit_pupil_mm = 21.0\n[calibration]\n'
+                                     'pixel_pitch_um = "100"\n')
+    err = refused_in_one_line(cli("shift", "--lens", "l.toml", "--f-number", "2.8", "--cra", "5",
+                        cwd=tmp_path))
+    assert "pixel_pitch_um must be a number, got text" in err

@@ -1,0 +1,142 @@
+"""The tests mirror the package: a module's tests are found from its name alone.
+
+``snapcorr/<package>/<module>.py`` is tested in ``tests/<package>/test_<module>.py``, or in
+files named ``test_<module>_<aspect>.py`` beside it (``test_vendor_xml_bounds.py``); a module
+of the top level in ``tests/test_<module>.py``. A private module's name is read without its
+leading underscore (``snapcorr/_coords.py``: ``tests/test_coords.py``). Compatibility
+re-exports left at an old path need no tests of their own.
+
+Every test folder is a package (files of one name in two folders do not collide), except
+``tests/oracles/``: the independent simulators, imported by their names, which share no code
+with snapcorr.
+"""
+
+import ast
+from pathlib import Path
+
+import snapcorr
+
+PACKAGE = Path(snapcorr.__file__).resolve().parent
+TESTS = Path(__file__).resolve().parent
+ORACLES = TESTS / "oracles"
+#: Folders of tests/ that are no packages: the simulators, imported by name, and data.
+NOT_PACKAGES = {"oracles", "data"}
+
+#: Modules without a test file of their name (many are tested in files named by history or
+#: by workflow, in tests/). The list only shrinks: a module that gains its test file leaves
+#: it, and a new module comes with its tests.
+UNTESTED = {
+    "snapcorr._names",
+    "snapcorr._threads",
+    "snapcorr._validation",
+    "snapcorr.budget.flittner_slater",
+    "snapcorr.budget.report",
+    "snapcorr.budget.signal",
+    "snapcorr.calibrate.choice",
+    "snapcorr.calibrate.exit_pupil",
+    "snapcorr.calibrate.flats",
+    "snapcorr.calibrate.joint_fit",
+    "snapcorr.calibrate.lens_calibration",
+    "snapcorr.calibrate.measured_target",
+    "snapcorr.calibrate.onset_fit",
+    "snapcorr.calibrate.onsets",
+    "snapcorr.calibrate.predictive",
+    "snapcorr.calibrate.pupil_fit",
+    "snapcorr.calibrate.pupil_index",
+    "snapcorr.calibrate.pupil_precision",
+    "snapcorr.calibrate.pupil_report",
+    "snapcorr.calibrate.pupil_solver",
+    "snapcorr.calibrate.pupil_target",
+    "snapcorr.calibrate.report",
+    "snapcorr.calibrate.stages",
+    "snapcorr.calibrate.target_model",
+    "snapcorr.calibrate.unknown_lens",
+    "snapcorr.cli",
+    "snapcorr.correct._spectra",
+    "snapcorr.correct.core",
+    "snapcorr.correct.geometry",
+    "snapcorr.correct.harmonise",
+    "snapcorr.correct.resample",
+    "snapcorr.correct.virtual",
+    "snapcorr.cube.attrs",
+    "snapcorr.cube.blockfile",
+    "snapcorr.cube.datasets",
+    "snapcorr.cube.derived",
+    "snapcorr.cube.envi",
+    "snapcorr.cube.envi_result",
+    "snapcorr.cube.formats",
+    "snapcorr.cube.frames",
+    "snapcorr.cube.images",
+    "snapcorr.cube.io",
+    "snapcorr.cube.msfa._grid",
+    "snapcorr.cube.msfa.brauers2006",
+    "snapcorr.cube.msfa.mihoubi2017",
+    "snapcorr.cube.msfa.monno2017",
+    "snapcorr.cube.msfa.nearest",
+    "snapcorr.cube.npy",
+    "snapcorr.cube.responses",
+    "snapcorr.cube.writing",
+    "snapcorr.data",
+    "snapcorr.demo",
+    "snapcorr.optics.chief_ray",
+    "snapcorr.optics.discs",
+    "snapcorr.optics.pupil",
+    "snapcorr.optics.rienstra1998",
+    "snapcorr.optics.table",
+    "snapcorr.optics.wiener",
+    "snapcorr.spectra",
+}
+
+
+def _modules():
+    """Every module of snapcorr but ``__init__``, ``__main__`` and compatibility re-exports:
+    dotted name -> path."""
+    found = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name in ("__init__.py", "__main__.py"):
+            continue
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+        if doc.startswith("Compatibility re-exports"):
+            continue
+        rel = path.relative_to(PACKAGE.parent).with_suffix("")
+        found[".".join(rel.parts)] = path
+    return found
+
+
+def _has_tests(module):
+    *packages, name = module.split(".")[1:]
+    folder = TESTS.joinpath(*packages)
+    stem = "test_" + name.lstrip("_")
+    return (folder / f"{stem}.py").is_file() or any(folder.glob(f"{stem}_*.py"))
+
+
+def test_every_module_has_tests_of_its_name_or_is_listed():
+    missing = {m for m in _modules() if not _has_tests(m)}
+    listing = "".join(f'    "{m}",\n' for m in sorted(missing))
+    assert missing == UNTESTED, (
+        f"now tested, leave the list: {sorted(UNTESTED - missing)}; "
+        f"new and untested, write tests/<package>/test_<module>.py: "
+        f"{sorted(missing - UNTESTED)}\nthe list as it is now:\n{listing}")
+
+
+def test_every_test_folder_is_a_package():
+    for folder in sorted(p for p in TESTS.rglob("*") if p.is_dir()):
+        rel = folder.relative_to(TESTS)
+        if rel.parts[0] in NOT_PACKAGES or folder.name == "__pycache__":
+            continue
+        assert (folder / "__init__.py").is_file(), \
+            f"tests/{rel.as_posix()} is no package: its files' names would collide"
+
+
+def test_the_oracles_import_no_snapcorr():
+    """The simulators are evidence only while they share no code with what they check."""
+    for path in sorted(ORACLES.glob("*.py")):
+        if path.name.startswith("test_"):
+            continue
+        names = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                names.add((node.module or "").split(".")[0])
+        assert "snapcorr" not in names, f"tests/oracles/{path.name} imports snapcorr"
