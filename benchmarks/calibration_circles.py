@@ -27,6 +27,7 @@ from . import pyplot, write_csv
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 from flatsim import LensTruth, make_flats  # noqa: E402
 from test_calibrate_circles import FULL, HALF, TRUTHS, calibrate, cramer_rao  # noqa: E402

@@ -38,6 +38,7 @@ from . import write_csv
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 import raysim  # noqa: E402
 from flatsim import LensTruth, mean_shift_nm  # noqa: E402

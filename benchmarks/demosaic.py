@@ -54,6 +54,7 @@ from .io_memory import _status
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 import msfasim as ms  # noqa: E402
 

@@ -26,6 +26,7 @@ from . import write_csv
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 PITCH_UM, SHAPE = 44.0, (128, 160)
 CENTER = (SHAPE[1] * 0.514, SHAPE[0] * 0.481)

@@ -42,6 +42,7 @@ NOISE = 0.005
 def frames(folder, seed=1, n_nodes=96):
     """The raw frames (saved in ``folder``) of the glass at :data:`F_NUMBERS`."""
     sys.path.insert(0, str(ROOT / "tests"))
+    sys.path.insert(0, str(ROOT / "tests" / "oracles"))
     import mosaicsim
     import spectralsim as sim
     from conftest import PAPER_TRUTH
@@ -125,6 +126,7 @@ def frames_4x4(folder, seed=1):
     """``tests/test_pupil_measured.py``'s frames (the real 4 x 4 VIS curves in a vendor file,
     320 x 640 pixels of 17.6 um, n_eff 1.85) and the file."""
     sys.path.insert(0, str(ROOT / "tests"))
+    sys.path.insert(0, str(ROOT / "tests" / "oracles"))
     import test_pupil_measured as tpm
 
     path, _ = tpm.vendor_file(folder)

@@ -61,6 +61,7 @@ def _scene(shape, seed=0):
     """Ground-truth band values (rows, cols, 16) of a msfasim scene, larger than the frame by a
     margin the frames move across."""
     sys.path.insert(0, str(HERE.parent / "tests"))
+    sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
     import msfasim as ms
     from vendorfiles import imec_4x4
 
@@ -79,6 +80,8 @@ def write_stream(path, n_frames, shape, seed=0, distinct=None):
     import zarr
 
     sys.path.insert(0, str(HERE.parent / "tests"))
+
+    sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
     import msfasim as ms
 
     rng = np.random.default_rng(seed)
@@ -108,6 +111,7 @@ def write_stream(path, n_frames, shape, seed=0, distinct=None):
 def write_sensor(folder):
     """The 4x4 tile with measured responses: a vendor calibration file and its ``.toml``."""
     sys.path.insert(0, str(HERE.parent / "tests"))
+    sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
     from vendorfiles import imec_4x4, write_newer
 
     write_newer(folder / "s4.xml", imec_4x4())

@@ -25,6 +25,7 @@ from . import write_csv
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 PITCH_UM, SHAPE, CENTER = 44.0, (128, 160), (82.3, 61.6)
 CWL = np.arange(500.0, 849.0, 12.0)

@@ -45,6 +45,7 @@ from . import pyplot, write_csv
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
 import mosaicsim as ms  # noqa: E402
 from flatsim import LensTruth  # noqa: E402

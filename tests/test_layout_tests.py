@@ -79,7 +79,6 @@ UNTESTED = {
     "snapcorr.data",
     "snapcorr.demo",
     "snapcorr.optics.chief_ray",
-    "snapcorr.optics.discs",
     "snapcorr.optics.pupil",
     "snapcorr.optics.rienstra1998",
     "snapcorr.optics.table",

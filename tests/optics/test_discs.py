@@ -36,7 +36,7 @@ from snapcorr.optics import filter_response, kernel
 
 pytestmark = pytest.mark.filterwarnings("ignore::snapcorr.EffectiveIndexWarning")
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 # ------------------------------------------------------------------------------------------
 # The brute force

@@ -20,9 +20,9 @@ HERE = Path(__file__).resolve().parent
 
 def reference_table():
     """Rows f_number, cra_deg, ideal_nm, vignetted_nm, relative_illumination (cwl 700, n 1.7)."""
-    path = HERE.parents[1] / "shared" / "reference" / "mean_shift_edmund16mm.csv"
+    path = HERE.parents[2] / "shared" / "reference" / "mean_shift_edmund16mm.csv"
     if not path.exists():
-        path = HERE / "data" / "mean_shift_edmund16mm.csv"
+        path = HERE.parent / "data" / "mean_shift_edmund16mm.csv"
     lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
     assert lines[0].startswith("f_number,cra_deg,ideal_aperture_nm,vignetted_aperture_nm")
     return np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
