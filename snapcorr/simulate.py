@@ -55,6 +55,7 @@ from .optics.chief_ray import pixel_tangents
 from .optics.pupil import overlap_area_mm2
 
 __all__ = [
+    "ILLUMINATION_METHODS",
     "METHODS",
     "Detector",
     "LampPlaque",
@@ -63,7 +64,11 @@ __all__ = [
     "relative_illumination_map",
 ]
 
-METHODS = ("radial", "exact")
+#: How :func:`relative_illumination_map` computes the map: ``"radial"`` on a grid of
+#: ``tan(CRA)`` interpolated per pixel, ``"exact"`` every pixel's disc overlap.
+ILLUMINATION_METHODS = ("radial", "exact")
+#: The earlier name of :data:`ILLUMINATION_METHODS`.
+METHODS = ILLUMINATION_METHODS
 
 # Adaptive sampling of V over tan(CRA): a sub-interval is accepted when linear interpolation
 # misses V at its quarter points by at most this much (10x below the promised 1e-6).
@@ -235,7 +240,7 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_p
     >>> round(float(lens.relative_illumination(1.4, cra) * np.cos(np.deg2rad(cra)) ** 4), 4)
     0.8725
     """
-    method = validate_method(method, METHODS)
+    method = validate_method(method, ILLUMINATION_METHODS)
     if pixel_acceptance_deg is not None:
         a = _number("pixel_acceptance_deg", pixel_acceptance_deg)
         if not 0.0 < a < 90.0:

@@ -20,6 +20,8 @@ from .table import ShiftGrid, ShiftTable
 __all__ = [
     "AUTO_GRID_MIN_SIZE",
     "AUTO_TABLE_MIN_SIZE",
+    "CORRECTION_MODELS",
+    "MEAN_SHIFT_METHODS",
     "METHODS",
     "MODELS",
     "cached_grid",
@@ -172,8 +174,9 @@ def _grid_method(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     return out
 
 
-#: Named methods of :func:`mean_shift`. Each takes ``(cwl_nm, n_eff, f_number, cra_deg, lens)``.
-METHODS = {
+#: Named methods of :func:`mean_shift`, name -> function (``"auto"``: None, the dispatcher
+#: :func:`select_method` picks). Each takes ``(cwl_nm, n_eff, f_number, cra_deg, lens)``.
+MEAN_SHIFT_METHODS = {
     "vignetted": _vignetted,
     "ideal": _ideal,
     "asymptotic": _asymptotic,
@@ -182,12 +185,14 @@ METHODS = {
     "grid": _grid_method,
     "auto": None,
 }
+#: The earlier name of :data:`MEAN_SHIFT_METHODS`.
+METHODS = MEAN_SHIFT_METHODS
 
 
 def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm=0.001):
     """The method ``"auto"`` uses for each element, as an array of names.
 
-    The rule, cheapest first (the exact rungs of :data:`MODELS`):
+    The rule, cheapest first (the exact rungs of :data:`CORRECTION_MODELS`):
 
     1. ``"asymptotic"`` (Eq. 6) where the pixel is not vignetted (below the onset of Eq. 46,
        or a lens without vignetting circles) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
@@ -232,7 +237,8 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
 #: ``"asymptotic"`` is Eq. (6); ``"ideal"`` the exact kernel mean of the full pupil;
 #: ``"vignetted"`` the exact mean of the vignetted pupil (Eq. 22); ``"harmonised"`` that mean
 #: and one common response per band (:mod:`snapcorr.correct.harmonise`), for scenes where the
-#: widening of the response matters too.
+#: widening of the response matters too. The tuple lives in :mod:`snapcorr._names` (the
+#: command line offers it without loading the physics); ``MODELS`` is its earlier name here.
 MODELS = CORRECTION_MODELS
 
 
@@ -260,7 +266,7 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     Returns
     -------
     model, reason : str
-        One of :data:`MODELS`, and a sentence saying why.
+        One of :data:`CORRECTION_MODELS`, and a sentence saying why.
 
     Examples
     --------
@@ -279,7 +285,7 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     if not 0 <= cra_max < 90:
         raise ValueError(f"cra_max_deg must lie in [0, 90), got {cra_max_deg!r}")
     picks = np.atleast_1d(select_method(n, f, cra_max, lens, cwl_nm=cwl, tolerance_nm=tol))
-    model = max((str(m) for m in picks), key=MODELS.index)
+    model = max((str(m) for m in picks), key=CORRECTION_MODELS.index)
     # the largest shift over the field: the kernel mean is monotonic in neither the CRA nor
     # the band alone near the onset, so both ends of the field and every band
     exact = "vignetted" if model == "vignetted" else "ideal"
@@ -358,7 +364,7 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     >>> mean_shift(700.0, 1.7, 1.4, [0.0, 20.0], lens).round(3)
     array([-6.593, -8.954])
     """
-    validate_method(method, METHODS)
+    validate_method(method, MEAN_SHIFT_METHODS)
     check_positive("tolerance_nm", tolerance_nm)
     args = (cwl_nm, n_eff, f_number, cra_deg)
     # Every method checks the same things first, so none can fail later in its own way.
@@ -373,9 +379,9 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
             raise TypeError(f"lens must be a snapcorr.Lens, got {type(lens).__name__}")
         return np.zeros(shape, np.float32 if low else float)
     if method in ("table", "grid"):
-        out = METHODS[method](*args, lens, tolerance_nm)
+        out = MEAN_SHIFT_METHODS[method](*args, lens, tolerance_nm)
     elif method != "auto":
-        out = METHODS[method](*args, lens)
+        out = MEAN_SHIFT_METHODS[method](*args, lens)
     else:
         out = _auto(*args, lens, tolerance_nm)
     return np.asarray(out, dtype=np.float32) if low else out
@@ -412,5 +418,5 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
         for name in ("asymptotic", "ideal", "vignetted"):
             sub = idx[choice == name]
             if sub.size:
-                out[sub] = METHODS[name](cwl[sub], n[sub], f[sub], cra[sub], lens)
+                out[sub] = MEAN_SHIFT_METHODS[name](cwl[sub], n[sub], f[sub], cra[sub], lens)
     return out.reshape(shape)
