@@ -9,7 +9,7 @@ import pytest
 import snapcorr
 from snapcorr import _names, budget, demo, optics, simulate
 from snapcorr.budget import signal
-from snapcorr.optics import mean, profiles
+from snapcorr.optics import lens, mean, profiles
 
 #: Earlier name -> the registry it now names, (module, old, new).
 ALIASES = [
@@ -25,6 +25,7 @@ ALIASES = [
     (budget, "MODELS", "CORRECTION_MODELS"),
     (simulate, "METHODS", "ILLUMINATION_METHODS"),
     (demo, "MODELS", "DEMO_MODELS"),
+    (lens, "PUPILS", "PUPIL_RADIANCE_MODELS"),
 ]
 
 

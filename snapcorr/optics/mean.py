@@ -97,21 +97,21 @@ def _geometry(f_number, cra_deg, lens):
 def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d, P, dv)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, pupil=lens.pupil)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, pupil=lens.pupil_radiance)
 
 
 def _ideal(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, _, _ = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, pupil=lens.pupil)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, pupil=lens.pupil_radiance)
 
 
 def _paper_pupil_only(lens, what):
     """Refuse a formula derived for the paper's pupil for another one."""
-    if lens.pupil != "paper":
+    if lens.pupil_radiance != "paper":
         raise ValueError(f"{what} is derived for the paper's pupil (Eq. 28, uniform per area), "
-                         f"not the {lens.pupil} one: use method 'vignetted', 'ideal', 'table' "
-                         "or 'auto'")
+                         f"not the {lens.pupil_radiance} one: use method 'vignetted', 'ideal', "
+                         "'table' or 'auto'")
 
 
 def _riemann(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=g19.RIEMANN_STEP_NM):
@@ -227,7 +227,8 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     not_vign = ~lens.is_vignetted(f_number, cra)
     tan_cone = 1.0 / (2.0 * lens.working_f_number(f_number))
     err = g19.asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, np.tan(np.deg2rad(cra)))
-    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm) & (lens.pupil == "paper")
+    paper = lens.pupil_radiance == "paper"
+    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm) & paper
     return np.where(asym, "asymptotic", np.where(not_vign, "ideal", "vignetted"))
 
 
@@ -300,8 +301,9 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
                        f"at f/{f:g} ({onset:.2f} deg)")
     where = ("no vignetting circle" if not lens.has_vignetting else
              f"every CRA (<= {cra_max:.2f} deg) is below the onset ({onset:.2f} deg)")
-    if lens.pupil != "paper":
-        return model, f"{where}; Eq. 6 holds for the paper's pupil, not this {lens.pupil} one"
+    if lens.pupil_radiance != "paper":
+        return model, (f"{where}; Eq. 6 holds for the paper's pupil, not this "
+                       f"{lens.pupil_radiance} one")
     tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f)))
     err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone, np.tan(np.deg2rad(cra_max)))
     err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
@@ -406,7 +408,7 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     # With several circles a grid takes seconds to build (the boundary's arcs change at more
     # places than its frame pins), so it pays only for far more elements.
     grid_min = AUTO_GRID_MIN_SIZE * (1 if len(lens.vignetting) <= 1 else 20)
-    if np.count_nonzero(todo) >= grid_min and lens.pupil == "paper":  # ShiftGrid's pupil
+    if np.count_nonzero(todo) >= grid_min and lens.pupil_radiance == "paper":  # ShiftGrid's pupil
         idx = np.flatnonzero(todo)
         out[idx] = _grid_method(cwl[idx], n[idx], f[idx], cra[idx], lens, tolerance_nm)
         todo[idx] = False
