@@ -211,7 +211,7 @@ def _relative_signals(source, prof, shift_lists, d, lattice):
 
 @accepts_center_rc
 def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
-                    center_px=None, sensor_origin_px=None):
+                    center_rc=None, center_px=None, sensor_origin_px=None):
     """The cheapest model whose signal error for ``source`` stays below ``tolerance_pct`` over
     the field of ``cube``: the scene budget's answer for
     :func:`~snapcorr.correct.correct_cube`'s ``method``.
@@ -252,7 +252,8 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
 
     sensor.check_cube(cube)
     spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
-    cra = cube_cra_deg(cube, sensor, lens, center_px, sensor_origin_px=sensor_origin_px)[0]
+    cra = cube_cra_deg(cube, sensor, lens, center_rc=center_rc,
+                       sensor_origin_px=sensor_origin_px)[0]
     budget = scene_budget(spectrum, sensor, f_number, lens, cra_max_deg=float(cra.max()),
                           tolerance_pct=tolerance_pct)
     model, reason = budget.recommend()
