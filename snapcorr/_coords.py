@@ -7,18 +7,21 @@ ROW,COL``). Rows and columns count from the first pixel's centre, 0.
 
 The optical centre used to be given x first (``center_px=(cx, cy)``, ``--center-px CX,CY``).
 Those forms still work and warn (``FutureWarning``); they are never reinterpreted, and giving
-both forms is an error. Internally the centre stays ``(cx, cy)``: only the entry points
-convert.
+both forms is an error. :func:`accepts_center_rc` does it for a public function in either of
+two forms: one whose body takes ``center_rc`` (row first, as inside ``optics``, ``budget`` and
+``simulate``), the old ``center_px`` turned into it; or one whose body still takes the
+internal x-first ``center_px`` (``calibrate``, ``correct``), ``center_rc`` turned into that.
+Renamed arguments other than the centre go through
+:func:`snapcorr._validation.renamed_keywords`.
 """
 
 from __future__ import annotations
 
 import functools
 import inspect
-import sys
 import warnings
 
-from ._validation import check_pair
+from ._validation import called_from_outside, check_center, check_pair
 
 __all__ = [
     "CENTER_PX_DEPRECATION",
@@ -45,16 +48,19 @@ def rc_from_center(center_px):
     return [float(center_px[1]), float(center_px[0])]
 
 
-def called_from_outside(depth):
-    """Whether the caller ``depth`` frames up is outside snapcorr (it gets the warnings)."""
-    name = sys._getframe(depth).f_globals.get("__name__", "")
-    return not (name == "snapcorr" or name.startswith("snapcorr."))
-
-
 def accepts_center_rc(func):
-    """Let ``func`` (which takes the internal ``center_px=(cx, cy)``) take ``center_rc=(row,
-    col)`` too, and warn when a caller outside snapcorr gives ``center_px``."""
+    """Let ``func`` take the optical centre both ways, ``center_rc=(row, col)`` and the
+    deprecated x-first ``center_px=(cx, cy)``, warning when a caller outside snapcorr gives
+    ``center_px`` and refusing both at once.
+
+    A ``func`` that declares ``center_rc`` (beside the deprecated ``center_px``, keyword or in
+    its old positional place) gets ``center_rc`` only: a ``center_px`` given is swapped into
+    it. A ``func`` that declares only ``center_px`` (the internal ``(cx, cy)``) gets
+    ``center_px`` only, and a keyword-only ``center_rc`` is added to its signature.
+    """
     sig = inspect.signature(func)
+    if "center_rc" in sig.parameters:
+        return _center_px_into_rc(func, sig)
     params = list(sig.parameters.values())
     if "center_px" not in sig.parameters:
         raise TypeError(f"{func.__name__} takes no center_px")
@@ -80,4 +86,30 @@ def accepts_center_rc(func):
         return func(*bound.args, **bound.kwargs)
 
     wrapper.__signature__ = signature
+    return wrapper
+
+
+def _center_px_into_rc(func, sig):
+    """:func:`accepts_center_rc` for a ``func`` whose body takes ``center_rc``."""
+    if "center_px" not in sig.parameters:
+        raise TypeError(f"{func.__name__} takes center_rc but not its earlier form center_px")
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        bound = sig.bind_partial(*args, **kwargs)
+        old = bound.arguments.get("center_px")
+        if old is not None:
+            if bound.arguments.get("center_rc") is not None:
+                raise TypeError(f"{func.__name__}: give the optical centre once, as "
+                                "center_rc=(row, col); center_px is its old x-first form")
+            if called_from_outside(2):
+                cx, cy = check_pair("center_px", old, "two numbers (cx, cy) in pixels")
+                warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx), FutureWarning,
+                              stacklevel=2)
+            else:
+                cx, cy = check_center(old)
+            bound.arguments["center_px"] = None
+            bound.arguments["center_rc"] = (cy, cx)
+        return func(*bound.args, **bound.kwargs)
+
     return wrapper

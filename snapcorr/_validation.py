@@ -1,15 +1,78 @@
-"""Small shared checks."""
+"""Small shared checks, and the one way a renamed argument or attribute keeps its old name."""
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
+import sys
+import warnings
 
 import numpy as np
 
-__all__ = ["SENSOR_PX_MAX", "WAVELENGTH_NM_RANGE", "check_center", "check_curve", "check_integers",
-           "check_numbers", "check_pack_range", "check_pair", "check_positive",
-           "check_positive_array",
-           "check_wavelengths_nm", "shown", "validate_method"]
+__all__ = ["REMOVAL_VERSION", "SENSOR_PX_MAX", "WAVELENGTH_NM_RANGE", "called_from_outside",
+           "check_center", "check_center_rc", "check_curve", "check_integers", "check_numbers",
+           "check_pack_range", "check_pair", "check_positive", "check_positive_array",
+           "check_wavelengths_nm", "renamed_keywords", "shown", "validate_method",
+           "warn_renamed"]
+
+#: The release that removes the earlier names of renamed arguments and attributes.
+REMOVAL_VERSION = "0.3"
+
+
+def called_from_outside(depth):
+    """Whether the caller ``depth`` frames up is outside snapcorr (it gets the warnings)."""
+    name = sys._getframe(depth).f_globals.get("__name__", "")
+    return not (name == "snapcorr" or name.startswith("snapcorr."))
+
+
+def warn_renamed(old, new, *, stacklevel=3):
+    """Warn (``FutureWarning``) that ``old`` is the earlier name of ``new`` and goes in
+    :data:`REMOVAL_VERSION`.
+
+    Parameters
+    ----------
+    old, new : str
+        The earlier name and the name that replaces it, as the message shows them
+        (``"origin_px"``, ``"Lens.pupil"``, ``"Lens(pupil=...)"``).
+    stacklevel : int
+        As for :func:`warnings.warn`, counted from here: 3 points at the code that called the
+        function that calls this one.
+    """
+    warnings.warn(f"{old} is the earlier name of {new} and will be removed in snapcorr "
+                  f"{REMOVAL_VERSION}; give {new} instead", FutureWarning, stacklevel=stacklevel)
+
+
+def renamed_keywords(**renames):
+    """Decorate a function whose keyword arguments were renamed, ``old="new"``: the old name
+    still works, warns when given outside snapcorr (:func:`warn_renamed`), and giving both
+    names is an error.
+
+    >>> @renamed_keywords(origin_px="sensor_origin_px")
+    ... def place(frame, *, sensor_origin_px=None):
+    ...     return sensor_origin_px
+    >>> place(None, origin_px=(1, 2))  # doctest: +SKIP
+    FutureWarning: origin_px is the earlier name of sensor_origin_px ...
+    """
+    def decorate(func):
+        sig = inspect.signature(func)
+
+        @functools.wraps(func)
+        def wrapper(*args, **kwargs):
+            for old, new in renames.items():
+                if old not in kwargs:
+                    continue
+                if new in kwargs or new in sig.bind_partial(*args).arguments:
+                    raise TypeError(f"{func.__name__}: give {new} once; {old} is its earlier "
+                                    "name")
+                if called_from_outside(2):
+                    warn_renamed(old, new)
+                kwargs[new] = kwargs.pop(old)
+            return func(*args, **kwargs)
+
+        return wrapper
+
+    return decorate
 
 
 def shown(value, limit=40):
@@ -113,6 +176,11 @@ def check_pair(name, value, what="two numbers"):
 def check_center(center_px, name="center_px"):
     """An optical centre ``(cx, cy)`` in pixels (column, row) as two finite floats."""
     return check_pair(name, center_px, "two numbers (cx, cy) in pixels (column, row)")
+
+
+def check_center_rc(center_rc, name="center_rc"):
+    """An optical centre ``(row, col)`` in pixels as two finite floats."""
+    return check_pair(name, center_rc, "two numbers (row, col) in pixels")
 
 
 def validate_method(method, methods, what="method"):

@@ -36,15 +36,17 @@ from ._io import (
     written_by_snapcorr,
 )
 from .data import lens_path
-from .optics import METHODS, Lens, mean_shift
-from .optics import MODELS as LADDER
+from .optics import CORRECTION_MODELS, MEAN_SHIFT_METHODS, Lens, mean_shift
 
 __all__ = ["run_demo"]
 
 F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 PAPER_CRAS = (1.9, 10.3, 17.4)
 CWL_NM, N_EFF = 700.0, 1.7
-MODELS = tuple(m for m in LADDER if m in METHODS)  # the ladder's mean-shift rungs
+#: The correction models the demo plots: the ladder's rungs that are mean-shift methods.
+DEMO_MODELS = tuple(m for m in CORRECTION_MODELS if m in MEAN_SHIFT_METHODS)
+#: The earlier name of :data:`DEMO_MODELS`.
+MODELS = DEMO_MODELS
 
 
 #: Written into a demo's folder, last: the files the demo wrote there (name, size and SHA-256),
@@ -216,13 +218,13 @@ def _mean_shift_over_the_field(lens):
     colours = colormaps["viridis"](np.linspace(0, 0.9, len(F_NUMBERS)))
     spreads = {}
     for f, colour in zip(F_NUMBERS, colours, strict=True):
-        curves = {m: mean_shift(CWL_NM, N_EFF, f, cra, lens, method=m) for m in MODELS}
+        curves = {m: mean_shift(CWL_NM, N_EFF, f, cra, lens, method=m) for m in DEMO_MODELS}
         rel = lens.relative_illumination(f, cra)
         for i, c in enumerate(cra):
-            rows.append((f, c, *(curves[m][i] for m in MODELS), rel[i]))
+            rows.append((f, c, *(curves[m][i] for m in DEMO_MODELS), rel[i]))
         onset = float(lens.onset_cra_deg(f))
         spread = spreads[f] = {
-            m: np.ptp(mean_shift(CWL_NM, N_EFF, f, PAPER_CRAS, lens, method=m)) for m in MODELS
+            m: np.ptp(mean_shift(CWL_NM, N_EFF, f, PAPER_CRAS, lens, method=m)) for m in DEMO_MODELS
         }
         lines.append(f"{f:>6g} {onset:>7.2f}° {spread['asymptotic']:>8.2f} "
                      f"{spread['ideal']:>8.2f} {spread['vignetted']:>10.2f}")

@@ -127,19 +127,19 @@ def run(out, *, echo=print, seed=2019):
     lines = []
 
     # 1. the lens, from flat fields (512 x 320 at 22 um: a 2048 x 1280, 5.5 um sensor)
-    flat_center = (262.8, 155.4)  # the optical axis a little off the image centre
+    flat_center = (155.4, 262.8)  # (row, col): the optical axis a little off the image centre
     cal = _calibrate(out, truth, f_numbers, flat_center, rng)
     lens = cal.lens
     lines.append(f"1. calibration from simulated flats (f/1.4-f/8, 1 % noise): {cal.method}, "
                  f"{cal.model} circle(s): {lens.describe_vignetting()} (true "
                  f"{truth.describe_vignetting()}), centre "
-                 f"row {cal.center_px[1]:.1f}, col {cal.center_px[0]:.1f} px (true row "
-                 f"{flat_center[1]}, col {flat_center[0]})")
+                 f"row {cal.center_rc[0]:.1f}, col {cal.center_rc[1]:.1f} px (true row "
+                 f"{flat_center[0]}, col {flat_center[1]})")
 
     # 2. the cube: 8 x 8 binned Snapscan pixels (44 um), the same sensor area
     shape = (160, 256)
     # flat-field pixel -> cube pixel: the same point of the sensor
-    center = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in cal.center_px)
+    center = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in cal.center_rc)
     true_center = tuple((c + 0.5) * 22.0 / 44.0 - 0.5 for c in flat_center)
     cwl, results = _correct_cubes(lens, truth, f_numbers, shape, center, true_center, rng)
 
@@ -165,7 +165,7 @@ def _calibrate(out, truth, f_numbers, flat_center, rng):
     from .calibrate import calibrate_lens
     from .simulate import flat_frame
 
-    flats = {f: flat_frame((320, 512), 22.0, f, truth, center_px=flat_center, rng=rng)
+    flats = {f: flat_frame((320, 512), 22.0, f, truth, center_rc=flat_center, rng=rng)
              for f in f_numbers}
     cal = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=22.0, magnification=0.06,
                          pupil_magnification=1.3, name="Edmund Optics 16 mm (demo calibration)")
@@ -187,7 +187,7 @@ def _correct_cubes(lens, truth, f_numbers, shape, center, true_center, rng):
     base = Sensor.load(sensor_path("snapscan_vnir"))
     sensor = dataclasses.replace(base, name=base.name + " (8 x 8 binned)", pixel_pitch_um=44.0,
                                  size_px=shape)
-    cra = cra_map(shape, 44.0, 21.0, true_center)
+    cra = cra_map(shape, 44.0, 21.0, center_rc=true_center)
     grid = np.linspace(0.0, float(cra.max()) + 1e-6, 90)
     cwl, fwhm = np.asarray(base.cwl_nm), np.asarray(base.fwhm_nm)
 
@@ -201,30 +201,31 @@ def _correct_cubes(lens, truth, f_numbers, shape, center, true_center, rng):
         w = ((cra - grid[idx]) / (grid[idx + 1] - grid[idx]))[..., None]
         transmittance = meas[idx] * (1 - w) + meas[idx + 1] * w  # (y, x, band)
         white = 3000.0 * relative_illumination_map(shape, 44.0, f, truth,
-                                                   center_px=true_center)[..., None]
+                                                   center_rc=true_center)[..., None]
         raw = make_cube(frame(transmittance * white), cwl, fwhm_nm=fwhm)
         whites = [make_cube(frame(np.broadcast_to(white, raw.shape)), cwl) for _ in range(4)]
         darks = [make_cube(frame(np.zeros(raw.shape)), cwl) for _ in range(4)]
         ff = flatfield(raw, darks, whites)["reflectance"]
-        results[f] = {m: correct_cube(ff, sensor, f, lens, center_px=center, method=m)
+        results[f] = {m: correct_cube(ff, sensor, f, lens, center_rc=center, method=m)
                       for m in ("ideal", "vignetted")}
         results[f]["cube"] = ff
     return cwl, results
 
 
 def _spots(shape, true_center, cras):
-    """The (row, column) of each chief-ray angle in ``cras`` on the way to the far corner."""
+    """The (row, column) of each chief-ray angle in ``cras`` on the way to the far corner
+    (``true_center`` is ``(row, col)``)."""
     pitch = 44.0e-3
     # along the line from the optical centre to the farthest corner
-    corner = np.array([shape[1] - 3.0, shape[0] - 3.0])
-    corner = max(([2.0, 2.0], [corner[0], 2.0], [2.0, corner[1]], corner),
-                 key=lambda p: np.hypot(p[0] - true_center[0], p[1] - true_center[1]))
+    corner = np.array([shape[0] - 3.0, shape[1] - 3.0])
+    corner = max(([2.0, 2.0], [2.0, corner[1]], [corner[0], 2.0], corner),
+                 key=lambda p: np.hypot(p[1] - true_center[1], p[0] - true_center[0]))
     u = np.subtract(corner, true_center)
-    u = u / np.hypot(*u)
+    u = u / np.hypot(u[1], u[0])
     spots = []
     for c in cras:
         r = 21.0 * np.tan(np.radians(c)) / pitch
-        spots.append((round(true_center[1] + r * u[1]), round(true_center[0] + r * u[0])))
+        spots.append((round(true_center[0] + r * u[0]), round(true_center[1] + r * u[1])))
     return spots
 
 

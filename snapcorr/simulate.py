@@ -51,10 +51,11 @@ import numpy as np
 
 from ._coords import accepts_center_rc
 from ._validation import validate_method
+from .optics.aperture import overlap_area_mm2
 from .optics.chief_ray import pixel_tangents
-from .optics.pupil import overlap_area_mm2
 
 __all__ = [
+    "ILLUMINATION_METHODS",
     "METHODS",
     "Detector",
     "LampPlaque",
@@ -63,7 +64,11 @@ __all__ = [
     "relative_illumination_map",
 ]
 
-METHODS = ("radial", "exact")
+#: How :func:`relative_illumination_map` computes the map: ``"radial"`` on a grid of
+#: ``tan(CRA)`` interpolated per pixel, ``"exact"`` every pixel's disc overlap.
+ILLUMINATION_METHODS = ("radial", "exact")
+#: The earlier name of :data:`ILLUMINATION_METHODS`.
+METHODS = ILLUMINATION_METHODS
 
 # Adaptive sampling of V over tan(CRA): a sub-interval is accepted when linear interpolation
 # misses V at its quarter points by at most this much (10x below the promised 1e-6).
@@ -170,9 +175,9 @@ def _radial_profile(t_max, R, radii, slopes, natural):
 
 
 @accepts_center_rc
-def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
-                              natural_vignetting=True, pixel_acceptance_deg=None, source=None,
-                              method="radial"):
+def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_rc=None,
+                              center_px=None, natural_vignetting=True, pixel_acceptance_deg=None,
+                              source=None, method="radial"):
     """Expected flat-field signal of every pixel relative to the optical centre, no noise.
 
     ``V = A / (pi R^2) * cos^4(CRA) * S``: ``A`` the area common to the exit pupil (radius
@@ -235,7 +240,7 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_p
     >>> round(float(lens.relative_illumination(1.4, cra) * np.cos(np.deg2rad(cra)) ** 4), 4)
     0.8725
     """
-    method = validate_method(method, METHODS)
+    method = validate_method(method, ILLUMINATION_METHODS)
     if pixel_acceptance_deg is not None:
         a = _number("pixel_acceptance_deg", pixel_acceptance_deg)
         if not 0.0 < a < 90.0:
@@ -250,7 +255,7 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_p
             f"or be None for a uniform source; got {type(source).__name__}"
         )
     _number("f_number", f_number, positive=True)
-    tx, ty = pixel_tangents(shape, pixel_pitch_um, lens.exit_pupil_mm, center_px)
+    tx, ty = pixel_tangents(shape, pixel_pitch_um, lens.exit_pupil_mm, center_rc=center_rc)
     ny, nx = ty.size, tx.size
     R, radii, slopes = _discs(lens, f_number, pixel_acceptance_deg)
     natural = bool(natural_vignetting)
@@ -328,7 +333,7 @@ class Detector:
 
 
 @accepts_center_rc
-def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
+def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_rc=None, center_px=None,
                natural_vignetting=True, pixel_acceptance_deg=None, source=None,
                detector=None, dtype=np.float32, rng=None, noise=True):
     """A simulated flat-field frame in digital numbers (DN).
@@ -393,7 +398,7 @@ def flat_frame(shape, pixel_pitch_um, f_number, lens, *, center_px=None,
         raise ValueError(f"dtype must be a float or integer type, got {out_dtype}")
 
     v = relative_illumination_map(
-        shape, pixel_pitch_um, f_number, lens, center_px=center_px,
+        shape, pixel_pitch_um, f_number, lens, center_rc=center_rc,
         natural_vignetting=natural_vignetting, pixel_acceptance_deg=pixel_acceptance_deg,
         source=source,
     )
@@ -615,7 +620,8 @@ def _modelled_responses(sensor):
 
 
 @accepts_center_rc
-def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
+def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_rc=None,
+                       center_px=None):
     """What every pixel of a mosaic sensor reads of a uniform target, flat-fielded: its band's
     response behind the lens, averaged over the target's reflectance.
 
@@ -652,7 +658,7 @@ def mosaic_reflectance(sensor, reflectance, f_number, lens, *, center_px=None):
     pitch = sensor.require("pixel_pitch_um", "simulating a mosaic behind a lens")
     responses = sensor.responses if sensor.responses is not None else _modelled_responses(sensor)
     ny, nx = sensor.size_px
-    cra = cra_map((ny, nx), pitch, lens.exit_pupil_mm, center_px)
+    cra = cra_map((ny, nx), pitch, lens.exit_pupil_mm, center_rc=center_rc)
     nodes = np.arange(0.0, float(cra.max()) + 2 * MOSAIC_CRA_STEP_DEG, MOSAIC_CRA_STEP_DEG)
     R = responses_behind_lens(responses, n_eff, f_number, nodes, lens)
     grid = responses.wavelength_nm

@@ -297,7 +297,7 @@ def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):
     frame[20, 30] = np.nan
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
+        demosaic(frame, vis, "bilinear", sensor_origin_px=ORIGIN)
 
 
 

@@ -9,7 +9,7 @@ from conftest import PAPER_LENS
 from snapcorr import Lens
 from snapcorr.optics.chief_ray import cra_map
 from snapcorr.simulate import (
-    METHODS,
+    ILLUMINATION_METHODS,
     Detector,
     LampPlaque,
     flat_frame,
@@ -155,7 +155,7 @@ def test_radial_interpolation_is_within_1e_6_of_the_exact_per_pixel_value(lens):
     assert worst < 1e-6
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", ILLUMINATION_METHODS)
 def test_every_method_gives_finite_values_in_0_1(method):
     v = relative_illumination_map((20, 30), 300.0, 1.4, EDMUND, method=method,
                                   pixel_acceptance_deg=20.0)

@@ -36,15 +36,17 @@ References
    thin-film Fabry-Perot filters", Appl. Opt. 58, 1789 (2019).
 """
 
-from ..optics import MODELS
+from ..optics import CORRECTION_MODELS, MODELS
 from .flittner_slater import tolerance_ranges
 from .report import Budget
 from .scene import recommend_model, scene_budget
-from .signal import PROFILES, band_signal, relative_signal, shift_error
+from .signal import PROFILES, SIGNAL_PROFILES, band_signal, relative_signal, shift_error
 
 __all__ = [
+    "CORRECTION_MODELS",
     "MODELS",
     "PROFILES",
+    "SIGNAL_PROFILES",
     "Budget",
     "band_signal",
     "recommend_model",

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from .._validation import validate_method
-from .signal import PROFILES, _FilterMoments, _signals_on_grid
+from .signal import SIGNAL_PROFILES, _FilterMoments, _signals_on_grid
 
 __all__ = ["tolerance_ranges"]
 
@@ -38,7 +38,7 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     n_eff : float
         Effective index handed to the profile (which is evaluated at normal incidence here).
     profile : {"multi_lorentzian", "pi"}
-        The band shape (:data:`PROFILES`).
+        The band shape (:data:`~snapcorr.budget.signal.SIGNAL_PROFILES`).
     criteria : sequence of (float, float)
         ``(shift, limit_pct)`` pairs: a shift of +-``shift`` nm (a whole multiple of
         ``step_nm``, at least one step) must change the signal by less than ``limit_pct``
@@ -54,7 +54,7 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
         One list per band, one entry per criterion: the ``(lo, hi)`` range of centres in nm,
         or ``None`` where the nominal centre itself fails ("NA" in their table).
     """
-    validate_method(profile, PROFILES, "profile")
+    validate_method(profile, SIGNAL_PROFILES, "profile")
     cwl = np.atleast_1d(np.asarray(cwl_nm, float))
     fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape)
     ms = []
@@ -67,7 +67,7 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
     m_max = max(ms)
     out = []
     for c, fw in zip(cwl, fwhm, strict=True):
-        prof = PROFILES[profile](c, fw, n_eff)
+        prof = SIGNAL_PROFILES[profile](c, fw, n_eff)
         mom = _FilterMoments.of(prof)
         # centre offsets -kl..kh steps, with room for the largest shift inside the source
         room_lo = (c + mom.u[0] - source.wavelength_nm[0]) / step_nm - m_max

@@ -15,10 +15,10 @@ import xarray as xr
 
 from .._coords import accepts_center_rc
 from .._validation import check_positive, validate_method
-from ..optics import MODELS, Lens, mean_shift
+from ..optics import CORRECTION_MODELS, Lens, mean_shift
 from ..optics.response import kernel_bins
 from .report import Budget
-from .signal import PROFILES, _FilterMoments, _lattice, _signals_on_grid
+from .signal import SIGNAL_PROFILES, _FilterMoments, _lattice, _signals_on_grid
 
 __all__ = ["scene_budget"]
 
@@ -27,7 +27,7 @@ _HERMITE_NODES = 12
 
 
 def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
-                 profile=None, n_cra=33, models=MODELS, tolerance_pct=0.5,
+                 profile=None, n_cra=33, models=CORRECTION_MODELS, tolerance_pct=0.5,
                  kernel_step_nm=0.05, shift_step_nm=0.02):
     """The residual of each correction model for every band of ``sensor`` over CRA
     0..``cra_max_deg`` behind ``lens`` at ``f_number``, for the ``source`` spectrum.
@@ -56,7 +56,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     n_cra : int
         Chief-ray angles tabulated, 0..``cra_max_deg``.
     models : sequence of str
-        Models to evaluate, of :data:`snapcorr.optics.MODELS` (``"none"`` always is).
+        Models to evaluate, of :data:`snapcorr.optics.CORRECTION_MODELS` (``"none"`` always is).
     tolerance_pct : float
         Radiometric tolerance, percent, kept for :meth:`Budget.recommend`.
     kernel_step_nm, shift_step_nm : float
@@ -68,9 +68,9 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     """
     profile = _profile_of(sensor, profile)
     for m in models:
-        validate_method(m, MODELS, "model")
+        validate_method(m, CORRECTION_MODELS, "model")
     # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
-    models = tuple(m for m in MODELS if m in models or m == "none")
+    models = tuple(m for m in CORRECTION_MODELS if m in models or m == "none")
     tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
@@ -105,7 +105,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
         kernel = [(mu * scale, w) for mu, w in bins[n_eff[b]]]
         means = [per_model[n_eff[b]][m] * scale for m in models]
         residual[:, b] = _band_residuals(
-            source, PROFILES[profile](cwl[b], fwhm[b], n_eff[b]), kernel, means, models,
+            source, SIGNAL_PROFILES[profile](cwl[b], fwhm[b], n_eff[b]), kernel, means, models,
             None if widening is None else (widening[0][b], widening[1][b]), d, lat)
         shifts[:, b] = means
     radius = lens.exit_pupil_mm * np.tan(np.deg2rad(cra))
@@ -126,12 +126,12 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
 def _profile_of(sensor, profile):
     """The filters' shape: the one given, else the sensor's own if the budget models it."""
     if profile is None:
-        if sensor.profile not in PROFILES:
+        if sensor.profile not in SIGNAL_PROFILES:
             raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
                              f"the budget does not model; name one it does: "
-                             f"{', '.join(PROFILES)} (--profile, or profile= in Python)")
+                             f"{', '.join(SIGNAL_PROFILES)} (--profile, or profile= in Python)")
         profile = sensor.profile
-    validate_method(profile, PROFILES, "profile")
+    validate_method(profile, SIGNAL_PROFILES, "profile")
     return profile
 
 
@@ -211,7 +211,7 @@ def _relative_signals(source, prof, shift_lists, d, lattice):
 
 @accepts_center_rc
 def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
-                    center_px=None, sensor_origin_px=None):
+                    center_rc=None, center_px=None, sensor_origin_px=None):
     """The cheapest model whose signal error for ``source`` stays below ``tolerance_pct`` over
     the field of ``cube``: the scene budget's answer for
     :func:`~snapcorr.correct.correct_cube`'s ``method``.
@@ -235,7 +235,7 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
     Returns
     -------
     model : str
-        One of :data:`snapcorr.optics.MODELS`.
+        One of :data:`snapcorr.optics.CORRECTION_MODELS`.
     reason : str
     attrs : dict
         Provenance to record in the correction's attrs (``ds.attrs.update(attrs)``): the
@@ -252,7 +252,8 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
 
     sensor.check_cube(cube)
     spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
-    cra = cube_cra_deg(cube, sensor, lens, center_px, sensor_origin_px=sensor_origin_px)[0]
+    cra = cube_cra_deg(cube, sensor, lens, center_rc=center_rc,
+                       sensor_origin_px=sensor_origin_px)[0]
     budget = scene_budget(spectrum, sensor, f_number, lens, cra_max_deg=float(cra.max()),
                           tolerance_pct=tolerance_pct)
     model, reason = budget.recommend()

@@ -22,15 +22,18 @@ import numpy as np
 
 from ..optics.profiles import Gaussian, MultiLorentzian, PiShaped
 
-__all__ = ["PROFILES", "band_signal", "relative_signal", "shift_error"]
+__all__ = ["PROFILES", "SIGNAL_PROFILES", "band_signal", "relative_signal", "shift_error"]
 
 #: Transmission below this fraction of the peak is left out of a profile's support (a
 #: Gaussian's tails beyond 2.7 FWHM from its centre: 1e-9 of the signal at most).
 _NEGLIGIBLE = 1e-9
 #: Filter-profile models for a band of given centre and FWHM (a sensor's ``gaussian`` filters
 #: are the default shape of its bands, Flittner & Slater's multi-Lorentzian and Mishev &
-#: Bakalova's Pi-shaped the papers').
-PROFILES = {"gaussian": Gaussian, "multi_lorentzian": MultiLorentzian, "pi": PiShaped}
+#: Bakalova's Pi-shaped the papers'): name -> class, a subset of
+#: :data:`snapcorr.optics.profiles.FILTER_PROFILES`.
+SIGNAL_PROFILES = {"gaussian": Gaussian, "multi_lorentzian": MultiLorentzian, "pi": PiShaped}
+#: The earlier name of :data:`SIGNAL_PROFILES`.
+PROFILES = SIGNAL_PROFILES
 
 
 @dataclass(frozen=True)

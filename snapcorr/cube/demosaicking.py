@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from .._validation import validate_method
+from .._validation import renamed_keywords, validate_method
 from .io import COMPUTED_WITH
 from .model import check_dtype, make_cube, with_positions
 from .mosaic import frame_area
@@ -133,7 +133,8 @@ def demosaic_array(frame, y0, x0, n, m, method="ri", *, fill_missing=False):
                                     fill_missing=bool(fill_missing))
 
 
-def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
+@renamed_keywords(origin_px="sensor_origin_px")
+def demosaic(frame, sensor: Sensor, method="ri", *, sensor_origin_px=None, name=None):
     """A full-resolution ``(y, x, band)`` cube from a mosaic frame (module docstring).
 
     Parameters
@@ -148,7 +149,7 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
         A mosaic sensor (its layout places the bands).
     method : str
         A name of :data:`DEMOSAIC_METHODS` (default ``"ri"``).
-    origin_px : (int, int), optional
+    sensor_origin_px : (int, int), optional
         Sensor row and column of the frame's first pixel (default: the frame is the whole
         sensor, of its ``size_px``).
     name : str, optional
@@ -174,10 +175,10 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
     ------
     ValueError
         Not a mosaic sensor, not a 2-D frame (a cube is already split into bands), smaller
-        than a tile, or of another size than the sensor's without ``origin_px``.
+        than a tile, or of another size than the sensor's without ``sensor_origin_px``.
     """
     if isinstance(frame, xr.Dataset):
-        return _demosaic_dataset(frame, sensor, method, origin_px, name)
+        return _demosaic_dataset(frame, sensor, method, sensor_origin_px, name)
     if sensor.layout != "mosaic":
         raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
     method = validate_method(method, DEMOSAIC_METHODS, "demosaic method")
@@ -202,8 +203,8 @@ def demosaic(frame, sensor: Sensor, method="ri", *, origin_px=None, name=None):
         raise ValueError(f"{method} needs every position of the {n} x {m} tile to hold a band "
                          f"(the pseudo-panchromatic image averages them); sensor "
                          f"{sensor.name!r} has {sensor.n_bands}: use bilinear or nearest")
-    (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape[-2:], sensor, origin_px)
-    o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
+    (r0, c0), (rows, cols), (y0, x0) = frame_area(data.shape[-2:], sensor, sensor_origin_px)
+    o0 = (0, 0) if sensor_origin_px is None else tuple(int(v) for v in sensor_origin_px)
     data = data[..., r0 - o0[0]:r0 - o0[0] + rows, c0 - o0[1]:c0 - o0[1] + cols]
     if isinstance(data, np.ndarray):
         cube_data = np.empty((*data.shape, y0.size), _dtype(data.dtype))
@@ -242,7 +243,7 @@ def _check_spread(frame, cube):
                           "sample near it", MaskedWarning, stacklevel=3)
 
 
-def _demosaic_dataset(ds, sensor, method, origin_px, name):
+def _demosaic_dataset(ds, sensor, method, sensor_origin_px, name):
     """A flat-fielded frame's Dataset demosaicked: the cube, its mask and the raw frame."""
     names = [v for v in ds.data_vars if tuple(ds[v].dims)[-2:] == ("y", "x")
              and ds[v].ndim <= 3 and v not in ("mask", "raw")]
@@ -252,9 +253,9 @@ def _demosaic_dataset(ds, sensor, method, origin_px, name):
                          f"{list(ds.data_vars)}")
     var = names[0]
     frame = ds[var]
-    cube = demosaic(frame, sensor, method, origin_px=origin_px, name=name or var)
+    cube = demosaic(frame, sensor, method, sensor_origin_px=sensor_origin_px, name=name or var)
     r0, c0, rows, cols = cube.attrs["mosaic_area_px"]
-    o0 = (0, 0) if origin_px is None else tuple(int(v) for v in origin_px)
+    o0 = (0, 0) if sensor_origin_px is None else tuple(int(v) for v in sensor_origin_px)
     cut = {"y": slice(r0 - o0[0], r0 - o0[0] + rows), "x": slice(c0 - o0[1], c0 - o0[1] + cols)}
     method = cube.attrs["demosaic_method"]
     out = xr.Dataset(attrs={**ds.attrs, "demosaic_method": method,
@@ -262,7 +263,7 @@ def _demosaic_dataset(ds, sensor, method, origin_px, name):
     out[cube.name] = cube
     mask = cube.isnull()  # where a missing value left no estimate
     if "mask" in ds:  # and each value masked in the frame, in its own band
-        (_, _), (_, _), (y0, x0) = frame_area(frame.shape[-2:], sensor, origin_px)
+        (_, _), (_, _), (y0, x0) = frame_area(frame.shape[-2:], sensor, sensor_origin_px)
         n, m = sensor.mosaic_shape
         table = np.full((n, m), -1, np.int16)
         table[y0, x0] = np.arange(y0.size)

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import check_integers
+from .._validation import check_integers, renamed_keywords
 from .model import make_cube, with_positions
 from .sensor import Sensor
 
 __all__ = ["frame_area", "frame_saturation", "mosaic_to_cube", "sensor_positions"]
 
 
-def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
+@renamed_keywords(origin_px="sensor_origin_px")
+def mosaic_to_cube(raw, sensor: Sensor, *, sensor_origin_px=None, attrs=None):
     """Extract the bands of a raw mosaic frame into a ``(y, x, band)`` cube.
 
     The frame is first cut to the sensor's filter area (``filter_area_px``, e.g. a vendor
@@ -30,7 +31,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
         Raw frame (numpy or dask), at least one tile.
     sensor : Sensor
         A ``layout = "mosaic"`` sensor.
-    origin_px : (int, int), optional
+    sensor_origin_px : (int, int), optional
         Sensor row and column of the frame's first pixel (a crop or a camera's region of
         interest). Default: the frame is the whole sensor, and must have the sensor's
         ``size_px`` when the sensor gives it.
@@ -46,7 +47,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
     ------
     ValueError
         Not a mosaic sensor, not a 2-D frame, a frame of another size than the sensor's
-        without ``origin_px``, or no whole tile inside the filter area.
+        without ``sensor_origin_px``, or no whole tile inside the filter area.
     """
     if sensor.layout != "mosaic":
         raise ValueError(f"sensor {sensor.name!r} is not a mosaic (layout {sensor.layout!r})")
@@ -56,7 +57,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
         hint = (" (a cube is already split into bands: read it with read_cube)"
                 if raw.ndim == 3 else "")
         raise ValueError(f"a raw mosaic frame is 2-D, got shape {raw.shape}{hint}")
-    r0, c0 = _origin(raw.shape, sensor, origin_px)
+    r0, c0 = _origin(raw.shape, sensor, sensor_origin_px)
     tr, tc = sensor.mosaic_shape
     (lo_r, lo_c), (ny, nx) = _whole_tiles(raw.shape, sensor, r0, c0)
     sub = raw[lo_r - r0:lo_r - r0 + ny * tr, lo_c - c0:lo_c - c0 + nx * tc]
@@ -75,32 +76,34 @@ def mosaic_to_cube(raw, sensor: Sensor, *, origin_px=None, attrs=None):
     return with_positions(cube, rows, cols).assign_coords(sensor.band_coords())
 
 
-def _origin(shape, sensor, origin_px):
+def _origin(shape, sensor, sensor_origin_px):
     """The frame's first pixel on the sensor: given, or (0, 0) for a whole-sensor frame."""
-    if origin_px is not None:
-        o = check_integers("origin_px", origin_px)
+    if sensor_origin_px is not None:
+        o = check_integers("sensor_origin_px", sensor_origin_px)
         if o.shape != (2,) or np.any(o < 0):
-            raise ValueError(f"origin_px must be a sensor row and column (whole numbers >= 0), "
-                             f"got {origin_px!r}")
+            raise ValueError("sensor_origin_px must be a sensor row and column (whole numbers "
+                             f">= 0), got {sensor_origin_px!r}")
         r0, c0 = int(o[0]), int(o[1])
         if sensor.size_px is not None and (r0 + shape[0] > sensor.size_px[0]
                                            or c0 + shape[1] > sensor.size_px[1]):
             raise ValueError(
                 f"a frame of {shape[0]} x {shape[1]} px at sensor row {r0}, column {c0} reaches "
                 f"beyond the sensor {sensor.name!r} ({sensor.size_px[0]} x "
-                f"{sensor.size_px[1]} px): check origin_px (--sensor-origin-px ROW,COL, row "
+                f"{sensor.size_px[1]} px): check sensor_origin_px (--sensor-origin-px ROW,COL, "
+                "row "
                 "first) and the sensor")
         return r0, c0
     if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
         raise ValueError(
             f"the frame is {shape[0]} x {shape[1]} px but the sensor {sensor.name!r} is "
             f"{sensor.size_px[0]} x {sensor.size_px[1]} px: for a crop or a region of interest "
-            "give the sensor row and column of its first pixel (origin_px, --sensor-origin-px "
-            "ROW,COL)")
+            "give the sensor row and column of its first pixel (sensor_origin_px, "
+            "--sensor-origin-px ROW,COL)")
     return 0, 0
 
 
-def frame_area(shape, sensor, origin_px=None):
+@renamed_keywords(origin_px="sensor_origin_px")
+def frame_area(shape, sensor, sensor_origin_px=None):
     """Where a frame sits and which part of it carries filters.
 
     Parameters
@@ -109,7 +112,7 @@ def frame_area(shape, sensor, origin_px=None):
         The frame's rows and columns.
     sensor : Sensor
         A mosaic sensor.
-    origin_px : (int, int), optional
+    sensor_origin_px : (int, int), optional
         Sensor row and column of the frame's first pixel (default: the frame is the whole
         sensor, of its ``size_px``).
 
@@ -123,10 +126,10 @@ def frame_area(shape, sensor, origin_px=None):
     Raises
     ------
     ValueError
-        Of another size than the sensor's without ``origin_px``, or holding less than one tile
-        inside the filter area.
+        Of another size than the sensor's without ``sensor_origin_px``, or holding less than one
+        tile inside the filter area.
     """
-    r0, c0 = _origin(shape, sensor, origin_px)
+    r0, c0 = _origin(shape, sensor, sensor_origin_px)
     (lo_r, lo_c), (hi_r, hi_c) = _filter_part(shape, sensor, r0, c0)
     off = sensor.band_offsets_at((lo_r, lo_c))
     return (lo_r, lo_c), (hi_r - lo_r, hi_c - lo_c), (off[:, 0].copy(), off[:, 1].copy())
@@ -166,7 +169,8 @@ def _dask_stack(arrays, axis):
     return da.stack(arrays, axis=axis)
 
 
-def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
+@renamed_keywords(origin_px="sensor_origin_px")
+def sensor_positions(sensor: Sensor, ny, nx, sensor_origin_px=(0, 0)):
     """Sensor row ``(ny, band)`` and column ``(nx, band)`` of every cube pixel and band.
 
     Parameters
@@ -175,7 +179,7 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
         Its layout; for a mosaic also its tile shape and ``band_offset``.
     ny, nx : int
         Cube rows and columns (tiles, for a mosaic).
-    origin_px : (int, int)
+    sensor_origin_px : (int, int)
         Sensor row and column of the cube's first pixel (for a mosaic, the corner of its first
         tile-sized window, on or off the tile grid: :meth:`Sensor.band_offsets_at`).
 
@@ -186,7 +190,7 @@ def sensor_positions(sensor: Sensor, ny, nx, origin_px=(0, 0)):
         Sensor pixel indices; every band the same for a Snapscan-like layout, each at its own
         offset in the tile for a mosaic.
     """
-    r0, c0 = origin_px
+    r0, c0 = sensor_origin_px
     if sensor.layout == "mosaic":
         tr, tc = sensor.mosaic_shape
         off = sensor.band_offsets_at((r0, c0))

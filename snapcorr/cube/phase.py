@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from .._validation import called_from_outside, renamed_keywords, warn_renamed
 from .mosaic import _filter_part, _origin
 from .sensor import Sensor
 
@@ -100,7 +101,7 @@ class MosaicPhase:
             return None
         return tuple(self.stated_px) == tuple(self.phase_px)
 
-    def origin_px(self, near=(0, 0)):
+    def sensor_origin_px(self, near=(0, 0)):
         """The sensor row and column nearest ``near`` at which a frame's first pixel has the
         phase the white shows, or None where it cannot tell.
 
@@ -119,6 +120,12 @@ class MosaicPhase:
         out = near + step
         out = np.where(out < 0, out + tile, out)
         return tuple(int(v) for v in out)
+
+    def origin_px(self, near=(0, 0)):
+        """The earlier name of :meth:`sensor_origin_px`."""
+        if called_from_outside(2):
+            warn_renamed("MosaicPhase.origin_px", "MosaicPhase.sensor_origin_px")
+        return self.sensor_origin_px(near)
 
     def describe(self) -> str:
         """One paragraph: the phase found (or why none), with the misfits that decide it."""
@@ -211,7 +218,7 @@ def _misfits(means, sensor, degree):
     return out
 
 
-def _frame_means(white, dark, sensor, origin_px, saturation):
+def _frame_means(white, dark, sensor, sensor_origin_px, saturation):
     """The white's tile means relative to the frame's first usable pixel, that pixel's offset
     in the frame, and the stated phase of the frame's first pixel (or None)."""
     w = _as_array(white)
@@ -227,8 +234,8 @@ def _frame_means(white, dark, sensor, origin_px, saturation):
         w = w - d
     whole = sensor.size_px is not None and tuple(w.shape) == tuple(sensor.size_px)
     stated, k = None, (0, 0)
-    if origin_px is not None or whole:
-        r0, c0 = _origin(w.shape, sensor, origin_px)
+    if sensor_origin_px is not None or whole:
+        r0, c0 = _origin(w.shape, sensor, sensor_origin_px)
         (lo_r, lo_c), (hi_r, hi_c) = _filter_part(w.shape, sensor, r0, c0)
         k = (lo_r - r0, lo_c - c0)
         w = w[k[0]:hi_r - r0, k[1]:hi_c - c0]
@@ -262,7 +269,8 @@ def _cube_means(cube, dark, sensor):
     return means, int(good.sum()), (0, 0), stated
 
 
-def mosaic_phase(white, sensor, *, dark=None, origin_px=None, saturation=None,
+@renamed_keywords(origin_px="sensor_origin_px")
+def mosaic_phase(white, sensor, *, dark=None, sensor_origin_px=None, saturation=None,
                  degree=LAMP_DEGREE):
     """Find a mosaic frame's place on the tile grid from a white reference.
 
@@ -276,7 +284,7 @@ def mosaic_phase(white, sensor, *, dark=None, origin_px=None, saturation=None,
         A mosaic sensor with measured responses (a vendor calibration file).
     dark : array_like or sequence, optional
         Dark frame(s), subtracted from a 2-D white.
-    origin_px : (int, int), optional
+    sensor_origin_px : (int, int), optional
         The stated sensor row and column of the frame's first pixel, compared with what the
         white shows (a whole-sensor frame needs none).
     saturation : float, optional
@@ -306,7 +314,7 @@ def mosaic_phase(white, sensor, *, dark=None, origin_px=None, saturation=None,
         sensor.check_cube(white, "the white")
         means, n, k, stated = _cube_means(white, dark, sensor)
     else:
-        means, n, k, stated = _frame_means(white, dark, sensor, origin_px, saturation)
+        means, n, k, stated = _frame_means(white, dark, sensor, sensor_origin_px, saturation)
     if means is None:
         raise ValueError("the white holds no whole tile of usable values (finite, above the "
                          "dark, not saturated)")
@@ -336,7 +344,8 @@ def _decide(misfit, stated, sensor, n):
                        reason + (f" ({n} tiles)" if reason else ""))
 
 
-def check_mosaic_phase(white, sensor, origin_px=None, *, dark=None, saturation=None,
+@renamed_keywords(origin_px="sensor_origin_px")
+def check_mosaic_phase(white, sensor, sensor_origin_px=None, *, dark=None, saturation=None,
                        what="the white"):
     """Refuse a stated origin whose phase the white reference clearly contradicts.
 
@@ -346,7 +355,7 @@ def check_mosaic_phase(white, sensor, origin_px=None, *, dark=None, saturation=N
 
     Parameters
     ----------
-    white, sensor, dark, origin_px, saturation
+    white, sensor, dark, sensor_origin_px, saturation
         As :func:`mosaic_phase`.
     what : str
         What the white is, for the message (``"--white white.npy"``).
@@ -370,7 +379,7 @@ def check_mosaic_phase(white, sensor, origin_px=None, *, dark=None, saturation=N
     if getattr(first, "ndim", 2) == 3 and "mosaic_area_px" not in getattr(first, "attrs", {}):
         return None
     try:
-        found = mosaic_phase(white, sensor, dark=dark, origin_px=origin_px,
+        found = mosaic_phase(white, sensor, dark=dark, sensor_origin_px=sensor_origin_px,
                              saturation=saturation)
     except ValueError as err:  # say which white, for a command's one line
         raise ValueError(f"{what}: {err}") from None
@@ -380,16 +389,16 @@ def check_mosaic_phase(white, sensor, origin_px=None, *, dark=None, saturation=N
         raise ValueError(
             f"{what} is a {shape[0]} x {shape[1]} px crop of the {sensor.size_px[0]} x "
             f"{sensor.size_px[1]} px sensor: give the sensor row and column of its first pixel "
-            "(origin_px, --sensor-origin-px ROW,COL), which set its chief-ray angles; "
+            "(sensor_origin_px, --sensor-origin-px ROW,COL), which set its chief-ray angles; "
             + found.describe())
     if found.agrees is not False:
         return found
     stated_misfit = found.misfit[tuple(found.stated_px)]
     if stated_misfit < RATIO_MIN * found.misfit[tuple(found.phase_px)]:
         return found  # the stated phase is among the nearly equal best
-    near = origin_px if origin_px is not None else (0, 0)
-    shown = found.origin_px(near)
-    stated = ("the whole-sensor frame's" if origin_px is None
+    near = sensor_origin_px if sensor_origin_px is not None else (0, 0)
+    shown = found.sensor_origin_px(near)
+    stated = ("the whole-sensor frame's" if sensor_origin_px is None
               else f"the stated origin {near[0]},{near[1]}'s")
     raise ValueError(
         f"{what} shows the mosaic at another phase than {stated}: {found.describe()}; "

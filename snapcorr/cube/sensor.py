@@ -23,6 +23,7 @@ from .._validation import (
     check_numbers,
     check_pixel_pitch_um,
     check_wavelengths_nm,
+    renamed_keywords,
     shown,
 )
 from .responses import CorrectionMatrix, FilterResponses
@@ -39,7 +40,7 @@ _KEYS = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff", "mosa
 VENDOR_OVERRIDES = ("name", "n_eff", "pixel_pitch_um", "size_px", "bit_depth")
 #: A camera's digital numbers have at most this many bits.
 BIT_DEPTH_MAX = 32
-#: Filter shapes a sensor may name (``snapcorr.optics.PROFILES`` at normal incidence); any
+#: Filter shapes a sensor may name (``snapcorr.optics.FILTER_PROFILES`` at normal incidence); any
 #: other ``profile`` is a file of a measured shape. ``"measured"``: each band's own measured
 #: response (a vendor calibration file).
 PROFILE_NAMES = ("gaussian", "airy", "multi_lorentzian", "pi")
@@ -353,13 +354,14 @@ class Sensor:
             return (0, 0)
         return self.filter_area_px[:2]
 
-    def band_offsets_at(self, origin_px):
+    @renamed_keywords(origin_px="sensor_origin_px")
+    def band_offsets_at(self, sensor_origin_px):
         """Each band's (row, column) inside a tile-sized window whose corner is the sensor
-        pixel ``origin_px``: the band layout follows the origin modulo the tile.
+        pixel ``sensor_origin_px``: the band layout follows the origin modulo the tile.
 
         Parameters
         ----------
-        origin_px : (int, int)
+        sensor_origin_px : (int, int)
             Sensor row and column of the window's corner, anywhere on or off the tile grid.
 
         Returns
@@ -369,7 +371,8 @@ class Sensor:
         if self.layout != "mosaic":
             raise ValueError(f"sensor {self.name!r} is not a mosaic (layout {self.layout!r})")
         tile = np.array(self.mosaic_shape)
-        phase = (np.asarray(origin_px, dtype=np.int64) - np.array(self.tile_origin_px)) % tile
+        corner = np.asarray(sensor_origin_px, dtype=np.int64)
+        phase = (corner - np.array(self.tile_origin_px)) % tile
         return (np.asarray(self.band_offset) - phase) % tile
 
     @property

@@ -7,9 +7,25 @@ from .bandwidth import FWHM_METHODS, FwhmTable, response_fwhm
 from .chief_ray import cra_deg, cra_map, pixel_cra_deg
 from .goossens2019 import PupilCutOffError, kernel, kernel_asymptotic
 from .lens import Lens
-from .mean import METHODS, MODELS, choose_model, mean_shift, select_method
+from .mean import (
+    CORRECTION_MODELS,
+    MEAN_SHIFT_METHODS,
+    METHODS,
+    MODELS,
+    choose_model,
+    mean_shift,
+    select_method,
+)
 from .neff import NeffFit, fit_n_eff
-from .profiles import PROFILES, Airy, Gaussian, MultiLorentzian, PiShaped, Tabulated
+from .profiles import (
+    FILTER_PROFILES,
+    PROFILES,
+    Airy,
+    Gaussian,
+    MultiLorentzian,
+    PiShaped,
+    Tabulated,
+)
 from .response import RESPONSE_METHODS, filter_response
 from .shift import (
     AOI_VALIDITY_DEG,
@@ -22,7 +38,10 @@ from .table import ShiftGrid, ShiftTable
 
 __all__ = [
     "AOI_VALIDITY_DEG",
+    "CORRECTION_MODELS",
+    "FILTER_PROFILES",
     "FWHM_METHODS",
+    "MEAN_SHIFT_METHODS",
     "METHODS",
     "MODELS",
     "PROFILES",

@@ -28,7 +28,7 @@ import numpy as np
 
 from .._validation import check_positive, check_positive_array, validate_method
 from .lens import Lens
-from .profiles import PROFILES
+from .profiles import FILTER_PROFILES
 from .response import kernel_bins, kernel_bins_batch
 from .shift import check_n_eff
 
@@ -52,7 +52,7 @@ def band_profile(profile, cwl_nm, fwhm_nm, n_eff):
     Parameters
     ----------
     profile : str or (offset_nm, transmission)
-        A name of :data:`~snapcorr.optics.PROFILES` (``"gaussian"``, ``"airy"``,
+        A name of :data:`~snapcorr.optics.FILTER_PROFILES` (``"gaussian"``, ``"airy"``,
         ``"multi_lorentzian"``, ``"pi"``), or a measured shape about the band's centre, the
         same for every band: offsets (nm, increasing) and transmissions, zero outside.
     cwl_nm : float
@@ -68,11 +68,11 @@ def band_profile(profile, cwl_nm, fwhm_nm, n_eff):
         ``curve(wavelength_nm)`` -> transmission.
     """
     if isinstance(profile, str):
-        if profile not in PROFILES or profile == "tabulated":
-            names = ", ".join(repr(p) for p in PROFILES if p != "tabulated")
+        if profile not in FILTER_PROFILES or profile == "tabulated":
+            names = ", ".join(repr(p) for p in FILTER_PROFILES if p != "tabulated")
             raise ValueError(f"profile must be one of {names} or (offset_nm, transmission), "
                              f"got {profile!r}")
-        curve = PROFILES[profile](float(cwl_nm), float(fwhm_nm), float(n_eff))
+        curve = FILTER_PROFILES[profile](float(cwl_nm), float(fwhm_nm), float(n_eff))
         return lambda lam: curve(lam, 0.0)
     offset, trans = (np.asarray(v, float) for v in profile)
     return lambda lam: np.interp(np.asarray(lam, float) - cwl_nm, offset, trans, left=0.0,

@@ -6,7 +6,8 @@ written; simulation, calibration and correction all use it.
 
 Pixel (row ``i``, column ``j``) has its centre at ``(row, col) = (i, j)``; the optical
 centre is given the same way, ``center_rc = (row, col)``, and may be fractional or outside the
-image (:mod:`snapcorr._coords`). Inside, the centre is kept x first, ``(cx, cy)``.
+image (:mod:`snapcorr._coords`). Inside, too, the centre is ``center_rc``; the x-first
+``center_px=(cx, cy)`` is the deprecated form, turned into it at the entry points.
 """
 
 from __future__ import annotations
@@ -16,13 +17,8 @@ import warnings
 
 import numpy as np
 
-from .._coords import (
-    CENTER_PX_DEPRECATION,
-    accepts_center_rc,
-    called_from_outside,
-    center_from_rc,
-)
-from .._validation import check_center, check_positive
+from .._coords import CENTER_PX_DEPRECATION, accepts_center_rc, called_from_outside
+from .._validation import check_center, check_center_rc, check_positive
 
 __all__ = ["cra_deg", "cra_map", "image_shape", "pixel_cra_deg", "pixel_tangents"]
 
@@ -51,7 +47,7 @@ def pixel_cra_deg(rows, cols, center_rc, pixel_pitch_um, exit_pupil_mm):
     >>> round(float(pixel_cra_deg(0, 4, (0, 0), 5.5, 21.0)), 4)  # 22 um off axis
     0.06
     """
-    return _cra_deg(rows, cols, center_from_rc(center_rc), pixel_pitch_um, exit_pupil_mm)
+    return _cra_deg_rc(rows, cols, center_rc, pixel_pitch_um, exit_pupil_mm)
 
 
 def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
@@ -69,12 +65,19 @@ def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
         warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx).replace(
             "center_rc=", "pixel_cra_deg(rows, cols, center_rc=") + "; cra_deg will be removed",
             FutureWarning, stacklevel=2)
-    return _cra_deg(rows, cols, (cx, cy), pixel_pitch_um, exit_pupil_mm)
+    return _cra_deg_rc(rows, cols, (cy, cx), pixel_pitch_um, exit_pupil_mm)
 
 
 def _cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
-    """:func:`pixel_cra_deg` with the internal ``(cx, cy)`` centre."""
+    """:func:`pixel_cra_deg` with the centre x first, ``(cx, cy)``, for callers that still
+    keep it so (:mod:`snapcorr.correct.geometry`)."""
     cx, cy = check_center(center_px)
+    return _cra_deg_rc(rows, cols, (cy, cx), pixel_pitch_um, exit_pupil_mm)
+
+
+def _cra_deg_rc(rows, cols, center_rc, pixel_pitch_um, exit_pupil_mm):
+    """:func:`pixel_cra_deg`, the centre ``(row, col)`` checked here."""
+    cy, cx = check_center_rc(center_rc)
     scale = _tan_per_pixel(pixel_pitch_um, exit_pupil_mm)
     dy = (np.asarray(rows, float) - cy) * scale
     dx = (np.asarray(cols, float) - cx) * scale
@@ -88,7 +91,7 @@ def _cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
 
 
 @accepts_center_rc
-def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
+def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None, *, center_rc=None):
     """Chief-ray angle of every pixel of an image, degrees.
 
     Parameters
@@ -117,12 +120,12 @@ def cra_map(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
     >>> round(float(cra[0, 4]), 4)  # 22 um off axis
     0.06
     """
-    tx, ty = pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px)
+    tx, ty = pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_rc=center_rc)
     return np.rad2deg(np.arctan(np.hypot(ty[:, None], tx[None, :])))
 
 
 @accepts_center_rc
-def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
+def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None, *, center_rc=None):
     """``tan`` of the chief ray's components along the columns and the rows, 1-D each.
 
     ``tan(CRA) = hypot(ty[:, None], tx[None, :])``: the separable form of :func:`cra_map`, for
@@ -146,8 +149,8 @@ def pixel_tangents(shape, pixel_pitch_um, exit_pupil_mm, center_px=None):
         Shapes ``(nx,)`` and ``(ny,)``; signed (negative left of and above the centre).
     """
     ny, nx = image_shape(shape)
-    cx, cy = (((nx - 1) / 2.0, (ny - 1) / 2.0) if center_px is None
-              else check_center(center_px))
+    cy, cx = (((ny - 1) / 2.0, (nx - 1) / 2.0) if center_rc is None
+              else check_center_rc(center_rc))
     scale = _tan_per_pixel(pixel_pitch_um, exit_pupil_mm)
     return (np.arange(nx) - cx) * scale, (np.arange(ny) - cy) * scale
 

@@ -39,7 +39,7 @@ from functools import cache
 import numpy as np
 
 from . import discs
-from .pupil import (
+from .aperture import (
     gamma,
     lens_area,
     lens_boundary_arcs,
@@ -335,7 +335,7 @@ def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes, pupil="pa
 
 def max_aoi_deg(x_mm, R_mm, d_mm, P_mm=None, dv_mm=None):
     """Largest angle of incidence of any ray reaching the pixel, degrees (App. B limits)."""
-    r = max_radius_mm(d_mm, R_mm, dv_mm, P_mm)
+    r = max_radius_mm(R_mm, d_mm, P_mm, dv_mm)
     return np.rad2deg(np.arctan(r / np.asarray(x_mm, float)))
 
 
@@ -392,10 +392,10 @@ def kernel(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None):
     x = np.asarray(x_mm, float)
     r = x * _inverse_shift_tan(lam, cwl_nm, n2)
     if P_mm is None:
-        g_ = gamma(r, d_mm, R_mm)
+        g_ = gamma(r, R_mm, d_mm)
         A = np.pi * np.asarray(R_mm, float) ** 2
     else:
-        g_ = gamma(r, d_mm, R_mm, dv_mm, P_mm)
+        g_ = gamma(r, R_mm, d_mm, P_mm, dv_mm)
         A = vignetted_area_mm2(R_mm, P_mm, dv_mm)
     valid = (lam <= 0) & (-(lam / cwl_nm) * (2.0 + lam / cwl_nm) * n2 < 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -435,10 +435,10 @@ def kernel_asymptotic(lam_nm, cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=
     phi = n * np.sqrt(np.clip(-2.0 * lam / cwl_nm, 0.0, None))
     r = x * np.tan(np.clip(phi, 0.0, np.pi / 2 - 1e-9))
     if P_mm is None:
-        g_ = gamma(r, d_mm, R_mm)
+        g_ = gamma(r, R_mm, d_mm)
         A = np.pi * np.asarray(R_mm, float) ** 2
     else:
-        g_ = gamma(r, d_mm, R_mm, dv_mm, P_mm)
+        g_ = gamma(r, R_mm, d_mm, P_mm, dv_mm)
         A = vignetted_area_mm2(R_mm, P_mm, dv_mm)
     k = 2.0 * n * n / cwl_nm * g_ * x * x / A
     return np.where(lam <= 0, k, 0.0)
@@ -510,7 +510,7 @@ def mean_shift_riemann(
 
     # App. B's limits; the exact r_max (equal to Eq. 44 wherever Eq. 44 holds) is also right
     # when the vignetting circle sits wholly inside the pupil.
-    rmax = max_radius_mm(d, R, *circle_args(slice(None))[::-1])
+    rmax = max_radius_mm(R, d, *circle_args(slice(None)))
     s2max = np.sin(np.arctan(rmax / x)) ** 2 / n**2
     lam_min = -cwl * s2max / (1.0 + np.sqrt(1.0 - s2max))  # Eq. (45)
     out = np.empty_like(cwl)

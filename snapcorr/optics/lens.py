@@ -9,16 +9,18 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .._io import read_toml, write_toml
-from .._validation import check_numbers, shown
+from .._validation import called_from_outside, check_numbers, shown, warn_renamed
 
-__all__ = ["PUPILS", "Lens"]
+__all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
 
 
 def _finite(name, value, *, positive=False):
@@ -95,14 +97,17 @@ def _circles(vignetting):
 #: 1 / (2 NA) = 0.5 at least.
 MIN_WORKING_F_NUMBER = 0.5
 
-#: How the light fills the exit pupil. ``"paper"``: Goossens 2019 Eq. (28), a flat disc of
-#: radius ``x / (2 f_W)`` (marginal ray at ``tan(theta) = 1 / (2 f_W)``), every ray weighted
-#: by its area in the pupil plane. ``"lambertian"``: an aplanatic lens (the sine condition,
+#: How the light fills the exit pupil (:attr:`Lens.pupil_radiance`). ``"paper"``: Goossens
+#: 2019 Eq. (28), a flat disc of radius ``x / (2 f_W)`` (marginal ray at ``tan(theta) = 1 /
+#: (2 f_W)``), every ray weighted by its area in the pupil plane. ``"lambertian"``: an
+#: aplanatic lens (the sine condition,
 #: ``sin(theta) = NA = 1 / (2 f_W)``, radius ``x NA / sqrt(1 - NA^2)``) with a Lambertian
 #: pupil, uniform in direction cosines: each ray weighted by ``cos^4(phi)`` per unit area of
 #: the plane (Jacobian of direction cosines over the plane at ``x``). They differ on axis by
 #: about 1.1 nm at f/1.4, 0.3 nm at f/2 and 0.02 nm at f/4 (1000 nm filters, n_eff 1.5).
-PUPILS = ("paper", "lambertian")
+PUPIL_RADIANCE_MODELS = ("paper", "lambertian")
+#: The earlier name of :data:`PUPIL_RADIANCE_MODELS`.
+PUPILS = PUPIL_RADIANCE_MODELS
 
 
 @dataclass(frozen=True)
@@ -131,8 +136,10 @@ class Lens:
         kept as-is through load/save. Only the keys that place the optical axis on another
         sensor are read (``center_rc``, ``center_px``, ``pixel_pitch_um``, ``image_size_px``:
         checked here); the rest is free-form.
-    pupil : {"paper", "lambertian"}
-        How the light fills the exit pupil (:data:`PUPILS`); default the paper's.
+    pupil_radiance : {"paper", "lambertian"}
+        How the light fills the exit pupil, the pupil's radiance model
+        (:data:`PUPIL_RADIANCE_MODELS`); default the paper's. ``pupil`` is its earlier name
+        (a keyword and an attribute, deprecated; the lens file's ``pupil`` key stays).
 
     Examples
     --------
@@ -150,12 +157,11 @@ class Lens:
     pupil_magnification: float = 1.0
     name: str = field(default="", kw_only=True)
     calibration: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
-    pupil: str = field(default="paper", kw_only=True)
+    pupil_radiance: str = field(default="paper", kw_only=True)
 
     def __post_init__(self):
         set_ = object.__setattr__
-        if self.pupil not in PUPILS:
-            raise ValueError(f"pupil must be one of {', '.join(PUPILS)}, got {self.pupil!r}")
+        _check_pupil_radiance("pupil_radiance", self.pupil_radiance)
         if isinstance(self.exit_pupil_mm, str):
             raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
                             "name is a keyword argument: Lens(x, ..., name='...'))")
@@ -197,10 +203,11 @@ class Lens:
 
     def exit_pupil_radius_mm(self, f_number):
         """Exit-pupil radius R: ``x / (2 f_W)``, Eq. (28), for the paper's pupil;
-        ``x NA / sqrt(1 - NA^2)``, ``NA = 1 / (2 f_W)``, for the Lambertian one (:data:`PUPILS`).
+        ``x NA / sqrt(1 - NA^2)``, ``NA = 1 / (2 f_W)``, for the Lambertian one
+        (:data:`PUPIL_RADIANCE_MODELS`).
         """
         fw = self.working_f_number(f_number)
-        if self.pupil == "paper":
+        if self.pupil_radiance == "paper":
             return self.exit_pupil_mm / (2.0 * fw)
         na = 1.0 / (2.0 * fw)
         if np.any(na >= 1.0):
@@ -285,7 +292,7 @@ class Lens:
         """Fraction of the exit pupil left by the vignetting circles (optical vignetting only).
 
         ``A / (pi R^2)`` with ``A`` the area common to the pupil and every circle (Eq. 33-35
-        for one circle, :func:`~snapcorr.optics.pupil.overlap_area_mm2` for any number); 1 for a
+        for one circle, :func:`~snapcorr.optics.aperture.overlap_area_mm2` for any number); 1 for a
         lens without vignetting. Natural (cos^4) vignetting is not included.
 
         Examples
@@ -295,7 +302,7 @@ class Lens:
         array([1.   , 0.766])
         """
         from . import discs
-        from .pupil import overlap_area_mm2
+        from .aperture import overlap_area_mm2
 
         radii, centers = self.pupil_discs(f_number, cra_deg)
         R = radii[0]
@@ -331,8 +338,8 @@ class Lens:
             d["vignetting"] = [{"radius_mm": P, "distance_mm": h} for P, h in self.vignetting]
         d["magnification"] = self.magnification
         d["pupil_magnification"] = self.pupil_magnification
-        if self.pupil != "paper":  # profiles of the paper's pupil stay as they were
-            d["pupil"] = self.pupil
+        if self.pupil_radiance != "paper":  # profiles of the paper's pupil stay as they were
+            d["pupil"] = self.pupil_radiance  # the file's key keeps its name
         return d
 
     @classmethod
@@ -340,11 +347,12 @@ class Lens:
         """Build a lens from a ``[lens]`` table; unknown keys are an error.
 
         A single circle may also be given by the keys ``vignetting_radius_mm`` and
-        ``vignetting_distance_mm`` (the form of earlier profiles).
+        ``vignetting_distance_mm`` (the form of earlier profiles). The key ``pupil`` (or
+        ``pupil_radiance``) is :attr:`pupil_radiance`.
         """
         single = {"vignetting_radius_mm", "vignetting_distance_mm"}
         known = {"name", "exit_pupil_mm", "vignetting", "magnification", "pupil_magnification",
-                 "pupil"}
+                 "pupil", "pupil_radiance"}
         unknown = set(table) - known - single
         if unknown:
             raise ValueError(f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are "
@@ -352,6 +360,9 @@ class Lens:
         if "exit_pupil_mm" not in table:
             raise ValueError("[lens] is missing required key(s) ['exit_pupil_mm']")
         args = {k: v for k, v in table.items() if k not in single}
+        if "pupil" in args and "pupil_radiance" in args:
+            raise ValueError("give the pupil's radiance model once: [lens] pupil, or its other "
+                             "name pupil_radiance")
         given = single & set(table)
         if given:
             if "vignetting" in table:
@@ -391,3 +402,58 @@ class Lens:
         if self.calibration:
             parts.append({"calibration": self.calibration})
         return write_toml(path, parts, overwrite=overwrite)
+
+
+def _check_pupil_radiance(name, value):
+    if value not in PUPIL_RADIANCE_MODELS:
+        raise ValueError(f"{name} must be one of {', '.join(PUPIL_RADIANCE_MODELS)}, got "
+                         f"{value!r}")
+
+
+def _pupil(self):
+    """The earlier name of :attr:`Lens.pupil_radiance` (deprecated)."""
+    if called_from_outside(2):
+        warn_renamed("Lens.pupil", "Lens.pupil_radiance")
+    return self.pupil_radiance
+
+
+Lens.pupil = property(_pupil)
+
+
+def _accepts_pupil(init):
+    """Let ``Lens(...)`` take ``pupil=``, the earlier name of ``pupil_radiance=``. Given, it
+    sets the radiance model, also through ``dataclasses.replace(lens, pupil=...)`` (which
+    passes the lens's ``pupil_radiance`` too)."""
+
+    @functools.wraps(init)
+    def __init__(self, *args, pupil=None, **kwargs):
+        if pupil is not None:
+            outside = _outside_past_dataclasses(2)
+            if outside and "pupil_radiance" in kwargs and _called_directly(2):
+                raise TypeError("Lens: give the pupil's radiance model once, as "
+                                "pupil_radiance=; pupil is its earlier name")
+            if outside:
+                warn_renamed("Lens(pupil=...)", "Lens(pupil_radiance=...)")
+            _check_pupil_radiance("pupil", pupil)
+            kwargs["pupil_radiance"] = pupil
+        init(self, *args, **kwargs)
+
+    return __init__
+
+
+Lens.__init__ = _accepts_pupil(Lens.__init__)
+
+
+def _called_directly(depth):
+    """Whether the code ``depth`` frames up is not :mod:`dataclasses`."""
+    return sys._getframe(depth).f_globals.get("__name__") != "dataclasses"
+
+
+def _outside_past_dataclasses(depth):
+    """Whether the code ``depth`` frames up, past :mod:`dataclasses` (``replace``), is outside
+    snapcorr."""
+    frame = sys._getframe(depth)
+    while frame is not None and frame.f_globals.get("__name__") == "dataclasses":
+        frame = frame.f_back
+    name = frame.f_globals.get("__name__", "") if frame is not None else ""
+    return not (name == "snapcorr" or name.startswith("snapcorr."))

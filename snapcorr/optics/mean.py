@@ -20,6 +20,8 @@ from .table import ShiftGrid, ShiftTable
 __all__ = [
     "AUTO_GRID_MIN_SIZE",
     "AUTO_TABLE_MIN_SIZE",
+    "CORRECTION_MODELS",
+    "MEAN_SHIFT_METHODS",
     "METHODS",
     "MODELS",
     "cached_grid",
@@ -95,21 +97,21 @@ def _geometry(f_number, cra_deg, lens):
 def _vignetted(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d, P, dv)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, pupil=lens.pupil)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv, pupil=lens.pupil_radiance)
 
 
 def _ideal(cwl_nm, n_eff, f_number, cra_deg, lens):
     x, R, d, _, _ = _geometry(f_number, cra_deg, lens)
     g19._check_validity(x, R, d)
-    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, pupil=lens.pupil)
+    return g19.mean_shift_contour(cwl_nm, n_eff, x, R, d, pupil=lens.pupil_radiance)
 
 
 def _paper_pupil_only(lens, what):
     """Refuse a formula derived for the paper's pupil for another one."""
-    if lens.pupil != "paper":
+    if lens.pupil_radiance != "paper":
         raise ValueError(f"{what} is derived for the paper's pupil (Eq. 28, uniform per area), "
-                         f"not the {lens.pupil} one: use method 'vignetted', 'ideal', 'table' "
-                         "or 'auto'")
+                         f"not the {lens.pupil_radiance} one: use method 'vignetted', 'ideal', "
+                         "'table' or 'auto'")
 
 
 def _riemann(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=g19.RIEMANN_STEP_NM):
@@ -172,8 +174,9 @@ def _grid_method(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm=0.001):
     return out
 
 
-#: Named methods of :func:`mean_shift`. Each takes ``(cwl_nm, n_eff, f_number, cra_deg, lens)``.
-METHODS = {
+#: Named methods of :func:`mean_shift`, name -> function (``"auto"``: None, the dispatcher
+#: :func:`select_method` picks). Each takes ``(cwl_nm, n_eff, f_number, cra_deg, lens)``.
+MEAN_SHIFT_METHODS = {
     "vignetted": _vignetted,
     "ideal": _ideal,
     "asymptotic": _asymptotic,
@@ -182,12 +185,14 @@ METHODS = {
     "grid": _grid_method,
     "auto": None,
 }
+#: The earlier name of :data:`MEAN_SHIFT_METHODS`.
+METHODS = MEAN_SHIFT_METHODS
 
 
 def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm=0.001):
     """The method ``"auto"`` uses for each element, as an array of names.
 
-    The rule, cheapest first (the exact rungs of :data:`MODELS`):
+    The rule, cheapest first (the exact rungs of :data:`CORRECTION_MODELS`):
 
     1. ``"asymptotic"`` (Eq. 6) where the pixel is not vignetted (below the onset of Eq. 46,
        or a lens without vignetting circles) and ``ASYMPTOTIC_SAFETY`` times the fourth-order
@@ -222,7 +227,8 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
     not_vign = ~lens.is_vignetted(f_number, cra)
     tan_cone = 1.0 / (2.0 * lens.working_f_number(f_number))
     err = g19.asymptotic_error_estimate_nm(cwl_nm, n_eff, tan_cone, np.tan(np.deg2rad(cra)))
-    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm) & (lens.pupil == "paper")
+    paper = lens.pupil_radiance == "paper"
+    asym = not_vign & (ASYMPTOTIC_SAFETY * np.abs(err) <= tolerance_nm) & paper
     return np.where(asym, "asymptotic", np.where(not_vign, "ideal", "vignetted"))
 
 
@@ -232,7 +238,8 @@ def select_method(n_eff, f_number, cra_deg, lens, *, cwl_nm=1000.0, tolerance_nm
 #: ``"asymptotic"`` is Eq. (6); ``"ideal"`` the exact kernel mean of the full pupil;
 #: ``"vignetted"`` the exact mean of the vignetted pupil (Eq. 22); ``"harmonised"`` that mean
 #: and one common response per band (:mod:`snapcorr.correct.harmonise`), for scenes where the
-#: widening of the response matters too.
+#: widening of the response matters too. The tuple lives in :mod:`snapcorr._names` (the
+#: command line offers it without loading the physics); ``MODELS`` is its earlier name here.
 MODELS = CORRECTION_MODELS
 
 
@@ -260,7 +267,7 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     Returns
     -------
     model, reason : str
-        One of :data:`MODELS`, and a sentence saying why.
+        One of :data:`CORRECTION_MODELS`, and a sentence saying why.
 
     Examples
     --------
@@ -279,7 +286,7 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     if not 0 <= cra_max < 90:
         raise ValueError(f"cra_max_deg must lie in [0, 90), got {cra_max_deg!r}")
     picks = np.atleast_1d(select_method(n, f, cra_max, lens, cwl_nm=cwl, tolerance_nm=tol))
-    model = max((str(m) for m in picks), key=MODELS.index)
+    model = max((str(m) for m in picks), key=CORRECTION_MODELS.index)
     # the largest shift over the field: the kernel mean is monotonic in neither the CRA nor
     # the band alone near the onset, so both ends of the field and every band
     exact = "vignetted" if model == "vignetted" else "ideal"
@@ -294,8 +301,9 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
                        f"at f/{f:g} ({onset:.2f} deg)")
     where = ("no vignetting circle" if not lens.has_vignetting else
              f"every CRA (<= {cra_max:.2f} deg) is below the onset ({onset:.2f} deg)")
-    if lens.pupil != "paper":
-        return model, f"{where}; Eq. 6 holds for the paper's pupil, not this {lens.pupil} one"
+    if lens.pupil_radiance != "paper":
+        return model, (f"{where}; Eq. 6 holds for the paper's pupil, not this "
+                       f"{lens.pupil_radiance} one")
     tan_cone = 1.0 / (2.0 * float(lens.working_f_number(f)))
     err = g19.asymptotic_error_estimate_nm(cwl, n, tan_cone, np.tan(np.deg2rad(cra_max)))
     err = float(np.max(np.abs(err))) * ASYMPTOTIC_SAFETY
@@ -358,7 +366,7 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
     >>> mean_shift(700.0, 1.7, 1.4, [0.0, 20.0], lens).round(3)
     array([-6.593, -8.954])
     """
-    validate_method(method, METHODS)
+    validate_method(method, MEAN_SHIFT_METHODS)
     check_positive("tolerance_nm", tolerance_nm)
     args = (cwl_nm, n_eff, f_number, cra_deg)
     # Every method checks the same things first, so none can fail later in its own way.
@@ -373,9 +381,9 @@ def mean_shift(cwl_nm, n_eff, f_number, cra_deg, lens, *, method="auto", toleran
             raise TypeError(f"lens must be a snapcorr.Lens, got {type(lens).__name__}")
         return np.zeros(shape, np.float32 if low else float)
     if method in ("table", "grid"):
-        out = METHODS[method](*args, lens, tolerance_nm)
+        out = MEAN_SHIFT_METHODS[method](*args, lens, tolerance_nm)
     elif method != "auto":
-        out = METHODS[method](*args, lens)
+        out = MEAN_SHIFT_METHODS[method](*args, lens)
     else:
         out = _auto(*args, lens, tolerance_nm)
     return np.asarray(out, dtype=np.float32) if low else out
@@ -400,7 +408,7 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
     # With several circles a grid takes seconds to build (the boundary's arcs change at more
     # places than its frame pins), so it pays only for far more elements.
     grid_min = AUTO_GRID_MIN_SIZE * (1 if len(lens.vignetting) <= 1 else 20)
-    if np.count_nonzero(todo) >= grid_min and lens.pupil == "paper":  # ShiftGrid's pupil
+    if np.count_nonzero(todo) >= grid_min and lens.pupil_radiance == "paper":  # ShiftGrid's pupil
         idx = np.flatnonzero(todo)
         out[idx] = _grid_method(cwl[idx], n[idx], f[idx], cra[idx], lens, tolerance_nm)
         todo[idx] = False
@@ -412,5 +420,5 @@ def _auto(cwl_nm, n_eff, f_number, cra_deg, lens, tolerance_nm):
         for name in ("asymptotic", "ideal", "vignetted"):
             sub = idx[choice == name]
             if sub.size:
-                out[sub] = METHODS[name](cwl[sub], n[sub], f[sub], cra[sub], lens)
+                out[sub] = MEAN_SHIFT_METHODS[name](cwl[sub], n[sub], f[sub], cra[sub], lens)
     return out.reshape(shape)

@@ -2,7 +2,7 @@
 
 Each profile is a small frozen object, callable as ``profile(wavelength_nm, aoi_deg=0.0)`` for
 the transmission at an angle of incidence in collimated light, with ``cwl_nm`` and ``fwhm_nm``
-attributes. :data:`PROFILES` is the registry.
+attributes. :data:`FILTER_PROFILES` is the registry.
 
 References
 ----------
@@ -25,7 +25,8 @@ from scipy.optimize import brentq
 from .._validation import check_curve, check_positive
 from .shift import check_n_eff, shift_nm
 
-__all__ = ["PROFILES", "Airy", "Gaussian", "MultiLorentzian", "PiShaped", "Tabulated", "fwhm_of"]
+__all__ = ["FILTER_PROFILES", "PROFILES", "Airy", "Gaussian", "MultiLorentzian", "PiShaped",
+           "Tabulated", "fwhm_of"]
 
 #: Flittner & Slater: "the transmittance of the multi-Lorentzian is cut off at wavelengths where
 #: the transmittance is below 5.0 percent of the peak value".
@@ -262,11 +263,13 @@ class Tabulated:
         )
 
 
-#: Registry of filter-profile models.
-PROFILES = {
+#: Registry of filter-profile models: name -> class or constructor of the transmission curve.
+FILTER_PROFILES = {
     "gaussian": Gaussian,
     "airy": Airy.from_passband,
     "multi_lorentzian": MultiLorentzian,
     "pi": PiShaped,
     "tabulated": Tabulated,
 }
+#: The earlier name of :data:`FILTER_PROFILES`.
+PROFILES = FILTER_PROFILES

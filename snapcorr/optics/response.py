@@ -11,10 +11,10 @@ import numpy as np
 
 from .._validation import check_curve, check_positive, validate_method
 from . import rienstra1998
+from .aperture import max_radius_mm, min_radius_mm
 from .goossens2019 import _gauss_legendre, kernel, mean_shift_contour
 from .lens import Lens
 from .mean import _geometry
-from .pupil import max_radius_mm, min_radius_mm
 from .shift import check_n_eff, shift_nm
 
 __all__ = ["RESPONSE_METHODS", "filter_response", "kernel_bins", "kernel_bins_batch"]
@@ -104,9 +104,9 @@ def kernel_bins_batch(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0
     cra = np.asarray(cra_deg, float).ravel()
     x, R, d, P, dv = _geometry(f_number, cra, lens)
     exact = np.broadcast_to(mean_shift_contour(cwl_nm, n_eff, x, R, d, P, dv,  # raises if cut off
-                                               pupil=lens.pupil), cra.shape)
-    rmin = np.broadcast_to(min_radius_mm(d, R, dv, P), cra.shape)
-    rmax = np.broadcast_to(max_radius_mm(d, R, dv, P), cra.shape)
+                                               pupil=lens.pupil_radiance), cra.shape)
+    rmin = np.broadcast_to(min_radius_mm(R, d, P, dv), cra.shape)
+    rmax = np.broadcast_to(max_radius_mm(R, d, P, dv), cra.shape)
     xi, w = _gauss_legendre(nodes)
     edges = []
     for k in range(cra.size):
@@ -137,7 +137,8 @@ def kernel_bins_batch(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0
         lam = mid[..., None] + half[..., None] * xi
         at = which[:, None, None]
         K = kernel(lam, cwl_nm, n_eff, x, R, d[at], *_circles_at(P, dv, at))
-        if lens.pupil == "lambertian":  # each ray by cos^4(phi) = (1 - sin^2 phi)^2 per area
+        # the Lambertian pupil weights each ray by cos^4(phi) = (1 - sin^2 phi)^2 per area
+        if lens.pupil_radiance == "lambertian":
             sin2 = np.clip(n_eff * n_eff * (1.0 - (1.0 + lam / cwl_nm) ** 2), 0.0, 1.0)
             K = K * (1.0 - sin2) ** 2
         mass = (K @ w) * half  # Gauss-Legendre over each bin
@@ -209,9 +210,9 @@ def filter_response(
     validate_method(method, RESPONSE_METHODS)
     p, t = check_curve(wavelength_nm, transmission)
     if method == "rienstra":
-        if lens.pupil != "paper":
+        if lens.pupil_radiance != "paper":
             raise ValueError("Rienstra's ray bundle (1998) weights the paper's pupil; for the "
-                             f"{lens.pupil} one use method='kernel'")
+                             f"{lens.pupil_radiance} one use method='kernel'")
         return rienstra1998.transform(
             p,
             t,

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import check_curve, check_positive
+from .aperture import gamma, max_radius_mm, vignetted_area_mm2
 from .goossens2019 import PupilCutOffError
-from .pupil import gamma, max_radius_mm, vignetted_area_mm2
 from .shift import check_n_eff
 
 __all__ = ["arc_half_angle", "ray_bundle_weights", "shift_factors", "transform"]
@@ -104,7 +104,7 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
             P, dv = [p / x for p in P], [v / x for v in dv]
         else:
             P, dv = P / x, dv / x
-        r_max = float(max_radius_mm(D, A, dv, P))
+        r_max = float(max_radius_mm(A, D, P, dv))
     else:
         r_max = A + D
     theta_max = np.rad2deg(np.arctan(r_max))
@@ -114,7 +114,7 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     R_j = np.tan(t)
     dR = np.tan(t + half) - np.tan(np.clip(t - half, 0.0, None))  # the first ring starts at 0
     if vign:
-        arc = gamma(R_j, D, A, dv, P)
+        arc = gamma(R_j, A, D, P, dv)
         area = vignetted_area_mm2(A, P, dv)
         if area <= 0:
             raise PupilCutOffError(

@@ -146,7 +146,7 @@ class ShiftTable:
             tan_c = np.tan(np.deg2rad(c))
             return g19.mean_shift_contour(1.0, n_eff, x, R, x * tan_c,
                                           *lens.vignetting_args(tan_c), nodes=nodes,
-                                          pupil=lens.pupil)
+                                          pupil=lens.pupil_radiance)
 
         top = np.tan(np.deg2rad(cra_max))
         g19._check_validity(x, R, x * top, *lens.vignetting_args(top))
@@ -379,9 +379,9 @@ class ShiftGrid:
         ShiftGrid
         """
         _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
-        if lens.pupil != "paper":  # the grid's pupil radius is the paper's, x a / 2
-            raise ValueError(f"ShiftGrid covers the paper's pupil only, not the {lens.pupil} "
-                             "one: use a ShiftTable per f-number")
+        if lens.pupil_radiance != "paper":  # the grid's pupil radius is the paper's, x a / 2
+            raise ValueError("ShiftGrid covers the paper's pupil only, not the "
+                             f"{lens.pupil_radiance} one: use a ShiftTable per f-number")
         f_lo, f_hi = sorted(float(v) for v in f_range)
         if not f_hi > f_lo:
             raise ValueError(f"f_range must span an interval, got {f_range!r}; for a single "

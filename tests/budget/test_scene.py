@@ -32,8 +32,8 @@ def _pct(source, cwl, fwhm, shift):
        level=st.floats(1e-6, 1e6))
 def test_a_flat_spectrum_gives_exactly_zero_error_for_any_shift(cwl, fwhm, shifts, level):
     flat = spectra.Spectrum(np.array([200.0, 2000.0]), np.array([level, level]))
-    for name in budget.PROFILES:
-        err = budget.shift_error(flat, budget.PROFILES[name](cwl, fwhm, 1.7), shifts)
+    for name in budget.SIGNAL_PROFILES:
+        err = budget.shift_error(flat, budget.SIGNAL_PROFILES[name](cwl, fwhm, 1.7), shifts)
         assert np.all(err == 0.0)
 
 
@@ -272,10 +272,10 @@ def test_recommend_takes_the_cheapest_model_within_tolerance(sun):
     none, asym, ideal, vig, _har = res
     assert vig < none  # the sun at f/8: correcting helps
     assert b.recommend(none * 1.001)[0] == "none"
-    assert b.recommend(min(asym, ideal, vig) * 1.001)[0] == budget.MODELS[
+    assert b.recommend(min(asym, ideal, vig) * 1.001)[0] == budget.CORRECTION_MODELS[
         1 + int(np.argmax(np.array([asym, ideal, vig]) <= min(asym, ideal, vig) * 1.001))]
     model, reason = b.recommend(min(res) * 0.5)
-    assert model == budget.MODELS[int(np.argmin(res))] and "no model is within" in reason
+    assert model == budget.CORRECTION_MODELS[int(np.argmin(res))] and "no model is within" in reason
     # models given out of order are still tried cheapest first
     b2 = budget.scene_budget(sun, sensor, 8.0, PAPER, cra_max_deg=15.0, n_cra=7,
                              models=("vignetted", "ideal"))

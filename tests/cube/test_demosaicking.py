@@ -21,7 +21,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.ndimage import convolve, uniform_filter
 from vendorfiles import imec_4x4
 
-from snapcorr.cube import Sensor
+from snapcorr.cube import Sensor, mosaic_to_cube
 from snapcorr.cube.demosaicking import (
     DEMOSAIC_METHODS,
     DEMOSAIC_REACH_TILES,
@@ -60,7 +60,7 @@ TOY_3X4 = toy((3, 4), _shuffled(3, 4, 7), size_px=(90, 100), area=(2, 1, 85, 93)
 
 
 def sensors():
-    """name -> (sensor, an origin_px inside its filter area)."""
+    """name -> (sensor, a sensor_origin_px inside its filter area)."""
     return {"4x4": (bundled("mosaic_4x4_vis"), (0, 0)),
             "5x5 vendor": (bundled("imec_5x5_nir"), (3, 0)),
             "2x3": (TOY_2X3, (0, 0)),
@@ -160,7 +160,7 @@ def _scores(which, shape, seeds):
         truth = msfasim.scene_bands(shape, spectra[pick], responses, seed).astype(np.float32)
         frame = msfasim.mosaic(truth, band[:n, :m])
         for method in METHODS:
-            est = demosaic(frame, sensor, method, origin_px=origin).values
+            est = demosaic(frame, sensor, method, sensor_origin_px=origin).values
             psnr[method].append(msfasim.psnr(est, truth, 2 * n))
             sam[method].append(msfasim.sam_deg(est, truth, 2 * n))
     return {k: np.mean(v) for k, v in psnr.items()}, {k: np.mean(v) for k, v in sam.items()}
@@ -190,8 +190,8 @@ def test_accuracy_on_larger_scenes_orders_the_methods(which):
 # -- each band's own samples -------------------------------------------------------------------
 
 
-#: (sensor, frame shape, origin_px): on and off the tile grid, crops cut by the filter area on
-#: either side, and whole-sensor frames without origin_px.
+#: (sensor, frame shape, sensor_origin_px): on and off the tile grid, crops cut by the filter
+#: area on either side, and whole-sensor frames without sensor_origin_px.
 OWN_CASES = {
     "4x4 on the grid": ("4x4", (37, 42), (0, 0)),
     "4x4 off the grid": ("4x4", (37, 42), (5, 7)),
@@ -213,7 +213,7 @@ def test_every_method_keeps_each_bands_own_samples(case, method):
     which, shape, origin = OWN_CASES[case]
     sensor = sensors()[which][0]
     frame = np.random.default_rng(3).integers(0, 4096, shape).astype(np.uint16)
-    cube = demosaic(frame, sensor, method, origin_px=origin)
+    cube = demosaic(frame, sensor, method, sensor_origin_px=origin)
     (rows, cols), band = layout(sensor, shape, origin or (0, 0))
     assert cube.shape == (*band.shape, sensor.n_bands)
     assert_array_equal(own(cube.values, band), frame[rows, cols])
@@ -234,7 +234,7 @@ def test_bilinear_is_the_tent_kernel_of_brauers_and_aach(which, origin, dtype, a
     frame = random_frame(shape, 5, dtype)
     (rows, cols), band = layout(sensor, shape, origin)
     kept = frame[rows, cols].astype(np.float64)
-    cube = demosaic(frame, sensor, "bilinear", origin_px=origin).values
+    cube = demosaic(frame, sensor, "bilinear", sensor_origin_px=origin).values
     assert cube.dtype == dtype
     inner = np.s_[n:-n, m:-m]
     for b in range(sensor.n_bands):
@@ -355,7 +355,7 @@ def test_ppid_is_the_ppi_plus_each_bands_difference_interpolated(which, origin):
     frame = _textured(shape, 4)
     kept = frame[rows, cols]
     ppi = pseudo_panchromatic(kept, n, m)
-    cube = demosaic(frame, sensor, "ppid", origin_px=origin).values
+    cube = demosaic(frame, sensor, "ppid", sensor_origin_px=origin).values
     inner = np.s_[n:-n, m:-m]
     for b in range(sensor.n_bands):
         expected = ppi + convolve(sparse(kept - ppi, band, b), tent(n, m), mode="constant")
@@ -396,7 +396,7 @@ def test_ri_is_a_guided_filter_against_the_ppi_plus_residuals(which, origin):
     frame = _textured(shape, 6)
     kept = frame[rows, cols]
     ppi = pseudo_panchromatic(kept, n, m)
-    cube = demosaic(frame, sensor, "ri", origin_px=origin).values
+    cube = demosaic(frame, sensor, "ri", sensor_origin_px=origin).values
     inner = np.s_[6 * n:-6 * n, 6 * m:-6 * m]
     for b in range(sensor.n_bands):
         expected = brute_ri_band(kept, ppi, band, b, n, m)
@@ -413,7 +413,7 @@ def test_nearest_takes_the_sample_of_the_tile_window_holding_the_pixel(which):
     frame = random_frame(shape, 8)
     (rows, cols), band = layout(sensor, shape, origin)
     kept = frame[rows, cols]
-    cube = demosaic(frame, sensor, "nearest", origin_px=origin).values
+    cube = demosaic(frame, sensor, "nearest", sensor_origin_px=origin).values
     y0, x0 = first_samples(band, sensor.n_bands)
     yy, xx = np.mgrid[0:shape[0], 0:shape[1]]
     for b in range(sensor.n_bands):
@@ -438,7 +438,7 @@ def test_an_affine_scene_is_reproduced(which):
     inner = np.s_[2 * n + 2:-(2 * n + 2), 2 * m + 2:-(2 * m + 2)]
     assert_allclose(pseudo_panchromatic(frame, n, m)[inner], frame[inner], rtol=1e-13)
     for method, margin, rtol in [("bilinear", 1, 1e-13), ("ppid", 3, 1e-13), ("ri", 6, 1e-3)]:
-        cube = demosaic(frame, sensor, method, origin_px=origin).values
+        cube = demosaic(frame, sensor, method, sensor_origin_px=origin).values
         inner = np.s_[margin * n:-margin * n, margin * m:-margin * m]
         assert_allclose(cube[inner], np.broadcast_to(truth, cube.shape)[inner], rtol=rtol,
                         err_msg=method)
@@ -462,13 +462,13 @@ def test_every_value_is_finite_at_the_edges_of_any_frame(which):
         frame = random_frame(shape, sum(shape))
         _, band = layout(sensor, shape, origin)
         for method in METHODS:
-            cube = demosaic(frame, sensor, method, origin_px=origin).values
+            cube = demosaic(frame, sensor, method, sensor_origin_px=origin).values
             what = f"{method} {shape}"
             assert cube.shape == (*shape, sensor.n_bands), what
             assert np.isfinite(cube).all(), what
             assert_array_equal(own(cube, band), frame, err_msg=what)
             grey = demosaic(np.full(shape, 0.37, np.float32), sensor, method,
-                            origin_px=origin).values
+                            sensor_origin_px=origin).values
             assert_allclose(grey, 0.37, rtol=2e-7, err_msg=what)
 
 
@@ -505,7 +505,7 @@ def test_a_missing_value_stays_in_its_own_band(which, method):
     frame = _with_holes(shape, holes)
     assert np.isnan(frame).sum() == len(singles) + (n - 1) * (m - 1)
     _, band = layout(sensor, shape, origin)
-    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, origin_px=origin)
+    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, sensor_origin_px=origin)
     got = np.isnan(cube.values)
     assert got.sum() == np.isnan(frame).sum()
     assert_array_equal(got, _expected_nan(frame, band, sensor.n_bands))
@@ -536,7 +536,7 @@ def test_a_hole_no_wider_than_a_tile_stays_in_its_own_band(which, where, method)
     shape = (10 * n + 2, 10 * m + 1)
     frame = _with_holes(shape, [_hole(where, shape, n, m)])
     _, band = layout(sensor, shape, origin)
-    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, origin_px=origin)
+    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, sensor_origin_px=origin)
     assert_array_equal(np.isnan(cube.values), _expected_nan(frame, band, sensor.n_bands))
     assert not warned
 
@@ -548,7 +548,7 @@ def test_a_hole_too_wide_to_fill_is_warned_of(method):
     sensor, origin = sensors()["4x4"]
     shape = (48, 52)
     frame = _with_holes(shape, [np.s_[:14, :14]])
-    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, origin_px=origin)
+    cube, warned = with_masked_warnings(demosaic, frame, sensor, method, sensor_origin_px=origin)
     assert np.isnan(cube.values).sum() > np.isnan(frame).sum()
     assert len(warned) == 1 and "missing values" in str(warned[0].message)
     # far from the hole every value is there
@@ -565,13 +565,13 @@ def test_a_pixel_reaches_no_further_than_the_declared_halo(tile, method):
     sensor = toy(tile, _shuffled(n, m, 2))
     shape = (2 * reach * n + 4 * n + 1, 2 * reach * m + 4 * m + 3)
     frame = random_frame(shape, 12, np.float64)
-    base = demosaic(frame, sensor, method, origin_px=(0, 0)).values
+    base = demosaic(frame, sensor, method, sensor_origin_px=(0, 0)).values
     for k in range(3):
         py, px = shape[0] // 2 + k, shape[1] // 2 + 2 * k
         for new in (frame[py, px] + 0.5, np.nan):
             changed_frame = frame.copy()
             changed_frame[py, px] = new
-            cube = demosaic(changed_frame, sensor, method, origin_px=(0, 0)).values
+            cube = demosaic(changed_frame, sensor, method, sensor_origin_px=(0, 0)).values
             diff = ~((cube == base) | (np.isnan(cube) & np.isnan(base)))
             y, x, _ = np.nonzero(diff)
             assert np.abs(y - py).max() <= reach * n and np.abs(x - px).max() <= reach * m
@@ -598,9 +598,10 @@ def test_a_dask_frame_gives_the_same_cube_to_the_last_bit(case, method):
     which, shape, origin = DASK_CASES[case]
     sensor = sensors()[which][0]
     frame = _dask_frame(shape)
-    expected = demosaic(frame, sensor, method, origin_px=origin)
+    expected = demosaic(frame, sensor, method, sensor_origin_px=origin)
     for chunks in CHUNKS:
-        lazy = demosaic(da.from_array(frame, chunks=chunks), sensor, method, origin_px=origin)
+        lazy = demosaic(da.from_array(frame, chunks=chunks), sensor, method,
+                        sensor_origin_px=origin)
         assert isinstance(lazy.data, da.Array)
         assert lazy.data.chunks[2] == (sensor.n_bands,)
         got = lazy.compute()
@@ -617,13 +618,13 @@ def test_a_dask_frame_on_a_distributed_cluster_gives_the_same_cube():
     which, shape, origin = DASK_CASES["5x5 vendor"]
     sensor = sensors()[which][0]
     frame = _dask_frame(shape)
-    expected = {method: demosaic(frame, sensor, method, origin_px=origin).values
+    expected = {method: demosaic(frame, sensor, method, sensor_origin_px=origin).values
                 for method in ("ri", "nearest")}
     with (LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                        dashboard_address=":0") as cluster, Client(cluster)):
         for method, values in expected.items():
             lazy = demosaic(da.from_array(frame, chunks=(37, 53)), sensor, method,
-                            origin_px=origin)
+                            sensor_origin_px=origin)
             assert np.array_equal(lazy.values, values, equal_nan=True), method
 
 
@@ -646,9 +647,9 @@ def test_a_stream_of_frames_is_each_frame_demosaicked(method):
     frames = np.stack([random_frame((31, 37), s) for s in range(3)])
     frames[1, 5, 7] = np.nan
     stream = xr.DataArray(frames, dims=("frame", "y", "x"))
-    single = [demosaic(f, sensor, method, origin_px=origin) for f in frames]
+    single = [demosaic(f, sensor, method, sensor_origin_px=origin) for f in frames]
     for data in (frames, da.from_array(frames, chunks=(1, 13, 17))):
-        cube = demosaic(stream.copy(data=data), sensor, method, origin_px=origin)
+        cube = demosaic(stream.copy(data=data), sensor, method, sensor_origin_px=origin)
         assert cube.dims == ("frame", "y", "x", "band")
         for k, one in enumerate(single):
             assert np.array_equal(cube.values[k], one.values, equal_nan=True)
@@ -668,23 +669,25 @@ def test_demosaic_array_refuses_an_unknown_method_only(method):
 
 
 @pytest.mark.parametrize("frame, sensor, kwargs, match", [
-    (np.zeros((3, 10)), "mosaic_4x4_vis", {"origin_px": (0, 0)}, r"holds no whole 4 x 4 tile"),
-    (np.zeros((10, 3)), "mosaic_4x4_vis", {"origin_px": (0, 0)}, r"holds no whole 4 x 4 tile"),
-    (np.zeros((7, 10)), "imec_5x5_nir", {"origin_px": (0, 0)},
+    (np.zeros((3, 10)), "mosaic_4x4_vis", {"sensor_origin_px": (0, 0)},
+     r"holds no whole 4 x 4 tile"),
+    (np.zeros((10, 3)), "mosaic_4x4_vis", {"sensor_origin_px": (0, 0)},
+     r"holds no whole 4 x 4 tile"),
+    (np.zeros((7, 10)), "imec_5x5_nir", {"sensor_origin_px": (0, 0)},
      r"holds no whole 5 x 5 tile inside the filter area"),
     (np.zeros((40, 40)), "mosaic_4x4_vis", {},
      r"the frame is 40 x 40 px but the sensor .* is 1088 x 2048 px.*origin_px"),
-    (np.zeros((8, 8, 16)), "mosaic_4x4_vis", {"origin_px": (0, 0)},
+    (np.zeros((8, 8, 16)), "mosaic_4x4_vis", {"sensor_origin_px": (0, 0)},
      r"2-D mosaic frame, got shape \(8, 8, 16\) \(a cube is already split into bands"),
     (xr.DataArray(np.zeros((8, 8, 16)), dims=("y", "x", "band")), "mosaic_4x4_vis",
-     {"origin_px": (0, 0)},
+     {"sensor_origin_px": (0, 0)},
      r"frame of dims \(y, x\).*got dims \('y', 'x', 'band'\) \(a cube is already split"),
-    (np.zeros(16), "mosaic_4x4_vis", {"origin_px": (0, 0)}, r"2-D mosaic frame"),
-    (np.zeros((8, 8)), "mosaic_4x4_vis", {"origin_px": (-1, 0)},
+    (np.zeros(16), "mosaic_4x4_vis", {"sensor_origin_px": (0, 0)}, r"2-D mosaic frame"),
+    (np.zeros((8, 8)), "mosaic_4x4_vis", {"sensor_origin_px": (-1, 0)},
      r"origin_px must be a sensor row and column \(whole numbers >= 0\)"),
-    (np.zeros((40, 40)), "snapscan_vnir", {"origin_px": (0, 0)},
+    (np.zeros((40, 40)), "snapscan_vnir", {"sensor_origin_px": (0, 0)},
      r"sensor 'snapscan-vnir' is not a mosaic \(layout 'snapscan'\)"),
-    (np.zeros((40, 40)), "mosaic_4x4_vis", {"origin_px": (0, 0), "method": "cubic"},
+    (np.zeros((40, 40)), "mosaic_4x4_vis", {"sensor_origin_px": (0, 0), "method": "cubic"},
      r"unknown demosaic method 'cubic'; choose one of 'nearest', 'bilinear', 'ppid', 'ri'"),
 ], ids=["fewer rows than a tile", "fewer columns than a tile", "no tile in the filter area",
         "not the sensor's size", "a cube", "a cube DataArray", "1-D", "a negative origin",
@@ -716,12 +719,31 @@ def test_the_cube_says_what_it_is_and_where_each_pixel_is():
 
     flat = xr.DataArray(random_frame((30, 33), 2, np.float64), dims=("y", "x"),
                         attrs={"units": "1"})
-    cube = demosaic(flat, bundled("imec_5x5_nir"), "bilinear", origin_px=(1, 2015))
+    cube = demosaic(flat, bundled("imec_5x5_nir"), "bilinear", sensor_origin_px=(1, 2015))
     assert cube.name == "reflectance" and cube.dtype == np.float64
     assert cube.attrs["units"] == "1" and cube.attrs["demosaic_method"] == "bilinear"
     assert cube.attrs["mosaic_area_px"] == [3, 2015, 28, 30]  # cut to the filter area
     assert_array_equal(cube["sensor_row"].values, np.repeat(np.arange(3, 31)[:, None], 25, 1))
     assert_array_equal(cube["sensor_col"].values,
                        np.repeat(np.arange(2015, 2045)[:, None], 25, 1))
-    assert demosaic(flat, bundled("imec_5x5_nir"), "nearest", origin_px=(3, 0),
+    assert demosaic(flat, bundled("imec_5x5_nir"), "nearest", sensor_origin_px=(3, 0),
                     name="estimate").name == "estimate"
+
+
+@pytest.mark.parametrize("call", [
+    lambda sensor, frame, **kw: demosaic(frame, sensor, "nearest", **kw).values,
+    lambda sensor, frame, **kw: mosaic_to_cube(frame, sensor, **kw).values,
+    lambda sensor, frame, **kw: sensor.band_offsets_at(**kw),
+], ids=["demosaic", "mosaic_to_cube", "Sensor.band_offsets_at"])
+def test_origin_px_is_the_earlier_name_of_sensor_origin_px(call):
+    sensor, origin = sensors()["3x4"]
+    frame = np.random.default_rng(5).integers(0, 4096, (24, 32)).astype(np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new name: no warning at all
+        new = call(sensor, frame, sensor_origin_px=origin)
+    with pytest.warns(FutureWarning, match=r"origin_px is the earlier name of sensor_origin_px "
+                                           r"and will be removed in snapcorr 0\.3"):
+        old = call(sensor, frame, origin_px=origin)
+    assert_array_equal(new, old)
+    with pytest.raises(TypeError, match="give sensor_origin_px once"):
+        call(sensor, frame, sensor_origin_px=origin, origin_px=origin)

@@ -103,7 +103,7 @@ def test_every_phase_is_found_under_every_lamp(vendor, light):
         white, dark = white_frame(fx, (64, 96), origin, spectrum, seed=k)
         found = mosaic_phase(white, sensor, dark=dark)
         assert found.phase_px == (pr, pc), (light, origin, found.describe())
-        assert found.origin_px(near=(origin[0] + 1, origin[1] - 1)) == origin
+        assert found.sensor_origin_px(near=(origin[0] + 1, origin[1] - 1)) == origin
         ratios.append(found.ratio)
         # stated right: agrees and passes; stated one row or column off: refused
         assert check_mosaic_phase(white, sensor, origin, dark=dark).agrees
@@ -133,9 +133,9 @@ def test_a_tile_cube_of_the_white_is_checked_too(vendor):
     fx, sensor, _ = vendor
     origin = (512, 1024)
     white, dark = white_frame(fx, (64, 64), origin, lamp("tungsten", fx.grid), seed=3)
-    right = mosaic_to_cube(white - dark, sensor, origin_px=origin)
+    right = mosaic_to_cube(white - dark, sensor, sensor_origin_px=origin)
     assert check_mosaic_phase(right, sensor).agrees
-    wrong = mosaic_to_cube(white - dark, sensor, origin_px=(origin[0] + 1, origin[1] + 1))
+    wrong = mosaic_to_cube(white - dark, sensor, sensor_origin_px=(origin[0] + 1, origin[1] + 1))
     with pytest.raises(ValueError, match="origin with the white's phase is 512,1024"):
         check_mosaic_phase(wrong, sensor, (origin[0] + 1, origin[1] + 1))
 
@@ -254,3 +254,18 @@ def test_a_white_with_nothing_usable_is_refused_naming_it(vendor, crop_files, tm
                            "--sensor-origin-px", "101,202", "--out", str(tmp_path / "ff.nc"))
     assert code != 0 and err.count("\n") == 1, err
     assert f"--white {tmp_path / 'white.npy'}: the white holds no whole tile" in err
+
+
+def test_origin_px_is_the_earlier_name_of_sensor_origin_px(vendor):
+    fx, sensor, _ = vendor
+    origin = (401, 702)
+    white, dark = white_frame(fx, (64, 96), origin, lamp("D65", fx.grid), seed=3)
+    found = mosaic_phase(white, sensor, dark=dark, sensor_origin_px=origin)
+    with pytest.warns(FutureWarning, match="origin_px is the earlier name of sensor_origin_px"):
+        assert mosaic_phase(white, sensor, dark=dark, origin_px=origin).stated_px == \
+            found.stated_px
+    with pytest.warns(FutureWarning, match="MosaicPhase.origin_px is the earlier name of "
+                                           "MosaicPhase.sensor_origin_px"):
+        assert found.origin_px(origin) == found.sensor_origin_px(origin) == origin
+    with pytest.warns(FutureWarning, match="origin_px is the earlier name"):
+        assert check_mosaic_phase(white, sensor, dark=dark, origin_px=origin).agrees

@@ -172,7 +172,7 @@ def test_a_mosaic_pixel_has_each_band_at_its_own_angle():
 
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     raw = np.ones((64, 96), np.float32)
-    cube = mosaic_to_cube(raw, sensor, origin_px=(400, 800))
+    cube = mosaic_to_cube(raw, sensor, sensor_origin_px=(400, 800))
     lens = as_lens(PAPER)
     ds = correct_cube(cube, sensor, 2.0, lens, center_px=(0.0, 0.0))
     cra = ds["cra_deg"].values  # (y, x, band)

@@ -110,7 +110,7 @@ def test_bad_f_number(edmund):
 
 
 def test_overlap_of_two_discs_is_eq33_and_relative_illumination_uses_it():
-    from snapcorr.optics.pupil import overlap_area_mm2, vignetted_area_mm2
+    from snapcorr.optics.aperture import overlap_area_mm2, vignetted_area_mm2
 
     rng = np.random.default_rng(0)
     R, P = rng.uniform(0.5, 8, 20000), rng.uniform(0.5, 8, 20000)
@@ -192,3 +192,34 @@ def test_several_circles_onsets_cutoff_and_description():
     assert lens.cutoff_cra_deg(2.8) == pytest.approx(np.rad2deg(np.arctan(min(pairs))))
     assert "3 circles" in lens.describe_vignetting()
     assert Lens(21.0).describe_vignetting() == "no vignetting circle"
+
+
+def test_pupil_is_the_earlier_name_of_pupil_radiance(tmp_path):
+    import dataclasses
+    import warnings
+
+    from snapcorr.optics.lens import PUPIL_RADIANCE_MODELS, PUPILS
+
+    assert PUPILS is PUPIL_RADIANCE_MODELS
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new name: no warning
+        new = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil_radiance="lambertian")
+        assert new.pupil_radiance == "lambertian"
+        assert dataclasses.replace(new, name="x").pupil_radiance == "lambertian"
+    with pytest.warns(FutureWarning, match=r"Lens\(pupil=\.\.\.\) is the earlier name of "
+                                           r"Lens\(pupil_radiance=\.\.\.\).*0\.3"):
+        old = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil="lambertian")
+    assert old == new
+    with pytest.warns(FutureWarning, match=r"Lens.pupil is the earlier name of "
+                                           r"Lens.pupil_radiance"):
+        assert new.pupil == "lambertian"
+    with pytest.warns(FutureWarning):
+        assert dataclasses.replace(new, pupil="paper").pupil_radiance == "paper"
+    with pytest.raises(TypeError, match="give the pupil's radiance model once"):
+        Lens(21.0, pupil="paper", pupil_radiance="paper")
+    with pytest.raises(ValueError, match="pupil_radiance must be one of paper, lambertian"):
+        Lens(21.0, pupil_radiance="gaussian")
+    # the lens file keeps its key: written and read as before
+    new.save(tmp_path / "l.toml")
+    assert 'pupil = "lambertian"' in (tmp_path / "l.toml").read_text()
+    assert Lens.load(tmp_path / "l.toml").pupil_radiance == "lambertian"

@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from snapcorr import EffectiveIndexWarning, Lens, PupilCutOffError, ShiftTable, mean_shift
-from snapcorr.optics import METHODS, ShiftGrid, select_method, shift_nm
+from snapcorr.optics import MEAN_SHIFT_METHODS, ShiftGrid, select_method, shift_nm
 from snapcorr.optics import goossens2019 as g19
-from snapcorr.optics.pupil import (
+from snapcorr.optics.aperture import (
     lens_area,
     lens_boundary_arcs,
     max_radius_eq44,
@@ -181,7 +181,7 @@ def test_grid_meets_tolerance_on_scattered_pairs(lens, cra_max):
         ShiftGrid.build(1.7, lens, f_range=(2.0, 2.0))
 
 
-@pytest.mark.parametrize("method", [m for m in METHODS])
+@pytest.mark.parametrize("method", [m for m in MEAN_SHIFT_METHODS])
 def test_every_method_broadcasts_and_is_finite(method, edmund):
     cra = np.linspace(0, 20, 6)
     flat = mean_shift(700.0, 1.7, 2.0, cra, edmund, method=method)
@@ -208,7 +208,7 @@ def test_unknown_method_lists_choices(edmund):
     [dict(cra_deg=np.nan), dict(f_number=0.0), dict(n_eff=1.0), dict(cra_deg=95.0),
      dict(f_number=np.inf), dict(cwl_nm=np.nan)],
 )
-@pytest.mark.parametrize("method", list(METHODS))
+@pytest.mark.parametrize("method", list(MEAN_SHIFT_METHODS))
 def test_bad_arguments_raise(bad, method, edmund):
     args = dict(cwl_nm=700.0, n_eff=1.7, f_number=2.0, cra_deg=5.0) | bad
     with pytest.raises(ValueError):
@@ -400,11 +400,11 @@ def test_contour_area_matches_eq33_and_rmax_matches_eq44(f, cra, P, h):
         if alpha > 0:
             pts.append(np.stack([dv - P * np.cos(alpha * u), P * np.sin(alpha * u)]))
         far = max(np.hypot(p[0] - d, p[1]).max() for p in pts)
-        assert_allclose(max_radius_mm(d, R, dv, P), far, rtol=1e-9, atol=1e-9)
+        assert_allclose(max_radius_mm(R, d, P, dv), far, rtol=1e-9, atol=1e-9)
         # The paper's Eq. 44 is never below it (a safe integration limit), except at
         # subnormal CRAs where its 0/0 in Eq. 43 underflows.
         if cra > 1e-6:
-            assert max_radius_eq44(d, R, dv, P) >= far * (1 - 1e-9) - 1e-9
+            assert max_radius_eq44(R, d, P, dv) >= far * (1 - 1e-9) - 1e-9
 
 
 @settings(max_examples=150, deadline=None)
@@ -412,7 +412,7 @@ def test_contour_area_matches_eq33_and_rmax_matches_eq44(f, cra, P, h):
 def test_gamma_is_the_arc_inside_both_circles(r, f, cra, P, h):
     # Eq. 15-18 against a direct count: the fraction of the circle of radius r about the
     # pixel's foot that lies inside the pupil and the vignetting circle is gamma / pi.
-    from snapcorr.optics.pupil import gamma
+    from snapcorr.optics.aperture import gamma
 
     R = X / (2 * f)
     d, dv = X * np.tan(np.deg2rad(cra)), h * np.tan(np.deg2rad(cra))
@@ -423,7 +423,7 @@ def test_gamma_is_the_arc_inside_both_circles(r, f, cra, P, h):
     px, py = d + r * np.cos(psi), r * np.sin(psi)
     inside = (px**2 + py**2 <= R * R) & ((px - dv) ** 2 + py**2 <= P * P)
     regime = X <= h  # Eq. 18 picks its branch by h >= x
-    assert_allclose(gamma(r, d, R, dv, P, h_ge_x=regime) / np.pi, inside.mean(), atol=2e-4)
+    assert_allclose(gamma(r, R, d, P, dv, h_ge_x=regime) / np.pi, inside.mean(), atol=2e-4)
 
 
 @settings(max_examples=100, deadline=None)

@@ -116,7 +116,7 @@ def test_correct_cube_uses_each_bands_measured_curve_at_its_own_place(vendor):
 
     sensor = dataclasses.replace(vendor, n_eff=(1.8,) * 25, pixel_pitch_um=5.5)
     frame = np.random.default_rng(0).uniform(0.2, 0.8, (20, 20)).astype(np.float32)
-    cube = mosaic_to_cube(frame, sensor, origin_px=(40, 60))  # a corner: CRA about 16 deg
+    cube = mosaic_to_cube(frame, sensor, sensor_origin_px=(40, 60))  # a corner: CRA about 16 deg
     ds = correct_cube(cube, sensor, 2.0, PAPER_LENS, method="vignetted")
     assert "measured main lobe" in ds["wavelength_scale"].attrs["source"]
     for b in (2, 21):
@@ -132,7 +132,7 @@ def test_without_n_eff_the_shift_is_refused_and_the_nominal_wavelengths_kept(ven
     from snapcorr.correct import correct_cube
 
     sensor = dataclasses.replace(vendor, pixel_pitch_um=5.5)
-    cube = mosaic_to_cube(np.ones((10, 10), np.float32), sensor, origin_px=(500, 1000))
+    cube = mosaic_to_cube(np.ones((10, 10), np.float32), sensor, sensor_origin_px=(500, 1000))
     with pytest.raises(ValueError, match=r"n_eff.*snapcorr pupil --fit-n-eff"):
         correct_cube(cube, sensor, 2.0, PAPER_LENS)
     ds = correct_cube(cube, sensor, 2.0, PAPER_LENS, method="none")
@@ -180,7 +180,7 @@ def test_eq6_is_not_used_for_measured_responses(vendor):
     from snapcorr.correct import correct_cube
 
     sensor = dataclasses.replace(vendor, n_eff=(1.8,) * 25, pixel_pitch_um=5.5)
-    cube = mosaic_to_cube(np.ones((10, 10), np.float32), sensor, origin_px=(540, 1020))
+    cube = mosaic_to_cube(np.ones((10, 10), np.float32), sensor, sensor_origin_px=(540, 1020))
     with pytest.raises(ValueError, match=r"'asymptotic' is Eq\. 6"):
         correct_cube(cube, sensor, 8.0, PAPER_LENS, method="asymptotic")
     # on the axis at f/8 Eq. 6 would meet the tolerance; measured responses take the table

@@ -4,8 +4,8 @@ from numpy.testing import assert_allclose
 
 from snapcorr.optics import tilted_cwl_nm
 from snapcorr.optics.profiles import (
+    FILTER_PROFILES,
     FWHM_CUT,
-    PROFILES,
     Airy,
     MultiLorentzian,
     PiShaped,
@@ -73,7 +73,7 @@ def test_tabulated_round_trip_and_errors():
 
 
 def test_registry_profiles_are_callable():
-    for name, make in PROFILES.items():
+    for name, make in FILTER_PROFILES.items():
         prof = (
             make(LAM[::1000], np.ones(LAM[::1000].size))
             if name == "tabulated"

@@ -6,9 +6,9 @@ from numpy.testing import assert_allclose
 
 from snapcorr import Lens, mean_shift
 from snapcorr.optics import kernel, kernel_asymptotic
+from snapcorr.optics.aperture import eta
 from snapcorr.optics.mean import _geometry
 from snapcorr.optics.profiles import MultiLorentzian, Tabulated
-from snapcorr.optics.pupil import eta
 from snapcorr.optics.response import filter_response, kernel_bins
 from snapcorr.optics.rienstra1998 import arc_half_angle, ray_bundle_weights, shift_factors
 
@@ -65,7 +65,7 @@ def test_rienstra_arc_angle_is_goossens_eta():
     # Two papers, two derivations of the same arc: Rienstra A-6..A-8 and Goossens Eq. 15.
     rng = np.random.default_rng(7)
     R_j, A, D = rng.uniform(0, 1, 5000), rng.uniform(0.02, 0.5, 5000), rng.uniform(0, 0.6, 5000)
-    assert_allclose(arc_half_angle(R_j, A, D), eta(R_j, D, A), atol=1e-9)
+    assert_allclose(arc_half_angle(R_j, A, D), eta(R_j, A, D), atol=1e-9)
 
 
 @pytest.mark.parametrize("step", [0.25, 0.5])

@@ -1,0 +1,426 @@
+"""The vignetted aperture seen from one pixel: the exit pupil cut by the vignetting circles.
+
+All lengths in mm. A pixel at distance ``d = x tan(CRA)`` from the optical axis (Eq. 8) looks
+at the exit pupil (radius ``R``, on axis, distance ``x``) through the projected vignetting
+circle (radius ``P``, centre ``d_v = h tan(CRA)`` from the axis, Eq. 9). Rays at incidence
+angle ``phi`` meet the pupil plane on a circle of radius ``r = x tan(phi)`` about the pixel's
+foot. The functions here are the paper's, for one circle; where ``P_mm`` and ``dv_mm`` are
+lists (several circles) they hand over to :mod:`snapcorr.optics.discs`. They take the
+geometry in the paper's order, as :mod:`snapcorr.optics.goossens2019` does: the exit pupil's
+radius ``R``, the pixel's distance ``d``, then the circles' radii ``P`` and centres ``d_v``.
+
+References
+----------
+.. [1] T. Goossens et al., Appl. Opt. 58, 1789 (2019), Eq. (8)-(9), (14)-(18), (33)-(35),
+   (43)-(44).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from .discs import _segment, arc_half_angle, extreme_radii
+
+__all__ = [
+    "eta",
+    "gamma",
+    "lens_area",
+    "lens_boundary_arcs",
+    "max_radius_eq44",
+    "max_radius_mm",
+    "min_radius_mm",
+    "nu",
+    "overlap_area_mm2",
+    "vignetted_area_mm2",
+]
+
+
+def _re_arccos(num, den):
+    """``Re(arccos(num / den))`` with ``den >= 0``; ``den == 0`` is the limit num/den -> +-inf."""
+    num, den = np.broadcast_arrays(np.asarray(num, float), np.asarray(den, float))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # At den == 0 a point on the circle's edge counts as inside (num == 0 -> -inf -> pi).
+        z = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, np.inf, -np.inf))
+    # Re(arccos z) = pi for z <= -1 and 0 for z >= 1 (Goossens 2019, after Eq. 15).
+    return np.arccos(np.clip(z, -1.0, 1.0))
+
+
+def eta(r_mm, R_mm, d_mm):
+    """Half-angle of the arc of radius ``r`` about the pixel that lies in the pupil, Eq. (15).
+
+    ``eta = Re(arccos((d^2 - R^2 + r^2) / (2 d r)))``. On axis (``d = 0``) or at ``r = 0``
+    the limit is taken: ``pi`` inside the pupil, 0 outside.
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
+    """
+    r, d, R = (np.asarray(v, float) for v in (r_mm, d_mm, R_mm))
+    return _re_arccos(d * d - R * R + r * r, 2.0 * np.abs(d) * r)
+
+
+def nu(r_mm, dr_mm, P_mm, *, h_ge_x=None):
+    """Arc half-angle set by the vignetting circle, Eq. (17), with ``d_r = d - d_v``.
+
+    Eq. (17) covers both regimes: for ``h >= x`` (``d_r <= 0``) it is the half-angle cut
+    off, Eq. (16); for ``h < x`` the half-angle kept. At ``d_r = 0`` (CRA = 0, or ``h == x``)
+    the value is the limit from the regime's own side, so give ``h_ge_x`` there (default:
+    ``d_r <= 0``).
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    dr_mm : array_like
+        ``d_r = d - d_v``, mm.
+    P_mm : array_like
+        Vignetting-circle radius, mm.
+    h_ge_x : array_like of bool, optional
+        The regime, ``h >= x``.
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
+    """
+    r, dr, P = (np.asarray(v, float) for v in (r_mm, dr_mm, P_mm))
+    ge = (dr <= 0) if h_ge_x is None else np.asarray(h_ge_x, bool)
+    # Eq. (17) with the sign of d_r moved into the numerator keeps the denominator >= 0:
+    # arccos(z / sign(d_r)) = arccos(z) for d_r > 0 and pi - arccos(z) for d_r < 0.
+    a = _re_arccos(dr * dr - P * P + r * r, 2.0 * np.abs(dr) * r)
+    return np.where(ge, np.pi - a, a)
+
+
+def gamma(r_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, h_ge_x=None):
+    """Half-angle of the contributing arc, Eq. (18).
+
+    ``max(eta - nu, 0)`` for ``h >= x`` and ``min(eta, nu)`` for ``h < x``; ``eta`` alone
+    without a vignetting circle (``P_mm=None``). ``h_ge_x`` defaults to ``d_v >= d``. With
+    several circles (``P_mm`` and ``dv_mm`` lists) the arc kept by all of them
+    (:func:`~snapcorr.optics.discs.arc_half_angle`).
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Radius of the arc, ``x tan(phi)``, mm.
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+    h_ge_x : array_like of bool, optional
+        The regime, ``h >= x`` (one circle only).
+
+    Returns
+    -------
+    ndarray
+        Radians in [0, pi], the broadcast shape.
+    """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return arc_half_angle(r_mm, d_mm, [R_mm, *P_mm], [0.0, *dv_mm])
+    e = eta(r_mm, R_mm, d_mm)
+    if P_mm is None:
+        return e
+    d, dv = np.asarray(d_mm, float), np.asarray(dv_mm, float)
+    ge = (dv >= d) if h_ge_x is None else np.asarray(h_ge_x, bool)
+    n = nu(r_mm, d - dv, P_mm, h_ge_x=ge)
+    return np.where(ge, np.maximum(e - n, 0.0), np.minimum(e, n))
+
+
+def vignetted_area_mm2(R_mm, P_mm, dv_mm):
+    """Area of the vignetted exit pupil, Eq. (33)-(35).
+
+    ``A = P^2 (alpha - sin alpha cos alpha) + R^2 (beta - sin beta cos beta)``. With
+    ``d_v = 0`` the limits of Eq. (34)-(35) give the smaller disc. With several circles
+    (``P_mm`` and ``dv_mm`` lists), :func:`overlap_area_mm2` of all of them.
+
+    Parameters
+    ----------
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    P_mm : array_like or list of array_like
+        Vignetting-circle radius, mm; a list for several circles.
+    dv_mm : array_like or list of array_like
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+
+    Returns
+    -------
+    ndarray
+        Area in mm^2, the broadcast shape.
+    """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return overlap_area_mm2([R_mm, *P_mm], [0.0, *dv_mm])
+    R, P, dv = (np.asarray(v, float) for v in (R_mm, P_mm, dv_mm))
+    dv = np.abs(dv)
+    alpha = _re_arccos(P * P - R * R + dv * dv, 2.0 * P * dv)
+    beta = _re_arccos(R * R - P * P + dv * dv, 2.0 * R * dv)
+    # d_v = 0 and P == R: both limits are 0/0; the overlap is the whole pupil.
+    same = (dv == 0) & (P == R)
+    alpha = np.where(same, np.pi, alpha)
+    return (
+        P * P * (alpha - np.sin(alpha) * np.cos(alpha))
+        + R * R * (beta - np.sin(beta) * np.cos(beta)) * ~same
+    )
+
+
+def overlap_area_mm2(radii_mm, centers_mm):
+    """Area common to several discs whose centres lie on one line.
+
+    The exit pupil, the projected vignetting circle (centre ``h tan(CRA)``) and a pixel's own
+    acceptance circle (centre ``x tan(CRA)``, pixel vignetting) all have their centres on the
+    radial line through the pixel, so their intersection is symmetric about that line and its
+    area is ``int 2 min_k c_k(u) du`` with ``c_k`` the half-chord of disc ``k`` at position
+    ``u``. Two half-chords are equal at one ``u`` only (``r_i^2 - (u - c_i)^2`` is linear in
+    ``u`` after subtracting), so between those points a single disc bounds the area, and each
+    piece integrates in closed form (a circular segment). Exact for any number of discs; with
+    two it equals Eq. (33) of Goossens et al. 2019.
+
+    Parameters
+    ----------
+    radii_mm, centers_mm : sequence of array_like
+        One radius (> 0) and one signed centre position per disc; arrays broadcast.
+
+    Returns
+    -------
+    ndarray
+        The common area, mm^2 (0 where the discs do not all overlap).
+
+    Examples
+    --------
+    >>> float(overlap_area_mm2([1.0, 1.0], [0.0, 0.0]))  # doctest: +ELLIPSIS
+    3.14159...
+    >>> float(overlap_area_mm2([1.0, 2.0, 5.0], [0.0, 3.5, 0.0]))
+    0.0
+    """
+    k = len(radii_mm)
+    if k < 1 or len(centers_mm) != k:
+        raise ValueError("need one centre per radius, for at least one disc")
+    both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii_mm, *centers_mm)])
+    r, c = np.asarray(both[:k]), np.asarray(both[k:])
+    lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
+    points = [lo, hi]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(k):
+            for j in range(i + 1, k):
+                u = (r[i] ** 2 - r[j] ** 2 + c[j] ** 2 - c[i] ** 2) / (2.0 * (c[j] - c[i]))
+                points.append(np.clip(np.where(np.isfinite(u), u, lo), lo, hi))
+    pts = np.sort(np.asarray(points), axis=0)
+
+    def antiderivative(u, rk, ck):  # int 2 sqrt(r^2 - t^2) dt
+        t = np.clip((u - ck) / rk, -1.0, 1.0)
+        return rk * rk * (t * np.sqrt(1.0 - t * t) + np.arcsin(t))
+
+    area = np.zeros(lo.shape)
+    for a, b in itertools.pairwise(pts):
+        mid = 0.5 * (a + b)
+        chord2 = r * r - (mid - c) ** 2
+        best = np.argmin(chord2, axis=0)
+        rk = np.take_along_axis(r, best[None], 0)[0]
+        ck = np.take_along_axis(c, best[None], 0)[0]
+        area += np.where(b > a, antiderivative(b, rk, ck) - antiderivative(a, rk, ck), 0.0)
+    return np.where(hi > lo, area, 0.0)[()]
+
+
+def max_radius_eq44(R_mm, d_mm, P_mm=None, dv_mm=None):
+    """Largest ray radius ``r_max`` on the pupil plane as App. B Eq. (43)-(44) states it.
+
+    ``min(R + d, P + d_r)`` for ``h < x``; for ``h >= x``, ``min(R + d, r*)`` with ``r*`` the
+    radius where the pupil and vignetting circles cross, Eq. (43) (``R + d`` where they do not
+    cross). It is exact whenever the vignetting circle is not wholly inside the pupil; when it
+    is (``P < R`` with ``h >= x``) it over-estimates, which is harmless as an integration limit.
+    :func:`max_radius_mm` is exact everywhere.
+
+    Parameters
+    ----------
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    P_mm : array_like, optional
+        Vignetting-circle radius, mm. ``None``: no circle.
+    dv_mm : array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
+    """
+    d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
+    if P_mm is None:
+        return R + d
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    dr = d - dv
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inner = (d - dr) * (d * (P * P - dr * dr) + dr * (d * d - R * R))
+        rstar = np.sqrt(inner) / np.abs(d - dr)
+    rstar = np.where(np.isfinite(rstar), rstar, np.inf)
+    return np.where(dv > d, np.minimum(R + d, rstar), np.minimum(R + d, P + dr))
+
+
+def max_radius_mm(R_mm, d_mm, P_mm=None, dv_mm=None):
+    """Exact largest distance from the pixel's foot to the vignetted pupil, mm.
+
+    The farthest point lies on the boundary (:func:`lens_boundary_arcs`): on an arc of a circle
+    with centre ``c`` and radius ``rho`` the distance ``|c - d + rho e^{it}|`` is monotonic in
+    ``t`` on ``[0, pi]``, so it peaks at an end of the arc. Zero where the pupil is cut off.
+
+    Parameters
+    ----------
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
+    """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[1]
+    d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
+    if P_mm is None:
+        return np.abs(d) + R
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    flip = dv < 0
+    d, dv = np.where(flip, -d, d), np.abs(dv)
+    beta, alpha = lens_boundary_arcs(R, P, dv)
+
+    def dist(c, rho, t):
+        return np.hypot(c - d + rho * np.cos(t), rho * np.sin(t))
+
+    r1 = np.where(beta > 0, np.maximum(dist(0.0, R, 0.0), dist(0.0, R, beta)), 0.0)
+    r2 = np.where(alpha > 0, np.maximum(dist(dv, P, np.pi), dist(dv, P, np.pi - alpha)), 0.0)
+    return np.maximum(r1, r2)
+
+
+def min_radius_mm(R_mm, d_mm, P_mm=None, dv_mm=None):
+    """Smallest distance from the pixel's foot to the vignetted pupil, mm (0 inside it).
+
+    The smallest incidence angle reaching the pixel is ``arctan(r_min / x)``. Outside the
+    region the nearest point is on its boundary, at an end of an arc (see
+    :func:`max_radius_mm`).
+
+    Parameters
+    ----------
+    R_mm : array_like
+        Exit-pupil radius, mm.
+    d_mm : array_like
+        Pixel distance from the axis (Eq. 8), mm.
+    P_mm : array_like or list of array_like, optional
+        Vignetting-circle radius, mm; a list for several circles. ``None``: no circle.
+    dv_mm : array_like or list of array_like, optional
+        Vignetting-circle centre ``h tan(CRA)`` (Eq. 9), mm; a list for several circles.
+
+    Returns
+    -------
+    ndarray
+        Radius in mm, the broadcast shape.
+    """
+    if isinstance(P_mm, (list, tuple)):  # several circles
+        return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[0]
+    d, R = np.abs(np.asarray(d_mm, float)), np.asarray(R_mm, float)
+    if P_mm is None:
+        return np.maximum(d - R, 0.0)
+    dv, P = np.asarray(dv_mm, float), np.asarray(P_mm, float)
+    flip = dv < 0
+    d = np.where(flip, -np.asarray(d_mm, float), np.asarray(d_mm, float))
+    dv = np.abs(dv)
+    beta, alpha = lens_boundary_arcs(R, P, dv)
+
+    def dist(c, rho, t):
+        return np.hypot(c - d + rho * np.cos(t), rho * np.sin(t))
+
+    inf = np.inf
+    r1 = np.where(beta > 0, np.minimum(dist(0.0, R, 0.0), dist(0.0, R, beta)), inf)
+    r2 = np.where(alpha > 0, np.minimum(dist(dv, P, np.pi), dist(dv, P, np.pi - alpha)), inf)
+    inside = (np.abs(d) <= R) & (np.abs(d - dv) <= P)
+    return np.where(inside, 0.0, np.minimum(r1, r2))
+
+
+def lens_boundary_arcs(rho1, rho2, v):
+    """Boundary of the intersection of the pupil disc and the vignetting disc.
+
+    The pupil is centred at 0 with radius ``rho1``, the vignetting disc at ``v >= 0`` on the
+    same axis with radius ``rho2`` (``rho2 = inf`` for no vignetting). By symmetry about the
+    axis the boundary is two mirrored pairs of arcs, given by their half-angles: the pupil arc
+    ``|t| <= beta`` about the pupil's centre, facing the vignetting circle (polar angle ``t``
+    from the +axis), and the vignetting arc ``|tau| <= alpha`` about its centre, facing the
+    pupil (``tau`` from the -axis). These are the ``beta`` and ``alpha`` of Eq. (34)-(35).
+
+    The crossing point's height comes from the triangle (``rho1``, ``rho2``, ``v``) in Heron's
+    factored form, so the angles stay accurate right up to external or internal tangency, where
+    the naive ``sqrt(rho1^2 - a^2)`` loses all its digits.
+
+    Parameters
+    ----------
+    rho1 : array_like
+        Pupil radius.
+    rho2 : array_like
+        Vignetting-disc radius (``inf``: none).
+    v : array_like
+        Distance between the centres (>= 0), in the same unit (mm, or normalised by ``x``).
+
+    Returns
+    -------
+    beta, alpha : ndarray
+        ``(pi, 0)``: the whole pupil; ``(0, pi)``: the whole vignetting disc; ``(0, 0)``:
+        empty (fully cut off).
+    """
+    rho1, rho2, v = np.broadcast_arrays(*(np.asarray(a, float) for a in (rho1, rho2, v)))
+    pupil_inside = v + rho1 <= rho2
+    circle_inside = v + rho2 <= rho1
+    apart = v >= rho1 + rho2
+    crossing = ~(pupil_inside | circle_inside | apart)
+    vs = np.where(crossing, v, 1.0)
+    r1, r2 = np.where(crossing, rho1, 1.0), np.where(crossing, rho2, 1.0)
+    heron = (r1 + r2 - vs) * (r2 + vs - r1) * (r1 + vs - r2) * (r1 + r2 + vs)
+    y = np.sqrt(np.clip(heron, 0.0, None)) / (2.0 * vs)
+    with np.errstate(over="ignore"):
+        beta = np.arctan2(y, (r1 * r1 - r2 * r2 + vs * vs) / (2.0 * vs))
+        alpha = np.arctan2(y, (r2 * r2 - r1 * r1 + vs * vs) / (2.0 * vs))
+    beta = np.where(crossing, beta, np.where(pupil_inside, np.pi, 0.0))
+    alpha = np.where(crossing, alpha, np.where(circle_inside & ~pupil_inside, np.pi, 0.0))
+    return beta, alpha
+
+
+def lens_area(rho1, rho2, beta, alpha):
+    """Area of the vignetted pupil from its arcs: Eq. (33), ``R^2 seg(beta) + P^2 seg(alpha)``
+    with ``seg(t) = t - sin t cos t`` evaluated without cancellation.
+
+    Parameters
+    ----------
+    rho1 : array_like
+        Pupil radius.
+    rho2 : array_like
+        Vignetting-disc radius, same unit (``inf``: none).
+    beta, alpha : array_like
+        The arcs' half-angles from :func:`lens_boundary_arcs`, radians.
+
+    Returns
+    -------
+    ndarray
+        Area in the square of the length unit.
+    """
+    r2 = np.where(np.isfinite(rho2), rho2, 0.0)
+    return rho1 * rho1 * _segment(beta) + r2 * r2 * _segment(alpha)

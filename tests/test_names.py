@@ -1,0 +1,57 @@
+"""Registries say what they hold, once: each name is unique in the package, and the earlier
+names stay as aliases of the same objects."""
+
+import importlib
+import pkgutil
+
+import pytest
+
+import snapcorr
+from snapcorr import _names, budget, demo, optics, simulate
+from snapcorr.budget import signal
+from snapcorr.optics import lens, mean, profiles
+
+#: Earlier name -> the registry it now names, (module, old, new).
+ALIASES = [
+    (_names, "SHIFT_METHODS", "MEAN_SHIFT_METHOD_NAMES"),
+    (mean, "METHODS", "MEAN_SHIFT_METHODS"),
+    (mean, "MODELS", "CORRECTION_MODELS"),
+    (optics, "METHODS", "MEAN_SHIFT_METHODS"),
+    (optics, "MODELS", "CORRECTION_MODELS"),
+    (profiles, "PROFILES", "FILTER_PROFILES"),
+    (optics, "PROFILES", "FILTER_PROFILES"),
+    (signal, "PROFILES", "SIGNAL_PROFILES"),
+    (budget, "PROFILES", "SIGNAL_PROFILES"),
+    (budget, "MODELS", "CORRECTION_MODELS"),
+    (simulate, "METHODS", "ILLUMINATION_METHODS"),
+    (demo, "MODELS", "DEMO_MODELS"),
+    (lens, "PUPILS", "PUPIL_RADIANCE_MODELS"),
+]
+
+
+@pytest.mark.parametrize(("module", "old", "new"), ALIASES,
+                         ids=[f"{m.__name__}.{old}" for m, old, _ in ALIASES])
+def test_an_earlier_registry_name_is_the_same_object(module, old, new):
+    assert getattr(module, old) is getattr(module, new)
+
+
+def test_the_registries_hold_what_they_held():
+    assert tuple(mean.MEAN_SHIFT_METHODS) == _names.MEAN_SHIFT_METHOD_NAMES
+    assert mean.CORRECTION_MODELS is _names.CORRECTION_MODELS
+    assert set(signal.SIGNAL_PROFILES) < set(profiles.FILTER_PROFILES)
+    assert demo.DEMO_MODELS == ("asymptotic", "ideal", "vignetted")
+
+
+def test_each_registry_name_holds_one_thing_in_the_package():
+    """A registry's name (``*_METHODS``, ``*_MODELS``, ``*_PROFILES``) bound in two modules
+    is one object re-exported, never two registries under one name."""
+    held = {}
+    for info in pkgutil.walk_packages(snapcorr.__path__, "snapcorr."):
+        if info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for name, value in vars(module).items():
+            if name.endswith(("_METHODS", "_MODELS", "_PROFILES")) and name.isupper():
+                held.setdefault(name, {})[id(value)] = f"{info.name}.{name}"
+    clashes = {name: sorted(where.values()) for name, where in held.items() if len(where) > 1}
+    assert not clashes, clashes
