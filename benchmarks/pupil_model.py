@@ -57,7 +57,7 @@ def _one(job):
     sensor = Sensor("test", "snapscan", PITCH_UM, CWL, 12.0, N_EFF)
     got = locate_pupil(cubes, sensor, lens=Lens(30.0, ()), fit_n_eff=fit,
                        center_rc=CENTER[::-1], pupil=model)
-    return {"pupil": pupil, "model": model, "chosen": got.lens.pupil,
+    return {"pupil": pupil, "model": model, "chosen": got.lens.pupil_radiance,
             "f_numbers": "+".join(f"f/{f:g}" for f in pair),
             "n_eff": "fitted" if fit else "known", "seed": seed,
             "x_rel_error": got.exit_pupil_mm / X - 1,

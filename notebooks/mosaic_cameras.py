@@ -149,7 +149,7 @@ edge[:, 1000:] *= 0.5  # an edge, sharper than any lens would give
 crop = (slice(500, 540), slice(975, 1025))
 fig, axes = plt.subplots(1, 3, figsize=(12, 3), sharey=True)
 for ax, method in zip(axes, ("nearest", "bilinear", "ri"), strict=True):
-    full = demosaic(edge[crop], sensor, method, origin_px=(500, 975))
+    full = demosaic(edge[crop], sensor, method, sensor_origin_px=(500, 975))
     ax.imshow(full.values[..., 12], cmap="gray", vmin=0, vmax=0.6)
     ax.set(title=f"{method}, band {full.wavelength.values[12]:.0f} nm")
 print("full-resolution cube of the whole frame:",
