@@ -174,7 +174,7 @@ def _stages(spec):
     raw = stage("read", lambda: frames.data[1].compute())
     ff = stage("flatfield", lambda: flatfield(xr.DataArray(raw, dims=("y", "x")), dark, white,
                                               saturation=4095))
-    first = demosaic(ff, sensor, "ri", sensor_origin_px=origin)  # the cube, its area and band phases
+    first = demosaic(ff, sensor, "ri", sensor_origin_px=origin)  # the cube, area, phases
     r0, c0, rows, cols = first.attrs["mosaic_area_px"]
     o0 = origin or (0, 0)
     plane = np.ascontiguousarray(ff["reflectance"].values[r0 - o0[0]:r0 - o0[0] + rows,
