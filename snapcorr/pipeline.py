@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 from types import SimpleNamespace
-from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -23,6 +22,7 @@ import xarray as xr
 from ._coords import accepts_center_rc
 from ._validation import renamed_keywords
 from .correct.resample import resample_cube
+from .correct.virtual import VirtualBandOptions
 from .cube import demosaic, flatfield
 from .cube.flatfield import check_masked
 from .cube.io import BLOCK_BYTES, COMPUTED_WITH
@@ -293,23 +293,6 @@ def _correction_options(method, tolerance_nm, center_px):
     if tolerance_nm is not None:
         options["tolerance_nm"] = tolerance_nm
     return options
-
-
-class VirtualBandOptions(NamedTuple):
-    """The virtual bands asked for (:func:`~snapcorr.correct.virtual_bands`): ``method``
-    (None: none), the vendor ``matrix``'s name, the fitted bands' ``wavelengths_nm`` and
-    ``fwhm_nm``."""
-
-    method: str | None = None
-    matrix: str | None = None
-    wavelengths_nm: object = None
-    fwhm_nm: object = None
-
-    def keywords(self):
-        """As :func:`~snapcorr.correct.correct_cube` takes them."""
-        return {"virtual_bands": self.method, "virtual_matrix": self.matrix,
-                "virtual_wavelengths_nm": self.wavelengths_nm,
-                "virtual_fwhm_nm": self.fwhm_nm}
 
 
 @dataclasses.dataclass

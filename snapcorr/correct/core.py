@@ -22,9 +22,12 @@ from ..cube.sensor import Sensor
 from ..optics import MODELS
 from ..optics.lens import Lens
 from .geometry import _largest_cra_deg
+from .harmonised import HARMONISE_NODE_STEP_DEG as HARMONISE_NODE_STEP_DEG
 from .harmonised import _harmonised
 from .plan import CorrectionPlan, plan_correction
+from .virtual import VirtualBandOptions
 from .wavelengths import DEFAULT_TOLERANCE_NM, _field_max_deg, _model, relative_shift
+from .widths import FWHM_TOLERANCE_NM as FWHM_TOLERANCE_NM
 from .widths import _width_table, _widths_needed, _with_fwhm, _with_lazy_fwhm
 
 __all__ = ["DEFAULT_TOLERANCE_NM", "correct_cube", "relative_shift"]
@@ -125,8 +128,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     if harmonising:
         ds = _harmonised(ds, cube, plan, sensor, lens, target_fwhm_nm)
     if virtual_bands is not None:
-        ds = ds.merge(_virtual(cube, sensor, f, lens, plan.cra_deg, virtual_bands,
-                               virtual_matrix, virtual_wavelengths_nm, virtual_fwhm_nm))
+        ds = ds.merge(_virtual(cube, sensor, lens, plan, VirtualBandOptions(
+            virtual_bands, virtual_matrix, virtual_wavelengths_nm, virtual_fwhm_nm)))
     return _with_provenance(ds, sensor, lens, plan, method)
 
 
@@ -163,12 +166,14 @@ def _with_provenance(ds, sensor, lens, plan, method):
     return ds
 
 
-def _virtual(cube, sensor, f, lens, cra, method, matrix, wavelengths_nm, fwhm_nm):
-    """The virtual bands, each pixel at the mean chief-ray angle of its bands."""
+def _virtual(cube, sensor, lens, plan, options):
+    """The virtual bands (:class:`~snapcorr.correct.virtual.VirtualBandOptions`), each pixel at
+    the mean chief-ray angle of its bands."""
     from .virtual import virtual_bands
 
-    return virtual_bands(cube, sensor, method, f_number=f, lens=lens, cra_deg=cra.mean(axis=2),
-                         matrix=matrix, wavelengths_nm=wavelengths_nm, fwhm_nm=fwhm_nm)
+    return virtual_bands(cube, sensor, options.method, f_number=plan.f_number, lens=lens,
+                         cra_deg=plan.cra_deg.mean(axis=2), matrix=options.matrix,
+                         wavelengths_nm=options.wavelengths_nm, fwhm_nm=options.fwhm_nm)
 
 
 def _dataset(cube, sensor, lens, cra, scale, column, *, source, center_source):
