@@ -97,9 +97,23 @@ def process_frame(raw, dark, white, sensor, *, demosaic_method="ri", sensor_orig
 
 
 def with_transmittance(ds, tr, path=None):
-    """The filter's transmittance (a flat-field result named ``"transmittance"``, of the white
-    seen through the filter) added to a flat-field result ``ds``, in place; ``path``: the
-    file it came from (``filter_white_file``)."""
+    """The filter's transmittance added to a flat-field result, in place.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A flat-field result (:func:`~snapcorr.cube.flatfield`, demosaicked or not).
+    tr : xarray.Dataset
+        The flat-field result of the white seen through the filter, named
+        ``"transmittance"``, of the same size and place.
+    path : str or Path, optional
+        The file it came from (``filter_white_file``).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds``, with ``transmittance``, ``filter_white_raw`` and ``transmittance_mask``.
+    """
     ds["transmittance"] = tr["transmittance"]
     ds["filter_white_raw"] = tr["raw"]
     ds["transmittance_mask"] = tr["mask"].assign_attrs(
@@ -117,8 +131,23 @@ def tile_rows(frame, sensor):
 
 
 def read_mosaic_frame(path, sensor, *, what=None, shape=None):
-    """A raw 2-D mosaic frame, opened once, lazily in whole-tile row blocks
-    (:func:`tile_rows`); refused unless of ``shape`` when given (``what`` names it)."""
+    """A raw 2-D mosaic frame, opened once, lazily in whole-tile row blocks (:func:`tile_rows`).
+
+    Parameters
+    ----------
+    path : str or Path
+    sensor : Sensor
+        The mosaic sensor (its tile's height).
+    what : str, optional
+        How a message names the frame (``"--dark"``).
+    shape : (int, int), optional
+        The frame's shape; another is refused (a reference of another frame's size).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``(y, x)``, dask-backed.
+    """
     from .cube import read_frame
 
     frame = read_frame(path, chunks="rows")
@@ -131,12 +160,24 @@ def read_mosaic_frame(path, sensor, *, what=None, shape=None):
 
 
 def read_cube_or_frame(path, sensor=None, sensor_origin_px=None, *, with_mask=False):
-    """A cube, or a raw mosaic frame split into bands (a mosaic ``sensor``), from any format,
-    in row blocks of about 16 MiB whatever the file's size (ENVI and .npy memory-mapped).
+    """A cube, or a raw mosaic frame split into bands, from any format, in row blocks of
+    about 16 MiB whatever the file's size (ENVI and .npy memory-mapped, never copied whole).
 
-    ``sensor_origin_px`` places a crop that does not record its sensor positions, and must
-    agree with those it records. ``with_mask``: also a flat-field result's ``mask`` (or
-    None), from the same opening.
+    Parameters
+    ----------
+    path : str or Path
+    sensor : Sensor, optional
+        The bands' wavelengths; a mosaic sensor splits a raw 2-D frame into its bands
+        (:func:`~snapcorr.cube.mosaic_to_cube`).
+    sensor_origin_px : (int, int), optional
+        Sensor row and column of the first pixel: places a crop that does not record its
+        sensor positions, and must agree with those it records.
+    with_mask : bool
+        Also a flat-field result's ``mask`` (or None), from the same opening.
+
+    Returns
+    -------
+    xarray.DataArray, or (xarray.DataArray, xarray.DataArray or None)
     """
     cube, mask = _read_cube_or_frame(path, sensor, sensor_origin_px)
     return (cube, mask) if with_mask else cube

@@ -55,7 +55,27 @@ class CorrectionPlan:
 def plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px, *, build_widths,
                     resample, harmonising):
     """``plan`` with every pixel's CRA and scales (and ``resampled``), and the width table
-    when ``build_widths``: harmonising needs it before its pass, so it is built on a second
+    when ``build_widths``.
+
+    Parameters
+    ----------
+    plan : CorrectionPlan
+        The model, f-number, largest CRA and tolerance decided (and a width table if built).
+    cube : xarray.DataArray
+    sensor : Sensor
+    lens : Lens
+    center_px, sensor_origin_px
+        As :func:`~snapcorr.correct.cube_cra_deg` takes them.
+    build_widths, resample, harmonising : bool
+        Build the width table meanwhile; resample; ready the harmonised output.
+
+    Returns
+    -------
+    CorrectionPlan
+
+    Notes
+    -----
+    Harmonising needs the width table before its pass, so it is built on a second
     thread (small arrays, one core; the field's largest CRA is known without the map) while
     this one makes the maps. Then each thread, once done, makes the harmonised output's
     memory ready, a share at a time (:class:`~snapcorr._threads.OutputPages`)."""
