@@ -1,4 +1,4 @@
-"""Thread helpers (snapcorr._threads): an output's memory made ready by whichever threads are
+"""Threads (snapcorr._threads): an output's memory made ready by whichever threads are
 free, a job on a thread of its own, BLAS on one thread."""
 
 import numpy as np
