@@ -3,7 +3,7 @@
 from ..cube.derived import with_fwhm_table
 from .core import correct_cube, relative_shift
 from .geometry import PlacementError, cube_cra_deg, cube_positions, optical_center
-from .resample import resample_to_nominal
+from .resample import resample_cube, resample_to_nominal
 from .virtual import VIRTUAL_METHODS, virtual_bands
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "cube_positions",
     "optical_center",
     "relative_shift",
+    "resample_cube",
     "resample_to_nominal",
     "virtual_bands",
     "with_fwhm_table",

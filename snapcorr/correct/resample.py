@@ -16,10 +16,12 @@ import math
 
 import numba
 import numpy as np
+import xarray as xr
 
+from ..cube.flatfield import cf_attrs
 from ._spectra import sort_samples, spectra_pass
 
-__all__ = ["resample_to_nominal", "sort_samples"]
+__all__ = ["resample_cube", "resample_to_nominal", "sort_samples"]
 
 
 @numba.njit(parallel=True, fastmath=True, boundscheck=False, cache=True)
@@ -98,3 +100,71 @@ def resample_to_nominal(data, scale, column, cwl_nm, out=None):
         spectra_pass(data, scale, column, cwl, np.broadcast_to(np.float64(0.0), data.shape),
                      out, False)
     return out
+
+
+def resample_cube(cube, scale, column, cwl_nm):
+    """A cube's spectra on the nominal wavelengths (:func:`resample_to_nominal` block by block).
+
+    Parameters
+    ----------
+    cube : xarray.DataArray
+        (y, x, band), numpy- or dask-backed.
+    scale : ndarray, shape (ny, nx, m)
+        ``wavelength_scale`` of a correction (:func:`~snapcorr.correct.correct_cube`).
+    column : ndarray of int, shape (nb,)
+        ``scale_index``.
+    cwl_nm : ndarray, shape (nb,)
+        Nominal wavelengths, in the cube's band order (any order).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``resampled`` (y, x, band), lazily for a dask cube; NaN where a nominal wavelength lies
+        outside the pixel's corrected range.
+    """
+    cwl = np.asarray(cwl_nm, float)
+    order = np.argsort(cwl, kind="stable")
+    inverse = np.argsort(order, kind="stable")
+    dtype = _output_dtype(cube)
+
+    in_order = np.array_equal(order, np.arange(order.size))
+
+    def block(data, sc):
+        data = np.asarray(data, dtype)
+        if in_order:  # the usual case: no reordering copies of the cube
+            return resample_to_nominal(data, sc, column, cwl)
+        out = resample_to_nominal(data[..., order], sc, column[order], cwl[order])
+        return out[..., inverse]
+
+    sc = xr.DataArray(scale, dims=("y", "x", "m"))
+    if cube.chunks is not None:
+        # a spectrum is resampled whole: one chunk along band (chunks stay bounded in y, x)
+        cube = cube.chunk({"band": -1})
+        sc = sc.chunk({"y": cube.chunks[0], "x": cube.chunks[1], "m": -1})
+    out = xr.apply_ufunc(block, cube, sc, input_core_dims=[["band"], ["m"]],
+                         output_core_dims=[["band"]], dask="parallelized",
+                         output_dtypes=[dtype])
+    out = out.transpose("y", "x", "band")
+    name = cube.name or "radiance"
+    attrs = {**cf_attrs(name), **cube.attrs}
+    out.attrs = {**_units_of(cube),
+                 "long_name": f"{attrs.get('long_name', name)} on the nominal wavelengths",
+                 "source": f"{name} interpolated linearly from wavelength_corrected onto "
+                           "wavelength",
+                 "note": "NaN where the nominal wavelength lies outside the pixel's corrected "
+                         "range (extrapolation is not done)"}
+    return out
+
+
+def _output_dtype(cube):
+    """Float32 for float32 and small-integer cubes, else float64."""
+    return np.float32 if cube.dtype in (np.float32, np.float16, np.uint8, np.int8, np.uint16,
+                                        np.int16) else np.float64
+
+
+def _units_of(cube):
+    """``{"units": ...}`` of a spectrum computed from ``cube``: the cube's own (or what its
+    name says, :func:`~snapcorr.cube.flatfield.cf_attrs`), none when nothing says ("1" is for
+    ratios only)."""
+    units = {**cf_attrs(cube.name or "radiance"), **cube.attrs}.get("units")
+    return {} if units is None else {"units": units}

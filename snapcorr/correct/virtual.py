@@ -36,6 +36,7 @@ pseudo-panchromatic guide every band shares) smoothed the spectra far more than 
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -45,7 +46,8 @@ from .._threads import one_blas_thread
 from .._validation import validate_method
 from ..cube.flatfield import cf_attrs
 
-__all__ = ["VIRTUAL_METHODS", "apply_virtual", "virtual_bands", "virtual_targets"]
+__all__ = ["VIRTUAL_METHODS", "VirtualBandOptions", "apply_virtual", "virtual_bands",
+           "virtual_targets"]
 
 VIRTUAL_METHODS = ("vendor", "fitted", "angle-aware")
 #: Most pixels the regularisation is chosen from and the error bars averaged over.
@@ -56,6 +58,24 @@ VIRTUAL_TOLERANCE = 5e-4
 #: Chief-ray-angle nodes spanning the field, among which pixels are grouped to choose the
 #: regularisation and at which the expected errors are evaluated.
 GCV_NODES = 5
+
+
+class VirtualBandOptions(NamedTuple):
+    """The virtual bands asked for (:func:`~snapcorr.correct.virtual_bands`): ``method``
+    (None: none), the vendor ``matrix``'s name, the fitted bands' ``wavelengths_nm`` and
+    ``fwhm_nm``."""
+
+    method: str | None = None
+    matrix: str | None = None
+    wavelengths_nm: object = None
+    fwhm_nm: object = None
+
+    def keywords(self):
+        """As :func:`~snapcorr.correct.correct_cube` takes them."""
+        return {"virtual_bands": self.method, "virtual_matrix": self.matrix,
+                "virtual_wavelengths_nm": self.wavelengths_nm,
+                "virtual_fwhm_nm": self.fwhm_nm}
+
 
 
 def _is_reflectance(cube):

@@ -24,7 +24,7 @@ from snapcorr.cube import (
     read_frames,
 )
 from snapcorr.optics import Lens
-from snapcorr.stream import process_stream
+from snapcorr.pipeline import process_stream
 
 ORIGIN = (401, 802)  # a region of interest starting off the tile grid
 ROI = (64, 96)

@@ -12,7 +12,7 @@ import pytest
 from snapcorr.correct.harmonise import harmonise_spectra, node_weights
 from snapcorr.correct.resample import resample_to_nominal
 
-REF = Path(__file__).parent / "data" / "correct_kernels_reference.npz"
+REF = Path(__file__).parent.parent / "data" / "correct_kernels_reference.npz"
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import snapcorr
 import snapcorr.data
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, demosaic, flatfield
-from snapcorr.stream import process_stream
+from snapcorr.pipeline import process_stream
 
 ORIGIN = (300, 500)
 CROP = (slice(300, 360), slice(500, 575))

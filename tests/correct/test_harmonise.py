@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import spectralsim as sim
-import xarray as xr
 from conftest import PAPER_TRUTH
 from flatsim import LensTruth
 
@@ -117,7 +116,7 @@ def test_harmonised_spectra_agree_across_the_field(target, profile, lens, f_numb
 
 def test_the_tabulated_path_is_the_direct_one():
     """A Snapscan cube takes tabulated weights; the direct computation per pixel agrees."""
-    from snapcorr.correct.core import HARMONISE_NODE_STEP_DEG
+    from snapcorr.correct.harmonised import HARMONISE_NODE_STEP_DEG
 
     rng = np.random.default_rng(1)
     ny, nx = 20, 30
@@ -143,155 +142,6 @@ def test_the_tabulated_path_is_the_direct_one():
                                   node_scale=node_scale, node_sigma=node_sigma)
         np.testing.assert_array_equal(np.isnan(direct), np.isnan(table))
         np.testing.assert_allclose(table, direct, atol=atol, equal_nan=True)
-
-
-def test_blocks_give_identical_values_and_the_target_is_checked():
-    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
-    data = np.random.default_rng(2).random((24, 40, CWL.size)).astype(np.float32)
-    cube = make_cube(data, CWL)
-    lens = as_lens(PAPER)
-    a = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0))
-    b = correct_cube(cube.chunk({"y": 7, "x": 9}), sensor, 1.4, lens, harmonise=True,
-                     center_px=(3.0, 2.0))
-    xr.testing.assert_identical(a["harmonised"], b["harmonised"].compute())
-    widest = float(a["fwhm_harmonised"].max())
-    wide = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0),
-                        target_fwhm_nm=widest + 2.0)
-    assert np.all(wide["fwhm_harmonised"].values == widest + 2.0)
-    assert "asked for" in wide["harmonised"].attrs["common_response"]
-    with pytest.raises(ValueError, match="only widens"):
-        correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=(3.0, 2.0),
-                     target_fwhm_nm=12.0)
-    with pytest.raises(ValueError, match="harmonise=True"):
-        correct_cube(cube, sensor, 1.4, lens, target_fwhm_nm=20.0)
-
-
-def test_a_mosaic_is_harmonised_band_by_band():
-    from snapcorr.cube import mosaic_to_cube
-    from snapcorr.data import sensor_path
-
-    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
-    cube = mosaic_to_cube(np.ones((64, 96), np.float32), sensor, origin_px=(400, 800))
-    ds = correct_cube(cube, sensor, 1.4, as_lens(PAPER), center_px=(0.0, 0.0),
-                      harmonise=True, resample=True)
-    h = ds["harmonised"].values
-    # a flat spectrum stays flat: the weights of every output sum to one
-    assert np.allclose(h[np.isfinite(h)], 1.0, atol=1e-5)
-    np.testing.assert_array_equal(np.isnan(h), np.isnan(ds["resampled"].values))
-
-
-def test_bands_listed_out_of_order_give_the_same_spectra():
-    """A sensor may list its bands in any order (a mosaic's tile order): the result is the
-    ordered one's, band for band."""
-    cwl = np.linspace(500.0, 880.0, 20)
-    perm = np.random.default_rng(4).permutation(cwl.size)
-    data = np.random.default_rng(5).random((12, 20, cwl.size)).astype(np.float32)
-    lens = as_lens(PAPER)
-    ref = correct_cube(make_cube(data, cwl), Sensor("a", "snapscan", PITCH, cwl, 12.0,
-                                                          1.8), 1.4, lens, harmonise=True,
-                       center_px=(1.0, 2.0))
-    got = correct_cube(make_cube(data[..., perm], cwl[perm]),
-                       Sensor("b", "snapscan", PITCH, cwl[perm], 12.0, 1.8), 1.4, lens,
-                       harmonise=True, center_px=(1.0, 2.0))
-    np.testing.assert_array_equal(got["harmonised"].values, ref["harmonised"].values[..., perm])
-    np.testing.assert_array_equal(got["fwhm_harmonised"].values,
-                                  ref["fwhm_harmonised"].values[perm])
-
-
-def test_the_width_table_built_alongside_is_waited_for_and_its_errors_reach_the_caller():
-    """The width table is built on a second thread while the scales are made: its result is
-    the one used, its error is the caller's, and an error on this side waits for it (no work
-    left running) and is the one raised."""
-    import threading
-    import time
-
-    from snapcorr.correct import core
-
-    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
-    cube = make_cube(np.random.default_rng(4).random((4, 30, CWL.size)), CWL)
-    lens = as_lens(PAPER)
-    want = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
-    built = core._unlimited_width_table
-    seen = []
-
-    def slow_table(*args):
-        time.sleep(0.3)
-        table = built(*args)
-        seen.append(threading.current_thread() is not threading.main_thread())
-        return table
-
-    def failing_table(*args):
-        raise ValueError("no table here")
-
-    def failing_scales(*args, **kwargs):
-        raise RuntimeError("no scales here")
-
-    limit = core._one_blas_thread
-    limited_on = []
-
-    def spy_limit():  # the process-wide BLAS limit is set and reset on this thread only
-        limited_on.append(threading.current_thread() is threading.main_thread())
-        return limit()
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(core, "_unlimited_width_table", slow_table)
-        mp.setattr(core, "_one_blas_thread", spy_limit)
-        got = correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
-        assert seen == [True] and limited_on == [True]
-        xr.testing.assert_identical(got, want)
-        mp.setattr(core, "_scales", failing_scales)
-        with pytest.raises(RuntimeError, match="no scales here"):
-            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
-        assert seen == [True, True]  # finished before the error left
-        mp.undo()
-        mp.setattr(core, "_unlimited_width_table", failing_table)
-        with pytest.raises(ValueError, match="no table here"):
-            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
-        # both failing: this side's error is raised, and says the table's too
-        mp.setattr(core, "_scales", failing_scales)
-        with pytest.raises(RuntimeError, match="no scales here") as both:
-            correct_cube(cube, sensor, 1.4, lens, harmonise=True, center_px=CENTER)
-        assert any("no table here" in note for note in both.value.__notes__)
-
-
-def test_the_output_readied_in_advance_is_new_memory_and_the_input_is_untouched():
-    sensor = Sensor("t", "snapscan", PITCH, CWL, 12.0, 1.8)
-    data = np.random.default_rng(5).random((5, 20, CWL.size)).astype(np.float32)
-    before = data.copy()
-    cube = make_cube(data, CWL)
-    ds = correct_cube(cube, sensor, 1.4, as_lens(PAPER), harmonise=True, center_px=CENTER)
-    out = ds["harmonised"].values
-    assert out.dtype == np.float32 and not np.shares_memory(out, data)
-    np.testing.assert_array_equal(data, before)
-    # the pass wrote into the array readied for it
-    from snapcorr.correct import core
-
-    readied = []
-    make = core._output_buffer
-
-    def spy(*args):
-        readied.append(make(*args))
-        return readied[-1]
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(core, "_output_buffer", spy)
-        again = correct_cube(cube, sensor, 1.4, as_lens(PAPER), harmonise=True,
-                             center_px=CENTER)["harmonised"].values
-    assert len(readied) == 1 and np.shares_memory(again, readied[0])
-    np.testing.assert_array_equal(again, out)
-    # a wrong array to write into is refused, not written past or over the data
-    args = (data, np.full((5, 20, 1), 0.99), np.zeros(CWL.size, int), CWL, 0.5)
-    for bad in (np.empty((5, 20, CWL.size - 1), np.float32), np.empty(data.shape),
-                np.empty(data.shape[::-1], np.float32).T, data):
-        with pytest.raises(ValueError, match="out must be"):
-            harmonise_spectra(*args, out=bad)
-    chunked = correct_cube(cube.chunk({"y": 2, "x": 7}), sensor, 1.4, as_lens(PAPER),
-                           harmonise=True, center_px=CENTER)
-    np.testing.assert_array_equal(chunked["harmonised"].values, out)
-    # none readied where it would not be written into: a dask cube, bands listed otherwise
-    assert core._output_buffer(cube, CWL).shape == data.shape
-    assert core._output_buffer(cube.chunk({"y": 2}), CWL) is None
-    assert core._output_buffer(cube, CWL[::-1]) is None
 
 
 def test_the_weights_start_on_a_vector_boundary_and_any_copy_gives_the_same_values():
@@ -326,36 +176,3 @@ def test_the_weights_start_on_a_vector_boundary_and_any_copy_gives_the_same_valu
         np.testing.assert_array_equal(got, want)
 
 
-def test_the_output_pages_are_shared_out_between_the_threads_once_each():
-    """Threads claiming shares of the output's memory at once get each element once, every
-    page is touched, and nothing is after a cancel."""
-    import threading
-
-    from snapcorr.correct import core
-
-    out = np.full(3_000_001, np.nan, np.float32)  # 12 MB: 46 shares of 256 kB, one short
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(core._Pages, "SHARE_BYTES", 256 << 10)
-        pages = core._Pages(out)
-        claimed = {0: [], 1: [], 2: []}
-
-        def claim(j):
-            while (share := pages._claim()) is not None:
-                claimed[j].append(share)
-
-        threads = [threading.Thread(target=claim, args=(j,)) for j in claimed]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        shares = sorted((s for got in claimed.values() for s in got), key=lambda s: s.start)
-        assert [s.start for s in shares] == list(range(0, out.size, 65536))
-        assert [s.stop for s in shares] == [*range(65536, out.size, 65536), out.size]
-        assert all(s.step == 1024 for s in shares)
-        core._Pages(out).touch()
-        assert np.all(out[::1024] == 0) and np.all(np.isnan(out[1::1024]))
-        out[:] = np.nan
-        pages = core._Pages(out)
-        pages.cancel()
-        pages.touch()
-        assert np.all(np.isnan(out))

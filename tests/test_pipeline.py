@@ -1,0 +1,141 @@
+"""One pipeline (snapcorr.pipeline): a frame through the steps of PIPELINE_STEPS is what the
+steps give one by one, and reading a frame or cube with its origin is what the command line
+read before the library held it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from snapcorr import cli, data
+from snapcorr.cube import Sensor, demosaic, flatfield, make_cube, write_dataset
+from snapcorr.cube.flatfield import check_masked
+from snapcorr.optics import Lens
+from snapcorr.pipeline import (
+    PIPELINE_STEPS,
+    process_frame,
+    read_cube_or_frame,
+    read_mosaic_frame,
+    tile_rows,
+    with_transmittance,
+)
+
+ORIGIN = (300, 500)
+CROP = (slice(300, 340), slice(500, 550))
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    sensor = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    raw, dark, white = data.mosaic_frames("imec_5x5_nir", seed=1)
+    folder = tmp_path_factory.mktemp("frames")
+    paths = {}
+    for name, frame in (("raw", raw), ("dark", dark), ("white", white)):
+        paths[name] = folder / f"{name}.npy"
+        np.save(paths[name], np.asarray(frame)[CROP])
+    return sensor, paths
+
+
+def test_the_steps_are_flat_field_demosaic_correct_virtual_bands():
+    assert list(PIPELINE_STEPS) == ["flat-field", "demosaic", "correct", "virtual bands"]
+    assert all(callable(step) for step in PIPELINE_STEPS.values())
+
+
+def test_a_frame_is_what_the_steps_give_one_by_one(frames):
+    sensor, paths = frames
+    raw, dark, white = (read_mosaic_frame(paths[k], sensor) for k in ("raw", "dark", "white"))
+    steps = []
+    got = process_frame(raw, [dark], [white], sensor, demosaic_method="bilinear",
+                        sensor_origin_px=ORIGIN, saturation=1023, filter_white=white,
+                        on_step=steps.append)
+    assert steps == ["flat-field", "demosaic"]
+    ff = flatfield(raw, [dark], [white], saturation=1023, dtype="float32")
+    check_masked(ff)
+    want = demosaic(ff, sensor, "bilinear", sensor_origin_px=ORIGIN)
+    tr = demosaic(flatfield(white, [dark], [white], saturation=1023, name="transmittance",
+                            dtype="float32"), sensor, "bilinear", sensor_origin_px=ORIGIN)
+    cli._with_transmittance(want, tr, "fw")
+    del want.attrs["filter_white_file"]
+    assert set(got.variables) == set(want.variables)
+    for name in want.variables:
+        assert np.array_equal(got[name].values, want[name].values, equal_nan=True), name
+
+
+def test_a_frame_corrected_is_the_cube_corrected(frames):
+    from snapcorr.correct import correct_cube
+
+    sensor, paths = frames
+    lens = Lens.load(data.lens_path())
+    raw, dark, white = (read_mosaic_frame(paths[k], sensor) for k in ("raw", "dark", "white"))
+    got = process_frame(raw, dark, white, sensor, demosaic_method="bilinear",
+                        sensor_origin_px=ORIGIN, saturation=1023, lens=lens, f_number=2.8,
+                        resample=True, virtual_bands="vendor")
+    ds = process_frame(raw, dark, white, sensor, demosaic_method="bilinear",
+                       sensor_origin_px=ORIGIN, saturation=1023)
+    want = correct_cube(ds["reflectance"], sensor, 2.8, lens, resample=True,
+                        virtual_bands="vendor")
+    for name in ("resampled", "virtual", "wavelength_corrected", "cra_deg"):
+        assert np.array_equal(got[name].values, want[name].values, equal_nan=True), name
+    assert got.attrs["method"] == want.attrs["method"]
+    with pytest.raises(ValueError, match="both a lens and an f-number"):
+        process_frame(raw, dark, white, sensor, lens=lens)
+
+
+def test_a_frame_or_cube_is_read_as_the_command_line_read_it(frames, tmp_path):
+    sensor, paths = frames
+    got = read_cube_or_frame(paths["raw"], sensor, ORIGIN)
+    want = cli._read(paths["raw"], sensor, ORIGIN)
+    assert np.array_equal(got.values, want.values)
+    xr.testing.assert_identical(got, want)
+    cube = make_cube(np.random.default_rng(0).random((6, 7, 3)).astype(np.float32),
+                     [500.0, 600.0, 700.0])
+    path = tmp_path / "cube.nc"
+    write_dataset(cube.to_dataset(name="radiance"), path)
+    got, mask = read_cube_or_frame(path, with_mask=True)
+    want, want_mask = cli._read_with_mask(path)
+    assert np.array_equal(got.values, want.values) and mask is None and want_mask is None
+
+
+def test_an_origin_the_file_contradicts_is_refused_in_the_same_words(tmp_path):
+    sensor = Sensor("t", "snapscan", 5.5, [500.0, 600.0, 700.0], 10.0, 1.7)
+    cube = make_cube(np.ones((4, 5, 3), np.float32), sensor.cwl_nm)
+    path = tmp_path / "placed.nc"
+    write_dataset(read_cube_or_frame(_written(cube, tmp_path), sensor, (10, 20))
+                  .to_dataset(name="radiance"), path)
+    with pytest.raises(ValueError) as ours:
+        read_cube_or_frame(path, sensor, (11, 20))
+    with pytest.raises(ValueError) as theirs:
+        cli._read(path, sensor, (11, 20))
+    assert str(ours.value) == str(theirs.value) and "disagrees" in str(ours.value)
+
+
+def _written(cube, folder):
+    path = folder / "plain.nc"
+    write_dataset(cube.to_dataset(name="radiance"), path)
+    return path
+
+
+def test_mosaic_frames_are_read_in_whole_tiles_and_checked_for_size(frames):
+    sensor, paths = frames
+    frame = read_mosaic_frame(paths["raw"], sensor)
+    assert tile_rows(frame, sensor) == cli._frame_rows(frame, sensor)
+    assert tile_rows(frame, sensor) % sensor.mosaic_shape[0] == 0
+    assert np.array_equal(frame.values, cli._read_frame_rows(paths["raw"], sensor).values)
+    with pytest.raises(ValueError) as ours:
+        read_mosaic_frame(paths["dark"], sensor, what="--dark", shape=(3, 4))
+    with pytest.raises(ValueError) as theirs:
+        cli._read_frame_checked(paths["dark"], sensor, "--dark", (3, 4))
+    assert str(ours.value) == str(theirs.value)
+
+
+def test_with_transmittance_is_the_command_lines():
+    ds = xr.Dataset({"reflectance": ("x", np.ones(3))})
+    tr = xr.Dataset({"transmittance": ("x", np.full(3, 0.5)), "raw": ("x", np.arange(3.0)),
+                     "mask": ("x", np.zeros(3, bool))})
+    want = cli._with_transmittance(ds.copy(), tr, "fw.npy") or None
+    a, b = ds.copy(), ds.copy()
+    cli._with_transmittance(a, tr, "fw.npy")
+    with_transmittance(b, tr, "fw.npy")
+    xr.testing.assert_identical(a, b)
+    assert want is None
