@@ -27,8 +27,6 @@ from ._options import (
     SENSOR_HELP,
     STORAGE_CHOICES,
     _center_option,
-    _negative_pairs,
-    _Version,
 )
 from ._output import RAW_COPIES
 from ._targets import TARGET_TOLERANCE_HELP
@@ -57,6 +55,35 @@ WORKFLOW = r"""
       --out scene_corrected.nc --plot scene_corrected.png
                                           every pixel's wavelengths
 """
+
+
+class _Version(argparse.Action):
+    """``--version``: the installed version, looked up only when asked (the lookup costs as
+    much as importing numpy)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .. import __version__
+
+        parser._print_message(f"snapcorr {__version__}\n", sys.stdout)
+        parser.exit()
+
+
+def _negative_pairs(argv):
+    """``--pack-range -0.5,3.5`` as ``--pack-range=-0.5,3.5``: argparse takes a value that
+    starts with ``-`` and is not a plain number for an option, and the default range starts
+    with one."""
+    out, rest = [], iter(argv)
+    for arg in rest:
+        if arg == "--pack-range":
+            value = next(rest, None)
+            if value is not None and value.startswith("-") and not value.startswith("--"):
+                out.append(f"--pack-range={value}")
+                continue
+            out.extend([arg] if value is None else [arg, value])
+            continue
+        out.append(arg)
+    return out
+
 
 
 def build_parser():

@@ -42,17 +42,6 @@ def _sensor(value):
     return Sensor.load(value)
 
 
-class _Version(argparse.Action):
-    """``--version``: the installed version, looked up only when asked (the lookup costs as
-    much as importing numpy)."""
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        from .. import __version__
-
-        parser._print_message(f"snapcorr {__version__}\n", sys.stdout)
-        parser.exit()
-
-
 #: Pixel positions further out than this are a typo: no sensor is this wide.
 _MAX_PX = 1_000_000
 
@@ -300,21 +289,3 @@ def _check_virtual_options(args, sensor):
         from ..correct.virtual import virtual_targets
 
         virtual_targets(sensor, args.virtual_wavelengths, args.virtual_fwhm_nm)
-
-
-def _negative_pairs(argv):
-    """``--pack-range -0.5,3.5`` as ``--pack-range=-0.5,3.5``: argparse takes a value that
-    starts with ``-`` and is not a plain number for an option, and the default range starts
-    with one."""
-    out, rest = [], iter(argv)
-    for arg in rest:
-        if arg == "--pack-range":
-            value = next(rest, None)
-            if value is not None and value.startswith("-") and not value.startswith("--"):
-                out.append(f"--pack-range={value}")
-                continue
-            out.extend([arg] if value is None else [arg, value])
-            continue
-        out.append(arg)
-    return out
-
