@@ -13,8 +13,8 @@ from ._options import SENSOR_HELP, _add_center, _lens, _positive, _sensor, add_c
 from ._output import _check_outputs
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = ('which bands and pixels a scene needs corrected, and with which model (signal error of '
-        'the filter shift)')
+HELP = ("which bands and pixels a scene needs corrected, and with which model (signal error of "
+        "the filter shift)")
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

@@ -41,8 +41,8 @@ from ._targets import (
 )
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = ('lens profile (vignetting circles P, h) from flat fields at several f-numbers (Goossens '
-        'Sec. 2.7, 3.2)')
+HELP = ("lens profile (vignetting circles P, h) from flat fields at several f-numbers (Goossens "
+        "Sec. 2.7, 3.2)")
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

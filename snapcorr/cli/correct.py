@@ -28,7 +28,7 @@ from ._output import RAW_COPIES, _check_outputs, _print_virtual, _quicklook, _wr
 from ._progress import _StageBar
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = 'corrected central wavelength of every pixel and band (Eq. 23)'
+HELP = "corrected central wavelength of every pixel and band (Eq. 23)"
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

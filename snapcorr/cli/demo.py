@@ -8,7 +8,7 @@ from ._options import add_command
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = ("the main job on a bundled default: calibrate the paper's lens, correct a simulated cube,"
-        ' write figures')
+        " write figures")
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

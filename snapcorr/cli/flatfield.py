@@ -30,7 +30,7 @@ from ._output import RAW_COPIES, _check_outputs, _quicklook, _stored_type, _writ
 from ._progress import _StageBar
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = 'flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)'
+HELP = "flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)"
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

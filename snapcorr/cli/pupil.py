@@ -33,8 +33,8 @@ from ._targets import (
 )
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = ('exit pupil distance x (and n_eff) from flat-fielded cubes of a spectral target (Goossens'
-        ' et al., OSA Continuum 2019)')
+HELP = ("exit pupil distance x (and n_eff) from flat-fielded cubes of a spectral target (Goossens"
+        " et al., OSA Continuum 2019)")
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

@@ -10,8 +10,7 @@ from ._options import OVERWRITE_HELP, _origin_arg, _sensor, add_command
 from ._output import _check_outputs, _quicklook
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = ('what a sensor file holds: bands, layout, active area, filter responses, correction '
-        'matrices')
+HELP = "what a sensor file holds: bands, layout, active area, filter responses, correction matrices"
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

@@ -8,7 +8,7 @@ from .._names import SHIFT_METHODS
 from ._options import _lens, _positive, add_command
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = 'mean central-wavelength shift at chief-ray angles (Eq. 22-23)'
+HELP = "mean central-wavelength shift at chief-ray angles (Eq. 22-23)"
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""

@@ -28,7 +28,7 @@ from ._output import RAW_COPIES, _check_outputs, _masked_in, _print_virtual, _wr
 from ._progress import _StageBar
 
 #: Its line in ``snapcorr --help``, and the start of its own.
-HELP = 'a stream of raw mosaic frames: flat-field, demosaic and correct each frame'
+HELP = "a stream of raw mosaic frames: flat-field, demosaic and correct each frame"
 
 #: Its examples (its --help shows them; ``snapcorr --help`` shows all).
 EXAMPLES = r"""
