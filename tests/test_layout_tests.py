@@ -49,7 +49,6 @@ UNTESTED = {
     "snapcorr.calibrate.stages",
     "snapcorr.calibrate.target_model",
     "snapcorr.calibrate.unknown_lens",
-    "snapcorr.cli",
     "snapcorr.correct._spectra",
     "snapcorr.correct.geometry",
     "snapcorr.cube.attrs",

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._bundled import profile_path
 from .._io import read_toml, write_toml
 from .._validation import (
     N_EFF_MAX,
@@ -591,8 +592,13 @@ class Sensor:
     def load(cls, path) -> Sensor:
         """Read a sensor description: a TOML with a ``[sensor]`` table, the vendor's
         calibration ``.xml``, or a TOML whose ``[sensor]`` names one (``vendor_file``,
-        relative to the TOML) and adds or overrides :data:`VENDOR_OVERRIDES`."""
-        path = Path(path)
+        relative to the TOML) and adds or overrides :data:`VENDOR_OVERRIDES`; or a bundled
+        description by name (``"snapscan_vnir"``).
+
+        A value with the suffix ``.toml`` or ``.xml``, or naming a file that exists, is read as
+        a file; another is the name of a bundled sensor (:func:`snapcorr.data.sensor_path`).
+        """
+        path = profile_path("sensor", path)
         if path.suffix.lower() == ".xml":
             return cls.from_vendor(path)
         doc = read_toml(path, "sensor", "sensor description")

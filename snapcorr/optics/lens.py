@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._bundled import profile_path
 from .._io import read_toml, write_toml
 from .._validation import called_from_outside, check_numbers, shown, warn_renamed
 
@@ -381,7 +382,13 @@ class Lens:
 
     @classmethod
     def load(cls, path) -> Lens:
-        """Read a lens profile (TOML with a ``[lens]`` table and optional ``[calibration]``)."""
+        """Read a lens profile (TOML with a ``[lens]`` table and optional ``[calibration]``),
+        from a file or a bundled one by name (``"edmund_optics_16mm"``).
+
+        A value with the suffix ``.toml``, or naming a file that exists, is read as a file;
+        another is the name of a bundled profile (:func:`snapcorr.data.lens_path`).
+        """
+        path = profile_path("lens", path)
         doc = read_toml(path, "lens", "lens profile")
         try:
             return cls.from_dict(doc["lens"], calibration=doc.get("calibration"))

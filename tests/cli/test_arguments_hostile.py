@@ -58,7 +58,7 @@ def test_spectrum_files_that_are_not_spectra_are_one_line(small, cli, make, matc
 def test_an_output_never_replaces_a_bundled_profile(tmp_path, cli):
     """A bundled lens given by name is an input like any other, and the bundled profiles are
     never replaced, whatever --overwrite says."""
-    from snapcorr.cli import _check_outputs
+    from snapcorr.cli._output import _check_outputs
 
     target = lens_path()
     before = target.read_bytes()

@@ -273,7 +273,7 @@ def test_the_pixel_pitch_is_the_sensors_or_asked_for(flats, cli):
     import types
 
     import snapcorr.data
-    from snapcorr.cli import _pitch_option
+    from snapcorr.cli._flats import _pitch_option
     from snapcorr.cube import Sensor
 
     args = types.SimpleNamespace(pixel_pitch_um=None, sensor="imec_5x5_nir")

@@ -138,13 +138,14 @@ class _Terminal(io.StringIO):
 
 def test_each_stage_shows_one_labelled_progress_bar(tmp_path, monkeypatch):
     from snapcorr import cli
+    from snapcorr.cli import _progress
 
     monkeypatch.chdir(tmp_path)
     wl = [500.0, 600.0, 700.0, 800.0]
     Sensor("s", "snapscan", 5.5, wl, 10.0, 1.7).save(tmp_path / "s.toml")
     for name, value in (("raw", 1500.0), ("dark", 100.0), ("white", 3100.0)):
         np.save(tmp_path / f"{name}.npy", np.full((40, 30, 4), value, np.float32))
-    monkeypatch.setattr(cli._StageBar, "DELAY_S", 0)  # show at once, on a terminal
+    monkeypatch.setattr(_progress._StageBar, "DELAY_S", 0)  # show at once, on a terminal
     err = _Terminal()
     monkeypatch.setattr(sys, "stderr", err)
     assert cli.main(["flatfield", "raw.npy", "--dark", "dark.npy", "--white", "white.npy",

@@ -31,7 +31,7 @@ def test_in_process_runs_leave_no_global_state(cli, monkeypatch):
     """``main(argv)`` called from Python gives the caller's process back as it was: signal
     handlers, warning filters, hooks (``cli`` checks this after every run), also after an
     interruption; and the check itself notices a handler left behind."""
-    from snapcorr import cli as cli_module
+    from snapcorr.cli import shift
 
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     filters = list(warnings.filters)
@@ -42,7 +42,7 @@ def test_in_process_runs_leave_no_global_state(cli, monkeypatch):
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli_module, "_cmd_shift", interrupted)
+    monkeypatch.setattr(shift, "run", interrupted)
     res = cli("shift", "--f-number", "2", "--cra", "1")
     assert res.returncode == 130 and "interrupted" in res.stderr
     assert {s: signal.getsignal(s) for s in handlers} == handlers
@@ -54,7 +54,7 @@ def test_in_process_runs_leave_no_global_state(cli, monkeypatch):
         signal.signal(signal.SIGINT, lambda *_: None)
         return 0
 
-    monkeypatch.setattr(cli_module, "_cmd_shift", leaky)
+    monkeypatch.setattr(shift, "run", leaky)
     try:
         with pytest.raises(AssertionError, match="left global state behind"):
             cli("shift", "--f-number", "2", "--cra", "1")

@@ -12,21 +12,6 @@ from snapcorr.cube import Sensor, read_dataset
 LENS = "edmund_optics_16mm"
 
 
-def test_sensor_prints_what_the_file_holds_and_writes_an_equivalent_toml(tmp_path, cli):
-    rc, out, err = cli("sensor", str(VENDOR_XML), "--toml", str(tmp_path / "s.toml"),
-                       "--plot", str(tmp_path / "s.png"))
-    assert rc == 0, err
-    for words in ("25 bands", "5 x 5 tile", "filter area rows 3-1082, columns 0-2044",
-                  "pixel pitch not given", "n_eff: not given", "snapcorr pupil --fit-n-eff",
-                  "bandpass_600xi-875eo", "606-873 nm", "correction matrix 'custom' (irradiance)",
-                  "  2  (0,2)", "add n_eff"):
-        assert words in out, words
-    assert Sensor.load(tmp_path / "s.toml") == Sensor.load(VENDOR_XML)
-    assert (tmp_path / "s.png").stat().st_size > 10_000
-    rc, _, err = cli("sensor", str(tmp_path / "missing.xml"))
-    assert rc == 1 and err.count("\n") == 1 and "not found" in err
-
-
 def _frames(tmp_path, sensor):
     """Whole-sensor raw, dark and white frames of a flat grey target: 0.4 of the white."""
     rng = np.random.default_rng(0)

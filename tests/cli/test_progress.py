@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from snapcorr import cli as cli_module
+from snapcorr.cli import _progress
 
 #: tqdm's bar of a stream at its end: frames done of all, elapsed<left, and the rate.
 FRAMES_DONE = re.compile(r"(\d+)/(\d+) \[[\d:]+<[\d:?]+, +[\d.?]+ ?(frame/s|s/frame)\]")
@@ -45,7 +46,7 @@ STREAM = ("stream", "frames.zarr", "--dark", "dark.npy", "--white", "white.npy",
 
 def _on_a_terminal(monkeypatch, d, *args):
     """``snapcorr ARGS`` in-process with stderr a terminal, bars shown at once."""
-    monkeypatch.setattr(cli_module._StageBar, "DELAY_S", 0.0)
+    monkeypatch.setattr(_progress._StageBar, "DELAY_S", 0.0)
     err = _Terminal()
     with contextlib.chdir(d), contextlib.redirect_stdout(io.StringIO()), \
             contextlib.redirect_stderr(err):
@@ -76,7 +77,7 @@ def test_quiet_silences_the_bars_a_terminal_shows(frames, monkeypatch):
           "f.zarr", "--overwrite")
     assert re.search(r"\d+/\d+ \[", _on_a_terminal(monkeypatch, frames, *ff))
     assert not ANY_BAR.search(_on_a_terminal(monkeypatch, frames, *ff, "--quiet"))
-    assert cli_module._SHOW_PROGRESS is None  # the run's choice does not outlive it
+    assert _progress._SHOW_PROGRESS is None  # the run's choice does not outlive it
 
 
 def test_quiet_and_progress_together_are_a_usage_error(cli):

@@ -223,3 +223,15 @@ def test_pupil_is_the_earlier_name_of_pupil_radiance(tmp_path):
     new.save(tmp_path / "l.toml")
     assert 'pupil = "lambertian"' in (tmp_path / "l.toml").read_text()
     assert Lens.load(tmp_path / "l.toml").pupil_radiance == "lambertian"
+
+
+def test_load_takes_a_bundled_lens_by_name(tmp_path):
+    from snapcorr.data import lens_path
+
+    assert Lens.load("edmund_optics_16mm") == Lens.load(lens_path())
+    with pytest.raises(FileNotFoundError, match=r"no bundled lens named 'nope'; bundled "
+                       r"lenses: \[.*'edmund_optics_16mm'"):
+        Lens.load("nope")
+    # a .toml is a file, never a bundled name: one that is missing is said so
+    with pytest.raises((FileNotFoundError, ValueError), match=r"edmund_optics_16mm\.toml"):
+        Lens.load(tmp_path / "edmund_optics_16mm.toml")

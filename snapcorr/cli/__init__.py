@@ -1,0 +1,151 @@
+"""Command-line interface: a thin shell around the library.
+
+Every expected failure becomes one line on stderr and a non-zero exit status; inputs are never
+written over, outputs appear whole or not at all (also on Ctrl-C and SIGTERM).
+
+Each command is a module of its name (``snapcorr.cli.correct`` is ``snapcorr correct``) with
+``add_parser(subparsers)`` and ``run(args)``; the pieces they share are ``_options`` (argument
+types, option groups), ``_output`` (outputs checked and written), ``_frames`` (inputs read),
+``_flats`` (the flats of ``calibrate``), ``_targets`` (a fit to a target's cubes), ``_progress``
+(progress bars) and ``_errors`` (one-line messages).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import textwrap
+import warnings
+
+from . import _progress, budget, calibrate, correct, demo, flatfield, pupil, sensor, shift, stream
+from ._errors import _message, _one_line_warning, _Parser, _quiet_unraisable
+from ._frames import FLATFIELD_RECORD
+from ._options import (
+    DTYPE_HELP,
+    ORIGIN_HELP,
+    OVERWRITE_HELP,
+    SENSOR_HELP,
+    STORAGE_CHOICES,
+    _center_option,
+)
+from ._output import RAW_COPIES
+from ._targets import TARGET_TOLERANCE_HELP
+
+__all__ = ["COMMAND_MODULES", "DTYPE_HELP", "EXAMPLES", "FLATFIELD_RECORD", "ORIGIN_HELP",
+           "OVERWRITE_HELP", "RAW_COPIES", "SENSOR_HELP", "STORAGE_CHOICES",
+           "TARGET_TOLERANCE_HELP", "WORKFLOW", "build_parser", "main"]
+
+#: Each command's module, in the order ``snapcorr --help`` lists them.
+COMMAND_MODULES = {"demo": demo, "sensor": sensor, "flatfield": flatfield, "stream": stream,
+                   "calibrate": calibrate, "pupil": pupil, "correct": correct, "shift": shift,
+                   "budget": budget}
+
+#: Each command's examples (its --help shows its own; ``snapcorr --help`` shows all).
+EXAMPLES = {name: module.EXAMPLES for name, module in COMMAND_MODULES.items()}
+
+#: ``snapcorr --help``: the everyday path in four commands (each command's --help has more).
+WORKFLOW = r"""
+  snapcorr demo                           the paper's experiment, simulated end to end
+  snapcorr flatfield scene.hdr --dark dark.hdr --white white.hdr --sensor snapscan_vnir \
+      --out scene_ff.nc                   (DN - dark) / (white - dark)
+  snapcorr calibrate --flat 2=f2.tif --flat 8=f8.tif --target-cube 2=t2_ff.nc \
+      --target-cube 8=t8_ff.nc --sensor snapscan_vnir --pixel-pitch-um 5.5 --out my_lens.toml
+                                          the lens, once: flats and a spectral target
+  snapcorr correct scene_ff.nc --lens my_lens.toml --sensor snapscan_vnir --f-number 2 \
+      --out scene_corrected.nc --plot scene_corrected.png
+                                          every pixel's wavelengths
+"""
+
+
+class _Version(argparse.Action):
+    """``--version``: the installed version, looked up only when asked (the lookup costs as
+    much as importing numpy)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .. import __version__
+
+        parser._print_message(f"snapcorr {__version__}\n", sys.stdout)
+        parser.exit()
+
+
+def _negative_pairs(argv):
+    """``--pack-range -0.5,3.5`` as ``--pack-range=-0.5,3.5``: argparse takes a value that
+    starts with ``-`` and is not a plain number for an option, and the default range starts
+    with one."""
+    out, rest = [], iter(argv)
+    for arg in rest:
+        if arg == "--pack-range":
+            value = next(rest, None)
+            if value is not None and value.startswith("-") and not value.startswith("--"):
+                out.append(f"--pack-range={value}")
+                continue
+            out.extend([arg] if value is None else [arg, value])
+            continue
+        out.append(arg)
+    return out
+
+
+
+def build_parser():
+    parser = _Parser(
+        prog="snapcorr",
+        description="Wavelength correction for spectral cameras with thin-film "
+        "Fabry-Perot filters (Goossens et al. 2019).",
+        epilog="a session (snapcorr COMMAND --help shows each command's options and "
+        "examples):\n" + textwrap.indent(textwrap.dedent(WORKFLOW).strip("\n"), "  "),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the version number and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    for module in COMMAND_MODULES.values():
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv=None):
+    from .._io import cleanup_on_signals
+
+    parser = build_parser()
+    argv = _negative_pairs(sys.argv[1:] if argv is None else list(argv))
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:  # usage errors and --help: argparse has printed them
+        return exit_.code
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 0
+    _progress._SHOW_PROGRESS = (False if getattr(args, "quiet", False) else
+                      True if getattr(args, "progress", False) else None)
+    try:
+        with cleanup_on_signals(), warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = _one_line_warning
+            _center_option(args)
+            return args.func(args)
+    except (ValueError, TypeError, OverflowError, OSError, KeyError) as err:
+        print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        # Libraries interrupted mid-write (h5netcdf, zarr's threads) may fail again when their
+        # half-closed objects are collected; Python would print those as "Exception ignored"
+        # tracebacks. The outputs are already removed: say it once, quietly.
+        import signal
+
+        # finishing: a second Ctrl-C waits (for the command line; a caller of main(argv) in a
+        # Python session gets its handlers back)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        hook, sys.unraisablehook = sys.unraisablehook, _quiet_unraisable
+        print(f"snapcorr {args.command}: interrupted; unfinished outputs were removed",
+              file=sys.stderr)
+        if argv is not None:
+            signal.signal(signal.SIGINT, previous)
+            sys.unraisablehook = hook
+        return 130
+    finally:
+        _progress._SHOW_PROGRESS = None
+
+
+if __name__ == "__main__":
+    sys.exit(main())

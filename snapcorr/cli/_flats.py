@@ -1,0 +1,83 @@
+"""The flat fields of ``snapcorr calibrate``: read, each the mean of its bands, with their
+saturation levels and dark; the mosaic whose raw frames they are; and what the lens profile
+records of them."""
+
+from __future__ import annotations
+
+import sys
+
+from ._options import _sensor
+
+
+def _flat_sensor(args):
+    """``--sensor`` without --target-cube: the mosaic whose raw frames the flats are (its band
+    gains are divided out); a sensor of another layout is refused."""
+    if args.sensor is None:
+        if args.sensor_origin_px is not None:
+            raise ValueError("--sensor-origin-px needs --sensor (the mosaic whose raw frames "
+                             "the flats are)")
+        return None
+    sensor = _sensor(args.sensor)
+    if sensor.layout != "mosaic":
+        raise ValueError(f"--sensor {args.sensor} is not a mosaic (layout {sensor.layout!r}): "
+                         "its flats carry no tile pattern to remove; leave --sensor out (it "
+                         "goes with raw mosaic flats, or with --target-cube)")
+    return sensor
+
+
+def _band_gains_said(res, cal, args):
+    """Say which band gains were divided out, and record the sensor file."""
+    if not res.mosaic:
+        return
+    cal["band_gains"] = {**cal["band_gains"], "sensor_file": str(args.sensor)}
+    spread = [f"f/{f:g} {g.min():.2f}-{g.max():.2f}"
+              for f, g in sorted(res.mosaic["band_gains"].items())]
+    print(f"divided out the band gains of {res.mosaic['sensor'].name} (relative to their mean: "
+          + ", ".join(spread) + ")", file=sys.stderr)
+
+
+def _pitch_option(args, sensor):
+    """``--pixel-pitch-um``, else the ``--sensor``'s pitch; refused where neither gives one."""
+    if args.pixel_pitch_um is not None:
+        return
+    pitch = getattr(sensor, "pixel_pitch_um", None)
+    if not pitch or not pitch > 0:
+        raise ValueError("give the flats' pixel pitch: --pixel-pitch-um UM"
+                         + ("" if sensor is None else f" (the sensor {args.sensor} gives none)"))
+    args.pixel_pitch_um = float(pitch)
+    print(f"pixel pitch: {pitch:g} um, the sensor's ({args.sensor})", file=sys.stderr)
+
+
+def _read_flats(args, sensor=None):
+    """Every flat (mean of its bands), the saturation levels and the dark. Raw flats of a
+    mosaic ``sensor`` that gives its bit depth saturate at its largest code by default."""
+    from ..calibrate import read_flat
+    from ..cube.mosaic import frame_saturation
+
+    flats, bands, sat = {}, set(), {}
+    for f, path in sorted(args.flat):
+        image, info = read_flat(path)
+        flats[f] = image
+        bands.add(info["bands"])
+        sat[f] = (args.saturation if args.saturation is not None
+                  else frame_saturation(sensor, [image], what=f"--flat {f:g}={path}")
+                  or info["saturation"])
+        print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
+              + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
+              file=sys.stderr)
+    dark = read_flat(args.dark)[0] if args.dark else None
+    return flats, bands, sat, dark
+
+
+def _flats_provenance(cal, args, bands):
+    cal["bands"] = ("mean of the bands in each file" if max(bands) > 1
+                    else "single-band flats")
+    cal["dark"] = (str(args.dark) if args.dark else
+                   "none given: the flats were taken as already dark-subtracted")
+    return cal
+
+
+def _no_dark_note(args):
+    if not args.dark:
+        print("note: no --dark: the flats were taken as already dark-subtracted; an offset left "
+              "in them is read as light and biases P and h (it can even add a circle)")

@@ -1,0 +1,206 @@
+"""Reading a command's inputs: a cube, or a raw mosaic frame split into bands, with its
+sensor origin checked; a raw frame flat-fielded, then demosaicked."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ._output import RAW_COPIES, _masked_in, _quicklook, _stored_type, _write_result
+from ._progress import _StageBar
+
+
+def _read(path, sensor=None, origin=None):
+    """A cube (or a raw mosaic frame split into bands) from any format, in row blocks.
+
+    Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
+    memory-mapped, never copied whole).
+    """
+    return _read_with_mask(path, sensor, origin)[0]
+
+
+def _read_with_mask(path, sensor=None, origin=None):
+    """:func:`_read`'s cube and a flat-field result's ``mask`` (or None), from one opening."""
+    from ..cube.io import read_cube_and_mask
+
+    wl = sensor.cwl_nm if sensor is not None else None
+    frame_error = None
+    if sensor is not None and sensor.layout == "mosaic":
+        try:
+            frame = _read_frame_rows(path, sensor)
+        except ValueError as err:  # not a single-band frame: read it as a cube below
+            frame_error = err
+        else:
+            from ..cube import mosaic_to_cube
+
+            try:
+                return mosaic_to_cube(frame.data, sensor, origin_px=origin,
+                                      attrs={**frame.attrs, "source": str(path)}), None
+            except ValueError as err:
+                raise ValueError(f"{path}: {err}") from None
+    try:  # opened once, read in blocks
+        cube, mask = read_cube_and_mask(path, wavelength_nm=wl, chunks="rows")
+    except ValueError as err:
+        if frame_error is not None and "2-D" in str(err):
+            raise frame_error from None
+        raise
+    if origin is not None:
+        from ..cube import sensor_positions
+        from ..cube.model import with_positions
+
+        rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
+        if "sensor_row" not in cube.coords:
+            cube = with_positions(cube, rows, cols)
+        else:
+            _check_origin(path, cube, rows, cols, origin)
+    return cube, mask
+
+
+def _check_origin(path, cube, rows, cols, origin):
+    """A --sensor-origin-px must agree with the positions the file records (which are used)."""
+    for coord, dim, want in (("sensor_row", "y", rows), ("sensor_col", "x", cols)):
+        if coord not in cube.coords:
+            continue
+        have = np.asarray(cube[coord].transpose(dim, ...).values)
+        have = have if have.ndim == 2 else have[:, None]
+        if have.shape[0] != want.shape[0] or not np.array_equal(
+                np.broadcast_to(have, want.shape) if have.shape[1] == 1 else have, want):
+            raise ValueError(f"--sensor-origin-px {origin[0]},{origin[1]} disagrees with the "
+                             f"sensor positions {path} records (its first pixel at row "
+                             f"{int(np.min(cube['sensor_row']))}, col "
+                             f"{int(np.min(cube['sensor_col']))}); leave the option out: the "
+                             "file's positions are used")
+
+
+def _frame_rows(frame, sensor):
+    """Rows per block of a 2-D mosaic frame: whole tiles, about 16 MiB."""
+    from ..cube.io import BLOCK_BYTES
+
+    tr = sensor.mosaic_shape[0]
+    return max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
+
+
+def _read_frame_rows(path, sensor):
+    """A raw 2-D mosaic frame, opened once, lazily in whole-tile row blocks."""
+    from ..cube import read_frame
+
+    frame = read_frame(path, chunks="rows")
+    return frame.chunk({"y": _frame_rows(frame, sensor), "x": -1})
+
+
+def _read_frame_checked(path, sensor, what, shape=None):
+    """A raw 2-D mosaic frame, lazily in whole-tile row blocks; of ``shape`` when given."""
+    frame = _read_frame_rows(path, sensor)
+    if shape is not None and frame.shape != shape:
+        raise ValueError(f"{what} {path} is {frame.shape[0]} x {frame.shape[1]} px but the raw "
+                         f"frame {shape[0]} x {shape[1]}: a snapshot's references are frames "
+                         "of the same size and place")
+    return frame
+
+
+def _default_saturation(args, sensor, whites):
+    """``--saturation`` defaults to the sensor's largest code (its bit depth), said on stderr."""
+    from ..cube.mosaic import frame_saturation
+
+    if args.saturation is None:
+        args.saturation = frame_saturation(sensor, whites, what=f"--white {args.white[0]}")
+        if args.saturation is not None:
+            print(f"saturation: {args.saturation:g} DN, the largest {sensor.bit_depth}-bit code "
+                  "of the sensor (--saturation DN to change)", file=sys.stderr)
+
+
+def _check_phase(args, sensor):
+    """The stated origin (or a whole-sensor frame) against the phase the first white frame
+    shows, before any work (a white cube records where it was taken: it is not re-checked)."""
+    from ..cube.phase import check_mosaic_phase
+
+    if sensor is None or sensor.layout != "mosaic" or sensor.responses is None:
+        return
+    try:
+        white = _read_frame_rows(args.white[0], sensor)
+        dark = _read_frame_rows(args.dark[0], sensor) if args.dark else None
+    except ValueError:  # a cube, not a raw frame
+        return
+    check_mosaic_phase(white, sensor, args.sensor_origin_px,
+                       dark=dark if dark is not None and dark.shape == white.shape else None,
+                       saturation=args.saturation, what=f"--white {args.white[0]}")
+
+
+def _with_transmittance(ds, tr, path):
+    """The filter's transmittance (``--filter-white``) added to a flat-field result."""
+    ds["transmittance"] = tr["transmittance"]
+    ds["filter_white_raw"] = tr["raw"]
+    ds["transmittance_mask"] = tr["mask"].assign_attrs(
+        long_name="transmittance value not meaningful")
+    ds.attrs["filter_white_file"] = str(path)
+
+
+def _flatfield_demosaic(args, sensor, inputs):
+    """``flatfield --demosaic``: the raw frame flat-fielded pixel by pixel, then demosaicked."""
+    from ..cube import demosaic, flatfield
+    from ..cube.flatfield import check_masked
+
+    if sensor is None or sensor.layout != "mosaic":
+        raise ValueError("--demosaic needs a mosaic --sensor (its layout places the bands)")
+    origin = args.sensor_origin_px
+    raw = _read_frame_checked(args.raw, sensor, "the raw frame")
+    darks = [_read_frame_checked(p, sensor, "--dark", raw.shape) for p in args.dark]
+    whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
+    _default_saturation(args, sensor, whites)
+    ff = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
+    with _StageBar("flat-fielding (checking the mask)"):
+        check_masked(ff)
+    ds = demosaic(ff, sensor, args.demosaic, origin_px=origin)
+    if args.filter_white:
+        fw = _read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
+        tr = demosaic(flatfield(fw, darks, whites, saturation=args.saturation,
+                                name="transmittance", dtype=args.dtype),
+                      sensor, args.demosaic, origin_px=origin)
+        _with_transmittance(ds, tr, args.filter_white)
+    ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
+                     "white_files": [str(p) for p in args.white]})
+    cube = ds["reflectance"]
+    with _StageBar(f"demosaicking ({args.demosaic}) and writing {args.out.name}"):
+        _write_result(args, ds, inputs, RAW_COPIES, args.raw)
+    n_masked, total = _masked_in(args.out), cube.size
+    print(f"wrote {args.out}: reflectance of {args.raw}, demosaicked ({args.demosaic}) to "
+          f"{cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} "
+          f"({_stored_type(args, cube.dtype)}), sensor rows "
+          f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
+          f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
+          f"values masked ({100 * n_masked / total:.2f} %)")
+    _quicklook(args, "plot_flatfield", ds)
+    return 0
+
+
+#: What a flat-field result says of how it was made, kept (as ``input_<name>``) in the
+#: correction of it.
+FLATFIELD_RECORD = ("raw_file", "dark_files", "white_files", "dark_frames", "white_frames",
+                    "filter_white_files", "demosaic_method", "mosaic_area_px", "sensor",
+                    "created", "snapcorr_version")
+
+
+def _keep_flatfield_record(path, ds):
+    """A correction of a flat-field result (.nc or .zarr) keeps its raw counts (lazily, as
+    stored) and its record of the raw, dark and white files: the corrected values sit next to
+    the camera's numbers they came from."""
+    if path.suffix.lower() not in (".nc", ".zarr"):
+        return
+    from ..cube import read_dataset
+
+    src = read_dataset(path, chunks={})
+    for name in RAW_COPIES:
+        raw = src.variables.get(name)
+        if raw is not None and name not in ds.variables and all(
+                ds.sizes.get(d) == n for d, n in raw.sizes.items()):
+            ds[name] = src[name].reset_coords(drop=True)
+    for key in FLATFIELD_RECORD:
+        if key in src.attrs:
+            ds.attrs.setdefault(f"input_{key}", src.attrs[key])
+
+
+def _correct_input(args, sensor):
+    """The cube to correct and, from a flat-field result, its mask (the file opened once)."""
+    return _read_with_mask(args.cube, sensor, args.sensor_origin_px)
+

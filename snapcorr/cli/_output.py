@@ -1,0 +1,114 @@
+"""What a command writes: its outputs checked before any work, its result written as the
+output options say, and the lines that say what was written."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .._bundled import bundled_folder as _bundled_folder
+from .._bundled import input_path as _input_path
+from .._io import check_replaceable
+
+
+def _check_outputs(outputs, inputs, overwrite, suffixes):
+    """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
+    (without ``--overwrite``), have the wrong suffix or no folder to go in."""
+    # realpath, unlike Path.resolve, does not raise on a symlink loop (the reader reports it)
+    srcs = [Path(os.path.realpath(_input_path(i))) for i in inputs if i is not None]
+    bundled = _bundled_folder()
+    seen = []
+    for out, allowed in zip(outputs, suffixes, strict=True):
+        if out is None:
+            continue
+        out = Path(out)
+        res = Path(os.path.realpath(out))
+        if bundled is not None and res.is_relative_to(bundled) and os.path.lexists(res):
+            raise ValueError(f"output {out} is one of snapcorr's bundled files ({bundled}), "
+                             "never replaced; give your own a new name")
+        for other, given in seen:  # two outputs of one command: neither in the other
+            if res == other or res.is_relative_to(other) or other.is_relative_to(res):
+                raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
+                                 "other; give each its own path")
+        seen.append((res, out))
+        for src in srcs:
+            if res == src:
+                raise ValueError(f"output {out} is also an input; choose another output path")
+            if src.is_relative_to(res) or res.is_relative_to(src):
+                raise ValueError(f"output {out} holds or lies in the input {src}; choose "
+                                 "another output path")
+        if out.suffix.lower() not in allowed:
+            raise ValueError(f"{out}: the output must end in {' or '.join(allowed)}")
+        folder = out.suffix.lower() == ".zarr"  # a zarr store is a folder, the rest files
+        if out.exists() and out.is_dir() != folder:
+            raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
+                             "it is never replaced: choose another output path")
+        if os.path.lexists(out) and not overwrite:
+            raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+        check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced
+        if not res.parent.is_dir():
+            raise ValueError(f"{out.parent} is not a folder; create it first")
+
+
+#: The copies of the input a flat-field result keeps (``--no-input`` leaves them out).
+RAW_COPIES = ("raw", "filter_white_raw")
+
+
+def _without_input(ds, names, source):
+    """``--no-input``: ``ds`` without the input's copy, saying where the input is."""
+    present = [n for n in names if n in ds.variables]
+    ds = ds.drop_vars(present)
+    ds.attrs["input_left_out"] = f"{', '.join(present)} (--no-input); the input is {source}"
+    return ds
+
+
+def _write_result(args, ds, inputs, input_names, source):
+    """Write ``ds`` to ``--out`` as the output options say; ``input_names`` are the input's
+    copy, left out with ``--no-input``."""
+    from ..cube import write_dataset
+
+    if args.no_input:
+        ds = _without_input(ds, input_names, source)
+    return write_dataset(ds, args.out, overwrite=args.overwrite, inputs=inputs,
+                         compression=args.compression,
+                         store_derived=getattr(args, "store_derived", False),
+                         dtype=getattr(args, "storage", None),
+                         pack_range=getattr(args, "pack_range", None))
+
+
+def _stored_type(args, computed):
+    """The type the values are written in, as a summary line says it (``--dtype`` float16 or
+    uint16 compute in float32)."""
+    stored = getattr(args, "storage", None)
+    if stored is None or stored == str(computed):
+        return str(computed)
+    return f"stored as {stored}{', CF-packed' if stored == 'uint16' else ''}, computed in " \
+        f"{computed}"
+
+
+def _masked_in(path):
+    """``n_masked`` of a result just written (counted in the writing pass)."""
+    from ..cube import read_dataset
+
+    with read_dataset(path, chunks={}) as ds:
+        return int(ds["n_masked"])
+
+
+def _quicklook(args, draw, what):
+    """``--plot``: the quick look ``snapcorr.quicklook.<draw>`` of ``what``, if asked for."""
+    if args.plot:
+        from .. import quicklook
+
+        getattr(quicklook, draw)(what, args.plot, overwrite=args.overwrite)
+        print(f"wrote {args.plot}")
+
+
+def _print_virtual(args, ds):
+    """One line on the virtual bands of a result, if it has them."""
+    if "virtual" in ds:
+        wl = ds["virtual_wavelength"].values
+        err = (f"; expected error up to {float(ds['virtual_stderr'].max()):.2g} (virtual_stderr)"
+               if "virtual_stderr" in ds else "")
+        print(f"virtual bands: {wl.size} from {wl.min():.1f} to {wl.max():.1f} nm, "
+              f"{args.virtual_bands}{err}")
+
