@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
+
+from ._bundled import bundled_path, calibration_dir
 
 __all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "mosaic_frames", "mosaic_target",
            "sensor_path"]
@@ -14,40 +15,13 @@ __all__ = ["DEFAULT_LENS", "calibration_dir", "lens_path", "mosaic_frames", "mos
 DEFAULT_LENS = "edmund_optics_16mm"
 
 
-def calibration_dir() -> Path:
-    """The repository's ``calibration/`` folder (snapcorr installed from a source checkout)."""
-    path = Path(__file__).resolve().parents[1] / "calibration"
-    if not path.is_dir():
-        raise FileNotFoundError(
-            f"bundled calibration data not found at {path}; install snapcorr from a source "
-            "checkout with `pip install -e .`"
-        )
-    return path
-
-
-def _bundled(kind, what, name):
-    """``calibration/<kind>/<name>.toml``; ``name`` is a bare name (a path gives its stem)."""
-    if isinstance(name, os.PathLike):
-        name = Path(name).stem
-    name = str(name)
-    if name.endswith(".toml"):
-        name = name[: -len(".toml")]
-    folder = calibration_dir() / kind
-    path = folder / f"{name}.toml"
-    bare = name and Path(name).name == name and name not in (".", "..")
-    if not (bare and path.is_file()):
-        names = sorted(p.stem for p in folder.glob("*.toml"))
-        raise FileNotFoundError(f"no bundled {what} named {name!r}; bundled {kind}: {names}")
-    return path
-
-
 def lens_path(name: str = DEFAULT_LENS) -> Path:
     """Path of a bundled lens profile by name (file stem), e.g. ``"edmund_optics_16mm"``.
 
     >>> lens_path().name
     'edmund_optics_16mm.toml'
     """
-    return _bundled("lenses", "lens", name)
+    return bundled_path("lens", name)
 
 
 def sensor_path(name: str) -> Path:
@@ -56,7 +30,7 @@ def sensor_path(name: str) -> Path:
     >>> sensor_path("mosaic_4x4_vis").name
     'mosaic_4x4_vis.toml'
     """
-    return _bundled("sensors", "sensor", name)
+    return bundled_path("sensor", name)
 
 
 def mosaic_frames(sensor: str = "mosaic_4x4_vis", *, lens: str = DEFAULT_LENS,

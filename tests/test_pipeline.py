@@ -1,6 +1,6 @@
 """One pipeline (snapcorr.pipeline): a frame through the steps of PIPELINE_STEPS is what the
-steps give one by one, and reading a frame or cube with its origin is what the command line
-read before the library held it."""
+steps give one by one, and reading a frame or cube with its origin gives the file's values at
+the sensor positions the origin names."""
 
 from __future__ import annotations
 
@@ -8,9 +8,18 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from snapcorr import cli, data
-from snapcorr.cube import Sensor, demosaic, flatfield, make_cube, write_dataset
+from snapcorr import data
+from snapcorr.cube import (
+    Sensor,
+    demosaic,
+    flatfield,
+    make_cube,
+    mosaic_to_cube,
+    read_cube,
+    write_dataset,
+)
 from snapcorr.cube.flatfield import check_masked
+from snapcorr.cube.io import BLOCK_BYTES
 from snapcorr.optics import Lens
 from snapcorr.pipeline import (
     PIPELINE_STEPS,
@@ -55,8 +64,7 @@ def test_a_frame_is_what_the_steps_give_one_by_one(frames):
     want = demosaic(ff, sensor, "bilinear", sensor_origin_px=ORIGIN)
     tr = demosaic(flatfield(white, [dark], [white], saturation=1023, name="transmittance",
                             dtype="float32"), sensor, "bilinear", sensor_origin_px=ORIGIN)
-    cli._with_transmittance(want, tr, "fw")
-    del want.attrs["filter_white_file"]
+    with_transmittance(want, tr)
     assert set(got.variables) == set(want.variables)
     for name in want.variables:
         assert np.array_equal(got[name].values, want[name].values, equal_nan=True), name
@@ -82,32 +90,35 @@ def test_a_frame_corrected_is_the_cube_corrected(frames):
         process_frame(raw, dark, white, sensor, lens=lens)
 
 
-def test_a_frame_or_cube_is_read_as_the_command_line_read_it(frames, tmp_path):
+def test_a_frame_or_cube_is_read_with_the_positions_its_origin_names(frames, tmp_path):
     sensor, paths = frames
     got = read_cube_or_frame(paths["raw"], sensor, ORIGIN)
-    want = cli._read(paths["raw"], sensor, ORIGIN)
+    want = mosaic_to_cube(np.load(paths["raw"]), sensor, sensor_origin_px=ORIGIN)
     assert np.array_equal(got.values, want.values)
-    xr.testing.assert_identical(got, want)
+    rows, cols = sensor.mosaic_shape
+    assert int(got["sensor_row"].min()) == ORIGIN[0]
+    assert int(got["sensor_col"].min()) == ORIGIN[1]
+    assert got.sizes["y"] == (CROP[0].stop - CROP[0].start) // rows
+    assert got.sizes["band"] == rows * cols
     cube = make_cube(np.random.default_rng(0).random((6, 7, 3)).astype(np.float32),
                      [500.0, 600.0, 700.0])
     path = tmp_path / "cube.nc"
     write_dataset(cube.to_dataset(name="radiance"), path)
     got, mask = read_cube_or_frame(path, with_mask=True)
-    want, want_mask = cli._read_with_mask(path)
-    assert np.array_equal(got.values, want.values) and mask is None and want_mask is None
+    assert np.array_equal(got.values, read_cube(path).values)
+    assert np.array_equal(got.values, cube.values) and mask is None
 
 
-def test_an_origin_the_file_contradicts_is_refused_in_the_same_words(tmp_path):
+def test_an_origin_the_file_contradicts_is_refused(tmp_path):
     sensor = Sensor("t", "snapscan", 5.5, [500.0, 600.0, 700.0], 10.0, 1.7)
     cube = make_cube(np.ones((4, 5, 3), np.float32), sensor.cwl_nm)
     path = tmp_path / "placed.nc"
     write_dataset(read_cube_or_frame(_written(cube, tmp_path), sensor, (10, 20))
                   .to_dataset(name="radiance"), path)
-    with pytest.raises(ValueError) as ours:
+    assert int(read_cube_or_frame(path, sensor, (10, 20))["sensor_row"].min()) == 10
+    with pytest.raises(ValueError, match=r"--sensor-origin-px 11,20 disagrees .* row 10, "
+                                         r"col 20.*leave the option out"):
         read_cube_or_frame(path, sensor, (11, 20))
-    with pytest.raises(ValueError) as theirs:
-        cli._read(path, sensor, (11, 20))
-    assert str(ours.value) == str(theirs.value) and "disagrees" in str(ours.value)
 
 
 def _written(cube, folder):
@@ -119,23 +130,23 @@ def _written(cube, folder):
 def test_mosaic_frames_are_read_in_whole_tiles_and_checked_for_size(frames):
     sensor, paths = frames
     frame = read_mosaic_frame(paths["raw"], sensor)
-    assert tile_rows(frame, sensor) == cli._frame_rows(frame, sensor)
-    assert tile_rows(frame, sensor) % sensor.mosaic_shape[0] == 0
-    assert np.array_equal(frame.values, cli._read_frame_rows(paths["raw"], sensor).values)
-    with pytest.raises(ValueError) as ours:
+    n = tile_rows(frame, sensor)
+    tile = sensor.mosaic_shape[0]
+    assert n % tile == 0 and (n == tile or n * frame.sizes["x"] * 4 <= BLOCK_BYTES)
+    assert (n + tile) * frame.sizes["x"] * 4 > BLOCK_BYTES
+    assert np.array_equal(frame.values, np.load(paths["raw"]))
+    with pytest.raises(ValueError, match=r"--dark .*dark.npy is 40 x 50 px but the raw frame "
+                                         r"3 x 4"):
         read_mosaic_frame(paths["dark"], sensor, what="--dark", shape=(3, 4))
-    with pytest.raises(ValueError) as theirs:
-        cli._read_frame_checked(paths["dark"], sensor, "--dark", (3, 4))
-    assert str(ours.value) == str(theirs.value)
 
 
-def test_with_transmittance_is_the_command_lines():
+def test_with_transmittance_adds_the_filters_three_variables():
     ds = xr.Dataset({"reflectance": ("x", np.ones(3))})
     tr = xr.Dataset({"transmittance": ("x", np.full(3, 0.5)), "raw": ("x", np.arange(3.0)),
-                     "mask": ("x", np.zeros(3, bool))})
-    want = cli._with_transmittance(ds.copy(), tr, "fw.npy") or None
-    a, b = ds.copy(), ds.copy()
-    cli._with_transmittance(a, tr, "fw.npy")
-    with_transmittance(b, tr, "fw.npy")
-    xr.testing.assert_identical(a, b)
-    assert want is None
+                     "mask": ("x", np.array([False, True, False]))})
+    out = with_transmittance(ds, tr, "fw.npy")
+    assert out is ds and ds.attrs["filter_white_file"] == "fw.npy"
+    assert np.array_equal(ds["transmittance"], [0.5] * 3)
+    assert np.array_equal(ds["filter_white_raw"], [0, 1, 2])
+    assert np.array_equal(ds["transmittance_mask"], [False, True, False])
+    assert "not meaningful" in ds["transmittance_mask"].attrs["long_name"]

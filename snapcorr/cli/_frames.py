@@ -5,98 +5,36 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
 from ._output import RAW_COPIES, _masked_in, _quicklook, _stored_type, _write_result
 from ._progress import _StageBar
 
 
 def _read(path, sensor=None, origin=None):
-    """A cube (or a raw mosaic frame split into bands) from any format, in row blocks.
+    """A cube (or a raw mosaic frame split into bands) from any format, in row blocks."""
+    from ..pipeline import read_cube_or_frame
 
-    Row blocks of about 16 MiB keep memory bounded whatever the file's size (ENVI and .npy are
-    memory-mapped, never copied whole).
-    """
-    return _read_with_mask(path, sensor, origin)[0]
+    return read_cube_or_frame(path, sensor, origin)
 
 
 def _read_with_mask(path, sensor=None, origin=None):
     """:func:`_read`'s cube and a flat-field result's ``mask`` (or None), from one opening."""
-    from ..cube.io import read_cube_and_mask
+    from ..pipeline import read_cube_or_frame
 
-    wl = sensor.cwl_nm if sensor is not None else None
-    frame_error = None
-    if sensor is not None and sensor.layout == "mosaic":
-        try:
-            frame = _read_frame_rows(path, sensor)
-        except ValueError as err:  # not a single-band frame: read it as a cube below
-            frame_error = err
-        else:
-            from ..cube import mosaic_to_cube
-
-            try:
-                return mosaic_to_cube(frame.data, sensor, origin_px=origin,
-                                      attrs={**frame.attrs, "source": str(path)}), None
-            except ValueError as err:
-                raise ValueError(f"{path}: {err}") from None
-    try:  # opened once, read in blocks
-        cube, mask = read_cube_and_mask(path, wavelength_nm=wl, chunks="rows")
-    except ValueError as err:
-        if frame_error is not None and "2-D" in str(err):
-            raise frame_error from None
-        raise
-    if origin is not None:
-        from ..cube import sensor_positions
-        from ..cube.model import with_positions
-
-        rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
-        if "sensor_row" not in cube.coords:
-            cube = with_positions(cube, rows, cols)
-        else:
-            _check_origin(path, cube, rows, cols, origin)
-    return cube, mask
-
-
-def _check_origin(path, cube, rows, cols, origin):
-    """A --sensor-origin-px must agree with the positions the file records (which are used)."""
-    for coord, dim, want in (("sensor_row", "y", rows), ("sensor_col", "x", cols)):
-        if coord not in cube.coords:
-            continue
-        have = np.asarray(cube[coord].transpose(dim, ...).values)
-        have = have if have.ndim == 2 else have[:, None]
-        if have.shape[0] != want.shape[0] or not np.array_equal(
-                np.broadcast_to(have, want.shape) if have.shape[1] == 1 else have, want):
-            raise ValueError(f"--sensor-origin-px {origin[0]},{origin[1]} disagrees with the "
-                             f"sensor positions {path} records (its first pixel at row "
-                             f"{int(np.min(cube['sensor_row']))}, col "
-                             f"{int(np.min(cube['sensor_col']))}); leave the option out: the "
-                             "file's positions are used")
-
-
-def _frame_rows(frame, sensor):
-    """Rows per block of a 2-D mosaic frame: whole tiles, about 16 MiB."""
-    from ..cube.io import BLOCK_BYTES
-
-    tr = sensor.mosaic_shape[0]
-    return max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
+    return read_cube_or_frame(path, sensor, origin, with_mask=True)
 
 
 def _read_frame_rows(path, sensor):
     """A raw 2-D mosaic frame, opened once, lazily in whole-tile row blocks."""
-    from ..cube import read_frame
+    from ..pipeline import read_mosaic_frame
 
-    frame = read_frame(path, chunks="rows")
-    return frame.chunk({"y": _frame_rows(frame, sensor), "x": -1})
+    return read_mosaic_frame(path, sensor)
 
 
 def _read_frame_checked(path, sensor, what, shape=None):
     """A raw 2-D mosaic frame, lazily in whole-tile row blocks; of ``shape`` when given."""
-    frame = _read_frame_rows(path, sensor)
-    if shape is not None and frame.shape != shape:
-        raise ValueError(f"{what} {path} is {frame.shape[0]} x {frame.shape[1]} px but the raw "
-                         f"frame {shape[0]} x {shape[1]}: a snapshot's references are frames "
-                         "of the same size and place")
-    return frame
+    from ..pipeline import read_mosaic_frame
+
+    return read_mosaic_frame(path, sensor, what=what, shape=shape)
 
 
 def _default_saturation(args, sensor, whites):
@@ -127,37 +65,24 @@ def _check_phase(args, sensor):
                        saturation=args.saturation, what=f"--white {args.white[0]}")
 
 
-def _with_transmittance(ds, tr, path):
-    """The filter's transmittance (``--filter-white``) added to a flat-field result."""
-    ds["transmittance"] = tr["transmittance"]
-    ds["filter_white_raw"] = tr["raw"]
-    ds["transmittance_mask"] = tr["mask"].assign_attrs(
-        long_name="transmittance value not meaningful")
-    ds.attrs["filter_white_file"] = str(path)
-
-
 def _flatfield_demosaic(args, sensor, inputs):
     """``flatfield --demosaic``: the raw frame flat-fielded pixel by pixel, then demosaicked."""
-    from ..cube import demosaic, flatfield
-    from ..cube.flatfield import check_masked
+    from ..pipeline import process_frame
 
     if sensor is None or sensor.layout != "mosaic":
         raise ValueError("--demosaic needs a mosaic --sensor (its layout places the bands)")
-    origin = args.sensor_origin_px
     raw = _read_frame_checked(args.raw, sensor, "the raw frame")
     darks = [_read_frame_checked(p, sensor, "--dark", raw.shape) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
     _default_saturation(args, sensor, whites)
-    ff = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype)
+    fw = (_read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
+          if args.filter_white else None)
     with _StageBar("flat-fielding (checking the mask)"):
-        check_masked(ff)
-    ds = demosaic(ff, sensor, args.demosaic, origin_px=origin)
-    if args.filter_white:
-        fw = _read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
-        tr = demosaic(flatfield(fw, darks, whites, saturation=args.saturation,
-                                name="transmittance", dtype=args.dtype),
-                      sensor, args.demosaic, origin_px=origin)
-        _with_transmittance(ds, tr, args.filter_white)
+        ds = process_frame(raw, darks, whites, sensor, demosaic_method=args.demosaic,
+                           sensor_origin_px=args.sensor_origin_px, saturation=args.saturation,
+                           dtype=args.dtype, filter_white=fw)
+    if fw is not None:
+        ds.attrs["filter_white_file"] = str(args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})
     cube = ds["reflectance"]

@@ -164,7 +164,7 @@ def run(args):
     if args.pupil == "auto":
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
                          "cannot make: give --target-cube, or --pupil paper or lambertian")
-    pupil = args.pupil or (given.pupil if given else "paper")
+    pupil = args.pupil or (given.pupil_radiance if given else "paper")
     _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
     with _StepBar("calibrating") as bar:

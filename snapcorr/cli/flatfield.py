@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..pipeline import with_transmittance
 from ._frames import (
     _check_phase,
     _default_saturation,
     _flatfield_demosaic,
     _read,
-    _with_transmittance,
 )
 from ._options import (
     DTYPE_HELP,
@@ -129,7 +129,7 @@ def run(args):
                              "the same size and place")
         tr = flatfield(fw, darks, whites, saturation=args.saturation, name="transmittance",
                        dtype=args.dtype, snapshot=snapshot)
-        _with_transmittance(ds, tr, args.filter_white)
+        with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})
     with _StageBar("flat-fielding (checking the mask)"):

@@ -122,7 +122,7 @@ def run(args):
                                pupil_magnification=args.pupil_magnification,
                                inputs=seen, name=args.name or args.out.stem,
                                progress=bar.step, pupil=args.pupil or (
-                                   lens.pupil if lens is not None and lens.has_vignetting
+                                   lens.pupil_radiance if lens is not None and lens.has_vignetting
                                    else "auto"),
                                tolerance_nm=_target_tolerance(args.tolerance_nm),
                                report=_say_precision)

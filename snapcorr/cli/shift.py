@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._names import SHIFT_METHODS
+from .._names import MEAN_SHIFT_METHOD_NAMES
 from ._options import _lens, _positive, add_command
 
 #: Its line in ``snapcorr --help``, and the start of its own.
@@ -31,7 +31,7 @@ def add_parser(subparsers):
                    "%(default)s)")
     p.add_argument("--n-eff", type=float, default=1.7,
                    help="the filter's effective refractive index (default: %(default)s)")
-    p.add_argument("--method", default="auto", choices=list(SHIFT_METHODS),
+    p.add_argument("--method", default="auto", choices=list(MEAN_SHIFT_METHOD_NAMES),
                    help="how to compute the mean shift (default: %(default)s, the cheapest "
                    "within --tolerance-nm)")
     p.add_argument("--tolerance-nm", type=_positive, default=0.001, metavar="NM",

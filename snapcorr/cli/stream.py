@@ -86,7 +86,7 @@ def add_parser(subparsers):
 
 def run(args):
     from ..cube import read_frames
-    from ..stream import process_stream
+    from ..pipeline import process_stream
 
     inputs = [args.frames, *args.dark, *args.white]
     _check_outputs([args.out], inputs, args.overwrite, [(".zarr", ".nc")])
@@ -108,7 +108,7 @@ def run(args):
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
-                        f_number=args.f_number, origin_px=args.sensor_origin_px,
+                        f_number=args.f_number, sensor_origin_px=args.sensor_origin_px,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample,
                         virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
                         virtual_wavelengths_nm=args.virtual_wavelengths,

@@ -4,10 +4,11 @@ the positions a file records."""
 import numpy as np
 import pytest
 
-from snapcorr.cli._frames import _check_origin, _frame_rows, _read
+from snapcorr.cli._frames import _read
 from snapcorr.cube import Sensor, make_cube, sensor_positions
 from snapcorr.cube.model import with_positions
 from snapcorr.data import sensor_path
+from snapcorr.pipeline import _check_origin, tile_rows
 
 
 def _placed(origin):
@@ -33,4 +34,4 @@ def test_a_raw_frame_is_read_in_whole_tiles_and_split_into_bands(tmp_path):
     cube = _read(tmp_path / "f.npy", sensor, (400, 800))
     assert cube.sizes["band"] == 16 and (cube.sizes["y"], cube.sizes["x"]) == (8, 12)
     frame = type("F", (), {"sizes": {"x": 48}})()
-    assert _frame_rows(frame, sensor) % 4 == 0
+    assert tile_rows(frame, sensor) % 4 == 0

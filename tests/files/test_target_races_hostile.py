@@ -134,7 +134,7 @@ def test_a_note_follows_the_target_however_its_path_is_spelled(tmp_path, monkeyp
 def test_the_command_lines_output_check_holds_until_the_write(tmp_path, cli, monkeypatch):
     """snapcorr sensor --toml OUT --overwrite: a TOML that another snapcorr writes at OUT
     after this command checked its outputs is not replaced."""
-    import snapcorr.cli as cli_module
+    import snapcorr.cli.sensor as cli_module
     from snapcorr.data import sensor_path
 
     target = tmp_path / "camera.toml"
@@ -144,7 +144,7 @@ def test_the_command_lines_output_check_holds_until_the_write(tmp_path, cli, mon
         check([probe], [], True, [(".toml",)])
         noted = _io._target_key(probe) in _io._CHECKED
     if not noted:
-        pytest.xfail("snapcorr/cli.py _check_outputs does not note absent outputs yet: it "
+        pytest.xfail("snapcorr/cli/_output.py _check_outputs does not note absent outputs yet: it "
                      "must call check_replaceable(out) for every output, not only existing ones")
 
     def then_a_writes(*args, **kwargs):
