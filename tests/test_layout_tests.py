@@ -67,7 +67,6 @@ UNTESTED = {
     "snapcorr.cube.responses",
     "snapcorr.data",
     "snapcorr.demo",
-    "snapcorr.files.envi",
     "snapcorr.files.images",
     "snapcorr.files.npy",
     "snapcorr.optics.chief_ray",
