@@ -1,4 +1,6 @@
-"""Compatibility re-exports: this module moved to :mod:`snapcorr.files.safety`."""
+"""Compatibility re-exports: this module moved to :mod:`snapcorr.files.safety`, with
+:mod:`~snapcorr.files.reading`, :mod:`~snapcorr.files.marks`, :mod:`~snapcorr.files.outputs`,
+:mod:`~snapcorr.files.png` and :mod:`~snapcorr.files.toml` beside it."""
 
 # ruff: noqa: F401
 
