@@ -1,39 +1,48 @@
-"""Cubes in and out: the data model, sensor layouts and flat-fielding."""
+"""Cubes in and out: the data model, sensor layouts and flat-fielding.
 
-from .demosaicking import DEMOSAIC_METHODS, demosaic, demosaicking_error
-from .flatfield import flatfield
-from .frames import read_frames
-from .io import (
-    FORMATS,
-    read_cube,
-    read_dataset,
-    read_frame,
-    row_blocks,
-    write_cube,
-    write_dataset,
-)
-from .model import DIMS, check_cube, make_cube
-from .mosaic import mosaic_to_cube, sensor_positions
-from .sensor import LAYOUTS, Sensor
+The names are loaded when first used: the file formats (:mod:`snapcorr.files`) build on the
+data model here (:mod:`snapcorr.cube.model`, :mod:`snapcorr.cube.attrs`), and importing
+that must not load every reader and writer first. Reading and writing files is
+:mod:`snapcorr.files`' (re-exported here).
+"""
 
-__all__ = [
-    "DEMOSAIC_METHODS",
-    "DIMS",
-    "FORMATS",
-    "LAYOUTS",
-    "Sensor",
-    "check_cube",
-    "demosaic",
-    "demosaicking_error",
-    "flatfield",
-    "make_cube",
-    "mosaic_to_cube",
-    "read_cube",
-    "read_dataset",
-    "read_frame",
-    "read_frames",
-    "row_blocks",
-    "sensor_positions",
-    "write_cube",
-    "write_dataset",
-]
+import importlib
+
+# ``flatfield`` is also the name of its module: imported here, the function is the attribute
+from .flatfield import flatfield as flatfield
+from .model import DIMS as DIMS
+from .model import check_cube as check_cube
+from .model import make_cube as make_cube
+
+#: Public name -> the module that defines it.
+_HOMES = {
+    "DEMOSAIC_METHODS": "snapcorr.cube.demosaicking",
+    "demosaic": "snapcorr.cube.demosaicking",
+    "demosaicking_error": "snapcorr.cube.demosaicking",
+    "read_frames": "snapcorr.files.frames",
+    "FORMATS": "snapcorr.files.registry",
+    "read_cube": "snapcorr.files.api",
+    "read_dataset": "snapcorr.files.api",
+    "read_frame": "snapcorr.files.api",
+    "row_blocks": "snapcorr.files.api",
+    "write_cube": "snapcorr.files.api",
+    "write_dataset": "snapcorr.files.api",
+    "mosaic_to_cube": "snapcorr.cube.mosaic",
+    "sensor_positions": "snapcorr.cube.mosaic",
+    "LAYOUTS": "snapcorr.cube.sensor",
+    "Sensor": "snapcorr.cube.sensor",
+}
+
+__all__ = sorted([*_HOMES, "DIMS", "check_cube", "flatfield", "make_cube"])
+
+
+def __getattr__(name):
+    if name in _HOMES:
+        value = getattr(importlib.import_module(_HOMES[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_HOMES})

@@ -1,192 +1,28 @@
-"""Formats by file name, and what every reader shares.
-
-- :data:`FORMATS` (extension to format), ENVI's data-file names, :func:`_format` (which
-  format a path is) and :func:`_sidecar` (a ``.npy``'s JSON sidecar);
-- :class:`_File`, what a reader found (the data and the metadata as the file has them);
-- lazy data: raw files (ENVI, ``.npy``) read in blocks of rows (:func:`_from_file`), memory
-  maps read block by block (:func:`_lazy_or_loaded`), and ``chunks="rows"`` resolved once a
-  reader knows the shape and dtype (:class:`_Rows`);
-- wavelength units (:data:`UNITS_TO_NM`, :func:`_to_nm`).
-"""
-
-from __future__ import annotations
-
-import os
-from dataclasses import dataclass, field
-from pathlib import Path
-
-import numpy as np
-
-from .blockfile import RowBlockFile, lazy_file_array
-from .model import DIMS
-
-__all__ = ["FORMATS", "UNITS_TO_NM"]
+"""Compatibility re-exports: this module moved to :mod:`snapcorr.files.storage`."""
 
 
-FORMATS = {".hdr": "envi", ".tif": "tiff", ".tiff": "tiff", ".exr": "exr", ".nc": "netcdf",
-           ".zarr": "zarr", ".npy": "npy"}
-#: Data-file names Spectral Python looks for next to a header, in its order (then the
-#: interleave's name, then all of them in upper case).
-_ENVI_EXTS = ("", ".img", ".dat", ".sli", ".hyspex", ".raw", ".bin")
-#: Data files given instead of their header.
-_ENVI_DATA = (".raw", ".img", ".dat", ".bsq", ".bil", ".bip", ".bin", ".sli", ".hyspex")
+from snapcorr.cube.model import DIMS as DIMS
+from snapcorr.files.blockfile import RowBlockFile as RowBlockFile
+from snapcorr.files.blockfile import lazy_file_array as lazy_file_array
+from snapcorr.files.registry import FORMATS as FORMATS
+from snapcorr.files.registry import _format as _format
+from snapcorr.files.storage import _ENVI_DATA as _ENVI_DATA
+from snapcorr.files.storage import _ENVI_EXTS as _ENVI_EXTS
+from snapcorr.files.storage import UNITS_TO_NM as UNITS_TO_NM
+from snapcorr.files.storage import _Blocks as _Blocks
+from snapcorr.files.storage import _File as _File
+from snapcorr.files.storage import _file_token as _file_token
+from snapcorr.files.storage import _from_file as _from_file
+from snapcorr.files.storage import _lazy_or_loaded as _lazy_or_loaded
+from snapcorr.files.storage import _resolve_chunks as _resolve_chunks
+from snapcorr.files.storage import _Rows as _Rows
+from snapcorr.files.storage import _rows_per_block as _rows_per_block
+from snapcorr.files.storage import _sidecar as _sidecar
+from snapcorr.files.storage import _to_nm as _to_nm
 
-#: Length units of wavelengths and their factor to nanometres ("unknown" or none: nm).
-UNITS_TO_NM = {
-    **dict.fromkeys(("nanometers", "nanometer", "nanometres", "nanometre", "nm"), 1.0),
-    **dict.fromkeys(("micrometers", "micrometer", "micrometres", "micrometre", "microns",
-                     "micron", "um", "\u00b5m", "\u03bcm"), 1e3),
-    **dict.fromkeys(("millimeters", "millimeter", "millimetres", "millimetre", "mm"), 1e6),
-    **dict.fromkeys(("meters", "meter", "metres", "metre", "m"), 1e9),
-}
+_MOVED_TO = "snapcorr.files.storage"
 
-
-def _format(path, what="cube"):
-    """``(format, main path, data file or None)``: an ENVI data file given instead of its
-    header names the header as main path and itself as the data file."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix in _ENVI_DATA:
-        if not os.path.lexists(path.with_suffix(".hdr")):
-            raise ValueError(f"{path} looks like ENVI data but has no header "
-                             f"{path.with_suffix('.hdr').name} next to it; an ENVI {what} is "
-                             "read through its header")
-        return "envi", path.with_suffix(".hdr"), path
-    if suffix not in FORMATS:
-        known = ", ".join(sorted(FORMATS))
-        raise ValueError(f"unknown {what.replace(' ', '-')} format {path.suffix or '(none)'!r} "
-                         f"for {path}; snapcorr reads and writes {known}")
-    return FORMATS[suffix], path, None
-
-
-def _sidecar(path):
-    """The JSON sidecar of a ``.npy`` file: ``cube.npy.json``."""
-    path = Path(path)
-    return path.with_name(path.name + ".json")
-
-
-@dataclass
-class _File:
-    """What a reader found: data ``(y, x, band)`` (numpy, dask, or an xarray variable for
-    netCDF and Zarr) and the metadata as the file has it (wavelengths in the file's units)."""
-
-    path: Path
-    fmt: str
-    data: object
-    file_ndim: int = 3
-    wavelength: object = None
-    units: object = None
-    fwhm: object = None
-    fwhm_units: object = None
-    name: object = None
-    attrs: dict = field(default_factory=dict)
-    positions: dict = field(default_factory=dict)  # name -> array or encoded dict
-    extras: dict = field(default_factory=dict)  # e.g. a flat-field result's mask
-
-
-def _rows_per_block(nx, nb, dtype, target_bytes):
-    """Rows of ``nx`` pixels of ``nb`` bands of ``dtype`` in a block of about ``target_bytes``,
-    at least one; a value counts as at least 4 bytes (computations widen smaller types to
-    float32)."""
-    return max(1, target_bytes // (nx * nb * max(np.dtype(dtype).itemsize, 4)))
-
-
-@dataclass(frozen=True)
-class _Rows:
-    """``chunks="rows"`` as the readers get it: blocks of whole rows (every x and band) of
-    about ``target_bytes``, decided by the reader from the shape and dtype it finds in the
-    file's header, so that the file is opened once and the blocks are read as computed."""
-
-    target_bytes: int
-
-    def chunks(self, shape, dtype, dims=DIMS):
-        """Dask chunks (a dict by dim) for data of ``shape`` ``(y, x[, band])`` and ``dtype``."""
-        nb = shape[2] if len(shape) > 2 else 1
-        return {dims[0]: _rows_per_block(shape[1], nb, dtype, self.target_bytes),
-                **dict.fromkeys(dims[1:], -1)}
-
-
-def _resolve_chunks(chunks, shape, dtype, dims=DIMS):
-    """``chunks`` as a dict by dim (or None): :class:`_Rows` decided for ``shape`` and
-    ``dtype``, anything else as it is."""
-    return chunks.chunks(shape, dtype, dims) if isinstance(chunks, _Rows) else chunks
-
-
-class _Blocks:
-    """A memory map as dask reads it: block by block, each block copied (and brought to the
-    machine's byte order) only when computed. ``dask.array.from_array`` copies whole any
-    array that has a ``copy`` method, which would read the whole file; this has none."""
-
-    def __init__(self, array, dtype, token):
-        self._array, self.dtype, self._token = array, np.dtype(dtype), token
-        self.shape, self.ndim = array.shape, array.ndim
-
-    def __getitem__(self, key):
-        return np.array(self._array[key], dtype=self.dtype)
-
-    def __dask_tokenize__(self):
-        return self._token
-
-
-def _lazy_or_loaded(array, chunks, dims=DIMS, source=None):
-    """A dask array over ``array`` (a memory map stays one: blocks are read when computed)
-    when chunks are asked for, else a native-order copy in memory. ``source`` is the file
-    the memory map reads (it names the dask graph without reading the data). ``chunks``: a
-    dict by dim, or :class:`_Rows`."""
-    native = array.dtype.newbyteorder("=") if array.dtype.byteorder not in ("=", "|") \
-        else array.dtype
-    chunks = _resolve_chunks(chunks, array.shape, native, dims)
-    if chunks is None:
-        return np.array(array, dtype=native)
-    import dask.array as da
-
-    st = os.stat(source) if source is not None else None
-    token = ("snapcorr-file", str(source), st and st.st_mtime_ns, st and st.st_size,
-             array.shape, array.strides, str(array.dtype), getattr(array, "offset", 0))
-    sizes = tuple(chunks.get(d, -1) for d in dims)
-    return da.from_array(_Blocks(array, native, token), chunks=sizes, asarray=False,
-                         meta=np.empty((0,) * array.ndim, native))
-
-
-def _to_nm(values, units, where):
-    """Wavelengths (or widths) in nm from the file's ``units`` (none or "unknown": nm)."""
-    key = "nm" if units is None else str(units).strip().lower()
-    if key in ("", "unknown"):
-        key = "nm"
-    scale = UNITS_TO_NM.get(key)
-    if scale is None:
-        raise ValueError(f"{where}: units {units!r} are not a length (nm, um, mm or m and "
-                         "their spellings); pass wavelength_nm or fix the file's units")
-    try:
-        v = np.asarray(values, dtype=float).ravel()
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{where}: values must be numbers, got {values!r:.80}") from None
-    return v if scale == 1.0 else np.round(v * scale, 9)
-
-
-def _from_file(path, dtype, shape, offset, interleave, chunks):
-    """The values of a raw file, ``(y, x, band)`` in the machine's byte order: all of them
-    (``chunks`` None), or a dask array reading blocks of whole rows as they are computed
-    (``chunks`` a dict by dim, or :class:`_Rows`)."""
-    source = RowBlockFile(path, dtype, shape, offset, interleave)
-    chunks = _resolve_chunks(chunks, shape, source.dtype)
-    if chunks is None:
-        return source[:]
-    rows = chunks.get("y", -1)
-    if rows in (-1, None) or chunks.get("x", -1) not in (-1, None) \
-            or chunks.get("band", -1) not in (-1, None):
-        # other blocks than whole rows: read as the chunks ask (each block still on its own)
-        import dask.array as da
-
-        sizes = tuple(chunks.get(d, -1) for d in DIMS)
-        return da.from_array(source, chunks=sizes, asarray=False, fancy=False,
-                             meta=np.empty((0, 0, 0), source.dtype),
-                             name=f"read-{_file_token(path, shape, dtype, offset)}")
-    return lazy_file_array(path, dtype, shape, offset=offset, interleave=interleave,
-                           rows_per_block=rows)
-
-
-def _file_token(path, shape, dtype, offset):
-    st = os.stat(path)
-    return abs(hash((str(path), st.st_mtime_ns, st.st_size, tuple(shape), str(dtype),
-                     offset)))
+__all__ = [
+    "FORMATS",
+    "UNITS_TO_NM",
+]

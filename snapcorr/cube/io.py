@@ -1,531 +1,83 @@
-"""Reading and writing cubes, frames and results, through the libraries that own each format.
-
-=============  =================================================  ===========================
-extension      format                                             library
-=============  =================================================  ===========================
-``.hdr``       ENVI header + data (``.raw``, ``.img``, ...);      Spectral Python
-               BSQ, BIL or BIP; ``wavelength`` and ``fwhm`` in
-               the header's ``wavelength units``
-``.tif(f)``    TIFF: one page with a channel per band, or one     OpenImageIO
-               single-channel page per band; metadata in the
-               image description (JSON)
-``.exr``       OpenEXR in the spectral layout of Fichet et al.    OpenImageIO
-               2021 (``S0.<nm>nm`` emissive, ``T.<nm>nm``
-               reflective channels, ``spectralLayoutVersion``)
-``.nc``        netCDF 4                                           xarray (h5netcdf)
-``.zarr``      Zarr (a folder), consolidated metadata, chunked    xarray (zarr)
-               for larger-than-memory work
-``.npy``       array; snapcorr writes a JSON sidecar              numpy
-               (``cube.npy.json``) with wavelengths, fwhm, name,
-               attrs and sensor positions; a bare ``.npy`` needs
-               ``wavelength_nm``
-=============  =================================================  ===========================
-
-Reading
-    :func:`read_cube` (a ``(y, x, band)`` cube), :func:`read_frame` (a raw 2-D frame) and
-    :func:`read_dataset` (a whole result written by :func:`write_dataset`) share one reader
-    per format, as does :func:`snapcorr.calibrate.read_flat`. A path is examined before it is
-    opened (a FIFO, socket, device, symbolic link loop, or a folder where a file is expected is
-    refused, see :func:`snapcorr._io.check_input`); ENVI headers are validated before use.
-    Wavelengths come back in nm (``attrs["units"] = "nm"``) whatever the file's units
-    (ENVI ``wavelength units``, the ``units`` attribute of a netCDF or Zarr ``wavelength``):
-    nanometres, micrometres, millimetres and metres are converted, anything else refused, and
-    the result must pass :func:`snapcorr._validation.check_wavelengths_nm`. With ``chunks``,
-    the data are read lazily: ENVI and ``.npy`` block by block as dask computes them, netCDF
-    and Zarr through xarray. ``chunks="rows"`` reads in blocks of whole rows (every x and
-    band) of about :data:`BLOCK_BYTES`, as :func:`row_blocks` cuts them, decided from the
-    shape once the file's header is read: the file is opened once, and each block reads only
-    its rows (TIFF and OpenEXR, which OpenImageIO reads whole, are cut in memory).
-
-Sensor positions
-    ``sensor_row(y, band)`` and ``sensor_col(x, band)`` survive every format: native
-    coordinates in netCDF and Zarr; elsewhere per band an offset and one step when
-    ``position = offset_b + index * step`` exactly, else every value. In ENVI headers these are
-    ``snapcorr sensor row offset = {...}`` with ``snapcorr sensor row step = N`` (or
-    ``snapcorr sensor row = {...}``, row-major ``(y, band)``), the same for ``col``; in the
-    JSON of TIFF, EXR and ``.npy`` sidecars ``{"offset": [...], "step": N}`` or
-    ``{"values": [[...], ...]}``.
-
-Attributes
-    netCDF cannot store every attribute type, so :func:`write_dataset` (and :func:`write_cube`
-    to ``.nc`` and ``.zarr``) writes strings, integers and floats (and 1-D numeric arrays of 2
-    or more values) as themselves and everything else (booleans, None, lists, tuples, dicts,
-    strings that start with ``json:``) as a string ``json:<JSON>``; :func:`read_dataset` and
-    :func:`read_cube` decode them (a tuple comes back as a list). Other types are refused.
-    TIFF, OpenEXR and ``.npy`` sidecars keep a cube's attributes in their JSON, ENVI headers
-    in one field, ``snapcorr attrs = json:{...}``.
-    Variables and coordinates whose attrs hold ``derived_from`` are not written; the file
-    lists them in ``derived_variables`` and :func:`read_dataset` rebuilds them
-    (:func:`snapcorr.cube.derived.restore`). Every file carries a mark of its writer (the
-    attribute ``written_by = "snapcorr <version>"``, the header field ``snapcorr version``,
-    ``"written_by"`` in the JSON of TIFF, EXR and sidecars).
-
-Writing
-    Writers check everything (dtype, sizes, wavelengths, attributes, the format's limits)
-    before writing anything, write atomically (a hidden temporary name next to the target,
-    then renamed) and never write over, into or around an input (an ENVI header and its data
-    file, a ``.npy`` and its sidecar count as one). An existing target is replaced only with
-    ``overwrite=True`` and only if snapcorr wrote it (its mark); a Zarr store also must hold
-    nothing but Zarr metadata and arrays at its top level.
-
-Modules
-    This module holds the entry points; the rest lives in :mod:`snapcorr.cube.attrs`
-    (attribute and sensor-position encoding, the writer's mark), :mod:`snapcorr.cube.formats`
-    (formats by extension, what every reader shares, lazy row blocks),
-    :mod:`snapcorr.cube.envi`, :mod:`snapcorr.cube.images` (TIFF, OpenEXR),
-    :mod:`snapcorr.cube.npy`, :mod:`snapcorr.cube.datasets` (netCDF, Zarr) and
-    :mod:`snapcorr.cube.writing` (targets, inputs and marks checked before writing). Names
-    other modules import from here are re-exported.
-"""
-
-from __future__ import annotations
-
-from pathlib import Path
-
-import numpy as np
-import xarray as xr
-
-from .._io import check_input
-from .._validation import check_wavelengths_nm
-
-# re-exported names (``X as X``): imported from this module by other modules
-from .attrs import JSON_PREFIX as JSON_PREFIX
-from .attrs import _decode_positions, _mark, _one_line
-from .attrs import _json_attrs as _json_attrs
-from .attrs import _positions as _positions
-from .attrs import _version as _version
-from .attrs import decode_attrs as decode_attrs
-from .attrs import encode_attrs as encode_attrs
-from .datasets import COMPRESSIONS as COMPRESSIONS
-from .datasets import COMPUTED_WITH as COMPUTED_WITH
-from .datasets import STORED_FROM as STORED_FROM
-from .datasets import _encoded, _read_xarray, _store, _stored_as, _to_dataset
-from .datasets import _open_dataset as _open_dataset
-from .envi import _envi_position_keys as _envi_position_keys
-from .envi import _quiet_spectral as _quiet_spectral
-from .envi import _read_envi, _write_envi
-from .formats import _ENVI_DATA, _format, _resolve_chunks, _Rows, _rows_per_block, _to_nm
-from .formats import FORMATS as FORMATS
-from .formats import UNITS_TO_NM as UNITS_TO_NM
-from .formats import _from_file as _from_file
-from .formats import _lazy_or_loaded as _lazy_or_loaded
-from .images import _read_oiio, _write_oiio
-from .images import open_image as open_image
-from .model import (
-    FWHM_LONG_NAME,
-    POSITION_ATTRS,
-    POSITION_DIMS,
-    check_cube,
-    check_dtype,
-    make_cube,
-)
-from .npy import _npy_layout as _npy_layout
-from .npy import _read_npy, _write_npy
-from .writing import _check_targets as _check_targets
-from .writing import _check_writable as _check_writable
-from .writing import _targets
-
-__all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_cube_and_mask", "read_dataset",
-           "read_frame", "row_blocks", "write_cube", "write_dataset"]
+"""Compatibility re-exports: this module moved to :mod:`snapcorr.files.api`."""
 
 
-#: Target size of the blocks a cube is streamed in (``snapcorr correct``, ``flatfield``), and
-#: of the blocks ``chunks="rows"`` reads.
-BLOCK_BYTES = 16 * 2**20
+from snapcorr._validation import check_wavelengths_nm as check_wavelengths_nm
+from snapcorr.cube.attrs import JSON_PREFIX as JSON_PREFIX
+from snapcorr.cube.attrs import _decode_positions as _decode_positions
+from snapcorr.cube.attrs import _json_attrs as _json_attrs
+from snapcorr.cube.attrs import _mark as _mark
+from snapcorr.cube.attrs import _one_line as _one_line
+from snapcorr.cube.attrs import _positions as _positions
+from snapcorr.cube.attrs import _version as _version
+from snapcorr.cube.attrs import decode_attrs as decode_attrs
+from snapcorr.cube.attrs import encode_attrs as encode_attrs
+from snapcorr.cube.model import FWHM_LONG_NAME as FWHM_LONG_NAME
+from snapcorr.cube.model import POSITION_ATTRS as POSITION_ATTRS
+from snapcorr.cube.model import POSITION_DIMS as POSITION_DIMS
+from snapcorr.cube.model import check_cube as check_cube
+from snapcorr.cube.model import check_dtype as check_dtype
+from snapcorr.cube.model import make_cube as make_cube
+from snapcorr.files.api import BLOCK_BYTES as BLOCK_BYTES
+from snapcorr.files.api import _as_chunks as _as_chunks
+from snapcorr.files.api import _cube_meta as _cube_meta
+from snapcorr.files.api import _cube_wavelengths as _cube_wavelengths
+from snapcorr.files.api import _read_file as _read_file
+from snapcorr.files.api import _to_cube as _to_cube
+from snapcorr.files.api import read_cube as read_cube
+from snapcorr.files.api import read_cube_and_mask as read_cube_and_mask
+from snapcorr.files.api import read_dataset as read_dataset
+from snapcorr.files.api import read_frame as read_frame
+from snapcorr.files.api import row_blocks as row_blocks
+from snapcorr.files.api import write_cube as write_cube
+from snapcorr.files.api import write_dataset as write_dataset
+from snapcorr.files.datasets import COMPRESSIONS as COMPRESSIONS
+from snapcorr.files.datasets import COMPUTED_WITH as COMPUTED_WITH
+from snapcorr.files.datasets import STORED_FROM as STORED_FROM
+from snapcorr.files.datasets import _encoded as _encoded
+from snapcorr.files.datasets import _open_dataset as _open_dataset
+from snapcorr.files.datasets import _read_xarray as _read_xarray
+from snapcorr.files.datasets import _store as _store
+from snapcorr.files.datasets import _stored_as as _stored_as
+from snapcorr.files.datasets import _to_dataset as _to_dataset
+from snapcorr.files.envi import _envi_position_keys as _envi_position_keys
+from snapcorr.files.envi import _quiet_spectral as _quiet_spectral
+from snapcorr.files.envi import _read_envi as _read_envi
+from snapcorr.files.envi import _write_envi as _write_envi
+from snapcorr.files.images import _read_oiio as _read_oiio
+from snapcorr.files.images import _write_oiio as _write_oiio
+from snapcorr.files.npy import _npy_layout as _npy_layout
+from snapcorr.files.npy import _read_npy as _read_npy
+from snapcorr.files.npy import _write_npy as _write_npy
+from snapcorr.files.outputs import _check_targets as _check_targets
+from snapcorr.files.outputs import _check_writable as _check_writable
+from snapcorr.files.outputs import _targets as _targets
+from snapcorr.files.reading import check_input as check_input
+from snapcorr.files.reading import open_image as open_image
+from snapcorr.files.registry import FILE_FORMATS as _FILE_FORMATS
+from snapcorr.files.registry import FORMATS as FORMATS
+from snapcorr.files.registry import _format as _format
+from snapcorr.files.storage import _ENVI_DATA as _ENVI_DATA
+from snapcorr.files.storage import UNITS_TO_NM as UNITS_TO_NM
+from snapcorr.files.storage import _from_file as _from_file
+from snapcorr.files.storage import _lazy_or_loaded as _lazy_or_loaded
+from snapcorr.files.storage import _resolve_chunks as _resolve_chunks
+from snapcorr.files.storage import _Rows as _Rows
+from snapcorr.files.storage import _rows_per_block as _rows_per_block
+from snapcorr.files.storage import _to_nm as _to_nm
 
+#: Format name -> the writer of a cube in it (not netCDF and Zarr).
+_WRITERS = {f.name: f.write for f in _FILE_FORMATS.values() if not f.holds_datasets}
 
-def row_blocks(cube, target_bytes=BLOCK_BYTES):
-    """``cube`` in dask blocks of whole rows (every x and band) of about ``target_bytes``:
-    memory stays bounded whatever the cube's size, and each spectrum stays in one block.
-    ``read_cube(path, chunks="rows")`` reads a file directly in these blocks (of
-    :data:`BLOCK_BYTES`)."""
-    rows = _rows_per_block(cube.sizes["x"], cube.sizes["band"], cube.dtype, target_bytes)
-    return cube.chunk({"y": rows, "x": -1, "band": -1})
+_MOVED_TO = "snapcorr.files.api"
 
-
-def _as_chunks(chunks):
-    """``chunks`` as the readers take them: ``"rows"`` becomes a
-    :class:`~snapcorr.cube.formats._Rows` of :data:`BLOCK_BYTES` (looked up now)."""
-    if isinstance(chunks, str) and chunks == "rows":
-        return _Rows(BLOCK_BYTES)
-    return chunks
-
-
-# -- reading ---------------------------------------------------------------------------------
-
-
-def _read_file(path, *, chunks=None, what="cube", drop_alpha=False):
-    """The one reader behind :func:`read_cube`, :func:`read_frame` and ``read_flat``.
-
-    ``chunks``: None (read whole), a dict by dim, or ``"rows"`` (:func:`read_cube`); the
-    file is opened once whichever is given."""
-    chunks = _as_chunks(chunks)
-    fmt, path, data_file = _format(path, what)
-    check_input(path, directory=fmt == "zarr", what=what)
-    try:
-        if fmt == "envi":
-            found = _read_envi(path, data_file, chunks, what)
-        elif fmt in ("tiff", "exr"):
-            found = _read_oiio(path, fmt, drop_alpha, what)
-        elif fmt == "npy":
-            found = _read_npy(path, chunks)
-        else:
-            found = _read_xarray(path, fmt, chunks)
-    except (ValueError, TypeError, FileNotFoundError) as err:
-        if str(err).startswith(str(path)) or str(err).startswith("no such file"):
-            raise
-        raise ValueError(f"{path}: cannot read it as {fmt}: {_one_line(err)}") from None
-    except Exception as err:  # the libraries raise their own types; all mean a bad file
-        raise ValueError(f"{path}: cannot read it as {fmt}: {type(err).__name__}: "
-                         f"{_one_line(err)}") from None
-    dtype = found.data.dtype
-    if dtype.kind not in "iuf":
-        try:
-            check_dtype(dtype, f"{path}: a {what}")
-        except TypeError as err:
-            raise ValueError(str(err)) from None
-    return found
-
-
-def read_cube(path, *, wavelength_nm=None, chunks=None):
-    """Read a cube from any supported format (see the module table).
-
-    Parameters
-    ----------
-    path : str or Path
-        A file (a folder for ``.zarr``); an ENVI cube by its header or its data file.
-    wavelength_nm : array_like, optional
-        Band wavelengths, nm, for files that carry none (a bare ``.npy``, a plain TIFF) or
-        carry them in no length unit (ENVI ``wavelength units = Index``); a file's own
-        wavelengths win, and a mismatch in length is an error.
-    chunks : dict or "rows", optional
-        Dask chunks (e.g. ``{"y": 512}``, or ``{}`` for the file's own): the cube is read
-        lazily (ENVI and ``.npy`` block by block as computed). ``"rows"``: blocks of whole
-        rows (every x and band) of about :data:`BLOCK_BYTES` (a value counted as
-        ``max(itemsize, 4)`` bytes), decided from the shape once the header is read; the
-        same blocks as ``row_blocks(read_cube(path, chunks={}))``, but the file is opened
-        once, and each block reads only its own rows (a netCDF variable stored contiguously
-        too). TIFF and OpenEXR are read whole by OpenImageIO, then cut.
-
-    Returns
-    -------
-    xarray.DataArray
-        dims ``(y, x, band)``, ``wavelength`` (and ``fwhm``) in nm, ``sensor_row`` and
-        ``sensor_col`` when the file has them.
-
-    Raises
-    ------
-    FileNotFoundError
-        No such file.
-    ValueError
-        Not a regular file (or folder for ``.zarr``), an unreadable or invalid file, wavelengths
-        missing, in no length unit or not plausible in nm, values that are not real numbers.
-    """
-    return read_cube_and_mask(path, wavelength_nm=wavelength_nm, chunks=chunks)[0]
-
-
-def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
-    """:func:`read_cube`'s cube and, from a netCDF or Zarr flat-field result, its
-    ``mask(y, x, band)`` in the same blocks (None otherwise): the file is opened once.
-
-    Parameters
-    ----------
-    path : str or Path
-    wavelength_nm : array_like, optional
-    chunks : dict or "rows", optional
-        As for :func:`read_cube`; the mask comes in the cube's blocks.
-
-    Returns
-    -------
-    cube : xarray.DataArray
-    mask : xarray.DataArray or None
-    """
-    chunks = _as_chunks(chunks)
-    f = _read_file(path, chunks=chunks, what="cube")
-    try:
-        cube = _to_cube(f, wavelength_nm)
-    except (TypeError, ValueError, OverflowError) as err:
-        if str(err).startswith(str(f.path)):
-            raise
-        raise type(err)(f"{f.path}: {err}") from None
-    if chunks is not None and cube.chunks is None:  # read in memory (TIFF, OpenEXR)
-        cube = cube.chunk(_resolve_chunks(chunks, cube.shape, cube.dtype))
-    mask = f.extras.get("mask")
-    if mask is not None and cube.chunks is not None:  # block for block with the cube
-        mask = mask.chunk(dict(zip(mask.dims, cube.chunks, strict=True)))
-    return cube, mask
-
-
-def _cube_wavelengths(f, given, n_bands):
-    if given is not None and np.size(given) != n_bands:  # the file's own would win unseen
-        raise ValueError(f"{f.path} has {n_bands} bands but wavelength_nm gives "
-                         f"{np.size(given)}; use the sensor it was taken with")
-    wl = None
-    if f.wavelength is not None:
-        try:
-            wl = _to_nm(f.wavelength, f.units, f"{f.path}: wavelength")
-        except ValueError:
-            if given is None:
-                raise
-    if wl is None:
-        if given is None:
-            raise ValueError(f"{f.path} carries no wavelengths; pass wavelength_nm")
-        try:
-            wl = np.atleast_1d(np.asarray(given, dtype=float))
-        except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"wavelength_nm must be numbers, got {given!r:.80}") from None
-    if wl.shape != (n_bands,):
-        raise ValueError(f"{f.path} has {n_bands} bands but {wl.size} wavelengths")
-    wl = check_wavelengths_nm("wavelengths", wl, where=str(f.path))
-    fw = None
-    if f.fwhm is not None:
-        fw = _to_nm(f.fwhm, f.fwhm_units, f"{f.path}: fwhm")
-        if fw.size == 1:
-            fw = np.full(n_bands, fw[0])
-        if fw.shape != (n_bands,):
-            raise ValueError(f"{f.path}: {fw.size} fwhm values for {n_bands} bands")
-    return wl, fw
-
-
-def _to_cube(f, given):
-    if f.file_ndim != 3:
-        raise ValueError(f"{f.path} holds a {f.file_ndim}-D array; a cube is (y, x, band) "
-                         "(read a 2-D frame with read_frame)")
-    ny, nx, nb = f.data.shape
-    wl, fw = _cube_wavelengths(f, given, nb)
-    attrs = {k: v for k, v in f.attrs.items() if k not in ("written_by", "derived_variables")}
-    wl_attrs = {"units": "nm", "long_name": "nominal wavelength"}
-    if isinstance(f.data, xr.DataArray):
-        cube = f.data.drop_vars([c for c in ("wavelength", "fwhm") if c in f.data.coords])
-        wl_attrs = {**f.data["wavelength"].attrs, **wl_attrs} \
-            if "wavelength" in f.data.coords else wl_attrs
-        cube = cube.assign_coords(wavelength=("band", wl, wl_attrs))
-        if fw is not None:
-            cube = cube.assign_coords(
-                fwhm=("band", fw, {"units": "nm", "long_name": FWHM_LONG_NAME}))
-        cube.attrs = attrs
-        cube.name = f.name
-        return check_cube(cube)
-    # a file that names nothing: whole numbers are a camera's raw counts (make_cube)
-    cube = make_cube(f.data, wl, fwhm_nm=fw, attrs=attrs, name=f.name)
-    sizes = {"y": ny, "x": nx, "band": nb}
-    for name, spec in f.positions.items():
-        dims = POSITION_DIMS[name]
-        values = _decode_positions(spec, tuple(sizes[d] for d in dims), name, str(f.path))
-        cube = cube.assign_coords({name: (dims, values, POSITION_ATTRS[name])})
-    return check_cube(cube)
-
-
-def read_frame(path, *, chunks=None):
-    """Read a raw 2-D frame (a mosaic sensor's image, a flat, a dark).
-
-    Parameters
-    ----------
-    path : str or Path
-        A 2-D ``.npy`` (or ``(y, x, 1)``), a single-channel single-page TIFF or OpenEXR (an
-        alpha channel is ignored), a single-band ENVI file, or a ``(y, x, 1)`` (or ``(y, x)``)
-        variable in ``.nc`` or ``.zarr``.
-    chunks : dict or "rows", optional
-        Dask chunks (e.g. ``{"y": 512}``): read lazily (ENVI and ``.npy`` block by block as
-        computed). ``"rows"``: blocks of whole rows of about :data:`BLOCK_BYTES`, decided
-        from the shape once the header is read, the file opened once (see
-        :func:`read_cube`).
-
-    Returns
-    -------
-    xarray.DataArray
-        dims ``("y", "x")``, named ``"frame"``; attrs ``source`` (and ``data_ignore_value``
-        from an ENVI header).
-
-    Raises
-    ------
-    ValueError
-        A file holding more than one band (the message says how many), or any error of
-        :func:`read_cube`'s readers.
-    """
-    chunks = _as_chunks(chunks)
-    f = _read_file(path, chunks=chunks, what="frame", drop_alpha=True)
-    nb = f.data.shape[2]
-    if nb != 1:
-        raise ValueError(f"{f.path} holds {nb} bands; a frame is one 2-D image: read it with "
-                         "read_cube, or save the one band you need")
-    attrs = {k: v for k, v in f.attrs.items() if k in ("source", "data_ignore_value")}
-    attrs.setdefault("source", str(f.path))
-    if isinstance(f.data, xr.DataArray):
-        data = f.data.isel(band=0).data
-    else:
-        data = f.data[:, :, 0]
-    frame = xr.DataArray(data, dims=("y", "x"), attrs=attrs, name="frame")
-    if chunks is not None and frame.chunks is None:  # read in memory (TIFF, OpenEXR)
-        chunks = _resolve_chunks(chunks, frame.shape, frame.dtype, frame.dims)
-        frame = frame.chunk({k: v for k, v in chunks.items() if k in ("y", "x")})
-    return frame
-
-
-def read_dataset(path, *, chunks=None):
-    """Open a result written by :func:`write_dataset` (``.nc`` or ``.zarr``).
-
-    Attributes of the Dataset, its variables and coordinates come back as they were in
-    memory (``json:`` strings decoded), the variables the file lists in
-    ``derived_variables`` are rebuilt (:func:`snapcorr.cube.derived.restore`), and the
-    writer's marks (``written_by``, ``derived_variables``) are removed from the attributes.
-
-    Parameters
-    ----------
-    path : str or Path
-    chunks : dict, optional
-        Dask chunks (e.g. ``{}`` for the file's own): read lazily.
-
-    Returns
-    -------
-    xarray.Dataset
-    """
-    from .derived import restore
-
-    path = Path(path)
-    if path.suffix.lower() not in (".nc", ".zarr"):
-        raise ValueError(f"results are .nc or .zarr files, got {path.suffix or '(none)'!r} "
-                         f"for {path}")
-    fmt = FORMATS[path.suffix.lower()]
-    check_input(path, directory=fmt == "zarr", what="result")
-    try:
-        ds = _open_dataset(path, fmt, chunks)
-    except Exception as err:  # the libraries' own error types: report them plainly
-        raise ValueError(f"{path}: cannot read it as {fmt}: {type(err).__name__}: "
-                         f"{_one_line(err)}") from None
-    ds.attrs = decode_attrs(ds.attrs)
-    for var in ds.variables.values():
-        var.attrs = decode_attrs(var.attrs)
-    ds = restore(ds)
-    for key in ("written_by", "derived_variables"):
-        ds.attrs.pop(key, None)
-    return ds
-
-
-# -- writing ---------------------------------------------------------------------------------
-
-
-def write_cube(cube, path, *, overwrite=False, inputs=(), interleave="bsq"):
-    """Write a cube; the format follows the extension (see the module table).
-
-    Everything is checked before anything is written: the cube (:func:`check_cube`: real
-    values, no empty dim, wavelengths in nm without repeats), its attributes, the format's
-    limits, the inputs and an existing target.
-
-    Parameters
-    ----------
-    cube : xarray.DataArray
-    path : str or Path
-    overwrite : bool
-        Replace an existing output snapcorr wrote (never one of ``inputs``, nor another file).
-    inputs : sequence of paths
-        Files the cube came from; writing over, into or around any of them is refused.
-    interleave : {"bsq", "bil", "bip"}
-        ENVI band interleave.
-
-    Returns
-    -------
-    Path
-        The path written (an ENVI cube: its header).
-    """
-    check_cube(cube)
-    path = Path(path)
-    if path.suffix.lower() in _ENVI_DATA:
-        raise ValueError(f"an ENVI cube is written by its header's name: "
-                         f"{path.with_suffix('.hdr')} (its data go to "
-                         f"{path.with_suffix('.raw').name}), not {path.name}")
-    fmt, path, _ = _format(path)
-    if fmt in ("tiff", "exr"):  # written whole: the values in the machine's own byte order
-        values = np.asarray(cube.values)  # (zarr gives an explicit "<f4", OpenImageIO
-        cube = cube.copy(data=values.astype(values.dtype.newbyteorder("=")))  # refuses it)
-    _check_writable(fmt, cube, path, interleave)
-    name = cube.name or "radiance"
-    if fmt in ("netcdf", "zarr"):
-        ds = _encoded(_to_dataset(cube))
-    else:
-        meta = _cube_meta(cube, name)
-    _check_targets(fmt, _targets(fmt, path), overwrite=overwrite, inputs=inputs)
-    if fmt in ("netcdf", "zarr"):
-        _store(ds, path, fmt)
-    else:
-        _WRITERS[fmt](cube, path, meta, interleave=interleave)
-    return path
-
-
-def _cube_meta(cube, name):
-    meta = {"written_by": _mark(), "name": name, "dtype": str(cube.dtype),
-            "shape": list(cube.shape),
-            "attrs": _json_attrs(cube.attrs, f"cube {name!r}"),
-            "wavelength_nm": [float(v) for v in cube.wavelength.values]}
-    if "fwhm" in cube.coords:
-        meta["fwhm_nm"] = [float(v) for v in cube.fwhm.values]
-    meta.update(_positions(cube))
-    return meta
-
-
-_WRITERS = {"envi": _write_envi, "tiff": _write_oiio, "exr": _write_oiio, "npy": _write_npy}
-
-
-def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
-                  store_derived=False, dtype=None, pack_range=None):
-    """Write a Dataset (a corrected cube with its mask, raw data and provenance) to ``.nc`` or
-    ``.zarr``, atomically.
-
-    Every attribute of the Dataset, its variables and coordinates is written (see the module
-    docstring for how netCDF and Zarr hold those they cannot store natively; other types are
-    refused before anything is written); variables and coordinates whose attrs hold
-    ``derived_from`` are left out and listed in ``derived_variables``, for
-    :func:`read_dataset` to rebuild, unless ``store_derived``. Zarr stores get consolidated
-    metadata.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        Not changed.
-    path : str or Path
-        ``.nc`` or ``.zarr``.
-    overwrite : bool
-        Replace an existing output snapcorr wrote (never one of ``inputs``, nor another file
-        or folder).
-    inputs : sequence of paths
-        Files the data came from; writing over, into or around any of them is refused.
-    compression : {"auto", "all", "none"}
-        ``"auto"`` compresses where it pays: every numeric variable of a Zarr store (Blosc LZ4,
-        about as fast as writing plainly); in netCDF, DEFLATE (level 1, byte shuffle) for
-        integer and boolean variables (raw counts, masks: about 0.6 and under 0.05 of their
-        size) and stored derived variables (smooth: about 0.25), while noisy floating-point
-        cubes stay plain (about 0.75 of their size for 6 x the writing time). ``"all"`` also
-        compresses those; ``"none"`` compresses nothing.
-    store_derived : bool
-        Write the derived variables (``wavelength_corrected``, ``fwhm_corrected``) as plain
-        data variables, with their formula in ``computed_from``, for readers without snapcorr.
-    dtype : {None, "float32", "float16", "uint16"}
-        The type the values (the cube and the spectra computed from it) are stored as; None
-        keeps each variable's own. ``"uint16"`` packs them by CF ``scale_factor`` and
-        ``add_offset`` (NaN as ``_FillValue`` 65535, codes 0-65534 in ``valid_range``), which
-        xarray and netCDF readers apply: ratios (units ``"1"``) over -0.5 to 3.5 by default,
-        a step of 6.1e-5, at most 3.2e-5 from the value computed (half a step and float32's
-        rounding); values outside the range are stored as its ends (clipped). Each packed
-        variable says its packing, its error and the clipping in its ``storage`` and
-        ``packing_error`` attributes. ``"float16"``
-        (Zarr only; netCDF has no such type): relative error at most 4.9e-4. A camera's
-        numbers are never stored as either: the input's copy (``raw``) keeps its type, and
-        other values in counts (or without units) are refused.
-    pack_range : (float, float), optional
-        ``(lo, hi)`` for ``"uint16"``: needed for values in units other than ``"1"``.
-
-    Returns
-    -------
-    Path
-    """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".nc", ".zarr"):
-        raise ValueError(f"results are written as .nc or .zarr, got {path.suffix or '(none)'!r}")
-    if compression not in COMPRESSIONS:
-        raise ValueError(f"compression must be one of {', '.join(COMPRESSIONS)}, got "
-                         f"{compression!r}")
-    fmt = FORMATS[suffix]
-    out = _stored_as(_encoded(ds, store_derived=store_derived), dtype, pack_range, fmt)
-    _check_targets(fmt, [path], overwrite=overwrite, inputs=inputs)
-    return _store(out, path, fmt, compression)
+__all__ = [
+    "BLOCK_BYTES",
+    "FORMATS",
+    "read_cube",
+    "read_cube_and_mask",
+    "read_dataset",
+    "read_frame",
+    "row_blocks",
+    "write_cube",
+    "write_dataset",
+]

@@ -1,124 +1,21 @@
-"""``.npy`` cubes and frames, with snapcorr's JSON sidecar (``cube.npy.json``).
-
-A C-ordered numeric array is read in blocks of rows with plain file reads (its layout from the
-header, :func:`_npy_layout`); any other ``.npy`` through numpy's memory map. The sidecar holds
-wavelengths, fwhm, name, attrs and sensor positions; a bare ``.npy`` has none.
-"""
-
-from __future__ import annotations
-
-import json
-import os
-
-import numpy as np
-
-from .._io import atomic_write_files, check_input
-from .attrs import _one_line
-from .formats import _File, _from_file, _lazy_or_loaded, _resolve_chunks, _sidecar
-from .model import DIMS, POSITION_DIMS
-
-# -- reading ---------------------------------------------------------------------------------
+"""Compatibility re-exports: this module moved to :mod:`snapcorr.files.npy`."""
 
 
-def _npy_layout(path):
-    """``(shape, dtype, offset)`` of a C-ordered numeric ``.npy`` from its header, else None
-    (numpy then reads it: Fortran order, structured or object arrays, a bad file)."""
-    try:
-        with open(path, "rb") as fh:
-            version = np.lib.format.read_magic(fh)
-            read = {(1, 0): np.lib.format.read_array_header_1_0,
-                    (2, 0): np.lib.format.read_array_header_2_0}.get(version)
-            if read is None:
-                return None
-            shape, fortran, dtype = read(fh)
-            offset = fh.tell()
-    except (OSError, ValueError):
-        return None
-    if fortran or dtype.kind not in "iuf" or len(shape) not in (2, 3) or 0 in shape:
-        return None
-    if os.path.getsize(path) < offset + int(np.prod(shape)) * dtype.itemsize:
-        raise ValueError(f"{path}: the file is shorter than its header's {shape} "
-                         f"{dtype.name} array; it is truncated")
-    return shape, dtype, offset
+from snapcorr.cube.attrs import _one_line as _one_line
+from snapcorr.cube.model import DIMS as DIMS
+from snapcorr.cube.model import POSITION_DIMS as POSITION_DIMS
+from snapcorr.files.npy import _npy_found as _npy_found
+from snapcorr.files.npy import _npy_layout as _npy_layout
+from snapcorr.files.npy import _read_npy as _read_npy
+from snapcorr.files.npy import _read_sidecar as _read_sidecar
+from snapcorr.files.npy import _write_npy as _write_npy
+from snapcorr.files.reading import check_input as check_input
+from snapcorr.files.safety import atomic_write_files as atomic_write_files
+from snapcorr.files.storage import _File as _File
+from snapcorr.files.storage import _from_file as _from_file
+from snapcorr.files.storage import _lazy_or_loaded as _lazy_or_loaded
+from snapcorr.files.storage import _resolve_chunks as _resolve_chunks
+from snapcorr.files.storage import _sidecar as _sidecar
 
+_MOVED_TO = "snapcorr.files.npy"
 
-def _read_npy(path, chunks):
-    """The cube (or frame) of a ``.npy`` and its sidecar; ``chunks`` None (read whole), a dict
-    by dim or :class:`~snapcorr.cube.formats._Rows`."""
-    layout = _npy_layout(path)
-    if layout is not None:  # read in row blocks, not through a memory map
-        shape, dtype, offset = layout
-        file_ndim = len(shape)
-        shape = shape if file_ndim == 3 else (*shape, 1)
-        chunks = _resolve_chunks(chunks, shape, dtype)
-        data = _from_file(path, dtype, shape, offset, "bip",
-                          None if chunks is None else {**chunks, "band": -1})
-        return _npy_found(path, data, file_ndim)
-    try:
-        data = np.load(path, mmap_mode="r", allow_pickle=False)
-    except Exception as err:  # numpy raises several types for a bad or empty file
-        if "pickle" in str(err) or "Python objects" in str(err):  # (never unpickled)
-            raise ValueError(f"{path}: holds pickled Python objects, or is not a .npy file "
-                             "at all; snapcorr never loads pickles") from None
-        raise ValueError(f"{path}: not a numpy array file ({type(err).__name__}: "
-                         f"{_one_line(err)})") from None
-    if not isinstance(data, np.ndarray):
-        raise ValueError(f"{path}: not a numpy array file (a .npz archive?); save one array")
-    if data.ndim not in (2, 3):
-        raise ValueError(f"{path} holds a {data.ndim}-D array; a cube is (y, x, band) and a "
-                         "frame (y, x)")
-    file_ndim = data.ndim
-    if data.dtype.kind in "iuf":
-        data = _lazy_or_loaded(data, chunks, DIMS[:data.ndim], source=path)
-    if file_ndim == 2:
-        data = data[:, :, None]
-    return _npy_found(path, data, file_ndim)
-
-
-def _npy_found(path, data, file_ndim):
-    """The ``.npy``'s array with what its sidecar (if any) says about it."""
-    found = _File(path, "npy", data, file_ndim=file_ndim, attrs={"source": str(path)})
-    side = _sidecar(path)
-    if os.path.lexists(side):
-        meta = _read_sidecar(side, path)
-        shape = meta.get("shape")
-        if shape is not None and list(shape) != list(data.shape[:file_ndim]):
-            raise ValueError(f"{path}: its sidecar {side.name} describes shape {shape} but the "
-                             f"array is {list(data.shape[:file_ndim])}; the two files do not "
-                             "belong together (remove or fix the sidecar)")
-        found.wavelength = meta.get("wavelength_nm")
-        found.fwhm = meta.get("fwhm_nm")
-        found.name = meta.get("name")
-        if isinstance(meta.get("attrs"), dict):
-            found.attrs.update(meta["attrs"])
-        for key in POSITION_DIMS:
-            if isinstance(meta.get(key), dict):
-                found.positions[key] = meta[key]
-    return found
-
-
-def _read_sidecar(side, path):
-    check_input(side, what="sidecar")
-    try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as err:
-        raise ValueError(f"{path}: its sidecar {side.name} is not readable JSON "
-                         f"({_one_line(err)}); fix or remove it") from None
-    if not isinstance(meta, dict):
-        raise ValueError(f"{path}: its sidecar {side.name} is not a JSON object; fix or "
-                         "remove it")
-    return meta
-
-
-# -- writing ---------------------------------------------------------------------------------
-
-
-def _write_npy(cube, path, meta, *, interleave):
-    data = np.asarray(cube.values)
-    text = json.dumps(meta, indent=1)
-
-    def write(folder):
-        np.save(folder / path.name, data, allow_pickle=False)
-        (folder / _sidecar(path).name).write_text(text, encoding="utf-8")
-
-    atomic_write_files([path, _sidecar(path)], write)

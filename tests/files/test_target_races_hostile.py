@@ -84,13 +84,13 @@ def test_a_plot_or_profile_that_appears_after_the_check_is_not_replaced(tmp_path
 def test_the_librarys_own_check_holds_until_the_move(tmp_path, monkeypatch):
     """Without a command around it, write_dataset's target check is what the move holds to:
     a file that appears between the check and the write is not replaced."""
-    import snapcorr.cube.io as cube_io
+    import snapcorr.files.datasets as datasets
 
     out = tmp_path / "out"
     out.mkdir()
     target = out / "r.nc"
     write_dataset(output_cube().to_dataset(), target)
-    store = cube_io._store
+    store = datasets._store
 
     def a_writes_first(ds, path, fmt, *args):
         if Path(path) == target:  # B, between its check and its write: A writes first
@@ -98,10 +98,10 @@ def test_the_librarys_own_check_holds_until_the_move(tmp_path, monkeypatch):
                                 lambda p: write_dataset(output_cube(7).to_dataset(), p))
         return store(ds, path, fmt, *args)
 
-    monkeypatch.setattr(cube_io, "_store", a_writes_first)
+    monkeypatch.setattr(datasets, "_store", a_writes_first)
     with pytest.raises(FileExistsError, match="changed after snapcorr checked it"):
         write_dataset(output_cube(2).to_dataset(), target, overwrite=True)
-    monkeypatch.setattr(cube_io, "_store", store)
+    monkeypatch.setattr(datasets, "_store", store)
     np.testing.assert_array_equal(read_cube(target).values, output_cube(7).values)
 
 

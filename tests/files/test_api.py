@@ -13,7 +13,7 @@ from snapcorr.cube import make_cube, read_frame
 from snapcorr.cube.io import read_cube, write_cube
 from snapcorr.cube.model import with_positions
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 WL = np.array([470.5, 500.0, 650.25, 900.0])
 DTYPES = [np.uint8, np.uint16, np.int16, np.int32, np.uint32, np.float16, np.float32,

@@ -1,0 +1,177 @@
+"""A correction result as ENVI files, for Spectral Python, ENVI and other tools without snapcorr.
+
+One header and data pair per image of the result, side by side, written together:
+
+==============================  ========================================================
+``STEM.hdr``                    the input cube's values (left out with
+                                ``include_input=False``)
+``STEM_wavelength_corrected``   each pixel's corrected central wavelength per band, nm
+``STEM_fwhm_corrected``         each pixel's response FWHM per band, nm (when computed)
+``STEM_resampled``              the spectra on the nominal wavelengths
+``STEM_harmonised``             the spectra with one common response per band
+``STEM_virtual``                the virtual bands
+``STEM_mask``                   1 where a value is not meaningful (uint8)
+``STEM_cra_deg``                the chief-ray angle, deg (one band, or one per band)
+==============================  ========================================================
+
+A header carries ``wavelength`` (and ``fwhm``) only where every pixel of a band shares one:
+the resampled, harmonised and virtual cubes. The input's values sit at each pixel's own
+wavelengths, so their header gives none (a reader would otherwise plot them at the nominal
+ones, the error the correction removes) and names ``STEM_wavelength_corrected.hdr`` instead;
+``snapcorr nominal wavelength`` lists the nominal ones. Every header holds the result's
+provenance (``snapcorr attrs``, JSON). Dask images are written chunk by chunk into each file's
+memory map, so a result larger than memory can be written.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..cube.attrs import JSON_PREFIX, _json_attrs, _positions, _version
+from .envi import _envi_position_keys, _quiet_spectral
+from .outputs import _check_targets, _check_writable
+from .safety import atomic_write_files
+
+__all__ = ["write_envi_result"]
+
+#: The result's images written, in this order, after the input's values; the suffix of each.
+IMAGES = ("wavelength_corrected", "fwhm_corrected", "resampled", "harmonised", "virtual",
+          "mask", "cra_deg")
+#: Images whose bands each share one wavelength: their headers carry ``wavelength``.
+_ONE_PER_BAND = {"resampled": ("wavelength", None), "harmonised": ("wavelength",
+                                                                   "fwhm_harmonised"),
+                 "virtual": ("virtual_wavelength", "virtual_fwhm")}
+
+
+def _as_image(var):
+    """``var`` as a ``(y, x, band)`` array for ENVI: a mask as uint8, a map as one band."""
+    dims = [d for d in var.dims if d not in ("y", "x")]
+    var = var.transpose("y", "x", *dims)
+    data = var.data
+    if var.dtype == bool:
+        data = data.astype(np.uint8)
+    if var.ndim == 2:
+        data = data[:, :, None]
+    return data
+
+
+def _write_image(path, data, header):
+    """One ENVI pair (BSQ) at ``path``, filled block by block: a dask image is computed one
+    chunk at a time straight into the file's memory map, never held whole."""
+    from spectral.io import envi
+
+    dtype = np.dtype(data.dtype)
+    with _quiet_spectral():
+        img = envi.create_image(str(path), header, shape=tuple(data.shape), dtype=dtype,
+                                interleave="bsq", ext=".raw", force=True)
+        out = img.open_memmap(writable=True)  # (rows, cols, bands), a view of the file
+    if hasattr(data, "dask"):
+        import dask.array as da
+
+        da.store(data, out, lock=False)
+    else:
+        out[...] = data
+    out.flush()
+    del out
+
+
+def _header(ds, name, var, stem, nominal, positions):
+    header = {"description": f"snapcorr result {stem}: {name}",
+              "snapcorr version": _version(), "snapcorr name": name,
+              "snapcorr attrs": JSON_PREFIX + json.dumps(
+                  _json_attrs({**ds.attrs, **var.attrs}, f"variable {name!r}"),
+                  ensure_ascii=True)}
+    units = var.attrs.get("units")
+    if isinstance(units, str) and units:
+        header["snapcorr units"] = units
+    if name in _ONE_PER_BAND:
+        wl_name, fwhm_name = _ONE_PER_BAND[name]
+        header["wavelength"] = [float(v) for v in ds[wl_name].values]
+        header["wavelength units"] = "nm"
+        if fwhm_name is not None and fwhm_name in ds.variables:
+            header["fwhm"] = [float(v) for v in np.atleast_1d(ds[fwhm_name].values)]
+    elif "band" in var.dims:
+        # each pixel has its own wavelengths: none in the header, where they would be
+        # taken for every pixel's
+        header["snapcorr nominal wavelength"] = nominal
+        header["band names"] = [f"nominal {w:g} nm" for w in nominal]
+        header["description"] += (f"; each pixel's wavelengths are in "
+                                  f"{stem}_wavelength_corrected.hdr (nm)")
+    else:
+        header["band names"] = [name]
+    if "band" in var.dims:  # where the bands sit on the sensor (crops, mosaics)
+        header.update(positions)
+    return header
+
+
+def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=True,
+                      input_name=None):
+    """Write a correction result (:func:`snapcorr.correct.correct_cube`) as ENVI pairs.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The result (numpy- or dask-backed; each image is computed in turn).
+    path : str or Path
+        ``STEM.hdr``; the other images go to ``STEM_<name>.hdr`` beside it (module table),
+        each with its data in a ``.raw`` file.
+    overwrite : bool
+        Replace existing files snapcorr wrote (never one of ``inputs``, nor another file).
+    inputs : sequence of paths
+        Files the data came from; writing over any of them is refused.
+    include_input : bool
+        Also write the input's values as ``STEM.hdr``.
+    input_name : str, optional
+        The input cube's variable (default: the result's ``cube_name`` attribute).
+
+    Returns
+    -------
+    list of Path
+        The headers written.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".hdr":
+        raise ValueError(f"an ENVI result is named by its header, STEM.hdr; got {path.name}")
+    stem = path.stem
+    nominal = [float(v) for v in ds["wavelength"].values]
+    images = []
+    if include_input:
+        name = input_name or ds.attrs.get("cube_name")
+        if name not in ds.data_vars or name in IMAGES:
+            raise ValueError(f"the result holds no input cube {name!r} to write as {path.name}")
+        images.append((name, path))
+    images += [(n, path.with_name(f"{stem}_{n}.hdr")) for n in IMAGES if n in ds.variables]
+    if not images:
+        raise ValueError("nothing to write: the result holds no image")
+    # an image of an earlier run that this one does not write would be left beside it
+    stale = [path.with_name(f"{stem}_{n}.hdr") for n in IMAGES if n not in ds.variables]
+    stale += [] if include_input else [path]
+    stale = [p for p in stale if p.exists()]
+    if stale:
+        raise ValueError(f"{stale[0]} exists and this result has no such image: it would be "
+                         "left beside the new files as if it belonged to them; move it away "
+                         "or choose another name")
+    positions = _envi_position_keys(_positions(ds))
+    pairs = []
+    for name, hdr in images:
+        var = ds[name]
+        probe = xr.DataArray(np.empty((1, 1, 1), np.uint8 if var.dtype == bool else var.dtype),
+                             dims=("y", "x", "band"))
+        _check_writable("envi", probe, hdr, "bsq")
+        pairs.append((name, hdr, _header(ds, name, var, stem, nominal, positions)))
+    targets = []
+    for _, hdr, _ in pairs:  # every pair checked before anything is written
+        _check_targets("envi", [hdr, hdr.with_suffix(".raw")], overwrite=overwrite,
+                       inputs=inputs)
+        targets += [hdr, hdr.with_suffix(".raw")]
+
+    def write(folder):
+        for name, hdr, header in pairs:
+            _write_image(folder / hdr.name, _as_image(ds[name]), header)
+
+    atomic_write_files(targets, write)
+    return [hdr for _, hdr, _ in pairs]

@@ -1,0 +1,196 @@
+"""What is checked before anything is written: the outputs, the inputs, the formats' limits.
+
+:func:`check_outputs` checks a command's outputs before any long work: none is, holds or
+lies in an input (or a file that belongs to one, :func:`_input_family`: an ENVI header's data
+file, a ``.npy``'s sidecar; symbolic and hard links followed), none lies in another, none is
+one of the protected files (snapcorr's bundled profiles), each has an allowed suffix and a
+folder to go in, and one that exists is replaced only with ``overwrite`` and only if snapcorr
+wrote it (:func:`check_replaceable`).
+
+The cube writers check every path a format writes (:func:`_targets`) the same way, and an
+existing one against the mark snapcorr ties to it (:func:`_check_targets`;
+:func:`snapcorr.files.marks._written_by_snapcorr`); :func:`_check_writable` checks what a
+format can hold. Each target's state is noted when it is checked: the write replaces only
+that (:func:`snapcorr.files.safety.note_checked`).
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+from .marks import _check_content, _written_by_snapcorr
+from .reading import file_kind
+from .registry import FILE_FORMATS
+from .safety import note_checked, refuse_inputs
+from .storage import _ENVI_DATA, _ENVI_EXTS, _sidecar
+
+__all__ = ["check_outputs", "check_replaceable"]
+
+
+def _targets(fmt, path):
+    """Every path the format named ``fmt`` writes: an ENVI header and its data, a ``.npy``
+    and its sidecar (:attr:`~snapcorr.files.storage.FileFormat.targets`)."""
+    return FILE_FORMATS[fmt].targets(path)
+
+
+def _input_family(inputs):
+    """The inputs with the files that belong to them (an ENVI header's data file and the
+    header of a data file, a ``.npy``'s sidecar)."""
+    out = []
+    for src in inputs:
+        if src is None:
+            continue
+        p = Path(src)
+        out.append(p)
+        suffix = p.suffix.lower()
+        if suffix == ".hdr":
+            names = [*_ENVI_EXTS, ".bsq", ".bil", ".bip"]
+            out += [c for e in names for c in {p.with_suffix(e), p.with_suffix(e.upper())}
+                    if c != p and c.is_file()]
+        elif suffix in _ENVI_DATA:
+            out.append(p.with_suffix(".hdr"))
+        elif suffix == ".npy":
+            out.append(_sidecar(p))
+    return out
+
+
+def _check_targets(fmt, targets, *, overwrite, inputs):
+    """Refuse, before anything is written, a target that is or holds an input, or that exists
+    (without ``overwrite``, or when snapcorr did not write it). What each target is now is
+    noted (:func:`snapcorr.files.safety.note_checked`): the write replaces only that."""
+    refuse_inputs(targets, _input_family(inputs))
+    for target in targets:
+        note_checked(target)
+    for i, target in enumerate(targets):
+        if not os.path.lexists(target):
+            continue
+        if not overwrite:
+            raise FileExistsError(f"{target} exists; choose another name or pass "
+                                  "overwrite=True (--overwrite)")
+        try:
+            st = os.stat(target)
+        except OSError as err:
+            raise ValueError(f"{target} exists but cannot be examined ({err.strerror}); "
+                             "move it away or choose another name") from None
+        role = FILE_FORMATS[fmt].role(i)
+        directory = role == "zarr"
+        if directory != stat.S_ISDIR(st.st_mode) or not (
+                stat.S_ISDIR(st.st_mode) or stat.S_ISREG(st.st_mode)):
+            raise ValueError(f"{target} exists and is {file_kind(st.st_mode)}; overwrite "
+                             f"replaces only a {'Zarr store' if directory else 'file'} "
+                             "snapcorr wrote: move it away or choose another name")
+        ours, found = _written_by_snapcorr(target, role)
+        if not ours:
+            raise ValueError(f"{target} exists and is {found}; overwrite replaces only what "
+                             "snapcorr wrote: move it away or choose another name")
+
+
+def _check_writable(fmt, cube, path, interleave):
+    """The format's own limits, before anything is written
+    (:attr:`~snapcorr.files.storage.FileFormat.check_writable`)."""
+    check = FILE_FORMATS[fmt].check_writable
+    if check is not None:
+        check(cube, Path(path), interleave)
+
+
+def check_replaceable(path):
+    """Check an output before any work: note what is there now, nothing included (see
+    :func:`note_checked`: only that may be replaced), and refuse to replace (with
+    ``overwrite``) what snapcorr cannot have written.
+
+    Refused: anything but a regular file or a folder (a FIFO, device or socket, also through
+    a symbolic link; examined without opening it), and a PNG or TOML without snapcorr's mark
+    naming this file. Call it for every output, whether it exists or not.
+
+    Raises
+    ------
+    ValueError
+        The target is refused.
+    OutputChangedError
+        Inside :func:`checked_outputs`: the target changed since it was first checked.
+    """
+    note_checked(path)
+    _check_content(path)
+
+
+def _protected(protected):
+    """``protected`` (None, one path or several) as resolved folders."""
+    if protected is None:
+        return []
+    if isinstance(protected, str | os.PathLike):
+        protected = [protected]
+    return [Path(os.path.realpath(p)) for p in protected if p is not None]
+
+
+def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=()):
+    """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
+    (without ``overwrite``), have the wrong suffix or no folder to go in.
+
+    Parameters
+    ----------
+    outputs : sequence of (str or Path or None)
+        The outputs of one command (None: not asked for, skipped).
+    inputs : iterable of (str or Path or None)
+        The files it reads (None entries are ignored).
+    overwrite : bool
+        Whether an existing output may be replaced (only one snapcorr wrote, ever).
+    suffixes : sequence of tuple of str
+        For each output, the suffixes it may end in (lower case, ``".nc"``).
+    protected : str or Path or iterable of them, optional
+        Folders whose existing files are never replaced (snapcorr's bundled profiles).
+
+    Raises
+    ------
+    ValueError
+        An output is refused.
+    FileExistsError
+        An output exists and ``overwrite`` is false.
+    """
+    # realpath, unlike Path.resolve, does not raise on a symlink loop (the reader reports it)
+    srcs = [Path(os.path.realpath(i)) for i in inputs if i is not None]
+    family = _input_family([i for i in inputs if i is not None])
+    folders = _protected(protected)
+    seen = []
+    for out, allowed in zip(outputs, suffixes, strict=True):
+        if out is None:
+            continue
+        out = Path(out)
+        res = Path(os.path.realpath(out))
+        for bundled in folders:
+            if res.is_relative_to(bundled) and os.path.lexists(res):
+                raise ValueError(f"output {out} is one of snapcorr's bundled files "
+                                 f"({bundled}), never replaced; give your own a new name")
+        for other, given in seen:  # two outputs of one command: neither in the other
+            if res == other or res.is_relative_to(other) or other.is_relative_to(res):
+                raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
+                                 "other; give each its own path")
+        seen.append((res, out))
+        _refuse_sources(out, res, srcs)
+        _check_output(out, res, allowed, overwrite)
+        refuse_inputs([out], family)  # hard links, and the files that belong to an input
+
+
+def _refuse_sources(out, res, srcs):
+    for src in srcs:
+        if res == src:
+            raise ValueError(f"output {out} is also an input; choose another output path")
+        if src.is_relative_to(res) or res.is_relative_to(src):
+            raise ValueError(f"output {out} holds or lies in the input {src}; choose "
+                             "another output path")
+
+
+def _check_output(out, res, allowed, overwrite):
+    """One output's suffix, kind, existence and folder."""
+    if out.suffix.lower() not in allowed:
+        raise ValueError(f"{out}: the output must end in {' or '.join(allowed)}")
+    folder = out.suffix.lower() == ".zarr"  # a zarr store is a folder, the rest files
+    if out.exists() and out.is_dir() != folder:
+        raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
+                         "it is never replaced: choose another output path")
+    if os.path.lexists(out) and not overwrite:
+        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+    check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced
+    if not res.parent.is_dir():
+        raise ValueError(f"{out.parent} is not a folder; create it first")
