@@ -24,18 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._io import (
-    NotRegularFileError,
-    atomic_write,
-    checked_outputs,
-    file_kind,
-    last_written,
-    note_checked,
-    read_regular,
-    save_png,
-    written_by_snapcorr,
-)
 from .data import lens_path
+from .files.marks import written_by_snapcorr
+from .files.png import save_png
+from .files.reading import NotRegularFileError, file_kind, read_regular
+from .files.safety import atomic_write, checked_outputs, last_written, note_checked
 from .optics import CORRECTION_MODELS, MEAN_SHIFT_METHODS, Lens, mean_shift
 
 __all__ = ["run_demo"]

@@ -233,7 +233,7 @@ def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
     """Plot the spots' spectra to ``path``, add the metrics to ``results``, return lines."""
     from matplotlib.figure import Figure
 
-    from ._io import save_png
+    from .files.png import save_png
 
     common = np.arange(500.0, 880.0, 1.0)
     fig = Figure(figsize=(12, 2.3 * len(f_numbers)), layout="constrained")
@@ -273,7 +273,7 @@ def _compare_spectra(path, results, f_numbers, cras, spots, cwl):
 
 def _draw_maps(path, vig, cwl):
     """The chief-ray angle and one band's shift of the vignetted model's result, to ``path``."""
-    from ._io import save_png
+    from .files.png import save_png
 
     save_png(_maps_figure(vig, cwl), path, dpi=110)
 

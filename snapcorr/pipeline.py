@@ -25,9 +25,10 @@ from .correct.resample import resample_cube
 from .correct.virtual import VirtualBandOptions
 from .cube import demosaic, flatfield
 from .cube.flatfield import check_masked
-from .cube.io import BLOCK_BYTES, COMPUTED_WITH
 from .cube.mosaic import frame_saturation
 from .cube.phase import check_mosaic_phase
+from .files.api import BLOCK_BYTES
+from .files.datasets import COMPUTED_WITH
 
 __all__ = ["PIPELINE_STEPS", "process_frame", "process_stream", "read_cube_or_frame",
            "read_mosaic_frame", "tile_rows", "with_transmittance"]
@@ -148,7 +149,7 @@ def read_mosaic_frame(path, sensor, *, what=None, shape=None):
     xarray.DataArray
         ``(y, x)``, dask-backed.
     """
-    from .cube import read_frame
+    from .files.api import read_frame
 
     frame = read_frame(path, chunks="rows")
     frame = frame.chunk({"y": tile_rows(frame, sensor), "x": -1})
@@ -184,7 +185,7 @@ def read_cube_or_frame(path, sensor=None, sensor_origin_px=None, *, with_mask=Fa
 
 
 def _read_cube_or_frame(path, sensor, origin):
-    from .cube.io import read_cube_and_mask
+    from .files.api import read_cube_and_mask
 
     wl = sensor.cwl_nm if sensor is not None else None
     frame_error = None

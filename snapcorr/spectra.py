@@ -146,7 +146,7 @@ def read_spectrum(path) -> Spectrum:
     """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments;
     comma, semicolon, tab or space separated; header lines before the numbers are skipped) or
     an ``.npy`` array of shape (n, 2) or (2, n)."""
-    from ._io import check_input
+    from .files.reading import check_input
 
     try:
         p = check_input(path, what="spectrum")

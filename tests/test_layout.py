@@ -101,3 +101,123 @@ def test_a_forbidden_import_is_seen():
     assert "snapcorr.budget" in found
     assert _imports("from . import goossens2019\n", here) >= {"snapcorr.optics",
                                                               "snapcorr.optics.goossens2019"}
+
+
+# Each room's floor. A module imports only from its own room and from rooms on lower floors
+# (lazy imports inside functions, and modules named in strings for a lazy ``__getattr__``,
+# included), so the house reads from the ground up. A dotted key is a room of its own: the
+# data model (cube.model, cube.derived) sits below the files that store it.
+FLOORS = {
+    "_validation": 0, "_coords": 0, "_names": 0, "_threads": 0, "_bundled": 0,
+    "cube.model": 1, "cube.derived": 1,
+    "files": 2, "_io": 2,
+    "optics": 3, "spectra": 3,
+    "cube": 4, "simulate": 4,
+    "correct": 5, "calibrate": 5,
+    "budget": 6, "pipeline": 6, "stream": 6,
+    "data": 7, "quicklook": 7, "paper_experiment": 7,
+    "demo": 8,
+    "cli": 9,
+    "__main__": 10, "__init__": 10,
+}
+
+
+def _room(dotted):
+    """The key of :data:`FLOORS` a dotted module name belongs to (the longest that fits)."""
+    parts = dotted.split(".")[1:]
+    for n in (2, 1):
+        if len(parts) >= n and ".".join(parts[:n]) in FLOORS:
+            return ".".join(parts[:n])
+    return parts[0] if parts else "__init__"
+
+
+def _is_shim(source):
+    return "\n_MOVED_TO = " in source
+
+
+def _named_modules(source):
+    """The snapcorr modules ``source`` names in strings (a lazy ``__getattr__``'s table)."""
+    return {node.value for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.Constant) and isinstance(node.value, str)
+            and node.value.startswith("snapcorr.") and " " not in node.value
+            and (PACKAGE.parent / node.value.replace(".", "/")).with_suffix(".py").exists()}
+
+
+def _all_imports(path):
+    """:func:`_imports`, and the modules a lazy ``__getattr__`` names in strings."""
+    source = path.read_text()
+    return _imports(source, _module_parts(path)) | _named_modules(source)
+
+
+def test_every_room_has_a_floor():
+    rooms = {_room(".".join(_module_parts(p))) for p in SOURCES}
+    assert rooms <= set(FLOORS), sorted(rooms - set(FLOORS))
+
+
+def test_imports_go_down_the_floors():
+    up = []
+    for path in SOURCES:
+        if _is_shim(path.read_text()):
+            continue  # a compatibility module re-exports from where its names now live
+        room = _room(".".join(_module_parts(path)))
+        for name in _all_imports(path) - {"snapcorr"}:  # the package itself: its version
+            other = _room(name)
+            if other != room and FLOORS.get(other, -1) > FLOORS[room]:
+                up.append(f"{path.relative_to(PACKAGE)} imports {name}")
+    assert not up, sorted(up)
+
+
+def _private_imports(source, here):
+    """``module.name`` for every private name the module ``here`` (its dotted parts) imports
+    in ``source`` from another top-level room of the package."""
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            origin = here[:len(here) - node.level] + ([node.module] if node.module else [])
+        else:
+            origin = (node.module or "").split(".")
+        if origin[:1] != ["snapcorr"] or origin[1:2] == here[1:2]:
+            continue
+        for a in node.names:
+            if a.name.startswith("_") and not a.name.startswith("__"):
+                yield f"{'.'.join(origin)}.{a.name}"
+
+
+def test_no_private_name_is_imported_from_another_room():
+    found = sorted(f"{p.relative_to(PACKAGE)}: {n}" for p in SOURCES
+                   if not _is_shim(p.read_text())
+                   for n in _private_imports(p.read_text(), _module_parts(p)))
+    assert not found, found
+
+
+def test_a_private_import_from_another_room_is_seen():
+    here = ["snapcorr", "optics", "probe"]
+    source = "def f():\n    from ..cube.io import _read_file, read_cube\n"
+    assert list(_private_imports(source, here)) == ["snapcorr.cube.io._read_file"]
+    assert not list(_private_imports("from .chief_ray import _cra_deg_rc\n", here))
+
+
+def test_a_lazy_import_named_in_a_string_is_seen():
+    assert _named_modules('_HOMES = {"read_cube": "snapcorr.files.api"}\n') == {
+        "snapcorr.files.api"}
+    assert not _named_modules('x = "snapcorr.no_such_module"\n')
+
+
+MAX_MODULE_LINES = 800
+MAX_COMMAND_LINES = 300
+
+
+def test_no_module_is_over_800_lines():
+    long = [f"{p.relative_to(PACKAGE)} ({n})" for p in SOURCES
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES]
+    assert not long, long
+
+
+def test_no_command_module_is_over_300_lines():
+    """The command line is a thin shell: each command's module parses and calls the library."""
+    commands = sorted((PACKAGE / "cli").glob("*.py"))
+    assert len(commands) > 5, "snapcorr/cli/ holds one module per command"
+    long = [f"{p.relative_to(PACKAGE)} ({n})" for p in commands
+            if (n := len(p.read_text().splitlines())) > MAX_COMMAND_LINES]
+    assert not long, long

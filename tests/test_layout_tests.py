@@ -51,7 +51,7 @@ UNTESTED = {
     "snapcorr.calibrate.unknown_lens",
     "snapcorr.correct._spectra",
     "snapcorr.correct.geometry",
-    "snapcorr.cube.attrs",
+    "snapcorr.files.attrs",
     "snapcorr.cube.derived",
     "snapcorr.cube.msfa._grid",
     "snapcorr.cube.msfa.brauers2006",

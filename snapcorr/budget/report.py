@@ -201,7 +201,7 @@ class Budget:
         fig.suptitle(f"Signal error from the filter shift: {d.attrs['source']}, "
                      f"{d.attrs['lens']} at f/{d.attrs['f_number']:g}")
         if path is not None:
-            from .._io import save_png
+            from ..files.png import save_png
 
             save_png(fig, path, dpi=110, inputs=[i for i in inputs if i is not None])
         return fig

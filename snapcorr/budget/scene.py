@@ -20,7 +20,7 @@ from ..optics.response import kernel_bins
 from .report import Budget
 from .signal import SIGNAL_PROFILES, _FilterMoments, _lattice, _signals_on_grid
 
-__all__ = ["scene_budget"]
+__all__ = ["profile_of", "scene_budget"]
 
 #: Gauss-Hermite nodes of the harmonising Gaussian in the budget.
 _HERMITE_NODES = 12
@@ -66,7 +66,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     -------
     Budget
     """
-    profile = _profile_of(sensor, profile)
+    profile = profile_of(sensor, profile)
     for m in models:
         validate_method(m, CORRECTION_MODELS, "model")
     # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
@@ -123,8 +123,10 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     return Budget(ds, tolerance_pct=tolerance_pct)
 
 
-def _profile_of(sensor, profile):
-    """The filters' shape: the one given, else the sensor's own if the budget models it."""
+def profile_of(sensor, profile=None):
+    """The filters' shape a budget models: ``profile`` (a name of
+    :data:`~snapcorr.budget.SIGNAL_PROFILES`) when given, else the sensor's own, refused when
+    the budget does not model it."""
     if profile is None:
         if sensor.profile not in SIGNAL_PROFILES:
             raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "

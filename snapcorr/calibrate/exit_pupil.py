@@ -182,7 +182,7 @@ class PupilFit:
         """Write :meth:`plot` to ``path`` (PNG), atomically."""
         import matplotlib.pyplot as plt
 
-        from .._io import save_png
+        from ..files.png import save_png
 
         fig = self.plot()
         try:

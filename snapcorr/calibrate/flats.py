@@ -48,7 +48,7 @@ def read_flat(path):
         ``bands`` (how many were averaged) and ``saturation`` (the largest value the file's
         integer type holds, or None for floating-point data).
     """
-    from ..cube.io import _read_file
+    from ..files.api import _read_file
 
     found = _read_file(Path(path), what="flat field", drop_alpha=True)
     data = found.data

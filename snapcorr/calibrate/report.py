@@ -178,7 +178,7 @@ def save_plot(res, path):
     """Write :func:`plot` to ``path`` (PNG), atomically."""
     import matplotlib.pyplot as plt
 
-    from .._io import save_png
+    from ..files.png import save_png
 
     fig = plot(res)
     try:

@@ -105,7 +105,7 @@ def build_parser():
 
 
 def main(argv=None):
-    from .._io import cleanup_on_signals
+    from ..files.safety import cleanup_on_signals
 
     parser = build_parser()
     argv = _negative_pairs(sys.argv[1:] if argv is None else list(argv))

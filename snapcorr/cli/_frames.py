@@ -112,7 +112,7 @@ def _keep_flatfield_record(path, ds):
     the camera's numbers they came from."""
     if path.suffix.lower() not in (".nc", ".zarr"):
         return
-    from ..cube import read_dataset
+    from ..files.api import read_dataset
 
     src = read_dataset(path, chunks={})
     for name in RAW_COPIES:

@@ -258,7 +258,7 @@ def _add_virtual_options(p):
 def _check_storage_option(args):
     """``--dtype`` and ``--pack-range`` for ``--out``'s format, before any work; ``--dtype``
     float16 or uint16 computes in float32 and stores as asked (``args.storage``)."""
-    from ..cube.datasets import check_storage
+    from ..files.datasets import check_storage
 
     dtype = getattr(args, "dtype", None)
     args.storage = dtype if dtype in ("float32", "float16", "uint16") else None

@@ -3,51 +3,17 @@ output options say, and the lines that say what was written."""
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 from .._bundled import bundled_folder as _bundled_folder
 from .._bundled import input_path as _input_path
-from .._io import check_replaceable
+from ..files.outputs import check_outputs
 
 
 def _check_outputs(outputs, inputs, overwrite, suffixes):
     """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
-    (without ``--overwrite``), have the wrong suffix or no folder to go in."""
-    # realpath, unlike Path.resolve, does not raise on a symlink loop (the reader reports it)
-    srcs = [Path(os.path.realpath(_input_path(i))) for i in inputs if i is not None]
-    bundled = _bundled_folder()
-    seen = []
-    for out, allowed in zip(outputs, suffixes, strict=True):
-        if out is None:
-            continue
-        out = Path(out)
-        res = Path(os.path.realpath(out))
-        if bundled is not None and res.is_relative_to(bundled) and os.path.lexists(res):
-            raise ValueError(f"output {out} is one of snapcorr's bundled files ({bundled}), "
-                             "never replaced; give your own a new name")
-        for other, given in seen:  # two outputs of one command: neither in the other
-            if res == other or res.is_relative_to(other) or other.is_relative_to(res):
-                raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
-                                 "other; give each its own path")
-        seen.append((res, out))
-        for src in srcs:
-            if res == src:
-                raise ValueError(f"output {out} is also an input; choose another output path")
-            if src.is_relative_to(res) or res.is_relative_to(src):
-                raise ValueError(f"output {out} holds or lies in the input {src}; choose "
-                                 "another output path")
-        if out.suffix.lower() not in allowed:
-            raise ValueError(f"{out}: the output must end in {' or '.join(allowed)}")
-        folder = out.suffix.lower() == ".zarr"  # a zarr store is a folder, the rest files
-        if out.exists() and out.is_dir() != folder:
-            raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
-                             "it is never replaced: choose another output path")
-        if os.path.lexists(out) and not overwrite:
-            raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
-        check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced
-        if not res.parent.is_dir():
-            raise ValueError(f"{out.parent} is not a folder; create it first")
+    (without ``--overwrite``), have the wrong suffix or no folder to go in
+    (:func:`snapcorr.files.check_outputs`; bundled profiles are never replaced)."""
+    check_outputs(outputs, [_input_path(i) for i in inputs if i is not None],
+                  overwrite=overwrite, suffixes=suffixes, protected=_bundled_folder())
 
 
 #: The copies of the input a flat-field result keeps (``--no-input`` leaves them out).
@@ -88,7 +54,7 @@ def _stored_type(args, computed):
 
 def _masked_in(path):
     """``n_masked`` of a result just written (counted in the writing pass)."""
-    from ..cube import read_dataset
+    from ..files.api import read_dataset
 
     with read_dataset(path, chunks={}) as ds:
         return int(ds["n_masked"])

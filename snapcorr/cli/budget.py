@@ -73,9 +73,9 @@ def run(args):
         sensor.check_cube(cube, f"--cube {args.cube}")
     source = parse_source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
-    from ..budget.scene import _profile_of
+    from ..budget.scene import profile_of
 
-    args.profile = _profile_of(sensor, args.profile)
+    args.profile = profile_of(sensor, args.profile)
     b = scene_budget(source, sensor, args.f_number, lens, cra_max_deg=cra_max,
                      profile=args.profile, tolerance_pct=args.tolerance_pct)
     ranges = []

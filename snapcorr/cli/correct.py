@@ -190,12 +190,12 @@ def run(args):
 def _write_correction(args, ds, inputs, cube_name):
     """``correct``'s result as ``--out`` asks: a .nc or .zarr, or ENVI pairs; the paths."""
     if args.out.suffix.lower() == ".hdr":
-        from ..cube.datasets import _stored_as
-        from ..cube.envi_result import write_envi_result
+        from ..files.datasets import stored_as
+        from ..files.envi_result import write_envi_result
 
         if args.no_input:
             ds.attrs["input_left_out"] = f"{cube_name} (--no-input); the input is {args.cube}"
-        ds = _stored_as(ds, args.storage, None, "envi")
+        ds = stored_as(ds, args.storage, None, "envi")
         return write_envi_result(ds, args.out, overwrite=args.overwrite, inputs=inputs,
                                  include_input=not args.no_input, input_name=cube_name)
     return [_write_result(args, ds, inputs, [cube_name, *RAW_COPIES], args.cube)]

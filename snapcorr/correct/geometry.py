@@ -18,7 +18,7 @@ import numpy as np
 from .._coords import accepts_center_rc
 from .._validation import check_center, check_pair
 from ..cube.mosaic import sensor_positions
-from ..optics.chief_ray import _cra_deg
+from ..optics.chief_ray import pixel_cra_deg
 
 __all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
 
@@ -246,7 +246,8 @@ def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
     pitch, rows, cols, center, source = _placed(cube, sensor, lens, center_px,
                                                 sensor_origin_px)
     # rows (ny, 1, nb) against columns (1, nx, nb)
-    cra = _cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
+    cra = pixel_cra_deg(rows[:, None, :], cols[None, :, :], center[::-1], pitch,
+                        lens.exit_pupil_mm)
     return cra, center, source
 
 
@@ -283,5 +284,5 @@ def _largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
     bands = np.arange(rows.shape[1])
     far_rows = rows[np.argmax(np.abs(rows - cy), axis=0), bands]
     far_cols = cols[np.argmax(np.abs(cols - cx), axis=0), bands]
-    return float(np.max(_cra_deg(far_rows[None, None, :], far_cols[None, None, :], center,
-                                 pitch, lens.exit_pupil_mm)))
+    return float(np.max(pixel_cra_deg(far_rows[None, None, :], far_cols[None, None, :],
+                                      (cy, cx), pitch, lens.exit_pupil_mm)))

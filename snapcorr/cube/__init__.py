@@ -1,7 +1,7 @@
 """Cubes in and out: the data model, sensor layouts and flat-fielding.
 
 The names are loaded when first used: the file formats (:mod:`snapcorr.files`) build on the
-data model here (:mod:`snapcorr.cube.model`, :mod:`snapcorr.cube.attrs`), and importing
+data model here (:mod:`snapcorr.cube.model`, :mod:`snapcorr.files.attrs`), and importing
 that must not load every reader and writer first. Reading and writing files is
 :mod:`snapcorr.files`' (re-exported here).
 """

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from .._bundled import profile_path
-from .._io import read_toml, write_toml
 from .._validation import (
     N_EFF_MAX,
     SENSOR_PX_MAX,
@@ -27,6 +26,7 @@ from .._validation import (
     renamed_keywords,
     shown,
 )
+from ..files.toml import read_toml, write_toml
 from .responses import CorrectionMatrix, FilterResponses
 
 __all__ = ["LAYOUTS", "VENDOR_OVERRIDES", "Sensor"]
@@ -661,7 +661,7 @@ def _read_shape_cached(path):
     if p.suffix.lower() not in (".csv", ".txt", ".tsv", ".dat"):
         raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)} or a two-column "
                          f"file (.csv, .txt), got {p.name!r}")
-    from .._io import check_input
+    from ..files.reading import check_input
 
     try:
         check_input(p, what="filter profile")

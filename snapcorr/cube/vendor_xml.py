@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import check_input
 from .._validation import SENSOR_PX_MAX
+from ..files.reading import check_input
 from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]

@@ -73,7 +73,7 @@ Modules
     :data:`snapcorr.files.registry.FILE_FORMATS`, in its family's module
     (:mod:`snapcorr.files.envi`, :mod:`snapcorr.files.images` for TIFF and OpenEXR,
     :mod:`snapcorr.files.npy`, :mod:`snapcorr.files.datasets` for netCDF and Zarr). What
-    they share: :mod:`snapcorr.cube.attrs` (attribute and sensor-position encoding),
+    they share: :mod:`snapcorr.files.attrs` (attribute and sensor-position encoding),
     :mod:`snapcorr.files.storage` (what every reader shares, lazy row blocks),
     :mod:`snapcorr.files.marks` (the writer's mark) and :mod:`snapcorr.files.outputs`
     (targets, inputs and marks checked before writing).
@@ -87,7 +87,6 @@ import numpy as np
 import xarray as xr
 
 from .._validation import check_wavelengths_nm
-from ..cube.attrs import _decode_positions, _json_attrs, _one_line, _positions, decode_attrs
 from ..cube.model import (
     FWHM_LONG_NAME,
     POSITION_ATTRS,
@@ -96,7 +95,8 @@ from ..cube.model import (
     check_dtype,
     make_cube,
 )
-from .datasets import COMPRESSIONS, _encoded, _open_dataset, _stored_as, _to_dataset
+from .attrs import _decode_positions, _json_attrs, _one_line, _positions, decode_attrs
+from .datasets import COMPRESSIONS, _encoded, _open_dataset, _to_dataset, stored_as
 from .marks import writer_mark
 from .outputs import _check_targets, _check_writable
 from .reading import check_input
@@ -497,6 +497,6 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
     if compression not in COMPRESSIONS:
         raise ValueError(f"compression must be one of {', '.join(COMPRESSIONS)}, got "
                          f"{compression!r}")
-    out = _stored_as(_encoded(ds, store_derived=store_derived), dtype, pack_range, found.name)
+    out = stored_as(_encoded(ds, store_derived=store_derived), dtype, pack_range, found.name)
     _check_targets(found.name, found.targets(path), overwrite=overwrite, inputs=inputs)
     return found.write(out, path, compression)

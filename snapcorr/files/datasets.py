@@ -3,7 +3,7 @@
 - reading: :func:`_open_dataset` (netCDF with h5netcdf, Zarr in its own chunks) and
   :func:`_read_xarray` (the cube, or a frame, among a file's variables);
 - writing: :func:`_encoded` (a Dataset ready to store: derived variables left out and listed,
-  attributes encoded by :func:`snapcorr.cube.attrs.encode_attrs`, the writer's mark) and
+  attributes encoded by :func:`snapcorr.files.attrs.encode_attrs`, the writer's mark) and
   :func:`_store` (lazy variables one pass at a time, :data:`COMPUTED_WITH` grouping those
   computed together; the compression of :data:`COMPRESSIONS`).
 """
@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..cube.attrs import _one_line, decode_attrs, encode_attrs
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
+from .attrs import _one_line, decode_attrs, encode_attrs
 from .marks import writer_mark as _mark
 from .safety import atomic_write, atomic_write_dir
 from .storage import FileFormat, _File, _Rows
@@ -305,7 +305,7 @@ STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer
                "complevel", "shuffle", "compression", "compression_opts", "fletcher32")
 
 
-def _stored_as(ds, dtype, pack_range=None, fmt=None):
+def stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
     cast, or clipped and given the CF packing (``scale_factor``, ``add_offset``,
     ``_FillValue``, ``valid_range``) a reader applies, the packing error and the clipping
@@ -569,3 +569,7 @@ NETCDF = FileFormat("netcdf", (".nc",), _read_netcdf, _write_netcdf, marked_as=(
 #: Zarr through xarray, a folder (its mark: the root group's ``written_by``).
 ZARR = FileFormat("zarr", (".zarr",), _read_zarr, _write_zarr, marked_as=("zarr",),
                   directory=True, holds_datasets=True)
+
+
+#: The earlier name of :func:`stored_as`.
+_stored_as = stored_as

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cube.attrs import JSON_PREFIX, _one_line, _version
 from ..cube.model import POSITION_DIMS
+from .attrs import JSON_PREFIX, _one_line, _version
 from .reading import check_input
 from .safety import atomic_write_files
 from .storage import _ENVI_EXTS, FileFormat, _File, _from_file, _resolve_chunks
@@ -331,7 +331,7 @@ def _envi_numbers(h, key, hdr, scalar=False):
 
 
 def _envi_position_keys(meta):
-    """The sensor positions of ``meta`` (see :func:`snapcorr.cube.attrs._positions`) as ENVI
+    """The sensor positions of ``meta`` (see :func:`snapcorr.files.attrs._positions`) as ENVI
     header keys."""
     header = {}
     for name in POSITION_DIMS:

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..cube.attrs import JSON_PREFIX, _json_attrs, _positions, _version
+from .attrs import JSON_PREFIX, _json_attrs, _positions, _version
 from .envi import _envi_position_keys, _quiet_spectral
 from .outputs import _check_targets, _check_writable
 from .safety import atomic_write_files

@@ -13,8 +13,8 @@ import re
 
 import numpy as np
 
-from ..cube.attrs import _one_line
 from ..cube.model import POSITION_DIMS
+from .attrs import _one_line
 from .reading import open_image
 from .safety import atomic_write
 from .storage import FileFormat, _File

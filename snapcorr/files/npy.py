@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cube.attrs import _one_line
 from ..cube.model import DIMS, POSITION_DIMS
+from .attrs import _one_line
 from .reading import check_input
 from .safety import atomic_write_files
 from .storage import (

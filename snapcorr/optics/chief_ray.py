@@ -68,13 +68,6 @@ def cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
     return _cra_deg_rc(rows, cols, (cy, cx), pixel_pitch_um, exit_pupil_mm)
 
 
-def _cra_deg(rows, cols, center_px, pixel_pitch_um, exit_pupil_mm):
-    """:func:`pixel_cra_deg` with the centre x first, ``(cx, cy)``, for callers that still
-    keep it so (:mod:`snapcorr.correct.geometry`)."""
-    cx, cy = check_center(center_px)
-    return _cra_deg_rc(rows, cols, (cy, cx), pixel_pitch_um, exit_pupil_mm)
-
-
 def _cra_deg_rc(rows, cols, center_rc, pixel_pitch_um, exit_pupil_mm):
     """:func:`pixel_cra_deg`, the centre ``(row, col)`` checked here."""
     cy, cx = check_center_rc(center_rc)

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from .._bundled import profile_path
-from .._io import read_toml, write_toml
 from .._validation import called_from_outside, check_numbers, shown, warn_renamed
+from ..files.toml import read_toml, write_toml
 
 __all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
 

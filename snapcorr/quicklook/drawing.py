@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .._io import save_png
+from ..files.png import save_png
 
 #: Largest number of pixels drawn along either side of an image.
 MAX_PX = 1024
