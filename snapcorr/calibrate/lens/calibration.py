@@ -257,11 +257,12 @@ def _check_enough_flats(items, vignetting_distance_mm):
 
 
 @accepts_center_rc
-def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm=None,
-                   magnification=0.0, pupil_magnification=1.0, dark=None, center_px=None,
+def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stderr_mm=None,
+                   magnification=None, pupil_magnification=None, dark=None, center_px=None,
                    saturation=None, vignetting_distance_mm=None, method="auto", inputs=None,
                    name="calibrated lens", tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
-                   progress=None, pupil="paper", sensor=None, sensor_origin_px=None):
+                   progress=None, pupil=None, sensor=None, sensor_origin_px=None, lens=None,
+                   exit_pupil_from=None):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -269,12 +270,14 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
     flats : mapping
         f-number -> 2-D flat-field image (integrating sphere, or lamp and plaque).
     exit_pupil_mm, pixel_pitch_um : float
-        Distance x from the sensor to the exit pupil (mm); pixel pitch (um).
+        Distance x from the sensor to the exit pupil (mm), unless ``lens`` gives it; pixel
+        pitch (um).
     exit_pupil_stderr_mm : float, optional
-        Standard error of x, if known: the flats fix ``P / x`` and ``h / x^2``, so P and h
-        move with x (``dP/dx = P / x``, ``dh/dx = 2 h / x``, in the profile and their errors).
-    magnification, pupil_magnification : float
-        m and m_P of the working f-number, Eq. (27).
+        Standard error of x, if known (default: the one ``lens`` records, if any): the flats
+        fix ``P / x`` and ``h / x^2``, so P and h move with x (``dP/dx = P / x``,
+        ``dh/dx = 2 h / x``, in the profile and their errors).
+    magnification, pupil_magnification : float, optional
+        m and m_P of the working f-number, Eq. (27); default those of ``lens``, else 0 and 1.
     dark : 2-D array, optional
         Dark frame, subtracted from every flat.
     center_rc, center_px : (row, col), optional
@@ -300,18 +303,88 @@ def calibrate_lens(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm
         Most vignetting circles tried (0 to 3).
     progress : callable, optional
         ``progress(step)`` before each long step (a model fitted, a flat left out).
-    pupil : {"paper", "lambertian"}
-        The pupil (:data:`snapcorr.optics.lens.PUPILS`): its radius sets the onsets; the flats'
+    pupil : {"paper", "lambertian"}, optional
+        The pupil's radiance model (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
+        default that of ``lens``, else the paper's): its radius sets the onsets; the flats'
         area model stays the paper's (area times ``cos^4(CRA)``).
     sensor, sensor_origin_px : Sensor, (int, int), optional
         Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
         and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
         fitted and divided out first (:func:`~snapcorr.calibrate.remove_band_gains`).
+    lens : Lens, optional
+        A lens whose exit pupil is known (the profile ``snapcorr pupil`` writes), instead of
+        ``exit_pupil_mm``: its x, and its m, m_P, pupil and the standard error of x unless
+        given. The profile records where x came from (``exit_pupil_from``) and the lens's
+        own record of it (``exit_pupil_stderr_mm``, ``exit_pupil_n_eff``...).
+    exit_pupil_from : str or path, optional
+        Where ``lens`` came from (its file), recorded; default its name.
 
     Returns
     -------
     LensCalibration
     """
+    given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
+                       pupil_magnification, pupil)
+    result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
+                        center_px=center_px, saturation=saturation,
+                        vignetting_distance_mm=vignetting_distance_mm, method=method,
+                        inputs=inputs, name=name, tolerance_nm=tolerance_nm,
+                        max_circles=max_circles, progress=progress, sensor=sensor,
+                        sensor_origin_px=sensor_origin_px)
+    if lens is not None:
+        result.lens = _lens_recorded(result.lens, lens, exit_pupil_from)
+    return result
+
+
+#: What a lens given to :func:`calibrate_lens` records of its exit pupil, and the key each
+#: takes in the calibrated profile.
+LENS_RECORD_KEYS = {"exit_pupil_stderr_mm": "exit_pupil_stderr_mm",
+                    "n_eff": "exit_pupil_n_eff", "n_eff_stderr": "exit_pupil_n_eff_stderr",
+                    "n_eff_fitted": "exit_pupil_n_eff_fitted"}
+
+
+def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
+               pupil_magnification, pupil):
+    """The exit pupil's x, its standard error, m, m_P and the pupil for the calibration: those
+    given, else the ``lens``'s, else the defaults (x has none)."""
+    if lens is None:
+        if exit_pupil_mm is None:
+            raise ValueError("give the exit pupil distance: exit_pupil_mm, or a lens whose x "
+                             "is known (lens=, the profile snapcorr pupil writes)")
+        return {"exit_pupil_mm": exit_pupil_mm, "exit_pupil_stderr_mm": exit_pupil_stderr_mm,
+                "magnification": 0.0 if magnification is None else magnification,
+                "pupil_magnification": 1.0 if pupil_magnification is None
+                else pupil_magnification, "pupil": pupil or "paper"}
+    if not isinstance(lens, Lens):
+        raise TypeError(f"lens must be a Lens (Lens.load(path)), got {type(lens).__name__}")
+    if exit_pupil_mm is not None:
+        raise ValueError("give exit_pupil_mm or a lens, not both: the lens gives x")
+    sx = lens.calibration.get("exit_pupil_stderr_mm")
+    sx = sx if isinstance(sx, (int, float)) and not isinstance(sx, bool) and sx > 0 else None
+    return {"exit_pupil_mm": lens.exit_pupil_mm,
+            "exit_pupil_stderr_mm": sx if exit_pupil_stderr_mm is None else exit_pupil_stderr_mm,
+            "magnification": lens.magnification if magnification is None else magnification,
+            "pupil_magnification": (lens.pupil_magnification if pupil_magnification is None
+                                    else pupil_magnification),
+            "pupil": pupil or lens.pupil_radiance}
+
+
+def _lens_recorded(calibrated, lens, source):
+    """``calibrated`` with the record of where its x came from: ``source`` (default the
+    ``lens``'s name) and what the lens's own record says of x and n_eff."""
+    cal = dict(calibrated.calibration)
+    cal["exit_pupil_from"] = str(source) if source is not None else (lens.name or "a lens")
+    for key, as_key in LENS_RECORD_KEYS.items():
+        if key in lens.calibration:
+            cal[as_key] = lens.calibration[key]
+    return dataclasses.replace(calibrated, calibration=cal)
+
+
+def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
+               magnification, pupil_magnification, dark, center_px, saturation,
+               vignetting_distance_mm, method, inputs, name, tolerance_nm, max_circles,
+               progress, pupil, sensor, sensor_origin_px):
+    """:func:`calibrate_lens` with x, m, m_P and the pupil settled (its body)."""
     (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm,
      tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
                                  center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)

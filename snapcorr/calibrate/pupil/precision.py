@@ -199,8 +199,9 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
 #: The shift precision (nm, one standard deviation, the chief ray at the sensor's corner in
 #: the longest band) a target must be able to give x and n_eff to, by default (the command
 #: line's ``--tolerance-nm``): five times the lens calibration's own precision from flats
-#: (~0.01 nm). On the 128 x 160 binned field of ``tests/test_pupil_coverage.py`` at 1 % noise,
-#: f/1.4 + f/8, a rare-earth glass gives 0.009 nm and a straight-line reflectance 0.17 nm.
+#: (~0.01 nm). On the 128 x 160 binned field of
+#: ``tests/calibrate/pupil/test_locate_coverage.py`` at 1 % noise, f/1.4 + f/8, a rare-earth
+#: glass gives 0.009 nm and a straight-line reflectance 0.17 nm.
 DEFAULT_TOLERANCE_NM = 0.05
 
 

@@ -12,7 +12,7 @@ from conftest import PAPER_LENS
 
 from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, radial_profile
-from snapcorr.calibrate.flats import clean_flat
+from snapcorr.calibrate.flats.cleaning import clean_flat
 from snapcorr.optics import cra_map
 from snapcorr.simulate import Detector, LampPlaque, flat_frame
 
@@ -265,7 +265,7 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
 
 
 def test_block_average_against_numpy_reshape():
-    from snapcorr.calibrate.joint_fit import block_average
+    from snapcorr.calibrate.lens.joint_fit import block_average
 
     rng = np.random.default_rng(10)
     a, v = rng.normal(5, 1, (100, 90)), rng.random((100, 90))

@@ -172,7 +172,7 @@ def test_a_tile_of_gains_is_told_from_a_sensors_own_fixed_pattern():
     """A smooth fall-off with 1 % pixel gains (PRNU), 1 % even/odd column gains and shot noise
     is no mosaic; the same light through a 5 x 5 tile of gains 0.3-1.0 is, with its period
     (not 10 x 10, where it shows as much)."""
-    from snapcorr.calibrate.stages import _tile_period
+    from snapcorr.calibrate.lens.stages import _tile_period
 
     rng = np.random.default_rng(3)
     yy, xx = np.mgrid[:300, :400]
