@@ -1,5 +1,8 @@
 """Lens characterisation from flat fields (Goossens et al. 2019, Sec. 2.7 and 3.2)."""
 
+# The earlier module of this name, loaded first: a later import of it would otherwise bind the
+# module over the function pupil_precision below.
+from . import pupil_precision as _pupil_precision_module  # noqa: F401
 from .flats.cleaning import clean_flat, noise_model, read_flat, remove_band_gains
 from .flats.onset_fit import OnsetFit, solve_vignetting_circle
 from .flats.onsets import Onset, detect_onset
