@@ -4,12 +4,13 @@ Flats come from the independent simulator ``tests/flatsim.py`` (it shares no cod
 snapcorr): five f-numbers f/2-f/11, each with its own exposure (+-20 %), the optical axis off
 the image centre, the user's 1280 x 1024 sensor (7.1 um pixels here: field up to 16.7 deg),
 Gaussian noise of a given fraction of every pixel's signal. For
-each truth, noise level and seed the calibrated lens is judged as ``tests/
-test_calibrate_circles.py`` judges it: the largest |mean-shift error| (Goossens 2019, Eq. 22,
-1000 nm filters, n_eff 1.5) over the field and the f-numbers against the true lens, the model
-chosen, and the errors in P and h of the circles identifiable in the field; beside it the
-standard error of the shift the calibration reports, and the Cramér-Rao bound of the flats
-(``tests/cramer_rao.py``: the smallest standard deviation any unbiased estimator can reach
+each truth, noise level and seed the calibrated lens is judged as
+``tests/calibrate/lens/test_calibration_circles.py`` judges it: the largest |mean-shift
+error| (Goossens 2019, Eq. 22, 1000 nm filters, n_eff 1.5) over the field and the f-numbers
+against the true lens, the model chosen, and the errors in P and h of the circles
+identifiable in the field; beside it the standard error of the shift the calibration reports,
+and the Cramér-Rao bound of the flats (``tests/oracles/cramer_rao.py``: the smallest standard
+deviation any unbiased estimator can reach
 from them, with each pixel's gain unknown). The chart
 (``calibration_circles.png``) and its data (``calibration_circles.csv``) are written next to
 this file. ``full_size_time`` prints the time to calibrate five 2048 x 2048 flats.
@@ -29,8 +30,14 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 sys.path.insert(0, str(HERE.parent / "tests" / "oracles"))
 
+from calibrate.lens.test_calibration_circles import (  # noqa: E402
+    FULL,
+    HALF,
+    TRUTHS,
+    calibrate,
+    cramer_rao,
+)
 from flatsim import LensTruth, make_flats  # noqa: E402
-from test_calibrate_circles import FULL, HALF, TRUTHS, calibrate, cramer_rao  # noqa: E402
 
 from snapcorr.calibrate import calibrate_lens  # noqa: E402
 
@@ -163,8 +170,8 @@ COVERAGE_SEEDS = tuple(range(8))
 def shift_errors_nm(truth, res, scene, f_numbers, n=121):
     """Largest |mean-shift error| over the field at each f-number (1000 nm, n_eff 1.5),
     the calibrated lens against the truth, where both pass light
-    (``test_calibrate_circles.shift_errors_by_f``, the tests' own judge)."""
-    from test_calibrate_circles import field_cra_deg, shift_errors_by_f
+    (``test_calibration_circles.shift_errors_by_f``, the tests' own judge)."""
+    from calibrate.lens.test_calibration_circles import field_cra_deg, shift_errors_by_f
 
     field = field_cra_deg(scene, truth.exit_pupil_mm)
     return np.array([e for e, _ in shift_errors_by_f(truth, res.lens, f_numbers, field, n)])

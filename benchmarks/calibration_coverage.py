@@ -121,7 +121,7 @@ def _match(true_c, got_c):
 
 def one(job):
     from snapcorr.calibrate import calibrate_lens
-    from snapcorr.calibrate.lens_calibration import _circle_stderrs
+    from snapcorr.calibrate.lens.table import _circle_stderrs
 
     key, noise, seed = job
     warnings.simplefilter("ignore")

@@ -37,7 +37,7 @@ import numpy as np
 
 from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens
-from snapcorr.calibrate.lens_calibration import MISFIT_CHI2
+from snapcorr.calibrate.lens.estimator import MISFIT_CHI2
 from snapcorr.cli import build_parser
 from snapcorr.optics import cra_map
 from snapcorr.paper_experiment import PAPER_LENS
@@ -101,7 +101,7 @@ fig = res.plot()
 #
 # - **`joint`** fits the vignetted-pupil area model to every ratio image at once, together
 #   with the optical centre, with no circle and one to three vignetting circles. It uses
-#   every pixel. The number of circles is chosen by three rules (`snapcorr.calibrate.choice`):
+#   every pixel. The number of circles is chosen by three rules (`snapcorr.calibrate.lens.choice`):
 #   every circle identifiable (its onset inside the field at two f-numbers, P and h to 5 %,
 #   h clear of 0), a gain in an information criterion that allows a 0.1 % systematic floor,
 #   and a change of the predicted mean shift larger than a tolerance (0.005 nm).

@@ -11,9 +11,9 @@ from pathlib import Path
 import snapcorr
 
 PACKAGE = Path(snapcorr.__file__).resolve().parent
-FIT = "snapcorr.calibrate.exit_pupil"
-REPORT = "snapcorr.calibrate.pupil_report"
-SOLVER = "snapcorr.calibrate.pupil_solver"
+FIT = "snapcorr.calibrate.pupil.locate"
+REPORT = "snapcorr.calibrate.pupil.report"
+SOLVER = "snapcorr.calibrate.pupil.solver"
 DEMO = "snapcorr.paper_experiment"
 
 

@@ -9,6 +9,7 @@ import pytest
 import snapcorr
 from snapcorr import _names, budget, demo, optics, simulate
 from snapcorr.budget import signal
+from snapcorr.calibrate.lens import joint_fit
 from snapcorr.optics import lens, mean, profiles
 
 #: Earlier name -> the registry it now names, (module, old, new).
@@ -26,6 +27,7 @@ ALIASES = [
     (simulate, "METHODS", "ILLUMINATION_METHODS"),
     (demo, "MODELS", "DEMO_MODELS"),
     (lens, "PUPILS", "PUPIL_RADIANCE_MODELS"),
+    (joint_fit, "MODELS", "CIRCLE_MODELS"),
 ]
 
 

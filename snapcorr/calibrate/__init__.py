@@ -1,7 +1,16 @@
 """Lens characterisation from flat fields (Goossens et al. 2019, Sec. 2.7 and 3.2)."""
 
-from .choice import ModelVerdict
-from .exit_pupil import (
+# The earlier module of this name, loaded first: a later import of it would otherwise bind the
+# module over the function pupil_precision below.
+from . import pupil_precision as _pupil_precision_module  # noqa: F401
+from .flats.cleaning import clean_flat, noise_model, read_flat, remove_band_gains
+from .flats.onset_fit import OnsetFit, solve_vignetting_circle
+from .flats.onsets import Onset, detect_onset
+from .flats.radial import RadialProfile, estimate_center, radial_profile
+from .lens.calibration import METHODS, LensCalibration, calibrate_lens
+from .lens.choice import ModelVerdict
+from .lens.joint_fit import ModelFit
+from .pupil.locate import (
     CANDIDATE_TARGETS,
     FeaturelessTargetError,
     ImpreciseTargetError,
@@ -11,19 +20,6 @@ from .exit_pupil import (
     locate_pupil,
     pupil_precision,
 )
-from .flats import (
-    RadialProfile,
-    clean_flat,
-    estimate_center,
-    noise_model,
-    radial_profile,
-    read_flat,
-    remove_band_gains,
-)
-from .joint_fit import ModelFit
-from .lens_calibration import METHODS, LensCalibration, calibrate_lens
-from .onset_fit import OnsetFit, solve_vignetting_circle
-from .onsets import Onset, detect_onset
 from .unknown_lens import LensAndPupil, calibrate_with_target
 
 __all__ = [

@@ -1,293 +1,41 @@
-"""Choosing a target for the exit-pupil fit: named target spectra and the precision they give.
+"""Compatibility re-exports: this module moved to :mod:`snapcorr.calibrate.pupil.precision`.
 
-:func:`pupil_precision` predicts, before any measurement, the standard error of ``x`` (and
-``n_eff``) that cubes of a target would give: the Cramer-Rao bound of the model
-:func:`~snapcorr.calibrate.exit_pupil.locate_pupil` fits, on synthetic annuli of the full
-sensor (:func:`_synthetic_bins`). :data:`CANDIDATE_TARGETS` holds the usual targets it
-compares: :func:`white_tile`, the paper's colour filter
-(:func:`snapcorr.spectra.colour_filter`), :func:`rare_earth_glass` and :func:`line_lamp`.
+Import from there; this path will be removed in snapcorr 0.3.
 """
 
-from __future__ import annotations
+# ruff: noqa: F401
 
-import math
-from dataclasses import dataclass
+from .pupil.precision import (
+    CANDIDATE_TARGETS,
+    DEFAULT_TOLERANCE_NM,
+    LAMP_LINES_NM,
+    MAX_REL_STDERR,
+    N_EFF_REL_STDERR,
+    PRIOR_SD,
+    RARE_EARTH_BANDS,
+    Lens,
+    Precision,
+    RadialBins,
+    TargetPrecision,
+    _max_shift_rel,
+    _one_blas_thread,
+    _pinv_solve,
+    _project_off,
+    _whiten,
+    check_modelled,
+    colour_filter,
+    line_lamp,
+    pupil_precision,
+    rare_earth_glass,
+    target_model,
+    target_precision,
+    white_tile,
+)
 
-import numpy as np
+_MOVED_TO = "snapcorr.calibrate.pupil.precision"
 
-from ..optics.lens import Lens
-from ..spectra import colour_filter
-from .measured_target import target_model
-from .pupil_fit import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
-from .pupil_index import N_EFF_REL_STDERR
-from .pupil_solver import _pinv_solve, _project_off, _whiten
-from .pupil_target import check_modelled
-from .target_model import PRIOR_SD, RadialBins
-
-__all__ = ["CANDIDATE_TARGETS", "Precision", "pupil_precision"]
-
-# -- choosing a target ----------------------------------------------------------------------
-# (the colour filter of Goossens et al. 2019 is :func:`snapcorr.spectra.colour_filter`)
-def white_tile(lam):
-    """A white reference tile: no spectral feature at all."""
-    return np.full(np.shape(lam), 0.95)
-
-
-#: Absorption bands (centre, FWHM nm, depth) of a holmium/didymium-like rare-earth glass.
-RARE_EARTH_BANDS = ((446.0, 4.0, 0.5), (453.0, 3.0, 0.45), (485.0, 5.0, 0.35),
-                    (536.0, 6.0, 0.55), (573.0, 8.0, 0.45), (586.0, 4.0, 0.5),
-                    (640.0, 5.0, 0.4), (685.0, 6.0, 0.3), (741.0, 8.0, 0.45),
-                    (803.0, 9.0, 0.5), (865.0, 7.0, 0.3))
-
-
-def rare_earth_glass(lam):
-    """A holmium/didymium-like glass: narrow absorption bands (:data:`RARE_EARTH_BANDS`) on
-    a high continuum."""
-    lam = np.asarray(lam, float)
-    t = np.full(lam.shape, 0.92)
-    for c, w, d in RARE_EARTH_BANDS:
-        t = t * (1 - d * np.exp(-4 * math.log(2) * ((lam - c) / w) ** 2))
-    return t
-
-
-#: Mercury-argon lamp lines (nm) between 430 and 920 nm.
-LAMP_LINES_NM = (435.8, 546.1, 577.0, 579.1, 696.5, 706.7, 738.4, 750.4, 763.5, 794.8,
-                 811.5, 826.5, 842.5, 852.1, 912.3)
-
-
-def line_lamp(lam):
-    """Narrow emission lines (:data:`LAMP_LINES_NM`, 0.3 nm FWHM) of a mercury-argon lamp
-    seen through a diffuser, on a weak continuum; the scale is arbitrary."""
-    lam = np.asarray(lam, float)
-    out = np.full(lam.shape, 0.01)
-    for c in LAMP_LINES_NM:
-        out = out + np.exp(-4 * math.log(2) * ((lam - c) / 0.3) ** 2)
-    return out
-
-
-#: Targets :func:`pupil_precision` compares by default.
-CANDIDATE_TARGETS = {
-    "white tile": white_tile,
-    "colour filter (Goossens 2019)": colour_filter,
-    "rare-earth glass": rare_earth_glass,
-    "emission lines (Hg-Ar lamp)": line_lamp,
-}
-
-
-@dataclass(frozen=True)
-class Precision:
-    """Predicted standard errors (one standard deviation) of :func:`pupil_precision`."""
-
-    x_stderr_mm: float
-    n_eff_stderr: float | None
-    spectrum_known: bool
-    noise: float
-    exit_pupil_mm: float = math.nan
-
-    @property
-    def informative(self) -> bool:
-        """Whether the target would pin ``x`` at all (to ``MAX_REL_STDERR``)."""
-        return bool(self.x_stderr_mm < MAX_REL_STDERR * self.exit_pupil_mm)
-
-
-def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
-    """Annuli of the full sensor (centred on the axis) with their pixel counts per band."""
-    rows, cols = size_px or sensor.size_px
-    pitch = sensor.pixel_pitch_mm
-    y = (np.arange(rows) - (rows - 1) / 2) * pitch
-    x = (np.arange(cols) - (cols - 1) / 2) * pitch
-    rho = (y**2)[:, None] + (x**2)[None, :]
-    edges = np.linspace(0, rho.max() * (1 + 1e-12), n_bins + 1)
-    idx = np.clip(np.searchsorted(edges, rho.ravel(), side="right") - 1, 0, n_bins - 1)
-    n = np.bincount(idx, minlength=n_bins).astype(float)
-    s1 = np.bincount(idx, rho.ravel(), minlength=n_bins)
-    s2 = np.bincount(idx, rho.ravel() ** 2, minlength=n_bins)
-    mean = s1 / np.maximum(n, 1)
-    var = np.maximum(s2 / np.maximum(n, 1) - mean**2, 0)
-    cells = 1 if sensor.layout == "snapscan" else sensor.mosaic_shape[0] * sensor.mosaic_shape[1]
-    nb = sensor.n_bands
-    count = np.tile(n / cells, (nb, 1))
-    # an annulus no pixel falls in (a small sensor, many annuli) enters no row: NaN
-    empty = np.tile(n == 0, (nb, 1))
-    return RadialBins(float(f_number), mean, np.tile(mean, (nb, 1)), np.tile(var, (nb, 1)),
-                      np.where(empty, np.nan, 0.0), np.where(empty, np.nan, 1.0), count)
-
-
-@_one_blas_thread
-def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_eff=False,
-                    spectrum_known=False, size_px=None, n_bins=64, profile="gaussian",
-                    absolute_noise=False):
-    """Predicted standard error of ``x`` (and ``n_eff``) from cubes of a target.
-
-    The Cramer-Rao bound of the model :func:`locate_pupil` fits: the Fisher information of
-    the annulus means over the full sensor, with the target's spectrum solved for (or known
-    up to a scale, ``spectrum_known``) and per-pixel noise of standard deviation ``noise``
-    times the brightest band's signal (the exposure set so that the brightest band is near
-    full scale).
-
-    Parameters
-    ----------
-    spectrum : callable
-        ``S(lambda_nm)``.
-    sensor : Sensor
-        Needs ``size_px`` unless ``size_px`` is given.
-    f_numbers : sequence of float
-        The f-numbers of the cubes.
-    lens : Lens
-        The true lens (x, circles, magnifications).
-    noise : float
-    fit_n_eff : bool
-        Count ``n_eff`` as unknown (one common value).
-    absolute_noise : bool
-        ``noise`` is in the cube's units (flat-fielded: white = 1), not a fraction of the
-        brightest band.
-
-    Returns
-    -------
-    Precision
-        For a target without features ``x_stderr_mm`` is ``inf`` or merely huge (the bound of
-        an almost singular information); ``informative`` is False either way.
-    """
-    size = size_px or sensor.size_px
-    if size is None:
-        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
-    if not (math.isfinite(noise) and noise > 0):
-        raise ValueError(f"noise must be > 0, got {noise!r}")
-    n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
-                              fit_n_eff=fit_n_eff)
-    bins = [_synthetic_bins(sensor, f, n_bins, size) for f in f_numbers]
-    x = float(lens.exit_pupil_mm)
-    # the largest shift these f-numbers and this field give (the tables' reach: a fixed 0.15
-    # made a vendor sensor's offset tables several times longer than needed)
-    cone = math.radians(float(lens.cone_angle_deg(min(f_numbers))))
-    reach = min(0.15, _max_shift_rel(math.sqrt(max(float(np.max(b.rho)) for b in bins)), x,
-                                     np.asarray(n_design, float), cone))
-    # a sensor with measured responses: each band's whole curve behind the band-pass
-    truth = target_model(bins, sensor, lens, spectrum=spectrum, profile=profile,
-                         n_eff_design=n_design, max_shift_rel=reach)
-    y = np.asarray(truth.design(x, n_design).sum(axis=1)).ravel()
-    sigma_px = noise * (1.0 if absolute_noise else float(np.max(np.abs(y))))
-    for b in bins:
-        b.mean[:] = 0.0
-    model = target_model(bins, sensor, lens, spectrum=spectrum if spectrum_known else None,
-                         profile=profile, n_eff_design=n_design, max_shift_rel=reach)
-    if model.prior_sd is not None:  # the fit's prior, for the signal the target gives
-        model.prior_mean = float(np.median(y))
-        model.prior_sd = PRIOR_SD * float(np.max(np.abs(y)))
-    count = np.empty(model.n_rows)
-    for j, k, rows, ok in model.blocks:
-        count[rows] = bins[j].count[k, ok]
-    model.sigma = sigma_px / np.sqrt(count)
-    A = model.design(x, n_design)
-    s_true, _ = _pinv_solve(A, y)  # the noise-free means as the model has them
-    cols = [(model.design(x * (1 + 1e-5), n_design) - model.design(x * (1 - 1e-5), n_design))
-            @ s_true / (2e-5 * x)]
-    if fit_n_eff:
-        cols.append((model.design(x, n_design * (1 + 1e-5))
-                     - model.design(x, n_design * (1 - 1e-5))) @ s_true / 2e-5)
-    J = np.column_stack(cols) / model.sigma[:, None]
-    Jp = _project_off(_whiten(model, A), J)
-    F = Jp.T @ Jp
-    if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14 or F[0, 0] <= 0:
-        return Precision(math.inf, math.inf if fit_n_eff else None, spectrum_known, noise, x)
-    cov = np.linalg.inv(F)
-    n_err = float(math.sqrt(cov[1, 1]) * np.mean(n_design)) if fit_n_eff else None
-    return Precision(float(math.sqrt(cov[0, 0])), n_err, spectrum_known, noise, x)
-
-
-# -- the precision of the cubes given, before the fit -----------------------------------------
-#: The shift precision (nm, one standard deviation, the chief ray at the sensor's corner in
-#: the longest band) a target must be able to give x and n_eff to, by default (the command
-#: line's ``--tolerance-nm``): five times the lens calibration's own precision from flats
-#: (~0.01 nm). On the 128 x 160 binned field of ``tests/test_pupil_coverage.py`` at 1 % noise,
-#: f/1.4 + f/8, a rare-earth glass gives 0.009 nm and a straight-line reflectance 0.17 nm.
-DEFAULT_TOLERANCE_NM = 0.05
-
-
-@dataclass(frozen=True)
-class TargetPrecision:
-    """What the cubes of a target can give, from the model's Fisher information at the
-    search's start (:func:`target_precision`).
-
-    ``shift_stderr_nm``: the standard error of the chief ray's shift at ``edge_mm`` from the
-    axis for the longest band (``cwl_nm``), from the covariance of ``x`` and ``n_eff``.
-    """
-
-    x_mm: float
-    x_stderr_mm: float
-    n_eff: float
-    n_eff_stderr: float | None
-    shift_stderr_nm: float
-    edge_mm: float
-    cwl_nm: float
-    n_eff_band_stderr: np.ndarray | None = None
-    """With the index fitted: each band's own index's standard error, all fitted at once."""
-
-    def summary(self) -> str:
-        def rel(v, of, unit=""):
-            return (f"{v:.2g}{unit} ({100 * v / of:.2g} %)" if math.isfinite(v)
-                    else "(no information)")
-
-        n = ("" if self.n_eff_stderr is None else
-             f", n_eff +- {rel(self.n_eff_stderr, self.n_eff)}")
-        band = self.n_eff_band_stderr
-        if band is not None:
-            lo, hi = (100 * float(v) / self.n_eff for v in (np.min(band), np.max(band)))
-            can = bool(np.all(band < N_EFF_REL_STDERR * self.n_eff))
-            n += (f" (one per band: {lo:.2g}-{hi:.2g} %, "
-                  + ("so per band where the data ask for it)" if can else
-                     f"above {100 * N_EFF_REL_STDERR:g} %: one for the sensor)"))
-        return (f"predicted: this target can give x +- {rel(self.x_stderr_mm, self.x_mm, ' mm')}"
-                f"{n}; the "
-                f"shift at {self.edge_mm:.3g} mm from the axis ({self.cwl_nm:.4g} nm) to +- "
-                f"{self.shift_stderr_nm:.2g} nm (Fisher information at x = {self.x_mm:.4g} mm, "
-                "the noise measured in the cubes)")
-
-
-def _edge_shift_nm(x, n, d, cwl):
-    sin2 = d * d / (d * d + x * x)
-    return cwl * (1.0 - math.sqrt(max(1.0 - sin2 / (n * n), 1e-12)))
-
-
-def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
-    """:class:`TargetPrecision` of the cubes in ``problem`` (a ``_Problem``) at trial ``x``.
-
-    The Jacobian of the profiled residuals (the target's spectrum solved for at every step,
-    as the fit does) in ``x`` and, with ``fit_k``, the index's common scale, by central
-    differences; its information matrix, with the noise the annuli show, inverted.
-    """
-    e = 1e-5
-    cols = [(problem.residuals(x * (1 + e))[0] - problem.residuals(x * (1 - e))[0])
-            / (2 * e * x)]
-    if fit_k:
-        cols.append((problem.residuals(x, 1 + e)[0] - problem.residuals(x, 1 - e)[0])
-                    / (2 * e))
-    J = np.column_stack(cols)
-    F = J.T @ J
-    n = float(np.mean(problem.n_design))
-    inf = TargetPrecision(x, math.inf, n, math.inf if fit_k else None, math.inf, edge_mm,
-                          cwl_nm)
-    if not np.all(np.isfinite(F)) or F[0, 0] <= 0 or np.linalg.cond(F) > 1e14:
-        return inf
-    cov = np.linalg.inv(F)
-    if np.any(np.diag(cov) <= 0):
-        return inf
-    g = [(_edge_shift_nm(x * (1 + e), n, edge_mm, cwl_nm)
-          - _edge_shift_nm(x * (1 - e), n, edge_mm, cwl_nm)) / (2 * e * x)]
-    if fit_k:
-        g.append((_edge_shift_nm(x, n * (1 + e), edge_mm, cwl_nm)
-                  - _edge_shift_nm(x, n * (1 - e), edge_mm, cwl_nm)) / (2 * e))
-    g = np.array(g)
-    shift_err = float(math.sqrt(max(g @ cov @ g, 0.0)))
-    band = None
-    if fit_k and problem.n_design.size >= 2:
-        from .pupil_index import _per_band_jacobian
-
-        _, Jp = _per_band_jacobian(problem.model, x, problem.n_design)
-        with np.errstate(all="ignore"):
-            Fb = Jp.T @ Jp
-            band = (np.sqrt(np.clip(np.diag(np.linalg.pinv(Fb)), 0, None))[1:]
-                    if np.all(np.isfinite(Fb)) else np.full(problem.n_design.size, np.inf))
-    return TargetPrecision(x, float(math.sqrt(cov[0, 0])), n,
-                           float(math.sqrt(cov[1, 1]) * n) if fit_k else None, shift_err,
-                           edge_mm, cwl_nm, band)
+__all__ = [
+    "CANDIDATE_TARGETS",
+    "Precision",
+    "pupil_precision",
+]

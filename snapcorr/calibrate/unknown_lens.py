@@ -37,9 +37,9 @@ import numpy as np
 
 from .._coords import accepts_center_rc
 from ..optics.lens import Lens
-from . import choice
-from .exit_pupil import PupilFit, choose_pupil, locate_pupil
-from .lens_calibration import LensCalibration, calibrate_lens
+from .lens import choice
+from .lens.calibration import LensCalibration, calibrate_lens
+from .pupil.locate import PupilFit, choose_pupil, locate_pupil
 
 __all__ = ["LensAndPupil", "calibrate_with_target"]
 
@@ -160,7 +160,7 @@ tolerance_nm
         How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`), for the flats and
         the target alike. ``"auto"``: the whole calibration is run with each, and the
         Lambertian pupil is kept only where the target's chi-square falls by more than
-        :data:`~snapcorr.calibrate.exit_pupil.PUPIL_CHI2_GAIN` (the flats hardly tell them
+        :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly tell them
         apart; the target's spectral structure does).
     target_tolerance_nm, report
         The shift precision the target must be able to give, and where its prediction is
@@ -229,7 +229,7 @@ def _raw_mosaic_of(sensor, shape):
 
 def _either_pupil(args):
     """``calibrate_with_target(pupil="auto")``: the paper's pupil unless the Lambertian one
-    fits the target clearly better (:data:`~snapcorr.calibrate.exit_pupil.PUPIL_CHI2_GAIN`)."""
+    fits the target clearly better (:data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`)."""
     args = {k: v for k, v in args.items() if k != "pupil"}
     runs = {name: calibrate_with_target(**args, pupil=name)
             for name in ("paper", "lambertian")}
@@ -302,7 +302,7 @@ def _joint_covariance(cal: LensCalibration, pupil: PupilFit, sensor):
     pvals = [x]
     pcov = np.array([[pupil.exit_pupil_stderr_mm ** 2]])
     if pupil.n_eff_fitted == "one":
-        from .pupil_target import N_EFF_START
+        from .pupil.target import N_EFF_START
 
         # a vendor file gives no index: the fit's scale is of its start value
         design = np.asarray(sensor.n_eff if sensor.n_eff is not None
@@ -340,7 +340,7 @@ def _shift_stderr_from_x(cal: LensCalibration, x, sx):
     """Largest change over the field of the predicted mean shift when x moves by its error,
     with the circles scaled as the flats fix them and every pixel's chief-ray angle moving."""
     from ..optics.mean import mean_shift
-    from .target_model import scaled_circles
+    from .pupil.target_model import scaled_circles
 
     lens = cal.lens
     if not sx or not math.isfinite(sx):
@@ -351,7 +351,7 @@ def _shift_stderr_from_x(cal: LensCalibration, x, sx):
         shifts = []
         for xi in (x - sx, x + sx):
             li = Lens(xi, scaled_circles(lens.vignetting, x, xi), lens.magnification,
-                      lens.pupil_magnification, pupil=lens.pupil)
+                      lens.pupil_magnification, pupil_radiance=lens.pupil_radiance)
             cra = np.degrees(np.arctan(d / xi))
             cut = float(li.cutoff_cra_deg(f)) if li.has_vignetting else 90.0
             cra = np.where(cra < cut, cra, np.nan)
@@ -392,4 +392,4 @@ def _profile(cal, pupil, names, values, cov, total, x_part, x0):
     }
     lens = cal.lens
     return Lens(lens.exit_pupil_mm, lens.vignetting, lens.magnification,
-                lens.pupil_magnification, name=lens.name, calibration=table, pupil=lens.pupil)
+                lens.pupil_magnification, name=lens.name, calibration=table, pupil_radiance=lens.pupil_radiance)

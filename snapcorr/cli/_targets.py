@@ -60,7 +60,7 @@ def _check_target_outputs(args, seen, inputs, cubes):
 
 def _target_tolerance(value):
     """``--tolerance-nm`` / ``--target-tolerance-nm``, or the default."""
-    from ..calibrate.pupil_precision import DEFAULT_TOLERANCE_NM
+    from ..calibrate.pupil.precision import DEFAULT_TOLERANCE_NM
 
     return DEFAULT_TOLERANCE_NM if value is None else value
 
@@ -77,7 +77,7 @@ def _fitted_sensor(sensor, fit, args):
     cal = fit.lens.calibration
     keep = ("n_eff_fitted", "n_eff_stderr", "f_numbers", "target_spectrum", "inputs",
             "snapcorr_version", "date")
-    from ..calibrate.pupil_target import N_EFF_START
+    from ..calibrate.pupil.target import N_EFF_START
 
     design = ({"n_eff_design": list(sensor.n_eff)} if sensor.n_eff is not None
               else {"n_eff_start": N_EFF_START})  # a vendor file gives none

@@ -154,36 +154,24 @@ def run(args):
     inputs = [p for _, p in args.flat] + [args.dark, args.lens, args.sensor]
     _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
-    x = given.exit_pupil_mm if given else args.exit_pupil_mm
-    sx = given.calibration.get("exit_pupil_stderr_mm") if given else None
-    sx = sx if isinstance(sx, (int, float)) and not isinstance(sx, bool) and sx > 0 else None
-    m = args.magnification if args.magnification is not None else (
-        given.magnification if given else 0.0)
-    mp = args.pupil_magnification if args.pupil_magnification is not None else (
-        given.pupil_magnification if given else 1.0)
     if args.pupil == "auto":
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
                          "cannot make: give --target-cube, or --pupil paper or lambertian")
-    pupil = args.pupil or (given.pupil_radiance if given else "paper")
     _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
-            flats, exit_pupil_mm=x, pixel_pitch_um=args.pixel_pitch_um,
-            exit_pupil_stderr_mm=sx, magnification=m, pupil_magnification=mp,
+            flats, exit_pupil_mm=args.exit_pupil_mm, lens=given,
+            exit_pupil_from=str(args.lens) if given is not None else None,
+            pixel_pitch_um=args.pixel_pitch_um, magnification=args.magnification,
+            pupil_magnification=args.pupil_magnification,
             dark=dark, center_px=args.center_px, saturation=sat,
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
-            pupil=pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
+            pupil=args.pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     _band_gains_said(res, cal, args)
-    if given is not None:
-        cal["exit_pupil_from"] = str(args.lens)
-        for key in ("exit_pupil_stderr_mm", "n_eff", "n_eff_stderr", "n_eff_fitted"):
-            if key in given.calibration:
-                cal[f"exit_pupil_{key}" if key.startswith("n_eff") else key] = \
-                    given.calibration[key]
     lens = dataclasses.replace(res.lens, calibration=cal)
     lens.save(args.out, overwrite=args.overwrite)
     if args.plot:

@@ -103,8 +103,8 @@ from .reading import check_input
 from .registry import FORMATS, format_by_suffix, format_of
 from .storage import _ENVI_DATA, _resolve_chunks, _Rows, _rows_per_block, _to_nm
 
-__all__ = ["BLOCK_BYTES", "FORMATS", "read_cube", "read_cube_and_mask", "read_dataset",
-           "read_frame", "row_blocks", "write_cube", "write_dataset"]
+__all__ = ["BLOCK_BYTES", "FORMATS", "read_array", "read_cube", "read_cube_and_mask",
+           "read_dataset", "read_frame", "row_blocks", "write_cube", "write_dataset"]
 
 
 #: Target size of the blocks a cube is streamed in (``snapcorr correct``, ``flatfield``), and
@@ -130,6 +130,27 @@ def _as_chunks(chunks):
 
 
 # -- reading ---------------------------------------------------------------------------------
+
+
+def read_array(path, *, what="cube", drop_alpha=False):
+    """A file's values as stored, ``(y, x, band)``, before they are made a cube, the file
+    checked as :func:`read_cube` checks it.
+
+    Parameters
+    ----------
+    path : str or Path
+        Any format :func:`read_cube` reads.
+    what : str
+        What the file is, in a refusal (``"flat field"``).
+    drop_alpha : bool
+        Leave an image's alpha channel out.
+
+    Returns
+    -------
+    numpy.ndarray or xarray.Variable
+        A numpy array (ENVI and ``.npy`` memory-mapped) or a netCDF or Zarr variable.
+    """
+    return _read_file(Path(path), what=what, drop_alpha=drop_alpha).data
 
 
 def _read_file(path, *, chunks=None, what="cube", drop_alpha=False):

@@ -4,7 +4,7 @@ import types
 
 import pytest
 
-from snapcorr.calibrate.pupil_precision import DEFAULT_TOLERANCE_NM
+from snapcorr.calibrate.pupil.precision import DEFAULT_TOLERANCE_NM
 from snapcorr.cli._targets import _check_target_outputs, _target_spectrum, _target_tolerance
 
 

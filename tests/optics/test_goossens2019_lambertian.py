@@ -160,7 +160,7 @@ def test_measured_responses_reach_over_the_lambertian_cone(f, cra_max):
 def test_the_pupil_chooser_keeps_the_paper_unless_the_gain_is_clear():
     from types import SimpleNamespace
 
-    from snapcorr.calibrate.exit_pupil import PUPIL_CHI2_GAIN, choose_pupil
+    from snapcorr.calibrate.pupil.locate import PUPIL_CHI2_GAIN, choose_pupil
 
     def results():
         return {k: SimpleNamespace(notes=[], lens=Lens(21.0, pupil=k))

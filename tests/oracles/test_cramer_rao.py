@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from calibrate.lens.test_calibration_circles import F_NUMBERS, FULL, TRUTHS, field_cra_deg
 from cramer_rao import bound, fisher, parameter_names, shift_bound_nm
 from flatsim import LensTruth, cra_map_deg, make_flats, mean_shift_nm, relative_illumination
 from scipy.optimize import least_squares
-from test_calibrate_circles import F_NUMBERS, FULL, TRUTHS, field_cra_deg
 
 LEVEL_DN = 45000.0  # make_flats' level_dn
 LIT_MIN = 0.05  # cramer_rao's default lit fraction

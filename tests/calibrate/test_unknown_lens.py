@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import spectralsim as sim
 from flatsim import LensTruth, make_flats, mean_shift_nm
-from test_pupil import CENTER, N_EFF, PAPER, PITCH_UM, SHAPE, cubes, sensor
 
+from calibrate.pupil.test_locate import CENTER, N_EFF, PAPER, PITCH_UM, SHAPE, cubes, sensor
 from snapcorr import Lens
 from snapcorr.calibrate import calibrate_with_target
 from snapcorr.cube import Sensor, make_cube, write_cube

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_calibrate_circles import HALF, TRUTHS, calibrate
 
-from snapcorr.calibrate import joint_fit, predictive
+from calibrate.lens.test_calibration_circles import HALF, TRUTHS, calibrate
+from snapcorr.calibrate.lens import joint_fit, predictive
 
 
 @pytest.fixture(scope="module")

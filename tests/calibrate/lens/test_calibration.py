@@ -11,8 +11,8 @@ import pytest
 from conftest import PAPER_LENS
 
 from snapcorr import Lens, mean_shift
-from snapcorr.calibrate import calibrate_lens, detect_onset, estimate_center, radial_profile
-from snapcorr.calibrate.flats import clean_flat
+from snapcorr.calibrate import calibrate_lens
+from snapcorr.calibrate.flats.cleaning import clean_flat
 from snapcorr.optics import cra_map
 from snapcorr.simulate import Detector, LampPlaque, flat_frame
 
@@ -48,9 +48,6 @@ def _check(res, truth, *, rtol, onset_tol_deg=0.3, center_tol_px=1.0):
     assert np.hypot(res.center_px[0] - CENTER[0], res.center_px[1] - CENTER[1]) < center_tol_px
 
 
-@pytest.fixture(scope="module")
-def paper_sphere():
-    return _calibrate(_flats(PAPER), PAPER)
 
 
 def test_paper_lens_sphere_one_percent_noise(paper_sphere):
@@ -70,27 +67,6 @@ def test_paper_lens_sphere_one_percent_noise(paper_sphere):
         assert abs(one.params[k] - t) < 4 * one.stderr[k] + 1e-4
     # the model without vignetting and the two-circle model both lose
     assert res.fits["one"].bic < min(res.fits["none"].bic, res.fits["two"].bic)
-
-
-def test_profile_and_toml_round_trip(paper_sphere, tmp_path):
-    lens = paper_sphere.lens
-    cal = lens.calibration
-    for key in ("f_numbers", "onset_cra_deg", "center_px", "pixel_pitch_um", "method",
-                "model", "date", "snapcorr_version", "joint_fit", "onset_ratio",
-                "onset_model"):
-        assert key in cal, key
-    path = lens.save(tmp_path / "lens.toml")
-    back = Lens.load(path)
-    assert back == lens and back.calibration["center_px"] == list(paper_sphere.center_px)
-    assert "summary" not in cal and "P = " in paper_sphere.summary()
-
-
-def test_plot_draws_profiles_onsets_and_model(paper_sphere, tmp_path):
-    fig = paper_sphere.plot()
-    ax = fig.axes[1]
-    assert len(ax.lines) >= 4 and "ratio to f/8" in ax.get_ylabel()
-    paper_sphere.save_plot(tmp_path / "fig8.png")
-    assert (tmp_path / "fig8.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_h_ge_x_regime():
@@ -211,37 +187,6 @@ def test_pixel_vignetting_needs_a_second_circle():
 # -- the pieces, each against something computed independently ------------------------------
 
 
-def test_detect_onset_on_an_exact_ratio_profile():
-    # the exact area ratio of the paper's lens at f/2 against f/8, no noise
-    theta = np.arange(0.05, 20.0, 0.1)
-    ratio = PAPER.relative_illumination(2.0, theta) / PAPER.relative_illumination(8.0, theta)
-    o = detect_onset(theta, ratio, np.full(theta.size, 1e-4))
-    assert o.found and abs(o.cra_deg - PAPER.onset_cra_deg(2.0)) < 0.3
-    flat = detect_onset(theta, np.ones_like(theta), np.full(theta.size, 1e-4))
-    assert not flat.found and np.isnan(flat.cra_deg)
-
-
-def test_center_from_contours_of_a_shifted_fall_off():
-    ny, nx = 200, 300
-    yy, xx = np.mgrid[:ny, :nx]
-    img = 1.0 - 1e-5 * ((xx - 190.4) ** 2 + (yy - 80.7) ** 2)
-    (cx, cy), spread = estimate_center([img])
-    assert abs(cx - 190.4) < 0.2 and abs(cy - 80.7) < 0.2 and spread < 0.5
-
-
-def test_radial_profile_against_a_direct_average():
-    rng = np.random.default_rng(9)
-    img = rng.normal(100, 5, (120, 160))
-    ok = np.ones(img.shape, bool)
-    cra = cra_map(img.shape, 10.0, 21.0, (70.0, 50.0))
-    prof = radial_profile(img, ok, cra, bin_deg=0.5)
-    sel = (cra >= 2.0) & (cra < 2.5)
-    k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))
-    assert prof.value[k] == pytest.approx(img[sel].mean(), rel=1e-12)
-    assert prof.stderr[k] == pytest.approx(img[sel].std(ddof=1) / np.sqrt(sel.sum()), rel=1e-9)
-    assert prof.count[k] == sel.sum()
-
-
 def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
     # A fall-off that changes with the aperture (Goossens 2019, Sec. 3.2: natural vignetting
     # changing with aperture size, pupil aberrations) is not in the area model: the joint fit
@@ -265,7 +210,7 @@ def test_aperture_dependent_fall_off_falls_back_to_the_paper_onsets():
 
 
 def test_block_average_against_numpy_reshape():
-    from snapcorr.calibrate.joint_fit import block_average
+    from snapcorr.calibrate.lens.joint_fit import block_average
 
     rng = np.random.default_rng(10)
     a, v = rng.normal(5, 1, (100, 90)), rng.random((100, 90))
@@ -407,20 +352,6 @@ def test_bad_library_inputs_are_value_errors():
     with pytest.raises(ValueError, match="no camera's pixel pitch"):
         calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
                        pixel_pitch_um=0.01)
-
-
-def test_ratio_profile_is_the_ratio_of_bin_sums_with_a_pixelwise_error():
-    rng = np.random.default_rng(16)
-    num, den = rng.normal(50, 2, (80, 90)), rng.normal(100, 3, (80, 90))
-    src = 1 + 0.3 * np.linspace(0, 1, 90)[None, :]  # a source that varies around the ring
-    ok = np.ones(num.shape, bool)
-    cra = cra_map(num.shape, 20.0, 21.0, (40.0, 40.0))
-    prof = radial_profile(num * src, ok, cra, bin_deg=0.5, denominator=den * src)
-    sel = (cra >= 1.0) & (cra < 1.5)
-    k = np.argmin(np.abs(prof.cra_deg - cra[sel].mean()))
-    assert prof.value[k] == pytest.approx((num * src)[sel].sum() / (den * src)[sel].sum())
-    q = num[sel] / den[sel]
-    assert prof.stderr[k] == pytest.approx(q.std(ddof=1) / np.sqrt(sel.sum()), rel=1e-9)
 
 
 @pytest.mark.slow

@@ -6,9 +6,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from snapcorr.calibrate import choice
-from snapcorr.calibrate.choice import ModelVerdict, choose
-from snapcorr.calibrate.report import summary
+from snapcorr.calibrate.lens import choice
+from snapcorr.calibrate.lens.choice import ModelVerdict, choose
+from snapcorr.calibrate.lens.report import summary
 
 BIG = 241884663.9
 

@@ -156,8 +156,8 @@ def test_pupil_fit_n_eff_from_the_command_line(folder, cli, tmp_path):
 def test_the_index_derivative_is_the_models_own(folder):
     """The fit's analytic derivative of the model in each band's index (``design(dn=True)``)
     against central differences of the model itself, at any target coefficients."""
-    from snapcorr.calibrate.exit_pupil import _annuli, _check_cubes
-    from snapcorr.calibrate.measured_target import target_model
+    from snapcorr.calibrate.pupil.locate import _annuli, _check_cubes
+    from snapcorr.calibrate.pupil.measured_target import target_model
 
     data, sensor = cubes(folder, "rare_earth_glass", (1.4, 8.0), noise=0.005, seed=1)
     bins, _, _ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, 8)

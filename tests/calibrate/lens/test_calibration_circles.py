@@ -404,7 +404,7 @@ def test_field_covers_the_onsets():
 # -- default run: a handful of representative cases -----------------------------------------
 @pytest.mark.parametrize("key, noise, seed", [
     # one circle with h < x runs by default in test_reported_shift_error_is_never_below_the_bound
-    # and in test_calibrate_flats.py (the paper's lens); two circles in
+    # and in tests/calibrate/lens/test_calibration.py (the paper's lens); two circles in
     # test_predictive_refit.py (2 % noise), circle + pixel vignetting in
     # test_standard_errors_reach_the_cramer_rao_bound
     pytest.param("one_h_lt_x", 0.005, 0, marks=pytest.mark.slow),
@@ -611,7 +611,7 @@ def test_pixel_vignetting_is_the_second_circle_where_a_free_h_buys_nothing():
     assert table["joint_fit"]["two"]["h2_stderr_mm"] == "held"
     assert table["exit_pupil_scaling"]["dh_dx"][1] == 1.0
     assert any("pixel vignetting, held at h = x" in n for n in table["notes"])
-    from snapcorr.calibrate.report import summary
+    from snapcorr.calibrate.lens.report import summary
 
     assert "h2_mm = 21 (held: pixel vignetting, h = x)" in summary(res)
 

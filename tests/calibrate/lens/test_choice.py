@@ -1,4 +1,4 @@
-"""The rules that choose the vignetting model (snapcorr.calibrate.choice), each shown failing
+"""The rules that choose the vignetting model (snapcorr.calibrate.lens.choice), each shown failing
 the model it is there to stop, on flats from the independent simulator tests/flatsim.py."""
 
 from dataclasses import replace
@@ -10,9 +10,9 @@ from flatsim import LensTruth, make_flats
 
 from snapcorr import Lens, mean_shift
 from snapcorr.calibrate import calibrate_lens
-from snapcorr.calibrate.choice import check_circles, choose, shift_difference_nm
-from snapcorr.calibrate.joint_fit import fit_model
-from snapcorr.calibrate.stages import block_data, clean_flats, ratio_images
+from snapcorr.calibrate.lens.choice import check_circles, choose, shift_difference_nm
+from snapcorr.calibrate.lens.joint_fit import fit_model
+from snapcorr.calibrate.lens.stages import block_data, clean_flats, ratio_images
 
 X = 21.0
 FS = (2.0, 2.8, 4.0, 5.6, 11.0)
@@ -77,7 +77,7 @@ def test_pixel_vignetting_is_kept_only_where_it_matters_to_the_tolerance():
 def test_where_a_circle_starts_to_cut_the_light_the_others_leave():
     # circle 2 touches circle 1 inside it at atan((8 - 7.4236) / (19 - 16.991)) = 16.0 deg at
     # every f-number: against the bare pupil it would start at 8.9 and 13.1 deg
-    from snapcorr.calibrate.choice import effective_onsets_deg
+    from snapcorr.calibrate.lens.choice import effective_onsets_deg
 
     lens = Lens(X, [(7.4236, 16.991), (8.0, 19.0)], 0.06, 1.3)
     bare = lens.circle_onsets_cra_deg(np.array([2.0, 2.8]))[1]

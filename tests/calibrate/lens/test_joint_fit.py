@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapcorr.calibrate.joint_fit import BlockData, _block_model, block_centroids
+from snapcorr.calibrate.lens.joint_fit import BlockData, _block_model, block_centroids
 
 X, P, H = 21.0, 7.0, 28.0  # h > x: the circle sweeps across the pupil as the CRA grows
 F = 11.0

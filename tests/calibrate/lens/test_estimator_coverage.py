@@ -18,7 +18,7 @@ import pytest
 import raysim
 from flatsim import LensTruth, mean_shift_nm, relative_illumination
 
-from snapcorr.calibrate.lens_calibration import _what_sets_it
+from snapcorr.calibrate.lens.estimator import _what_sets_it
 
 THREE = ((6.2, 12.0), (10.0, 30.0), (6.5, -10.0))
 
@@ -68,7 +68,7 @@ def test_flats_of_an_axis_near_a_corner_stay_usable():
     at f/5.6 part of the frame is cut off to a few stray counts, and the noise curve fitted
     there came out 0, so 88 % of the flat was masked as outliers and the calibration was
     refused ("13 % usable pixels"). Counted rays; every flat keeps more than 98 %."""
-    from snapcorr.calibrate.flats import clean_flat
+    from snapcorr.calibrate.flats.cleaning import clean_flat
 
     for seed in (0, 3):
         fl, _ = raysim.flats(21.0, ((9.5, 26.0),), f_numbers=(2.0, 5.6, 11.0), shape=(128, 160),
@@ -112,7 +112,7 @@ def test_a_dropped_circle_weighs_what_of_its_difference_is_not_noise():
     and a rival with as many circles (a free h instead of h = x) keep the BIC's weight."""
     from types import SimpleNamespace as Fit
 
-    from snapcorr.calibrate.choice import _choice_weight
+    from snapcorr.calibrate.lens.choice import _choice_weight
 
     n, one = 102400, Fit(model="one", k=20488, n=102400)
     pixel = Fit(model="two", k=20489, n=n)

@@ -2,8 +2,8 @@
 
 Cubes from ``tests/spectralsim.py`` (every pupil ray scales the whole Gaussian filter curve,
 ``T(lambda) = T0(lambda / s)``, point by point over the vignetted pupil; no code shared with
-snapcorr) and, for measured responses, ``tests/test_pupil_measured.py``'s forward model of the
-real imec 4 x 4 curves behind their band-pass; the paper lens at f/1.4 and f/8.
+snapcorr) and, for measured responses, ``tests/calibrate/pupil/test_measured_target.py``'s
+forward model of the real imec 4 x 4 curves behind their band-pass; the paper lens at f/1.4 and f/8.
 
 Behind the paper lens at f/1.4 the vignetting circle starts to cut the pupil 0.31 mm from the
 axis, inside the first annulus: the model's Taylor step across that onset moved x by half a
@@ -24,12 +24,13 @@ import pytest
 import spectralsim as sim
 from conftest import PAPER_LENS, PAPER_TRUTH
 
-from snapcorr.calibrate.measured_target import target_model
-from snapcorr.calibrate.pupil_solver import _Problem
-from snapcorr.calibrate.pupil_target import _annuli
+from snapcorr.calibrate.pupil.measured_target import target_model
+from snapcorr.calibrate.pupil.solver import _Problem
+from snapcorr.calibrate.pupil.target import _annuli
 from snapcorr.cube import Sensor, make_cube
 
-# the field of the 128 x 160 sensor of 44 um in test_pupil.py, in 64 x 80 pixels: 10 bands
+# the field of the 128 x 160 sensor of 44 um in tests/calibrate/pupil/test_locate.py, in
+# 64 x 80 pixels: 10 bands
 PITCH_UM = 88.0
 SHAPE = (64, 80)
 CWL = np.arange(500.0, 849.0, 36.0)

@@ -73,7 +73,7 @@ def test_onset_uncertainties_propagate_into_p_and_h():
 def test_a_circle_that_cuts_no_ray_has_no_standard_error():
     # noise-free ratio images of one vignetting circle, fitted with two: a second circle far
     # outside every ray changes nothing when it moves, so its P2 and h2 have no error bar
-    from snapcorr.calibrate.joint_fit import BlockData, _tan, fit_model, model_ratio
+    from snapcorr.calibrate.lens.joint_fit import BlockData, _tan, fit_model, model_ratio
 
     lens = PAPER_LENS
     y, x = np.mgrid[0:2048:64, 0:2048:64]
@@ -124,7 +124,7 @@ def test_gains_and_exposures_solved_for_match_a_brute_force_joint_fit():
     # unused (sigma inf), from a cold start and from a warm one
     from scipy.optimize import least_squares
 
-    from snapcorr.calibrate.joint_fit import _profiled
+    from snapcorr.calibrate.lens.joint_fit import _profiled
 
     rng = np.random.default_rng(1)
     k, n = 4, 300

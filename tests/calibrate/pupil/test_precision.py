@@ -3,7 +3,7 @@ cannot reach the shift precision asked refused in one line (``tolerance_nm``).
 
 Cubes from ``tests/spectralsim.py`` (physical rays behind the paper lens, every ray scaling
 the whole Gaussian curve), f/1.4 + f/8, 1 % noise, on the 128 x 160 field of 44 um of
-``test_pupil.py`` in 64 x 80 pixels of 88 um, 30 bands of 12 nm every 12 nm.
+``tests/calibrate/pupil/test_locate.py`` in 64 x 80 pixels of 88 um, 30 bands of 12 nm every 12 nm.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import spectralsim as sim
 from conftest import PAPER_LENS, PAPER_TRUTH
 
 from snapcorr.calibrate import ImpreciseTargetError, locate_pupil
-from snapcorr.calibrate.measured_target import target_model
-from snapcorr.calibrate.pupil_precision import DEFAULT_TOLERANCE_NM, target_precision
-from snapcorr.calibrate.pupil_solver import _Problem
-from snapcorr.calibrate.pupil_target import _annuli
+from snapcorr.calibrate.pupil.measured_target import target_model
+from snapcorr.calibrate.pupil.precision import DEFAULT_TOLERANCE_NM, target_precision
+from snapcorr.calibrate.pupil.solver import _Problem
+from snapcorr.calibrate.pupil.target import _annuli
 from snapcorr.cube import Sensor, make_cube
 
 PITCH_UM, SHAPE = 88.0, (64, 80)
@@ -107,10 +107,9 @@ def test_predicted_precision_is_what_the_fit_reports():
 
 @pytest.mark.slow  # the measured curves' offset tables for two models: about a minute
 def test_predict_for_a_sensor_with_measured_responses(tmp_path):
-    import test_pupil_measured as tpm
-
+    import calibrate.pupil.test_measured_target as tpm
     from snapcorr.calibrate import pupil_precision
-    from snapcorr.calibrate.pupil_precision import rare_earth_glass, white_tile
+    from snapcorr.calibrate.pupil.precision import rare_earth_glass, white_tile
 
     path, _ = tpm.vendor_file(tmp_path)
     vendor = Sensor.load(path)

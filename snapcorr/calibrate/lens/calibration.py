@@ -1,0 +1,546 @@
+"""Flat fields at several f-numbers in, a lens profile out (Goossens et al. 2019, Sec. 2.7, 3.2).
+
+Two estimators of the vignetting circles are run on the same flats and both are reported:
+
+``onset``
+    The paper's: each flat is divided by the flat at the highest f-number, the onset of
+    vignetting is located in the radial profile of that ratio (:func:`detect_onset`), and the
+    onsets give P and h through the least squares of Eq. (26). It uses only where the fall-off
+    starts, so effects the area model leaves out (pupil aberrations, an f-number-dependent
+    natural fall-off) barely bias it; but it throws away the shape of the fall-off, and it
+    sees one circle.
+``joint``
+    The vignetted-pupil area model fitted to every ratio image at once, with the optical centre
+    (:mod:`snapcorr.calibrate.lens.joint_fit`), for no circle and one to three circles. It uses
+    every pixel, so it is several times more precise at a given noise (``benchmarks/``).
+    :mod:`snapcorr.calibrate.lens.choice` picks the model: circles that cannot be identified are
+    never chosen, the criterion allows for model error, and a further circle must change the
+    predicted mean shift by more than a tolerance.
+
+``method="auto"`` keeps the joint fit unless the paper's onsets are shown to predict better:
+each flat but the reference is left out in turn, both estimators are fitted without it and
+predict it, and the onsets are used only where their summed chi-square is lower by more than
+``predictive.MIN_PREDICTIVE_GAIN`` (:mod:`snapcorr.calibrate.lens.predictive`). A chi-square
+threshold cannot make this choice: with millions of pixels a harmless misfit is significant.
+Whichever is used reports the standard error of the mean shift it predicts. The stages
+are in :mod:`snapcorr.calibrate.lens.stages`; the summary and the picture in
+:mod:`snapcorr.calibrate.lens.report`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._coords import accepts_center_rc
+from ..._names import CALIBRATION_METHODS
+from ..._validation import check_center, check_pixel_pitch_um, check_positive
+from ...optics.chief_ray import cra_map
+from ...optics.lens import Lens
+from ...optics.shift import EffectiveIndexWarning
+from ..flats.cleaning import check_mosaic_sensor
+from . import choice, report, stages
+from .estimator import (
+    _decide_method,
+    _next_best,
+    _precision_notes,
+    _predict,
+    _shift_errors,
+    _unless_joint,
+    _x_notes,
+)
+from .table import _calibration_table
+
+__all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
+
+METHODS = CALIBRATION_METHODS
+
+
+@dataclass
+class LensCalibration:
+    """Everything a calibration found, and the lens profile it gives.
+
+    Attributes
+    ----------
+    lens : Lens
+        The profile: every circle of the chosen joint-fit model (none if no vignetting was
+        found), or the one circle of an onset method where that was used.
+    method, model : str
+        Estimator used (``"joint"``, ``"onset-ratio"`` or ``"onset-model"``) and vignetting
+        model chosen (``"none"``, ``"one"``, ``"two"`` or ``"three"`` circles).
+    reason : str
+        Why, in a sentence.
+    f_numbers : ndarray
+    center_px : (float, float)
+        Optical centre used, pixels.
+    center_source : str
+        ``"given"``, ``"contours"``, ``"joint fit"`` or ``"image centre"``.
+    onsets : dict
+        Detector -> {f-number -> :class:`Onset`}: ``"ratio"``, the discontinuity of the ratio
+        profile (the paper's way), and ``"model"``, the area model fitted to each profile.
+    onset_fits : dict
+        Detector -> :class:`OnsetFit` of Eq. (26) over its onsets (None with fewer than two).
+    fits : dict
+        Model name -> :class:`ModelFit` of the joint fit.
+    bic_floor : dict
+        Model name -> information criterion with the systematic floor.
+    verdicts : dict
+        Model name -> :class:`~snapcorr.calibrate.lens.choice.ModelVerdict`: chosen or why not.
+    next_best : str or None
+        The best model not chosen, and ``shift_difference_nm`` the largest difference of the
+        predicted mean shift between it and the chosen one at each f-number.
+    shift_stderr_nm : ndarray
+        The standard error of the predicted mean shift, largest over the field, at each
+        f-number, for a filter at ``choice.REFERENCE_CWL_NM`` with ``choice.REFERENCE_N_EFF``:
+        ``shift_stderr_fit_nm`` (what the uncertainty of P and h leaves, for the estimator
+        used, scaled up by the fit's misfit) and ``shift_stderr_model_nm`` (the models the
+        rules could not rule out: see
+        :func:`~snapcorr.calibrate.lens.choice.model_choice_stderr`) in quadrature. Empty
+        where there is neither (no circle, and no other model in question). The fit's part
+        is in turn ``shift_stderr_noise_nm`` (the flats' noise, scaled by the misfit: the
+        part that averaging frames lowers) and the block model's approximation
+        (:func:`~snapcorr.calibrate.lens.joint_fit._rule_bias`), in quadrature.
+    rivals : dict
+        Name -> ``(ModelFit, floored BIC)`` of models never chosen that count in the model
+        choice's error, where two circles were fitted: ``"pixel"``, the first circle plus
+        pixel vignetting (``h = x``, :func:`snapcorr.calibrate.lens.stages.pixel_rival`); or
+        ``"free"``, the free second circle, where the pixel's had the lower BIC and is the
+        two-circle model.
+    predictive : dict
+        Estimator -> :class:`~snapcorr.calibrate.lens.predictive.Prediction`: how well each
+        predicted the flats left out (``auto`` with circles only).
+    profiles, ratio_profiles : dict
+        f-number -> :class:`RadialProfile` of each flat and of its ratio to the reference.
+    mosaic : dict
+        Raw flats of a snapshot mosaic: ``sensor``, ``sensor_origin_px`` (None: the whole
+        sensor) and ``band_gains`` (f-number -> each band's gain divided out, mean 1). Empty
+        for flats without a tile pattern.
+    """
+
+    lens: Lens
+    method: str
+    model: str
+    reason: str
+    f_numbers: np.ndarray
+    reference_f_number: float | None
+    center_px: tuple
+    center_source: str
+    max_cra_deg: float
+    onsets: dict
+    onset_fits: dict
+    fits: dict
+    profiles: dict
+    ratio_profiles: dict
+    pixel_pitch_um: float
+    shape: tuple
+    bic_floor: dict = field(default_factory=dict)
+    verdicts: dict = field(default_factory=dict)
+    next_best: str | None = None
+    shift_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shift_stderr_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tolerance_nm: float = choice.TOLERANCE_NM
+    notes: list = field(default_factory=list)
+    predictive: dict = field(default_factory=dict)
+    exit_pupil_stderr_mm: float | None = None
+    shift_stderr_fit_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shift_stderr_model_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shift_stderr_noise_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rivals: dict = field(default_factory=dict)
+    mosaic: dict = field(default_factory=dict)
+
+    @property
+    def center_rc(self) -> tuple:
+        """The optical centre used, ``(row, col)`` pixels (``center_px`` is x first)."""
+        return (self.center_px[1], self.center_px[0])
+
+    def model_onsets_deg(self):
+        """First onset at each f-number predicted by the chosen circles (NaN past the field)."""
+        on = np.asarray(self.lens.onset_cra_deg(self.f_numbers), float)
+        return np.where(on <= self.max_cra_deg, on, np.nan)
+
+    def onset_check_deg(self):
+        """Largest difference between the paper's onsets (ratio profiles) and the chosen
+        model's first onsets, degrees; None where neither finds one inside the field."""
+        model_on = self.model_onsets_deg()
+        diffs = [abs(o.cra_deg - model_on[j]) for j, f in enumerate(self.f_numbers)
+                 if (o := self.onsets["ratio"].get(float(f))) is not None and o.found
+                 and np.isfinite(model_on[j])]
+        return max(diffs) if diffs else None
+
+    def summary(self) -> str:
+        """A few lines for a person (:func:`snapcorr.calibrate.lens.report.summary`)."""
+        return report.summary(self)
+
+    def plot(self, ax=None):
+        """The paper's Fig. 8 (:func:`snapcorr.calibrate.lens.report.plot`)."""
+        return report.plot(self, ax)
+
+    def save_plot(self, path):
+        """Write :meth:`plot` to ``path`` (PNG), atomically."""
+        report.save_plot(self, path)
+
+
+def _check_inputs(flats, dark, vignetting_distance_mm):
+    """The flats as sorted ``(f_number, image)`` pairs, refused where they cannot be
+    calibrated from (:func:`_check_enough_flats`)."""
+    if not flats:
+        raise ValueError("give at least one flat field")
+    items = []
+    for f, img in flats.items():
+        try:
+            fv = float(f)
+        except (TypeError, ValueError):
+            raise ValueError(f"f-number {f!r} is not a number") from None
+        if not math.isfinite(fv) or fv <= 0:
+            raise ValueError(f"f-number must be finite and > 0, got {f!r}")
+        arr = np.asarray(img)
+        if arr.ndim != 2:
+            raise ValueError(f"the flat at f/{fv:g} must be a 2-D image, got shape {arr.shape}")
+        items.append((fv, arr))
+    fs = [f for f, _ in items]
+    if len(set(fs)) != len(fs):
+        dup = sorted({f for f in fs if fs.count(f) > 1})
+        raise ValueError(f"f-number(s) given twice: {', '.join(f'f/{f:g}' for f in dup)}")
+    shapes = {a.shape for _, a in items}
+    if len(shapes) > 1:
+        listing = ", ".join(f"f/{f:g}: {a.shape[1]} x {a.shape[0]}" for f, a in items)
+        raise ValueError(f"flat fields differ in size ({listing}); all must come from the "
+                         "same sensor area")
+    if min(items[0][1].shape) < 16:
+        raise ValueError(f"flat fields of {items[0][1].shape[1]} x {items[0][1].shape[0]} "
+                         "pixels are too small to calibrate from (16 x 16 at least)")
+    if dark is not None and np.shape(dark) != items[0][1].shape:
+        raise ValueError(f"the dark frame is {np.shape(dark)}, the flats "
+                         f"{items[0][1].shape}")
+    _check_enough_flats(items, vignetting_distance_mm)
+    return sorted(items)
+
+
+def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+                exit_pupil_stderr_mm=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3):
+    """Every number checked (:func:`_check_choice_args` too), as floats."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
+    pixel_pitch_um = check_pixel_pitch_um("pixel_pitch_um", pixel_pitch_um)
+    if vignetting_distance_mm is not None:
+        vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
+    if center_px is not None:
+        center_px = check_center(center_px)
+    if exit_pupil_stderr_mm is not None:
+        exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
+    return (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+            exit_pupil_stderr_mm, _check_choice_args(tolerance_nm, max_circles))
+
+
+def _check_choice_args(tolerance_nm, max_circles):
+    """``tolerance_nm`` as a float; refuse it unless > 0, and ``max_circles`` unless 0 to 3."""
+    tolerance_nm = check_positive("tolerance_nm", tolerance_nm)
+    if max_circles not in (0, 1, 2, 3):
+        raise ValueError(f"max_circles must be 0, 1, 2 or 3, got {max_circles!r}")
+    return tolerance_nm
+
+
+def _check_enough_flats(items, vignetting_distance_mm):
+    """Refuse a single flat without h: one f-number cannot tell P from h."""
+    if len(items) == 1 and vignetting_distance_mm is None:
+        raise ValueError(
+            f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
+            "from its distance h (Eq. 26 needs two or more onsets): give flats at two or more "
+            "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
+
+
+@accepts_center_rc
+def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stderr_mm=None,
+                   magnification=None, pupil_magnification=None, dark=None, center_px=None,
+                   saturation=None, vignetting_distance_mm=None, method="auto", inputs=None,
+                   name="calibrated lens", tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
+                   progress=None, pupil=None, sensor=None, sensor_origin_px=None, lens=None,
+                   exit_pupil_from=None):
+    """Characterise a lens from flat fields at several f-numbers.
+
+    Parameters
+    ----------
+    flats : mapping
+        f-number -> 2-D flat-field image (integrating sphere, or lamp and plaque).
+    exit_pupil_mm, pixel_pitch_um : float
+        Distance x from the sensor to the exit pupil (mm), unless ``lens`` gives it; pixel
+        pitch (um).
+    exit_pupil_stderr_mm : float, optional
+        Standard error of x, if known (default: the one ``lens`` records, if any): the flats
+        fix ``P / x`` and ``h / x^2``, so P and h move with x (``dP/dx = P / x``,
+        ``dh/dx = 2 h / x``, in the profile and their errors).
+    magnification, pupil_magnification : float, optional
+        m and m_P of the working f-number, Eq. (27); default those of ``lens``, else 0 and 1.
+    dark : 2-D array, optional
+        Dark frame, subtracted from every flat.
+    center_rc, center_px : (row, col), optional
+        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
+        form. Default: found from the flats and refined by the joint fit.
+    saturation : float or mapping, optional
+        Values at or above are saturated and ignored (one level, or f-number -> level).
+    vignetting_distance_mm : float, optional
+        h, if known; then one circle is fitted. Required with a single f-number, whose flat
+        cannot tell P from h.
+    method : {"auto", "joint", "onset-ratio", "onset-model"}
+        ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
+        the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from
+        the area model fitted per profile, then Eq. 26; ``"auto"``: the joint fit, unless
+        the onsets predict left-out flats better (:mod:`snapcorr.calibrate.lens.predictive`).
+    name : str
+    inputs : mapping, optional
+        f-number -> file name, recorded in the profile.
+    tolerance_nm : float
+        A further circle is kept only if it moves the predicted mean shift by more than this
+        somewhere in the field (:mod:`snapcorr.calibrate.lens.choice`).
+    max_circles : int
+        Most vignetting circles tried (0 to 3).
+    progress : callable, optional
+        ``progress(step)`` before each long step (a model fitted, a flat left out).
+    pupil : {"paper", "lambertian"}, optional
+        The pupil's radiance model (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
+        default that of ``lens``, else the paper's): its radius sets the onsets; the flats'
+        area model stays the paper's (area times ``cos^4(CRA)``).
+    sensor, sensor_origin_px : Sensor, (int, int), optional
+        Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
+        and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
+        fitted and divided out first (:func:`~snapcorr.calibrate.remove_band_gains`).
+    lens : Lens, optional
+        A lens whose exit pupil is known (the profile ``snapcorr pupil`` writes), instead of
+        ``exit_pupil_mm``: its x, and its m, m_P, pupil and the standard error of x unless
+        given. The profile records where x came from (``exit_pupil_from``) and the lens's
+        own record of it (``exit_pupil_stderr_mm``, ``exit_pupil_n_eff``...).
+    exit_pupil_from : str or path, optional
+        Where ``lens`` came from (its file), recorded; default its name.
+
+    Returns
+    -------
+    LensCalibration
+    """
+    given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
+                       pupil_magnification, pupil)
+    result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
+                        center_px=center_px, saturation=saturation,
+                        vignetting_distance_mm=vignetting_distance_mm, method=method,
+                        inputs=inputs, name=name, tolerance_nm=tolerance_nm,
+                        max_circles=max_circles, progress=progress, sensor=sensor,
+                        sensor_origin_px=sensor_origin_px)
+    if lens is not None:
+        result.lens = _lens_recorded(result.lens, lens, exit_pupil_from)
+    return result
+
+
+#: What a lens given to :func:`calibrate_lens` records of its exit pupil, and the key each
+#: takes in the calibrated profile.
+LENS_RECORD_KEYS = {"exit_pupil_stderr_mm": "exit_pupil_stderr_mm",
+                    "n_eff": "exit_pupil_n_eff", "n_eff_stderr": "exit_pupil_n_eff_stderr",
+                    "n_eff_fitted": "exit_pupil_n_eff_fitted"}
+
+
+def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
+               pupil_magnification, pupil):
+    """The exit pupil's x, its standard error, m, m_P and the pupil for the calibration: those
+    given, else the ``lens``'s, else the defaults (x has none)."""
+    if lens is None:
+        if exit_pupil_mm is None:
+            raise ValueError("give the exit pupil distance: exit_pupil_mm, or a lens whose x "
+                             "is known (lens=, the profile snapcorr pupil writes)")
+        return {"exit_pupil_mm": exit_pupil_mm, "exit_pupil_stderr_mm": exit_pupil_stderr_mm,
+                "magnification": 0.0 if magnification is None else magnification,
+                "pupil_magnification": 1.0 if pupil_magnification is None
+                else pupil_magnification, "pupil": pupil or "paper"}
+    if not isinstance(lens, Lens):
+        raise TypeError(f"lens must be a Lens (Lens.load(path)), got {type(lens).__name__}")
+    if exit_pupil_mm is not None:
+        raise ValueError("give exit_pupil_mm or a lens, not both: the lens gives x")
+    sx = lens.calibration.get("exit_pupil_stderr_mm")
+    sx = sx if isinstance(sx, (int, float)) and not isinstance(sx, bool) and sx > 0 else None
+    return {"exit_pupil_mm": lens.exit_pupil_mm,
+            "exit_pupil_stderr_mm": sx if exit_pupil_stderr_mm is None else exit_pupil_stderr_mm,
+            "magnification": lens.magnification if magnification is None else magnification,
+            "pupil_magnification": (lens.pupil_magnification if pupil_magnification is None
+                                    else pupil_magnification),
+            "pupil": pupil or lens.pupil_radiance}
+
+
+def _lens_recorded(calibrated, lens, source):
+    """``calibrated`` with the record of where its x came from: ``source`` (default the
+    ``lens``'s name) and what the lens's own record says of x and n_eff."""
+    cal = dict(calibrated.calibration)
+    cal["exit_pupil_from"] = str(source) if source is not None else (lens.name or "a lens")
+    for key, as_key in LENS_RECORD_KEYS.items():
+        if key in lens.calibration:
+            cal[as_key] = lens.calibration[key]
+    return dataclasses.replace(calibrated, calibration=cal)
+
+
+def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
+               magnification, pupil_magnification, dark, center_px, saturation,
+               vignetting_distance_mm, method, inputs, name, tolerance_nm, max_circles,
+               progress, pupil, sensor, sensor_origin_px):
+    """:func:`calibrate_lens` with x, m, m_P and the pupil settled (its body)."""
+    (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm,
+     tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
+                                 center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)
+    items = _check_inputs(flats, dark, vignetting_distance_mm)
+    items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
+    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
+    fl, ratios, center, center_source, notes = _prepare_flats(items, center_px, **cleaning)
+    ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
+    max_cra, fs = ons.max_cra_deg, fl.f_numbers
+    fix_center = center if (center_px is not None or fl.single) else None
+    decide = functools.partial(_choose, base=base, fs=fs, tolerance_nm=tolerance_nm,
+                               h_given=vignetting_distance_mm is not None)
+    fits, bic, fit_notes, data, rivals = _fit_joint_models(
+        fl, ratios, base, pixel_pitch_um, center, fix_center, ons.fits, max_cra,
+        vignetting_distance_mm, max_circles, decide, progress)
+    model, verdicts = decide(fits, bic, max_cra)
+    if model != "none" and fix_center is None:
+        center, center_source, model, verdicts, ons, max_cra = _recenter_on_fit(
+            fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
+            pixel_pitch_um, vignetting_distance_mm, decide)
+    predict = functools.partial(_predict, data, fs, fits[model], ons, base, center, fix_center,
+                                vignetting_distance_mm, progress)
+    used, reason, circles, method_notes, scores = _decide_method(
+        method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
+    notes += fit_notes + method_notes
+    model = _unless_joint(used, verdicts, model)
+    lens = dataclasses.replace(base, vignetting=circles)
+    next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
+                                 fs, max_cra)
+    errs = _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
+                         rivals)
+    notes += _precision_notes(verdicts, model, next_best, diff, errs, fs, tolerance_nm,
+                              fits[model].extra.get("misfit_scale", 1.0) if used == "joint"
+                              else 1.0) + _x_notes(exit_pupil_mm, exit_pupil_stderr_mm, circles)
+    result = LensCalibration(
+        lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
+        reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
+        center_source=center_source, max_cra_deg=max_cra, onsets=ons.onsets,
+        onset_fits=ons.fits, fits=fits, profiles=ons.profiles,
+        ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
+        shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
+        shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, mosaic=mosaic, **errs)
+    result.lens = dataclasses.replace(lens, calibration=_calibration_table(result, inputs))
+    return result
+
+
+class _Onsets(NamedTuple):
+    """The radial profiles, onsets and Eq. (26) fits about one optical centre."""
+
+    profiles: dict
+    ratio_profiles: dict
+    onsets: dict
+    max_cra_deg: float
+    fits: dict
+
+
+def _raw_mosaic(items, dark, saturation, sensor, origin_px):
+    """Raw flats of a mosaic ``sensor`` with their band gains divided out, what is left of
+    cleaning them (keywords of :func:`_prepare_flats`: the dark is subtracted and saturated
+    pixels are masked already; each pixel's gain, for its noise), and the record of it (as
+    :attr:`LensCalibration.mosaic`); without ``sensor``, the flats as they came and ``{}``."""
+    if sensor is None:
+        if origin_px is not None:
+            raise ValueError("sensor_origin_px needs sensor (the mosaic whose band gains are "
+                             "removed from the flats)")
+        return items, {"dark": dark, "saturation": saturation}, {}
+    check_mosaic_sensor(sensor)
+    items, gains, pixel_gains = stages.without_band_gains(items, dark, saturation, sensor,
+                                                          origin_px)
+    return items, {"pixel_gains": pixel_gains}, {
+        "sensor": sensor, "sensor_origin_px": origin_px, "band_gains": gains}
+
+
+def _prepare_flats(items, center_px, *, dark=None, saturation=None, pixel_gains=None):
+    """Clean the flats, take their ratio images and find the optical centre; with notes."""
+    fl = stages.clean_flats(items, dark, saturation, pixel_gains)
+    notes = list(fl.notes)
+    ratios = stages.ratio_images(fl)
+    center, center_source, note = stages.optical_center(fl, ratios, center_px)
+    if note:
+        notes.append(note)
+    if fl.single:
+        notes.append("one flat: nothing cancels the source's non-uniformity or other fall-off "
+                     "(cos^4 is divided out); use an integrating sphere, or flats at several "
+                     "f-numbers")
+    return fl, ratios, center, center_source, notes
+
+
+def _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm):
+    """Profiles and onsets about ``center``, and Eq. (26) over each detector's onsets."""
+    profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
+        fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
+    onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
+                  for det in onsets}
+    return _Onsets(profiles, ratio_profiles, onsets, max_cra, onset_fits)
+
+
+def _choose(fits, bic, max_cra, *, base, fs, tolerance_nm, h_given):
+    """The joint-fit model chosen over a field up to ``max_cra``, and every model's verdict."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EffectiveIndexWarning)
+        return choice.choose(fits, bic, base, fs, max_cra, tolerance_nm=tolerance_nm,
+                             h_given=h_given)
+
+
+def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onset_fits,
+                      max_cra, vignetting_distance_mm, max_circles, decide, progress=None):
+    """The joint fits, one more circle while the last is chosen; their BICs, notes, the
+    blocks fitted and the rival models (:func:`~snapcorr.calibrate.lens.stages.joint_fits`)."""
+    data = stages.block_data(fl, ratios, base, pixel_pitch_um)
+    centers = [center]
+    if fix_center is None:  # should the contours have misled: the image centre too
+        centers.append(((fl.shape[1] - 1) / 2.0, (fl.shape[0] - 1) / 2.0))
+
+    def keep_going(fits, bic):  # only a chosen model can be the base of a better one
+        return decide(fits, bic, max_cra)[0] == list(fits)[-1]
+
+    rivals = {}
+    fits, bic = stages.joint_fits(
+        data, base, fl.f_numbers, onset_fits.values(), centers, fix_center, max_cra,
+        fixed_h=vignetting_distance_mm, max_circles=max_circles, keep_going=keep_going,
+        progress=progress, rivals=rivals)
+    notes = []
+    if vignetting_distance_mm is not None and max_circles > 1:
+        notes.append("h given: one circle fitted (a further circle's h would be unknown)")
+    notes += [f"the joint fit with {report.CIRCLES[k]} stopped before converging ({v.message})"
+              for k, v in fits.items() if not v.success]
+    if "free" in rivals:
+        notes.append(
+            f"two circles: the second is pixel vignetting, held at h = x = {base.exit_pupil_mm:g}"
+            " mm (a free h: the BIC with the floor higher by "
+            f"{rivals['free'][1] - bic['two']:.4g})")
+    return fits, bic, notes, data, rivals
+
+
+def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
+                     pixel_pitch_um, vignetting_distance_mm, decide):
+    """Re-centre on the chosen model's centre: the onsets, the choice and the field about it."""
+    # The chosen model's centre; where it moved from the contours' centre, the field's
+    # extent, the profiles and the paper's onsets are taken again about it, and the
+    # choice is made again over that field.
+    contour_center, contour_source = center, center_source
+    center, center_source = _fitted_center(fits[model]), "joint fit"
+    if np.hypot(center[0] - contour_center[0], center[1] - contour_center[1]) > 2.0:
+        ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
+        model, verdicts = decide(fits, bic, ons.max_cra_deg)
+        if model == "none":  # no circle after all: the contours' centre stands
+            center, center_source = contour_center, contour_source
+        else:
+            center = _fitted_center(fits[model])
+    max_cra = float(cra_map(fl.shape, pixel_pitch_um, base.exit_pupil_mm, center).max())
+    return center, center_source, model, verdicts, ons, max_cra
+
+
+def _fitted_center(fit):
+    return (fit.params["cx_px"], fit.params["cy_px"])
+
+

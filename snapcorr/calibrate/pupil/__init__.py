@@ -1,0 +1,25 @@
+"""The exit-pupil fit: the exit pupil distance ``x`` and the filters' effective index from
+cubes of a spectral target (:func:`~snapcorr.calibrate.pupil.locate.locate_pupil`), its
+stages, the target models and the precision a target can give."""
+
+from .locate import (
+    CANDIDATE_TARGETS,
+    FeaturelessTargetError,
+    ImpreciseTargetError,
+    Precision,
+    PupilFit,
+    estimate_target_center,
+    locate_pupil,
+    pupil_precision,
+)
+
+__all__ = [
+    "CANDIDATE_TARGETS",
+    "FeaturelessTargetError",
+    "ImpreciseTargetError",
+    "Precision",
+    "PupilFit",
+    "estimate_target_center",
+    "locate_pupil",
+    "pupil_precision",
+]

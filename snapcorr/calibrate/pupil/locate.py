@@ -1,0 +1,514 @@
+"""The exit pupil distance and the filters' effective index from cubes of a spectral target.
+
+Goossens, Geelen, Lambrechts and Van Hoof (OSA Continuum 2, 2217, 2019) find the exit pupil
+distance ``x`` from the spectral shift the camera itself sees on a spatially uniform target
+with spectral features: a pixel at ``d`` mm from the optical axis has ``tan CRA = d / x``
+(Goossens et al. 2019, Eq. 8), its filters move to the blue by Eq. (3), and a target whose
+spectrum changes within the bands turns that shift into a change of signal over the field.
+
+:func:`locate_pupil` fits the binned cubes (:mod:`~snapcorr.calibrate.pupil.target_model`: the whole
+filter behind the lens, Eq. 13) by least squares in ``x`` (and ``n_eff``), the target's
+spectrum either given or solved for with the field centre as reference. What the data can
+tell apart:
+
+* At small angles the field's shift depends on ``sin^2(CRA) / n_eff^2 ~ d^2 / (x n_eff)^2``:
+  the field alone gives the product ``x * n_eff``.
+* The cone term separates ``n_eff``: the centre's spectrum moves between f-numbers by
+  ``~ cwl tan^2(theta_cone) / (4 n_eff^2)`` whatever ``x`` is. One f-number with ``n_eff``
+  unknown gives ``x * n_eff`` (and says so); two or more give both.
+
+:func:`pupil_precision` predicts, before any measurement, the standard error of ``x`` a target
+would give (the Cramer-Rao bound of the same model), so a target can be chosen;
+:data:`CANDIDATE_TARGETS` holds the usual ones.
+
+The fit runs in stages, each in its own module; this one is the entry point: it strings them
+together, assembles the result and re-exports every name callers import from here.
+
+* :mod:`~snapcorr.calibrate.pupil.target`: the input: the cubes and the target's spectrum
+  checked, the optical centre (:func:`estimate_target_center`) and the annuli about it;
+* :mod:`~snapcorr.calibrate.pupil.distance`: the search for ``x`` and the test that the target
+  shows a shift at all (in sample and held out, :class:`FeaturelessTargetError`);
+* :mod:`~snapcorr.calibrate.pupil.index`: the ladder of effective-index models;
+* here: :func:`locate_pupil`, the choice of pupil (:func:`choose_pupil`) and the result
+  (:class:`PupilFit` and its lens profile);
+* :mod:`~snapcorr.calibrate.pupil.precision`: choosing a target, :func:`pupil_precision` and
+  the named spectra of :data:`CANDIDATE_TARGETS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# ``name as name``: re-exported (the stages' constants and the named targets) for the callers
+# that import it from here
+from ... import __version__
+from ..._coords import accepts_center_rc
+from ...optics.lens import Lens
+from ...spectra import colour_filter as colour_filter
+from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
+from .distance import HELDOUT_SKIP as HELDOUT_SKIP
+from .distance import MAX_REL_STDERR as MAX_REL_STDERR
+from .distance import MIN_DELTA_CHI2 as MIN_DELTA_CHI2
+from .distance import MIN_HELDOUT_SIGMA as MIN_HELDOUT_SIGMA
+from .distance import (
+    _check_shift_seen,
+    _circles_at,
+    _field_radius,
+    _fit_x,
+    _heldout,
+    _max_shift_rel,
+    _one_blas_thread,
+    _target_models,
+    _trial_range,
+)
+from .index import N_EFF_P as N_EFF_P
+from .index import N_EFF_REL_STDERR as N_EFF_REL_STDERR
+from .index import _index_ladder
+from .precision import CANDIDATE_TARGETS, Precision, pupil_precision, target_precision
+from .precision import DEFAULT_TOLERANCE_NM as DEFAULT_TOLERANCE_NM
+from .precision import LAMP_LINES_NM as LAMP_LINES_NM
+from .precision import RARE_EARTH_BANDS as RARE_EARTH_BANDS
+from .precision import TargetPrecision as TargetPrecision
+from .precision import line_lamp as line_lamp
+from .precision import rare_earth_glass as rare_earth_glass
+from .precision import white_tile as white_tile
+from .solver import _Problem
+from .target import IN_MEMORY_BYTES as IN_MEMORY_BYTES
+from .target import (
+    FeaturelessTargetError,
+    ImpreciseTargetError,
+    _annuli,
+    _check_cubes,
+    _spectrum,
+    check_modelled,
+    estimate_target_center,
+)
+from .target_model import TargetModel, scaled_circles
+
+__all__ = [
+    "CANDIDATE_TARGETS",
+    "FeaturelessTargetError",
+    "ImpreciseTargetError",
+    "Precision",
+    "PupilFit",
+    "estimate_target_center",
+    "locate_pupil",
+    "pupil_precision",
+]
+
+#: The effective-index law is validated up to about this angle (Goossens 2019, Sec. 2.2).
+AOI_VALIDITY_DEG = 40.0
+
+
+@dataclass
+class PupilFit:
+    """What :func:`locate_pupil` found.
+
+    Attributes
+    ----------
+    exit_pupil_mm, exit_pupil_stderr_mm : float
+    n_eff : ndarray, shape (n_bands,)
+        The index used: fitted (``n_eff_fitted``) or the sensor's.
+    n_eff_stderr : ndarray or None
+    n_eff_fitted : {"no", "one", "linear", "per band", "product"}
+        ``"linear"``: the sensor's values times a factor linear in wavelength.
+        ``"product"``: one f-number, index unknown; only ``x * n_eff`` is determined and
+        ``exit_pupil_mm`` assumes the sensor's index.
+    x_n_eff_mm, x_n_eff_stderr_mm : float
+        The product ``x * mean(n_eff)`` and its standard error (what the field alone fixes).
+    chi2_red : float
+    lens : Lens
+        The profile to write: ``x``, the circles and magnifications of the lens given.
+    notes : list of str
+    """
+
+    exit_pupil_mm: float
+    exit_pupil_stderr_mm: float
+    n_eff: np.ndarray
+    n_eff_stderr: np.ndarray | None
+    n_eff_fitted: str
+    x_n_eff_mm: float
+    x_n_eff_stderr_mm: float
+    chi2_red: float
+    dof: int
+    center_px: tuple
+    center_source: str
+    spectrum: str
+    lens: Lens
+    model: TargetModel = field(repr=False)
+    coefficients: np.ndarray = field(repr=False)
+    notes: list = field(default_factory=list)
+    covariance: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((1, 1)))
+    """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
+    predicted: object = None
+    """The precision predicted before the least squares (:class:`TargetPrecision`)."""
+
+    @property
+    def center_rc(self) -> tuple:
+        """The optical centre, ``(row, col)`` pixels (``center_px`` is x first)."""
+        return (self.center_px[1], self.center_px[0])
+
+    def summary(self) -> str:
+        lines = [f"exit pupil x = {self.exit_pupil_mm:.4g} +- {self.exit_pupil_stderr_mm:.2g} mm"
+                 f" (reduced chi-square {self.chi2_red:.3g}, {self.dof} degrees of freedom)"]
+        n = self.n_eff
+        if self.n_eff_fitted == "one":
+            lines.append(f"n_eff = {n[0]:.4g} +- {self.n_eff_stderr[0]:.2g} (one value, fitted)")
+        elif self.n_eff_fitted in ("linear", "per band"):
+            how = "linear in wavelength" if self.n_eff_fitted == "linear" else "per band"
+            lines.append(f"n_eff {how} {n.min():.4g}-{n.max():.4g}, standard errors "
+                         f"{self.n_eff_stderr.min():.2g}-{self.n_eff_stderr.max():.2g}")
+        elif self.n_eff_fitted == "product":
+            lines.append(f"x * n_eff = {self.x_n_eff_mm:.4g} +- {self.x_n_eff_stderr_mm:.2g} mm "
+                         f"(x assumes the sensor's n_eff = {np.mean(n):.4g})")
+        lines.append(f"optical centre row {self.center_px[1]:.2f}, col {self.center_px[0]:.2f} "
+                     f"({self.center_source}); target spectrum {self.spectrum}")
+        lines.extend(f"note: {t}" for t in self.notes)
+        return "\n".join(lines)
+
+    def plot(self, *, bands=4):
+        """The data and the model over the field for the most informative bands, and the
+        chi-square against ``x``. Returns a matplotlib Figure."""
+        from .report import plot_pupil_fit
+
+        return plot_pupil_fit(self, bands=bands)
+
+    def save_plot(self, path):
+        """Write :meth:`plot` to ``path`` (PNG), atomically."""
+        import matplotlib.pyplot as plt
+
+        from ...files.png import save_png
+
+        fig = self.plot()
+        try:
+            save_png(fig, path, dpi=120)
+        finally:
+            plt.close(fig)
+
+
+@accepts_center_rc
+@_one_blas_thread
+def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
+                 target_spectrum=None, sensor_origin_px=None, magnification=None,
+                 pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
+                 name=None, progress=None, scale_circles=None, pupil=None, tolerance_nm=None,
+                 report=None) -> PupilFit:
+    """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
+
+    Parameters
+    ----------
+    cubes : dict of float -> xarray.DataArray
+        Flat-fielded cubes (``(y, x, band)``, the sensor's bands) of one spatially uniform
+        target with spectral features, keyed by f-number.
+    sensor : Sensor
+    lens : Lens, optional
+        Its vignetting circles (P, h), magnification and pupil magnification are used in the
+        model and copied to the result; its ``x`` is not used (the search scans the chief-ray
+        angles at the field's edge, :data:`EDGE_CRA_DEG`). Give the circles wherever the
+        fastest f-number is vignetted inside the field: without them that cube misleads.
+    fit_n_eff : bool
+        Fit the effective index too: one value (the sensor's values times one factor), or,
+        where the data ask for it and constrain it (``N_EFF_P``, ``N_EFF_REL_STDERR``), the
+        sensor's values times a factor linear in wavelength, or one per band. With
+        one f-number only ``x * n_eff`` is determined: the result says so.
+    center_rc, center_px : (row, col), optional
+        Optical centre in sensor pixels (default: found from the cubes); ``center_px=(cx,
+        cy)`` is the deprecated x-first form.
+    target_spectrum : callable or (wavelength_nm, value), optional
+        The target's spectrum, known up to a scale per cube. Default: unknown, solved for.
+    sensor_origin_px : (row, col), optional
+        Sensor position of the cubes' first pixel, for crops that do not carry positions.
+    magnification, pupil_magnification : float, optional
+        When no lens is given (default 0 and 1).
+    profile : str
+        The filters' shape (a name in :data:`snapcorr.optics.PROFILES`); not used for a
+        sensor with measured responses, whose whole curves are the filters
+        (:class:`~snapcorr.calibrate.pupil.measured_target.MeasuredTargetModel`).
+    n_bins : int
+        Annuli per cube.
+    progress : callable, optional
+        ``progress(step)`` before every evaluation of the model, for a progress bar.
+    scale_circles : bool, optional
+        The lens's circles came from flat fields at its ``x`` (``calibrate_lens``): flats fix
+        ``P / x`` and ``h / x^2``, so at every trial ``x`` the circles are scaled to it, and
+        the profile written holds them at the ``x`` found: one run gives a consistent
+        profile. Default: when the lens's calibration says it came from flats
+        (``exit_pupil_scaling``).
+    pupil : {None, "paper", "lambertian", "auto"}
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`). None: the lens's
+        (the paper's without a lens). ``"auto"``: both are fitted, and the Lambertian one is
+        kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
+        same parameters); the choice and the two chi-squares are in the notes and the profile.
+        A lens with circles keeps its own pupil (they were found with its radius).
+
+    tolerance_nm : float, optional
+        The shift precision needed (nm, one standard deviation). Before the least squares the
+        precision the cubes can give is predicted (:func:`~snapcorr.calibrate.pupil.precision.
+        target_precision`: the model's Fisher information at the search's start, with the
+        noise the annuli show), as the chief ray's shift at the sensor's corner (the cubes'
+        field without a sensor size) in the longest band; a target that cannot reach
+        ``tolerance_nm`` is refused (:class:`ImpreciseTargetError`). None: not checked (the
+        prediction is in ``PupilFit.predicted`` all the same).
+    report : callable, optional
+        ``report(text)`` with the prediction, before the least squares.
+
+    Returns
+    -------
+    PupilFit
+
+    Raises
+    ------
+    FeaturelessTargetError
+        The target's signal does not change over the field above the noise.
+    ImpreciseTargetError
+        (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
+    """
+    if lens is not None and lens.has_vignetting and pupil not in (None, lens.pupil_radiance):
+        raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} pupil (its "
+                         f"radius sets their onsets); the {pupil} pupil would need them found "
+                         "again: fit flats and target together (calibrate_with_target, "
+                         "snapcorr calibrate --target-cube) with pupil 'auto'")
+    if pupil == "auto":
+        return _either_pupil(locals())
+    return _locate(**locals())
+
+
+def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, sensor_origin_px,
+            magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
+            scale_circles, pupil, tolerance_nm, report):
+    """:func:`locate_pupil` for one pupil (its body)."""
+    n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
+                              fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
+    if sensor.responses is not None:  # each band's whole measured curve, not a profile
+        profile = "measured"
+    cubes = _check_cubes(cubes, sensor)
+    base = lens or Lens(30.0, (), magnification or 0.0,
+                        pupil_magnification if pupil_magnification is not None else 1.0)
+    if pupil is not None:
+        base = dataclasses.replace(base, pupil=pupil)
+    spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
+    nb = sensor.n_bands
+    bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
+                                          n_bins)
+    r_max = _field_radius(bins)
+    x_lo, x_hi = _trial_range(r_max)
+    cone = math.radians(float(base.cone_angle_deg(min(cubes))))  # the fastest cube's cone
+    max_rel = _max_shift_rel(r_max, x_lo, n_design, cone)
+    circles_at = _circles_at(lens, base, scale_circles)
+    model, coarse = _target_models(bins, sensor, base, n_design, spectrum, profile, max_rel,
+                                   circles_at)
+    problem = _Problem(model, n_design, progress)
+    several = len(cubes) >= 2
+    fit_k = bool(fit_n_eff) and several
+    predicted = []
+    before = _precision_check(problem, fit_k, _edge_mm(sensor, center, r_max),
+                              float(np.max(sensor.cwl_nm)), tolerance_nm, report, predicted)
+    p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k, before)
+    x, k = float(p[0]), float(p[1]) if fit_k else 1.0
+    chi2 = float(r @ r)
+    dof = max(round(model.n_rows - rank - len(p)), 1)
+    chi2_red = chi2 / dof
+    scale = max(1.0, chi2_red)
+    err = np.sqrt(np.clip(np.diag(cov), 0, None) * scale)
+    _check_shift_seen(problem, x, k, chi2, rank, len(p), scale, err[0], _heldout(
+        bins, sensor, base, n_design, spectrum, profile, max_rel, circles_at,
+        (r_max, x_lo, x_hi), n_design * k))
+    n = n_design * k
+    n_err = n_design * err[1] if fit_k else None
+    mode = "one" if fit_k else ("product" if fit_n_eff else "no")
+    notes = ["one f-number: the field fixes only x * n_eff; x assumes the sensor's n_eff. A "
+             "cube at a second f-number (far apart, e.g. f/2 and f/8) separates them through "
+             "the cone term"] if fit_n_eff and not several else []
+    if fit_k and nb >= 2:
+        mode, x, x_err, n, n_err, chi2, red = _index_ladder(problem, x, n, float(err[0]),
+                                                            n_err, chi2, scale, notes)
+        if mode != "one":
+            err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
+    xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
+    notes += _validity_notes(r_max, x, cone, chi2_red)
+    out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
+                            center, center_source, sensor, cubes, spectrum_desc, profile,
+                            inputs, name, circles_at)
+    pred = predicted[0]
+    out_lens.calibration["predicted_before_fit"] = {
+        "x_stderr_mm": float(f"{pred.x_stderr_mm:.3g}"),
+        **({} if pred.n_eff_stderr is None else
+           {"n_eff_stderr": float(f"{pred.n_eff_stderr:.3g}")}),
+        "shift_stderr_nm": float(f"{pred.shift_stderr_nm:.3g}"),
+        **({} if pred.n_eff_band_stderr is None else {"n_eff_per_band_stderr_range": [
+            float(f"{np.min(pred.n_eff_band_stderr):.3g}"),
+            float(f"{np.max(pred.n_eff_band_stderr):.3g}")]}),
+        "at_mm": float(f"{pred.edge_mm:.4g}"), "cwl_nm": float(f"{pred.cwl_nm:.5g}"),
+        **({} if tolerance_nm is None else {"tolerance_nm": float(tolerance_nm)})}
+    return PupilFit(x, float(err[0]), np.asarray(n, float),
+                    None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
+                    chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
+                    notes, cov * scale, pred)
+
+
+def _edge_mm(sensor, center, r_max):
+    """The distance from the axis the prediction speaks of: the sensor's farthest corner
+    (the field the lens profile serves), or the cubes' field without a sensor size."""
+    if sensor.size_px is None:
+        return r_max
+    rows, cols = sensor.size_px
+    cx, cy = center
+    far = max(math.hypot(r - cy, c - cx) for r in (-0.5, rows - 0.5) for c in (-0.5, cols - 0.5))
+    return max(far * sensor.pixel_pitch_mm, r_max)
+
+
+def _precision_check(problem, fit_k, edge_mm, cwl_nm, tolerance_nm, report, keep):
+    """``before(x0)`` for the search: the precision predicted at ``x0`` (kept in ``keep``),
+    reported, and a target that cannot reach ``tolerance_nm`` refused."""
+    if tolerance_nm is not None and not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
+        raise ValueError(f"tolerance_nm must be > 0 nm, got {tolerance_nm!r}")
+
+    def before(x0):
+        pred = target_precision(problem, float(x0), fit_k, edge_mm, cwl_nm)
+        keep.append(pred)
+        if report is not None:
+            report(pred.summary())
+        if tolerance_nm is not None and not pred.shift_stderr_nm <= tolerance_nm:
+            what = "x and n_eff" if fit_k else "x"
+            raise ImpreciseTargetError(
+                f"the target cannot pin {what} to the shift precision asked: the shift at "
+                f"{edge_mm:.3g} mm from the axis ({cwl_nm:.4g} nm) to +- "
+                f"{pred.shift_stderr_nm:.2g} nm at best, above the tolerance of "
+                f"{tolerance_nm:g} nm (x +- {pred.x_stderr_mm:.2g} mm, predicted from the "
+                "target's features and the cubes' noise): use a target with narrow features "
+                "inside the bands (a rare-earth glass, a line lamp), less noise (average "
+                "frames), or a looser tolerance")
+
+    return before
+
+
+#: ``pupil="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more than this
+#: (the two models have the same parameters: a likelihood ratio of exp(5), as the lens
+#: calibration's :data:`~snapcorr.calibrate.lens.choice.MIN_BIC_GAIN`).
+PUPIL_CHI2_GAIN = 10.0
+
+
+def _either_pupil(args):
+    """``locate_pupil(pupil="auto")``: both pupils fitted, the paper's kept unless the
+    Lambertian one fits clearly better."""
+    args = {k: v for k, v in args.items() if k != "pupil"}
+    fits = {}
+    for name in ("paper", "lambertian"):
+        try:
+            fits[name] = locate_pupil(**args, pupil=name)
+            args["report"] = None  # the precision said once, for the first pupil fitted
+        except FeaturelessTargetError:
+            raise
+        except ValueError as err:  # e.g. a numerical aperture of 1 for one of them
+            fits[name] = err
+    ok = {k: v for k, v in fits.items() if isinstance(v, PupilFit)}
+    if not ok:
+        raise fits["paper"]
+    failed = [f"the {k} pupil could not be fitted ({v})" for k, v in fits.items() if k not in ok]
+    chosen = choose_pupil(ok, {k: v.chi2_red * v.dof for k, v in ok.items()}, "chi-square")
+    chosen.notes.extend(failed)
+    return chosen
+
+
+def choose_pupil(results, chi2, what):
+    """The result to keep of ``results`` (pupil -> a result with ``notes`` and ``lens``):
+    the paper's pupil unless the Lambertian one lowers ``chi2`` (pupil -> chi-square) by more
+    than :data:`PUPIL_CHI2_GAIN`; the choice and both chi-squares go into its notes and its
+    lens's ``[calibration] pupil_choice``."""
+    gain = chi2.get("paper", np.inf) - chi2.get("lambertian", np.inf)
+    name = "lambertian" if "paper" not in results or gain > PUPIL_CHI2_GAIN else "paper"
+    got = results[name]
+    said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
+    got.notes.append(f"pupil: {name} ({what} {said}; the Lambertian pupil is kept only for a "
+                     f"gain above {PUPIL_CHI2_GAIN:g})")
+    cal = dict(got.lens.calibration)
+    cal["pupil_choice"] = {"chosen": name, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
+                           "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
+    got.lens = dataclasses.replace(got.lens, calibration=cal)
+    return got
+
+
+def _x_n_eff(x, n, err, cov, k, n_design, one_k):
+    """The product ``x * mean(n_eff)`` and its standard error (``cov`` scaled)."""
+    xn = x * float(np.mean(n))
+    if one_k:
+        g = np.array([k, x]) * float(np.mean(n_design))
+        xn_err = float(np.sqrt(max(g @ cov @ g, 0.0)))
+    else:
+        xn_err = float(err[0]) * float(np.mean(n))
+    return xn, xn_err
+
+
+def _validity_notes(r_max, x, cone_rad, chi2_red):
+    """Notes where rays pass the index law's validated angle, or the model misfits."""
+    notes = []
+    aoi = math.degrees(math.atan(r_max / x) + cone_rad)
+    if aoi > AOI_VALIDITY_DEG:
+        notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
+                     f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "
+                     "2.2): x rests on its extrapolation")
+    if chi2_red > 2.0:
+        notes.append(f"reduced chi-square {chi2_red:.3g}: the model misses something (a target "
+                     "that is not uniform, stray light, another filter shape); the errors are "
+                     "scaled by it")
+    return notes
+
+
+def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof, center,
+                 center_source, sensor, cubes, spectrum_desc, profile, inputs, name,
+                 circles_at=None):
+    def r(v, d=6):
+        return float(f"{float(v):.{d}g}")
+
+    uniform = bool(np.ptp(n) == 0)
+    cal = {
+        "source": "flat-fielded cubes of a spatially uniform spectral target",
+        "method": ("least squares of the binned cubes: whole filter behind the lens (Goossens "
+                   "et al. 2019, Eq. 13; exit pupil as in Goossens et al., OSA Continuum 2019)"),
+        "f_numbers": [float(f) for f in cubes],
+        "exit_pupil_stderr_mm": r(x_err, 3),
+        "reduced_chi2": r(chi2_red, 4),
+        "degrees_of_freedom": int(dof),
+        "n_eff_fitted": mode,
+        "x_times_n_eff_mm": r(xn),
+        "x_times_n_eff_stderr_mm": r(xn_err, 3),
+        "target_spectrum": spectrum_desc,
+        "filter_profile": profile,
+        "sensor": sensor.name,
+        "center_rc": [r(center[1], 8), r(center[0], 8)],
+        "center_px": [r(center[0], 8), r(center[1], 8)],  # x first, for earlier readers
+        "center_source": center_source,
+        "pixel_pitch_um": float(sensor.pixel_pitch_um),
+        "snapcorr_version": __version__,
+        "date": _dt.date.today().isoformat(),
+    }
+    if mode in ("one", "linear", "per band"):
+        cal["n_eff"] = r(n[0]) if uniform else [r(v) for v in n]
+        cal["n_eff_stderr"] = (r(n_err[0], 3) if mode == "one" and uniform
+                               else [r(v, 3) for v in n_err])
+    else:
+        cal["n_eff"] = r(n[0]) if uniform else [r(v) for v in n]
+        cal["n_eff_source"] = "the sensor's (not fitted)"
+    if sensor.size_px is not None:
+        cal["image_size_px"] = [int(sensor.size_px[1]), int(sensor.size_px[0])]
+    if inputs:
+        cal["inputs"] = {f"f{float(f):g}": str(p) for f, p in inputs.items()}
+    circles = base.vignetting
+    if lens is not None:
+        cal["vignetting_from"] = lens.name or "the lens given"
+        if lens.calibration.get("method"):
+            cal["vignetting_method"] = str(lens.calibration["method"])
+    if circles_at is not None:
+        circles = scaled_circles(base.vignetting, circles_at, x)
+        cal["vignetting_scaled"] = {
+            "from_x_mm": float(circles_at),
+            "circles_at_that_x_mm": [[float(P), float(h)] for P, h in base.vignetting],
+            "rule": "the flats fix P / x and h / x^2: P scaled as x, h as x^2, to the x found"}
+    return Lens(x, circles, base.magnification, base.pupil_magnification,
+                name=name or (lens.name if lens is not None else "lens (exit pupil from a target)"),
+                calibration=cal, pupil_radiance=base.pupil_radiance)

@@ -1,0 +1,237 @@
+"""The exit-pupil fit's input stage: the target's cubes checked and binned into annuli.
+
+Before :func:`~snapcorr.calibrate.pupil.locate.locate_pupil` fits anything, its inputs are
+checked and reduced here: the sensor's indices (:func:`check_modelled`), the cubes (one per
+f-number, the sensor's bands), the target's spectrum (given or unknown), then the optical
+centre, estimated from the fastest cube where it is not given
+(:func:`estimate_target_center`), and every cube's radial annuli about it
+(:func:`~snapcorr.calibrate.pupil.target_model.radial_bins`), which the fit stage
+(:mod:`~snapcorr.calibrate.pupil.distance`) models. :class:`FeaturelessTargetError`, raised here
+for a constant spectrum and by the fit stage for a target whose shift is not seen, lives here
+too.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+from scipy import optimize
+
+from ..._validation import check_center, check_positive
+from .target_model import radial_bins
+
+__all__ = ["FeaturelessTargetError", "check_modelled", "estimate_target_center"]
+
+#: Cubes up to this size are read into memory once; larger ones band by band.
+IN_MEMORY_BYTES = 2 << 30
+
+
+class FeaturelessTargetError(ValueError):
+    """The target's spectrum shows no shift over the field above the noise."""
+
+
+class ImpreciseTargetError(FeaturelessTargetError):
+    """The target's features cannot pin x and n_eff to the shift precision asked for
+    (refused before the fit, from the predicted precision)."""
+
+
+# -- the inputs ---------------------------------------------------------------------------
+#: Where the sensor gives no effective index and it is fitted (two f-numbers or more), the
+#: fit starts here (a thin-film filter's typical value; the fit spans 0.6-1.6 times it).
+N_EFF_START = 1.7
+
+
+def check_modelled(sensor, what, *, fit_n_eff=False, measured=True):
+    """``sensor``'s effective indices for the target model, or a ``ValueError`` naming what
+    is not modelled.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    what : str
+        What needs them, for the messages.
+    fit_n_eff : bool
+        The index is fitted (at two f-numbers or more): a sensor that gives none (a vendor
+        file) starts from :data:`N_EFF_START`.
+    measured : bool
+        ``what`` models measured responses behind a band-pass (vendor files: each band's whole
+        curve, :class:`~snapcorr.calibrate.pupil.measured_target.MeasuredTargetModel`); False
+        refuses them.
+
+    Returns
+    -------
+    ndarray, shape (n_bands,)
+    """
+    if sensor.responses is not None and not measured:
+        raise ValueError(f"{what} models each band by the sensor's filter shape about its "
+                         f"centre; the sensor {sensor.name!r} has measured responses behind a "
+                         "band-pass (a vendor file), which it does not model yet (snapcorr "
+                         "pupil --fit-n-eff does: fit the cubes directly)")
+    if sensor.n_eff is None and fit_n_eff:
+        return np.full(sensor.n_bands, N_EFF_START)
+    return np.asarray(sensor.require("n_eff", what), float)
+
+
+def _check_cubes(cubes, sensor):
+    if not cubes:
+        raise ValueError("give at least one cube")
+    out = {}
+    for f, cube in cubes.items():
+        fv = check_positive("f-number", f)
+        if fv in out:
+            raise ValueError(f"f/{fv:g} given twice")
+        sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
+        if not bool(np.isfinite(cube).any()):
+            raise ValueError(f"the f/{fv:g} cube has no finite value (every pixel NaN or "
+                             "infinite): nothing to fit")
+        out[fv] = cube
+    return dict(sorted(out.items()))
+
+
+def _spectrum(target, sensor):
+    """The target spectrum as a callable (or None) and a description."""
+    if target is None:
+        return None, "unknown (solved for, the field centre as reference)"
+    if callable(target):
+        return target, f"given ({getattr(target, '__name__', 'a function')})"
+    try:
+        wl, val = (np.asarray(v, float) for v in target)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError("target_spectrum must be a function or (wavelength_nm, value)") from None
+    from ..._validation import check_curve, check_wavelengths_nm
+
+    check_wavelengths_nm("target spectrum wavelengths", wl)
+    wl, val = check_curve(wl, val)
+    cwl = np.asarray(sensor.cwl_nm)
+    fwhm = np.asarray(sensor.fwhm_nm)
+    need_lo, need_hi = float(np.min(cwl - 2 * fwhm)), float(np.max(cwl + 2 * fwhm))
+    if wl[0] > need_lo or wl[-1] < need_hi:
+        raise ValueError(f"the target spectrum covers {wl[0]:g}-{wl[-1]:g} nm, but the bands "
+                         f"need {need_lo:g}-{need_hi:g} nm")
+    if np.ptp(val) <= 0:
+        raise FeaturelessTargetError("the target spectrum is constant: a featureless target "
+                                     "cannot show a spectral shift")
+    return (lambda lam: np.interp(lam, wl, val)), f"given ({wl.size} points, " \
+        f"{wl[0]:g}-{wl[-1]:g} nm)"
+
+
+# -- the optical centre -------------------------------------------------------------------
+def _block_mean(img, k):
+    ny, nx = (s // k * k for s in img.shape)
+    v = img[:ny, :nx].reshape(ny // k, k, nx // k, k)
+    with warnings.catch_warnings():  # blocks without a finite pixel are NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(v, axis=(1, 3))
+
+
+def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use=12,
+                           block=4, degree=4):
+    """The optical centre (column, row) in sensor pixels from a cube of a uniform target.
+
+    Every band's image is a function of the distance to the centre only; the centre is where
+    a polynomial in ``d^2`` (per band, solved for) fits the most informative bands best
+    (``scipy.optimize.least_squares`` on ``(cx, cy)``; the images block-averaged).
+
+    Parameters
+    ----------
+    band_image : callable
+        ``band_image(b)`` -> the cube's 2-D image of band ``b``.
+    n_bands : int
+        Number of bands.
+    rows, cols : ndarray, shape (ny, nb or 1) and (nx, nb or 1)
+        Sensor row and column of the cube's pixels
+        (:func:`snapcorr.correct.geometry.cube_positions`).
+    start : (cx, cy), optional
+        Where the search starts (default: the middle of the cube's sensor positions).
+    n_use : int
+        How many bands are fitted: those whose spread over the field is largest against their
+        noise.
+    block : int
+        Side of the blocks averaged before the fit, pixels.
+    degree : int
+        Degree of each band's polynomial in ``d^2``.
+
+    Returns
+    -------
+    (cx, cy), (sx, sy) : the centre and its standard errors, pixels.
+    """
+    stats_ = []
+    for b in range(n_bands):
+        v = np.asarray(band_image(b), float)
+        dv = np.abs(np.diff(v, axis=1))
+        if np.count_nonzero(np.isfinite(dv)) < 0.1 * dv.size:  # a band masked almost whole
+            stats_.append(-np.inf)
+            continue
+        noise = np.nanmedian(dv) / (0.6745 * math.sqrt(2)) + 1e-12
+        spread = np.nanpercentile(v, 95) - np.nanpercentile(v, 5)
+        stats_.append(spread / noise)
+    use = np.argsort(stats_)[::-1][:n_use]
+    ys, rr, cc, noise = [], [], [], []
+    for b in use:
+        v = _block_mean(np.asarray(band_image(int(b)), float), block)
+        # the scatter of neighbouring block means: noise plus a little of the trend
+        noise.append(np.nanmedian(np.abs(np.diff(v, axis=1))) / (0.6745 * math.sqrt(2))
+                     + 1e-12)
+        r = _block_mean(np.repeat(rows[:, min(b, rows.shape[1] - 1), None], cols.shape[0],
+                                  axis=1), block)
+        c = _block_mean(np.repeat(cols[None, :, min(b, cols.shape[1] - 1)], rows.shape[0],
+                                  axis=0), block)
+        ok = np.isfinite(v)
+        ys.append(v[ok])
+        rr.append(r[ok])
+        cc.append(c[ok])
+    scale = float(max(np.ptp(np.concatenate(rr)), np.ptp(np.concatenate(cc)), 1.0))
+    if start is None:
+        start = (0.5 * (cols.min() + cols.max()), 0.5 * (rows.min() + rows.max()))
+
+    def residuals(p):
+        out = []
+        for y, r, c, s in zip(ys, rr, cc, noise, strict=True):
+            rho = ((r - p[1]) ** 2 + (c - p[0]) ** 2) / scale**2
+            V = np.vander(rho, degree + 1)
+            coef, *_ = np.linalg.lstsq(V, y, rcond=None)
+            out.append((y - V @ coef) / s)
+        return np.concatenate(out)
+
+    sol = optimize.least_squares(residuals, np.asarray(start, float), x_scale=scale * 0.05,
+                                 diff_step=1e-6)
+    J = sol.jac
+    dof = max(sol.fun.size - 2 - len(ys) * (degree + 1), 1)
+    try:
+        cov = np.linalg.inv(J.T @ J) * max(1.0, float(sol.fun @ sol.fun) / dof)
+        err = tuple(float(v) for v in np.sqrt(np.clip(np.diag(cov), 0, None)))
+    except np.linalg.LinAlgError:
+        err = (math.inf, math.inf)
+    return (float(sol.x[0]), float(sol.x[1])), err
+
+
+# -- the annuli ---------------------------------------------------------------------------
+def _band_reader(cube):
+    """``band -> 2-D float image`` of a cube, read into memory once where it is small enough."""
+    cube = cube.transpose("y", "x", "band")
+    if cube.nbytes <= IN_MEMORY_BYTES:  # one read of the file, not one per band
+        data = np.asarray(cube.values)
+        return lambda b: data[:, :, b].astype(float)
+    return lambda b: np.asarray(cube.isel(band=b).values, float)
+
+
+def _annuli(cubes, sensor, lens, sensor_origin_px, center_px, n_bins):
+    """Every cube's radial annuli about the optical centre (given or found), and the centre."""
+    from ...correct.geometry import cube_positions
+
+    pitch = sensor.pixel_pitch_mm
+    positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
+    nb = sensor.n_bands
+    if center_px is not None:
+        center, center_source = check_center(center_px), "given"
+    else:
+        f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
+        rows, cols = positions[f0]
+        center, err = estimate_target_center(_band_reader(cubes[f0]), nb, rows, cols)
+        center_source = f"found from the f/{f0:g} cube (+- {err[0]:.2g}, {err[1]:.2g} px)"
+    bins = [radial_bins(_band_reader(c), nb, *positions[f], center, pitch, f_number=f,
+                        n_bins=n_bins)
+            for f, c in cubes.items()]
+    return bins, center, center_source
