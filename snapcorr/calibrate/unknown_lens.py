@@ -392,4 +392,5 @@ def _profile(cal, pupil, names, values, cov, total, x_part, x0):
     }
     lens = cal.lens
     return Lens(lens.exit_pupil_mm, lens.vignetting, lens.magnification,
-                lens.pupil_magnification, name=lens.name, calibration=table, pupil_radiance=lens.pupil_radiance)
+                lens.pupil_magnification, name=lens.name, calibration=table,
+                pupil_radiance=lens.pupil_radiance)

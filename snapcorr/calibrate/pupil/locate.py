@@ -269,7 +269,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
     """
     if lens is not None and lens.has_vignetting and pupil not in (None, lens.pupil_radiance):
-        raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} pupil (its "
+        raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} "
+                         "pupil (its "
                          f"radius sets their onsets); the {pupil} pupil would need them found "
                          "again: fit flats and target together (calibrate_with_target, "
                          "snapcorr calibrate --target-cube) with pupil 'auto'")
