@@ -1,6 +1,6 @@
 """Lens calibration with 0, 1 or 2 vignetting circles, judged by the shift it predicts.
 
-Flats come from the independent simulator ``tests/flatsim.py`` (it shares no code with
+Flats come from the independent simulator ``tests/oracles/flatsim.py`` (it shares no code with
 snapcorr): five f-numbers f/2-f/11, each with its own exposure (+-20 %), the optical axis off
 the image centre, the user's 1280 x 1024 sensor (7.1 um pixels here: field up to 16.7 deg),
 Gaussian noise of a given fraction of every pixel's signal. For

@@ -1,7 +1,7 @@
 """Do the lens calibration's error bars cover? Flats from rays counted through the pupil.
 
-Flats come from ``tests/raysim.py``, a simulator that shares no code with snapcorr nor with
-``tests/flatsim.py``: a pixel's light is the number of rays of a fine grid in the exit-pupil
+Flats come from ``tests/oracles/raysim.py``, a simulator that shares no code with snapcorr nor with
+``tests/oracles/flatsim.py``: a pixel's light is the number of rays of a fine grid in the exit-pupil
 plane that pass the pupil and every vignetting circle. For each lens type, noise level and
 seed the lens is calibrated with ``calibrate_lens`` as a user would (x, m, m_P and the pitch
 given; the optical centre, the circles and their number found), and every error it reports is

@@ -1,6 +1,6 @@
 """Demosaicking a mosaic frame: accuracy, speed and peak memory of every method.
 
-**Accuracy.** Scenes from the independent simulator ``tests/msfasim.py`` (it shares no code
+**Accuracy.** Scenes from the independent simulator ``tests/oracles/msfasim.py`` (it shares no code
 with snapcorr): ten reflectance spectra per scene laid out as a smooth blend, disks and bars
 with sharp edges, fine stripes and a checkerboard of 1-3 px cells, blurred by 0.6 px (a lens's)
 and shaded, seen through a real sensor's measured responses. Two sensors: the imec 4x4 VIS

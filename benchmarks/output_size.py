@@ -3,9 +3,9 @@ the default compression.
 
 ``snapcorr stream FRAMES.zarr --dark D --white W --sensor mosaic_4x4_vis --demosaic ri --lens
 edmund_optics_16mm --f-number 2 --dtype DTYPE --compression C --out OUT`` on one stream of 100
-raw uint16 frames (a scene of ``tests/msfasim.py`` through the 4x4 sensor's measured responses,
-moving from frame to frame, noise of 4 DN over a white 3436 DN above the dark: the stream of
-:mod:`benchmarks.stream`), 256 x 512 pixels of the sensor each, in one process after a warm-up
+raw uint16 frames (a scene of ``tests/oracles/msfasim.py`` through the 4x4 sensor's measured
+responses, moving from frame to frame, noise of 4 DN over a white 3436 DN above the dark: the stream
+of :mod:`benchmarks.stream`), 256 x 512 pixels of the sensor each, in one process after a warm-up
 (imports, compiled kernels). Every output holds what the command writes: the reflectance
 (frame, y, x, band), its mask, the raw frames, the chief-ray angles and the compact corrected
 wavelengths. Reported, for Zarr and netCDF: the bytes on disk as a ratio to the same stream

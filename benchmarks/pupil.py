@@ -1,6 +1,6 @@
 """The exit pupil from cubes of a spectral target: the time of a fit, and precision by target.
 
-Cubes come from the independent simulator ``tests/spectralsim.py`` (it shares no code with
+Cubes come from the independent simulator ``tests/oracles/spectralsim.py`` (it shares no code with
 snapcorr: it samples the vignetted pupil point by point and scales each ray's whole filter
 curve), the lens is the paper's (``flatsim.LensTruth``: x = 21 mm, P = 7.4236 mm,
 h = 16.991 mm, m = 0.06, m_P = 1.3), the sensor a Snapscan-like one of 256 x 320 pixels of

@@ -6,12 +6,13 @@ the lens's circles given and the optical centre found:
 
 * ``modelled``: a Snapscan-like sensor of 128 x 160 pixels of 44 um (the field of a 1280 x 1024
   sensor of 5.5 um binned 8 x 8), 30 Gaussian bands of 12 nm FWHM every 12 nm, 500-848 nm,
-  n_eff 1.7; cubes from ``tests/spectralsim.py`` (every pupil ray scales the whole filter
+  n_eff 1.7; cubes from ``tests/oracles/spectralsim.py`` (every pupil ray scales the whole filter
   curve, ``T(lambda) = T0(lambda / s)``), the rare-earth glass at 0.2 % noise.
 * ``measured``: the real imec 4 x 4 VIS responses behind their band-pass
   (``tests/vendorfiles.imec_4x4``), 320 x 640 pixels of 17.6 um, n_eff 1.85 (the vendor file
-  gives none: fitted from 1.7), raw mosaic frames from ``tests/test_pupil_measured.py``'s forward
-  model (every ray scales the whole measured curve; the band-pass does not move) at 0.5 %
+  gives none: fitted from 1.7), raw mosaic frames from
+  ``tests/calibrate/pupil/test_measured_target.py``'s forward model (every ray scales the whole
+  measured curve; the band-pass does not move) at 0.5 %
   noise, 16 annuli, split with ``mosaic_to_cube``.
 
 Prints and writes ``pupil_coverage.csv``: per case and seed, x and n_eff, their reported
@@ -59,7 +60,7 @@ def modelled(seed, noise=0.002):
 
 
 def measured(seed):
-    import test_pupil_measured as tpm
+    from calibrate.pupil import test_measured_target as tpm
 
     folder = Path(tempfile.gettempdir()) / "snapcorr_pupil_coverage"
     folder.mkdir(exist_ok=True)

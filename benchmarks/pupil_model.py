@@ -5,7 +5,7 @@ The paper's pupil (Goossens et al. 2019, Eq. 28) is a flat disc of radius ``x ta
 (2 f_W)``, rays weighted uniformly over its area. A lens obeying the sine condition has its
 marginal ray at ``sin(theta) = 1 / (2 f_W)``, and a Lambertian pupil weights each ray by
 ``cos^4(phi)`` per unit area (uniform in direction cosines); snapcorr models both
-(``Lens.pupil``). The independent simulator ``tests/spectralsim.py`` makes cubes of
+(``Lens.pupil``). The independent simulator ``tests/oracles/spectralsim.py`` makes cubes of
 ``rare_earth_glass`` either way (a lens without vignetting, x = 16 mm, n_eff 1.7, 128 x 160
 pixels of 44 um, 30 bands of 12 nm, 0.05 % noise, the centre given); ``locate_pupil`` fits
 them with n_eff known and fitted, from f/2 + f/8 and from f/5.6 + f/11, with the paper's pupil

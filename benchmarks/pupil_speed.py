@@ -2,14 +2,14 @@
 
 The bundled ``imec_5x5_nir`` sensor (1088 x 2048 pixels of 5.5 um, 25 bands, measured curves
 behind their band-pass, 400-1000 nm) behind the paper lens (x = 21 mm, one circle), the
-rare-earth glass of ``tests/spectralsim.py`` at f/1.4 and f/8, n_eff 1.85 (the file says 1.8:
-fitted from there), 0.5 % noise, the optical centre found. The raw frames come from
-``tests/mosaicsim.py`` (every pupil ray scales each band's whole curve, the band-pass does not
-move; it does not import snapcorr) at 96 distances from the axis, interpolated in ``d^2`` to
+rare-earth glass of ``tests/oracles/spectralsim.py`` at f/1.4 and f/8, n_eff 1.85 (the file says
+1.8: fitted from there), 0.5 % noise, the optical centre found. The raw frames come from
+``tests/oracles/mosaicsim.py`` (every pupil ray scales each band's whole curve, the band-pass does
+not move; it does not import snapcorr) at 96 distances from the axis, interpolated in ``d^2`` to
 every pixel, and are split with ``mosaic_to_cube`` into 216 x 409 x 25 cubes.
 
-``--case 4x4``: the frames of ``tests/test_pupil_measured.py`` instead (the real 4 x 4 VIS
-curves in a vendor file, 320 x 640 pixels of 17.6 um, 80 x 160 x 16 cubes).
+``--case 4x4``: the frames of ``tests/calibrate/pupil/test_measured_target.py`` instead (the real 4
+x 4 VIS curves in a vendor file, 320 x 640 pixels of 17.6 um, 80 x 160 x 16 cubes).
 
 ``python -m benchmarks.pupil_speed [--case 5x5|4x4] [--before CHECKOUT] [--n-bins N]`` fits
 them with this checkout's snapcorr and, with ``--before``, with another checkout's (each in
@@ -123,11 +123,11 @@ def fit(checkout, paths, n_bins, sensor=None):
 
 
 def frames_4x4(folder, seed=1):
-    """``tests/test_pupil_measured.py``'s frames (the real 4 x 4 VIS curves in a vendor file,
-    320 x 640 pixels of 17.6 um, n_eff 1.85) and the file."""
+    """``tests/calibrate/pupil/test_measured_target.py``'s frames (the real 4 x 4 VIS curves in a
+    vendor file, 320 x 640 pixels of 17.6 um, n_eff 1.85) and the file."""
     sys.path.insert(0, str(ROOT / "tests"))
     sys.path.insert(0, str(ROOT / "tests" / "oracles"))
-    import test_pupil_measured as tpm
+    from calibrate.pupil import test_measured_target as tpm
 
     path, _ = tpm.vendor_file(folder)
     rng = np.random.default_rng(seed)

@@ -5,9 +5,9 @@ edmund_optics_16mm --f-number 2 --virtual-bands angle-aware --dtype uint16 --out
 each frame flat-fielded pixel by pixel, demosaicked by residual interpolation, given its
 per-pixel corrected wavelengths (the geometry once for the stream) and its angle-aware virtual
 bands, stored uint16-packed. ``S4.toml`` is the bundled 4x4 sensor's tile with measured
-responses (the vendor calibration file ``tests/vendorfiles.py`` writes from the real 4x4 VIS
+responses (the vendor calibration file ``tests/oracles/vendorfiles.py`` writes from the real 4x4 VIS
 responses: the angle-aware bands need them; ``mosaic_4x4_vis`` itself has none). The frames:
-a scene of ``tests/msfasim.py`` through those responses, moving a few pixels from frame to
+a scene of ``tests/oracles/msfasim.py`` through those responses, moving a few pixels from frame to
 frame, with noise; 2048 x 1088 uint16 (ten distinct frames, repeated in longer streams).
 
 Each run is a fresh process that first streams a tiny film with the same options (imports,

@@ -1,9 +1,9 @@
 """An unknown lens in one run (``calibrate_with_target``): do x, n_eff, P, h and the centre
 come out within tolerance, and do their errors cover?
 
-Flats come from ``tests/flatsim.py`` (five f-numbers f/1.4-f/8, 0.5 % noise, each with its
-own exposure) and target cubes from ``tests/spectralsim.py`` (``colour_filter``, f/2 and f/8,
-30 bands of 12 nm, n_eff 1.7), two simulators that share no code with snapcorr, on a
+Flats come from ``tests/oracles/flatsim.py`` (five f-numbers f/1.4-f/8, 0.5 % noise, each with its
+own exposure) and target cubes from ``tests/oracles/spectralsim.py`` (``colour_filter``, f/2 and
+f/8, 30 bands of 12 nm, n_eff 1.7), two simulators that share no code with snapcorr, on a
 128 x 160 sensor of 44 um pixels (the field of a 1280 x 1024, 5.5 um sensor seen through 8 x 8
 binning: up to 12 deg) with the optical axis off centre. Neither is given x. Truths: the
 paper's lens (one circle, h < x) and a lens with its circle behind the pupil's plane (h > x).

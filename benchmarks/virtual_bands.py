@@ -2,7 +2,7 @@
 
 **Accuracy.** The real 5x5 NIR sensor (``calibration/sensors/CMV2K-SSM5x5-600_875-5.5.9.2.xml``:
 25 measured responses, its band-pass, its vendor matrix) behind the paper's lens. Band values
-come from the independent simulator ``tests/mosaicsim.py`` (pupil rays of
+come from the independent simulator ``tests/oracles/mosaicsim.py`` (pupil rays of
 ``spectralsim.pupil_samples`` scaling the measured curves; it shares no code with snapcorr), for
 PROSPECT-D leaves, soils and their mixtures (prosail), spectra the prior was not fitted to,
 with 0.3 % Gaussian noise. Each method's error is taken against the ideal virtual bands
@@ -17,9 +17,9 @@ matrix product of the same cube, measured in the same run (the least of three); 
 to build the tables (16 bands: the real imec 4x4 VIS responses of ``tests/data`` behind a
 band-pass; 25 bands: the 5x5 file).
 
-**Demosaicked frames of textured scenes.** ``tests/fieldsim.py`` (independent of snapcorr)
-lays a textured scene of leaves and soils (``msfasim``'s layout, or a dead-leaves scene) at
-the sensor's centre and in its corner, every pixel's band through its own chief ray's
+**Demosaicked frames of textured scenes.** ``tests/oracles/fieldsim.py`` (independent of
+snapcorr) lays a textured scene of leaves and soils (``msfasim``'s layout, or a dead-leaves
+scene) at the sensor's centre and in its corner, every pixel's band through its own chief ray's
 responses (every pupil ray scaling the measured curves) at f/2.8 with 0.3 % noise; snapcorr
 RI-demosaicks it and computes each method's virtual bands. Errors are taken against the
 Gaussian virtual bands of the true scene, as RMSE of 16 x 16 block means and per pixel, and
@@ -110,7 +110,8 @@ def accuracy(*, quick=False, echo=print):
 
 
 def _imec_4x4():
-    """The real imec 4x4 VIS responses behind a band-pass (tests/vendorfiles.py's fixture)."""
+    """The real imec 4x4 VIS responses behind a band-pass (tests/oracles/vendorfiles.py's
+    fixture)."""
     from vendorfiles import imec_4x4
 
     from snapcorr.cube.responses import FilterResponses
@@ -175,7 +176,7 @@ def demosaicked(*, quick=False, echo=print):
     import tempfile
 
     import fieldsim as fs
-    import test_virtual_demosaicked as tvd
+    from correct import test_virtual_demosaicked as tvd
 
     rows = []
     size = 64 if quick else 128

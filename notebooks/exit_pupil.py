@@ -155,7 +155,7 @@ print(f"chief-ray angles up to {np.degrees(np.arctan(d_max / truth.exit_pupil_mm
 # account), each ring scales the whole filter curve by the shift law, and the flat-fielded
 # value is the target seen through the summed curve over a white tile seen through the same.
 # That is a different route from the closed-form kernel `locate_pupil` fits; the tests judge
-# the method on a simulator that shares no code with snapcorr at all (`tests/spectralsim.py`).
+# the method on a simulator that shares no code with snapcorr at all (`tests/oracles/spectralsim.py`).
 
 # %%
 def target_cubes(spectrum, f_numbers, noise, rng, *, n_radii=64, step_deg=0.02):

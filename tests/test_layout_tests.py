@@ -12,6 +12,7 @@ with snapcorr.
 """
 
 import ast
+import re
 from pathlib import Path
 
 import snapcorr
@@ -109,3 +110,19 @@ def test_the_oracles_import_no_snapcorr():
             elif isinstance(node, ast.ImportFrom):
                 names.add((node.module or "").split(".")[0])
         assert "snapcorr" not in names, f"tests/oracles/{path.name} imports snapcorr"
+
+
+#: Where the docs and the code name a test file or a simulator by its path.
+NAMING = ["README.md", "CONTRIBUTING.md", "benchmarks/README.md", "pyproject.toml",
+          "benchmarks/*.py", "notebooks/*.py", "snapcorr/**/*.py", "tests/**/*.py"]
+
+
+def test_every_test_file_the_docs_name_exists():
+    root = TESTS.parent
+    named = {}
+    for pattern in NAMING:
+        for path in sorted(root.glob(pattern)):
+            for found in re.findall(r"\btests/[\w/]+\.py\b", path.read_text()):
+                named.setdefault(found, path.relative_to(root).as_posix())
+    missing = {f: where for f, where in named.items() if not (root / f).is_file()}
+    assert len(named) > 20 and not missing, missing

@@ -1,7 +1,8 @@
 """An unknown lens in one run: flats and a spectral target give x, n_eff, P, h and the centre.
 
-The flats come from ``tests/flatsim.py`` and the target cubes from ``tests/spectralsim.py``,
-two simulators that share no code with snapcorr. The flats alone fit equally well at any x
+The flats come from ``tests/oracles/flatsim.py`` and the target cubes from
+``tests/oracles/spectralsim.py``, two simulators that share no code with snapcorr. The flats alone
+fit equally well at any x
 (they fix P / x and h / x^2); the target alone needs the circles. Neither the API nor the
 command is given x.
 """

@@ -1,7 +1,8 @@
 """Spectra that are the same anywhere in the field (``correct_cube(harmonise=True)``).
 
-The cubes are made by ``tests/spectralsim.py``, which shares no code with snapcorr: it samples
-the vignetted pupil point by point and scales each ray's whole filter curve by the shift law.
+The cubes are made by ``tests/oracles/spectralsim.py``, which shares no code with snapcorr: it
+samples the vignetted pupil point by point and scales each ray's whole filter curve by the shift
+law.
 The pixels are those at the three chief-ray angles of Goossens et al. (1.9, 10.3, 17.4 deg).
 """
 

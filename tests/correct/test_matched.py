@@ -1,7 +1,7 @@
 """Harmonised spectra of a mosaic sensor with measured responses (``correct_cube(harmonise=True)``).
 
 The frames are made here by an independent forward model (it uses numpy, scipy and the pupil
-quadrature of ``tests/spectralsim.py``, never snapcorr): the real imec 4x4 VIS responses of
+quadrature of ``tests/oracles/spectralsim.py``, never snapcorr): the real imec 4x4 VIS responses of
 ``tests/data`` with a band-pass of 460-630 nm (``vendorfiles.imec_4x4``, written to a vendor file
 of the newer variant for snapcorr to read), behind the paper's lens on the whole 1088 x 2048
 sensor of 5.5 um pixels. Every ray of a pixel's vignetted exit pupil scales each band's whole
@@ -196,7 +196,7 @@ def dip(centre_nm, fwhm_nm, depth=0.3, level=0.6):
 
 
 #: A didymium (Nd/Pr) glass: Lorentzian lines (centre nm, FWHM nm, optical depth) where
-#: neodymium and praseodymium absorb (as tests/test_harmonise.py).
+#: neodymium and praseodymium absorb (as tests/correct/test_harmonise.py).
 ND_LINES = [(441, 6, 0.15), (482, 5, 0.35), (512, 5, 0.25), (521, 4, 0.4), (527, 5, 0.45),
             (573, 4, 0.5), (577, 3, 0.8), (582, 4, 1.2), (586, 4, 0.9), (627, 5, 0.12)]
 
@@ -377,7 +377,8 @@ def test_a_wider_common_response_is_as_wide_as_asked(sensors, corner):
     assert "asked for" in ds["harmonised"].attrs["common_response"]
     h = ds["harmonised"].values
     assert np.allclose(h[h == h], FILL, atol=1e-5)
-    # (a narrower one is refused by the check modelled filters share: tests/test_harmonise.py)
+    # (a narrower one is refused by the check modelled filters share:
+    # tests/correct/test_harmonise.py)
 
 
 # -- the figures: f/1.4 and f/2.8, seven spots, smooth and featured targets, the twin ------------

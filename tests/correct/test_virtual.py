@@ -1,5 +1,5 @@
 """Virtual bands: the vendor's matrix applied exactly, and the fitted and angle-aware Wiener
-estimates judged on an independent forward model (tests/mosaicsim.py: pupil rays scaling the
+estimates judged on an independent forward model (tests/oracles/mosaicsim.py: pupil rays scaling the
 real 5x5 sensor's measured curves, its band-pass) with spectra the prior was not fitted to
 (PROSPECT-D leaves, soils and their mixtures), against the vendor's own matrix."""
 

@@ -1,6 +1,6 @@
 """Virtual bands of full-resolution demosaicked frames of textured scenes, judged on an
-independent simulation (tests/fieldsim.py: a textured scene of leaves and soils placed at the
-sensor's centre and in its corner, every pixel's band through its own chief ray's responses,
+independent simulation (tests/oracles/fieldsim.py: a textured scene of leaves and soils placed at
+the sensor's centre and in its corner, every pixel's band through its own chief ray's responses,
 every pupil ray scaling the real measured curves, 0.3 % noise), against the Gaussian virtual
 bands of the true scene: every method at least as close as the nominal bands (the physical
 band nearest each virtual band), the angle-aware bands as alike across the field as the

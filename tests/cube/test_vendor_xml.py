@@ -287,10 +287,11 @@ def test_measured_responses_leave_no_room_for_a_second_description(tmp_path):
 
 
 def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_numbers():
-    """The fit models measured responses (tests/test_pupil_measured.py); the index it starts
-    from is the sensor's, or, where the file gives none, a typical one, but only where it is
-    fitted (two f-numbers): otherwise x would rest on a guess. The precision's prediction
-    models them (tests/test_pupil_tolerance.py) but needs the pitch this file gives as 0."""
+    """The fit models measured responses (tests/calibrate/pupil/test_measured_target.py); the index
+    it starts from is the sensor's, or, where the file gives none, a typical one, but only where it
+    is fitted (two f-numbers): otherwise x would rest on a guess. The precision's prediction
+    models them (tests/calibrate/pupil/test_precision.py) but needs the pitch this file gives as
+    0."""
     import dataclasses
 
     from conftest import PAPER_LENS

@@ -17,9 +17,9 @@ of ``resample_to_nominal`` (the general pass, float64 and float32, with correcte
 that cross; the evenly spaced float32 pass) and of ``harmonise_spectra`` (the direct pass,
 float64 and float32, some widenings zero; the tabulated Snapscan pass, float32 and
 float64).
-``tests/test_correct_kernels.py`` checks that the current passes reproduce them. The direct
-harmonising values (``harmonise_64``, ``harmonise_32``) record a fault of that commit: where a
-value's Gaussian was wider than the last one's, the segments it reached back over were left
+``tests/correct/test_harmonise_kernels.py`` checks that the current passes reproduce them. The
+direct harmonising values (``harmonise_64``, ``harmonise_32``) record a fault of that commit: where
+a value's Gaussian was wider than the last one's, the segments it reached back over were left
 out (67 of the 400 values); the test compares them only elsewhere, and the direct pass
 everywhere against a brute-force average.
 """

@@ -15,7 +15,7 @@ lens per case), the inputs
 
 and the outputs of ``mean_shift`` with the methods "vignetted", "ideal", "asymptotic",
 "table" and "auto" (tolerance 1e-3 nm), plus ``relative_illumination``, ``onset_cra_deg`` and
-``cutoff_cra_deg``. ``tests/test_vignetting_circles.py`` checks that a lens with the same single
+``cutoff_cra_deg``. ``tests/optics/test_discs.py`` checks that a lens with the same single
 circle, given in the newer form with any number of circles, reproduces these numbers.
 """
 

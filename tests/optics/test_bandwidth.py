@@ -1,7 +1,7 @@
 """The FWHM of a filter's whole response behind a lens, against an independent computation.
 
-The reference here samples the vignetted pupil point by point (``tests/spectralsim.py``, which
-shares no code with snapcorr), scales each ray's whole filter curve by the shift law, sums the
+The reference here samples the vignetted pupil point by point (``tests/oracles/spectralsim.py``,
+which shares no code with snapcorr), scales each ray's whole filter curve by the shift law, sums the
 curves on a fine wavelength grid and reads the half-maximum crossings off it. snapcorr's
 ``response_fwhm`` convolves in log-wavelength with the closed-form kernel (Goossens Eq. 37).
 """

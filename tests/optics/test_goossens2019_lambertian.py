@@ -1,7 +1,7 @@
 """The Lambertian pupil (``Lens(pupil="lambertian")``): the sine condition and cos^4 weights.
 
 Checked against what snapcorr does not compute itself: the independent quadrature of
-``tests/spectralsim.py`` (its "sine" pupil: marginal ray at sin(theta) = 1 / (2 f_W), each
+``tests/oracles/spectralsim.py`` (its "sine" pupil: marginal ray at sin(theta) = 1 / (2 f_W), each
 ray weighted by cos^4(phi) per unit area), and a closed form derived here for the pixel on
 the axis.
 """

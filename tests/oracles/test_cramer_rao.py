@@ -1,4 +1,5 @@
-"""The Cramér-Rao bound of tests/cramer_rao.py checked by evidence independent of its formula.
+"""The Cramér-Rao bound of tests/oracles/cramer_rao.py checked by evidence independent of its
+formula.
 
 * Brute force: on a tiny sensor the Fisher matrix of the full per-pixel Gaussian likelihood
   of the flats, every nuisance (each pixel's gain, each exposure, the centre) an explicit

@@ -1,4 +1,4 @@
-"""The independent flat-field simulator (tests/flatsim.py) checked against brute force."""
+"""The independent flat-field simulator (tests/oracles/flatsim.py) checked against brute force."""
 
 import numpy as np
 import pytest

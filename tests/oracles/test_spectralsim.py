@@ -1,5 +1,6 @@
-"""The independent spectral-cube simulator (tests/spectralsim.py) checked against closed forms,
-the reference table of Goossens et al. 2019's lens, brute force, and tests/flatsim.py."""
+"""The independent spectral-cube simulator (tests/oracles/spectralsim.py) checked against closed
+forms, the reference table of Goossens et al. 2019's lens, brute force, and
+tests/oracles/flatsim.py."""
 
 import ast
 from pathlib import Path

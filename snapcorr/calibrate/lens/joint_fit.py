@@ -15,7 +15,7 @@ form, the exposures by a few Gauss-Newton steps), so every flat informs ``G`` an
 noise is shared by all the others. Weighted by each flat's measured noise curve
 (:func:`~snapcorr.calibrate.noise_model`), the standard errors of the shift the fit predicts
 are those of the Cramér-Rao bound of the flats (within 15 %, tested against a bound written
-independently in ``tests/cramer_rao.py``); the ratios with a straight-line noise model were
+independently in ``tests/oracles/cramer_rao.py``); the ratios with a straight-line noise model were
 1.4-1.55 times it. The fit (scipy ``least_squares``) runs on block-averaged flats.
 
 With a single flat nothing separates ``G`` from ``A``: the flat itself is fitted with

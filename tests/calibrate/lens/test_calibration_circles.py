@@ -1,4 +1,4 @@
-"""Lens calibration judged on flats from the independent simulator (tests/flatsim.py).
+"""Lens calibration judged on flats from the independent simulator (tests/oracles/flatsim.py).
 
 The criterion is functional: the calibrated lens must predict the TRUE lens's mean filter
 shift (Goossens 2019, Eq. 22; ``mean_shift(..., method="vignetted")``, 1000 nm, n_eff 1.5)
@@ -11,7 +11,7 @@ it starts to cut what the pupil and the other circles leave) its P and h must co
 1 % of a pupil radius R_F with |h| < x / 4) that the truth does not have must never be chosen.
 
 What the flats can tell is limited: no unbiased estimator beats the Cramér-Rao bound
-(tests/cramer_rao.py, written without snapcorr). A tolerance counts as within reach where
+(tests/oracles/cramer_rao.py, written without snapcorr). A tolerance counts as within reach where
 ``REACH`` standard deviations of the bound's mean shift (largest over f-numbers) fit inside it,
 and a circle's 1 % where ``REACH`` of its parameters' do. Within reach the criterion above
 holds. Beyond it (a weak circle at 5 % noise per pixel, pixel vignetting at 2 %: no method can
@@ -547,7 +547,7 @@ def test_standard_errors_are_honest(key):
     pytest.param("two_front_rear", marks=pytest.mark.slow)])
 def test_standard_errors_reach_the_cramer_rao_bound(key):
     """The calibration's standard error of the mean shift (largest over the field and the
-    f-numbers) against the smallest any unbiased estimator can have (tests/cramer_rao.py):
+    f-numbers) against the smallest any unbiased estimator can have (tests/oracles/cramer_rao.py):
     within 15 % of it. Dividing every flat by the slowest one, as the paper does, and weighting
     by a read-plus-shot noise line was 1.4-1.55 x the bound on these flats."""
     out = calibrate(TRUTHS[key], noise=0.02, seed=0)

@@ -1,5 +1,5 @@
 """The rules that choose the vignetting model (snapcorr.calibrate.lens.choice), each shown failing
-the model it is there to stop, on flats from the independent simulator tests/flatsim.py."""
+the model it is there to stop, on flats from the independent simulator tests/oracles/flatsim.py."""
 
 from dataclasses import replace
 

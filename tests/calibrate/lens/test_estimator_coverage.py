@@ -1,9 +1,9 @@
 """Do the lens calibration's error bars cover? Judged on flats from rays counted through the
-pupil (``tests/raysim.py``), over lens types and noise levels (``benchmarks/
+pupil (``tests/oracles/raysim.py``), over lens types and noise levels (``benchmarks/
 calibration_coverage.py`` runs the table; the full table is ``slow``).
 
 The default tests check the simulator itself (its row-by-row count is the ray-by-ray count;
-it agrees with ``tests/flatsim.py``'s quadrature, a different method) and what the profile
+it agrees with ``tests/oracles/flatsim.py``'s quadrature, a different method) and what the profile
 says its error is made of: the advice of the note is true for the part that sets it.
 """
 

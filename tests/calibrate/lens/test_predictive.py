@@ -6,7 +6,7 @@ it left, and the choice then falls to the onsets for no fault of the joint fit: 
 a subset of the blocks (whose own minimum lies off by the subset's noise), a two-circle lens
 at 2 % noise was handed to the onsets' one circle, 1.6 nm off, in 4 of 8 seeds, and one
 circle and pixel vignetting in 3 of 8. Flats from the independent simulator
-(``tests/flatsim.py``) at the size where the fits screen a subset (over 3000 blocks a flat).
+(``tests/oracles/flatsim.py``) at the size where the fits screen a subset (over 3000 blocks a flat).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The exit pupil distance and effective index from cubes of a spectral target.
 
-Every cube here is made by ``tests/spectralsim.py``, a simulator that shares no code with
+Every cube here is made by ``tests/oracles/spectralsim.py``, a simulator that shares no code with
 snapcorr: it samples the vignetted pupil point by point and scales each ray's whole filter
 curve by the shift law (Rienstra's transform), where snapcorr's model shifts the curve by the
 closed-form kernel (Goossens Eq. 13, 37). So the fit is judged on data its own forward model

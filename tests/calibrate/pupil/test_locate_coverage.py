@@ -1,6 +1,6 @@
 """Do the exit pupil's error bars cover? Checked on target cubes from physical rays.
 
-Cubes from ``tests/spectralsim.py`` (every pupil ray scales the whole Gaussian filter curve,
+Cubes from ``tests/oracles/spectralsim.py`` (every pupil ray scales the whole Gaussian filter curve,
 ``T(lambda) = T0(lambda / s)``, point by point over the vignetted pupil; no code shared with
 snapcorr) and, for measured responses, ``tests/calibrate/pupil/test_measured_target.py``'s
 forward model of the real imec 4 x 4 curves behind their band-pass; the paper lens at f/1.4 and f/8.

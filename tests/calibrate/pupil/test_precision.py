@@ -1,7 +1,7 @@
 """Before the exit-pupil fit: the precision a target's cubes can give, and a target that
 cannot reach the shift precision asked refused in one line (``tolerance_nm``).
 
-Cubes from ``tests/spectralsim.py`` (physical rays behind the paper lens, every ray scaling
+Cubes from ``tests/oracles/spectralsim.py`` (physical rays behind the paper lens, every ray scaling
 the whole Gaussian curve), f/1.4 + f/8, 1 % noise, on the 128 x 160 field of 44 um of
 ``tests/calibrate/pupil/test_locate.py`` in 64 x 80 pixels of 88 um, 30 bands of 12 nm every 12 nm.
 """
