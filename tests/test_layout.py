@@ -221,3 +221,20 @@ def test_no_command_module_is_over_300_lines():
     long = [f"{p.relative_to(PACKAGE)} ({n})" for p in commands
             if (n := len(p.read_text().splitlines())) > MAX_COMMAND_LINES]
     assert not long, long
+
+
+def _shims():
+    return {".".join(_module_parts(p)) for p in SOURCES if _is_shim(p.read_text())}
+
+
+def test_the_package_imports_no_compatibility_module():
+    """Compatibility modules are for users' code: the package imports each name from its home
+    (but ``calibrate/__init__``, which loads the old ``pupil_precision`` module first so that
+    the function of that name stays the package's attribute)."""
+    shims = _shims()
+    assert {"snapcorr._io", "snapcorr.cube.io", "snapcorr.stream"} <= shims
+    found = sorted(f"{p.relative_to(PACKAGE)} imports {n}" for p in SOURCES
+                   if not _is_shim(p.read_text()) and p != PACKAGE / "calibrate" / "__init__.py"
+                   for n in _imports(p.read_text(), _module_parts(p)) & shims
+                   if not n.endswith(".pupil_precision"))
+    assert not found, found

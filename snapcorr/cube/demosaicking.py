@@ -41,7 +41,7 @@ import numpy as np
 import xarray as xr
 
 from .._validation import renamed_keywords, validate_method
-from .io import COMPUTED_WITH
+from ..files.datasets import COMPUTED_WITH
 from .model import check_dtype, make_cube, with_positions
 from .mosaic import frame_area
 from .sensor import Sensor
