@@ -62,12 +62,12 @@ def _reach(graph, start):
 
 
 def test_the_checker_sees_a_lazy_import_that_closes_the_cycle():
-    src = "import numpy\n\ndef plot(fit):\n    from .pupil_report import plot_pupil_fit\n"
+    src = "import numpy\n\ndef plot(fit):\n    from .report import plot_pupil_fit\n"
     assert _imports(src, FIT) == {REPORT}
-    assert _imports("from .. import paper_experiment\n", FIT) == {DEMO}
-    assert _imports("from ..paper_experiment import colour_filter\n", FIT) == {DEMO}
-    assert _imports("from .pupil_solver import _Problem\n", REPORT) == {SOLVER}
-    assert _imports("from . import exit_pupil\n", "snapcorr.calibrate", True) == {FIT}
+    assert _imports("from ... import paper_experiment\n", FIT) == {DEMO}
+    assert _imports("from ...paper_experiment import colour_filter\n", FIT) == {DEMO}
+    assert _imports("from .solver import _Problem\n", REPORT) == {SOLVER}
+    assert _imports("from . import locate\n", "snapcorr.calibrate.pupil", True) == {FIT}
 
 
 def test_the_fit_and_its_report_import_each_other_one_way_only():

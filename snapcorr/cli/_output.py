@@ -5,13 +5,14 @@ from __future__ import annotations
 
 from .._bundled import bundled_folder as _bundled_folder
 from .._bundled import input_path as _input_path
-from ..files.outputs import check_outputs
 
 
 def _check_outputs(outputs, inputs, overwrite, suffixes):
     """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
     (without ``--overwrite``), have the wrong suffix or no folder to go in
     (:func:`snapcorr.files.check_outputs`; bundled profiles are never replaced)."""
+    from ..files.outputs import check_outputs
+
     check_outputs(outputs, [_input_path(i) for i in inputs if i is not None],
                   overwrite=overwrite, suffixes=suffixes, protected=_bundled_folder())
 

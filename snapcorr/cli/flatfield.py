@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..pipeline import with_transmittance
 from ._frames import (
     _check_phase,
     _default_saturation,
@@ -129,6 +128,8 @@ def run(args):
                              "the same size and place")
         tr = flatfield(fw, darks, whites, saturation=args.saturation, name="transmittance",
                        dtype=args.dtype, snapshot=snapshot)
+        from ..pipeline import with_transmittance
+
         with_transmittance(ds, tr, args.filter_white)
     ds.attrs.update({"raw_file": str(args.raw), "dark_files": [str(p) for p in args.dark],
                      "white_files": [str(p) for p in args.white]})

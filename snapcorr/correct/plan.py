@@ -16,7 +16,7 @@ from .resample import _output_dtype, resample_cube
 from .wavelengths import _scale_function, _scales
 from .widths import _kernel_variance, _unlimited_width_table
 
-__all__ = ["CorrectionPlan", "plan_correction"]
+__all__ = ["CorrectionPlan"]  # plan_correction is correct_cube's step, with its x-first centre
 
 
 @dataclasses.dataclass

@@ -9,13 +9,13 @@ from snapcorr.files.npy import _npy_layout as _npy_layout
 from snapcorr.files.npy import _read_npy as _read_npy
 from snapcorr.files.npy import _read_sidecar as _read_sidecar
 from snapcorr.files.npy import _write_npy as _write_npy
+from snapcorr.files.reading import _sidecar as _sidecar
 from snapcorr.files.reading import check_input as check_input
 from snapcorr.files.safety import atomic_write_files as atomic_write_files
 from snapcorr.files.storage import _File as _File
 from snapcorr.files.storage import _from_file as _from_file
 from snapcorr.files.storage import _lazy_or_loaded as _lazy_or_loaded
 from snapcorr.files.storage import _resolve_chunks as _resolve_chunks
-from snapcorr.files.storage import _sidecar as _sidecar
 
 _MOVED_TO = "snapcorr.files.npy"
 

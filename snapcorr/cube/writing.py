@@ -28,6 +28,7 @@ from snapcorr.files.outputs import _check_writable as _check_writable
 from snapcorr.files.outputs import _input_family as _input_family
 from snapcorr.files.outputs import _targets as _targets
 from snapcorr.files.reading import NotRegularFileError as NotRegularFileError
+from snapcorr.files.reading import _sidecar as _sidecar
 from snapcorr.files.reading import file_kind as file_kind
 from snapcorr.files.reading import open_image as open_image
 from snapcorr.files.reading import read_regular as read_regular
@@ -36,7 +37,6 @@ from snapcorr.files.safety import note_checked as note_checked
 from snapcorr.files.safety import refuse_inputs as refuse_inputs
 from snapcorr.files.storage import _ENVI_DATA as _ENVI_DATA
 from snapcorr.files.storage import _ENVI_EXTS as _ENVI_EXTS
-from snapcorr.files.storage import _sidecar as _sidecar
 
 #: Format name -> how its main target carries snapcorr's mark.
 _ROLES = {f.name: f.marked_as[0] for f in _FILE_FORMATS.values()}

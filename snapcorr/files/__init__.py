@@ -11,28 +11,34 @@ signals), :mod:`~snapcorr.files.marks` (the writer's mark), :mod:`~snapcorr.file
 :mod:`~snapcorr.files.toml`.
 """
 
-from .api import (
-    read_cube,
-    read_cube_and_mask,
-    read_dataset,
-    read_frame,
-    row_blocks,
-    write_cube,
-    write_dataset,
-)
-from .envi_result import write_envi_result
-from .frames import read_frames
-from .outputs import check_outputs
+import importlib
 
-__all__ = [
-    "check_outputs",
-    "read_cube",
-    "read_cube_and_mask",
-    "read_dataset",
-    "read_frame",
-    "read_frames",
-    "row_blocks",
-    "write_cube",
-    "write_dataset",
-    "write_envi_result",
-]
+#: Public name -> the module that defines it. Loaded at first use: the format-blind modules
+#: (safety, reading, marks) import no reader, so the command line starts without them.
+_HOMES = {
+    "check_outputs": "snapcorr.files.outputs",
+    "read_array": "snapcorr.files.api",
+    "read_cube": "snapcorr.files.api",
+    "read_cube_and_mask": "snapcorr.files.api",
+    "read_dataset": "snapcorr.files.api",
+    "read_frame": "snapcorr.files.api",
+    "read_frames": "snapcorr.files.frames",
+    "row_blocks": "snapcorr.files.api",
+    "write_cube": "snapcorr.files.api",
+    "write_dataset": "snapcorr.files.api",
+    "write_envi_result": "snapcorr.files.envi_result",
+}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name):
+    if name in _HOMES:
+        value = getattr(importlib.import_module(_HOMES[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_HOMES})

@@ -25,8 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .reading import NotRegularFileError, _found, file_kind, open_image, read_regular
-from .storage import _sidecar
+from .reading import (
+    NotRegularFileError,
+    _found,
+    _sidecar,
+    file_kind,
+    open_image,
+    read_regular,
+)
 
 __all__ = ["MARK", "mark_matches", "tie_mark", "tied_mark", "untie_mark", "writer_mark",
            "written_by_snapcorr"]

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..cube.model import DIMS, POSITION_DIMS
 from .attrs import _one_line
-from .reading import check_input
+from .reading import _sidecar, check_input
 from .safety import atomic_write_files
 from .storage import (
     FileFormat,
@@ -23,7 +23,6 @@ from .storage import (
     _from_file,
     _lazy_or_loaded,
     _resolve_chunks,
-    _sidecar,
 )
 
 # -- reading ---------------------------------------------------------------------------------

@@ -21,10 +21,10 @@ import stat
 from pathlib import Path
 
 from .marks import _check_content, _written_by_snapcorr
-from .reading import file_kind
+from .reading import _sidecar, file_kind
 from .registry import FILE_FORMATS
 from .safety import note_checked, refuse_inputs
-from .storage import _ENVI_DATA, _ENVI_EXTS, _sidecar
+from .storage import _ENVI_DATA, _ENVI_EXTS
 
 __all__ = ["check_outputs", "check_replaceable"]
 

@@ -191,3 +191,9 @@ def open_image(path):
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
     return oiio.ImageInput.open(str(path), config)
+
+
+def _sidecar(path):
+    """The JSON sidecar of a ``.npy`` file: ``cube.npy.json``."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")

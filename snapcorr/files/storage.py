@@ -1,8 +1,8 @@
 """What every format shares: its description, what a reader found, lazy rows.
 
 - :class:`FileFormat`, what the registry (:data:`snapcorr.files.registry.FILE_FORMATS`)
-  knows of a format; ENVI's data-file names and :func:`_sidecar` (a ``.npy``'s JSON
-  sidecar);
+  knows of a format, and ENVI's data-file names (a ``.npy``'s JSON sidecar is
+  :func:`~snapcorr.files.reading._sidecar`);
 - :class:`_File`, what a reader found (the data and the metadata as the file has them);
 - lazy data: raw files (ENVI, ``.npy``) read in blocks of rows (:func:`_from_file`), memory
   maps read block by block (:func:`_lazy_or_loaded`), and ``chunks="rows"`` resolved once a
@@ -39,12 +39,6 @@ UNITS_TO_NM = {
     **dict.fromkeys(("millimeters", "millimeter", "millimetres", "millimetre", "mm"), 1e6),
     **dict.fromkeys(("meters", "meter", "metres", "metre", "m"), 1e9),
 }
-
-
-def _sidecar(path):
-    """The JSON sidecar of a ``.npy`` file: ``cube.npy.json``."""
-    path = Path(path)
-    return path.with_name(path.name + ".json")
 
 
 def _only(path):
