@@ -1,9 +1,12 @@
-"""Source spectra: Wien's law, parsing of named sources, files and cube pixels."""
+"""Source spectra: Wien's law, parsing of named sources, files and cube pixels, and the
+paper's colour filter."""
 
 import numpy as np
 import pytest
 
+import snapcorr.paper_experiment as paper
 from snapcorr import budget, spectra
+from snapcorr.calibrate import CANDIDATE_TARGETS, exit_pupil
 from snapcorr.optics.profiles import MultiLorentzian
 
 
@@ -64,3 +67,16 @@ def test_read_spectrum_takes_ordinary_files(tmp_path):
         p.write_text(body)
         with pytest.raises(ValueError, match=msg):
             spectra.read_spectrum(p)
+
+
+def test_the_colour_filter_has_one_home_and_is_re_exported():
+    assert paper.colour_filter is spectra.colour_filter
+    assert exit_pupil.colour_filter is spectra.colour_filter
+    assert CANDIDATE_TARGETS["colour filter (Goossens 2019)"] is spectra.colour_filter
+    assert "colour_filter" in paper.__all__
+    lam = np.array([500.0, 640.0, 760.0, 900.0])
+    edge = 1.0 / (1.0 + np.exp(-(lam - 640.0) / 9.0))
+    notch = 1.0 - 0.45 * np.exp(-0.5 * ((lam - 760.0) / 12.0) ** 2)
+    np.testing.assert_allclose(spectra.colour_filter(lam), 0.04 + 0.9 * edge * notch,
+                               rtol=0, atol=1e-15)
+    assert spectra.colour_filter(700.0).shape == ()

@@ -1,6 +1,8 @@
 """The chief-ray angle of a pixel (Goossens 2019 Eq. 8) against the geometry of the ray written
 out in three dimensions."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -8,6 +10,14 @@ from snapcorr.optics import cra_deg, cra_map, pixel_cra_deg
 from snapcorr.optics.chief_ray import image_shape, pixel_tangents
 
 ROW, COL = 7.25, 19.5  # an off-centre optical centre in a 20 x 30 image
+
+
+def own_cra_deg(i, j, shape, pitch_um, x_mm, center=None):
+    """Chief-ray angle of pixel (row i, column j), Goossens 2019 Eq. (8), by hand."""
+    ny, nx = shape
+    cx, cy = center if center is not None else ((nx - 1) / 2, (ny - 1) / 2)
+    d_mm = pitch_um / 1000 * math.sqrt((j - cx) ** 2 + (i - cy) ** 2)
+    return math.degrees(math.atan(d_mm / x_mm))
 
 
 def test_pixel_cra_deg_takes_row_first_and_cra_deg_is_deprecated():
@@ -65,3 +75,22 @@ def test_a_bad_pitch_or_pupil_distance_is_refused(kw):
     args = dict(pixel_pitch_um=5.5, exit_pupil_mm=21.0) | kw
     with pytest.raises(ValueError, match=next(iter(kw))):
         pixel_cra_deg(3, 4, (0, 0), **args)
+
+
+@pytest.mark.parametrize("center", [None, (10.0, 3.0), (4.25, -7.5), (100.0, 40.0)])
+def test_cra_map_matches_hand_arithmetic(center):
+    shape = (13, 17)
+    cra = cra_map(shape, 250.0, 21.0, center)
+    assert cra.shape == shape and cra.dtype == np.float64
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            assert cra[i, j] == pytest.approx(own_cra_deg(i, j, shape, 250.0, 21.0, center),
+                                              abs=1e-12)
+
+
+def test_cra_map_is_zero_at_an_integer_center_and_symmetric_about_the_image_center():
+    cra = cra_map((7, 9), 5.5, 21.0, center_px=(4, 3))
+    assert cra[3, 4] == 0.0
+    sym = cra_map((6, 8), 5.5, 21.0)
+    np.testing.assert_array_equal(sym, sym[::-1, ::-1])
+    np.testing.assert_array_equal(sym, sym[:, ::-1])
