@@ -87,3 +87,23 @@ def test_a_sharp_edge_is_integrated_exactly():
     shifts = np.array([-7.3, -1.0, 0.4, 5.0, 11.9])
     got = budget.relative_signal(step, PiShaped(540.0, 40.0, 1.5), shifts)
     np.testing.assert_allclose(got, (lc - (520.0 + shifts)) / (lc - 520.0), rtol=3e-5)
+
+
+@pytest.mark.parametrize("name", ["gaussian", "multi_lorentzian", "pi"])
+def test_the_signal_of_a_shifted_band_is_the_integral_done_directly(name):
+    # an irregularly sampled spectrum with an absorption line: no lattice, the general path
+    rng = np.random.default_rng(1991)
+    lam = np.sort(np.concatenate([[300.0, 1100.0], rng.uniform(300.0, 1100.0, 4000)]))
+    val = 1.0 + 0.3 * np.sin(lam / 23.0) - 0.6 * np.exp(-0.5 * ((lam - 703.0) / 1.2) ** 2)
+    src = spectra.Spectrum(lam, val, "irregular")
+    prof = budget.SIGNAL_PROFILES[name](700.0, 12.0, 1.7)
+    shifts = np.array([-9.5, -1.0, 0.0, 0.3, 4.0])
+    fine = np.arange(500.0, 900.0, 0.0005)
+    S = np.interp(fine, lam, val)
+
+    def P(shift):  # nothing from the module: the profile moved, times the source, summed
+        return np.trapezoid(prof(fine - shift) * S, fine)
+
+    brute = np.array([P(s) for s in shifts]) / P(0.0)
+    np.testing.assert_allclose(budget.relative_signal(src, prof, shifts), brute, rtol=1e-4)
+    assert np.ptp(brute) > 0.01  # the line makes the shifts matter
