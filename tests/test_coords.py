@@ -15,7 +15,7 @@ from conftest import PAPER_LENS
 
 import snapcorr
 from snapcorr.cube import Sensor, make_cube
-from snapcorr.optics import cra_deg, cra_map, pixel_cra_deg
+from snapcorr.optics import cra_map
 from snapcorr.simulate import flat_frame, relative_illumination_map
 
 ROW, COL = 7.25, 19.5  # an off-centre optical centre in a 20 x 30 image
@@ -63,17 +63,6 @@ def test_center_rc_is_the_old_centre_row_first_and_the_old_form_warns(call):
     assert np.unravel_index(np.argmin(cra), cra.shape) == (7, 19)
     with pytest.raises(TypeError, match="give the optical centre once"):
         call(center_rc=(ROW, COL), center_px=(COL, ROW))
-
-
-def test_pixel_cra_deg_takes_row_first_and_cra_deg_is_deprecated():
-    rows, cols = np.arange(20)[:, None], np.arange(30)[None, :]
-    new = pixel_cra_deg(rows, cols, (ROW, COL), 22.0, 21.0)
-    with pytest.warns(FutureWarning, match="pixel_cra_deg"):
-        old = cra_deg(rows, cols, (COL, ROW), 22.0, 21.0)
-    np.testing.assert_array_equal(new, old)
-    # against the geometry written out here: tan(CRA) = d / x
-    d_mm = np.hypot(rows - ROW, cols - COL) * 22.0e-3
-    np.testing.assert_allclose(new, np.rad2deg(np.arctan(d_mm / 21.0)), rtol=1e-12)
 
 
 def test_the_correction_reports_and_takes_the_centre_row_first():

@@ -39,26 +39,6 @@ def sample_pixels(shape, n=40, seed=3):
     return picks
 
 
-# -- chief-ray angle -------------------------------------------------------------------------
-@pytest.mark.parametrize("center", [None, (10.0, 3.0), (4.25, -7.5), (100.0, 40.0)])
-def test_cra_map_matches_hand_arithmetic(center):
-    shape = (13, 17)
-    cra = cra_map(shape, 250.0, 21.0, center)
-    assert cra.shape == shape and cra.dtype == np.float64
-    for i in range(shape[0]):
-        for j in range(shape[1]):
-            assert cra[i, j] == pytest.approx(own_cra_deg(i, j, shape, 250.0, 21.0, center),
-                                              abs=1e-12)
-
-
-def test_cra_map_is_zero_at_an_integer_center_and_symmetric_about_the_image_center():
-    cra = cra_map((7, 9), 5.5, 21.0, center_px=(4, 3))
-    assert cra[3, 4] == 0.0
-    sym = cra_map((6, 8), 5.5, 21.0)
-    np.testing.assert_array_equal(sym, sym[::-1, ::-1])
-    np.testing.assert_array_equal(sym, sym[:, ::-1])
-
-
 # -- the lens model --------------------------------------------------------------------------
 @pytest.mark.parametrize("lens", [EDMUND, H_GE_X], ids=lambda lens: lens.name)
 @pytest.mark.parametrize("f_number", [1.4, 2.8, 8.0])

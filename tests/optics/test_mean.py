@@ -1,17 +1,16 @@
 """Kernel-mean shift (Goossens 2019 Eq. 22) against evidence we did not compute the same way."""
 
 import warnings
-from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import PAPER_LENS, brute_force_mean, load_reference_csv
+from conftest import brute_force_mean, load_reference_csv
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from snapcorr import EffectiveIndexWarning, Lens, PupilCutOffError, ShiftTable, mean_shift
-from snapcorr.optics import MEAN_SHIFT_METHODS, ShiftGrid, select_method, shift_nm
+from snapcorr import EffectiveIndexWarning, Lens, PupilCutOffError, mean_shift
+from snapcorr.optics import MEAN_SHIFT_METHODS, select_method, shift_nm
 from snapcorr.optics import goossens2019 as g19
 from snapcorr.optics.aperture import (
     lens_area,
@@ -139,48 +138,6 @@ def test_auto_rule_names(edmund):
     assert select_method(1.7, 16, 0.5, slow, cwl_nm=700, tolerance_nm=0.01) == "asymptotic"
 
 
-def test_table_is_used_for_large_groups_and_meets_tolerance(edmund):
-    rng = np.random.default_rng(3)
-    cra = rng.uniform(0, 25, 30_000)
-    got = mean_shift(700.0, 1.7, 1.4, cra, edmund)
-    exact = mean_shift(700.0, 1.7, 1.4, cra, edmund, method="vignetted")
-    assert np.max(np.abs(got - exact)) <= 0.001
-    table = ShiftTable.build(1.7, 1.4, edmund, cra_max_deg=25, tolerance_nm=0.001, cwl_max_nm=700)
-    onset = float(edmund.onset_cra_deg(1.4))
-    assert np.any(np.isclose(table.cra_deg, onset))  # the kink is a node
-    with pytest.raises(ValueError, match="beyond this table"):
-        table(700, 26)
-
-
-@pytest.mark.filterwarnings("ignore::snapcorr.EffectiveIndexWarning")
-@pytest.mark.parametrize(
-    "lens",
-    [replace(PAPER_LENS, name="h<x"),
-     Lens(X, [(6.5, 27.0)], 0.06, 1.3, name="h>=x"),
-     Lens(X, magnification=0.06, pupil_magnification=1.3, name="ideal")],
-    ids=lambda lens: lens.name,
-)
-@pytest.mark.parametrize("cra_max", [30.0, 12.0])
-def test_grid_meets_tolerance_on_scattered_pairs(lens, cra_max):
-    # Both regimes, P = R inside the f-range (h<x at f/1.37, h>=x at f/1.56) and the full
-    # cut-off inside the CRA range for the slow f-numbers.
-    # cra_max 12 deg: the onset crosses cra_max inside the f-range (another kink in f).
-    rng = np.random.default_rng(11)
-    f = np.exp(rng.uniform(np.log(1.2), np.log(16), 60_000))
-    cra = rng.uniform(0, cra_max, 60_000)
-    keep = cra < lens.cutoff_cra_deg(f) - 0.01
-    f, cra = f[keep], cra[keep]
-    grid = ShiftGrid.build(1.7, lens, f_range=(1.2, 16), cra_max_deg=cra_max,
-                           tolerance_nm=0.001, cwl_max_nm=700)
-    exact = mean_shift(700.0, 1.7, f, cra, lens, method="vignetted")
-    assert np.max(np.abs(grid(700.0, f, cra) - exact)) <= 0.001
-    assert grid.cell_ok.mean() > 0.99  # the exact fallback stays rare
-    with pytest.raises(ValueError, match="range"):
-        grid(700.0, 20.0, 5.0)
-    with pytest.raises(ValueError, match="f_range"):
-        ShiftGrid.build(1.7, lens, f_range=(2.0, 2.0))
-
-
 @pytest.mark.parametrize("method", [m for m in MEAN_SHIFT_METHODS])
 def test_every_method_broadcasts_and_is_finite(method, edmund):
     cra = np.linspace(0, 20, 6)
@@ -228,18 +185,6 @@ def test_auto_grid_path_on_scattered_f_numbers(edmund):
     got = mean_shift(700.0, 1.7, f, cra, edmund)  # >= AUTO_GRID_MIN_SIZE: a cached ShiftGrid
     exact = mean_shift(700.0, 1.7, f, cra, edmund, method="vignetted")
     assert np.max(np.abs(got - exact)) <= 0.001
-
-
-def test_table_and_grid_build_arguments_are_checked(edmund):
-    for kw in (dict(tolerance_nm=0.0), dict(tolerance_nm=1e-15), dict(cwl_max_nm=0.0),
-               dict(cwl_max_nm=np.nan), dict(cra_max_deg=np.nan)):
-        with pytest.raises(ValueError):
-            ShiftTable.build(1.7, 2.0, edmund, **({"cra_max_deg": 10.0} | kw))
-        with pytest.raises(ValueError):
-            ShiftGrid.build(1.7, edmund, f_range=(2.0, 4.0), **kw)
-    table = ShiftTable.build(1.7, 2.0, edmund, cra_max_deg=10.0)
-    with pytest.raises(ValueError, match="finite"):
-        table(700.0, np.nan)
 
 
 # -- where methods fail --------------------------------------------------------------------

@@ -6,11 +6,9 @@ from numpy.testing import assert_allclose
 
 from snapcorr import Lens, mean_shift
 from snapcorr.optics import kernel, kernel_asymptotic
-from snapcorr.optics.aperture import eta
 from snapcorr.optics.mean import _geometry
-from snapcorr.optics.profiles import MultiLorentzian, Tabulated
+from snapcorr.optics.profiles import MultiLorentzian
 from snapcorr.optics.response import filter_response, kernel_bins
-from snapcorr.optics.rienstra1998 import arc_half_angle, ray_bundle_weights, shift_factors
 
 P_GRID = np.arange(600.0, 760.0, 0.02)
 CASES = [(1.4, 0.0), (1.4, 12.0), (1.4, 20.0), (2.8, 15.0), (4.0, 10.0), (8.0, 22.0)]
@@ -59,50 +57,6 @@ def test_rienstra_and_kernel_give_the_same_centroid(edmund, f, cra):
     # S_j too), Goossens shifts it by Delta_j; the centroids differ by ~cwl Var(S) plus the
     # ring discretisation, <= 0.05 nm here (shifts up to 13 nm at 700 nm).
     assert abs(ck - cr) <= 0.05
-
-
-def test_rienstra_arc_angle_is_goossens_eta():
-    # Two papers, two derivations of the same arc: Rienstra A-6..A-8 and Goossens Eq. 15.
-    rng = np.random.default_rng(7)
-    R_j, A, D = rng.uniform(0, 1, 5000), rng.uniform(0.02, 0.5, 5000), rng.uniform(0, 0.6, 5000)
-    assert_allclose(arc_half_angle(R_j, A, D), eta(R_j, A, D), atol=1e-9)
-
-
-@pytest.mark.parametrize("step", [0.25, 0.5])
-@pytest.mark.parametrize(("f", "cra"), [(3.0, 5.0), (3.0, 10.0), (2.0, 15.0), (1.4, 20.0)])
-def test_rienstra_weights_sum_to_one(step, f, cra):
-    # Rienstra: steps of 1/4 to 1/2 degree give weights summing "very close to unity".
-    _, W = ray_bundle_weights(f, cra, step_deg=step)
-    assert abs(W.sum() - 1) < 0.01
-
-
-def test_rienstra_weights_on_axis_are_quantised():
-    # On axis every ring is a full circle or nothing, so the pupil edge is resolved to one
-    # ring: the sum misses up to ~2 Delta R / A. Finer steps fix it.
-    s = [ray_bundle_weights(3.0, 0.0, step_deg=st)[1].sum() for st in (0.5, 0.25, 0.05)]
-    assert 0.94 < s[0] < s[1] < s[2] and abs(s[2] - 1) < 0.005
-
-
-def test_rienstra_temperature_factor_scales_wavelengths():
-    # Nearly collimated, on axis: only the temperature factor (0.992, Rienstra's MWIR filter)
-    # acts; the curve's centroid scales by it.
-    prof = Tabulated(P_GRID * 5, MultiLorentzian(3500.0, 60.0)(P_GRID * 5), n_eff=2.037)
-    w, t = prof.wavelength_nm, prof.transmission
-    lens = Lens(100.0, name="cold shield")
-    out = filter_response(
-        w,
-        t,
-        cwl_nm=3500.0,
-        n_eff=2.037,
-        f_number=500.0,
-        cra_deg=0.0,
-        lens=lens,
-        method="rienstra",
-        temperature_factor=0.992,
-        step_deg=0.001,
-    )
-    assert_allclose(centroid(w, out), 0.992 * centroid(w, t), rtol=2e-5)
-    assert_allclose(shift_factors([0.0, 30.0], 1.775)[1], np.cos(np.arcsin(0.5 / 1.775)))
 
 
 def test_asymptotic_kernel_close_for_small_shifts(edmund):

@@ -1,0 +1,105 @@
+"""The demo's folder marker: it lists the files the demo wrote, vouches for nothing else, and
+is written last and atomically."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import stat
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import pytest
+from hostile import snapcorr_png, snapshot_bounded
+
+
+def _fake_experiment(out, *, echo=print, **kwargs):
+    """The simulated experiment's files, written as it writes them (save_png, Lens.save)."""
+    from snapcorr import Lens
+
+    for name in ("calibration.png", "spectra.png", "maps.png"):
+        snapcorr_png(Path(out) / name)
+    Lens(21.0, [(7.4, 17.0)], 0.06, 1.3, name="demo").save(Path(out) / "lens.toml",
+                                                            overwrite=True)
+    return ["   (the experiment, faked for the test)"], {}
+
+
+@pytest.fixture
+def quick_demo(monkeypatch):
+    """run_demo with the experiment's heavy work replaced by writing its files."""
+    import snapcorr.paper_experiment
+
+    monkeypatch.setattr(snapcorr.paper_experiment, "run", _fake_experiment)
+    from snapcorr.demo import run_demo
+
+    return lambda out, **kw: run_demo(out, echo=lambda *a: None, **kw)
+
+
+def test_the_demo_marker_lists_what_the_demo_wrote_and_vouches_for_nothing_else(
+        tmp_path, quick_demo):
+    from snapcorr.demo import MARKER, OUTPUTS, check_out_dir
+
+    dm = tmp_path / "dm"
+    quick_demo(dm)
+    doc = json.loads((dm / MARKER).read_text())
+    assert set(doc["files"]) == set(OUTPUTS)
+    for name, entry in doc["files"].items():
+        data = (dm / name).read_bytes()
+        assert entry == {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    quick_demo(dm)  # its own files: replaced without --overwrite
+    (dm / "summary.txt").write_text("MINE: edited since\n")
+    before = snapshot_bounded(tmp_path)
+    with pytest.raises(FileExistsError, match=r"summary\.txt, which snapcorr demo did not"):
+        quick_demo(dm)
+    with pytest.raises(ValueError, match=r"summary\.txt exists and is a file snapcorr demo did"):
+        quick_demo(dm, overwrite=True)
+    assert snapshot_bounded(tmp_path) == before
+    (dm / "summary.txt").unlink()
+    check_out_dir(dm)  # a missing output is fine
+
+
+def test_the_demo_marker_never_vouches_for_a_file_put_there_during_the_run(tmp_path,
+                                                                          monkeypatch,
+                                                                          quick_demo):
+    """A file the demo did not move in (it appeared while the demo ran, at a name the demo
+    then failed to write) is not listed: a later run does not take it for the demo's."""
+    import snapcorr.demo as demo
+
+    dm = tmp_path / "dm"
+    original = demo.atomic_write
+
+    def users_csv_first(path, write, **kw):
+        if Path(path).name == "mean_shift.csv":
+            Path(path).write_text("the user's own table\n")
+        return original(path, write, **kw)
+
+    monkeypatch.setattr(demo, "atomic_write", users_csv_first)
+    with pytest.raises(FileExistsError, match=r"mean_shift\.csv appeared after snapcorr checked"):
+        quick_demo(dm)
+    assert (dm / "mean_shift.csv").read_text() == "the user's own table\n"
+    assert not (dm / demo.MARKER).exists()  # written last: never planted by a failed run
+    # and the marker lists only files the demo moved in itself
+    monkeypatch.setattr(demo, "atomic_write", original)
+    (dm / "mean_shift.csv").unlink()
+    quick_demo(dm, overwrite=True)
+    os.replace(dm / "summary.txt", dm / "kept.txt")
+    shutil.copy(dm / "kept.txt", dm / "summary.txt")  # same bytes, not the file written
+    demo._write_marker(dm)
+    assert "summary.txt" not in json.loads((dm / demo.MARKER).read_text())["files"]
+
+
+def test_the_demo_writes_its_marker_atomically_never_through_what_was_there(tmp_path,
+                                                                           quick_demo):
+    from snapcorr.demo import MARKER
+
+    dm = tmp_path / "dm"
+    quick_demo(dm)
+    os.link(dm / MARKER, tmp_path / "hard-link-to-marker")
+    kept = (tmp_path / "hard-link-to-marker").read_bytes()
+    quick_demo(dm)
+    assert (tmp_path / "hard-link-to-marker").read_bytes() == kept  # replaced, not rewritten
+    assert not stat.S_ISLNK(os.lstat(dm / MARKER).st_mode)

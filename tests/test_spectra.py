@@ -1,0 +1,82 @@
+"""Source spectra: Wien's law, parsing of named sources, files and cube pixels, and the
+paper's colour filter."""
+
+import numpy as np
+import pytest
+
+import snapcorr.paper_experiment as paper
+from snapcorr import budget, spectra
+from snapcorr.calibrate import CANDIDATE_TARGETS, exit_pupil
+from snapcorr.optics.profiles import MultiLorentzian
+
+
+def test_blackbody_peaks_where_wien_says():
+    bb = spectra.blackbody(2856.0)  # CIE illuminant A
+    peak = bb.wavelength_nm[np.argmax(bb.values)]
+    assert peak == pytest.approx(2.897771955e6 / 2856.0, abs=0.5)
+
+
+def test_sources_parse_and_bad_sources_are_refused(tmp_path):
+    assert spectra.parse_source("tungsten:3000").name == "blackbody 3000 K"
+    assert "G173" in spectra.parse_source("solar:astm-g173").name
+    p = tmp_path / "s.csv"
+    p.write_text("wavelength_nm,value\n400,1\n500,2\n600,3\n")
+    s = spectra.parse_source(str(p))
+    assert s(450.0) == pytest.approx(1.5)
+    np.save(tmp_path / "s.npy", np.array([[400.0, 500.0, 600.0], [1.0, 2.0, 3.0]]))
+    assert spectra.read_spectrum(tmp_path / "s.npy")(450.0) == pytest.approx(1.5)
+    for bad, msg in (("tungsten:hot", "temperature"), ("tungsten:-5", "> 0 K"),
+                     ("nothing.csv", "no spectrum file"), ("sun", "unknown source"),
+                     ("cube", "needs a cube"), ("tungsten:5", "emits nothing"),
+                     ("solar:moon", "solar model")):
+        with pytest.raises(ValueError, match=msg):
+            spectra.parse_source(bad)
+    (tmp_path / "bad.txt").write_text("1 2 3\n4 5 6\n7 8 9\n")
+    with pytest.raises(ValueError, match="two columns"):
+        spectra.read_spectrum(tmp_path / "bad.txt")
+    with pytest.raises(ValueError, match="covers"):
+        budget.shift_error(spectra.Spectrum(np.array([400.0, 500.0]), np.array([1.0, 1.0])),
+                           MultiLorentzian(700.0, 10.0), 1.0)
+
+
+def test_cube_sources():
+    from snapcorr.cube import make_cube
+
+    data = np.ones((3, 4, 5), np.float32)
+    data[1, 2] = np.linspace(1.0, 2.0, 5)
+    cube = make_cube(data, [500.0, 550.0, 600.0, 650.0, 700.0])
+    px = spectra.parse_source("cube:1,2", cube)
+    assert px(625.0) == pytest.approx(1.625) and px(300.0) == 1.0 and px(900.0) == 2.0
+    mean = spectra.parse_source("cube", cube)
+    assert mean(500.0) == pytest.approx(1.0) and mean(700.0) == pytest.approx(1 + 1 / 12)
+    for bad, msg in (("cube:9,9", "outside"), ("cube:a", "two pixel indices")):
+        with pytest.raises(ValueError, match=msg):
+            spectra.parse_source(bad, cube)
+
+
+def test_read_spectrum_takes_ordinary_files(tmp_path):
+    p = tmp_path / "a.txt"
+    p.write_text("# wavelength, value\n400 1\n500 2\n600 3\n")
+    assert spectra.read_spectrum(p)(450.0) == pytest.approx(1.5)
+    p.write_text("wavelength (nm) radiance\n400;1\n500;2\n600;3\n")
+    assert spectra.read_spectrum(p)(550.0) == pytest.approx(2.5)
+    p.write_text("400 1\n500 2\nend of data\n")
+    with pytest.raises(ValueError, match="line 3"):
+        spectra.read_spectrum(p)
+    for body, msg in (("400 1\n400 2\n", "increasing"), ("400 1\n500 nan\n", "NaN")):
+        p.write_text(body)
+        with pytest.raises(ValueError, match=msg):
+            spectra.read_spectrum(p)
+
+
+def test_the_colour_filter_has_one_home_and_is_re_exported():
+    assert paper.colour_filter is spectra.colour_filter
+    assert exit_pupil.colour_filter is spectra.colour_filter
+    assert CANDIDATE_TARGETS["colour filter (Goossens 2019)"] is spectra.colour_filter
+    assert "colour_filter" in paper.__all__
+    lam = np.array([500.0, 640.0, 760.0, 900.0])
+    edge = 1.0 / (1.0 + np.exp(-(lam - 640.0) / 9.0))
+    notch = 1.0 - 0.45 * np.exp(-0.5 * ((lam - 760.0) / 12.0) ** 2)
+    np.testing.assert_allclose(spectra.colour_filter(lam), 0.04 + 0.9 * edge * notch,
+                               rtol=0, atol=1e-15)
+    assert spectra.colour_filter(700.0).shape == ()
