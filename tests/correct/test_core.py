@@ -1,5 +1,5 @@
-"""Per-pixel corrected wavelengths (Goossens 2019 Eq. 8, 23), checked from outside; where each pixel sits is
-checked in test_geometry.py."""
+"""Per-pixel corrected wavelengths (Goossens 2019 Eq. 8, 23), checked from outside; where
+each pixel sits, and its chief-ray angle, in test_geometry.py."""
 
 import dask.array as da
 import numpy as np
