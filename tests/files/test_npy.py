@@ -9,6 +9,7 @@ import pytest
 from numpy.testing import assert_array_equal
 
 from snapcorr.cube import make_cube
+from snapcorr.data import sensor_path
 from snapcorr.files import read_cube, read_frame, write_cube
 from snapcorr.files.npy import NPY, _npy_layout
 
@@ -71,3 +72,30 @@ def test_a_truncated_file_is_refused(tmp_path):
     path.write_bytes(raw[:-10])
     with pytest.raises(ValueError, match="truncated"):
         read_cube(path, wavelength_nm=WAVELENGTHS)
+
+
+def _mosaic_cube():
+    from snapcorr.cube import Sensor, mosaic_to_cube
+
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    frame = np.random.default_rng(3).integers(0, 4096, (32, 48)).astype(np.uint16)
+    return mosaic_to_cube(frame, sensor, origin_px=(8, 12))
+
+
+def test_npy_sidecar_carries_the_metadata_and_a_bare_npy_needs_wavelengths(tmp_path):
+    cube = _mosaic_cube()
+    cube.attrs.update({"f_number": 2.8, "calibrated": True})
+    write_cube(cube, tmp_path / "c.npy")
+    meta = json.loads((tmp_path / "c.npy.json").read_text())
+    assert meta["written_by"].startswith("snapcorr") and meta["shape"] == list(cube.shape)
+    back = read_cube(tmp_path / "c.npy")
+    assert back.attrs["f_number"] == 2.8 and back.attrs["calibrated"] is True
+    assert_array_equal(back.fwhm.values, cube.fwhm.values)
+    np.save(tmp_path / "bare.npy", cube.values)  # a user's own array, no sidecar
+    with pytest.raises(ValueError, match="pass wavelength_nm"):
+        read_cube(tmp_path / "bare.npy")
+    assert read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values).shape == \
+        cube.shape
+    (tmp_path / "bare.npy.json").write_text('{"shape": [3, 4, 5]}')
+    with pytest.raises(ValueError, match="do not belong together"):
+        read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values)
