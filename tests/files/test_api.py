@@ -109,13 +109,6 @@ def test_envi_writer_guards_its_data_file(tmp_path):
         write_cube(cube, tmp_path / "scene.hdr", overwrite=True, inputs=[tmp_path / "scene.raw"])
 
 
-def test_boolean_attributes_survive_netcdf(tmp_path):
-    cube = _cube(np.float32)
-    cube.attrs["calibrated"] = True
-    write_cube(cube, tmp_path / "b.nc")
-    assert read_cube(tmp_path / "b.nc").attrs["calibrated"] == 1
-
-
 def test_writers_protect_existing_files_and_inputs(tmp_path):
     cube = _cube(np.uint16)
     path = write_cube(cube, tmp_path / "c.nc")
@@ -389,70 +382,6 @@ def test_chunked_envi_and_npy_stay_memory_mapped(tmp_path, ext):
     block, peak = _traced_peak(lambda: read_frame(tmp_path / "frame.npy",
                                                   chunks={"y": 32})[:32].values)
     assert peak < 6 * 2**20 and block.shape == (32, 1024)
-
-
-# -- attributes of a whole result ------------------------------------------------------------
-
-EVERY_KIND = {"text": "a string", "empty": "", "unicode": "\u00b5m \u00e9t\u00e9",
-              "looks_encoded": "json:not really", "int": 7, "big_int": 2**70,
-              "negative": -3, "float": 2.8, "nan": float("nan"), "true": True,
-              "false": False, "none": None, "floats": [1.5, 2.5], "ints": [1, 2, 3],
-              "one": [4.0], "empty_list": [], "mixed": [1, 2.5], "tuple": (3, 4),
-              "words": ["a", "b"], "dict": {"a": 1, "b": [1, 2], "c": {"d": None}},
-              "array": np.array([1.0, 2.0, 3.0]), "np_int": np.int32(5),
-              "np_float": np.float32(0.25), "np_bool": np.bool_(True)}
-
-
-def _dataset_with_every_attribute():
-    from snapcorr.cube.derived import corrected_wavelength
-
-    rng = np.random.default_rng(2)
-    ds = xr.Dataset(
-        {"radiance": (("y", "x", "band"), rng.random((4, 5, 3), dtype=np.float32),
-                      {**EVERY_KIND, "units": "W m-2 sr-1 nm-1"}),
-         "wavelength_scale": (("y", "x", "scale"), 1 + rng.random((4, 5, 1)) / 100),
-         "scale_index": ("band", np.zeros(3, np.int64))},
-        coords={"wavelength": ("band", [500.0, 600.0, 700.0], {"units": "nm", **EVERY_KIND}),
-                "sensor_row": (("y", "band"), np.repeat(np.arange(4)[:, None], 3, axis=1))},
-        attrs=dict(EVERY_KIND))
-    return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds))
-
-
-@pytest.mark.parametrize("ext", [".nc", ".zarr"])
-def test_every_attribute_round_trips_through_write_and_read_dataset(tmp_path, ext):
-    from snapcorr.cube import read_dataset, write_dataset
-
-    ds = _dataset_with_every_attribute()
-    before = ds.copy(deep=True)
-    write_dataset(ds, tmp_path / f"r{ext}")
-    xr.testing.assert_identical(ds, before)  # the Dataset in memory is not changed
-    assert "written_by" not in ds.attrs
-    back = read_dataset(tmp_path / f"r{ext}")
-    xr.testing.assert_identical(back, ds)
-    for attrs in (back.attrs, back["radiance"].attrs, back["wavelength"].attrs):
-        assert attrs["true"] is True and attrs["false"] is False and attrs["none"] is None
-        assert attrs["dict"] == EVERY_KIND["dict"] and attrs["words"] == ["a", "b"]
-        assert attrs["one"] == [4.0] and attrs["empty_list"] == [] and attrs["mixed"] == [1, 2.5]
-        assert attrs["big_int"] == 2**70 and attrs["looks_encoded"] == "json:not really"
-        assert attrs["tuple"] == [3, 4] and np.isnan(attrs["nan"])
-    raw = xr.open_dataset(tmp_path / f"r{ext}", engine="zarr" if ext == ".zarr" else None)
-    assert "wavelength_corrected" not in raw.variables  # rebuilt, not stored
-    assert raw.attrs["derived_variables"] == 'json:["wavelength_corrected"]'
-    assert raw.attrs["written_by"].startswith("snapcorr")
-    raw.close()
-
-
-@pytest.mark.parametrize("ext", [".nc", ".zarr"])
-def test_an_attribute_that_cannot_be_stored_is_refused_before_writing(tmp_path, ext):
-    import datetime
-
-    from snapcorr.cube import write_dataset
-
-    ds = xr.Dataset({"a": ("y", np.arange(3.0))})
-    ds["a"].attrs["taken"] = datetime.datetime(2024, 5, 1)
-    with pytest.raises(TypeError, match="variable 'a': attribute 'taken' is a datetime"):
-        write_dataset(ds, tmp_path / f"r{ext}")
-    assert not list(tmp_path.iterdir())
 
 
 def test_zarr_has_consolidated_metadata_and_both_kinds_are_read(tmp_path):
