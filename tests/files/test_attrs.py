@@ -21,15 +21,6 @@ from snapcorr.files.attrs import (
     encode_attrs,
 )
 
-WL = np.array([470.5, 500.0, 650.25, 900.0])
-
-
-def _cube(dtype, name="radiance"):
-    rng = np.random.default_rng(7)
-    data = rng.uniform(0, 250, (5, 7, WL.size)).astype(dtype)
-    return make_cube(data, WL, fwhm_nm=[10.0, 11.0, 12.0, 13.0], attrs={"f_number": 2.8},
-                     name=name)
-
 
 def test_what_is_not_stored_as_itself_is_json_that_json_reads():
     attrs = {"dict": {"a": [1, None], "b": "µm"}, "true": True, "none": None,
@@ -69,7 +60,7 @@ def test_positions_are_an_offset_and_a_step_only_when_that_is_exact():
 
 
 def test_boolean_attributes_survive_netcdf(tmp_path):
-    cube = _cube(np.float32)
+    cube = make_cube(np.ones((3, 4, 2), np.float32), [500.0, 650.25], attrs={"f_number": 2.8})
     cube.attrs["calibrated"] = True
     write_cube(cube, tmp_path / "b.nc")
     assert read_cube(tmp_path / "b.nc").attrs["calibrated"] == 1

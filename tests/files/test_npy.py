@@ -79,7 +79,7 @@ def _mosaic_cube():
 
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     frame = np.random.default_rng(3).integers(0, 4096, (32, 48)).astype(np.uint16)
-    return mosaic_to_cube(frame, sensor, origin_px=(8, 12))
+    return mosaic_to_cube(frame, sensor, sensor_origin_px=(8, 12))
 
 
 def test_npy_sidecar_carries_the_metadata_and_a_bare_npy_needs_wavelengths(tmp_path):
