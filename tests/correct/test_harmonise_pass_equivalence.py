@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from snapcorr.correct import harmonise
-from snapcorr.correct._spectra import line_slopes, smoothed_line_value, spectrum_value
+from snapcorr.correct._spectra import spectrum_value
 from snapcorr.correct.harmonise import harmonise_spectra, node_weights
 
 # ---------------------------------------------------------------------------------------------
@@ -325,28 +325,6 @@ def test_the_benchmark_tables_are_the_reference():
                                  cra=seen["cra"], weights=seen["weights"]),
                reference(smooth, seen["scale"], seen["cwl"], seen["cra"], seen["weights"]),
                smooth)
-
-
-def test_the_kinks_give_the_segments_value():
-    """:func:`smoothed_line_value` (the direct values of the tabulated pass, finite spectra)
-    against :func:`spectrum_value` on random samples, widths from none to many segments:
-    1e-9 of the spectrum's range (the Gaussian's mass beyond six standard deviations, which
-    the two leave out differently)."""
-    rng = np.random.default_rng(9)
-    for _ in range(400):
-        n = int(rng.integers(2, 14))
-        lam = np.unique(rng.uniform(400.0, 460.0, n))
-        if lam.size < 2:
-            continue
-        d = rng.normal(0.0, 3.0, lam.size) + rng.choice([0.0, 50.0])
-        sigma = float(rng.choice([0.0, 0.01, 0.3, 2.0, 8.0, 40.0]) * rng.random())
-        slope = np.empty(lam.size)
-        line_slopes(lam, d, slope)
-        j_new = j_old = 0
-        for t in np.sort(rng.uniform(lam[0], lam[-1], 5)):
-            a, j_new = smoothed_line_value(lam, d, slope, t, sigma, j_new)
-            b, j_old = spectrum_value(lam, d, t, sigma, j_old)
-            assert abs(a - b) <= 2e-9 * np.abs(d).max() + 1e-12
 
 
 def test_the_direct_path_is_unchanged_for_per_band_scales():

@@ -1,5 +1,6 @@
 """Cube files: round trips in every format and dtype, files written by the libraries' own
-writers, and bad files refused with a clear error."""
+writers, and bad files refused with a clear error. What one format family alone does is
+checked in its own file (test_images.py, test_npy.py, test_attrs.py)."""
 
 import json
 from pathlib import Path
@@ -67,35 +68,6 @@ def test_envi_written_by_spectral_python_is_read(tmp_path, interleave, ext):
     assert_array_equal(cube.fwhm.values, 10.0)
 
 
-def test_tiff_written_by_openimageio_is_read(tmp_path):
-    import OpenImageIO as oiio
-
-    data = np.random.default_rng(2).integers(0, 60000, (4, 6, 5)).astype(np.uint16)
-    path = tmp_path / "plain.tif"
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), oiio.ImageSpec(6, 4, 5, "uint16"))
-    assert out.write_image(data)
-    out.close()
-    with pytest.raises(ValueError, match="pass wavelength_nm"):
-        read_cube(path)
-    cube = read_cube(path, wavelength_nm=[500, 550, 600, 650, 700])
-    assert_array_equal(cube.values, data)
-
-
-def test_exr_follows_the_spectral_layout(tmp_path):
-    import OpenImageIO as oiio
-
-    path = tmp_path / "r.exr"
-    write_cube(_cube(np.float32, name="reflectance"), path)
-    spec = oiio.ImageInput.open(str(path)).spec()
-    assert spec.getattribute("spectralLayoutVersion") == "1.0"
-    assert "T.470,5nm" in spec.channelnames and "T.900,0nm" in spec.channelnames
-    write_cube(_cube(np.float32), tmp_path / "e.exr")
-    spec = oiio.ImageInput.open(str(tmp_path / "e.exr")).spec()
-    assert "S0.650,25nm" in spec.channelnames
-    assert spec.getattribute("emissiveUnits") == "W.m^-2.sr^-1"
-
-
 @pytest.mark.parametrize("ext", [".hdr", ".npy", ".nc", ".zarr"])
 def test_chunked_reading_is_lazy_and_equal(tmp_path, ext):
     import dask.array as da
@@ -106,16 +78,6 @@ def test_chunked_reading_is_lazy_and_equal(tmp_path, ext):
                      wavelength_nm=WL if ext == ".npy" else None)
     assert isinstance(lazy.data, da.Array)  # not read into memory first
     assert_array_equal(lazy.values, cube.values)
-
-
-def test_exr_keeps_band_order_and_widths(tmp_path):
-    cube = make_cube(np.arange(3 * 2 * 3, dtype=np.float32).reshape(3, 2, 3),
-                     [700.25, 500.5, 600.0], fwhm_nm=[7.0, 5.0, 6.0])
-    write_cube(cube, tmp_path / "u.exr")
-    back = read_cube(tmp_path / "u.exr")
-    assert_array_equal(back.wavelength.values, [700.25, 500.5, 600.0])
-    assert_array_equal(back.fwhm.values, [7.0, 5.0, 6.0])
-    assert_array_equal(back.values, cube.values)
 
 
 def test_envi_units_ignore_value_and_byte_order(tmp_path):
@@ -145,13 +107,6 @@ def test_envi_writer_guards_its_data_file(tmp_path):
     write_cube(cube, tmp_path / "scene.hdr")
     with pytest.raises(ValueError, match="also an input"):
         write_cube(cube, tmp_path / "scene.hdr", overwrite=True, inputs=[tmp_path / "scene.raw"])
-
-
-def test_boolean_attributes_survive_netcdf(tmp_path):
-    cube = _cube(np.float32)
-    cube.attrs["calibrated"] = True
-    write_cube(cube, tmp_path / "b.nc")
-    assert read_cube(tmp_path / "b.nc").attrs["calibrated"] == 1
 
 
 def test_writers_protect_existing_files_and_inputs(tmp_path):
@@ -276,25 +231,6 @@ def test_envi_header_stores_positions_compactly_when_they_are_regular(tmp_path):
     assert "snapcorr sensor row = {" in text and "sensor row offset" not in text
 
 
-def test_npy_sidecar_carries_the_metadata_and_a_bare_npy_needs_wavelengths(tmp_path):
-    cube = _mosaic_cube()
-    cube.attrs.update({"f_number": 2.8, "calibrated": True})
-    write_cube(cube, tmp_path / "c.npy")
-    meta = json.loads((tmp_path / "c.npy.json").read_text())
-    assert meta["written_by"].startswith("snapcorr") and meta["shape"] == list(cube.shape)
-    back = read_cube(tmp_path / "c.npy")
-    assert back.attrs["f_number"] == 2.8 and back.attrs["calibrated"] is True
-    assert_array_equal(back.fwhm.values, cube.fwhm.values)
-    np.save(tmp_path / "bare.npy", cube.values)  # a user's own array, no sidecar
-    with pytest.raises(ValueError, match="pass wavelength_nm"):
-        read_cube(tmp_path / "bare.npy")
-    assert read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values).shape == \
-        cube.shape
-    (tmp_path / "bare.npy.json").write_text('{"shape": [3, 4, 5]}')
-    with pytest.raises(ValueError, match="do not belong together"):
-        read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values)
-
-
 # -- units -----------------------------------------------------------------------------------
 
 
@@ -363,43 +299,6 @@ def test_unknown_units_are_refused(tmp_path, ext):
 
 
 # -- one reader for cubes, flats and frames --------------------------------------------------
-
-
-def _pages(path, pages, nchannels=1):
-    import OpenImageIO as oiio
-
-    out = oiio.ImageOutput.create(str(path))
-    specs = []
-    for p in pages:
-        spec = oiio.ImageSpec(p.shape[1], p.shape[0], nchannels, "uint16")
-        specs.append(spec)
-    assert out.open(str(path), specs)
-    for i, p in enumerate(pages):
-        if i:
-            assert out.open(str(path), specs[i], "AppendSubimage")
-        assert out.write_image(np.ascontiguousarray(p.reshape(p.shape[0], p.shape[1], -1)))
-    out.close()
-
-
-def test_multipage_tiff_is_one_band_per_page_for_cubes_and_flats(tmp_path):
-    from snapcorr.calibrate import read_flat
-
-    rng = np.random.default_rng(4)
-    pages = [rng.integers(0, 4000, (6, 9)).astype(np.uint16) for _ in range(3)]
-    _pages(tmp_path / "p.tif", pages)
-    cube = read_cube(tmp_path / "p.tif", wavelength_nm=[500, 600, 700])
-    assert_array_equal(cube.values, np.stack(pages, axis=2))
-    image, info = read_flat(tmp_path / "p.tif")
-    assert info == {"bands": 3, "saturation": 65535}
-    assert_allclose(image, np.mean(np.stack(pages, axis=2), axis=2, dtype=np.float64))
-    with pytest.raises(ValueError, match="holds 3 bands"):
-        read_frame(tmp_path / "p.tif")
-    _pages(tmp_path / "sizes.tif", [pages[0], pages[1][:5]])
-    with pytest.raises(ValueError, match=r"every page .* must match"):
-        read_cube(tmp_path / "sizes.tif", wavelength_nm=[500, 600])
-    _pages(tmp_path / "rgb.tif", [np.ones((4, 5, 3), np.uint16)] * 2, nchannels=3)
-    with pytest.raises(ValueError, match="page 1 has 3 channels"):
-        read_flat(tmp_path / "rgb.tif")
 
 
 def test_flats_read_every_cube_format(tmp_path):
@@ -485,70 +384,6 @@ def test_chunked_envi_and_npy_stay_memory_mapped(tmp_path, ext):
     assert peak < 6 * 2**20 and block.shape == (32, 1024)
 
 
-# -- attributes of a whole result ------------------------------------------------------------
-
-EVERY_KIND = {"text": "a string", "empty": "", "unicode": "\u00b5m \u00e9t\u00e9",
-              "looks_encoded": "json:not really", "int": 7, "big_int": 2**70,
-              "negative": -3, "float": 2.8, "nan": float("nan"), "true": True,
-              "false": False, "none": None, "floats": [1.5, 2.5], "ints": [1, 2, 3],
-              "one": [4.0], "empty_list": [], "mixed": [1, 2.5], "tuple": (3, 4),
-              "words": ["a", "b"], "dict": {"a": 1, "b": [1, 2], "c": {"d": None}},
-              "array": np.array([1.0, 2.0, 3.0]), "np_int": np.int32(5),
-              "np_float": np.float32(0.25), "np_bool": np.bool_(True)}
-
-
-def _dataset_with_every_attribute():
-    from snapcorr.cube.derived import corrected_wavelength
-
-    rng = np.random.default_rng(2)
-    ds = xr.Dataset(
-        {"radiance": (("y", "x", "band"), rng.random((4, 5, 3), dtype=np.float32),
-                      {**EVERY_KIND, "units": "W m-2 sr-1 nm-1"}),
-         "wavelength_scale": (("y", "x", "scale"), 1 + rng.random((4, 5, 1)) / 100),
-         "scale_index": ("band", np.zeros(3, np.int64))},
-        coords={"wavelength": ("band", [500.0, 600.0, 700.0], {"units": "nm", **EVERY_KIND}),
-                "sensor_row": (("y", "band"), np.repeat(np.arange(4)[:, None], 3, axis=1))},
-        attrs=dict(EVERY_KIND))
-    return ds.assign_coords(wavelength_corrected=corrected_wavelength(ds))
-
-
-@pytest.mark.parametrize("ext", [".nc", ".zarr"])
-def test_every_attribute_round_trips_through_write_and_read_dataset(tmp_path, ext):
-    from snapcorr.cube import read_dataset, write_dataset
-
-    ds = _dataset_with_every_attribute()
-    before = ds.copy(deep=True)
-    write_dataset(ds, tmp_path / f"r{ext}")
-    xr.testing.assert_identical(ds, before)  # the Dataset in memory is not changed
-    assert "written_by" not in ds.attrs
-    back = read_dataset(tmp_path / f"r{ext}")
-    xr.testing.assert_identical(back, ds)
-    for attrs in (back.attrs, back["radiance"].attrs, back["wavelength"].attrs):
-        assert attrs["true"] is True and attrs["false"] is False and attrs["none"] is None
-        assert attrs["dict"] == EVERY_KIND["dict"] and attrs["words"] == ["a", "b"]
-        assert attrs["one"] == [4.0] and attrs["empty_list"] == [] and attrs["mixed"] == [1, 2.5]
-        assert attrs["big_int"] == 2**70 and attrs["looks_encoded"] == "json:not really"
-        assert attrs["tuple"] == [3, 4] and np.isnan(attrs["nan"])
-    raw = xr.open_dataset(tmp_path / f"r{ext}", engine="zarr" if ext == ".zarr" else None)
-    assert "wavelength_corrected" not in raw.variables  # rebuilt, not stored
-    assert raw.attrs["derived_variables"] == 'json:["wavelength_corrected"]'
-    assert raw.attrs["written_by"].startswith("snapcorr")
-    raw.close()
-
-
-@pytest.mark.parametrize("ext", [".nc", ".zarr"])
-def test_an_attribute_that_cannot_be_stored_is_refused_before_writing(tmp_path, ext):
-    import datetime
-
-    from snapcorr.cube import write_dataset
-
-    ds = xr.Dataset({"a": ("y", np.arange(3.0))})
-    ds["a"].attrs["taken"] = datetime.datetime(2024, 5, 1)
-    with pytest.raises(TypeError, match="variable 'a': attribute 'taken' is a datetime"):
-        write_dataset(ds, tmp_path / f"r{ext}")
-    assert not list(tmp_path.iterdir())
-
-
 def test_zarr_has_consolidated_metadata_and_both_kinds_are_read(tmp_path):
     import warnings
 
@@ -567,47 +402,6 @@ def test_zarr_has_consolidated_metadata_and_both_kinds_are_read(tmp_path):
 
 
 # -- readers never alter values ---------------------------------------------------------------
-
-
-def test_an_unassociated_alpha_leaves_the_other_bands_as_stored(tmp_path):
-    """PIL writes RGBA (and LA) TIFFs with an unassociated alpha; OpenImageIO by default
-    multiplies every other channel by it. The bands come back as stored."""
-    from PIL import Image
-
-    from snapcorr.cube import read_frame
-
-    a = np.zeros((4, 5, 4), np.uint8)
-    a[..., 0], a[..., 1], a[..., 2], a[..., 3] = 200, 100, 50, 128
-    Image.fromarray(a, "RGBA").save(tmp_path / "rgba.tif")
-    cube = read_cube(tmp_path / "rgba.tif", wavelength_nm=[500.0, 600.0, 700.0, 800.0])
-    np.testing.assert_array_equal(cube.values, a)
-    Image.fromarray(a[..., [0, 3]], "LA").save(tmp_path / "la.tif")
-    frame = read_frame(tmp_path / "la.tif")
-    np.testing.assert_array_equal(np.asarray(frame.values), a[..., 0])
-
-
-def _exr(path, names):
-    import OpenImageIO as oiio
-
-    img = np.zeros((3, 4, len(names)), np.float32)
-    img[...] = np.arange(len(names), dtype=np.float32)  # each channel holds its written index
-    spec = oiio.ImageSpec(4, 3, len(names), "float")
-    spec.channelnames = tuple(names)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec) and out.write_image(img)
-    out.close()
-
-
-def test_exr_channels_come_back_in_the_bands_order_or_are_refused(tmp_path):
-    """OpenEXR keeps channels sorted by name: band1, band10, band11, band2, ... came back in
-    that order with the wavelengths assigned to it. Numbered channels are put in their
-    numbers' order; names that say no order are refused."""
-    _exr(tmp_path / "b.exr", [f"band{i + 1}" for i in range(12)])
-    cube = read_cube(tmp_path / "b.exr", wavelength_nm=500.0 + 10 * np.arange(12))
-    np.testing.assert_array_equal(cube.values[0, 0], np.arange(12))
-    _exr(tmp_path / "c.exr", ["red", "green", "blue"])
-    with pytest.raises(ValueError, match="do not say the bands' order"):
-        read_cube(tmp_path / "c.exr", wavelength_nm=[600.0, 550.0, 450.0])
 
 
 def _envi_with(tmp_path, extra, name="e"):
@@ -650,21 +444,3 @@ def test_envi_gains_offsets_scale_and_bad_bands_are_applied(tmp_path, chunks):
     assert read_flat(same)[0].shape == (2, 3)  # identity: nothing to apply
 
 
-@pytest.mark.filterwarnings("ignore:<tifffile.TiffWriter.write> data with shape")
-def test_a_tifffile_array_whose_band_axis_cannot_be_told_is_refused(tmp_path):
-    """tifffile stores a (4, 5, 6) array as 4 planes of 5 x 6 and records the shape it was
-    given; read by the file's layout it came back as 5 x 6 pixels of 4 bands, although the
-    writer meant 4 x 5 pixels of 6. Contiguous samples read as written."""
-    import tifffile
-
-    a = np.arange(4 * 5 * 6, dtype=np.uint16).reshape(4, 5, 6)
-    tifffile.imwrite(tmp_path / "planes.tif", a)
-    with pytest.raises(ValueError, match=r"shape \(4, 5, 6\) and stored it as 4 planes"):
-        read_cube(tmp_path / "planes.tif", wavelength_nm=500.0 + 10 * np.arange(4))
-    tifffile.imwrite(tmp_path / "pages.tif", a, photometric="minisblack")  # 4 pages of 5 x 6
-    with pytest.raises(ValueError, match=r"shape \(4, 5, 6\) and stored it as 4 planes"):
-        read_cube(tmp_path / "pages.tif", wavelength_nm=500.0 + 10 * np.arange(4))
-    tifffile.imwrite(tmp_path / "contig.tif", a, photometric="minisblack",
-                     planarconfig="contig")
-    cube = read_cube(tmp_path / "contig.tif", wavelength_nm=500.0 + 10 * np.arange(6))
-    assert_array_equal(cube.values, a)

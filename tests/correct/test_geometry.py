@@ -1,0 +1,163 @@
+"""Where each pixel and band sits on the sensor, and its chief-ray angle (Goossens 2019, Eq. 8)
+worked out by hand: a given centre, the lens calibration's (carried over through millimetres),
+a mosaic's bands each at its own place, crops placed by their origin, and refusals."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from conftest import PAPER_LENS
+
+from snapcorr.correct import PlacementError, correct_cube, cube_cra_deg
+from snapcorr.cube import Sensor, make_cube, mosaic_to_cube
+from snapcorr.data import sensor_path
+
+PAPER = PAPER_LENS
+
+
+def _sensor(n=6, pitch=40.0, n_eff=1.7):
+    return Sensor("test", "snapscan", pitch, np.linspace(500, 900, n), 10.0, n_eff)
+
+
+def _cube(sensor, ny=40, nx=50, seed=0):
+    data = np.random.default_rng(seed).random((ny, nx, sensor.n_bands)).astype(np.float32)
+    return make_cube(data, sensor.cwl_nm)
+
+
+def test_cra_map_by_hand():
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    cra, center, source = cube_cra_deg(cube, s, PAPER, center_px=(10.0, -5.0))
+    assert source == "given" and cra.shape == (40, 50, 1)
+    y, x = 33, 47
+    d_mm = np.hypot(x - 10.0, y + 5.0) * 0.040
+    assert cra[y, x, 0] == pytest.approx(np.degrees(np.arctan(d_mm / 21.0)), rel=1e-12)
+    # default: the centre of the area the cube covers
+    _, center, source = cube_cra_deg(cube, s, PAPER)
+    assert center == (24.5, 19.5) and source == "image centre"
+
+
+def test_center_from_the_lens_calibration_only_for_the_same_pitch():
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    lens = replace(PAPER_LENS, name="cal",
+                   calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 40.0})
+    assert cube_cra_deg(cube, s, lens)[1:] == ((3.0, 4.0), "lens calibration")
+    other = replace(PAPER_LENS, name="cal",
+                    calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
+    # another pitch and no image size to match the areas: refused, never the image centre
+    with pytest.raises(PlacementError, match="--center ROW,COL"):
+        cube_cra_deg(cube, s, other)
+
+
+def test_mosaic_bands_get_their_own_positions():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    raw = np.arange(16 * 24, dtype=np.float32).reshape(16, 24)
+    cube = mosaic_to_cube(raw, sensor, origin_px=(40, 80))
+    cra = cube_cra_deg(cube, sensor, PAPER, center_px=(0.0, 0.0))[0]
+    assert cra.shape == (4, 6, sensor.n_bands)
+    b = 5
+    row = cube["sensor_row"].values[2, b]
+    col = cube["sensor_col"].values[3, b]
+    d = np.hypot(row, col) * sensor.pixel_pitch_um * 1e-3
+    assert cra[2, 3, b] == pytest.approx(np.degrees(np.arctan(d / 21.0)), rel=1e-12)
+
+
+def test_the_largest_angle_without_the_map_is_the_maps_largest():
+    """``correct_cube`` starts its width table from the field's largest CRA before the map is
+    made: the same number, bit for bit, for a centre inside, at the edge of and outside the
+    image, a crop placed on the sensor, a mosaic (each band at its own place) and one pixel,
+    and what correct_cube records is the map's largest."""
+    from snapcorr.correct.geometry import _largest_cra_deg
+
+    s = _sensor(pitch=40.0)
+    cube = _cube(s)
+    mosaic_sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    mosaic = mosaic_to_cube(np.arange(16 * 24, dtype=np.float32).reshape(16, 24),
+                            mosaic_sensor, origin_px=(40, 80))
+    rng = np.random.default_rng(3)
+    cases = [(cube, s, None, None), (cube, s, (10.0, -5.0), None), (cube, s, (49.0, 39.0), None),
+             (cube, s, (-300.5, 1200.25), None), (cube, s, None, (500, 700)),
+             (cube.isel(y=[7], x=[3]), s, (3.0, 7.0), None),
+             (mosaic, mosaic_sensor, (0.0, 0.0), None), (mosaic, mosaic_sensor, None, None)]
+    cases += [(cube, s, tuple(rng.uniform(-60, 110, 2)), None) for _ in range(20)]
+    for c, sensor, center, origin in cases:
+        cra = cube_cra_deg(c, sensor, PAPER, center, sensor_origin_px=origin)[0]
+        assert _largest_cra_deg(c, sensor, PAPER, center, origin) == float(cra.max())
+    ds = correct_cube(cube, s, 2.8, PAPER, center_px=(-3.0, 60.0))
+    assert ds.attrs["cra_max_deg"] == float(ds["cra_deg"].max())
+
+
+# -- crops, mosaics without positions, centres on another pixel grid -------------------------
+
+FULL = Sensor("full", "snapscan", 5.5, np.linspace(500, 900, 3), 10.0, 1.7, size_px=(2048, 2048))
+
+
+def _by_hand(rows, cols, cx, cy, pitch_mm=5.5e-3, x_mm=21.0):
+    """Eq. 8 on the grid rows x cols (sensor pixels): tan CRA = distance * pitch / x."""
+    d = np.hypot(np.asarray(rows, float)[:, None] - cy, np.asarray(cols, float)[None, :] - cx)
+    return np.degrees(np.arctan(d * pitch_mm / x_mm))
+
+
+def test_a_crop_of_unknown_place_is_refused_and_placed_by_its_origin():
+    crop = _cube(FULL, ny=256, nx=256)
+    with pytest.raises(PlacementError, match="--sensor-origin-px"):
+        correct_cube(crop, FULL, 2.8, PAPER)
+    cra, center, source = cube_cra_deg(crop, FULL, PAPER, sensor_origin_px=(1500, 100))
+    assert source == "sensor centre" and center == (1023.5, 1023.5)
+    expected = _by_hand(1500 + np.arange(256.0), 100 + np.arange(256.0), 1023.5, 1023.5)
+    np.testing.assert_allclose(cra[:, :, 0], expected, rtol=1e-12)
+    # the full frame needs no origin; the crop's angles are the full frame's at that place
+    full = cube_cra_deg(_cube(FULL, ny=2048, nx=2048), FULL, PAPER)[0]
+    np.testing.assert_allclose(cra[:, :, 0], full[1500:1756, 100:356, 0], rtol=1e-12)
+    ds = correct_cube(crop, FULL, 2.8, PAPER, sensor_origin_px=(1500, 100))
+    assert float(ds["cra_deg"].max()) == pytest.approx(expected.max(), rel=1e-12)
+
+
+def test_an_origin_that_contradicts_the_cube_is_refused():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    cube = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
+    cube_cra_deg(cube, sensor, PAPER, sensor_origin_px=(40, 80))  # agrees: fine
+    with pytest.raises(PlacementError, match="first pixel"):
+        cube_cra_deg(cube, sensor, PAPER, sensor_origin_px=(0, 0))
+
+
+def test_a_mosaic_cube_without_positions_is_refused_not_put_at_one_place():
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    bare = make_cube(np.zeros((4, 6, 16), np.float32), sensor.cwl_nm)
+    with pytest.raises(PlacementError, match="no sensor positions"):
+        correct_cube(bare, sensor, 1.4, PAPER)
+    # with the tile origin stated, the bands get the tile layout's positions
+    placed = mosaic_to_cube(np.zeros((16, 24), np.float32), sensor, origin_px=(40, 80))
+    np.testing.assert_array_equal(
+        cube_cra_deg(bare, sensor, PAPER, sensor_origin_px=(40, 80))[0],
+        cube_cra_deg(placed, sensor, PAPER)[0])
+
+
+def test_the_calibrated_center_is_carried_to_binned_pixels_through_millimetres():
+    cal = {"center_px": [1047.3, 998.6], "pixel_pitch_um": 5.5, "image_size_px": [2048, 2048]}
+    lens = replace(PAPER_LENS, name="cal", calibration=cal)
+    binned = Sensor("binned", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
+    cra, (cx, cy), source = cube_cra_deg(_cube(binned, ny=1024, nx=1024), binned, lens)
+    # pixel i spans [i, i + 1) pitches: the centre 1047.3 px of 5.5 um is at 5.76290 mm,
+    # which is 523.9 px of 11 um counted the same way (523.9 + 0.5 = 5.7629 / 0.011)
+    assert (cx, cy) == pytest.approx((5.7629 / 0.011 - 0.5, 5.49505 / 0.011 - 0.5), abs=1e-9)
+    assert "converted" in source
+    # the same sensor point keeps its angle: binned pixel (300, 700) covers full pixels
+    # 600-601 x 1400-1401, whose centre is at 600.5 x 1400.5 full pixels
+    full = _by_hand(np.array([600.5]), np.array([1400.5]), 1047.3, 998.6)[0, 0]
+    assert cra[300, 700, 0] == pytest.approx(full, rel=1e-12)
+    # a sensor of another physical size: the areas cannot be matched
+    other = Sensor("other", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1000, 1024))
+    with pytest.raises(PlacementError, match="--center ROW,COL"):
+        cube_cra_deg(_cube(other, ny=1000, nx=1024), other, lens)
+    # ... also at the same pitch: a smaller sensor is not the calibration's pixel grid
+    small = Sensor("small", "snapscan", 5.5, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
+    with pytest.raises(PlacementError, match="--center ROW,COL"):
+        cube_cra_deg(_cube(small, ny=1024, nx=1024), small, lens)
+    # a crop of the calibrated sensor (placed by its origin) keeps the calibrated centre
+    cra, center, _ = cube_cra_deg(_cube(FULL, ny=64, nx=64), FULL, lens,
+                                  sensor_origin_px=(900, 1000))
+    assert center == (1047.3, 998.6)
+    assert cra[0, 0, 0] == pytest.approx(_by_hand(np.array([900.0]), np.array([1000.0]),
+                                                  1047.3, 998.6)[0, 0], rel=1e-12)
