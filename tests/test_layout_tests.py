@@ -27,34 +27,11 @@ NOT_PACKAGES = {"oracles", "data"}
 #: by workflow, in tests/). The list only shrinks: a module that gains its test file leaves
 #: it, and a new module comes with its tests.
 UNTESTED = {
-    "snapcorr._validation",
-    "snapcorr.budget.flittner_slater",
-    "snapcorr.budget.report",
-    "snapcorr.budget.signal",
     "snapcorr.calibrate.pupil.distance",
     "snapcorr.calibrate.pupil.report",
     "snapcorr.calibrate.pupil.solver",
     "snapcorr.calibrate.pupil.target",
     "snapcorr.calibrate.pupil.target_model",
-    "snapcorr.correct._spectra",
-    "snapcorr.correct.geometry",
-    "snapcorr.files.attrs",
-    "snapcorr.cube.derived",
-    "snapcorr.cube.msfa._grid",
-    "snapcorr.cube.msfa.brauers2006",
-    "snapcorr.cube.msfa.mihoubi2017",
-    "snapcorr.cube.msfa.monno2017",
-    "snapcorr.cube.msfa.nearest",
-    "snapcorr.cube.responses",
-    "snapcorr.data",
-    "snapcorr.demo",
-    "snapcorr.files.images",
-    "snapcorr.files.npy",
-    "snapcorr.optics.chief_ray",
-    "snapcorr.optics.rienstra1998",
-    "snapcorr.optics.table",
-    "snapcorr.optics.wiener",
-    "snapcorr.spectra",
 }
 
 
