@@ -281,3 +281,25 @@ def test_flats_at_a_guessed_x_then_the_target_give_a_consistent_profile_in_one_r
     scaled = got.lens.calibration["vignetting_scaled"]
     assert scaled["from_x_mm"] == guess
     assert scaled["circles_at_that_x_mm"] == [[P0, h0]]
+
+
+def test_pupil_is_the_earlier_name_of_pupil_radiance():
+    """``pupil=`` still works, warns, and gives the fit ``pupil_radiance=`` gives; a lens whose
+    circles belong to the paper's pupil refuses the other under either name."""
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    kw = {"lens": as_lens(PLAIN), "target_spectrum": sim.colour_filter, "center_px": CENTER,
+          "n_bins": 32}
+    with pytest.warns(FutureWarning, match="pupil is the earlier name of pupil_radiance"):
+        old = locate_pupil(data, sensor(), pupil="lambertian", **kw)
+    new = locate_pupil(data, sensor(), pupil_radiance="lambertian", **kw)
+    assert old.lens.pupil_radiance == new.lens.pupil_radiance == "lambertian"
+    assert old.exit_pupil_mm == new.exit_pupil_mm
+    assert old.exit_pupil_stderr_mm == new.exit_pupil_stderr_mm
+    refused = functools.partial(pytest.raises, ValueError,
+                                match="the lambertian pupil would need them found")
+    with pytest.warns(FutureWarning, match="pupil is the earlier name"), refused():
+        locate_pupil(data, sensor(), lens=as_lens(PAPER), pupil="lambertian")
+    with refused():
+        locate_pupil(data, sensor(), lens=as_lens(PAPER), pupil_radiance="lambertian")
+    with pytest.raises(TypeError, match="give pupil_radiance once"):
+        locate_pupil(data, sensor(), pupil="paper", pupil_radiance="paper", **kw)
