@@ -10,6 +10,7 @@ did not make.
 from __future__ import annotations
 
 import functools
+import warnings
 
 import numpy as np
 import pytest
@@ -279,3 +280,15 @@ def test_pupil_is_the_earlier_name_of_pupil_radiance():
         locate_pupil(data, sensor(), lens=as_lens(PAPER), pupil_radiance="lambertian")
     with pytest.raises(TypeError, match="give pupil_radiance once"):
         locate_pupil(data, sensor(), pupil="paper", pupil_radiance="paper", **kw)
+
+
+@pytest.mark.xfail(strict=True, reason="called_from_outside (snapcorr/_validation.py) takes "
+                   "the rename's own wrapper for the caller of accepts_center_rc, so the "
+                   "x-first centre's warning is lost beneath renamed_keywords")
+def test_both_earlier_names_warn_in_one_call():
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(ValueError, match="give at least one cube"):
+            locate_pupil({}, sensor(), center_px=CENTER, pupil="paper")
+    said = {str(w.message).split(" ")[0] for w in seen if w.category is FutureWarning}
+    assert said == {"pupil", "center_px"}
