@@ -277,7 +277,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                          "pupil (its radius sets their onsets); the "
                          f"{pupil_radiance} pupil would need them found again: fit flats and "
                          "target together (calibrate_with_target, snapcorr calibrate "
-                         "--target-cube) with pupil 'auto'")
+                         "--target-cube) with pupil_radiance='auto' (--pupil auto)")
     if pupil_radiance == "auto":
         return _either_pupil(locals())
     return _locate(**locals())
