@@ -127,8 +127,7 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
                           name="calibrated lens", inputs=None, target_inputs=None,
-                          progress=None, pupil_radiance="paper",
-                          target_tolerance_nm=None,
+                          progress=None, pupil_radiance="paper", target_tolerance_nm=None,
                           report=None) -> LensAndPupil:
     """Characterise a lens whose exit pupil distance is unknown: flats plus target cubes.
 
@@ -160,12 +159,11 @@ tolerance_nm
     progress : callable, optional
         ``progress(step)`` before each long step.
     pupil_radiance : {"paper", "lambertian", "auto"}
-        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
-        ``pupil=`` is its earlier name, deprecated), for the flats and the target alike.
-        ``"auto"``: the whole calibration is run with each, and the
-        Lambertian pupil is kept only where the target's chi-square falls by more than
-        :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly tell them
-        apart; the target's spectral structure does).
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`),
+        for the flats and the target alike. ``"auto"``: the whole calibration is run with
+        each, and the Lambertian pupil is kept only where the target's chi-square falls by
+        more than :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly
+        tell them apart; the target's spectral structure does). Earlier name: ``pupil``.
     target_tolerance_nm, report
         The shift precision the target must be able to give, and where its prediction is
         said: ``tolerance_nm`` and ``report`` of :func:`~snapcorr.calibrate.locate_pupil`
