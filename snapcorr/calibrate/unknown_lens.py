@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._coords import accepts_center_rc
+from .._validation import renamed_keywords
 from ..optics.lens import Lens
 from .lens import choice
 from .lens.calibration import LensCalibration, calibrate_lens
@@ -118,6 +119,7 @@ class LensAndPupil:
         return "\n".join(lines)
 
 
+@renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=False,
                           provisional_x_mm=None, magnification=0.0, pupil_magnification=1.0,
@@ -125,7 +127,7 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
                           name="calibrated lens", inputs=None, target_inputs=None,
-                          progress=None, pupil="paper", target_tolerance_nm=None,
+                          progress=None, pupil_radiance="paper", target_tolerance_nm=None,
                           report=None) -> LensAndPupil:
     """Characterise a lens whose exit pupil distance is unknown: flats plus target cubes.
 
@@ -156,12 +158,12 @@ tolerance_nm
         f-number -> path of each flat and cube, recorded in the profile.
     progress : callable, optional
         ``progress(step)`` before each long step.
-    pupil : {"paper", "lambertian", "auto"}
-        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`), for the flats and
-        the target alike. ``"auto"``: the whole calibration is run with each, and the
-        Lambertian pupil is kept only where the target's chi-square falls by more than
-        :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly tell them
-        apart; the target's spectral structure does).
+    pupil_radiance : {"paper", "lambertian", "auto"}
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`),
+        for the flats and the target alike. ``"auto"``: the whole calibration is run with
+        each, and the Lambertian pupil is kept only where the target's chi-square falls by
+        more than :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly
+        tell them apart; the target's spectral structure does). Earlier name: ``pupil``.
     target_tolerance_nm, report
         The shift precision the target must be able to give, and where its prediction is
         said: ``tolerance_nm`` and ``report`` of :func:`~snapcorr.calibrate.locate_pupil`
@@ -177,7 +179,7 @@ tolerance_nm
     FeaturelessTargetError
         The target carries no information about x.
     """
-    if pupil == "auto":
+    if pupil_radiance == "auto":
         return _either_pupil(locals())
     flats = dict(flats)
     if not flats or not cubes:
@@ -190,7 +192,7 @@ tolerance_nm
                   pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
                   saturation=saturation, method=method, max_circles=max_circles,
                   tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress,
-                  pupil=pupil, sensor=_raw_mosaic_of(sensor, shape))
+                  pupil_radiance=pupil_radiance, sensor=_raw_mosaic_of(sensor, shape))
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
@@ -228,10 +230,10 @@ def _raw_mosaic_of(sensor, shape):
 
 
 def _either_pupil(args):
-    """``calibrate_with_target(pupil="auto")``: the paper's pupil unless the Lambertian one
+    """``calibrate_with_target(pupil_radiance="auto")``: the paper's pupil unless the Lambertian one
     fits the target clearly better (:data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`)."""
-    args = {k: v for k, v in args.items() if k != "pupil"}
-    runs = {name: calibrate_with_target(**args, pupil=name)
+    args = {k: v for k, v in args.items() if k != "pupil_radiance"}
+    runs = {name: calibrate_with_target(**args, pupil_radiance=name)
             for name in ("paper", "lambertian")}
     return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()},
                         "the target's chi-square")

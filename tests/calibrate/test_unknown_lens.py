@@ -9,6 +9,8 @@ command is given x.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import spectralsim as sim
@@ -171,3 +173,25 @@ def test_calibrate_without_x_says_the_three_ways(files, cli, tmp_path):
               f"8={files / 'flat_f8.npy'}", "--pixel-pitch-um", "44", "--exit-pupil-mm", "21",
               "--fit-n-eff", "--out", tmp_path / "l.toml")
     assert res.returncode == 1 and "goes with --target-cube" in res.stderr, res.stderr
+
+
+def test_pupil_is_the_earlier_name_of_pupil_radiance():
+    """The old keyword warns and reaches the calibration as the new one does (a model that is
+    none is refused by both, naming it, before any fit)."""
+    flats = make_flats(PAPER, (2.0, 8.0), shape=SHAPE, pitch_um=PITCH_UM, center_px=CENTER,
+                       noise=0.005, seed=1)
+    data = cubes("colour_filter", "paper", (2.0, 8.0), noise=0.002, seed=101)
+    said = {}
+    for key in ("pupil", "pupil_radiance"):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            with pytest.raises(ValueError, match=r"pupil_radiance must be one of .*'uniform'"):
+                calibrate_with_target(flats, data, sensor(), pixel_pitch_um=PITCH_UM,
+                                      **{key: "uniform"})
+        said[key] = [str(w.message) for w in seen if w.category is FutureWarning]
+    assert len(said["pupil"]) == 1 and said["pupil"][0].startswith(
+        "pupil is the earlier name of pupil_radiance and will be removed in snapcorr 0.3")
+    assert said["pupil_radiance"] == []
+    with pytest.raises(TypeError, match="give pupil_radiance once"):
+        calibrate_with_target(flats, data, sensor(), pixel_pitch_um=PITCH_UM, pupil="paper",
+                              pupil_radiance="paper")

@@ -40,7 +40,7 @@ import numpy as np
 
 from ..._coords import accepts_center_rc
 from ..._names import CALIBRATION_METHODS
-from ..._validation import check_center, check_pixel_pitch_um, check_positive
+from ..._validation import check_center, check_pixel_pitch_um, check_positive, renamed_keywords
 from ...optics.chief_ray import cra_map
 from ...optics.lens import Lens
 from ...optics.shift import EffectiveIndexWarning
@@ -256,13 +256,14 @@ def _check_enough_flats(items, vignetting_distance_mm):
             "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
 
 
+@renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stderr_mm=None,
                    magnification=None, pupil_magnification=None, dark=None, center_px=None,
                    saturation=None, vignetting_distance_mm=None, method="auto", inputs=None,
                    name="calibrated lens", tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
-                   progress=None, pupil=None, sensor=None, sensor_origin_px=None, lens=None,
-                   exit_pupil_from=None):
+                   progress=None, pupil_radiance=None, sensor=None, sensor_origin_px=None,
+                   lens=None, exit_pupil_from=None):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -303,10 +304,11 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
         Most vignetting circles tried (0 to 3).
     progress : callable, optional
         ``progress(step)`` before each long step (a model fitted, a flat left out).
-    pupil : {"paper", "lambertian"}, optional
+    pupil_radiance : {"paper", "lambertian"}, optional
         The pupil's radiance model (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
-        default that of ``lens``, else the paper's): its radius sets the onsets; the flats'
-        area model stays the paper's (area times ``cos^4(CRA)``).
+        ``pupil=`` is its earlier name, deprecated; default that of ``lens``, else the
+        paper's): its radius sets the onsets; the flats' area model stays the paper's (area
+        times ``cos^4(CRA)``).
     sensor, sensor_origin_px : Sensor, (int, int), optional
         Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
         and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
@@ -324,7 +326,7 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
     LensCalibration
     """
     given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
-                       pupil_magnification, pupil)
+                       pupil_magnification, pupil_radiance)
     result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
                         center_px=center_px, saturation=saturation,
                         vignetting_distance_mm=vignetting_distance_mm, method=method,
@@ -344,7 +346,7 @@ LENS_RECORD_KEYS = {"exit_pupil_stderr_mm": "exit_pupil_stderr_mm",
 
 
 def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
-               pupil_magnification, pupil):
+               pupil_magnification, pupil_radiance):
     """The exit pupil's x, its standard error, m, m_P and the pupil for the calibration: those
     given, else the ``lens``'s, else the defaults (x has none)."""
     if lens is None:
@@ -354,7 +356,7 @@ def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
         return {"exit_pupil_mm": exit_pupil_mm, "exit_pupil_stderr_mm": exit_pupil_stderr_mm,
                 "magnification": 0.0 if magnification is None else magnification,
                 "pupil_magnification": 1.0 if pupil_magnification is None
-                else pupil_magnification, "pupil": pupil or "paper"}
+                else pupil_magnification, "pupil_radiance": pupil_radiance or "paper"}
     if not isinstance(lens, Lens):
         raise TypeError(f"lens must be a Lens (Lens.load(path)), got {type(lens).__name__}")
     if exit_pupil_mm is not None:
@@ -366,7 +368,7 @@ def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
             "magnification": lens.magnification if magnification is None else magnification,
             "pupil_magnification": (lens.pupil_magnification if pupil_magnification is None
                                     else pupil_magnification),
-            "pupil": pupil or lens.pupil_radiance}
+            "pupil_radiance": pupil_radiance or lens.pupil_radiance}
 
 
 def _lens_recorded(calibrated, lens, source):
@@ -383,14 +385,15 @@ def _lens_recorded(calibrated, lens, source):
 def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
                magnification, pupil_magnification, dark, center_px, saturation,
                vignetting_distance_mm, method, inputs, name, tolerance_nm, max_circles,
-               progress, pupil, sensor, sensor_origin_px):
+               progress, pupil_radiance, sensor, sensor_origin_px):
     """:func:`calibrate_lens` with x, m, m_P and the pupil settled (its body)."""
     (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm,
      tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
                                  center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)
     items = _check_inputs(flats, dark, vignetting_distance_mm)
     items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
-    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name, pupil=pupil)
+    base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name,
+                pupil_radiance=pupil_radiance)
     fl, ratios, center, center_source, notes = _prepare_flats(items, center_px, **cleaning)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
     max_cra, fs = ons.max_cra_deg, fl.f_numbers

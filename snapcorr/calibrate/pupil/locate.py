@@ -48,6 +48,7 @@ import numpy as np
 # that import it from here
 from ... import __version__
 from ..._coords import accepts_center_rc
+from ..._validation import renamed_keywords
 from ...optics.lens import Lens
 from ...spectra import colour_filter as colour_filter
 from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
@@ -191,13 +192,14 @@ class PupilFit:
             plt.close(fig)
 
 
+@renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 @_one_blas_thread
 def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
                  target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
-                 name=None, progress=None, scale_circles=None, pupil=None, tolerance_nm=None,
-                 report=None) -> PupilFit:
+                 name=None, progress=None, scale_circles=None, pupil_radiance=None,
+                 tolerance_nm=None, report=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -239,8 +241,9 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         the profile written holds them at the ``x`` found: one run gives a consistent
         profile. Default: when the lens's calibration says it came from flats
         (``exit_pupil_scaling``).
-    pupil : {None, "paper", "lambertian", "auto"}
-        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPILS`). None: the lens's
+    pupil_radiance : {None, "paper", "lambertian", "auto"}
+        How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
+        ``pupil=`` is its earlier name, deprecated). None: the lens's
         (the paper's without a lens). ``"auto"``: both are fitted, and the Lambertian one is
         kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
         same parameters); the choice and the two chi-squares are in the notes and the profile.
@@ -268,20 +271,21 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     ImpreciseTargetError
         (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
     """
-    if lens is not None and lens.has_vignetting and pupil not in (None, lens.pupil_radiance):
+    if (lens is not None and lens.has_vignetting
+            and pupil_radiance not in (None, lens.pupil_radiance)):
         raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} "
-                         "pupil (its "
-                         f"radius sets their onsets); the {pupil} pupil would need them found "
-                         "again: fit flats and target together (calibrate_with_target, "
-                         "snapcorr calibrate --target-cube) with pupil 'auto'")
-    if pupil == "auto":
+                         "pupil (its radius sets their onsets); the "
+                         f"{pupil_radiance} pupil would need them found again: fit flats and "
+                         "target together (calibrate_with_target, snapcorr calibrate "
+                         "--target-cube) with pupil_radiance='auto' (--pupil auto)")
+    if pupil_radiance == "auto":
         return _either_pupil(locals())
     return _locate(**locals())
 
 
 def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, sensor_origin_px,
             magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
-            scale_circles, pupil, tolerance_nm, report):
+            scale_circles, pupil_radiance, tolerance_nm, report):
     """:func:`locate_pupil` for one pupil (its body)."""
     n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
                               fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
@@ -290,8 +294,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
     cubes = _check_cubes(cubes, sensor)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)
-    if pupil is not None:
-        base = dataclasses.replace(base, pupil=pupil)
+    if pupil_radiance is not None:
+        base = dataclasses.replace(base, pupil_radiance=pupil_radiance)
     spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
     nb = sensor.n_bands
     bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
@@ -388,20 +392,20 @@ def _precision_check(problem, fit_k, edge_mm, cwl_nm, tolerance_nm, report, keep
     return before
 
 
-#: ``pupil="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more than this
-#: (the two models have the same parameters: a likelihood ratio of exp(5), as the lens
+#: ``pupil_radiance="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more
+#: than this (the two models have the same parameters: a likelihood ratio of exp(5), as the lens
 #: calibration's :data:`~snapcorr.calibrate.lens.choice.MIN_BIC_GAIN`).
 PUPIL_CHI2_GAIN = 10.0
 
 
 def _either_pupil(args):
-    """``locate_pupil(pupil="auto")``: both pupils fitted, the paper's kept unless the
+    """``locate_pupil(pupil_radiance="auto")``: both pupils fitted, the paper's kept unless the
     Lambertian one fits clearly better."""
-    args = {k: v for k, v in args.items() if k != "pupil"}
+    args = {k: v for k, v in args.items() if k != "pupil_radiance"}
     fits = {}
     for name in ("paper", "lambertian"):
         try:
-            fits[name] = locate_pupil(**args, pupil=name)
+            fits[name] = locate_pupil(**args, pupil_radiance=name)
             args["report"] = None  # the precision said once, for the first pupil fitted
         except FeaturelessTargetError:
             raise

@@ -435,7 +435,8 @@ class TargetModel:
         L = self.lens
         circles = (L.vignetting if self.circles_at_mm is None
                    else scaled_circles(L.vignetting, self.circles_at_mm, x))
-        return Lens(x, circles, L.magnification, L.pupil_magnification, pupil=L.pupil)
+        return Lens(x, circles, L.magnification, L.pupil_magnification,
+                    pupil_radiance=L.pupil_radiance)
 
     def kernels(self, x, *, field=True):
         """Per cube: the kernels of every bin as masses ``w`` at ``sin^2(phi) = u``,

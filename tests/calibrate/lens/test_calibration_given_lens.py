@@ -37,7 +37,7 @@ def _without_record(cal):
 def test_the_lens_gives_x_m_mp_the_pupil_and_the_error_of_x(flats):
     got = _calibrate(flats, lens=KNOWN, exit_pupil_from="pupil.toml")
     same = _calibrate(flats, exit_pupil_mm=21.0, magnification=0.05, pupil_magnification=1.2,
-                      pupil="lambertian", exit_pupil_stderr_mm=0.2)
+                      pupil_radiance="lambertian", exit_pupil_stderr_mm=0.2)
     assert got.lens.vignetting == same.lens.vignetting and got.lens.vignetting
     assert (got.lens.exit_pupil_mm, got.lens.magnification, got.lens.pupil_magnification,
             got.lens.pupil_radiance) == (21.0, 0.05, 1.2, "lambertian")
@@ -70,3 +70,16 @@ def test_what_is_given_wins_over_the_lens_and_its_name_is_the_default_source(fla
 def test_x_comes_from_exactly_one_place(flats, kw, error, words):
     with pytest.raises(error, match=words):
         _calibrate(flats, **kw)
+
+
+def test_pupil_is_the_earlier_name_of_pupil_radiance(flats):
+    """``pupil=`` still works, warns, and gives the lens ``pupil_radiance=`` gives; the
+    Lambertian pupil's radius moves the circle's onsets, so the value is seen to arrive."""
+    two = {f: flats[f] for f in (1.4, 2.0, 8.0)}
+    with pytest.warns(FutureWarning, match="pupil is the earlier name of pupil_radiance"):
+        old = _calibrate(two, exit_pupil_mm=21.0, pupil="lambertian")
+    new = _calibrate(two, exit_pupil_mm=21.0, pupil_radiance="lambertian")
+    assert old.lens.pupil_radiance == new.lens.pupil_radiance == "lambertian"
+    assert old.lens.vignetting == new.lens.vignetting and new.lens.vignetting
+    with pytest.raises(TypeError, match="give pupil_radiance once"):
+        _calibrate(two, exit_pupil_mm=21.0, pupil="paper", pupil_radiance="paper")

@@ -10,6 +10,7 @@ did not make.
 from __future__ import annotations
 
 import functools
+import warnings
 
 import numpy as np
 import pytest
@@ -19,7 +20,6 @@ from flatsim import LensTruth
 
 from snapcorr import Lens
 from snapcorr.calibrate import (
-    FeaturelessTargetError,
     locate_pupil,
     pupil_precision,
 )
@@ -114,29 +114,6 @@ def test_one_f_number_gives_only_the_product():
     assert abs(got.x_n_eff_mm - product) < 0.02 * product
     # x itself is off by the index ratio, as the degeneracy says
     assert got.exit_pupil_mm == pytest.approx(truth.exit_pupil_mm * 1.85 / 1.7, rel=0.02)
-
-
-@pytest.mark.slow  # the command line's refusal is in the default run (test_cli_pupil.py)
-@pytest.mark.parametrize("fit_n_eff", [False, True])
-@pytest.mark.parametrize("noise, seed", [(0.01, 4), (0.005, 0), (0.005, 2)])
-def test_a_white_target_is_refused_in_every_mode(fit_n_eff, noise, seed):
-    """A white tile carries no information about x, with the index fitted or known, at any
-    noise: fitted on every other annulus, its field predicts the annuli in between no better
-    than a field without shift (the gain was -41 to -99 against 90-100 needed). In sample
-    alone the search over x fitted enough noise to pass: x = 22.6 +- 0.45 mm with n_eff
-    fitted, 34.5 +- 1.2 mm with it known, chi-square 1.01-1.02."""
-    with pytest.raises(FeaturelessTargetError, match="fitted on every other annulus"):
-        locate_pupil(cubes("white", "paper", (2.0, 8.0), noise=noise, seed=seed), sensor(),
-                     lens=as_lens(PAPER), fit_n_eff=fit_n_eff)
-
-
-@pytest.mark.slow
-def test_a_weak_real_target_passes_the_held_out_test():
-    """Emission lines under 10 % noise: the field's held-out gain (365) is far above the 5
-    standard deviations of noise needed (about 50); x comes out within 3 standard errors."""
-    got = locate_pupil(cubes("emission_lines", "plain", (2.0, 8.0), noise=0.1, seed=0),
-                       sensor(), lens=as_lens(PLAIN, 30.0), fit_n_eff=True)
-    assert abs(got.exit_pupil_mm - 16.0) < 3 * got.exit_pupil_stderr_mm, got.summary()
 
 
 def test_known_spectrum_and_given_center():
@@ -281,3 +258,37 @@ def test_flats_at_a_guessed_x_then_the_target_give_a_consistent_profile_in_one_r
     scaled = got.lens.calibration["vignetting_scaled"]
     assert scaled["from_x_mm"] == guess
     assert scaled["circles_at_that_x_mm"] == [[P0, h0]]
+
+
+def test_pupil_is_the_earlier_name_of_pupil_radiance():
+    """``pupil=`` still works, warns, and gives the fit ``pupil_radiance=`` gives; a lens whose
+    circles belong to the paper's pupil refuses the other under either name."""
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    kw = {"lens": as_lens(PLAIN), "target_spectrum": sim.colour_filter, "center_px": CENTER,
+          "n_bins": 32}
+    with pytest.warns(FutureWarning, match="pupil is the earlier name of pupil_radiance"):
+        old = locate_pupil(data, sensor(), pupil="lambertian", **kw)
+    new = locate_pupil(data, sensor(), pupil_radiance="lambertian", **kw)
+    assert old.lens.pupil_radiance == new.lens.pupil_radiance == "lambertian"
+    assert old.exit_pupil_mm == new.exit_pupil_mm
+    assert old.exit_pupil_stderr_mm == new.exit_pupil_stderr_mm
+    refused = functools.partial(pytest.raises, ValueError,
+                                match="the lambertian pupil would need them found")
+    with pytest.warns(FutureWarning, match="pupil is the earlier name"), refused():
+        locate_pupil(data, sensor(), lens=as_lens(PAPER), pupil="lambertian")
+    with refused():
+        locate_pupil(data, sensor(), lens=as_lens(PAPER), pupil_radiance="lambertian")
+    with pytest.raises(TypeError, match="give pupil_radiance once"):
+        locate_pupil(data, sensor(), pupil="paper", pupil_radiance="paper", **kw)
+
+
+@pytest.mark.xfail(strict=True, reason="called_from_outside (snapcorr/_validation.py) takes "
+                   "the rename's own wrapper for the caller of accepts_center_rc, so the "
+                   "x-first centre's warning is lost beneath renamed_keywords")
+def test_both_earlier_names_warn_in_one_call():
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(ValueError, match="give at least one cube"):
+            locate_pupil({}, sensor(), center_px=CENTER, pupil="paper")
+    said = {str(w.message).split(" ")[0] for w in seen if w.category is FutureWarning}
+    assert said == {"pupil", "center_px"}

@@ -124,10 +124,3 @@ def test_predict_for_a_sensor_with_measured_responses(tmp_path):
     with pytest.raises(ValueError, match="n_eff"):  # no index and none fitted: refused
         pupil_precision(rare_earth_glass, vendor, (8.0,), PAPER_LENS)
 
-
-def test_a_cube_of_nan_is_refused_naming_it():
-    data = cubes("glass", fs=(2.0,))
-    data[8.0] = make_cube(np.full((*SHAPE, CWL.size), np.nan), CWL)
-    with pytest.raises(ValueError, match=r"the f/8 cube has no finite value"):
-        locate_pupil(data, sensor(), lens=PAPER_LENS, fit_n_eff=True,
-                     tolerance_nm=DEFAULT_TOLERANCE_NM)
