@@ -1,5 +1,5 @@
 """What the exit pupil's x and n_eff rest on: the paper's pupil against a Lambertian pupil that
-obeys the sine condition, fitted with the paper's model and with ``pupil="auto"``.
+obeys the sine condition, fitted with the paper's model and with ``pupil_radiance="auto"``.
 
 The paper's pupil (Goossens et al. 2019, Eq. 28) is a flat disc of radius ``x tan(theta) = x /
 (2 f_W)``, rays weighted uniformly over its area. A lens obeying the sine condition has its
@@ -9,7 +9,8 @@ marginal ray at ``sin(theta) = 1 / (2 f_W)``, and a Lambertian pupil weights eac
 ``rare_earth_glass`` either way (a lens without vignetting, x = 16 mm, n_eff 1.7, 128 x 160
 pixels of 44 um, 30 bands of 12 nm, 0.05 % noise, the centre given); ``locate_pupil`` fits
 them with n_eff known and fitted, from f/2 + f/8 and from f/5.6 + f/11, with the paper's pupil
-and with ``pupil="auto"`` (both fitted, the Lambertian kept for a chi-square gain above 10).
+and with ``pupil_radiance="auto"`` (both fitted, the Lambertian kept for a chi-square gain
+above 10).
 The table gives the pupil chosen, the relative errors of x and n_eff and the z of x.
 
 Writes ``pupil_model.csv`` next to this file unless ``write=False``; ``--quick`` runs one case.
@@ -56,7 +57,7 @@ def _one(job):
         cubes[f] = make_cube(c + rng.normal(0.0, NOISE, c.shape), CWL)
     sensor = Sensor("test", "snapscan", PITCH_UM, CWL, 12.0, N_EFF)
     got = locate_pupil(cubes, sensor, lens=Lens(30.0, ()), fit_n_eff=fit,
-                       center_rc=CENTER[::-1], pupil=model)
+                       center_rc=CENTER[::-1], pupil_radiance=model)
     return {"pupil": pupil, "model": model, "chosen": got.lens.pupil_radiance,
             "f_numbers": "+".join(f"f/{f:g}" for f in pair),
             "n_eff": "fitted" if fit else "known", "seed": seed,

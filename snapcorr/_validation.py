@@ -20,9 +20,17 @@ __all__ = ["REMOVAL_VERSION", "SENSOR_PX_MAX", "WAVELENGTH_NM_RANGE", "called_fr
 REMOVAL_VERSION = "0.3"
 
 
+#: Modules whose decorators pass a call on: their wrappers' frames are not the caller.
+_PASSING_ON = {"snapcorr._validation", "snapcorr._coords"}
+
+
 def called_from_outside(depth):
-    """Whether the caller ``depth`` frames up is outside snapcorr (it gets the warnings)."""
-    name = sys._getframe(depth).f_globals.get("__name__", "")
+    """Whether the caller ``depth`` frames up is outside snapcorr (it gets the warnings); the
+    wrappers of snapcorr's own decorators, stacked on one function, are looked past."""
+    frame = sys._getframe(depth)
+    while frame.f_code.co_name == "wrapper" and frame.f_globals.get("__name__") in _PASSING_ON:
+        frame = frame.f_back
+    name = frame.f_globals.get("__name__", "")
     return not (name == "snapcorr" or name.startswith("snapcorr."))
 
 

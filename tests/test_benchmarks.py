@@ -178,5 +178,5 @@ def test_quick_pupil_model_benchmark_runs():
     rows = pupil_model.run(quick=True, echo=lines.append, write=False, workers=1)
     assert len(rows) == 1 and np.isfinite(rows[0]["x_rel_error"])
     assert lines[-1].startswith("sine")
-    # the sine-condition lens: pupil="auto" takes the Lambertian pupil, and x comes right
+    # the sine-condition lens: pupil_radiance="auto" takes the Lambertian pupil, and x comes right
     assert rows[0]["chosen"] == "lambertian" and abs(rows[0]["x_rel_error"]) < 0.005

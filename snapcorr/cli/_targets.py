@@ -36,7 +36,8 @@ def _add_target_fit_options(group, when=""):
 
 
 def _add_pupil_option(group):
-    """``--pupil``: how the light fills the exit pupil (``snapcorr.optics.lens.PUPILS``)."""
+    """``--pupil``: how the light fills the exit pupil
+    (``snapcorr.optics.lens.PUPIL_RADIANCE_MODELS``)."""
     group.add_argument("--pupil", default=None, choices=["paper", "lambertian", "auto"],
                        help="how the light fills the exit pupil: paper (Goossens 2019 Eq. 28, "
                        "uniform per area), lambertian (sine condition, uniform in direction "

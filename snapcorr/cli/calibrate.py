@@ -169,7 +169,7 @@ def run(args):
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
-            pupil=args.pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
+            pupil_radiance=args.pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     _band_gains_said(res, cal, args)
     lens = dataclasses.replace(res.lens, calibration=cal)
@@ -231,7 +231,7 @@ def _calibrate_with_target(args):
                 max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
                 target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
                 name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
-                target_inputs=seen, progress=bar.step, pupil=args.pupil or "auto",
+                target_inputs=seen, progress=bar.step, pupil_radiance=args.pupil or "auto",
                 target_tolerance_nm=_target_tolerance(args.target_tolerance_nm),
                 report=_say_precision)
     except FeaturelessTargetError as err:

@@ -121,7 +121,7 @@ def run(args):
                                magnification=args.magnification,
                                pupil_magnification=args.pupil_magnification,
                                inputs=seen, name=args.name or args.out.stem,
-                               progress=bar.step, pupil=args.pupil or (
+                               progress=bar.step, pupil_radiance=args.pupil or (
                                    lens.pupil_radiance if lens is not None and lens.has_vignetting
                                    else "auto"),
                                tolerance_nm=_target_tolerance(args.tolerance_nm),

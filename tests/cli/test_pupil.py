@@ -76,7 +76,7 @@ def test_pupil_writes_the_lens_with_x_n_eff_and_provenance(files, cli):
     assert text.index("predicted:") < text.index("exit pupil x =")
     assert cal["predicted_before_fit"]["tolerance_nm"] == 0.05
     # the circles of --lens belong to its pupil: kept, not chosen again
-    assert lens.pupil == "paper" and "pupil_choice" not in cal
+    assert lens.pupil_radiance == "paper" and "pupil_choice" not in cal
     # the sensor with the fitted index, for `snapcorr correct`, says where it came from
     fitted = Sensor.load(sensor_out)
     assert np.allclose(fitted.n_eff, cal["n_eff"]) and fitted.cwl_nm == tuple(CWL)
@@ -96,7 +96,7 @@ def test_a_known_spectrum_from_a_file(files, cli):
     # --pupil auto (the default without circles): both pupils fitted, the paper's kept for
     # these cubes of the paper's pupil
     choice = lens.calibration["pupil_choice"]
-    assert "pupil: paper" in res.stdout and choice["chosen"] == "paper" == lens.pupil
+    assert "pupil: paper" in res.stdout and choice["chosen"] == "paper" == lens.pupil_radiance
     assert res.stdout.count("predicted:") == 1  # the precision said once, not per pupil
     assert choice["chi2"]["lambertian"] > choice["chi2"]["paper"] + 10
     assert abs(lens.exit_pupil_mm - 21.0) < 0.21

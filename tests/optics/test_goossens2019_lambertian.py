@@ -1,4 +1,5 @@
-"""The Lambertian pupil (``Lens(pupil="lambertian")``): the sine condition and cos^4 weights.
+"""The Lambertian pupil (``Lens(pupil_radiance="lambertian")``): the sine condition and cos^4
+weights.
 
 Checked against what snapcorr does not compute itself: the independent quadrature of
 ``tests/oracles/spectralsim.py`` (its "sine" pupil: marginal ray at sin(theta) = 1 / (2 f_W), each
@@ -32,7 +33,7 @@ def _brute(circles, f, cra):
 @pytest.mark.parametrize(("f", "cra"), [(1.4, 0.0), (1.4, 8.0), (1.4, 15.0), (2.8, 15.0),
                                         (8.0, 12.0)])
 def test_mean_shift_matches_an_independent_quadrature(circles, f, cra):
-    lens = Lens(21.0, circles, 0.06, 1.3, pupil="lambertian")
+    lens = Lens(21.0, circles, 0.06, 1.3, pupil_radiance="lambertian")
     want, _ = _brute(circles, f, cra)
     got = float(mean_shift(CWL, N_EFF, f, cra, lens, method="vignetted"))
     assert got == pytest.approx(want, abs=1e-9)
@@ -50,16 +51,17 @@ def test_on_axis_closed_form(f):
     na = 1.0 / (2.0 * f)
     n2 = N_EFF**2
     want = CWL * (2.0 * n2 / (3.0 * na * na) * (1.0 - (1.0 - na * na / n2) ** 1.5) - 1.0)
-    got = float(mean_shift(CWL, N_EFF, f, 0.0, Lens(50.0, pupil="lambertian"), method="ideal"))
+    lens = Lens(50.0, pupil_radiance="lambertian")
+    got = float(mean_shift(CWL, N_EFF, f, 0.0, lens, method="ideal"))
     assert got == pytest.approx(want, abs=1e-9)  # the closed form loses digits at small NA
     # the pupil's radius obeys the sine condition
-    lens = Lens(50.0, pupil="lambertian")
+    lens = Lens(50.0, pupil_radiance="lambertian")
     assert np.sin(np.arctan(lens.exit_pupil_radius_mm(f) / 50.0)) == pytest.approx(na)
 
 
 @pytest.mark.parametrize("circles", CIRCLES[:2], ids=["none", "one"])
 def test_kernel_bins_have_the_weighted_mean_and_spread(circles):
-    lens = Lens(21.0, circles, 0.06, 1.3, pupil="lambertian")
+    lens = Lens(21.0, circles, 0.06, 1.3, pupil_radiance="lambertian")
     for f, cra in ((1.4, 0.0), (1.4, 12.0), (2.8, 15.0)):
         mu, w = kernel_bins(CWL, N_EFF, f, cra, lens, step_nm=0.05)
         want_mean, want_var = _brute(circles, f, cra)
@@ -69,7 +71,7 @@ def test_kernel_bins_have_the_weighted_mean_and_spread(circles):
 
 
 def test_the_fast_methods_follow_the_pupil_or_refuse():
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil="lambertian")
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil_radiance="lambertian")
     cra = np.linspace(0.0, 20.0, 30_000)  # enough for "auto" to build a table
     exact = mean_shift(CWL, N_EFF, 1.4, cra, lens, method="vignetted")
     for method in ("auto", "table"):
@@ -86,15 +88,15 @@ def test_the_fast_methods_follow_the_pupil_or_refuse():
 
 
 def test_profiles_keep_the_pupil_and_old_ones_stay_the_papers(tmp_path):
-    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil="lambertian", name="fast")
+    lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil_radiance="lambertian", name="fast")
     lens.save(tmp_path / "l.toml")
     assert 'pupil = "lambertian"' in (tmp_path / "l.toml").read_text()
     assert Lens.load(tmp_path / "l.toml") == lens
     Lens(21.0).save(tmp_path / "p.toml")
     assert "pupil =" not in (tmp_path / "p.toml").read_text()
-    assert Lens.load(tmp_path / "p.toml").pupil == "paper"
-    with pytest.raises(ValueError, match="pupil must be one of"):
-        Lens(21.0, pupil="gaussian")
+    assert Lens.load(tmp_path / "p.toml").pupil_radiance == "paper"
+    with pytest.raises(ValueError, match="pupil_radiance must be one of"):
+        Lens(21.0, pupil_radiance="gaussian")
 
 
 def test_the_correction_uses_the_profiles_pupil():
@@ -104,7 +106,7 @@ def test_the_correction_uses_the_profiles_pupil():
     sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, N_EFF)
     cube = make_cube(np.ones((30, 40, 5), np.float32), sensor.cwl_nm)
     for pupil in ("paper", "lambertian"):
-        lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil=pupil)
+        lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil_radiance=pupil)
         ds = correct_cube(cube, sensor, 1.4, lens, tolerance_nm=0.001)
         cra = ds["cra_deg"].values
         want = sensor.cwl_nm + mean_shift(np.asarray(sensor.cwl_nm), N_EFF, 1.4,
@@ -133,8 +135,8 @@ def test_auto_chooses_the_pupil_the_target_shows(truth):
             lens=lens_truth, shape=shape, pixel_pitch_um=pitch, center_px=center[::-1])
             + rng.normal(0.0, 0.0005, (*shape, cwl.size)), cwl) for f in (2.0, 8.0)}
         got = locate_pupil(cubes, sensor, lens=Lens(30.0), fit_n_eff=True, center_rc=center,
-                           pupil="auto")
-        assert got.lens.pupil == ("lambertian" if truth == "sine" else "paper")
+                           pupil_radiance="auto")
+        assert got.lens.pupil_radiance == ("lambertian" if truth == "sine" else "paper")
         assert abs(got.exit_pupil_mm / 16.0 - 1) < 0.005
         assert abs(got.exit_pupil_mm - 16.0) < 3 * got.exit_pupil_stderr_mm
         assert abs(got.n_eff[0] - 1.7) < 3 * got.n_eff_stderr[0]
@@ -152,7 +154,7 @@ def test_measured_responses_reach_over_the_lambertian_cone(f, cra_max):
     curves = np.exp(-4 * np.log(2) * ((grid[None] - cwl[:, None]) / fwhm[:, None]) ** 2)
     r = FilterResponses(grid, curves, np.ones(grid.size),
                         [[Peak(c, w, 1.0)] for c, w in zip(cwl, fwhm, strict=True)])
-    lens = Lens(21.0, pupil="lambertian")
+    lens = Lens(21.0, pupil_radiance="lambertian")
     table = MeasuredTable.build(r, 1.7, f, lens, cra_max_deg=cra_max)  # raised before
     assert np.all(np.isfinite(table.centre_nm))
 
@@ -163,14 +165,14 @@ def test_the_pupil_chooser_keeps_the_paper_unless_the_gain_is_clear():
     from snapcorr.calibrate.pupil.locate import PUPIL_CHI2_GAIN, choose_pupil
 
     def results():
-        return {k: SimpleNamespace(notes=[], lens=Lens(21.0, pupil=k))
+        return {k: SimpleNamespace(notes=[], lens=Lens(21.0, pupil_radiance=k))
                 for k in ("paper", "lambertian")}
 
     near = choose_pupil(results(), {"paper": 100.0, "lambertian": 100.0 - PUPIL_CHI2_GAIN},
                         "chi-square")
-    assert near.lens.pupil == "paper" and near.lens.calibration["pupil_choice"]["chosen"] == \
-        "paper"
+    assert near.lens.pupil_radiance == "paper"
+    assert near.lens.calibration["pupil_choice"]["chosen"] == "paper"
     clear = choose_pupil(results(), {"paper": 100.0, "lambertian": 89.0}, "chi-square")
-    assert clear.lens.pupil == "lambertian" and "pupil: lambertian" in clear.notes[0]
+    assert clear.lens.pupil_radiance == "lambertian" and "pupil: lambertian" in clear.notes[0]
     only = choose_pupil({"lambertian": results()["lambertian"]}, {"lambertian": 5.0}, "x")
-    assert only.lens.pupil == "lambertian"
+    assert only.lens.pupil_radiance == "lambertian"

@@ -282,9 +282,6 @@ def test_pupil_is_the_earlier_name_of_pupil_radiance():
         locate_pupil(data, sensor(), pupil="paper", pupil_radiance="paper", **kw)
 
 
-@pytest.mark.xfail(strict=True, reason="called_from_outside (snapcorr/_validation.py) takes "
-                   "the rename's own wrapper for the caller of accepts_center_rc, so the "
-                   "x-first centre's warning is lost beneath renamed_keywords")
 def test_both_earlier_names_warn_in_one_call():
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
