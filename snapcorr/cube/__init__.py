@@ -6,7 +6,7 @@ that must not load every reader and writer first. Reading and writing files is
 :mod:`snapcorr.files`' (re-exported here).
 """
 
-import importlib
+from .._lazy import lazy_names
 
 # ``flatfield`` is also the name of its module: imported here, the function is the attribute
 from .flatfield import flatfield as flatfield
@@ -36,13 +36,4 @@ _HOMES = {
 __all__ = sorted([*_HOMES, "DIMS", "check_cube", "flatfield", "make_cube"])
 
 
-def __getattr__(name):
-    if name in _HOMES:
-        value = getattr(importlib.import_module(_HOMES[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted({*globals(), *_HOMES})
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)

@@ -11,7 +11,7 @@ signals), :mod:`~snapcorr.files.marks` (the writer's mark), :mod:`~snapcorr.file
 :mod:`~snapcorr.files.toml`.
 """
 
-import importlib
+from .._lazy import lazy_names
 
 #: Public name -> the module that defines it. Loaded at first use: the format-blind modules
 #: (safety, reading, marks) import no reader, so the command line starts without them.
@@ -32,13 +32,4 @@ _HOMES = {
 __all__ = sorted(_HOMES)
 
 
-def __getattr__(name):
-    if name in _HOMES:
-        value = getattr(importlib.import_module(_HOMES[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted({*globals(), *_HOMES})
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)
