@@ -126,7 +126,7 @@ def with_transmittance(ds, tr, path=None):
 
 def tile_rows(frame, sensor):
     """Rows per block of a 2-D mosaic frame: whole tiles, about 16 MiB
-    (:data:`~snapcorr.cube.io.BLOCK_BYTES`)."""
+    (:data:`~snapcorr.files.api.BLOCK_BYTES`)."""
     tr = sensor.mosaic_shape[0]
     return max(tr, (BLOCK_BYTES // max(1, frame.sizes["x"] * 4)) // tr * tr)
 

@@ -2,7 +2,9 @@
 names stay as aliases of the same objects."""
 
 import importlib
+import json
 import pkgutil
+from pathlib import Path
 
 import pytest
 
@@ -57,3 +59,15 @@ def test_each_registry_name_holds_one_thing_in_the_package():
                 held.setdefault(name, {})[id(value)] = f"{info.name}.{name}"
     clashes = {name: sorted(where.values()) for name, where in held.items() if len(where) > 1}
     assert not clashes, clashes
+
+
+#: Every public name each module defined or listed in ``__all__`` in release 0.1, before its
+#: modules moved to their rooms (module -> names).
+EARLIER = json.loads((Path(__file__).parent / "data" / "public_names_0.1.json").read_text())
+
+
+@pytest.mark.parametrize("module", sorted(EARLIER))
+def test_every_earlier_public_name_still_imports_from_its_module(module):
+    found = importlib.import_module(module)
+    missing = [name for name in EARLIER[module] if not hasattr(found, name)]
+    assert not missing, missing

@@ -65,10 +65,17 @@ from ._spectra import pdf as _phi
 from ._spectra import smoothed_line_value as _smoothed
 from ._spectra import spectra_pass
 from ._spectra import spectrum_value as _value
-from .matched import MATCH_ALPHA, MatchedTable, harmonise_matched, matched_table
+from .matched import (
+    MATCH_ALPHA,
+    MATCH_PRIOR_MEAN,
+    MATCH_TOLERANCE,
+    MatchedTable,
+    harmonise_matched,
+    matched_table,
+)
 
-__all__ = ["MATCH_ALPHA", "MatchedTable", "NodeWeights", "harmonise_matched", "harmonise_spectra",
-           "matched_table", "node_weights"]
+__all__ = ["MATCH_ALPHA", "MATCH_PRIOR_MEAN", "MATCH_TOLERANCE", "MatchedTable", "NodeWeights",
+           "harmonise_matched", "harmonise_spectra", "matched_table", "node_weights"]
 
 #: The tabulated weights stop at this many (the mass beyond: 6e-5) and are renormalised to
 #: sum to one: fewer terms per value, a flat spectrum still flat.

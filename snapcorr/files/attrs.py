@@ -10,7 +10,7 @@
 - the mark every file snapcorr writes carries (:func:`_mark`, :func:`_version`), and the mark
   tied to the file it was written as (:func:`snapcorr.files.marks.tie_mark`).
 
-See :mod:`snapcorr.cube.io` for how each format holds them.
+See :mod:`snapcorr.files.api` for how each format holds them.
 """
 
 from __future__ import annotations

@@ -17,11 +17,13 @@ whose spectra are shown are picked in :mod:`.picking`, and what all draw with is
 :mod:`.drawing`.
 """
 
-from .correction import plot_correction
-from .drawing import MARKER_MAX_BANDS, MAX_PX
+from .correction import CORRECTION_WIDTH_IN, SPECTRA_HEIGHT_IN, plot_correction
+from .drawing import MARKER_MAX_BANDS, MASKED_COLOUR, MAX_PX
 from .flatfield import plot_flatfield
-from .picking import CANDIDATES_PX, ON_AXIS_DEG, SPECTRA_SHOWN, SPECTRUM_WINDOW_PX
-from .sensor import plot_sensor
+from .picking import CANDIDATES_PX, EDGE_SHARE, ON_AXIS_DEG, SPECTRA_SHOWN, SPECTRUM_WINDOW_PX
+from .sensor import RESPONSE_FLOOR, RESPONSE_MARGIN, plot_sensor
 
-__all__ = ["CANDIDATES_PX", "MARKER_MAX_BANDS", "MAX_PX", "ON_AXIS_DEG", "SPECTRA_SHOWN",
-           "SPECTRUM_WINDOW_PX", "plot_correction", "plot_flatfield", "plot_sensor"]
+__all__ = ["CANDIDATES_PX", "CORRECTION_WIDTH_IN", "EDGE_SHARE", "MARKER_MAX_BANDS",
+           "MASKED_COLOUR", "MAX_PX", "ON_AXIS_DEG", "RESPONSE_FLOOR", "RESPONSE_MARGIN",
+           "SPECTRA_HEIGHT_IN", "SPECTRA_SHOWN", "SPECTRUM_WINDOW_PX", "plot_correction",
+           "plot_flatfield", "plot_sensor"]
