@@ -125,8 +125,8 @@ def check_out_dir(out_dir, *, overwrite=False):
     header or summary line). A folder holding other files and no marker needs
     ``overwrite=True``. Anything but a regular file at one of those names, or at the marker's
     (a symbolic link, a FIFO...), is refused before it is opened. What is at each name is
-    noted (:func:`snapcorr.files.safety.note_checked`): within :func:`run_demo`, a file that appears or
-    changes there later is not replaced.
+    noted (:func:`snapcorr.files.safety.note_checked`): within :func:`run_demo`, a file that
+    appears or changes there later is not replaced.
     """
     out = Path(out_dir)
     if os.path.lexists(out) and not out.is_dir():
