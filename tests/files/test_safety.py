@@ -653,6 +653,7 @@ def _sigint_default():
 
 SCRIPT = textwrap.dedent("""
     import sys
+    import time
 
     import dask.array as da
     import xarray as xr
@@ -660,8 +661,18 @@ SCRIPT = textwrap.dedent("""
     from snapcorr._io import cleanup_on_signals
     from snapcorr.cube import write_dataset
 
+
+    def stalled(block, block_info=None):
+        # from the fifth block on, the write waits: the signal always comes in the middle of
+        # it, however busy the machine is
+        if block_info[0]["chunk-location"][0] >= 4:
+            time.sleep(20)
+        return block
+
+
     data = da.random.random((5000, 1000, 20), chunks=(50, 1000, 20)).astype("float32")
-    ds = xr.Dataset({"radiance": (("y", "x", "band"), data)})  # 400 MB: seconds to write
+    data = data.map_blocks(stalled, dtype="float32")
+    ds = xr.Dataset({"radiance": (("y", "x", "band"), data)})
     with cleanup_on_signals():
         write_dataset(ds, sys.argv[1])
 """)
@@ -683,7 +694,6 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path, ext, signum):
             assert proc.poll() is None, proc.communicate()[1].decode()[-2000:]
             assert time.monotonic() < deadline, "no temporary appeared"
             time.sleep(0.01)
-        time.sleep(0.1)  # into the write
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=120)
     finally:
