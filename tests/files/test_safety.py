@@ -652,6 +652,8 @@ def _sigint_default():
 
 
 SCRIPT = textwrap.dedent("""
+    import faulthandler
+    import signal
     import sys
     import time
 
@@ -664,10 +666,14 @@ SCRIPT = textwrap.dedent("""
 
     def stalled(block, block_info=None):
         # from the fifth block on, the write waits: the signal always comes in the middle of
-        # it, however busy the machine is
+        # it, however busy the machine is (96 blocks of 3 s each); a block already started
+        # when the signal comes delays the exit by its 3 s at most
         if block_info[0]["chunk-location"][0] >= 4:
-            time.sleep(20)
+            time.sleep(3)
         return block
+
+
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # where a stalled exit waits
 
 
     data = da.random.random((5000, 1000, 20), chunks=(50, 1000, 20)).astype("float32")
@@ -695,7 +701,14 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path, ext, signum):
             assert time.monotonic() < deadline, "no temporary appeared"
             time.sleep(0.01)
         proc.send_signal(signum)
-        _, err = proc.communicate(timeout=120)
+        try:
+            _, err = proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGUSR1)
+            time.sleep(2)
+            proc.kill()
+            pytest.fail("the interrupted write did not end; its threads were at:\n"
+                        + proc.communicate()[1].decode()[-6000:])
     finally:
         proc.kill()
         proc.wait()
