@@ -101,7 +101,7 @@ def test_mosaic_extraction_against_a_loop(name):
     s = Sensor.load(sensor_path(name))
     tr, tc = s.mosaic_shape
     raw = np.random.default_rng(1).integers(0, 4096, (3 * tr, 4 * tc)).astype(np.uint16)
-    cube = mosaic_to_cube(raw, s, origin_px=(100, 200))
+    cube = mosaic_to_cube(raw, s, sensor_origin_px=(100, 200))
     assert cube.shape == (3, 4, s.n_bands) and cube.dtype == np.uint16
     for y in range(3):
         for x in range(4):
@@ -109,7 +109,7 @@ def test_mosaic_extraction_against_a_loop(name):
                 assert cube.values[y, x, b] == raw[y * tr + r, x * tc + c]
                 assert cube.sensor_row.values[y, b] == 100 + y * tr + r
                 assert cube.sensor_col.values[x, b] == 200 + x * tc + c
-    lazy = mosaic_to_cube(da.from_array(raw, chunks=(tr, 2 * tc)), s, origin_px=(100, 200))
+    lazy = mosaic_to_cube(da.from_array(raw, chunks=(tr, 2 * tc)), s, sensor_origin_px=(100, 200))
     assert isinstance(lazy.data, da.Array)
     xr.testing.assert_identical(lazy.compute(), cube)
 
@@ -119,11 +119,11 @@ def test_mosaic_errors():
     with pytest.raises(ValueError, match="origin_px"):  # not the sensor's size, no origin
         mosaic_to_cube(np.zeros((8, 8)), s)
     with pytest.raises(ValueError, match="no whole 4 x 4 tile"):
-        mosaic_to_cube(np.zeros((3, 8)), s, origin_px=(0, 0))
+        mosaic_to_cube(np.zeros((3, 8)), s, sensor_origin_px=(0, 0))
     with pytest.raises(ValueError, match="already split into bands"):
-        mosaic_to_cube(np.zeros((8, 8, 16)), s, origin_px=(0, 0))
+        mosaic_to_cube(np.zeros((8, 8, 16)), s, sensor_origin_px=(0, 0))
     with pytest.raises(ValueError, match="whole numbers"):
-        mosaic_to_cube(np.zeros((8, 8)), s, origin_px=(1.5, 0))
+        mosaic_to_cube(np.zeros((8, 8)), s, sensor_origin_px=(1.5, 0))
     with pytest.raises(ValueError, match="not a mosaic"):
         mosaic_to_cube(np.zeros((8, 8)), Sensor.load(sensor_path("snapscan_vnir")))
 
@@ -144,7 +144,7 @@ def test_a_frame_may_start_anywhere_and_keeps_the_band_layout(name, origin):
     r = origin[0] + np.arange(rows)[:, None]
     c = origin[1] + np.arange(cols)[None, :]
     raw = (r * 10_000 + c).astype(np.int64)  # each value says where it was taken
-    cube = mosaic_to_cube(raw, s, origin_px=origin)
+    cube = mosaic_to_cube(raw, s, sensor_origin_px=origin)
     tr, tc = s.mosaic_shape
     lo_r, lo_c, n_r, n_c = cube.attrs["mosaic_area_px"]
     assert cube.shape == (n_r // tr, n_c // tc, s.n_bands)
@@ -386,9 +386,9 @@ def test_a_snapshot_has_no_scan_axis_and_references_keep_their_ignore_value():
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     rng = np.random.default_rng(0)
     frame = rng.uniform(100, 200, (32, 32))
-    raw = mosaic_to_cube(frame, sensor, origin_px=(64, 64))
-    white = mosaic_to_cube(np.full((28, 32), 400.0), sensor, origin_px=(64, 64))
-    dark = mosaic_to_cube(np.zeros((32, 32)), sensor, origin_px=(64, 64))
+    raw = mosaic_to_cube(frame, sensor, sensor_origin_px=(64, 64))
+    white = mosaic_to_cube(np.full((28, 32), 400.0), sensor, sensor_origin_px=(64, 64))
+    dark = mosaic_to_cube(np.zeros((32, 32)), sensor, sensor_origin_px=(64, 64))
     with pytest.raises(ValueError, match="a snapshot has no scan axis"):
         flatfield(raw, dark, white)
     raw = _placed(np.full((4, 3, 2), 500.0))

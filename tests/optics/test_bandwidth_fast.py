@@ -20,10 +20,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from snapcorr.optics import FwhmTable, response_fwhm
 from snapcorr.optics import bandwidth as bw
+from snapcorr.optics.aperture import max_radius_mm, min_radius_mm
 from snapcorr.optics.bandwidth import band_profile, kernel_log_variance, refine_nodes
 from snapcorr.optics.goossens2019 import _gauss_legendre, kernel, mean_shift_contour
 from snapcorr.optics.mean import _geometry
-from snapcorr.optics.pupil import max_radius_mm, min_radius_mm
 from snapcorr.optics.response import kernel_bins, kernel_bins_batch
 from snapcorr.optics.shift import shift_nm
 
@@ -34,7 +34,7 @@ LENSES = {
     "none": replace(PAPER_LENS, vignetting=()),
     "one": PAPER_LENS,
     "two": replace(PAPER_LENS, vignetting=(PAPER_CIRCLE, REAR_CIRCLE)),
-    "lambertian": replace(PAPER_LENS, pupil="lambertian"),
+    "lambertian": replace(PAPER_LENS, pupil_radiance="lambertian"),
 }
 #: Bands of two effective indices (computed in two groups) and several widths.
 CWL = np.array([470.0, 560.0, 655.0, 780.0, 900.0])
@@ -54,9 +54,9 @@ ATOL_NM = 1e-6
 def reference_kernel_bins(cwl, n_eff, f_number, cra_deg, lens, step_nm, nodes=6):
     """``kernel_bins`` for one angle as it was written before the batch."""
     x, R, d, P, dv = _geometry(f_number, cra_deg, lens)
-    exact = float(mean_shift_contour(cwl, n_eff, x, R, d, P, dv, pupil=lens.pupil))
-    rmin = float(min_radius_mm(d, R, dv, P))
-    rmax = float(max_radius_mm(d, R, dv, P))
+    exact = float(mean_shift_contour(cwl, n_eff, x, R, d, P, dv, pupil=lens.pupil_radiance))
+    rmin = float(min_radius_mm(R, d, P, dv))
+    rmax = float(max_radius_mm(R, d, P, dv))
     lo, hi = (float(shift_nm(cwl, n_eff, np.rad2deg(np.arctan(r / x)))) for r in (rmax, rmin))
     nbins = max(8, int(np.ceil((hi - lo) / step_nm)))
     edges = np.linspace(lo, hi, nbins + 1)
@@ -64,7 +64,7 @@ def reference_kernel_bins(cwl, n_eff, f_number, cra_deg, lens, step_nm, nodes=6)
     half = 0.5 * np.diff(edges)
     lam = (edges[:-1] + half)[:, None] + half[:, None] * xi
     K = kernel(lam, cwl, n_eff, x, R, d, P, dv)
-    if lens.pupil == "lambertian":
+    if lens.pupil_radiance == "lambertian":
         sin2 = np.clip(n_eff * n_eff * (1.0 - (1.0 + lam / cwl) ** 2), 0.0, 1.0)
         K = K * (1.0 - sin2) ** 2
     mass = (K * w).sum(axis=1) * half
