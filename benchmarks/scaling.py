@@ -13,7 +13,7 @@ uniform random values. The pixel pitch scales with 1/n, so every size spans the 
    (1 means linear). Peak memory is the process's resident-set peak (``ru_maxrss``), minus the
    resident set just before the cube is made, over the cube's bytes; it includes the input.
 2. **Dask blocks.** The same correction on a dask-backed cube in blocks of whole rows of
-   about ``snapcorr.cube.io.BLOCK_BYTES``, as ``snapcorr correct`` streams it. It is run twice:
+   about ``snapcorr.files.api.BLOCK_BYTES``, as ``snapcorr correct`` streams it. It is run twice:
    from a numpy cube in memory, computing the corrected wavelengths and the resampled cube, and
    from a zarr file to a zarr file with snapcorr's own reader and writer (the larger-than-memory
    case: the input, the corrected wavelengths, the chief-ray angles and the resampled cube are
@@ -47,7 +47,7 @@ import numpy as np
 from snapcorr import Lens
 from snapcorr.correct import correct_cube
 from snapcorr.cube import Sensor, make_cube, read_cube, row_blocks, write_cube
-from snapcorr.cube.io import BLOCK_BYTES, write_dataset
+from snapcorr.files.api import BLOCK_BYTES, write_dataset
 
 from . import pyplot, write_csv
 

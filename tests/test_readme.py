@@ -137,7 +137,7 @@ def test_readme_uses_no_deprecated_form():
 
 def test_envi_result_files_are_named():
     """Every image `correct --out STEM.hdr` writes is named in the README."""
-    from snapcorr.cube.envi_result import IMAGES
+    from snapcorr.files.envi_result import IMAGES
 
     text = README.read_text()
     missing = [name for name in IMAGES if f"STEM_{name}.hdr" not in text]

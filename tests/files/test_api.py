@@ -11,8 +11,8 @@ import xarray as xr
 from numpy.testing import assert_allclose, assert_array_equal
 
 from snapcorr.cube import make_cube, read_frame
-from snapcorr.cube.io import read_cube, write_cube
 from snapcorr.cube.model import with_positions
+from snapcorr.files.api import read_cube, write_cube
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from snapcorr.cube.blockfile import RowBlockFile, lazy_file_array
+from snapcorr.files.blockfile import RowBlockFile, lazy_file_array
 
 KEYS = [np.s_[:], np.s_[2:5], np.s_[::2, 1:3], np.s_[3], np.s_[[1, 4, 6], :, 2], np.s_[5:2],
         np.s_[-1], np.s_[1:6:2, ::-1]]

@@ -11,7 +11,7 @@ import pytest
 import xarray as xr
 
 from snapcorr.cube import make_cube, read_dataset, write_cube, write_dataset
-from snapcorr.cube.datasets import PACKED_FILL, PACKED_TOP, RATIO_PACK_RANGE
+from snapcorr.files.datasets import PACKED_FILL, PACKED_TOP, RATIO_PACK_RANGE
 
 NB = 6
 WL = np.linspace(500.0, 600.0, NB)
@@ -150,7 +150,7 @@ def test_the_command_line_stores_as_asked_and_refuses_envi_packing(tmp_path, cli
     res = cli(*args, "--dtype", "float32", "--pack-range", "0,2", "--out", "p.zarr",
               cwd=tmp_path)
     assert res.returncode == 1 and "goes with --dtype uint16" in res.stderr
-    from snapcorr.cube.datasets import check_storage
+    from snapcorr.files.datasets import check_storage
 
     for dtype in ("uint16", "float16"):
         with pytest.raises(ValueError, match="ENVI has no packing"):

@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from snapcorr.cube.frames import natural_order
+from snapcorr.files.frames import natural_order
 
 
 @pytest.mark.parametrize("ordered", [

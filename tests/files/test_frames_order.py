@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from snapcorr.cube import read_frames
-from snapcorr.cube.frames import FRAME_ORDER, natural_order
+from snapcorr.files.frames import FRAME_ORDER, natural_order
 
 ORDERED = [
     ["t0.25.npy", "t0.5.npy", "t0.75.npy", "t1.npy"],  # decimal times

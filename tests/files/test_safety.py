@@ -16,7 +16,6 @@ import pytest
 import xarray as xr
 from conftest import deadline
 
-from snapcorr import _io
 from snapcorr.calibrate import read_flat
 from snapcorr.cube import (
     check_cube,
@@ -27,6 +26,7 @@ from snapcorr.cube import (
     write_cube,
     write_dataset,
 )
+from snapcorr.files import safety
 
 WL = np.array([500.0, 550.0, 600.0, 650.0])
 READERS = {"read_cube": lambda p: read_cube(p, wavelength_nm=WL), "read_flat": read_flat,
@@ -464,11 +464,11 @@ def test_a_failed_overwrite_leaves_the_old_result_in_place(tmp_path, ext):
     old = _cube().to_dataset()
     write_dataset(old, path)
     before = _snapshot(tmp_path)
-    registered = set(_io.temporary_paths())
+    registered = set(safety.temporary_paths())
     with pytest.raises(OSError, match="disk full"):
         write_dataset(_failing(_cube(np.float32).to_dataset()), path, overwrite=True)
     assert _snapshot(tmp_path) == before
-    assert set(_io.temporary_paths()) == registered
+    assert set(safety.temporary_paths()) == registered
     name = next(iter(old.data_vars))  # an integer cube: "raw"
     xr.testing.assert_equal(read_dataset(path)[name], old[name])
 
@@ -500,9 +500,9 @@ def test_atomic_writes_never_replace_a_folder_by_a_file_or_a_file_by_a_folder(tm
     before = _snapshot(tmp_path)
     with pytest.raises(ValueError, match=r"plot\.png exists and is a folder; it is not "
                                          r"replaced by a file"):
-        _io.atomic_write(tmp_path / "plot.png", lambda tmp: tmp.write_text("png"))
+        safety.atomic_write(tmp_path / "plot.png", lambda tmp: tmp.write_text("png"))
     with pytest.raises(ValueError, match=r"store\.zarr exists and is a regular file"):
-        _io.atomic_write_dir(tmp_path / "store.zarr", lambda tmp: None)
+        safety.atomic_write_dir(tmp_path / "store.zarr", lambda tmp: None)
     assert _snapshot(tmp_path) == before
 
 
@@ -526,8 +526,9 @@ def test_what_appears_at_the_output_during_the_write_is_never_replaced(tmp_path)
     def file(t):
         t.write_text("someone else's")
 
-    cases = [(_io.atomic_write, "out.png", file), (_io.atomic_write, "out.png", folder),
-             (_io.atomic_write_dir, "out.zarr", folder), (_io.atomic_write_dir, "out.zarr", file)]
+    write, write_dir = safety.atomic_write, safety.atomic_write_dir
+    cases = [(write, "out.png", file), (write, "out.png", folder),
+             (write_dir, "out.zarr", folder), (write_dir, "out.zarr", file)]
     for i, (writer, name, make) in enumerate(cases):
         target = tmp_path / str(i) / name
         target.parent.mkdir()
@@ -545,7 +546,7 @@ def test_what_appears_at_the_output_during_the_write_is_never_replaced(tmp_path)
         (folder / "g.raw").write_text("ours")
 
     with pytest.raises(FileExistsError, match="appeared while the output was written"):
-        _io.atomic_write_files([raw, hdr], write_group)
+        safety.atomic_write_files([raw, hdr], write_group)
     assert raw.read_text() == "someone else's data" and not hdr.exists()
 
 
@@ -561,11 +562,11 @@ def test_a_checked_output_swapped_during_the_write_is_put_back(tmp_path):
         tmp.write_text("new table")
 
     with pytest.raises(FileExistsError, match="changed while the output was written"):
-        _io.atomic_write(target, write)
+        safety.atomic_write(target, write)
     assert target.read_text() == "a new file the user put there"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
     # unchanged, it is replaced as before
-    _io.atomic_write(target, lambda tmp: tmp.write_text("new table"))
+    safety.atomic_write(target, lambda tmp: tmp.write_text("new table"))
     assert target.read_text() == "new table"
 
 
@@ -582,7 +583,7 @@ def test_an_interrupted_final_move_leaves_neither_reservation_nor_temporary(tmp_
 
     monkeypatch.setattr(os, "rename", rename)
     with pytest.raises(KeyboardInterrupt):
-        _io.atomic_write_dir(tmp_path / "out.zarr", lambda tmp: (tmp / "zarr.json").write_text(
+        safety.atomic_write_dir(tmp_path / "out.zarr", lambda tmp: (tmp / "zarr.json").write_text(
             "{}"))
     monkeypatch.undo()
     assert list(tmp_path.iterdir()) == []
@@ -598,7 +599,7 @@ def test_two_writers_of_one_output_never_both_succeed(tmp_path):
         tmp.write_text("second")
 
     with pytest.raises(FileExistsError, match="second snapcorr writing the same output"):
-        _io.atomic_write(out, slow_second)
+        safety.atomic_write(out, slow_second)
     assert np.array_equal(read_cube(out).values, cube.values)
 
 
@@ -610,38 +611,38 @@ def test_atomic_write_removes_its_temporary_on_keyboard_interrupt(tmp_path):
         tmp.write_bytes(b"half")
         raise KeyboardInterrupt
 
-    registered = set(_io.temporary_paths())
+    registered = set(safety.temporary_paths())
     with pytest.raises(KeyboardInterrupt):
-        _io.atomic_write(tmp_path / "x.nc", write)
-    assert not list(tmp_path.iterdir()) and set(_io.temporary_paths()) == registered
+        safety.atomic_write(tmp_path / "x.nc", write)
+    assert not list(tmp_path.iterdir()) and set(safety.temporary_paths()) == registered
 
 
 def test_the_registry_holds_only_temporaries_that_exist(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # relative paths, as the command line gives them
-    registered = set(_io.temporary_paths())
+    registered = set(safety.temporary_paths())
     cube = _cube()
     for name in ("c.nc", "c.zarr", "c.hdr", "c.npy", "c.tif"):
         write_cube(cube, name)
         write_cube(cube, name, overwrite=True)
-    assert set(_io.temporary_paths()) == registered
+    assert set(safety.temporary_paths()) == registered
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
 def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_path):
     before = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)}
     left = tmp_path / ".left.x"
-    with pytest.raises(KeyboardInterrupt, match="SIGTERM"), _io.cleanup_on_signals():
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"), safety.cleanup_on_signals():
         left.write_text("partial")
-        _io._register(left)
+        safety._register(left)
         assert signal.getsignal(signal.SIGTERM) is not before[signal.SIGTERM]
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(5)  # interrupted long before
-    assert not left.exists() and _io._key(left) not in map(str, _io.temporary_paths())
+    assert not left.exists() and safety._key(left) not in map(str, safety.temporary_paths())
     assert {s: signal.getsignal(s) for s in before} == before
     folder = tmp_path / ".left.zarr"
-    with _io.cleanup_on_signals():  # leaving normally cleans up too
+    with safety.cleanup_on_signals():  # leaving normally cleans up too
         (folder / "c").mkdir(parents=True)
-        _io._register(folder)
+        safety._register(folder)
     assert not folder.exists()
 
 
@@ -660,7 +661,7 @@ SCRIPT = textwrap.dedent("""
     import dask.array as da
     import xarray as xr
 
-    from snapcorr._io import cleanup_on_signals
+    from snapcorr.files.safety import cleanup_on_signals
     from snapcorr.cube import write_dataset
 
 
