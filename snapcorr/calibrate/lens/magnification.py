@@ -124,6 +124,13 @@ def ratio_range(magnification=None, pupil_magnification=None, lens=None):
     A ``lens``'s values count as given (a lens file states them), unless its own record
     says they were assumed (``[calibration.magnification]``, ``assumed = true``).
 
+    Parameters
+    ----------
+    magnification, pupil_magnification : float, optional
+        m and m_P as given (None: not given).
+    lens : Lens, optional
+        The lens given to the calibration, whose m and m_P stand in for those not given.
+
     Returns
     -------
     (str, float, (float, float))
@@ -172,7 +179,7 @@ def _held(res):
             if f"h{i + 1 if i else ''}_mm" in held}
 
 
-def spread(res, given, ratio, rng):
+def _spread(res, given, ratio, rng):
     """:class:`MagnificationSpread` of a calibration ``res`` made with ``m / m_P = ratio``
     over ``rng``."""
     lo, hi = rng
@@ -218,10 +225,26 @@ def account_for_magnifications(res, magnification=None, pupil_magnification=None
     ``res.shift_stderr_nm`` (and the profile's) include the spread in quadrature, the
     profile's ``[calibration.magnification]`` table records the assumption, the range, the
     spread and P's and h's errors with it, a note is added and a
-    :class:`MagnificationWarning` issued. Returns ``res`` (changed in place).
+    :class:`MagnificationWarning` issued.
+
+    Parameters
+    ----------
+    res : LensCalibration
+        The calibration made with m and m_P as given or assumed; changed in place.
+    magnification, pupil_magnification : float, optional
+        As given to the calibration (None: not given).
+    lens : Lens, optional
+        As given to the calibration.
+    stacklevel : int
+        Of the warning.
+
+    Returns
+    -------
+    LensCalibration
+        ``res``.
     """
     given, ratio, rng = ratio_range(magnification, pupil_magnification, lens)
-    sp = spread(res, given, ratio, rng)
+    sp = _spread(res, given, ratio, rng)
     if not sp.assumed:
         return res
     note = _note(sp)
@@ -269,7 +292,23 @@ def calibrate_lens(flats, *, magnification=None, pupil_magnification=None, lens=
     """:func:`snapcorr.calibrate.calibrate_lens`, with the assumed magnifications' spread in
     its errors (:func:`account_for_magnifications`): where m and m_P are not given (nor by
     ``lens``), a :class:`MagnificationWarning`, a note, the record in the profile and the
-    spread over the plausible range in the errors of P, h and the mean shift."""
+    spread over the plausible range in the errors of P, h and the mean shift.
+
+    Parameters
+    ----------
+    flats : mapping
+        f-number -> 2-D flat field.
+    magnification, pupil_magnification : float, optional
+        m and m_P (None: not given, assumed 0 and 1 and their spread in the errors).
+    lens : Lens, optional
+        A lens whose x (and m, m_P) are known.
+    **kw
+        The other keywords of :func:`snapcorr.calibrate.calibrate_lens`.
+
+    Returns
+    -------
+    LensCalibration
+    """
     from .calibration import calibrate_lens as _calibrate
 
     res = _calibrate(flats, magnification=magnification,
