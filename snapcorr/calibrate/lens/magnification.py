@@ -199,9 +199,14 @@ def _spread(res, given, ratio, rng):
                                tuple(rms(dh)) if dh[0] else (), np.nan_to_num(rms(ds)))
 
 
-def _note(sp):
+def _note(sp, fit_nm):
+    """The note of an assumption ``sp``, with the flats' own shift errors ``fit_nm``."""
     lo, hi = sp.ratio_range
     worst = float(np.max(sp.shift_nm)) if sp.shift_nm.size else 0.0
+    k = int(np.argmax(sp.shift_nm)) if sp.shift_nm.size else 0
+    flats = float(fit_nm[k]) if fit_nm.size > k and np.isfinite(fit_nm[k]) else 0.0
+    sets = ("; it, not the flats' noise, sets the error: more frames do not lower it"
+            if worst > flats else "")
     what = {"neither": "no magnifications given: m = 0 (focused at infinity) and m_P = 1 "
                        f"assumed; m / m_P judged over [{lo:g}, {hi:g}]",
             "m only": f"no pupil magnification given: m_P = 1 assumed; m_P judged over "
@@ -210,7 +215,8 @@ def _note(sp):
                         f"m / m_P judged over [{lo:g}, {hi:g}]"}[sp.given]
     return (f"{what}. The flats cannot tell 1 + m / m_P (the working f-number, Eq. 27) from "
             "a common scale of P and h, so P, h and the mean shift are only as good as the "
-            f"assumption: their errors include its spread (mean shift up to {worst:.3g} nm); "
+            f"assumption: their errors include its spread (mean shift up to {worst:.3g} nm"
+            f"{sets}); "
             "give m and m_P (--magnification, --pupil-magnification; m = 0 alone if the "
             "lens was focused at infinity) to remove this term")
 
@@ -247,7 +253,7 @@ def account_for_magnifications(res, magnification=None, pupil_magnification=None
     sp = _spread(res, given, ratio, rng)
     if not sp.assumed:
         return res
-    note = _note(sp)
+    note = _note(sp, res.shift_stderr_nm)
     warnings.warn(note, MagnificationWarning, stacklevel=stacklevel)
     if sp.shift_nm.size:
         base = (res.shift_stderr_nm if res.shift_stderr_nm.size
@@ -257,8 +263,9 @@ def account_for_magnifications(res, magnification=None, pupil_magnification=None
     res.magnification_spread = sp
     cal = dict(res.lens.calibration)
     cal["magnification"] = _table(res, sp)
-    if "shift_stderr_nm" in cal or sp.shift_nm.size:
+    if sp.shift_nm.size:
         cal["shift_stderr_nm"] = [_clean(v) for v in res.shift_stderr_nm]
+        cal.setdefault("shift_stderr_filter", [choice.REFERENCE_CWL_NM, choice.REFERENCE_N_EFF])
     cal["notes"] = [*cal.get("notes", []), note]
     res.lens = dataclasses.replace(res.lens, calibration=cal)
     return res

@@ -105,3 +105,23 @@ def test_assumed_magnifications_are_said_and_their_errors_cover_the_truth():
     assert "magnification" not in got.lens.calibration
     assert got.notes == plain.notes
     assert "magnifications assumed" not in got.summary()
+
+
+def test_without_vignetting_the_working_f_number_alone_is_in_the_errors():
+    """No circle: the flats still cannot tell f_W, and the mean shift of the open pupil
+    depends on it; its error is the spread alone, and it covers the true error."""
+    truth = replace(PAPER_TRUTH, circles=())
+    fs = (1.4, 4.0)
+    scene = dict(shape=(96, 120), pitch_um=75.7, center_px=(65.5, 44.9))
+    flats = make_flats(truth, fs, noise=0.005, seed=11, **scene)
+    with pytest.warns(mag.MagnificationWarning, match="not the flats' noise"):
+        res = mag.calibrate_lens(flats, exit_pupil_mm=truth.exit_pupil_mm,
+                                 pixel_pitch_um=scene["pitch_um"], method="joint")
+    assert res.model == "none" and not res.lens.vignetting
+    cra = np.linspace(0.0, res.max_cra_deg, 21)
+    true = np.array([np.max(np.abs(
+        snapcorr.mean_shift(CWL, N_EFF, f, cra, res.lens, method="vignetted")
+        - mean_shift_nm(truth, CWL, N_EFF, f, cra))) for f in fs])
+    z = true / res.shift_stderr_nm
+    assert np.all((z > 0.5) & (z < 2)), z
+    assert res.lens.calibration["shift_stderr_filter"] == [CWL, N_EFF]
