@@ -231,7 +231,8 @@ def account_for_magnifications(res, magnification=None, pupil_magnification=None
     ``res.shift_stderr_nm`` (and the profile's) include the spread in quadrature, the
     profile's ``[calibration.magnification]`` table records the assumption, the range, the
     spread and P's and h's errors with it, a note is added and a
-    :class:`MagnificationWarning` issued.
+    :class:`MagnificationWarning` issued. A second call on the same ``res`` changes
+    nothing.
 
     Parameters
     ----------
@@ -249,6 +250,8 @@ def account_for_magnifications(res, magnification=None, pupil_magnification=None
     LensCalibration
         ``res``.
     """
+    if getattr(res, "magnification_spread", None) is not None:
+        return res  # accounted for already: the spread enters once
     given, ratio, rng = ratio_range(magnification, pupil_magnification, lens)
     sp = _spread(res, given, ratio, rng)
     if not sp.assumed:

@@ -125,3 +125,9 @@ def test_without_vignetting_the_working_f_number_alone_is_in_the_errors():
     z = true / res.shift_stderr_nm
     assert np.all((z > 0.5) & (z < 2)), z
     assert res.lens.calibration["shift_stderr_filter"] == [CWL, N_EFF]
+    before = res.shift_stderr_nm.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", mag.MagnificationWarning)
+        assert mag.account_for_magnifications(res) is res  # once only
+    assert np.array_equal(res.shift_stderr_nm, before)
+    assert sum("no magnifications given" in n for n in res.notes) == 1
