@@ -109,10 +109,13 @@ def add_parser(subparsers):
     p.add_argument("--pixel-pitch-um", type=_positive, default=None, metavar="UM",
                    help="pixel pitch of the flats, micrometres (default: the --sensor's)")
     p.add_argument("--magnification", type=float, default=None,
-                   help="linear magnification m (default 0: focused at infinity, or the "
-                   "--lens value)")
+                   help="linear magnification m (default: the --lens value, else 0, "
+                   "focused at infinity, assumed: the flats cannot tell it, and the errors "
+                   "then include m / m_P over [0, 0.1]; give 0 if focused at infinity)")
     p.add_argument("--pupil-magnification", type=_positive, default=None,
-                   help="pupil magnification m_P (default 1, or the --lens value)")
+                   help="pupil magnification m_P (default: the --lens value, else 1, "
+                   "assumed; with --magnification > 0 the errors then include m_P over "
+                   "[0.5, 2])")
     p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
     _add_center(p, "optical centre in pixels (default: found from the flats)")
     p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
@@ -140,7 +143,7 @@ def add_parser(subparsers):
 def run(args):
     import dataclasses
 
-    from ..calibrate import calibrate_lens
+    from ..calibrate.lens.magnification import calibrate_lens
 
     _one_per_f_number(args.flat, "flat")
     if args.target_cube:
@@ -180,6 +183,16 @@ def run(args):
     _no_dark_note(args)
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
+
+
+def _magnifications_said(args):
+    """With a target, m and m_P left out are assumed (0 and 1) and the errors do not hold
+    their spread: say so, and what to give."""
+    if args.magnification is None or (args.magnification and args.pupil_magnification is None):
+        print("note: --magnification / --pupil-magnification not given: m = 0 (focused at "
+              "infinity) and m_P = 1 assumed, and the flats cannot tell them (Eq. 27); "
+              "P and h scale with 1 / (1 + m / m_P) and the reported errors take the "
+              "assumption as exact: give both to be sure", file=sys.stderr)
 
 
 _TARGET_OPTIONS = ("fit_n_eff", "sensor_out", "target_spectrum", "target_tolerance_nm")
@@ -236,6 +249,7 @@ def _calibrate_with_target(args):
                 report=_say_precision)
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
+    _magnifications_said(args)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     lens = dataclasses.replace(res.lens, calibration=cal)
     lens.save(args.out, overwrite=args.overwrite)

@@ -69,8 +69,11 @@ def summary(res) -> str:
     if res.shift_stderr_nm.size:
         err = ", ".join(f"f/{f:g} {e:.4f}" for f, e in
                         zip(res.f_numbers, res.shift_stderr_nm, strict=True))
-        lines.append(f"mean-shift standard error from P and h (largest over the field), nm, "
+        sp = getattr(res, "magnification_spread", None)
+        src = "P, h and the assumed magnifications" if sp is not None else "P and h"
+        lines.append(f"mean-shift standard error from {src} (largest over the field), nm, "
                      f"same filter: {err}")
+    lines += _magnification_lines(res)
     if res.predictive:
         per = " | ".join(
             f"{name}: " + ", ".join(f"f/{f:g} {c:.4g}" for f, c in pred.chi2.items())
@@ -81,6 +84,24 @@ def summary(res) -> str:
     lines.append(f"why: {res.reason}")
     lines.extend(f"note: {n}" for n in res.notes)
     return "\n".join(lines)
+
+
+def _magnification_lines(res):
+    """What the assumed magnifications leave (:mod:`snapcorr.calibrate.lens.magnification`):
+    P's and h's errors with their spread; nothing where m and m_P were given."""
+    sp = getattr(res, "magnification_spread", None)
+    rec = res.lens.calibration.get("magnification", {})
+    if sp is None or not isinstance(rec, dict):
+        return []
+    lo, hi = sp.ratio_range
+    out = [f"magnifications assumed (m = {res.lens.magnification:g}, m_P = "
+           f"{res.lens.pupil_magnification:g}; m / m_P judged over [{lo:g}, {hi:g}]): the "
+           "flats cannot tell them; give --magnification and --pupil-magnification"]
+    for i, (P, h) in enumerate(res.lens.vignetting):
+        if i < len(rec.get("P_stderr_mm", ())):
+            out.append(f"  circle {i + 1}: P = {P:.4f} +- {rec['P_stderr_mm'][i]:.4f} mm, "
+                       f"h = {h:.3f} +- {rec['h_stderr_mm'][i]:.3f} mm with that spread")
+    return out
 
 
 def plot(res, ax=None):
