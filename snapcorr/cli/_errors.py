@@ -13,6 +13,7 @@ _CLI_TERMS = {
     "virtual_wavelengths_nm": "--virtual-wavelengths",
     "virtual_fwhm_nm": "--virtual-fwhm-nm",
     "overwrite=True": "--overwrite",
+    "a packing range goes with": "--pack-range goes with",
     "but wavelength_nm gives": "but the --sensor has",
     "(read a 2-D frame with read_frame)": "(a 2-D raw frame of a mosaic camera is read with "
                                           "that camera's --sensor, whose layout is mosaic)",

@@ -266,9 +266,6 @@ def _check_storage_option(args):
         args.dtype = "float32"
     suffix = args.out.suffix.lower()
     fmt = {".nc": "netcdf", ".zarr": "zarr", ".hdr": "envi"}.get(suffix)
-    if args.pack_range is not None and args.storage != "uint16":
-        raise ValueError(f"--pack-range goes with --dtype uint16"
-                         f"{'' if args.storage is None else f', not {args.storage}'}")
     check_storage(args.storage, args.pack_range, fmt, what="--dtype")
 
 
