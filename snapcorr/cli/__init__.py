@@ -18,7 +18,14 @@ import textwrap
 import warnings
 
 from . import _progress, budget, calibrate, correct, demo, flatfield, pupil, sensor, shift, stream
-from ._errors import _message, _one_line_warning, _Parser, _quiet_unraisable
+from ._errors import (
+    _message,
+    _one_line_warning,
+    _Parser,
+    _quiet_unraisable,
+    command_parser,
+    option_names,
+)
 from ._frames import FLATFIELD_RECORD
 from ._options import (
     DTYPE_HELP,
@@ -125,7 +132,8 @@ def main(argv=None):
             _center_option(args)
             return args.func(args)
     except (ValueError, TypeError, OverflowError, OSError, KeyError) as err:
-        print(f"snapcorr {args.command}: error: {_message(err)}", file=sys.stderr)
+        options = option_names(command_parser(parser, args.command) or parser)
+        print(f"snapcorr {args.command}: error: {_message(err, options)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         # Libraries interrupted mid-write (h5netcdf, zarr's threads) may fail again when their

@@ -4,6 +4,7 @@ library's parameter names)."""
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 #: Library parameter names as the command line spells them, for error messages.
@@ -12,18 +13,46 @@ _CLI_TERMS = {
     "virtual_wavelengths_nm": "--virtual-wavelengths",
     "virtual_fwhm_nm": "--virtual-fwhm-nm",
     "overwrite=True": "--overwrite",
+    "a packing range goes with": "--pack-range goes with",
     "but wavelength_nm gives": "but the --sensor has",
     "(read a 2-D frame with read_frame)": "(a 2-D raw frame of a mosaic camera is read with "
                                           "that camera's --sensor, whose layout is mosaic)",
 }
 
 
-def _message(err):
-    """The exception as one line, in command-line terms."""
+#: How the library's checks (:mod:`snapcorr._validation`) begin a message about an argument:
+#: with its keyword's name, then one of these.
+_CHECK_VERBS = re.compile(r"\s+(?:must\b|repeats\b|=)")
+
+
+def option_names(parser):
+    """``{keyword: option}`` of a command's parser: the library keyword each option sets
+    (its ``dest``) and the option as it is typed, ``{"n_eff": "--n-eff"}``."""
+    return {a.dest: max(a.option_strings, key=len) for a in parser._actions
+            if a.option_strings and a.dest not in ("help", argparse.SUPPRESS)
+            and max(a.option_strings, key=len).startswith("--")}
+
+
+def _message(err, options=None):
+    """The exception as one line, in command-line terms; a library check's message that
+    begins with a keyword one of ``options`` sets (``{keyword: option}``) names the option
+    instead (``n_eff must be ...`` is ``--n-eff must be ...``). Only at the start: a message
+    about a file's key begins with the file (``lens.toml: n_eff must ...``)."""
     message = " ".join(str(err).split())  # libraries' messages may span lines
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
+    for keyword, option in (options or {}).items():
+        if message.startswith(keyword) and _CHECK_VERBS.match(message, len(keyword)):
+            return option + message[len(keyword):]
     return message
+
+
+def command_parser(parser, command):
+    """The parser of ``command`` (a sub-command of ``parser``), or None."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices.get(command)
+    return None
 
 
 class _Parser(argparse.ArgumentParser):

@@ -82,15 +82,15 @@ _origin_arg = _pair_arg("origin", "ROW,COL", integer=True)
 
 
 def _pack_range_arg(value):
-    """``--pack-range LO,HI``: two finite numbers, LO < HI."""
+    """``--pack-range LO,HI``: two numbers, checked by
+    :func:`~snapcorr._validation.check_pack_range` (finite, LO < HI, a range CF packing can
+    hold)."""
     try:
         lo, hi = (float(v) for v in value.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected LO,HI (two numbers), got {value!r}") \
             from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        raise argparse.ArgumentTypeError(f"expected finite LO < HI, got {value!r}")
-    try:  # what the float32 CF packing can hold
+    try:  # finite LO < HI, and what the float32 CF packing can hold
         return check_pack_range("--pack-range", lo, hi)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--pack-range ")) from None
@@ -266,9 +266,6 @@ def _check_storage_option(args):
         args.dtype = "float32"
     suffix = args.out.suffix.lower()
     fmt = {".nc": "netcdf", ".zarr": "zarr", ".hdr": "envi"}.get(suffix)
-    if args.pack_range is not None and args.storage != "uint16":
-        raise ValueError(f"--pack-range goes with --dtype uint16"
-                         f"{'' if args.storage is None else f', not {args.storage}'}")
     check_storage(args.storage, args.pack_range, fmt, what="--dtype")
 
 

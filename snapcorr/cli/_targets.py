@@ -3,7 +3,6 @@ options, its outputs and the sensor with the fitted index."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from ._options import _origin_arg
@@ -48,15 +47,13 @@ def _add_pupil_option(group):
 
 
 def _check_target_outputs(args, seen, inputs, cubes):
-    """The outputs of a target fit (``--out``, ``--plot``, ``--sensor-out``), before any work."""
+    """The outputs of a target fit (``--out``, ``--plot``, ``--sensor-out``), before any work
+    (:func:`~snapcorr.files.outputs.check_outputs` refuses two of them at one path)."""
     if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
         raise ValueError(f"--sensor-out needs --fit-n-eff and {cubes} at two or more "
                          "f-numbers (one f-number fixes only x * n_eff)")
     _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
                    [(".toml",), (".png",), (".toml",)])
-    if args.sensor_out is not None and os.path.realpath(args.sensor_out) == os.path.realpath(
-            args.out):
-        raise ValueError("--sensor-out and --out are the same file; choose two paths")
 
 
 def _target_tolerance(value):

@@ -45,8 +45,6 @@ def run(args):
 
     lens = _lens(args.lens)
     check_wavelengths_nm("--cwl-nm", [args.cwl_nm])
-    if not args.n_eff > 1:
-        raise ValueError(f"--n-eff must be > 1 (a filter's effective index), got {args.n_eff:g}")
     cra = np.asarray(args.cra, float)
     cutoff = float(lens.cutoff_cra_deg(args.f_number))
     past = np.abs(cra) >= cutoff

@@ -21,10 +21,9 @@ import stat
 from pathlib import Path
 
 from .marks import _check_content, _written_by_snapcorr
-from .reading import _sidecar, file_kind
-from .registry import FILE_FORMATS
+from .reading import file_kind
+from .registry import FILE_FORMATS, input_files
 from .safety import note_checked, refuse_inputs
-from .storage import _ENVI_DATA, _ENVI_EXTS
 
 __all__ = ["check_outputs", "check_replaceable"]
 
@@ -36,24 +35,10 @@ def _targets(fmt, path):
 
 
 def _input_family(inputs):
-    """The inputs with the files that belong to them (an ENVI header's data file and the
-    header of a data file, a ``.npy``'s sidecar)."""
-    out = []
-    for src in inputs:
-        if src is None:
-            continue
-        p = Path(src)
-        out.append(p)
-        suffix = p.suffix.lower()
-        if suffix == ".hdr":
-            names = [*_ENVI_EXTS, ".bsq", ".bil", ".bip"]
-            out += [c for e in names for c in {p.with_suffix(e), p.with_suffix(e.upper())}
-                    if c != p and c.is_file()]
-        elif suffix in _ENVI_DATA:
-            out.append(p.with_suffix(".hdr"))
-        elif suffix == ".npy":
-            out.append(_sidecar(p))
-    return out
+    """The inputs with the files that belong to them
+    (:func:`~snapcorr.files.registry.input_files`: an ENVI header's data file and the header of
+    a data file, a ``.npy``'s sidecar; any format's, from the registry)."""
+    return [p for src in inputs if src is not None for p in input_files(src)]
 
 
 def _check_targets(fmt, targets, *, overwrite, inputs):

@@ -31,3 +31,24 @@ def test_a_warning_is_one_line(monkeypatch):
     monkeypatch.setattr("sys.stderr", err)
     _one_line_warning(UserWarning("pass overwrite=True\nto replace"), UserWarning, "f.py", 1)
     assert err.getvalue() == "snapcorr: warning: pass --overwrite to replace\n"
+
+
+def test_a_check_naming_a_keyword_names_the_option_instead():
+    """The library's checks begin with the keyword (``n_eff must ...``); the command line
+    says the option the user typed. Only a message that begins with it: a file's key is
+    said after the file, and stays the file's."""
+    from snapcorr._validation import check_positive
+    from snapcorr.cli import build_parser
+    from snapcorr.cli._errors import command_parser, option_names
+
+    options = option_names(command_parser(build_parser(), "shift"))
+    assert options["n_eff"] == "--n-eff" and options["f_number"] == "--f-number"
+    with pytest.raises(ValueError) as info:
+        check_positive("tolerance_nm", -1.0)
+    assert _message(info.value, options) == ("--tolerance-nm must be a finite number > 0, "
+                                             "got -1.0")
+    for kept in ("lens.toml: n_eff must be below 5", "n_effective must be 1",
+                 "the n_eff must be 1", "n_eff is 1"):
+        assert _message(ValueError(kept), options) == kept
+    assert _message(ValueError("n_eff = 9 is no index"), options) == "--n-eff = 9 is no index"
+    assert command_parser(build_parser(), "nope") is None

@@ -51,3 +51,17 @@ def test_unknown_bundled_lens_lists_the_bundled_ones(tmp_path, monkeypatch, comm
     }[command]
     rc, _, err = cli(*args)
     assert_refused(rc, err, "no bundled lens named 'no_such_lens'", "edmund_optics_16mm")
+
+
+@pytest.mark.parametrize("value", ["2,1", "1,1", "0,nan", "-inf,1"])
+def test_a_pack_range_not_finite_lo_below_hi_is_one_usage_line(value, capsys):
+    """The range is checked where the library checks it (check_pack_range); the command
+    line says it as a usage error naming the option, before any file is opened."""
+    from snapcorr.cli import main
+
+    rc = main(["flatfield", "missing.hdr", "--dark", "d.hdr", "--white", "w.hdr",
+               "--dtype", "uint16", f"--pack-range={value}", "--out", "o.nc"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "argument --pack-range" in err and "expected finite LO < HI" in err, err
+    assert "Traceback" not in err and "missing.hdr" not in err

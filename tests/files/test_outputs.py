@@ -47,6 +47,24 @@ def test_the_data_file_of_an_envi_input_is_refused(tmp_path):
         _check([tmp_path / "cube.img"], [hdr], overwrite=True, suffixes=[(".img",)])
 
 
+@pytest.mark.parametrize("given, belongs", [("cube.img", "cube.hdr"), ("cube.npy", "cube.npy.json"),
+                                            ("cube.HDR", "cube.raw")])
+def test_the_files_of_every_input_format_are_refused(tmp_path, given, belongs):
+    """A file that belongs to an input (from the format registry) is never an output."""
+    (tmp_path / given).write_bytes(b"\0")
+    with pytest.raises(ValueError, match="is also an input"):
+        _check([tmp_path / belongs], [tmp_path / given], overwrite=True,
+               suffixes=[(os.path.splitext(belongs)[1].lower(),)])
+
+
+def test_an_input_of_no_cube_format_is_checked_as_itself(tmp_path):
+    lens = tmp_path / "lens.toml"
+    lens.write_text("[lens]\n")
+    _check([tmp_path / "lens.nc"], [lens])
+    with pytest.raises(ValueError, match="is also an input"):
+        _check([lens], [lens], suffixes=[(".toml",)], overwrite=True)
+
+
 def test_two_outputs_one_inside_the_other_are_refused(tmp_path):
     with pytest.raises(ValueError, match="one lies in the other"):
         _check([tmp_path / "a.zarr", tmp_path / "a.zarr" / "b.nc"])

@@ -2,7 +2,13 @@
 
 import pytest
 
-from snapcorr.files.registry import FILE_FORMATS, FORMATS, format_by_suffix, format_of
+from snapcorr.files.registry import (
+    FILE_FORMATS,
+    FORMATS,
+    format_by_suffix,
+    format_of,
+    input_files,
+)
 
 
 def test_every_suffix_names_a_registered_format_of_that_suffix():
@@ -36,6 +42,65 @@ def test_an_unknown_suffix_is_refused_with_the_known_ones(tmp_path):
     assert format_by_suffix(".png") is None
     with pytest.raises(ValueError, match=r"unknown frame format '\.png'.*\.zarr"):
         format_of(tmp_path / "x.png", "frame")
+
+
+def _written_files(folder):
+    """Every file and folder in ``folder``, as a write left them (a Zarr store counted once)."""
+    return sorted(p for p in folder.iterdir())
+
+
+_UPPER_NPY = pytest.mark.xfail(strict=True, reason="numpy.save appends .npy to C.NPY: the "
+                               "writer refuses it (the writer did not produce C.NPY)")
+
+
+@pytest.mark.parametrize("upper", [False, True], ids=["lower", "upper"])
+@pytest.mark.parametrize("fmt", sorted(FILE_FORMATS))
+def test_every_file_a_write_makes_belongs_to_the_input(tmp_path, fmt, upper, request):
+    """Whatever a write of each registered format leaves on disk (found by listing the
+    folder, not from the format's own list of targets) is a file of that input, under every
+    suffix the format is known by."""
+    import numpy as np
+
+    from snapcorr.cube import make_cube
+    from snapcorr.files.api import write_cube
+
+    if upper and fmt == "npy":
+        request.applymarker(_UPPER_NPY)
+    cube = make_cube(np.ones((3, 4, 2), np.float32), [500.0, 600.0])
+    for suffix in FILE_FORMATS[fmt].suffixes:
+        name = f"C{suffix.upper()}" if upper else f"c{suffix}"
+        folder = tmp_path / name.replace(".", "_")
+        folder.mkdir()
+        path = write_cube(cube, folder / name)
+        on_disk = _written_files(folder)
+        assert path in on_disk
+        assert set(on_disk) <= set(input_files(path)), (name, on_disk)
+
+
+def test_an_envi_input_takes_in_every_data_file_its_readers_may_use(tmp_path):
+    hdr = tmp_path / "c.hdr"
+    hdr.write_text("ENVI\n")
+    for name in ("c.img", "c.BIL", "c.dat"):
+        (tmp_path / name).write_bytes(b"\0")
+    (tmp_path / "c.toml").write_text("")  # not an ENVI data name
+    got = input_files(hdr)
+    assert got[0] == hdr
+    assert {tmp_path / n for n in ("c.img", "c.BIL", "c.dat")} <= set(got)
+    assert tmp_path / "c.toml" not in got
+    # a data file given instead of its header brings the header (also one not yet there)
+    assert tmp_path / "d.hdr" in input_files(tmp_path / "d.IMG")
+
+
+def test_an_input_of_no_registered_format_is_its_own_only_file(tmp_path):
+    """A lens or sensor TOML, a PNG: no format, nothing else belongs to it, and no error
+    (the commands' inputs are not all cubes). Reading or writing it as a cube is refused
+    with the suffixes snapcorr knows."""
+    for name in ("lens.toml", "plot.png", "noext", "x.xyz"):
+        assert input_files(tmp_path / name) == [tmp_path / name]
+    with pytest.raises(ValueError, match=r"unknown cube format '\.xyz'.*\.exr, \.hdr"):
+        format_of(tmp_path / "x.xyz")
+    with pytest.raises(ValueError, match=r"unknown cube format '\(none\)'"):
+        format_of(tmp_path / "noext")
 
 
 def _snapcorr_imports(path, here):
