@@ -126,7 +126,9 @@ def _write_npy(cube, path, meta, *, interleave):
     text = json.dumps(meta, indent=1)
 
     def write(folder):
-        np.save(folder / path.name, data, allow_pickle=False)
+        # through an open file: given a name, numpy.save appends ".npy" to one ending ".NPY"
+        with open(folder / path.name, "wb") as f:
+            np.save(f, data, allow_pickle=False)
         (folder / _sidecar(path).name).write_text(text, encoding="utf-8")
 
     atomic_write_files([path, _sidecar(path)], write)
