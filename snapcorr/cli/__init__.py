@@ -111,6 +111,24 @@ def build_parser():
     return parser
 
 
+def _local_scheduler(args):
+    """Dask's threads for the command's work, named as a function.
+
+    Given no scheduler, or one by name, dask imports :mod:`dask.distributed` at a process's
+    first compute (0.3 s here) only to look for a client; given the threaded scheduler's
+    ``get`` it does not. A command given ``--scheduler ADDRESS`` runs on the cluster's client
+    instead, so there nothing is set.
+    """
+    if getattr(args, "scheduler", None):
+        import contextlib
+
+        return contextlib.nullcontext()
+    import dask
+    import dask.threaded
+
+    return dask.config.set(scheduler=dask.threaded.get)
+
+
 def main(argv=None):
     from ..files.safety import cleanup_on_signals
 
@@ -130,7 +148,8 @@ def main(argv=None):
             warnings.simplefilter("always")
             warnings.showwarning = _one_line_warning
             _center_option(args)
-            return args.func(args)
+            with _local_scheduler(args):
+                return args.func(args)
     except (ValueError, TypeError, OverflowError, OSError, KeyError) as err:
         options = option_names(command_parser(parser, args.command) or parser)
         print(f"snapcorr {args.command}: error: {_message(err, options)}", file=sys.stderr)

@@ -230,3 +230,29 @@ def test_overwrite_replaces_only_pngs_and_tomls_snapcorr_wrote(cli, tmp_path):
     assert toml.read_text().startswith("# written by snapcorr")
     with Image.open(png) as im:
         assert im.info["Software"].startswith("snapcorr")
+
+
+def test_a_command_computes_without_importing_distributed(tmp_path):
+    """dask, given no scheduler or one by name, imports dask.distributed at a process's first
+    compute only to look for a client (0.3 s); a command without ``--scheduler`` runs on
+    dask's threads named as a function, so it does not. Checked where the import would
+    show: a process of its own, a chunked (dask) correction written to .zarr."""
+    from snapcorr.cube import Sensor, make_cube, write_cube
+
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
+    sensor.save(tmp_path / "sensor.toml")
+    Lens.load("edmund_optics_16mm").save(tmp_path / "lens.toml")
+    data = np.random.default_rng(0).random((30, 40, 5)).astype(np.float32)
+    write_cube(make_cube(data, sensor.cwl_nm, name="reflectance"), tmp_path / "cube.zarr")
+    script = """
+import sys
+from snapcorr.cli import main
+rc = main(["correct", "cube.zarr", "--lens", "lens.toml", "--sensor", "sensor.toml",
+           "--f-number", "2", "--out", "out.zarr", "--resample", "--quiet"])
+print(rc, "dask" in sys.modules, "distributed" in sys.modules)
+"""
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.splitlines()[-1] == "0 True False", res.stdout + res.stderr
+    assert (tmp_path / "out.zarr").is_dir()
