@@ -12,6 +12,9 @@ One header and data pair per image of the result, side by side, written together
 ``STEM_virtual``                the virtual bands
 ``STEM_mask``                   1 where a value is not meaningful (uint8)
 ``STEM_cra_deg``                the chief-ray angle, deg (one band, or one per band)
+``STEM_raw``                    a flat-field result's raw counts, as read (left out with
+                                ``include_input=False``, like the input's values)
+``STEM_filter_white_raw``       its filter white's raw counts (when one was given)
 ==============================  ========================================================
 
 A header carries ``wavelength`` (and ``fwhm``) only where every pixel of a band shares one:
@@ -40,7 +43,9 @@ __all__ = ["write_envi_result"]
 
 #: The result's images written, in this order, after the input's values; the suffix of each.
 IMAGES = ("wavelength_corrected", "fwhm_corrected", "resampled", "harmonised", "virtual",
-          "mask", "cra_deg")
+          "mask", "cra_deg", "raw", "filter_white_raw")
+#: The camera's own numbers a flat-field result keeps: the input, like its values.
+RAW_IMAGES = ("raw", "filter_white_raw")
 #: Images whose bands each share one wavelength: their headers carry ``wavelength``.
 _ONE_PER_BAND = {"resampled": ("wavelength", None), "harmonised": ("wavelength",
                                                                    "fwhm_harmonised"),
@@ -124,7 +129,9 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
     inputs : sequence of paths
         Files the data came from; writing over any of them is refused.
     include_input : bool
-        Also write the input's values as ``STEM.hdr``.
+        Also write the input's values as ``STEM.hdr``, and a flat-field result's raw
+        counts (``raw``, ``filter_white_raw``) as ``STEM_raw.hdr``: the camera's numbers beside
+        what was computed from them.
     input_name : str, optional
         The input cube's variable (default: the result's ``cube_name`` attribute).
 
@@ -138,17 +145,19 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
         raise ValueError(f"an ENVI result is named by its header, STEM.hdr; got {path.name}")
     stem = path.stem
     nominal = [float(v) for v in ds["wavelength"].values]
-    images = []
+    images, name = [], None
     if include_input:
         name = input_name or ds.attrs.get("cube_name")
-        if name not in ds.data_vars or name in IMAGES:
+        if name not in ds.data_vars or name in set(IMAGES) - set(RAW_IMAGES):
             raise ValueError(f"the result holds no input cube {name!r} to write as {path.name}")
         images.append((name, path))
-    images += [(n, path.with_name(f"{stem}_{n}.hdr")) for n in IMAGES if n in ds.variables]
+    written = [n for n in IMAGES if n in ds.variables and n != name
+               and (include_input or n not in RAW_IMAGES)]
+    images += [(n, path.with_name(f"{stem}_{n}.hdr")) for n in written]
     if not images:
         raise ValueError("nothing to write: the result holds no image")
     # an image of an earlier run that this one does not write would be left beside it
-    stale = [path.with_name(f"{stem}_{n}.hdr") for n in IMAGES if n not in ds.variables]
+    stale = [path.with_name(f"{stem}_{n}.hdr") for n in IMAGES if n not in written]
     stale += [] if include_input else [path]
     stale = [p for p in stale if p.exists()]
     if stale:

@@ -202,3 +202,35 @@ def test_zarr_cube_larger_than_the_memory_limit_streams(tmp_path, extra):
                            target_fwhm_nm=30.0, center_px=(127.5, 4095.5))
         np.testing.assert_allclose(out["harmonised"][:64].values, ref["harmonised"].values,
                                    atol=2e-5, equal_nan=True)
+
+
+@pytest.mark.parametrize("no_input", [False, True], ids=["kept", "no-input"])
+def test_an_envi_correction_of_a_flat_field_keeps_its_raw_counts(tmp_path, cli, no_input):
+    """The camera's numbers sit beside what was computed from them in ENVI output too, as in
+    .nc and .zarr: ``STEM_raw.hdr`` holds the flat-field result's raw counts, read back with
+    Spectral Python (not snapcorr's reader); ``--no-input`` leaves them out with the input."""
+    from spectral.io import envi
+
+    from snapcorr.cube import flatfield, write_dataset
+
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 5), 10.0, 1.7)
+    sensor.save(tmp_path / "sensor.toml")
+    PAPER.save(tmp_path / "lens.toml")
+    rng = np.random.default_rng(1)
+    counts = rng.integers(100, 900, (12, 16, 5)).astype(np.uint16)
+    raw = make_cube(counts, sensor.cwl_nm, name="raw")
+    dark = make_cube(np.full((12, 16, 5), 50, np.uint16), sensor.cwl_nm, name="dark")
+    white = make_cube(np.full((12, 16, 5), 1000, np.uint16), sensor.cwl_nm, name="white")
+    write_dataset(flatfield(raw, dark, white), tmp_path / "ff.nc")
+    res = cli("correct", "ff.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "2", "--out", "out.hdr", *(["--no-input"] if no_input else []),
+              cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "out_wavelength_corrected.hdr").exists()
+    if no_input:
+        assert not (tmp_path / "out_raw.hdr").exists() and not (tmp_path / "out.hdr").exists()
+        return
+    img = envi.open(str(tmp_path / "out_raw.hdr"), str(tmp_path / "out_raw.raw"))
+    np.testing.assert_array_equal(np.asarray(img.load()), counts)
+    refl = np.asarray(envi.open(str(tmp_path / "out.hdr"), str(tmp_path / "out.raw")).load())
+    np.testing.assert_allclose(refl, (counts - 50.0) / 950.0, rtol=1e-6)
