@@ -218,15 +218,19 @@ def _pixels(sample):
     return flat[::step], (None if angles is None else angles.reshape(-1)[::step])
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True)
-def _apply_table(data, cra, nodes, mats_t, out):  # pragma: no cover - compiled
-    # mats_t[node, band, virtual]: the inner loop runs over the virtual bands, contiguous, so
-    # it vectorises without a reduction
+#: The kernel's floating-point licence: sums reassociated (so the band sums vectorise) and
+#: multiply-adds fused, but NaN and infinities kept (a NaN band value gives a NaN pixel).
+_FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+
+
+@numba.njit(parallel=True, cache=True, fastmath=_FASTMATH)
+def _apply_table(data, cra, nodes, mats, out):  # pragma: no cover - compiled
+    # mats[node, virtual, band]: each virtual band a sum over the bands, contiguous, of both
+    # nodes' matrices at once; the interpolation after the sums (the matrices are linear)
     ny, nx, nb = data.shape
-    m, nv = nodes.size, mats_t.shape[2]
+    m, nv = nodes.size, mats.shape[1]
+    zero, one = data.dtype.type(0), data.dtype.type(1)
     for y in numba.prange(ny):
-        acc0 = np.empty(nv, out.dtype)
-        acc1 = np.empty(nv, out.dtype)
         for x in range(nx):
             c = cra[y, x]
             lo, hi = 0, m - 1  # the node interval holding c (clamped at the ends)
@@ -236,17 +240,16 @@ def _apply_table(data, cra, nodes, mats_t, out):  # pragma: no cover - compiled
                     lo = mid
                 else:
                     hi = mid
-            t = min(max((c - nodes[lo]) / (nodes[hi] - nodes[lo]), 0.0), 1.0)
+            t = zero if hi == lo else min(max((c - nodes[lo]) / (nodes[hi] - nodes[lo]),
+                                              zero), one)
             for v in range(nv):
-                acc0[v] = 0.0
-                acc1[v] = 0.0
-            for b in range(nb):
-                d = data[y, x, b]
-                for v in range(nv):
-                    acc0[v] += mats_t[lo, b, v] * d
-                    acc1[v] += mats_t[hi, b, v] * d
-            for v in range(nv):
-                out[y, x, v] = acc0[v] + t * (acc1[v] - acc0[v])
+                a0 = zero
+                a1 = zero
+                for b in range(nb):
+                    d = data[y, x, b]
+                    a0 += mats[lo, v, b] * d
+                    a1 += mats[hi, v, b] * d
+                out[y, x, v] = a0 + t * (a1 - a0)
 
 
 def apply_table(data, cra_deg, table, dtype=np.float32):
@@ -265,10 +268,10 @@ def apply_table(data, cra_deg, table, dtype=np.float32):
     -------
     ndarray, shape (ny, nx, n_virtual)
     """
-    mats_t = np.ascontiguousarray(np.transpose(table.matrices, (0, 2, 1)), dtype)
-    out = np.empty((*data.shape[:2], mats_t.shape[2]), dtype)
+    mats = np.ascontiguousarray(table.matrices, dtype)
+    out = np.empty((*data.shape[:2], mats.shape[1]), dtype)
     _apply_table(np.ascontiguousarray(data, dtype), np.ascontiguousarray(cra_deg, dtype),
-                 np.asarray(table.cra_deg, dtype), mats_t, out)
+                 np.ascontiguousarray(table.cra_deg, dtype), mats, out)
     return out
 
 

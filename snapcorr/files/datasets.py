@@ -497,12 +497,64 @@ def _in_zarr_blocks(ds):
     return out
 
 
+def _packed(ds):
+    """``ds`` with each variable :func:`stored_as` gave the uint16 CF packing replaced by its
+    codes, packed in one pass (:func:`~snapcorr.files._packing.pack_uint16`, block by block
+    for dask), the packing's ``scale_factor``, ``add_offset`` and ``_FillValue`` moved to its
+    attributes: stored as they are, read back by any CF reader as xarray's own encoding of
+    the values would be."""
+    names = [n for n in ds.data_vars
+             if ds[n].encoding.get("dtype") == "uint16" and "scale_factor" in ds[n].encoding
+             and np.issubdtype(ds[n].dtype, np.floating)]
+    if not names:
+        return ds
+    from ._packing import pack_uint16
+
+    out = ds.copy()
+    for name in names:
+        var = ds[name]
+        enc = dict(var.encoding)
+        scale, offset = enc.pop("scale_factor"), enc.pop("add_offset", np.float32(0))
+        fill = enc.pop("_FillValue", np.uint16(PACKED_FILL))
+
+        def pack(a, offset=offset, scale=scale, fill=fill):
+            return pack_uint16(a, offset, scale, PACKED_TOP, fill)
+
+        data = var.data
+        codes = (data.map_blocks(pack, dtype=np.uint16) if var.chunks is not None
+                 else pack(np.asarray(data)))
+        packed = xr.Variable(var.dims, codes, {**var.attrs, "scale_factor": scale,
+                                               "add_offset": offset, "_FillValue": fill},
+                             {**enc, "dtype": "uint16"})
+        out[name] = xr.DataArray(packed, coords=var.coords)
+    return out
+
+
+def _local_threads():
+    """dask's threaded scheduler for a write, given as the function: named by a string (or
+    not named), dask imports ``distributed`` to look for a client first, 0.2-0.3 s of each
+    process that writes a file. Where ``distributed`` is imported already (a client may be
+    running) or a scheduler is set, dask's own choice stands."""
+    import contextlib
+    import sys
+
+    if "distributed" in sys.modules or "dask" not in sys.modules:
+        return contextlib.nullcontext()
+    import dask
+    import dask.threaded
+
+    if dask.config.get("scheduler", None) is not None:
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler=dask.threaded.get)
+
+
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
     # which can hold the whole cube. Apart, each streams through in bounded memory.
     if fmt == "zarr":
         ds = _in_zarr_blocks(ds)
+    ds = _packed(ds)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()
@@ -520,7 +572,8 @@ def _store_dataset(ds, path, fmt, compression="auto"):
                                          _netcdf_encoding(part, compression).items()
                                          if k not in first.variables})
 
-        atomic_write(path, write)
+        with _local_threads():
+            atomic_write(path, write)
         return path
 
     def write_zarr(tmp):
@@ -543,7 +596,8 @@ def _store_dataset(ds, path, fmt, compression="auto"):
             warnings.filterwarnings("ignore", message=".*[Cc]onsolidated metadata")
             zarr.consolidate_metadata(str(tmp))
 
-    atomic_write_dir(path, write_zarr)
+    with _local_threads():
+        atomic_write_dir(path, write_zarr)
     return path
 
 

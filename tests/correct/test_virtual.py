@@ -201,3 +201,44 @@ def test_what_cannot_be_done_is_refused_in_one_line(tmp_path, nir):
                       lens=PAPER_LENS, cra_deg=np.zeros((2, 2)))
     with pytest.raises(ValueError, match="unknown virtual_bands 'magic'"):
         virtual_bands(c25, nir, "magic")
+
+
+def _brute_force_table(data, cra, nodes, mats):
+    """``A(cra) @ d`` pixel by pixel: the table's matrix interpolated linearly in the angle
+    (clamped at the table's ends), then the product, in float64."""
+    out = np.empty((*data.shape[:2], mats.shape[1]))
+    for y in range(data.shape[0]):
+        for x in range(data.shape[1]):
+            c = min(max(float(cra[y, x]), nodes[0]), nodes[-1])
+            k = min(int(np.searchsorted(nodes, c, side="right")) - 1, nodes.size - 2)
+            t = (c - nodes[k]) / (nodes[k + 1] - nodes[k])
+            a = (1 - t) * mats[k] + t * mats[k + 1]
+            out[y, x] = np.einsum("vb,b->v", a, data[y, x].astype(float))
+    return out
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_table_kernel_is_the_interpolated_matrix_product(dtype):
+    from types import SimpleNamespace
+
+    from snapcorr.correct.virtual import apply_table
+
+    rng = np.random.default_rng(7)
+    ny, nx, nb, nv = 9, 13, 16, 11
+    nodes = np.array([0.0, 2.5, 6.0, 11.0, 20.0])
+    table = SimpleNamespace(cra_deg=nodes, matrices=rng.normal(0, 1, (nodes.size, nv, nb)))
+    data = rng.uniform(0, 1.5, (ny, nx, nb)).astype(dtype)
+    cra = rng.uniform(-3, 24, (ny, nx))  # beyond both ends of the table: clamped
+    cra[0, :nodes.size] = nodes  # on the nodes themselves
+    cra[1, 0], cra[1, 1] = nodes[-1] - 1e-9, nodes[0] + 1e-9  # at the edge intervals
+    data[2, 3, 0] = np.nan  # a NaN in the first band, one in the last, a whole pixel
+    data[4, 5, -1] = np.nan
+    data[6, 7, :] = np.nan
+    got = apply_table(data, cra, table, dtype)
+    want = _brute_force_table(data, cra.astype(dtype), nodes.astype(dtype),
+                              table.matrices.astype(dtype))
+    assert got.shape == (ny, nx, nv) and got.dtype == dtype
+    nan = np.isnan(data).any(axis=2)
+    assert np.isnan(got[nan]).all() and not np.isnan(got[~nan]).any()
+    tol = 1e-4 if dtype == np.float32 else 1e-11
+    assert_allclose(got[~nan], want[~nan], rtol=tol, atol=tol)
