@@ -131,7 +131,7 @@ def old_target_precision(problem, x, fit_k, edge_mm, cwl_nm):
             math.sqrt(g @ cov @ g))
 
 
-def compare(problem, x, edge_mm, cwl_nm, n_tol=0.01):
+def compare(problem, x, edge_mm, cwl_nm, n_tol=0.01, shift_tol=0.01):
     t0 = time.perf_counter()
     old = old_target_precision(problem, x, True, edge_mm, cwl_nm)
     t1 = time.perf_counter()
@@ -142,14 +142,14 @@ def compare(problem, x, edge_mm, cwl_nm, n_tol=0.01):
           f"{new.shift_stderr_nm:.6g} nm ({t2 - t1:.2f} s): {(t1 - t0) / (t2 - t1):.1f}x")
     assert abs(new.x_stderr_mm / old[0] - 1) < 0.01
     assert abs(new.n_eff_stderr / old[1] - 1) < n_tol
-    assert abs(new.shift_stderr_nm / old[3] - 1) < 0.01
+    assert abs(new.shift_stderr_nm / old[3] - 1) < shift_tol
     ratio = new.n_eff_band_stderr / old[2]
     print("per band new / old:", np.array2string(ratio, precision=4))
     assert np.all(np.abs(ratio - 1) < 0.01), ratio
     return (t1 - t0) / (t2 - t1)
 
 
-@pytest.mark.slow  # the old prediction's one solve per band and step: ~15 s
+@pytest.mark.slow  # the glass cubes (shared with test_precision.py) and both predictions
 def test_gaussian_prediction_is_the_one_central_differences_gave():
     bins = gaussian_bins(n_bins=24)
     n = np.full(tp.CWL.size, 1.7)
@@ -158,17 +158,19 @@ def test_gaussian_prediction_is_the_one_central_differences_gave():
     compare(problem, 21.0, 4.6, float(tp.CWL.max()))
 
 
-@pytest.mark.slow  # ~10 s: the measured curves' tables and 16 bands' solves
+@pytest.mark.slow  # the mosaic cubes, made point by point over the pupil: ~10 s
 def test_measured_prediction_is_the_one_central_differences_gave(folder):
     bins, sensor = measured_bins(folder, n_bins=16)
     n = np.full(sensor.n_bands, 1.8)
     problem = _Problem(target_model(bins, sensor, PAPER_LENS, n_eff_design=n,
                                     max_shift_rel=0.1), n)
-    # n_eff's differs by 1.4 %: the differences of the profiled residuals carry the data's
-    # own residuals' term (Golub and Pereyra's, of mean zero, chi-square / rows 1.2 here),
+    # n_eff's differs by 1.4 % and the shift's by 2.5 % (x's 0.4 %): the differences of the
+    # profiled residuals carry the data's own residuals' term (Golub and Pereyra's, of mean
+    # zero; chi-square / rows 1.2 here),
     # which the fit's Jacobian (Kaufman's) leaves out; the same Kaufman Jacobian by central
     # differences at fixed coefficients (steps 1e-6, 1e-7) gives the new values to 7 digits
-    compare(problem, tmt.X_MM, 5.0, float(np.max(sensor.cwl_nm)), n_tol=0.02)
+    compare(problem, tmt.X_MM, 5.0, float(np.max(sensor.cwl_nm)), n_tol=0.02,
+            shift_tol=0.03)
 
 
 def test_edge_shift_gradient():
