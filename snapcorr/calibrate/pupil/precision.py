@@ -20,7 +20,7 @@ from ...spectra import colour_filter
 from .distance import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
 from .index import N_EFF_REL_STDERR
 from .measured_target import target_model
-from .solver import _pinv_solve, _project_off, _whiten
+from .solver import _pinv_solve, _prediction_derivatives, _project_off, _row_bands, _whiten
 from .target import check_modelled
 from .target_model import PRIOR_SD, RadialBins
 
@@ -180,12 +180,11 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     model.sigma = sigma_px / np.sqrt(count)
     A = model.design(x, n_design)
     s_true, _ = _pinv_solve(A, y)  # the noise-free means as the model has them
-    cols = [(model.design(x * (1 + 1e-5), n_design) - model.design(x * (1 - 1e-5), n_design))
-            @ s_true / (2e-5 * x)]
-    if fit_n_eff:
-        cols.append((model.design(x, n_design * (1 + 1e-5))
-                     - model.design(x, n_design * (1 - 1e-5))) @ s_true / 2e-5)
-    J = np.column_stack(cols) / model.sigma[:, None]
+    # the fit's derivatives: the index's analytic, x's a central difference of the model
+    dx, dn = _prediction_derivatives(model, x, np.asarray(n_design, float), A, s_true,
+                                     central=True)
+    n_rows = np.broadcast_to(np.asarray(n_design, float), model.cwl.shape)[_row_bands(model)]
+    J = np.column_stack([dx] + ([dn * n_rows] if fit_n_eff else []))
     Jp = _project_off(_whiten(model, A), J)
     F = Jp.T @ Jp
     if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14 or F[0, 0] <= 0:
