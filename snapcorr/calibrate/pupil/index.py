@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import stats
 
-from .solver import _project_off, _solve, _whiten
+from .solver import _prediction_derivatives, _project_off, _row_bands, _solve, _whiten
 
 #: A richer model of the effective index (linear in wavelength, one per band) is taken when it
 #: improves the fit at this significance and pins every band's index to this relative
@@ -24,19 +24,18 @@ N_EFF_P = 1e-3
 N_EFF_REL_STDERR = 0.01
 
 
-def _per_band_jacobian(model, x, n):
+def _per_band_jacobian(model, x, n, *, central=False):
     """Whitened residuals and their Jacobian in ``(x, n_1..n_B)`` at fixed target
-    coefficients, projected off the target's columns (variable projection)."""
+    coefficients, projected off the target's columns (variable projection). The index
+    columns are the model's analytic derivative (:func:`_prediction_derivatives`); ``x``'s
+    is a forward difference, or a central one with ``central``."""
+    n = np.asarray(n, float)
     A = model.design(x, n)
     s, r, _ = _solve(model, A)
-    base = A @ s
-    eps_n = 1e-4 * n
-    # every band's rows depend on its own index only: one evaluation gives every column
-    dn = (model.design(x, n + eps_n) @ s - base) / model.sigma
-    dx = (model.design(x * (1 + 1e-5), n) @ s - base) / (x * 1e-5) / model.sigma
+    dx, dn = _prediction_derivatives(model, x, n, A, s, central=central)
+    # every band's rows depend on its own index only: each row fills its band's column
     Jn = np.zeros((model.n_rows, n.size))
-    for _, k, rows, _ in model.blocks:
-        Jn[rows, k] = dn[rows] / eps_n[k]
+    Jn[np.arange(model.n_rows), _row_bands(model)] = dn
     return r, _project_off(_whiten(model, A), np.column_stack([dx, Jn]))
 
 

@@ -20,7 +20,7 @@ from ...spectra import colour_filter
 from .distance import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
 from .index import N_EFF_REL_STDERR
 from .measured_target import target_model
-from .solver import _pinv_solve, _project_off, _whiten
+from .solver import _pinv_solve, _prediction_derivatives, _project_off, _row_bands, _whiten
 from .target import check_modelled
 from .target_model import PRIOR_SD, RadialBins
 
@@ -180,12 +180,11 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
     model.sigma = sigma_px / np.sqrt(count)
     A = model.design(x, n_design)
     s_true, _ = _pinv_solve(A, y)  # the noise-free means as the model has them
-    cols = [(model.design(x * (1 + 1e-5), n_design) - model.design(x * (1 - 1e-5), n_design))
-            @ s_true / (2e-5 * x)]
-    if fit_n_eff:
-        cols.append((model.design(x, n_design * (1 + 1e-5))
-                     - model.design(x, n_design * (1 - 1e-5))) @ s_true / 2e-5)
-    J = np.column_stack(cols) / model.sigma[:, None]
+    # the fit's derivatives: the index's analytic, x's a central difference of the model
+    dx, dn = _prediction_derivatives(model, x, np.asarray(n_design, float), A, s_true,
+                                     central=True)
+    n_rows = np.broadcast_to(np.asarray(n_design, float), model.cwl.shape)[_row_bands(model)]
+    J = np.column_stack([dx] + ([dn * n_rows] if fit_n_eff else []))
     Jp = _project_off(_whiten(model, A), J)
     F = Jp.T @ Jp
     if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14 or F[0, 0] <= 0:
@@ -250,22 +249,32 @@ def _edge_shift_nm(x, n, d, cwl):
     return cwl * (1.0 - math.sqrt(max(1.0 - sin2 / (n * n), 1e-12)))
 
 
+def _edge_shift_gradient(x, n, d, cwl):
+    """The derivatives of :func:`_edge_shift_nm` in ``x`` and in the index's scale (``n``
+    times its derivative in ``n``)."""
+    sin2 = d * d / (d * d + x * x)
+    root = math.sqrt(max(1.0 - sin2 / (n * n), 1e-12))
+    dsin2 = -2.0 * x * d * d / (d * d + x * x) ** 2
+    return np.array([cwl * dsin2 / (2.0 * n * n * root), -cwl * sin2 / (n * n * root)])
+
+
 def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
     """:class:`TargetPrecision` of the cubes in ``problem`` (a ``_Problem``) at trial ``x``.
 
-    The Jacobian of the profiled residuals (the target's spectrum solved for at every step,
-    as the fit does) in ``x`` and, with ``fit_k``, the index's common scale, by central
-    differences; its information matrix, with the noise the annuli show, inverted.
+    The Jacobian of the profiled residuals in ``x`` and every band's index (variable
+    projection in Kaufman's form, as the fit's steps take it: the index's derivative analytic,
+    ``x``'s a central difference of the model at fixed target coefficients,
+    :func:`~snapcorr.calibrate.pupil.index._per_band_jacobian`); with ``fit_k`` the index's
+    common scale is the bands' columns summed, weighted by their indices. Its information
+    matrix, with the noise the annuli show, inverted.
     """
-    e = 1e-5
-    cols = [(problem.residuals(x * (1 + e))[0] - problem.residuals(x * (1 - e))[0])
-            / (2 * e * x)]
-    if fit_k:
-        cols.append((problem.residuals(x, 1 + e)[0] - problem.residuals(x, 1 - e)[0])
-                    / (2 * e))
-    J = np.column_stack(cols)
+    from .index import _per_band_jacobian
+
+    nd = problem.n_design
+    _, Jp = _per_band_jacobian(problem.model, x, nd, central=True)
+    J = np.column_stack([Jp[:, 0], Jp[:, 1:] @ nd]) if fit_k else Jp[:, :1]
     F = J.T @ J
-    n = float(np.mean(problem.n_design))
+    n = float(np.mean(nd))
     inf = TargetPrecision(x, math.inf, n, math.inf if fit_k else None, math.inf, edge_mm,
                           cwl_nm)
     if not np.all(np.isfinite(F)) or F[0, 0] <= 0 or np.linalg.cond(F) > 1e14:
@@ -273,22 +282,14 @@ def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
     cov = np.linalg.inv(F)
     if np.any(np.diag(cov) <= 0):
         return inf
-    g = [(_edge_shift_nm(x * (1 + e), n, edge_mm, cwl_nm)
-          - _edge_shift_nm(x * (1 - e), n, edge_mm, cwl_nm)) / (2 * e * x)]
-    if fit_k:
-        g.append((_edge_shift_nm(x, n * (1 + e), edge_mm, cwl_nm)
-                  - _edge_shift_nm(x, n * (1 - e), edge_mm, cwl_nm)) / (2 * e))
-    g = np.array(g)
+    g = _edge_shift_gradient(x, n, edge_mm, cwl_nm)[:J.shape[1]]
     shift_err = float(math.sqrt(max(g @ cov @ g, 0.0)))
     band = None
-    if fit_k and problem.n_design.size >= 2:
-        from .index import _per_band_jacobian
-
-        _, Jp = _per_band_jacobian(problem.model, x, problem.n_design)
+    if fit_k and nd.size >= 2:
         with np.errstate(all="ignore"):
             Fb = Jp.T @ Jp
             band = (np.sqrt(np.clip(np.diag(np.linalg.pinv(Fb)), 0, None))[1:]
-                    if np.all(np.isfinite(Fb)) else np.full(problem.n_design.size, np.inf))
+                    if np.all(np.isfinite(Fb)) else np.full(nd.size, np.inf))
     return TargetPrecision(x, float(math.sqrt(cov[0, 0])), n,
                            float(math.sqrt(cov[1, 1]) * n) if fit_k else None, shift_err,
                            edge_mm, cwl_nm, band)

@@ -110,19 +110,23 @@ def _row_bands(model):
     return out
 
 
-def _prediction_derivatives(model, x, n, A, s, *, eps_x=1e-5, eps_n=1e-4):
+def _prediction_derivatives(model, x, n, A, s, *, eps_x=1e-5, eps_n=1e-4, central=False):
     """The derivatives of the whitened prediction ``A s / sigma`` at fixed ``s``: in ``x``
-    (a forward difference: the kernels are new at every ``x``), and every row in its own
-    band's index (the model's analytic derivative where it has one, else a forward
-    difference; every band's rows depend on its own index only, so one evaluation serves
-    every band)."""
-    base = A @ s
-    dx = (model.design(x * (1 + eps_x), n) @ s - base) / (x * eps_x)
+    (a forward difference, or with ``central`` a central one: the kernels are new at every
+    ``x`` and have no derivative of their own), and every row in its own band's index (the
+    model's analytic derivative, :meth:`TargetModel.design` with ``dn``, where it has one,
+    else a forward difference; every band's rows depend on its own index only, so one
+    evaluation serves every band)."""
+    if central:
+        dx = ((model.design(x * (1 + eps_x), n) - model.design(x * (1 - eps_x), n)) @ s
+              / (2 * x * eps_x))
+    else:
+        dx = (model.design(x * (1 + eps_x), n) @ s - A @ s) / (x * eps_x)
     if getattr(model, "analytic_dn", False):
         dn = model.design(x, n, dn=True) @ s
     else:
         step = eps_n * n
-        dn = (model.design(x, n + step) @ s - base) / step[_row_bands(model)]
+        dn = (model.design(x, n + step) @ s - A @ s) / step[_row_bands(model)]
     return dx / model.sigma, dn / model.sigma
 
 

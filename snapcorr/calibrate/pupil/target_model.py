@@ -206,6 +206,16 @@ def _lerp(table, pos, other=None):
     return first if other is None else (first, other[i0] * w0 + other[i1] * w1)
 
 
+def _lerp_slope(table, pos):
+    """The derivative of :func:`_lerp` ``(table, pos)`` in ``pos`` (each piece's slope)."""
+    n = table.size
+    i = np.floor(pos).astype(int)
+    ok0 = (i >= 0) & (i < n)
+    ok1 = (i >= -1) & (i < n - 1)
+    i0, i1 = np.clip(i, 0, n - 1), np.clip(i + 1, 0, n - 1)
+    return np.where(ok1, table[i1], 0.0) - np.where(ok0, table[i0], 0.0)
+
+
 def _derivatives(x):
     """Matrices D1, D2 with ``D1 @ f ~ f'`` and ``D2 @ f ~ f''`` on the increasing grid ``x``
     (three-point formulas; the end rows use the nearest interior triple)."""
@@ -566,32 +576,49 @@ class TargetModel:
         return A
 
     #: Whether :meth:`design` gives the derivative in the index (``dn=True``).
-    analytic_dn = False
+    analytic_dn = True
+
+    def _masses(self, u, w, owner, nb, cwl, n, dn):
+        """Every kernel mass's weight, correction weight (``"scale"``; else None) and filter
+        centre in fine-grid units at index ``n``, and with ``dn`` their derivatives in ``n``
+        (None otherwise): ``(w, wd, p), (dw, dwd, dp)``."""
+        a2 = 1.0 - u / (n * n)
+        scale = np.sqrt(np.clip(a2, 0.0, None))  # Eq. 3: lambda_c / cwl
+        ds = (np.where(a2 > 0, u / (n**3 * np.where(a2 > 0, scale, 1.0)), 0.0) if dn
+              else None)
+        p = (cwl * scale - self.lam0) / self.h  # each mass's filter centre, fine-grid units
+        dp = None if ds is None else cwl * ds / self.h
+        if self.transform != "scale":
+            return (w, None, p), (None if ds is None else np.zeros_like(w), None, dp)
+        # the curve T(l / s) has s times the area: each ray passes s times the light (the
+        # white reference sees the same, so only the weights' ratios change)
+        ws = w * scale
+        tot = np.bincount(owner, ws, minlength=nb)[owner]
+        wn = ws / tot
+        if ds is None:
+            return (wn, wn * (scale - 1.0), p), (None, None, None)
+        dws = w * ds
+        dwn = (dws - wn * np.bincount(owner, dws, minlength=nb)[owner]) / tot
+        return (wn, wn * (scale - 1.0), p), (dwn, dwn * (scale - 1.0) + wn * ds, dp)
 
     def _band_block(self, kern, k, n, *, dn=False):
         """Rows for every bin of one cube and band ``k``: every kernel mass reads the band's
         response table at its filter centre (linear interpolation on the fine grid). Returns the
-        first column (hat) the block covers and the block."""
-        if dn:
-            raise NotImplementedError("this target model has no analytic index derivative")
+        first column (hat) the block covers and the block. With ``dn`` the block's derivative
+        in the index ``n`` instead: the masses' centres (Eq. 3, ``d scale / dn = u / (n^3
+        scale)``) through each interpolation piece's slope, and their weights' change."""
         u, w, owner, nb = kern[:4]
         cwl = self.cwl[k]
         if u.size == 0:
             return 0, np.zeros((nb, 1))
-        scale = np.sqrt(np.clip(1.0 - u / (n * n), 0.0, None))  # Eq. 3: lambda_c / cwl
-        if self.transform == "scale":
-            # the curve T(l / s) has s times the area: each ray passes s times the light (the
-            # white reference sees the same, so only the weights' ratios change)
-            w = w * scale
-            w = w / np.bincount(owner, w, minlength=nb)[owner]
-        p = (cwl * scale - self.lam0) / self.h  # each mass's filter centre, fine-grid units
-        wd = w * (scale - 1.0) if self.transform == "scale" else None
+        (w, wd, p), (dw, dwd, dp) = self._masses(u, w, owner, nb, cwl, n, dn)
         if self.known:
-            if wd is None:
-                out = np.bincount(owner, w * _lerp(self.F[k], p), minlength=nb)
-            else:
-                f, fd = _lerp(self.F[k], p, self.FD[k])
-                out = np.bincount(owner, w * f + wd * fd, minlength=nb)
+            tables = [(w, dw, self.F[k])] + ([] if wd is None else [(wd, dwd, self.FD[k])])
+            out = np.zeros(nb)
+            for c, dc, T in tables:
+                v = (c * _lerp(T, p) if not dn
+                     else dc * _lerp(T, p) + c * _lerp_slope(T, p) * dp)
+                out += np.bincount(owner, v, minlength=nb)
             return 0, out[:, None]
         J, q = self.J[k], self.q
         # every mass reaches the hats m with |p - q m| < J + q: H at lag p - q m + J + q
@@ -604,11 +631,12 @@ class TargetModel:
         m_lo = int(m.min())
         cols = int(m.max()) - m_lo + 1
         flat = (owner[:, None] * cols + (m - m_lo)).ravel()
-        if wd is None:
-            vals = w[:, None] * _lerp(self.H[k], lag)
-        else:
-            h, hd = _lerp(self.H[k], lag, self.HD[k])
-            vals = w[:, None] * h + wd[:, None] * hd
+        tables = [(w, dw, self.H[k])] + ([] if wd is None else [(wd, dwd, self.HD[k])])
+        vals = 0.0
+        for c, dc, T in tables:
+            vals = vals + (c[:, None] * _lerp(T, lag) if not dn else
+                           dc[:, None] * _lerp(T, lag)
+                           + (c * dp)[:, None] * _lerp_slope(T, lag))
         vals = np.where(inside, vals, 0.0).ravel()
         out = np.bincount(flat, vals, minlength=nb * cols).reshape(nb, cols)
         return m_lo, out
