@@ -21,7 +21,7 @@ import functools
 import inspect
 import warnings
 
-from ._validation import called_from_outside, check_center, check_pair
+from ._validation import REMOVAL_VERSION, called_from_outside, check_center, check_pair
 
 __all__ = [
     "CENTER_PX_DEPRECATION",
@@ -29,12 +29,33 @@ __all__ = [
     "called_from_outside",
     "center_from_rc",
     "rc_from_center",
+    "warn_x_first_return",
 ]
 
 #: Said when the old form is used (the tests match on its start).
 CENTER_PX_DEPRECATION = ("center_px is the old x-first form (cx, cy) of the optical centre and "
                          "will be removed; give center_rc=(row, col) instead "
                          "(here center_rc=({row:g}, {col:g}))")
+
+
+def warn_x_first_return(old, new, *, stacklevel=4):
+    """Warn (``FutureWarning``) that ``old`` gives the optical centre x first, ``(cx, cy)``, and
+    goes in :data:`~snapcorr._validation.REMOVAL_VERSION`; ``new`` gives it row first.
+
+    Called from the body of ``old`` when :func:`called_from_outside` says so.
+
+    Parameters
+    ----------
+    old, new : str
+        The name giving the centre x first and the one giving it row first, as the message
+        shows them (``"cube_cra_deg"``, ``"CorrectionPlan.center_rc"``).
+    stacklevel : int
+        As for :func:`warnings.warn`, counted from here: the default 4 points past ``old``
+        and its :func:`accepts_center_rc` wrapper at the code that called it.
+    """
+    warnings.warn(f"{old} gives the optical centre x first, (cx, cy), and will be removed in "
+                  f"snapcorr {REMOVAL_VERSION}; use {new}, which gives it row first, "
+                  "(row, col)", FutureWarning, stacklevel=stacklevel)
 
 
 def center_from_rc(center_rc, name="center_rc"):

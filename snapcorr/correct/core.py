@@ -35,9 +35,9 @@ __all__ = ["DEFAULT_TOLERANCE_NM", "correct_cube", "relative_shift"]
 
 @accepts_center_rc
 def correct_cube(cube, sensor, f_number, lens, *, method="auto",
-                 tolerance_nm=DEFAULT_TOLERANCE_NM, center_px=None, sensor_origin_px=None,
-                 resample=False, harmonise=False, target_fwhm_nm=None, mask=None,
-                 virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
+                 tolerance_nm=DEFAULT_TOLERANCE_NM, center_rc=None, center_px=None,
+                 sensor_origin_px=None, resample=False, harmonise=False, target_fwhm_nm=None,
+                 mask=None, virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
                  virtual_fwhm_nm=None, fwhm=True):
     """Corrected central wavelength of every pixel and band; optionally the resampled cube.
 
@@ -63,7 +63,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         Optical centre in sensor pixels, row first (``center_px=(cx, cy)``: the deprecated
         x-first form; default: from the lens calibration, converted through
         millimetres when its pixel pitch differs, else the sensor's centre, else the centre of
-        the area the cube covers; :func:`~snapcorr.correct.optical_center`).
+        the area the cube covers; :func:`~snapcorr.correct.geometry.optical_center_rc`).
     sensor_origin_px : (row, col), optional
         Sensor row and column of the cube's first pixel, for a crop that does not carry its
         positions (``sensor_row``/``sensor_col``); :func:`~snapcorr.correct.cube_positions`
@@ -111,7 +111,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     """
     f, cube, mask = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm,
                                   target_fwhm_nm, harmonise, mask, resample)
-    cra_max = _field_max_deg(_largest_cra_deg(cube, sensor, lens, center_px, sensor_origin_px),
+    cra_max = _field_max_deg(_largest_cra_deg(cube, sensor, lens, center_rc, sensor_origin_px),
                              f, lens)
     used, reason, n_eff = _model(sensor, f, cra_max, lens, method, tolerance_nm)
     want, first = _widths_needed(sensor, lens, used, fwhm, harmonise)
@@ -119,7 +119,7 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
     harmonising = harmonise or used == "harmonised"
     plan = CorrectionPlan(f_number=f, cra_max_deg=cra_max, tolerance_nm=tolerance_nm,
                           model=used, reason=reason, n_eff=n_eff, widths=widths)
-    plan = plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px,
+    plan = plan_correction(plan, cube, sensor, lens, center_rc, sensor_origin_px,
                            build_widths=want and widths is None and harmonising,
                            resample=resample, harmonising=harmonising)
     ds = _assembled(cube, sensor, lens, plan, mask, with_widths=fwhm)
@@ -150,7 +150,7 @@ def _assembled(cube, sensor, lens, plan, mask, *, with_widths):
 
 def _with_provenance(ds, sensor, lens, plan, method):
     """``ds`` with the correction's provenance in its attributes."""
-    f, center = plan.f_number, plan.center
+    f, (row, col) = plan.f_number, plan.center_rc
     ds.attrs.update({
         "title": "per-pixel wavelength correction (Goossens et al. 2019, Eq. 23)",
         "source": f"snapcorr {__version__} correct", "Conventions": "CF-1.10",
@@ -158,8 +158,8 @@ def _with_provenance(ds, sensor, lens, plan, method):
         "sensor": sensor.name, "f_number": f, "method": plan.model,
         "method_reason": plan.reason, "method_requested": method,
         "tolerance_nm": float(plan.tolerance_nm),
-        "optical_center_rc": [float(center[1]), float(center[0])],
-        "optical_center_px": [float(center[0]), float(center[1])],  # x first, deprecated
+        "optical_center_rc": [float(row), float(col)],
+        "optical_center_px": [float(col), float(row)],  # x first, for earlier readers
         "optical_center_source": plan.center_source, "cra_max_deg": plan.cra_max_deg,
         "snapcorr_version": __version__,
     })

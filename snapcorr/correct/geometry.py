@@ -13,14 +13,17 @@ optical centre measured on another pixel grid is carried over through millimetre
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from .._coords import accepts_center_rc
-from .._validation import check_center, check_pair
+from .._coords import accepts_center_rc, called_from_outside, warn_x_first_return
+from .._validation import check_center, check_center_rc, check_pair
 from ..cube.mosaic import sensor_positions
 from ..optics.chief_ray import pixel_cra_deg
 
-__all__ = ["PlacementError", "cube_cra_deg", "cube_positions", "optical_center"]
+__all__ = ["CubeCRA", "PlacementError", "cube_cra", "cube_cra_deg", "cube_positions",
+           "optical_center", "optical_center_rc"]
 
 #: Physical sizes (mm) closer than this fraction of a pixel count as the same image area.
 _SAME_AREA_PX = 1.0
@@ -134,14 +137,14 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
     return rows, cols
 
 
-@accepts_center_rc
-def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
-    """The optical centre in sensor pixels, and where it came from.
+def optical_center_rc(cube, sensor, lens, *, center_rc=None, positions=None):
+    """The optical centre ``(row, col)`` in sensor pixels, and where it came from.
 
-    Given explicitly; else the lens profile's ``[calibration] center_px``, converted through
-    millimetres when the calibration's pixel pitch differs from the sensor's (binned pixels,
-    another pixel grid over the same image area); else the centre of the sensor (``size_px``);
-    else the centre of the area the cube covers.
+    Given explicitly; else the lens profile's ``[calibration] center_rc`` (or the x-first
+    ``center_px`` of profiles written before it), converted through millimetres when the
+    calibration's pixel pitch differs from the sensor's (binned pixels, another pixel grid over
+    the same image area); else the centre of the sensor (``size_px``); else the centre of the
+    area the cube covers.
 
     Parameters
     ----------
@@ -150,19 +153,18 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
     sensor : Sensor
         Its pixel pitch (um) and ``size_px``.
     lens : Lens
-        Its ``calibration`` table (``center_px``, ``pixel_pitch_um``, ``image_size_px``); the
-        calibration's centre is used only when it records its pixel pitch.
-    center_rc, center_px : (row, col), optional
-        Optical centre given explicitly, sensor pixels; ``center_px=(cx, cy)`` is the
-        deprecated x-first form.
+        Its ``calibration`` table (``center_rc`` or ``center_px``, ``pixel_pitch_um``,
+        ``image_size_px``); the calibration's centre is used only when it records its pixel
+        pitch.
+    center_rc : (row, col), optional
+        Optical centre given explicitly, sensor pixels.
     positions : (rows, cols), optional
         The cube's sensor positions if already known (as :func:`cube_positions` returns).
 
     Returns
     -------
-    center : (float, float)
-        ``(cx, cy)``, sensor pixels, x first: the internal form (:mod:`snapcorr._coords`);
-        ``center[::-1]`` is ``(row, col)``.
+    center_rc : (float, float)
+        ``(row, col)``, sensor pixels.
     source : str
         ``"given"``, ``"lens calibration"`` (possibly with the conversion noted),
         ``"sensor centre"`` or ``"image centre"``.
@@ -174,92 +176,163 @@ def optical_center(cube, sensor, lens, center_px=None, *, positions=None):
         cannot be matched (no ``image_size_px`` in the profile, no ``size_px`` for the sensor, or
         different physical sizes): pass ``center_rc`` (``--center ROW,COL``).
     """
-    if center_px is not None:
-        return check_center(center_px), "given"
+    if center_rc is not None:
+        return check_center_rc(center_rc), "given"
     cal = getattr(lens, "calibration", {}) or {}
     if ("center_rc" in cal or "center_px" in cal) and cal.get("pixel_pitch_um") is not None:
-        if "center_rc" in cal:  # row first; the x-first center_px beside it is for old readers
-            cy, cx = check_center(cal["center_rc"], "the lens calibration's center_rc")
-        else:
-            cx, cy = check_center(cal["center_px"], "the lens calibration's center_px")
-        p_cal = float(cal["pixel_pitch_um"])
-        p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
-        size = cal.get("image_size_px")
-        same_pitch = abs(p_cal - p) < 1e-9 * p
-        if same_pitch and (size is None or sensor.size_px is None):
-            return (cx, cy), "lens calibration"  # the same pixel grid, as far as is known
-        why = None
-        if size is None:
-            why = "the profile does not record the calibration image's size"
-        elif sensor.size_px is None:
-            why = f"the sensor {sensor.name!r} has no size_px"
-        else:
-            w_mm, h_mm = (float(v) * p_cal * 1e-3 for v in size)
-            rows, cols = sensor.size_px
-            if (abs(cols * p * 1e-3 - w_mm) > _SAME_AREA_PX * p * 1e-3
-                    or abs(rows * p * 1e-3 - h_mm) > _SAME_AREA_PX * p * 1e-3):
-                why = (f"its image ({w_mm:.3f} x {h_mm:.3f} mm) and the sensor's "
-                       f"({cols * p * 1e-3:.3f} x {rows * p * 1e-3:.3f} mm) differ")
-        if why is not None:
-            raise PlacementError(
-                f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
-                f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
-                "give --center ROW,COL (center_rc) in this sensor's pixels")
-        if same_pitch:
-            return (cx, cy), "lens calibration"
-        # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
-        k = p_cal / p
-        return ((cx + 0.5) * k - 0.5, (cy + 0.5) * k - 0.5), \
-            f"lens calibration ({p_cal:g} um pixels, converted through mm)"
+        return _calibrated_center_rc(cal, sensor)
     if sensor.size_px is not None:
         rows, cols = sensor.size_px
-        return ((cols - 1) / 2.0, (rows - 1) / 2.0), "sensor centre"
+        return ((rows - 1) / 2.0, (cols - 1) / 2.0), "sensor centre"
     rows, cols = positions if positions is not None else cube_positions(cube, sensor, lens)
-    return ((float(cols.min()) + float(cols.max())) / 2.0,
-            (float(rows.min()) + float(rows.max())) / 2.0), "image centre"
+    return ((float(rows.min()) + float(rows.max())) / 2.0,
+            (float(cols.min()) + float(cols.max())) / 2.0), "image centre"
 
 
-@accepts_center_rc
-def cube_cra_deg(cube, sensor, lens, center_px=None, *, sensor_origin_px=None):
-    """Chief-ray angle of every pixel (and band, for mosaics), degrees.
+def _calibrated_center_rc(cal, sensor):
+    """The lens calibration's centre ``(row, col)`` in this sensor's pixels, and its source
+    (:func:`optical_center_rc`)."""
+    if "center_rc" in cal:  # row first; the x-first center_px beside it is for old readers
+        row, col = check_center_rc(cal["center_rc"], "the lens calibration's center_rc")
+    else:  # profiles written by snapcorr 0.1 hold only the x-first (cx, cy)
+        col, row = check_center(cal["center_px"], "the lens calibration's center_px")
+    p_cal = float(cal["pixel_pitch_um"])
+    p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
+    size = cal.get("image_size_px")
+    same_pitch = abs(p_cal - p) < 1e-9 * p
+    if same_pitch and (size is None or sensor.size_px is None):
+        return (row, col), "lens calibration"  # the same pixel grid, as far as is known
+    why = None
+    if size is None:
+        why = "the profile does not record the calibration image's size"
+    elif sensor.size_px is None:
+        why = f"the sensor {sensor.name!r} has no size_px"
+    else:
+        w_mm, h_mm = (float(v) * p_cal * 1e-3 for v in size)  # recorded as [width, height]
+        rows, cols = sensor.size_px
+        if (abs(cols * p * 1e-3 - w_mm) > _SAME_AREA_PX * p * 1e-3
+                or abs(rows * p * 1e-3 - h_mm) > _SAME_AREA_PX * p * 1e-3):
+            why = (f"its image ({w_mm:.3f} x {h_mm:.3f} mm) and the sensor's "
+                   f"({cols * p * 1e-3:.3f} x {rows * p * 1e-3:.3f} mm) differ")
+    if why is not None:
+        raise PlacementError(
+            f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
+            f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
+            "give --center ROW,COL (center_rc) in this sensor's pixels")
+    if same_pitch:
+        return (row, col), "lens calibration"
+    # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
+    k = p_cal / p
+    return ((row + 0.5) * k - 0.5, (col + 0.5) * k - 0.5), \
+        f"lens calibration ({p_cal:g} um pixels, converted through mm)"
+
+
+class CubeCRA(NamedTuple):
+    """Every pixel's chief-ray angle and the optical centre it was measured from
+    (:func:`cube_cra`)."""
+
+    #: Degrees, shape ``(ny, nx, nb)``, or ``(ny, nx, 1)`` when every band shares its pixel's
+    #: position (Snapscan).
+    cra_deg: np.ndarray
+    #: The optical centre, ``(row, col)`` sensor pixels.
+    center_rc: tuple
+    #: Where the centre came from (as :func:`optical_center_rc` says).
+    center_source: str
+
+
+def cube_cra(cube, sensor, lens, *, center_rc=None, sensor_origin_px=None):
+    """Chief-ray angle of every pixel (and band, for mosaics), and the optical centre used.
 
     Parameters
     ----------
     cube : xarray.DataArray
     sensor : Sensor
     lens : Lens
-    center_rc, center_px : (row, col), optional
-        Optical centre in sensor pixels (``center_px=(cx, cy)``: the deprecated x-first
-        form); see :func:`optical_center`.
+    center_rc : (row, col), optional
+        Optical centre in sensor pixels; see :func:`optical_center_rc`.
     sensor_origin_px : (row, col), optional
         Sensor position of the cube's first pixel, for cubes that do not carry their
         positions; see :func:`cube_positions`.
 
     Returns
     -------
-    cra : ndarray, shape (ny, nx, nb) or (ny, nx, 1)
-        The last axis is 1 when every band shares its pixel's position (Snapscan).
-    center : (float, float)
-        ``(cx, cy)``, x first (as :func:`optical_center`).
-    center_source : str
+    CubeCRA
+        ``(cra_deg, center_rc, center_source)``: the angles in degrees, shape ``(ny, nx, nb)``
+        or ``(ny, nx, 1)`` (the last axis is 1 when every band shares its pixel's position,
+        Snapscan); the centre ``(row, col)``; where it came from.
     """
-    pitch, rows, cols, center, source = _placed(cube, sensor, lens, center_px,
+    pitch, rows, cols, center, source = _placed(cube, sensor, lens, center_rc,
                                                 sensor_origin_px)
     # rows (ny, 1, nb) against columns (1, nx, nb)
-    cra = pixel_cra_deg(rows[:, None, :], cols[None, :, :], center[::-1], pitch,
-                        lens.exit_pupil_mm)
-    return cra, center, source
+    cra = pixel_cra_deg(rows[:, None, :], cols[None, :, :], center, pitch, lens.exit_pupil_mm)
+    return CubeCRA(cra, center, source)
 
 
-def _placed(cube, sensor, lens, center_px, sensor_origin_px):
+@accepts_center_rc
+def optical_center(cube, sensor, lens, center_px=None, *, center_rc=None, positions=None):
+    """The optical centre x first, ``(cx, cy)``: the earlier form of
+    :func:`optical_center_rc`, which gives it row first; removed in snapcorr 0.3.
+
+    Parameters
+    ----------
+    cube, sensor, lens, positions
+        As for :func:`optical_center_rc`.
+    center_rc, center_px : (row, col), optional
+        Optical centre given explicitly; ``center_px=(cx, cy)``, in its old place, is the
+        deprecated x-first form.
+
+    Returns
+    -------
+    center : (float, float)
+        ``(cx, cy)``, sensor pixels, x first.
+    source : str
+        As for :func:`optical_center_rc`.
+    """
+    if called_from_outside(2):
+        warn_x_first_return("optical_center", "optical_center_rc")
+    (row, col), source = optical_center_rc(cube, sensor, lens, center_rc=center_rc,
+                                           positions=positions)
+    return (col, row), source
+
+
+@accepts_center_rc
+def cube_cra_deg(cube, sensor, lens, center_px=None, *, center_rc=None, sensor_origin_px=None):
+    """Chief-ray angles and the optical centre x first, ``(cra, (cx, cy), source)``: the
+    earlier form of :func:`cube_cra`, which gives the centre row first; removed in snapcorr 0.3.
+
+    Parameters
+    ----------
+    cube, sensor, lens, sensor_origin_px
+        As for :func:`cube_cra`.
+    center_rc, center_px : (row, col), optional
+        Optical centre in sensor pixels; ``center_px=(cx, cy)``, in its old place, is the
+        deprecated x-first form.
+
+    Returns
+    -------
+    cra : ndarray
+        As ``cube_cra(...).cra_deg``.
+    center : (float, float)
+        ``(cx, cy)``, x first.
+    center_source : str
+    """
+    if called_from_outside(2):
+        warn_x_first_return("cube_cra_deg", "cube_cra")
+    cra, (row, col), source = cube_cra(cube, sensor, lens, center_rc=center_rc,
+                                       sensor_origin_px=sensor_origin_px)
+    return cra, (col, row), source
+
+
+def _placed(cube, sensor, lens, center_rc, sensor_origin_px):
     pitch = sensor.require("pixel_pitch_um", "the chief-ray angle of each pixel")
     rows, cols = cube_positions(cube, sensor, lens, sensor_origin_px)
-    center, source = optical_center(cube, sensor, lens, center_px, positions=(rows, cols))
+    center, source = optical_center_rc(cube, sensor, lens, center_rc=center_rc,
+                                       positions=(rows, cols))
     return pitch, rows, cols, center, source
 
 
-def _largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
-    """``cube_cra_deg(...)[0].max()`` without the map: for each band's positions, the row
+def _largest_cra_deg(cube, sensor, lens, center_rc=None, sensor_origin_px=None):
+    """``cube_cra(...).cra_deg.max()`` without the map: for each band's positions, the row
     and the column farthest from the centre (every step from the offsets to the angle is
     monotonic, element by element the same arithmetic), so a table over the field's angles
     can be started before the map is made.
@@ -269,20 +342,20 @@ def _largest_cra_deg(cube, sensor, lens, center_px=None, sensor_origin_px=None):
     cube : xarray.DataArray
     sensor : Sensor
     lens : Lens
-    center_px : (cx, cy), optional
-        Optical centre, sensor pixels, x first (as :func:`cube_cra_deg` takes it).
+    center_rc : (row, col), optional
+        Optical centre, sensor pixels (as :func:`cube_cra` takes it).
     sensor_origin_px : (row, col), optional
-        As for :func:`cube_cra_deg`.
+        As for :func:`cube_cra`.
 
     Returns
     -------
     float
         Degrees.
     """
-    pitch, rows, cols, center, _ = _placed(cube, sensor, lens, center_px, sensor_origin_px)
-    cx, cy = center
+    pitch, rows, cols, (row, col), _ = _placed(cube, sensor, lens, center_rc,
+                                               sensor_origin_px)
     bands = np.arange(rows.shape[1])
-    far_rows = rows[np.argmax(np.abs(rows - cy), axis=0), bands]
-    far_cols = cols[np.argmax(np.abs(cols - cx), axis=0), bands]
+    far_rows = rows[np.argmax(np.abs(rows - row), axis=0), bands]
+    far_cols = cols[np.argmax(np.abs(cols - col), axis=0), bands]
     return float(np.max(pixel_cra_deg(far_rows[None, None, :], far_cols[None, None, :],
-                                      (cy, cx), pitch, lens.exit_pupil_mm)))
+                                      (row, col), pitch, lens.exit_pupil_mm)))

@@ -10,13 +10,14 @@ from concurrent import futures
 
 import numpy as np
 
+from .._coords import called_from_outside, warn_x_first_return
 from .._threads import OutputPages, in_background, one_blas_thread
-from .geometry import cube_cra_deg
+from .geometry import cube_cra
 from .resample import _output_dtype, resample_cube
 from .wavelengths import _scale_function, _scales
 from .widths import _kernel_variance, _unlimited_width_table
 
-__all__ = ["CorrectionPlan"]  # plan_correction is correct_cube's step, with its x-first centre
+__all__ = ["CorrectionPlan"]  # plan_correction is correct_cube's step
 
 
 @dataclasses.dataclass
@@ -25,7 +26,7 @@ class CorrectionPlan:
 
     ``model`` is the model used and ``reason`` why; ``n_eff`` the bands' effective indices;
     ``cra_deg`` every pixel's chief-ray angle ``(y, x, 1 or band)``; ``center_rc`` the
-    optical centre (x first, as :func:`~snapcorr.correct.cube_cra_deg` gives it) and
+    optical centre ``(row, col)`` (``center`` its earlier x-first form, removed in 0.3) and
     ``center_source`` where it came from; ``scale_at(cra, key)`` the corrected / nominal
     wavelength and ``scale_source`` what it is; ``scale`` and ``column`` the compact
     corrected wavelengths; ``resampled`` (or None); ``widths`` the width table (or None),
@@ -40,7 +41,7 @@ class CorrectionPlan:
     reason: str
     n_eff: np.ndarray
     cra_deg: np.ndarray | None = None
-    center: tuple | None = None
+    center_rc: tuple | None = None
     center_source: str | None = None
     scale_at: Callable | None = None
     scale_source: str | None = None
@@ -52,7 +53,16 @@ class CorrectionPlan:
     kernel_var: np.ndarray | None = None
 
 
-def plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px, *, build_widths,
+    @property
+    def center(self):
+        """The optical centre x first, ``(cx, cy)``: the earlier form of ``center_rc``."""
+        if called_from_outside(2):
+            warn_x_first_return("CorrectionPlan.center", "CorrectionPlan.center_rc",
+                                stacklevel=3)
+        return None if self.center_rc is None else (self.center_rc[1], self.center_rc[0])
+
+
+def plan_correction(plan, cube, sensor, lens, center_rc, sensor_origin_px, *, build_widths,
                     resample, harmonising):
     """``plan`` with every pixel's CRA and scales (and ``resampled``), and the width table
     when ``build_widths``.
@@ -64,8 +74,8 @@ def plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px, *, bu
     cube : xarray.DataArray
     sensor : Sensor
     lens : Lens
-    center_px, sensor_origin_px
-        As :func:`~snapcorr.correct.cube_cra_deg` takes them.
+    center_rc, sensor_origin_px
+        As :func:`~snapcorr.correct.geometry.cube_cra` takes them.
     build_widths, resample, harmonising : bool
         Build the width table meanwhile; resample; ready the harmonised output.
 
@@ -89,8 +99,8 @@ def plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px, *, bu
         later = (in_background(_harmonising_tables, sensor, lens, f, cra_max, tolerance_nm,
                                plan.n_eff, pages) if build_widths else None)
         try:
-            cra, center, center_source = cube_cra_deg(cube, sensor, lens, center_px,
-                                                      sensor_origin_px=sensor_origin_px)
+            cra, center, center_source = cube_cra(cube, sensor, lens, center_rc=center_rc,
+                                                  sensor_origin_px=sensor_origin_px)
             scale_at, how = _scale_function(sensor, f, lens, plan.model, tolerance_nm,
                                             cra_max, widths)
             scale, column = _scales(cra, plan.n_eff, scale_at,
@@ -108,7 +118,7 @@ def plan_correction(plan, cube, sensor, lens, center_px, sensor_origin_px, *, bu
                     err.add_note(f"(the width table failed too: {other!r})")
             raise
     widths, kv = later.result() if later is not None else (widths, None)
-    return dataclasses.replace(plan, cra_deg=cra, center=center, center_source=center_source,
+    return dataclasses.replace(plan, cra_deg=cra, center_rc=center, center_source=center_source,
                                scale_at=scale_at, scale_source=how, scale=scale, column=column,
                                resampled=resampled, buffer=buffer, widths=widths,
                                kernel_var=kv)
