@@ -249,13 +249,13 @@ def recommend_model(cube, sensor, f_number, lens, source, *, tolerance_pct=0.5,
     >>> ds = correct_cube(cube, sensor, 1.4, lens, method=model)  # doctest: +SKIP
     >>> ds.attrs.update(attrs)  # doctest: +SKIP
     """
-    from ..correct.geometry import cube_cra_deg
+    from ..correct.geometry import cube_cra
     from ..spectra import parse_source
 
     sensor.check_cube(cube)
     spectrum = source if hasattr(source, "wavelength_nm") else parse_source(source, cube)
-    cra = cube_cra_deg(cube, sensor, lens, center_rc=center_rc,
-                       sensor_origin_px=sensor_origin_px)[0]
+    cra = cube_cra(cube, sensor, lens, center_rc=center_rc,
+                   sensor_origin_px=sensor_origin_px).cra_deg
     budget = scene_budget(spectrum, sensor, f_number, lens, cra_max_deg=float(cra.max()),
                           tolerance_pct=tolerance_pct)
     model, reason = budget.recommend()

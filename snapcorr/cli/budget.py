@@ -94,12 +94,13 @@ def run(args):
 
 def _budget_field(args, lens, sensor, cube):
     """The largest CRA the budget covers, and a phrase saying where it comes from."""
-    from ..correct.geometry import cube_cra_deg
+    from ..correct.geometry import cube_cra
 
     if args.cra_max is not None:
         return args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
     if cube is not None:
-        cra_max = float(cube_cra_deg(cube, sensor, lens, args.center_px)[0].max())
+        center_rc = None if args.center_px is None else tuple(args.center_px)[::-1]
+        cra_max = float(cube_cra(cube, sensor, lens, center_rc=center_rc).cra_deg.max())
         return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
     if sensor.field_radius_mm is not None:
         cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
