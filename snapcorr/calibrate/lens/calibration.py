@@ -335,7 +335,11 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
                         sensor_origin_px=sensor_origin_px)
     if lens is not None:
         result.lens = _lens_recorded(result.lens, lens, exit_pupil_from)
-    return result
+    # magnifications not given are assumed: their spread enters the errors, said and recorded
+    from . import magnification as _magnification
+
+    return _magnification.account_for_magnifications(result, magnification,
+                                                      pupil_magnification, lens, stacklevel=5)
 
 
 #: What a lens given to :func:`calibrate_lens` records of its exit pupil, and the key each
