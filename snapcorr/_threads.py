@@ -13,7 +13,7 @@ from __future__ import annotations
 import threading
 from concurrent import futures
 
-__all__ = ["OutputPages", "in_background", "one_blas_thread"]
+__all__ = ["OutputPages", "dask_threads", "in_background", "one_blas_thread"]
 
 
 def one_blas_thread():
@@ -23,6 +23,28 @@ def one_blas_thread():
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(1, user_api="blas")
+
+
+def dask_threads(*, import_dask=False):
+    """A context in which dask computes on its threads, the scheduler given as the function.
+
+    Named by a string, or not named, dask imports ``distributed`` at a process's first
+    compute to look for a client: 0.2-0.3 s of each command. Where ``distributed`` is
+    imported already (a client may be running) or a scheduler is set, dask's own choice
+    stands. Without ``import_dask``, a process that has not imported dask computes nothing
+    with it, and nothing is set.
+    """
+    import contextlib
+    import sys
+
+    if "distributed" in sys.modules or not (import_dask or "dask" in sys.modules):
+        return contextlib.nullcontext()
+    import dask
+    import dask.threaded
+
+    if dask.config.get("scheduler", None) is not None:
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler=dask.threaded.get)
 
 
 def in_background(fn, *args):

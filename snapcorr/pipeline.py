@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from ._coords import accepts_center_rc
+from ._threads import dask_threads
 from ._validation import renamed_keywords
 from .correct.resample import resample_cube
 from .correct.virtual import VirtualBandOptions
@@ -318,25 +319,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     return _run(frames, job)
 
 
-def _local_threads():
-    """dask's threaded scheduler for the steps' computations, given as the function: named by
-    a string (or not named), dask imports ``distributed`` at a process's first compute to look
-    for a client, 0.2-0.3 s of a command's time. Where ``distributed`` is imported already (a
-    client may be running) or a scheduler is set, dask's own choice stands."""
-    import contextlib
-    import sys
-
-    import dask
-    import dask.threaded
-
-    if "distributed" in sys.modules or dask.config.get("scheduler", None) is not None:
-        return contextlib.nullcontext()
-    return dask.config.set(scheduler=dask.threaded.get)
-
-
 def _run(data, job, on_step=None):
     """``data`` through every step of :data:`PIPELINE_STEPS` that ``job`` asks for."""
-    with _local_threads():
+    with dask_threads(import_dask=True):
         for name, step in PIPELINE_STEPS.items():
             if name in ("correct", "virtual bands") and job.lens is None:
                 continue

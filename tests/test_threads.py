@@ -59,3 +59,23 @@ def test_the_output_pages_are_shared_out_between_the_threads_once_each():
         pages.cancel()
         pages.touch()
         assert np.all(np.isnan(out))
+
+
+def test_dask_threads_names_the_threaded_scheduler_and_keeps_a_choice_made():
+    import sys
+
+    import dask
+    import dask.threaded
+
+    from snapcorr._threads import dask_threads
+
+    with dask.config.set(scheduler="synchronous"), dask_threads(import_dask=True):
+        assert dask.config.get("scheduler") == "synchronous"  # the caller's choice stands
+    before = dask.config.get("scheduler", None)
+    with dask_threads(import_dask=True):
+        if "distributed" in sys.modules or before is not None:
+            # a client may be running, or a choice was made: dask's own choice stands
+            assert dask.config.get("scheduler", None) is before
+        else:
+            assert dask.config.get("scheduler") is dask.threaded.get
+    assert dask.config.get("scheduler", None) is before  # and put back

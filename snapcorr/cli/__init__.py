@@ -112,21 +112,17 @@ def build_parser():
 
 
 def _local_scheduler(args):
-    """Dask's threads for the command's work, named as a function.
-
-    Given no scheduler, or one by name, dask imports :mod:`dask.distributed` at a process's
-    first compute (0.3 s here) only to look for a client; given the threaded scheduler's
-    ``get`` it does not. A command given ``--scheduler ADDRESS`` runs on the cluster's client
-    instead, so there nothing is set.
-    """
+    """Dask's threads for the command's work, named as a function
+    (:func:`snapcorr._threads.dask_threads`: otherwise dask imports :mod:`dask.distributed`
+    at a process's first compute only to look for a client). A command given ``--scheduler
+    ADDRESS`` runs on the cluster's client instead, so there nothing is set."""
     if getattr(args, "scheduler", None):
         import contextlib
 
         return contextlib.nullcontext()
-    import dask
-    import dask.threaded
+    from .._threads import dask_threads
 
-    return dask.config.set(scheduler=dask.threaded.get)
+    return dask_threads(import_dask=True)
 
 
 def main(argv=None):

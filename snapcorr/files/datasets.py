@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .._threads import dask_threads
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
@@ -530,24 +531,6 @@ def _packed(ds):
     return out
 
 
-def _local_threads():
-    """dask's threaded scheduler for a write, given as the function: named by a string (or
-    not named), dask imports ``distributed`` to look for a client first, 0.2-0.3 s of each
-    process that writes a file. Where ``distributed`` is imported already (a client may be
-    running) or a scheduler is set, dask's own choice stands."""
-    import contextlib
-    import sys
-
-    if "distributed" in sys.modules or "dask" not in sys.modules:
-        return contextlib.nullcontext()
-    import dask
-    import dask.threaded
-
-    if dask.config.get("scheduler", None) is not None:
-        return contextlib.nullcontext()
-    return dask.config.set(scheduler=dask.threaded.get)
-
-
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
@@ -572,7 +555,7 @@ def _store_dataset(ds, path, fmt, compression="auto"):
                                          _netcdf_encoding(part, compression).items()
                                          if k not in first.variables})
 
-        with _local_threads():
+        with dask_threads():
             atomic_write(path, write)
         return path
 
@@ -596,7 +579,7 @@ def _store_dataset(ds, path, fmt, compression="auto"):
             warnings.filterwarnings("ignore", message=".*[Cc]onsolidated metadata")
             zarr.consolidate_metadata(str(tmp))
 
-    with _local_threads():
+    with dask_threads():
         atomic_write_dir(path, write_zarr)
     return path
 
