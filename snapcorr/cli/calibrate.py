@@ -143,7 +143,7 @@ def add_parser(subparsers):
 def run(args):
     import dataclasses
 
-    from ..calibrate.lens.magnification import calibrate_lens
+    from ..calibrate.lens.calibration import calibrate_lens
 
     _one_per_f_number(args.flat, "flat")
     if args.target_cube:

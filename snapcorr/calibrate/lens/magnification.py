@@ -63,8 +63,7 @@ __all__ = [
     "MagnificationSpread",
     "MagnificationWarning",
     "account_for_magnifications",
-    "calibrate_lens",
-    "ratio_range",
+        "ratio_range",
 ]
 
 #: What a calibration assumes when neither magnification is given: focused at infinity.
@@ -296,32 +295,3 @@ def _table(res, sp):
         t["P_stderr_mm"] = [_clean(math.hypot(a, b)) for a, b in zip(sP, sp.P_mm, strict=True)]
         t["h_stderr_mm"] = [_clean(math.hypot(a, b)) for a, b in zip(sh, sp.h_mm, strict=True)]
     return t
-
-
-def calibrate_lens(flats, *, magnification=None, pupil_magnification=None, lens=None, **kw):
-    """:func:`snapcorr.calibrate.calibrate_lens`, with the assumed magnifications' spread in
-    its errors (:func:`account_for_magnifications`): where m and m_P are not given (nor by
-    ``lens``), a :class:`MagnificationWarning`, a note, the record in the profile and the
-    spread over the plausible range in the errors of P, h and the mean shift.
-
-    Parameters
-    ----------
-    flats : mapping
-        f-number -> 2-D flat field.
-    magnification, pupil_magnification : float, optional
-        m and m_P (None: not given, assumed 0 and 1 and their spread in the errors).
-    lens : Lens, optional
-        A lens whose x (and m, m_P) are known.
-    **kw
-        The other keywords of :func:`snapcorr.calibrate.calibrate_lens`.
-
-    Returns
-    -------
-    LensCalibration
-    """
-    from .calibration import calibrate_lens as _calibrate
-
-    res = _calibrate(flats, magnification=magnification,
-                     pupil_magnification=pupil_magnification, lens=lens, **kw)
-    return account_for_magnifications(res, magnification, pupil_magnification, lens,
-                                      stacklevel=3)

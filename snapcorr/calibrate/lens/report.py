@@ -90,8 +90,10 @@ def _magnification_lines(res):
     """What the assumed magnifications leave (:mod:`snapcorr.calibrate.lens.magnification`):
     P's and h's errors with their spread; nothing where m and m_P were given."""
     sp = getattr(res, "magnification_spread", None)
+    if sp is None:
+        return []
     rec = res.lens.calibration.get("magnification", {})
-    if sp is None or not isinstance(rec, dict):
+    if not isinstance(rec, dict):
         return []
     lo, hi = sp.ratio_range
     out = [f"magnifications assumed (m = {res.lens.magnification:g}, m_P = "

@@ -81,7 +81,7 @@ def test_assumed_magnifications_are_said_and_their_errors_cover_the_truth():
     flats = make_flats(PAPER_TRUTH, F_NUMBERS, noise=0.005, seed=3, **SCENE)
     kw = dict(exit_pupil_mm=PAPER_TRUTH.exit_pupil_mm, pixel_pitch_um=SCENE["pitch_um"])
     with pytest.warns(mag.MagnificationWarning, match="no magnifications given"):
-        res = mag.calibrate_lens(flats, **kw)
+        res = calibration.calibrate_lens(flats, **kw)
     rec = res.lens.calibration["magnification"]
     assert rec["assumed"] is True and rec["given"] == "neither"
     assert rec["m_over_m_P_range"] == [0.0, 0.1]
@@ -98,7 +98,7 @@ def test_assumed_magnifications_are_said_and_their_errors_cover_the_truth():
                 pupil_magnification=PAPER_TRUTH.pupil_magnification)
     with warnings.catch_warnings():
         warnings.simplefilter("error", mag.MagnificationWarning)
-        got = mag.calibrate_lens(flats, **kw, **true)
+        got = calibration.calibrate_lens(flats, **kw, **true)
     plain = calibration.calibrate_lens(flats, **kw, **true)
     assert got.lens.vignetting == plain.lens.vignetting
     assert np.array_equal(got.shift_stderr_nm, plain.shift_stderr_nm)
@@ -115,7 +115,7 @@ def test_without_vignetting_the_working_f_number_alone_is_in_the_errors():
     scene = dict(shape=(96, 120), pitch_um=75.7, center_px=(65.5, 44.9))
     flats = make_flats(truth, fs, noise=0.005, seed=11, **scene)
     with pytest.warns(mag.MagnificationWarning, match="not the flats' noise"):
-        res = mag.calibrate_lens(flats, exit_pupil_mm=truth.exit_pupil_mm,
+        res = calibration.calibrate_lens(flats, exit_pupil_mm=truth.exit_pupil_mm,
                                  pixel_pitch_um=scene["pitch_um"], method="joint")
     assert res.model == "none" and not res.lens.vignetting
     cra = np.linspace(0.0, res.max_cra_deg, 21)
