@@ -99,11 +99,9 @@ def test_assumed_magnifications_are_said_and_their_errors_cover_the_truth():
     with warnings.catch_warnings():
         warnings.simplefilter("error", mag.MagnificationWarning)
         got = calibration.calibrate_lens(flats, **kw, **true)
-    plain = calibration.calibrate_lens(flats, **kw, **true)
-    assert got.lens.vignetting == plain.lens.vignetting
-    assert np.array_equal(got.shift_stderr_nm, plain.shift_stderr_nm)
+    assert getattr(got, "magnification_spread", None) is None  # given: nothing added
     assert "magnification" not in got.lens.calibration
-    assert got.notes == plain.notes
+    assert not any("magnification" in n for n in got.notes)
     assert "magnifications assumed" not in got.summary()
 
 
