@@ -91,17 +91,17 @@ def _check_dtypes(dtype, raw, dark, white):
 
 def _average_reference(label, frames, raw, dtype, saturation, snapshot):
     """A reference's frames averaged (a line-scan strip over its rows too), and its flags."""
-    ref = frames[0]
-    if ref.sizes["x"] != raw.sizes["x"] or ref.sizes["band"] != raw.sizes["band"]:
-        raise ValueError(
-            f"{label} has shape {ref.shape} but the cube {raw.shape}: x and band must match"
-        )
-    if not np.allclose(ref.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
-        raise ValueError(f"{label} and the cube have different wavelengths; they must come "
-                         "from the same sensor and band set")
-    for f in frames:
+    for i, f in enumerate(frames):
+        name = label if len(frames) == 1 else f"{label} frame {i + 1} of {len(frames)}"
+        if f.sizes["x"] != raw.sizes["x"] or f.sizes["band"] != raw.sizes["band"]:
+            raise ValueError(
+                f"{name} has shape {f.shape} but the cube {raw.shape}: x and band must match"
+            )
+        if not np.allclose(f.wavelength.values, raw.wavelength.values, rtol=0, atol=1e-6):
+            raise ValueError(f"{name} and the cube have different wavelengths; they must come "
+                             "from the same sensor and band set")
         if snapshot and f.sizes["y"] != raw.sizes["y"]:
-            raise ValueError(f"the {label} reference has {f.sizes['y']} rows but the cube "
+            raise ValueError(f"the {name} reference has {f.sizes['y']} rows but the cube "
                              f"{raw.sizes['y']}, and the cube is a snapshot (a mosaic "
                              "sensor's: its bands sit at different rows of a tile): a "
                              "snapshot has no scan axis, so its references are cubes of the "

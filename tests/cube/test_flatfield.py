@@ -269,6 +269,10 @@ def test_float_policy_and_shape_errors():
     other = make_cube(np.ones((2, 3, 5)), WL + 1.0)
     with pytest.raises(ValueError, match="different wavelengths"):
         flatfield(_cube(np.ones((2, 3, 5))), other, _cube(np.ones((2, 3, 5))))
+    # every frame of a reference is checked, not only its first
+    whites = [_cube(np.ones((2, 3, 5))), make_cube(np.ones((2, 3, 5)), WL + 1.0)]
+    with pytest.raises(ValueError, match="white frame 2 of 2 and the cube have different"):
+        flatfield(_cube(np.ones((2, 3, 5))), _cube(np.zeros((2, 3, 5))), whites)
     with pytest.raises(TypeError, match="DataArray"):
         flatfield(np.ones((2, 3, 5)), _cube(np.zeros((2, 3, 5))), _cube(np.ones((2, 3, 5))))
 
