@@ -72,7 +72,14 @@ RIEMANN_STEP_NM = 0.01
 
 
 class PupilCutOffError(ValueError):
-    """The vignetting circles cut off the whole exit pupil: no light reaches the pixel."""
+    """The vignetting circles cut off the whole exit pupil: no light reaches the pixel.
+
+    ``cra_deg``, where known, holds the chief-ray angles (deg) of the inputs cut off.
+    """
+
+    def __init__(self, message, cra_deg=None):
+        super().__init__(message)
+        self.cra_deg = None if cra_deg is None else np.asarray(cra_deg, float)
 
 
 @cache
@@ -228,12 +235,15 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     return _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes, pupil)
 
 
-def _cut_off(count):
+def _cut_off(F):
+    """The error for the inputs at ``F = tan(CRA)`` whose pupil is cut off, with their angles."""
+    cra = np.degrees(np.arctan(np.abs(np.asarray(F, float))))
+    where = (f"at CRA {cra.min():.3f} deg" if cra.min() == cra.max() else
+             f"at CRA {cra.min():.3f}-{cra.max():.3f} deg")
     return PupilCutOffError(
-        f"the vignetting circles cut off the whole exit pupil for {count} input(s): no light "
-        "reaches those pixels, so their filter shift is undefined. Restrict the chief-ray "
-        "angles to below Lens.cutoff_cra_deg(f_number)."
-    )
+        f"the vignetting circles cut off the whole exit pupil for {cra.size} input(s) {where}: "
+        "no light reaches those pixels, so their filter shift is undefined. Restrict the "
+        "chief-ray angles to below Lens.cutoff_cra_deg(f_number).", cra_deg=cra)
 
 
 def _point_mean(s_mid, n):
@@ -250,7 +260,7 @@ def _mean_shift_two_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm, dv_mm, nodes, p
     beta, alpha = lens_boundary_arcs(rho1, rho2, v)
     area = lens_area(rho1, rho2, beta, alpha)
     if np.any(area <= 0):
-        raise _cut_off(int(np.sum(area <= 0)))
+        raise _cut_off(F[area <= 0])
     # Subtract the potential at a point inside the vignetted pupil (the middle of its extent
     # along the axis): the constant part integrates exactly (to 2 A Psi_ref), and the
     # remainder stays small where the boundary terms cancel -- slivers near the full cut-off
@@ -312,7 +322,7 @@ def _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes, pupil="pa
         rk, ck, t_right, t_left = discs.arc_angles(b, radii, centers)
         area = discs.upper_area(b, rk, t_right, t_left)
         if np.any(area <= 0):
-            raise _cut_off(int(np.sum(area <= 0)))
+            raise _cut_off(Fs[area <= 0])
         x_mid = 0.5 * (b.lo + b.hi)
         s_ref = (x_mid - Fs) ** 2
         half = 0.5 * (t_left - t_right)  # (pieces, n)

@@ -246,6 +246,11 @@ def test_fully_cut_off_pupil_is_a_clear_error(edmund):
     for method in ("vignetted", "auto", "table", "grid"):
         with pytest.raises(PupilCutOffError, match="cut"):
             mean_shift(700, 1.7, 8.0, cut + 1, edmund, method=method)
+    # the error names the angles cut off: those asked, not the lens's cut-off
+    crs = np.array([cut - 2.0, cut + 0.5, cut + 1.5])
+    with pytest.raises(PupilCutOffError, match=rf"2 input\(s\) at CRA {cut + 0.5:.3f}-") as e:
+        mean_shift(700, 1.7, 8.0, crs, edmund, method="vignetted")
+    assert_allclose(e.value.cra_deg, crs[1:], atol=1e-9)
 
 
 @pytest.mark.parametrize("f", [1.4, 2.8])
