@@ -6,7 +6,8 @@ import pytest
 from conftest import PAPER_LENS
 
 from snapcorr import budget, spectra
-from snapcorr.cube import Sensor
+from snapcorr.correct import correct_cube
+from snapcorr.cube import Sensor, make_cube
 from snapcorr.optics.profiles import MultiLorentzian
 
 PAPER = PAPER_LENS
@@ -143,3 +144,38 @@ def test_budget_arguments_are_checked(sun):
         b.recommend(-1)
 
 
+# --- the model correct_cube takes -------------------------------------------------------
+
+def test_the_budget_recommends_the_model_correct_cube_takes():
+    sensor = Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 21), 10.0, 1.7)
+    lam = np.asarray(sensor.cwl_nm)
+    step = np.where(lam < 700, 1.0, 0.05).astype(np.float32)  # a red edge in the scene
+    cube = make_cube(np.broadcast_to(step, (20, 30, 21)).copy(), sensor.cwl_nm)
+    model, reason, attrs = budget.recommend_model(cube, sensor, 1.4, PAPER, "cube",
+                                                  tolerance_pct=0.1)
+    # the edge inside the 700 nm band (200 % uncorrected): only harmonising (the vignetted
+    # shift and one response per band) brings it within 0.1 %
+    worst = dict(zip(attrs["budget_models"], attrs["budget_worst_pct"], strict=True))
+    assert attrs["budget_source"] == "cube mean" and worst["none"] > 100
+    assert min(worst, key=worst.get) == "harmonised" and worst["harmonised"] < 0.1
+    assert all(worst[m] > 0.1 for m in worst if m != "harmonised")
+    assert model == "harmonised" and "harmonised leaves at most" in reason
+    # asked for less than any model leaves: the one that leaves the least, and says so
+    assert "no model is within" in budget.recommend_model(cube, sensor, 1.4, PAPER, "cube",
+                                                          tolerance_pct=0.01)[1]
+    ds = correct_cube(cube, sensor, 1.4, PAPER, method=model)
+    assert ds.attrs["method"] == "harmonised" and "harmonised" in ds
+    # the shift is the vignetted model's
+    exact = correct_cube(cube, sensor, 1.4, PAPER, method="vignetted")
+    np.testing.assert_array_equal(ds["wavelength_scale"], exact["wavelength_scale"])
+    assert "harmonised" not in exact
+    # within 0.5 % harmonising is enough, and is what is chosen
+    model, reason, _ = budget.recommend_model(cube, sensor, 1.4, PAPER, "cube",
+                                              tolerance_pct=0.5)
+    assert model == "harmonised" and "harmonised leaves at most" in reason
+    flat = make_cube(np.ones((20, 30, 21), np.float32), sensor.cwl_nm)
+    assert budget.recommend_model(flat, sensor, 1.4, PAPER, "cube")[0] == "none"
+    # a cube of another sensor: refused before any budget is worked out for it
+    other = Sensor("other", "snapscan", 40.0, np.linspace(500, 900, 20), 10.0, 1.7)
+    with pytest.raises(ValueError, match="has 21 bands, the sensor 'other' 20"):
+        budget.recommend_model(cube, other, 1.4, PAPER, "cube")
