@@ -2,6 +2,7 @@
 names stay as aliases of the same objects."""
 
 import importlib
+import importlib.util
 import json
 import pkgutil
 from pathlib import Path
@@ -71,3 +72,35 @@ def test_every_earlier_public_name_still_imports_from_its_module(module):
     found = importlib.import_module(module)
     missing = [name for name in EARLIER[module] if not hasattr(found, name)]
     assert not missing, missing
+
+
+def _recorder():
+    spec = importlib.util.spec_from_file_location(
+        "make_public_names", Path(__file__).parent / "data" / "make_public_names.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+#: Every module's ``__all__`` as the next release (0.2) has it, written by
+#: ``tests/data/make_public_names.py``.
+NEWEST = json.loads((Path(__file__).parent / "data" / "public_names_0.2.json").read_text())
+
+
+@pytest.mark.parametrize("module", sorted(NEWEST))
+def test_every_recorded_public_name_still_imports_from_its_module(module):
+    found = importlib.import_module(module)
+    missing = [name for name in NEWEST[module] if not hasattr(found, name)]
+    assert not missing, missing
+
+
+def test_no_public_name_goes_unrecorded():
+    """A name in a module's ``__all__`` is public: it is recorded, so that a later change
+    which drops it fails the test above instead of breaking a user's import."""
+    now = _recorder().public_names()
+    unrecorded = {module: sorted(set(names) - set(NEWEST.get(module, ())))
+                  for module, names in now.items()}
+    unrecorded = {module: names for module, names in unrecorded.items() if names}
+    assert not unrecorded, ("public names not in tests/data/public_names_0.2.json (record "
+                            f"them with `python tests/data/make_public_names.py 0.2`): "
+                            f"{unrecorded}")
