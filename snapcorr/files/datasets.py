@@ -449,13 +449,38 @@ def _netcdf_encoding(ds, compression="auto"):
 
 
 def _hdf5_chunks(var):
-    """``{"chunksizes": ...}``: a compressed lazy variable stored in HDF5 chunks of its own
-    blocks, so that each block written fills whole chunks. Left to h5py's guess (chunks of a
-    few frames of a stream), every block would rewrite, decompressing and compressing again,
-    chunks it shares with the next: a 100-frame stream took 29 x the plain write."""
+    """``{"chunksizes": ...}``: a compressed lazy variable stored in HDF5 chunks that its
+    blocks fill whole. Left to h5py's guess (chunks of a few frames of a stream), every block
+    would rewrite, decompressing and compressing again, chunks it shares with the next: a
+    100-frame stream took 29 x the plain write.
+
+    Along each dim the chunk is the largest size every block but the last is a multiple of
+    (their greatest common divisor), so that uneven blocks (a stream's 5, 10, 10, 3 frames)
+    still start on chunk boundaries; where that would cut the blocks into pieces under half
+    the first block, the first block is taken instead (some chunks then shared, the data the
+    same). HDF5 refuses a chunk of 4 GiB or more, and one block can be the whole variable, so
+    the chunk is then halved along its longest dims until it holds at most
+    :data:`HDF5_MAX_CHUNK_BYTES`.
+    """
     if var.chunks is None:
         return {}
-    return {"chunksizes": tuple(int(c[0]) for c in var.chunks)}
+    sizes = []
+    for blocks in var.chunks:
+        whole = blocks[:-1] if len(blocks) > 1 else blocks
+        common = int(np.gcd.reduce(np.asarray(whole, dtype=np.int64)))
+        sizes.append(common if 2 * common >= blocks[0] else int(blocks[0]))
+    while int(np.prod(sizes, dtype=np.int64)) * var.dtype.itemsize > HDF5_MAX_CHUNK_BYTES:
+        longest = int(np.argmax(sizes))
+        if sizes[longest] == 1:
+            break
+        sizes[longest] = -(-sizes[longest] // 2)
+    return {"chunksizes": tuple(sizes)}
+
+
+#: The most a chunk of a compressed netCDF variable holds (HDF5's own limit is 4 GiB; a
+#: chunk is read and decompressed whole, so a reader of one pixel's spectrum pays for all of
+#: it).
+HDF5_MAX_CHUNK_BYTES = 256 * 2**20
 
 
 #: A lazy variable whose attrs name another in this key (``mask`` computed from

@@ -10,7 +10,13 @@ import xarray as xr
 
 from snapcorr.files import write_dataset
 from snapcorr.files._packing import pack_uint16
-from snapcorr.files.datasets import PACKED_FILL, PACKED_TOP, RATIO_PACK_RANGE
+from snapcorr.files.datasets import (
+    HDF5_MAX_CHUNK_BYTES,
+    PACKED_FILL,
+    PACKED_TOP,
+    RATIO_PACK_RANGE,
+    _hdf5_chunks,
+)
 
 LO, HI = RATIO_PACK_RANGE
 SCALE, OFFSET = np.float32((HI - LO) / PACKED_TOP), np.float32(LO)
@@ -66,3 +72,37 @@ def test_packed_file_reads_back_the_values(tmp_path, suffix, chunked):
     ok = ~np.isnan(v)
     assert np.abs(got[ok] - want[ok]).max() <= error
     assert float(SCALE) / 2 <= error < 1.1 * float(SCALE) / 2  # half a step, as stated
+
+
+def _starts(blocks):
+    return np.cumsum((0, *blocks[:-1]))
+
+
+@pytest.mark.parametrize("blocks", [(5, 10, 10, 3), (10, 5, 5, 3), (4, 4, 4), (7,), (6, 9, 2)])
+def test_compressed_netcdf_chunks_are_filled_whole_by_uneven_blocks(tmp_path, blocks):
+    """Every dask block of a stream starts on a chunk boundary, where the blocks allow it
+    (uneven blocks are what a stream of 5 then 10 frames a pass gives); the data are the same
+    whatever the chunks."""
+    n = sum(blocks)
+    data = da.from_array(np.arange(n * 6 * 4, dtype=np.float32).reshape(n, 6, 4),
+                         chunks=(blocks, 6, 4))
+    var = xr.DataArray(data, dims=("frame", "y", "x"))
+    chunk = _hdf5_chunks(var)["chunksizes"][0]
+    # brute force: the largest size every block start is a multiple of, if not too small
+    best = max(c for c in range(1, blocks[0] + 1) if all(s % c == 0 for s in _starts(blocks)))
+    assert chunk == (best if 2 * best >= blocks[0] else blocks[0])
+    write_dataset(xr.Dataset({"reflectance": var}), tmp_path / "s.nc")
+    with xr.open_dataset(tmp_path / "s.nc", engine="h5netcdf") as back:
+        np.testing.assert_array_equal(back["reflectance"].values, data.compute())
+        assert back["reflectance"].encoding["chunksizes"][0] == chunk
+
+
+def test_one_huge_block_is_stored_in_chunks_hdf5_accepts():
+    """A whole 100-frame stream in one dask block (14 GiB of float32) would ask HDF5 for one
+    chunk of that size, which it refuses over 4 GiB: the chunk is cut to at most the limit."""
+    data = da.zeros((100, 1088, 2048, 16), dtype=np.float32, chunks=-1)
+    var = xr.DataArray(data, dims=("frame", "y", "x", "band"))
+    sizes = _hdf5_chunks(var)["chunksizes"]
+    assert np.prod(sizes) * 4 <= HDF5_MAX_CHUNK_BYTES < 4 * 2**30
+    assert all(1 <= c <= n for c, n in zip(sizes, var.shape, strict=True))
+    assert np.prod(sizes) * 4 > HDF5_MAX_CHUNK_BYTES / 2**4  # not cut more than it must
