@@ -291,6 +291,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     if not isinstance(frames, xr.DataArray) or tuple(frames.dims) != ("frame", "y", "x"):
         dims = tuple(frames.dims) if isinstance(frames, xr.DataArray) else type(frames).__name__
         raise ValueError(f"a stream is a DataArray of dims (frame, y, x), got {dims}")
+    if getattr(sensor, "layout", None) != "mosaic":
+        raise ValueError(f"a stream is raw mosaic frames: sensor {sensor.name!r} is not a "
+                         f"mosaic (layout {sensor.layout!r})")
     if (lens is None) != (f_number is None):
         raise ValueError("correcting a stream needs both a lens and an f-number")
     if lens is None and (method != "auto" or tolerance_nm is not None or center_px is not None):

@@ -24,6 +24,7 @@ from snapcorr.optics import Lens
 from snapcorr.pipeline import (
     PIPELINE_STEPS,
     process_frame,
+    process_stream,
     read_cube_or_frame,
     read_mosaic_frame,
     tile_rows,
@@ -150,3 +151,20 @@ def test_with_transmittance_adds_the_filters_three_variables():
     assert np.array_equal(ds["filter_white_raw"], [0, 1, 2])
     assert np.array_equal(ds["transmittance_mask"], [False, True, False])
     assert "not meaningful" in ds["transmittance_mask"].attrs["long_name"]
+
+
+class _Untouchable:
+    """A white or a dark that fails the moment anything reads it."""
+
+    def __array__(self, *args, **kwargs):
+        raise AssertionError("read before the sensor was checked")
+
+    def __getattr__(self, name):
+        raise AssertionError(f"read ({name}) before the sensor was checked")
+
+
+def test_a_stream_of_another_layout_is_refused_before_anything_is_read():
+    scanner = Sensor("scanner", "snapscan", 5.5, np.linspace(500, 900, 5), 10.0, 1.7)
+    frames = xr.DataArray(np.ones((3, 8, 8), np.float32), dims=("frame", "y", "x"))
+    with pytest.raises(ValueError, match="sensor 'scanner' is not a mosaic"):
+        process_stream(frames, _Untouchable(), _Untouchable(), scanner)
