@@ -86,6 +86,17 @@ def accepts_center_rc(func=None, *, old="center_px", new="center_rc", many=False
     argument of another name (``fix_center`` and ``fix_center_rc``...): a ``func`` that
     declares ``new`` gets the old keyword swapped into it; with ``many``, the argument is a
     sequence of centres, each swapped.
+
+    Parameters
+    ----------
+    func : callable, optional
+        The function; left out, a decorator with these names is returned.
+    old, new : str
+        The x-first argument's name and the row-first one's (default ``center_px`` and
+        ``center_rc``). Unless they are those two, ``func`` must declare ``new``; ``old``,
+        where it does not declare it, is added as a keyword-only argument.
+    many : bool
+        The argument is a sequence of centres (``centers``), each swapped.
     """
     if func is None:
         return functools.partial(accepts_center_rc, old=old, new=new, many=many)

@@ -18,7 +18,17 @@ def estimate_center(images, valids=None, *, levels=12):
     """The optical centre x first, ``(cx, cy)``: the earlier form of
     :func:`estimate_center_rc`, which gives it row first; removed in snapcorr 0.3.
 
-    Parameters and the spread returned as for :func:`estimate_center_rc`.
+    Parameters
+    ----------
+    images, valids, levels
+        As for :func:`estimate_center_rc`.
+
+    Returns
+    -------
+    center : (float, float) or None
+        ``(cx, cy)``, x first.
+    spread : float
+        As for :func:`estimate_center_rc`.
     """
     if called_from_outside(2):
         warn_x_first_return("estimate_center", "estimate_center_rc", stacklevel=3)

@@ -576,11 +576,7 @@ def fit_model(data: BlockData, model, starts, *, center_rc=None, fixed_h=None, m
         r, s = _residuals(data, "none", (), center_rc or (0.0, 0.0))
         return ModelFit("none", {}, {}, None, (), float(r @ r), n, data.n_nuisance, s, True)
     names = param_names(model)
-    free = [i for i, nm in enumerate(names)
-            if not (center_rc is not None and nm in CENTER_NAMES)
-            and not (fixed_h is not None and nm == "h_mm")
-            and nm not in (fixed or {})]
-    free.sort(key=_solver_rank)
+    free = _free(names, center_rc, fixed_h, fixed)
     x = data.x_mm
     lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf] + [1e-3, -20 * x] * 2)[: len(names)]
     hi_all = np.array([20 * x, 20 * x, np.inf, np.inf] + [20 * x, 20 * x] * 2)[: len(names)]
@@ -645,13 +641,17 @@ def fit_model(data: BlockData, model, starts, *, center_rc=None, fixed_h=None, m
                     str(res.message), extra=extra)
 
 
-def _solver_rank(i):
-    """Where parameter ``i`` of the vector goes in the least squares' own vector: in order,
-    but the centre's column before its row. That is the order every calibration was checked
-    in, and it matters: where a circle is barely seen (a flat valley), the point the solver
-    stops at follows the rounding of its steps, which depends on the variables' order (a
-    rejected third circle's h came out at -1.5 mm one way and 42 mm the other)."""
-    return {2: 3, 3: 2}.get(i, i)
+def _free(names, center_rc, fixed_h, fixed):
+    """Indices of the parameters fitted, in the order the least squares takes them: that of
+    ``names``, but the centre's column before its row. That is the order every calibration
+    was checked in, and it matters: where a circle is barely seen (a flat valley), the point
+    the solver stops at follows the rounding of its steps, which depends on the variables'
+    order (a rejected third circle's h came out at -1.5 mm one way and 42 mm the other)."""
+    free = [i for i, nm in enumerate(names)
+            if not (center_rc is not None and nm in CENTER_NAMES)
+            and not (fixed_h is not None and nm == "h_mm")
+            and nm not in (fixed or {})]
+    return sorted(free, key=lambda i: {2: 3, 3: 2}.get(i, i))
 
 
 def _screening_subset(data: BlockData):
