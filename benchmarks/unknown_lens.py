@@ -68,7 +68,7 @@ def _one(job):
                                 pupil_magnification=truth.pupil_magnification, max_circles=1)
     true = {"exit_pupil_mm": truth.exit_pupil_mm, "n_eff": N_EFF,
             "P_mm": truth.circles[0][0], "h_mm": truth.circles[0][1],
-            "cx_px": CENTER[0], "cy_px": CENTER[1]}
+            "center_row_px": CENTER[1], "center_col_px": CENTER[0]}
     row = {"truth": name, "target_noise": noise, "fit_n_eff": fit_n_eff, "seed": seed,
            "model": got.calibration.model, "method": got.calibration.method,
            "notes": len(got.notes)}
@@ -92,7 +92,7 @@ def coverage(*, quick=False, echo=print, write=True, workers=2):
             rows = list(pool.map(_one, jobs))
     else:
         rows = [_one(j) for j in jobs]
-    params = ("exit_pupil_mm", "n_eff", "P_mm", "h_mm", "cx_px", "cy_px")
+    params = ("exit_pupil_mm", "n_eff", "P_mm", "h_mm", "center_row_px", "center_col_px")
     echo("one run for an unknown lens: largest |relative error| % / RMS z over "
          f"{len(SEEDS) if not quick else 1} seeds")
     echo(f"{'truth':<18} {'noise':>6} {'n_eff':>7}  " + "  ".join(f"{p:>15}" for p in params))

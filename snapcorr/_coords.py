@@ -8,11 +8,14 @@ ROW,COL``). Rows and columns count from the first pixel's centre, 0.
 The optical centre used to be given x first (``center_px=(cx, cy)``, ``--center-px CX,CY``).
 Those forms still work and warn (``FutureWarning``); they are never reinterpreted, and giving
 both forms is an error. :func:`accepts_center_rc` does it for a public function in either of
-two forms: one whose body takes ``center_rc`` (row first, as inside ``optics``, ``budget`` and
-``simulate``), the old ``center_px`` turned into it; or one whose body still takes the
-internal x-first ``center_px`` (``calibrate``, ``correct``), ``center_rc`` turned into that.
-Renamed arguments other than the centre go through
-:func:`snapcorr._validation.renamed_keywords`.
+two forms: one whose body takes ``center_rc`` (row first, as inside ``optics``, ``budget``,
+``simulate``, ``correct`` and the lens calibration, ``calibrate.lens`` and
+``calibrate.flats``), the old ``center_px`` turned into it; or one whose body still takes the
+internal x-first ``center_px`` (the exit-pupil fit, ``calibrate.pupil`` and
+``calibrate_with_target``, and ``process_stream``), ``center_rc`` turned into that. The same
+decorator, given the names, does it for a centre argument of another name (the joint fit's
+``center`` and ``fix_center``, now ``center_rc`` and ``fix_center_rc``). Renamed arguments
+other than the centre go through :func:`snapcorr._validation.renamed_keywords`.
 """
 
 from __future__ import annotations
@@ -69,19 +72,39 @@ def rc_from_center(center_px):
     return [float(center_px[1]), float(center_px[0])]
 
 
-def accepts_center_rc(func):
+def accepts_center_rc(func=None, *, old="center_px", new="center_rc", many=False):
     """Let ``func`` take the optical centre both ways, ``center_rc=(row, col)`` and the
     deprecated x-first ``center_px=(cx, cy)``, warning when a caller outside snapcorr gives
     ``center_px`` and refusing both at once.
 
-    A ``func`` that declares ``center_rc`` (beside the deprecated ``center_px``, keyword or in
-    its old positional place) gets ``center_rc`` only: a ``center_px`` given is swapped into
+    A ``func`` that declares ``center_rc`` gets ``center_rc`` only: a ``center_px`` given
+    (keyword, or in its old positional place where ``func`` still declares it) is swapped into
     it. A ``func`` that declares only ``center_px`` (the internal ``(cx, cy)``) gets
     ``center_px`` only, and a keyword-only ``center_rc`` is added to its signature.
+
+    Used as ``@accepts_center_rc(old="center", new="center_rc")``, the same for a centre
+    argument of another name (``fix_center`` and ``fix_center_rc``...): a ``func`` that
+    declares ``new`` gets the old keyword swapped into it; with ``many``, the argument is a
+    sequence of centres, each swapped.
+
+    Parameters
+    ----------
+    func : callable, optional
+        The function; left out, a decorator with these names is returned.
+    old, new : str
+        The x-first argument's name and the row-first one's (default ``center_px`` and
+        ``center_rc``). Unless they are those two, ``func`` must declare ``new``; ``old``,
+        where it does not declare it, is added as a keyword-only argument.
+    many : bool
+        The argument is a sequence of centres (``centers``), each swapped.
     """
+    if func is None:
+        return functools.partial(accepts_center_rc, old=old, new=new, many=many)
     sig = inspect.signature(func)
-    if "center_rc" in sig.parameters:
-        return _center_px_into_rc(func, sig)
+    if new in sig.parameters:
+        return _old_into_rc(func, sig, old, new, many)
+    if (old, new, many) != ("center_px", "center_rc", False):
+        raise TypeError(f"{func.__name__} takes no {new}")
     params = list(sig.parameters.values())
     if "center_px" not in sig.parameters:
         raise TypeError(f"{func.__name__} takes no center_px")
@@ -110,27 +133,58 @@ def accepts_center_rc(func):
     return wrapper
 
 
-def _center_px_into_rc(func, sig):
-    """:func:`accepts_center_rc` for a ``func`` whose body takes ``center_rc``."""
-    if "center_px" not in sig.parameters:
+def _old_into_rc(func, sig, old, new, many):
+    """:func:`accepts_center_rc` for a ``func`` whose body takes ``new``, row first."""
+    declared = old in sig.parameters
+    if not declared and old == "center_px" and new == "center_rc":
         raise TypeError(f"{func.__name__} takes center_rc but not its earlier form center_px")
+    signature = sig
+    if not declared:  # the old keyword, keyword-only, beside the new one
+        params = list(sig.parameters.values())
+        extra = inspect.Parameter(old, inspect.Parameter.KEYWORD_ONLY, default=None)
+        at = len([p for p in params if p.kind != inspect.Parameter.VAR_KEYWORD])
+        signature = sig.replace(parameters=[*params[:at], extra, *params[at:]])
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        given = kwargs.pop(old, None) if not declared else None
         bound = sig.bind_partial(*args, **kwargs)
-        old = bound.arguments.get("center_px")
-        if old is not None:
-            if bound.arguments.get("center_rc") is not None:
+        if declared:
+            given = bound.arguments.get(old)
+        if given is not None:
+            if bound.arguments.get(new) is not None:
                 raise TypeError(f"{func.__name__}: give the optical centre once, as "
-                                "center_rc=(row, col); center_px is its old x-first form")
-            if called_from_outside(2):
-                cx, cy = check_pair("center_px", old, "two numbers (cx, cy) in pixels")
-                warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx), FutureWarning,
+                                f"{new}=(row, col); {old} is its old x-first form")
+            outside = called_from_outside(2)
+            swapped = [_swapped(c, old, outside) for c in given] if many else \
+                _swapped(given, old, outside)
+            if outside:
+                row, col = swapped[0] if many else swapped
+                warnings.warn(_deprecation(old, new).format(row=row, col=col), FutureWarning,
                               stacklevel=2)
-            else:
-                cx, cy = check_center(old)
-            bound.arguments["center_px"] = None
-            bound.arguments["center_rc"] = (cy, cx)
+            if declared:
+                bound.arguments[old] = None
+            bound.arguments[new] = swapped
         return func(*bound.args, **bound.kwargs)
 
+    if not declared:
+        wrapper.__signature__ = signature
     return wrapper
+
+
+def _swapped(center_px, name, outside):
+    """``(row, col)`` from an x-first ``(cx, cy)``, checked."""
+    if outside:
+        cx, cy = check_pair(name, center_px, "two numbers (cx, cy) in pixels")
+    else:
+        cx, cy = check_center(center_px, name)
+    return (cy, cx)
+
+
+def _deprecation(old, new):
+    """The message for the old x-first ``old`` given instead of ``new``."""
+    if (old, new) == ("center_px", "center_rc"):
+        return CENTER_PX_DEPRECATION
+    return (f"{old} is the old x-first form (cx, cy) of the optical centre and will be removed "
+            f"in snapcorr {REMOVAL_VERSION}; give {new}=(row, col) instead (here "
+            f"{new}=({{row:g}}, {{col:g}}))")

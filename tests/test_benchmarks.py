@@ -167,7 +167,8 @@ def test_quick_unknown_lens_benchmark_runs_and_reports_every_parameter():
     rows = unknown_lens.coverage(quick=True, echo=lines.append, write=False, workers=1)
     assert len(rows) == 1 and abs(rows[0]["exit_pupil_mm_rel_error"]) < 0.005
     assert all(np.isfinite(rows[0][f"{p}_z"]) for p in ("exit_pupil_mm", "n_eff", "P_mm",
-                                                         "h_mm", "cx_px", "cy_px"))
+                                                         "h_mm", "center_row_px",
+                                                         "center_col_px"))
     assert lines[-1].startswith("paper lens")
 
 

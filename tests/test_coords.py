@@ -101,3 +101,43 @@ def test_cli_center_is_row_first_and_center_px_says_it_is_deprecated(tmp_path, c
                cwd=tmp_path)
     assert both.returncode == 1 and "give the optical centre once" in both.stderr
     assert len(both.stderr.strip().splitlines()) == 1
+
+
+def test_a_centre_argument_of_another_name_keeps_its_old_x_first_keyword():
+    """``accepts_center_rc(old=..., new=...)``: the old keyword (declared in its old place, or
+    not at all) is swapped into the row-first one, warns, and refuses to be mixed with it;
+    with ``many``, each centre of a sequence is swapped."""
+    from snapcorr._coords import accepts_center_rc
+
+    @accepts_center_rc(old="center", new="center_rc")
+    def kept(a, center=None, *, center_rc=None):  # the old name in its old place
+        return a, center, center_rc
+
+    @accepts_center_rc(old="fix_center", new="fix_center_rc")
+    def renamed(a, fix_center_rc=None):  # the old name gone from the body
+        return a, fix_center_rc
+
+    @accepts_center_rc(old="centers", new="centers_rc", many=True)
+    def several(centers_rc):
+        return centers_rc
+
+    assert "fix_center" in inspect.signature(renamed).parameters
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert kept(1, center_rc=(ROW, COL)) == (1, None, (ROW, COL))
+        assert renamed(1, (ROW, COL)) == (1, (ROW, COL))
+        assert several([(ROW, COL)]) == [(ROW, COL)]
+    with pytest.warns(FutureWarning, match=r"^center is the old x-first form .* snapcorr 0\.3.*"
+                                           r"center_rc=\(7\.25, 19\.5\)"):
+        assert kept(1, (COL, ROW)) == (1, None, (ROW, COL))
+    with pytest.warns(FutureWarning, match=r"^fix_center is the old x-first form"):
+        assert renamed(1, fix_center=(COL, ROW)) == (1, (ROW, COL))
+    with pytest.warns(FutureWarning, match=r"^centers is the old x-first form"):
+        assert several(centers=[(COL, ROW), (2.0, 1.0)]) == [(ROW, COL), (1.0, 2.0)]
+    for call in (lambda: kept(1, (COL, ROW), center_rc=(ROW, COL)),
+                 lambda: renamed(1, (ROW, COL), fix_center=(COL, ROW))):
+        with pytest.raises(TypeError, match="give the optical centre once"):
+            call()
+    with pytest.raises(ValueError, match="two numbers"):
+        renamed(1, fix_center=(1.0,))
+

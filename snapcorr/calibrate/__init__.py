@@ -6,7 +6,7 @@ from . import pupil_precision as _pupil_precision_module  # noqa: F401
 from .flats.cleaning import clean_flat, noise_model, read_flat, remove_band_gains
 from .flats.onset_fit import OnsetFit, solve_vignetting_circle
 from .flats.onsets import Onset, detect_onset
-from .flats.radial import RadialProfile, estimate_center, radial_profile
+from .flats.radial import RadialProfile, estimate_center, estimate_center_rc, radial_profile
 from .lens.calibration import METHODS, LensCalibration, calibrate_lens
 from .lens.choice import ModelVerdict
 from .lens.joint_fit import ModelFit
@@ -41,6 +41,7 @@ __all__ = [
     "clean_flat",
     "detect_onset",
     "estimate_center",
+    "estimate_center_rc",
     "estimate_target_center",
     "locate_pupil",
     "noise_model",

@@ -23,7 +23,7 @@ from snapcorr.cube import Sensor, make_cube, write_cube
 
 FLAT_F_NUMBERS = (1.4, 2.0, 2.8, 4.0, 8.0)
 TRUTH = {"exit_pupil_mm": PAPER.exit_pupil_mm, "n_eff": N_EFF, "P_mm": PAPER.circles[0][0],
-         "h_mm": PAPER.circles[0][1], "cx_px": CENTER[0], "cy_px": CENTER[1]}
+         "h_mm": PAPER.circles[0][1], "center_row_px": CENTER[1], "center_col_px": CENTER[0]}
 
 
 def one_run(seed, fit_n_eff=True, noise=0.002):
@@ -45,7 +45,8 @@ def test_one_run_recovers_x_n_eff_p_h_and_the_centre_without_x():
     """x within 0.5 %, P, h and n_eff within 1 %, each within 3 of its standard error; the
     profile holds the joint covariance and the circles at the x found."""
     got = one_run(1)
-    assert got.names == ("exit_pupil_mm", "n_eff", "P_mm", "h_mm", "cx_px", "cy_px")
+    assert got.names == ("exit_pupil_mm", "n_eff", "P_mm", "h_mm", "center_row_px",
+                         "center_col_px")
     rel = {n: v / TRUTH[n] - 1 for n, v in zip(got.names, got.values, strict=True)}
     assert abs(rel["exit_pupil_mm"]) < 0.005, got.summary()
     for n in ("n_eff", "P_mm", "h_mm"):

@@ -12,7 +12,7 @@ from .cleaning import check_mosaic_sensor as check_mosaic_sensor
 from .cleaning import clean_flat, noise_model, read_flat, remove_band_gains
 from .onset_fit import OnsetFit, solve_vignetting_circle
 from .onsets import Onset, detect_onset
-from .radial import RadialProfile, estimate_center, radial_profile
+from .radial import RadialProfile, estimate_center, estimate_center_rc, radial_profile
 
 __all__ = [
     "Onset",
@@ -21,6 +21,7 @@ __all__ = [
     "clean_flat",
     "detect_onset",
     "estimate_center",
+    "estimate_center_rc",
     "noise_model",
     "radial_profile",
     "read_flat",

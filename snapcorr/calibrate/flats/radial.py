@@ -9,11 +9,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RadialProfile", "estimate_center", "radial_profile"]
+from ..._coords import called_from_outside, warn_x_first_return
+
+__all__ = ["RadialProfile", "estimate_center", "estimate_center_rc", "radial_profile"]
 
 
 def estimate_center(images, valids=None, *, levels=12):
-    """Optical centre (cx, cy) in pixels from iso-illumination contours.
+    """The optical centre x first, ``(cx, cy)``: the earlier form of
+    :func:`estimate_center_rc`, which gives it row first; removed in snapcorr 0.3.
+
+    Parameters
+    ----------
+    images, valids, levels
+        As for :func:`estimate_center_rc`.
+
+    Returns
+    -------
+    center : (float, float) or None
+        ``(cx, cy)``, x first.
+    spread : float
+        As for :func:`estimate_center_rc`.
+    """
+    if called_from_outside(2):
+        warn_x_first_return("estimate_center", "estimate_center_rc", stacklevel=3)
+    center, spread = estimate_center_rc(images, valids, levels=levels)
+    return (None if center is None else (center[1], center[0])), spread
+
+
+def estimate_center_rc(images, valids=None, *, levels=12):
+    """Optical centre ``(row, col)`` in pixels from iso-illumination contours.
 
     Around the optical axis vignetting is radially symmetric, so every iso-illumination
     contour is a circle about the axis. Each image is smoothed (OpenCV Gaussian blur), contours
@@ -60,7 +84,9 @@ def estimate_center(images, valids=None, *, levels=12):
             for contour in find_contours(smooth, level):
                 if len(contour) < 20:
                     continue
-                pts = contour[:, ::-1]  # (x, y)
+                # fitted as (col, row) points, the order of the results every calibration
+                # was checked with (rounding in CircleModel's solve depends on it)
+                pts = contour[:, ::-1]
                 try:
                     model, inliers = ransac(pts, CircleModel, min_samples=3,
                                             residual_threshold=2.0, max_trials=50, rng=0)
@@ -68,19 +94,19 @@ def estimate_center(images, valids=None, *, levels=12):
                     continue
                 if model is None or inliers is None or inliers.sum() < 20:
                     continue
-                (xc, yc), r = model.center, model.radius
-                ang = np.sort(np.arctan2(pts[inliers, 1] - yc, pts[inliers, 0] - xc))
+                (cc, rc), r = model.center, model.radius
+                ang = np.sort(np.arctan2(pts[inliers, 1] - rc, pts[inliers, 0] - cc))
                 span = 2 * np.pi - np.diff(np.append(ang, ang[0] + 2 * np.pi)).max()
                 if span < np.pi / 3 or not np.isfinite(r) or r > 20 * max(img.shape):
                     continue
-                centers.append((xc, yc))
+                centers.append((rc, cc))
                 weights.append(span * inliers.sum())
     if not centers:
         return None, np.inf
     c = np.asarray(centers)
     w = np.asarray(weights)
     center = tuple(float(_weighted_median(c[:, i], w)) for i in range(2))
-    spread = float(np.median(np.hypot(c[:, 0] - center[0], c[:, 1] - center[1])))
+    spread = float(np.median(np.hypot(c[:, 1] - center[1], c[:, 0] - center[0])))
     return center, spread
 
 

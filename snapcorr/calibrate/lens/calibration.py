@@ -38,9 +38,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..._coords import accepts_center_rc
+from ..._coords import accepts_center_rc, called_from_outside, warn_x_first_return
 from ..._names import CALIBRATION_METHODS
-from ..._validation import check_center, check_pixel_pitch_um, check_positive, renamed_keywords
+from ..._validation import (
+    check_center,  # noqa: F401 (calibrate.lens_calibration re-exports it)
+    check_center_rc,
+    check_pixel_pitch_um,
+    check_positive,
+    renamed_keywords,
+)
 from ...optics.chief_ray import cra_map
 from ...optics.lens import Lens
 from ...optics.shift import EffectiveIndexWarning
@@ -55,6 +61,7 @@ from .estimator import (
     _unless_joint,
     _x_notes,
 )
+from .joint_fit import CENTER_NAMES
 from .table import _calibration_table
 
 __all__ = ["METHODS", "LensCalibration", "calibrate_lens"]
@@ -77,8 +84,9 @@ class LensCalibration:
     reason : str
         Why, in a sentence.
     f_numbers : ndarray
-    center_px : (float, float)
-        Optical centre used, pixels.
+    center_rc : (float, float)
+        Optical centre used, ``(row, col)`` pixels (``center_px``, x first, is its earlier
+        form, deprecated).
     center_source : str
         ``"given"``, ``"contours"``, ``"joint fit"`` or ``"image centre"``.
     onsets : dict
@@ -129,7 +137,7 @@ class LensCalibration:
     reason: str
     f_numbers: np.ndarray
     reference_f_number: float | None
-    center_px: tuple
+    center_rc: tuple
     center_source: str
     max_cra_deg: float
     onsets: dict
@@ -155,9 +163,13 @@ class LensCalibration:
     mosaic: dict = field(default_factory=dict)
 
     @property
-    def center_rc(self) -> tuple:
-        """The optical centre used, ``(row, col)`` pixels (``center_px`` is x first)."""
-        return (self.center_px[1], self.center_px[0])
+    def center_px(self) -> tuple:
+        """The optical centre used x first, ``(cx, cy)``: the earlier form of
+        :attr:`center_rc`, removed in snapcorr 0.3."""
+        if called_from_outside(2):
+            warn_x_first_return("LensCalibration.center_px", "LensCalibration.center_rc",
+                                stacklevel=3)
+        return (self.center_rc[1], self.center_rc[0])
 
     def model_onsets_deg(self):
         """First onset at each f-number predicted by the chosen circles (NaN past the field)."""
@@ -222,7 +234,7 @@ def _check_inputs(flats, dark, vignetting_distance_mm):
     return sorted(items)
 
 
-def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_rc,
                 exit_pupil_stderr_mm=None, tolerance_nm=choice.TOLERANCE_NM, max_circles=3):
     """Every number checked (:func:`_check_choice_args` too), as floats."""
     if method not in METHODS:
@@ -231,11 +243,11 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
     pixel_pitch_um = check_pixel_pitch_um("pixel_pitch_um", pixel_pitch_um)
     if vignetting_distance_mm is not None:
         vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
-    if center_px is not None:
-        center_px = check_center(center_px)
+    if center_rc is not None:
+        center_rc = check_center_rc(center_rc)
     if exit_pupil_stderr_mm is not None:
         exit_pupil_stderr_mm = check_positive("exit_pupil_stderr_mm", exit_pupil_stderr_mm)
-    return (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px,
+    return (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_rc,
             exit_pupil_stderr_mm, _check_choice_args(tolerance_nm, max_circles))
 
 
@@ -259,11 +271,11 @@ def _check_enough_flats(items, vignetting_distance_mm):
 @renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stderr_mm=None,
-                   magnification=None, pupil_magnification=None, dark=None, center_px=None,
+                   magnification=None, pupil_magnification=None, dark=None, center_rc=None,
                    saturation=None, vignetting_distance_mm=None, method="auto", inputs=None,
                    name="calibrated lens", tolerance_nm=choice.TOLERANCE_NM, max_circles=3,
                    progress=None, pupil_radiance=None, sensor=None, sensor_origin_px=None,
-                   lens=None, exit_pupil_from=None):
+                   lens=None, exit_pupil_from=None, center_px=None):
     """Characterise a lens from flat fields at several f-numbers.
 
     Parameters
@@ -328,7 +340,7 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
     given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
                        pupil_magnification, pupil_radiance)
     result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
-                        center_px=center_px, saturation=saturation,
+                        center_rc=center_rc, saturation=saturation,
                         vignetting_distance_mm=vignetting_distance_mm, method=method,
                         inputs=inputs, name=name, tolerance_nm=tolerance_nm,
                         max_circles=max_circles, progress=progress, sensor=sensor,
@@ -387,21 +399,22 @@ def _lens_recorded(calibrated, lens, source):
 
 
 def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
-               magnification, pupil_magnification, dark, center_px, saturation,
+               magnification, pupil_magnification, dark, center_rc, saturation,
                vignetting_distance_mm, method, inputs, name, tolerance_nm, max_circles,
                progress, pupil_radiance, sensor, sensor_origin_px):
-    """:func:`calibrate_lens` with x, m, m_P and the pupil settled (its body)."""
-    (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_px, exit_pupil_stderr_mm,
+    """:func:`calibrate_lens` with x, m, m_P and the pupil settled (its body); every centre
+    ``(row, col)``."""
+    (exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, center_rc, exit_pupil_stderr_mm,
      tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
-                                 center_px, exit_pupil_stderr_mm, tolerance_nm, max_circles)
+                                 center_rc, exit_pupil_stderr_mm, tolerance_nm, max_circles)
     items = _check_inputs(flats, dark, vignetting_distance_mm)
     items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name,
                 pupil_radiance=pupil_radiance)
-    fl, ratios, center, center_source, notes = _prepare_flats(items, center_px, **cleaning)
+    fl, ratios, center, center_source, notes = _prepare_flats(items, center_rc, **cleaning)
     ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
     max_cra, fs = ons.max_cra_deg, fl.f_numbers
-    fix_center = center if (center_px is not None or fl.single) else None
+    fix_center = center if (center_rc is not None or fl.single) else None
     decide = functools.partial(_choose, base=base, fs=fs, tolerance_nm=tolerance_nm,
                                h_given=vignetting_distance_mm is not None)
     fits, bic, fit_notes, data, rivals = _fit_joint_models(
@@ -428,7 +441,7 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
                               else 1.0) + _x_notes(exit_pupil_mm, exit_pupil_stderr_mm, circles)
     result = LensCalibration(
         lens=lens, method=used, model=model, reason=reason, f_numbers=fs,
-        reference_f_number=None if fl.single else float(fs[-1]), center_px=center,
+        reference_f_number=None if fl.single else float(fs[-1]), center_rc=center,
         center_source=center_source, max_cra_deg=max_cra, onsets=ons.onsets,
         onset_fits=ons.fits, fits=fits, profiles=ons.profiles,
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
@@ -466,12 +479,13 @@ def _raw_mosaic(items, dark, saturation, sensor, origin_px):
         "sensor": sensor, "sensor_origin_px": origin_px, "band_gains": gains}
 
 
-def _prepare_flats(items, center_px, *, dark=None, saturation=None, pixel_gains=None):
-    """Clean the flats, take their ratio images and find the optical centre; with notes."""
+def _prepare_flats(items, center_rc, *, dark=None, saturation=None, pixel_gains=None):
+    """Clean the flats, take their ratio images and find the optical centre ``(row, col)``;
+    with notes."""
     fl = stages.clean_flats(items, dark, saturation, pixel_gains)
     notes = list(fl.notes)
     ratios = stages.ratio_images(fl)
-    center, center_source, note = stages.optical_center(fl, ratios, center_px)
+    center, center_source, note = stages.optical_center_rc(fl, ratios, center_rc)
     if note:
         notes.append(note)
     if fl.single:
@@ -481,10 +495,10 @@ def _prepare_flats(items, center_px, *, dark=None, saturation=None, pixel_gains=
     return fl, ratios, center, center_source, notes
 
 
-def _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm):
-    """Profiles and onsets about ``center``, and Eq. (26) over each detector's onsets."""
+def _onsets_about(fl, ratios, center_rc, base, pixel_pitch_um, vignetting_distance_mm):
+    """Profiles and onsets about ``center_rc``, and Eq. (26) over each detector's onsets."""
     profiles, ratio_profiles, onsets, max_cra = stages.profiles_and_onsets(
-        fl, ratios, center, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
+        fl, ratios, center_rc, base, pixel_pitch_um, fixed_h=vignetting_distance_mm)
     onset_fits = {det: stages.solve_onsets(onsets[det], base, vignetting_distance_mm)
                   for det in onsets}
     return _Onsets(profiles, ratio_profiles, onsets, max_cra, onset_fits)
@@ -501,11 +515,12 @@ def _choose(fits, bic, max_cra, *, base, fs, tolerance_nm, h_given):
 def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onset_fits,
                       max_cra, vignetting_distance_mm, max_circles, decide, progress=None):
     """The joint fits, one more circle while the last is chosen; their BICs, notes, the
-    blocks fitted and the rival models (:func:`~snapcorr.calibrate.lens.stages.joint_fits`)."""
+    blocks fitted and the rival models (:func:`~snapcorr.calibrate.lens.stages.joint_fits`);
+    centres ``(row, col)``."""
     data = stages.block_data(fl, ratios, base, pixel_pitch_um)
     centers = [center]
     if fix_center is None:  # should the contours have misled: the image centre too
-        centers.append(((fl.shape[1] - 1) / 2.0, (fl.shape[0] - 1) / 2.0))
+        centers.append(((fl.shape[0] - 1) / 2.0, (fl.shape[1] - 1) / 2.0))
 
     def keep_going(fits, bic):  # only a chosen model can be the base of a better one
         return decide(fits, bic, max_cra)[0] == list(fits)[-1]
@@ -543,11 +558,13 @@ def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_sour
             center, center_source = contour_center, contour_source
         else:
             center = _fitted_center(fits[model])
-    max_cra = float(cra_map(fl.shape, pixel_pitch_um, base.exit_pupil_mm, center).max())
+    max_cra = float(cra_map(fl.shape, pixel_pitch_um, base.exit_pupil_mm,
+                            center_rc=center).max())
     return center, center_source, model, verdicts, ons, max_cra
 
 
 def _fitted_center(fit):
-    return (fit.params["cx_px"], fit.params["cy_px"])
+    """The fit's optical centre, ``(row, col)``."""
+    return tuple(fit.params[k] for k in CENTER_NAMES)
 
 

@@ -23,23 +23,24 @@ from .joint_fit import N_CIRCLES, ModelFit, param_names
 MISFIT_CHI2 = 1.5
 
 
-def _predict(data, fs, fit, ons, base, center, fix_center, h_given, progress):
+def _predict(data, fs, fit, ons, base, center_rc, fix_center_rc, h_given, progress):
     """Predictive scores of the joint fit and of the paper's onsets
-    (:func:`~snapcorr.calibrate.lens.predictive.compare_estimators`)."""
+    (:func:`~snapcorr.calibrate.lens.predictive.compare_estimators`); centres ``(row, col)``."""
     def solver(f):
         others = {g: o for g, o in ons.onsets["ratio"].items() if g != f}
         of = stages.solve_onsets(others, base, h_given)
         return (of.P_mm, of.h_mm) if _sane(of, base.exit_pupil_mm) else None
 
-    return predictive.compare_estimators(data, fs, fit, solver, center, fix_center=fix_center,
-                                         fixed_h=h_given, progress=progress)
+    return predictive.compare_estimators(data, fs, fit, solver, center_rc,
+                                         fix_center_rc=fix_center_rc, fixed_h=h_given,
+                                         progress=progress)
 
 
-def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs, max_cra,
+def _shift_errors(used, fits, bic, verdicts, model, ons, center_rc, lens, base, fs, max_cra,
                   rivals=None):
     """The shift's standard error per f-number: the fit's part, the model choice's part, and
     both in quadrature (as :class:`LensCalibration` fields)."""
-    fit_err = _shift_stderr(used, fits[model], ons.fits, center, base, fs, max_cra)
+    fit_err = _shift_stderr(used, fits[model], ons.fits, center_rc, base, fs, max_cra)
     noise_err = fit_err
     if used == "joint" and fit_err.size and "noise_covariance" in fits[model].extra:
         fit = fits[model]
@@ -49,7 +50,7 @@ def _shift_errors(used, fits, bic, verdicts, model, ons, center, lens, base, fs,
                   for i, (k, v) in enumerate(fit.stderr.items())}
         noise_err = _shift_stderr(used, dataclasses.replace(fit, covariance=noise,
                                                             stderr=stderr),
-                                  ons.fits, center, base, fs, max_cra)
+                                  ons.fits, center_rc, base, fs, max_cra)
     model_err = (choice.model_choice_stderr(fits, bic, verdicts, model, lens, base, fs,
                                             max_cra, rivals)
                  if used == "joint" else np.zeros(0))
@@ -228,8 +229,9 @@ def _x_notes(x, sx, circles):
             f"recorded with it (dP/dx = {P / x:.4g}, dh/dx = {2 * h / x:.4g})"]
 
 
-def _shift_stderr(used, fit, onset_fits, center, base, fs, max_cra):
-    """Standard error of the predicted mean shift for the estimator used, per f-number."""
+def _shift_stderr(used, fit, onset_fits, center_rc, base, fs, max_cra):
+    """Standard error of the predicted mean shift for the estimator used, per f-number (an
+    onset method's circle about the centre ``(row, col)``)."""
     if used == "joint":
         if fit.model == "none":
             return np.zeros(0)
@@ -238,7 +240,7 @@ def _shift_stderr(used, fit, onset_fits, center, base, fs, max_cra):
     cov = np.zeros((4, 4))
     cov[:2, :2] = of.covariance if of.covariance is not None else np.nan
     names = tuple(param_names("one"))
-    params = dict(zip(names, (of.P_mm, of.h_mm, *center), strict=True))
+    params = dict(zip(names, (of.P_mm, of.h_mm, *center_rc), strict=True))
     stderr = dict(zip(names, (*np.sqrt(np.clip(np.diag(cov[:2, :2]), 0, None)), 0.0, 0.0),
                       strict=True))
     if not np.all(np.isfinite(cov)):

@@ -22,9 +22,11 @@ With a single flat nothing separates ``G`` from ``A``: the flat itself is fitted
 ``cos^4`` for ``G`` (the h must be given). :class:`BlockData` also holds ratio images
 ``q_F = s_F A_F / A_ref`` (one profile at a time, for the model-based onsets).
 
-Models have no vignetting circle (exposures only), one circle (P, h, centre) and up to three
-(more P, h: pixel vignetting is a circle with h = x); :mod:`snapcorr.calibrate.lens.choice`
-decides between them.
+Models have no vignetting circle (exposures only), one circle (P, h and the centre, row
+first) and up to three (more P, h: pixel vignetting is a circle with h = x);
+:mod:`snapcorr.calibrate.lens.choice` decides between them. Every centre here is
+``(row, col)``, as everywhere in snapcorr; the x-first keywords of earlier releases
+(``center``, ``fix_center``) still work and warn (:func:`snapcorr._coords.accepts_center_rc`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..._coords import accepts_center_rc
+from ..._validation import called_from_outside, warn_renamed
 from ...optics.aperture import overlap_area_mm2
 
 __all__ = ["CIRCLE_MODELS", "BlockData", "ModelFit", "block_average", "block_centroids",
@@ -104,9 +108,43 @@ class BlockData:
         return self.q.shape[0] - 1 + int(np.sum(np.isfinite(self.sigma).any(axis=0)))
 
 
+#: The names the centre's parameters had when the vector held it x first, ``(cx, cy)``.
+EARLIER_NAMES = {"cx_px": "center_col_px", "cy_px": "center_row_px"}
+
+
+class _Named(dict):
+    """A fit's values by parameter name; the centre's earlier names (:data:`EARLIER_NAMES`)
+    still find their values, and warn."""
+
+    def __missing__(self, key):
+        return self._earlier(key, KeyError)
+
+    def get(self, key, default=None):
+        if key in self:
+            return self[key]
+        return self._earlier(key, default)
+
+    def _earlier(self, key, otherwise):
+        """The value of ``key``'s present name, warning (3 frames up: the caller of
+        ``[]`` or ``get``); ``otherwise`` where ``key`` is no earlier name (KeyError: raised)."""
+        new = EARLIER_NAMES.get(key)
+        if new is None or new not in self:
+            if otherwise is KeyError:
+                raise KeyError(key)
+            return otherwise
+        if called_from_outside(3):
+            warn_renamed(f"the parameter name {key!r}", repr(new), stacklevel=4)
+        return dict.__getitem__(self, new)
+
+
 @dataclass
 class ModelFit:
-    """Result of fitting one model."""
+    """Result of fitting one model.
+
+    ``params`` and ``stderr`` are by name (:func:`param_names`), ``covariance`` in the order
+    of ``names``; the optical centre is ``center_row_px``, ``center_col_px`` (``cx_px``,
+    ``cy_px``, its earlier names, still read and warn).
+    """
 
     model: str
     params: dict
@@ -121,6 +159,10 @@ class ModelFit:
     message: str = ""
     #: ``"held"``: the parameters held at given values (``fit_model(fixed=...)``), by name
     extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.params = _Named(self.params)
+        self.stderr = _Named(self.stderr)
 
     @property
     def bic(self) -> float:
@@ -224,12 +266,17 @@ def _area_fraction(R, circles, t):
     return overlap_area_mm2(radii, centers) / (np.pi * R * R)
 
 
+#: The names of the optical centre's parameters, row first (indices 2 and 3 of the vector).
+CENTER_NAMES = ("center_row_px", "center_col_px")
+
+
 def param_names(model):
-    """Parameter names of a model: circle 1, the optical centre, then circles 2, 3."""
+    """Parameter names of a model: circle 1, the optical centre (row, col), then circles 2,
+    3: ``P_mm, h_mm, center_row_px, center_col_px, P2_mm, h2_mm, ...``."""
     n = N_CIRCLES[model]
     if n == 0:
         return []
-    return ["P_mm", "h_mm", "cx_px", "cy_px"] + [
+    return ["P_mm", "h_mm", *CENTER_NAMES] + [
         name for i in range(2, n + 1) for name in (f"P{i}_mm", f"h{i}_mm")]
 
 
@@ -315,18 +362,19 @@ def model_ratio(data: BlockData, model, p, tan_cra, weights=None, per_flat=False
     return m
 
 
-def _block_model(data: BlockData, model, p, cx, cy):
+def _block_model(data: BlockData, model, p, center_rc):
     """The model of every block, averaged over the block's valid pixels
-    (:func:`_block_radii`, :func:`block_centroids`)."""
+    (:func:`_block_radii`, :func:`block_centroids`), about the centre ``(row, col)``."""
+    row, col = center_rc
     if data.block_px <= 1:
-        return model_ratio(data, model, p, _tan(data, cx, cy))
+        return model_ratio(data, model, p, _tan(data, center_rc))
     per_flat = data.xoff is not None and data.R_ref_mm is None
     if per_flat:  # each flat's own valid pixels: (n_f, n)
-        X = (data.xpix - cx)[None, :] + data.xoff
-        Y = (data.ypix - cy)[None, :] + data.yoff
+        X = (data.xpix - col)[None, :] + data.xoff
+        Y = (data.ypix - row)[None, :] + data.yoff
         sx, sy = data.xsd, data.ysd
     else:  # every pixel of the block
-        X, Y = data.xpix - cx, data.ypix - cy
+        X, Y = data.xpix - col, data.ypix - row
         sx = sy = np.sqrt((data.block_px**2 - 1) / 12.0)
     radii, w = _block_radii(X, Y, sx, sy)
     tan = radii * (data.pitch_mm / data.x_mm)
@@ -335,8 +383,10 @@ def _block_model(data: BlockData, model, p, cx, cy):
     return model_ratio(data, model, p, tan, w, per_flat=per_flat)
 
 
-def _tan(data, cx, cy):
-    return np.hypot(data.xpix - cx, data.ypix - cy) * data.pitch_mm / data.x_mm
+def _tan(data, center_rc):
+    """tan(CRA) of every block's centre about the optical centre ``(row, col)`` (Eq. 8)."""
+    row, col = center_rc
+    return np.hypot(data.xpix - col, data.ypix - row) * data.pitch_mm / data.x_mm
 
 
 #: Gauss-Newton steps for the exposures at most (from the start it takes two to four).
@@ -402,9 +452,10 @@ def _weights(q, sigma):
     return w, np.sqrt(w), w * q
 
 
-def _every_pixel_model(data: BlockData, model, p, cx, cy):
+def _every_pixel_model(data: BlockData, model, p, center_rc):
     """The model of every block as the mean over all its pixels (each at its own radius, on
     a table four times finer), what :func:`_block_model`'s radial rule approximates."""
+    row, col = center_rc
     b = data.block_px
     if b <= _EXACT_SIDE:
         offs = np.arange(b) - (b - 1) / 2.0
@@ -413,14 +464,14 @@ def _every_pixel_model(data: BlockData, model, p, cx, cy):
         u, w = np.polynomial.legendre.leggauss(_EXACT_NODES)
         offs, w1 = u * (b / 2.0), w / 2.0
     dx, dy = np.meshgrid(offs, offs)
-    X = (data.xpix - cx)[None, :] + dx.ravel()[:, None]
-    Y = (data.ypix - cy)[None, :] + dy.ravel()[:, None]
+    X = (data.xpix - col)[None, :] + dx.ravel()[:, None]
+    Y = (data.ypix - row)[None, :] + dy.ravel()[:, None]
     tan = np.hypot(X, Y) * (data.pitch_mm / data.x_mm)
     return model_ratio(data, model, p, tan, np.outer(w1, w1).ravel(),
                        grid_points=4 * GRID_POINTS)
 
 
-def _rule_bias(data: BlockData, model, p, center, J, free):
+def _rule_bias(data: BlockData, model, p, center_rc, J, free):
     """How far the block model's approximations (its radial rule and tabulated area) move
     the fitted parameters: the least-squares step, through the fit's Jacobian ``J`` (free
     parameters), that the residuals' change from the block model to the mean over every
@@ -429,18 +480,22 @@ def _rule_bias(data: BlockData, model, p, center, J, free):
     on each: it is added to the covariance as its outer product."""
     if data.block_px <= 1 or J is None or not np.size(J):
         return np.zeros(len(free))
-    cx, cy = center if center is not None else (p[2], p[3])
+    c = _center_of(p, center_rc)
     full = replace(data, xoff=None, yoff=None, xsd=None, ysd=None, warm={})
-    r_rule, _ = _model_residuals(full, _block_model(full, model, p, cx, cy), model)
-    r_fine, _ = _model_residuals(full, _every_pixel_model(full, model, p, cx, cy), model)
+    r_rule, _ = _model_residuals(full, _block_model(full, model, p, c), model)
+    r_fine, _ = _model_residuals(full, _every_pixel_model(full, model, p, c), model)
     J = np.asarray(J.toarray() if hasattr(J, "toarray") else J, float)
     step, *_ = np.linalg.lstsq(J, r_fine - r_rule, rcond=None)
     return np.where(np.isfinite(step), step, 0.0)
 
 
-def _residuals(data, model, p, center):
-    cx, cy = center if center is not None else (p[2], p[3])
-    m = _block_model(data, model, p, cx, cy)
+def _center_of(p, center_rc):
+    """The optical centre ``(row, col)``: ``center_rc`` where held, else the vector's."""
+    return center_rc if center_rc is not None else (p[2], p[3])
+
+
+def _residuals(data, model, p, center_rc):
+    m = _block_model(data, model, p, _center_of(p, center_rc))
     return _model_residuals(data, m, model)
 
 
@@ -460,16 +515,20 @@ def _model_residuals(data, m, model):
     return np.where(ok, r, 10.0).ravel(), s
 
 
-def floor_chi2(data: BlockData, fit: ModelFit, floor_rel, center=None):
+@accepts_center_rc(old="center", new="center_rc")
+def floor_chi2(data: BlockData, fit: ModelFit, floor_rel, center_rc=None):
     """Chi-square of a fit with a systematic floor: each block's variance is
     ``sigma^2 + (floor_rel * q)^2``, the part of the misfit no area model removes (the source,
     pupil aberrations, the block model's approximations). With millions of pixels, any tiny
     mismatch is "significant" against pixel noise alone; against the floor only a difference
-    the size of a real fall-off counts."""
+    the size of a real fall-off counts.
+
+    ``center_rc``: the optical centre ``(row, col)`` where it was held (and of the model
+    without a circle); else the fit's. ``center=(cx, cy)`` is its deprecated x-first form.
+    """
     p = [fit.params[k] for k in fit.names]
-    c = center if fit.model == "none" or center is not None else (p[2], p[3])
-    cx, cy = c if c is not None else (0.0, 0.0)
-    m = _block_model(data, fit.model, p, cx, cy)
+    c = center_rc if fit.model == "none" or center_rc is not None else (p[2], p[3])
+    m = _block_model(data, fit.model, p, c if c is not None else (0.0, 0.0))
     if data.gains:  # the gains and exposures again, under the floored weights
         r, _ = _profiled(data.q, np.sqrt(data.sigma**2 + (floor_rel * data.q) ** 2), m)
         return float(r @ r)
@@ -479,7 +538,8 @@ def floor_chi2(data: BlockData, fit: ModelFit, floor_rel, center=None):
     return float(np.sum(r * r / var))
 
 
-def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_nfev=60,
+@accepts_center_rc(old="center", new="center_rc")
+def fit_model(data: BlockData, model, starts, *, center_rc=None, fixed_h=None, max_nfev=60,
               keep=2, fixed=None, screen=True):
     """Fit one model from several starting points; return the best :class:`ModelFit`.
 
@@ -491,9 +551,12 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     ----------
     model : {"none", "one", "two", "three"}
     starts : list of sequences
-        Starting values: (P, h, cx, cy) for "one", plus (P2, h2) for "two", plus (P3, h3).
-    center : (cx, cy), optional
-        Keep the optical centre fixed here instead of fitting it.
+        Starting values in the order of :func:`param_names`: (P, h, row, col) for "one",
+        plus (P2, h2) for "two", plus (P3, h3). The centre is row first (snapcorr 0.1 held
+        it x first).
+    center_rc : (row, col), optional
+        Keep the optical centre fixed here instead of fitting it; ``center=(cx, cy)`` is
+        its deprecated x-first form.
     fixed_h : float, optional
         Keep h fixed (a single f-number cannot tell P from h).
     keep : int
@@ -510,13 +573,10 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     if n == 0:
         raise ValueError("no usable pixels in the flats (all masked, dark or saturated)")
     if model == "none":
-        r, s = _residuals(data, "none", (), center or (0.0, 0.0))
+        r, s = _residuals(data, "none", (), center_rc or (0.0, 0.0))
         return ModelFit("none", {}, {}, None, (), float(r @ r), n, data.n_nuisance, s, True)
     names = param_names(model)
-    free = [i for i, nm in enumerate(names)
-            if not (center is not None and nm in ("cx_px", "cy_px"))
-            and not (fixed_h is not None and nm == "h_mm")
-            and nm not in (fixed or {})]
+    free = _free(names, center_rc, fixed_h, fixed)
     x = data.x_mm
     lo_all = np.array([1e-3, 1e-3, -np.inf, -np.inf] + [1e-3, -20 * x] * 2)[: len(names)]
     hi_all = np.array([20 * x, 20 * x, np.inf, np.inf] + [20 * x, 20 * x] * 2)[: len(names)]
@@ -534,14 +594,14 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     bases = []
     for start in starts:
         base = np.array(start, float)[: len(names)]
-        if center is not None:
-            base[2:4] = center
+        if center_rc is not None:
+            base[2:4] = center_rc
         if fixed_h is not None:
             base[1] = fixed_h
         for nm, v in (fixed or {}).items():
             base[names.index(nm)] = v
         base[free] = np.clip(base[free], (lo_all + margin)[free], (hi_all - margin)[free])
-        r = _residuals(subset, model, base, center)[0]
+        r = _residuals(subset, model, base, center_rc)[0]
         bases.append((float(r @ r), base))
     bases.sort(key=lambda cb: cb[0])
     best = None
@@ -549,7 +609,7 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
         p0 = base[free]
 
         def fun(pf, base=base, d=subset):
-            return _residuals(d, model, full(pf, base), center)[0]
+            return _residuals(d, model, full(pf, base), center_rc)[0]
 
         # the most promising start gets a longer run
         res = least_squares(fun, p0, bounds=(lo_all[free], hi_all[free]), x_scale="jac",
@@ -559,26 +619,39 @@ def fit_model(data: BlockData, model, starts, *, center=None, fixed_h=None, max_
     if step > 1:
         res, base = best
         p0 = np.clip(res.x, (lo_all + margin)[free], (hi_all - margin)[free])
-        res = least_squares(lambda pf: _residuals(data, model, full(pf, base), center)[0], p0,
+        res = least_squares(lambda pf: _residuals(data, model, full(pf, base), center_rc)[0], p0,
                             bounds=(lo_all[free], hi_all[free]), x_scale="jac",
                             max_nfev=POLISH_NFEV)
         best = (res, base)
     res, base = best
     p = full(res.x, base)
-    r, s = _residuals(data, model, p, center)
+    r, s = _residuals(data, model, p, center_rc)
     chi2 = float(r @ r)
     k = len(free) + data.n_nuisance
-    bias = _rule_bias(data, model, p, center, res.jac, free)
+    bias = _rule_bias(data, model, p, center_rc, res.jac, free)
     cov, err, noise_cov = _covariance(res.jac, p, free, names, chi2 / max(n - k, 1), bias)
     params = dict(zip(names, map(float, p), strict=True))
     stderr = dict(zip(names, map(float, err), strict=True))
     extra = {"held": dict(fixed)} if fixed else {}
     # the parts of the covariance: the noise's (scaled by the misfit) and the block rule's
     extra["noise_covariance"] = noise_cov
-    extra["rule_bias"] = dict(zip([names[i] for i in free], map(float, bias), strict=True))
+    extra["rule_bias"] = {names[i]: float(b) for i, b in sorted(zip(free, bias, strict=True))}
     extra["misfit_scale"] = float(max(chi2 / max(n - k, 1), 1.0))
     return ModelFit(model, params, stderr, cov, tuple(names), chi2, n, k, s, bool(res.success),
                     str(res.message), extra=extra)
+
+
+def _free(names, center_rc, fixed_h, fixed):
+    """Indices of the parameters fitted, in the order the least squares takes them: that of
+    ``names``, but the centre's column before its row. That is the order every calibration
+    was checked in, and it matters: where a circle is barely seen (a flat valley), the point
+    the solver stops at follows the rounding of its steps, which depends on the variables'
+    order (a rejected third circle's h came out at -1.5 mm one way and 42 mm the other)."""
+    free = [i for i, nm in enumerate(names)
+            if not (center_rc is not None and nm in CENTER_NAMES)
+            and not (fixed_h is not None and nm == "h_mm")
+            and nm not in (fixed or {})]
+    return sorted(free, key=lambda i: {2: 3, 3: 2}.get(i, i))
 
 
 def _screening_subset(data: BlockData):

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..._coords import accepts_center_rc
 from .joint_fit import (
     BlockData,
     ModelFit,
@@ -74,7 +75,8 @@ def without_flat(data: BlockData, k: int) -> BlockData:
                    ysd=rows(data.ysd), warm={})
 
 
-def predict_left_out(data: BlockData, model: str, p, center, k: int):
+@accepts_center_rc(old="center", new="center_rc")
+def predict_left_out(data: BlockData, model: str, p, center_rc, k: int):
     """Chi-square and number of blocks of flat ``k`` predicted from the other flats: their
     gains, the model's area fractions, and the left-out flat's exposure fitted to it.
 
@@ -85,9 +87,11 @@ def predict_left_out(data: BlockData, model: str, p, center, k: int):
     model : str
         ``"one"``, ``"two"`` or ``"three"`` circles.
     p : sequence of float
-        The model's parameters (:func:`~snapcorr.calibrate.lens.joint_fit.param_names`).
-    center : (float, float) or None
-        Optical centre, pixels; None: the one in ``p``.
+        The model's parameters (:func:`~snapcorr.calibrate.lens.joint_fit.param_names`: the
+        centre row first).
+    center_rc : (row, col) or None
+        Optical centre, pixels; None: the one in ``p``. ``center=(cx, cy)`` is its
+        deprecated x-first form.
     k : int
         The flat predicted (its row in ``data``).
 
@@ -98,8 +102,7 @@ def predict_left_out(data: BlockData, model: str, p, center, k: int):
     n : int
         Blocks predicted.
     """
-    cx, cy = center if center is not None else (p[2], p[3])
-    A = _block_model(data, model, p, cx, cy)
+    A = _block_model(data, model, p, center_rc if center_rc is not None else (p[2], p[3]))
     others = [i for i in range(data.q.shape[0]) if i != k]
     _, _, G = _profiled(data.q[others], data.sigma[others], A[others], return_gains=True)
     seen = np.isfinite(data.sigma[others]).any(axis=0)
@@ -114,8 +117,10 @@ def predict_left_out(data: BlockData, model: str, p, center, k: int):
     return float(r @ r), int(ok.sum())
 
 
-def compare_estimators(data: BlockData, fs, fit: ModelFit, onset_solver, center, *,
-                       fix_center=None, fixed_h=None, progress=None):
+@accepts_center_rc(old="center", new="center_rc")
+@accepts_center_rc(old="fix_center", new="fix_center_rc")
+def compare_estimators(data: BlockData, fs, fit: ModelFit, onset_solver, center_rc, *,
+                       fix_center_rc=None, fixed_h=None, progress=None):
     """Predictive scores of the joint fit (model of ``fit``) and of the paper's onsets.
 
     Parameters
@@ -129,10 +134,11 @@ def compare_estimators(data: BlockData, fs, fit: ModelFit, onset_solver, center,
     onset_solver : callable
         ``onset_solver(f_left_out)`` -> ``(P, h)`` from Eq. (26) without that f-number's
         onset, or None where the others cannot give one.
-    center : (float, float)
-        Optical centre at which the onsets' circle is evaluated, pixels.
-    fix_center : (float, float), optional
-        The joint fit's centre was held here.
+    center_rc : (row, col)
+        Optical centre at which the onsets' circle is evaluated, pixels (``center=(cx, cy)``
+        is its deprecated x-first form).
+    fix_center_rc : (row, col), optional
+        The joint fit's centre was held here (``fix_center=(cx, cy)``, deprecated, x first).
     fixed_h : float, optional
         The joint fit's h was held at this.
     progress : callable, optional
@@ -157,13 +163,13 @@ def compare_estimators(data: BlockData, fs, fit: ModelFit, onset_solver, center,
         # away): not on a subset of them, whose own minimum lies off by the subset's noise and
         # predicted the flat left out worse by tens of chi-square, which handed two-circle
         # lenses to the onsets
-        refit = fit_model(without_flat(data, k), fit.model, [p_full], center=fix_center,
+        refit = fit_model(without_flat(data, k), fit.model, [p_full], center_rc=fix_center_rc,
                           fixed_h=fixed_h, max_nfev=REFIT_NFEV, keep=1, screen=False,
                           fixed=fit.extra.get("held"))
         p = np.array([refit.params[n] for n in names])
-        cj, nj = predict_left_out(data, fit.model, p, fix_center, k)
-        po = np.array([circle[0], circle[1], center[0], center[1]])
-        co, no = predict_left_out(data, "one", po, center, k)
+        cj, nj = predict_left_out(data, fit.model, p, fix_center_rc, k)
+        po = np.array([circle[0], circle[1], center_rc[0], center_rc[1]])
+        co, no = predict_left_out(data, "one", po, center_rc, k)
         if not (math.isfinite(cj) and math.isfinite(co)):
             continue
         joint.chi2[f], joint.n[f] = cj, nj

@@ -22,7 +22,7 @@ def _fmt_onset(o):
 def summary(res) -> str:
     """A few lines: centre, onsets (the paper's detectors against the chosen model), every
     model tried with its verdict, the choice and why."""
-    lines = [f"optical centre: row {res.center_px[1]:.1f}, col {res.center_px[0]:.1f} px "
+    lines = [f"optical centre: row {res.center_rc[0]:.1f}, col {res.center_rc[1]:.1f} px "
              f"({res.center_source}); chief-ray angles checked up to {res.max_cra_deg:.1f} deg"]
     model_on = res.model_onsets_deg()
     lines.append("onsets (deg): ratio-profile discontinuity | area model per profile | "

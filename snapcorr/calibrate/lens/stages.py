@@ -1,9 +1,11 @@
 """The stages of a lens calibration, each a function of the one before.
 
-:func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_center` ->
+:func:`clean_flats` -> :func:`ratio_images` -> :func:`optical_center_rc` ->
 :func:`profiles_and_onsets` (and :func:`solve_onsets`, Eq. 26) -> :func:`block_data` ->
 :func:`joint_fits`; :mod:`snapcorr.calibrate.lens.choice` then picks the model and
-:func:`snapcorr.calibrate.calibrate_lens` strings them together.
+:func:`snapcorr.calibrate.calibrate_lens` strings them together. Every optical centre here
+is ``(row, col)``; the x-first keywords of earlier releases (``center_px``, ``center``,
+``fix_center``, ``centers``) still work and warn (:func:`snapcorr._coords.accepts_center_rc`).
 """
 
 from __future__ import annotations
@@ -13,14 +15,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..._coords import accepts_center_rc
-from ..._validation import check_center
+from ..._coords import accepts_center_rc, called_from_outside, warn_x_first_return
+from ..._validation import (
+    check_center,  # noqa: F401 (snapcorr.calibrate.stages re-exports it)
+    check_center_rc,
+)
 from ...optics.chief_ray import cra_map
 from ...optics.lens import Lens
 from ..flats.cleaning import _band_labels, clean_flat, remove_band_gains
 from ..flats.onset_fit import OnsetFit, solve_vignetting_circle
 from ..flats.onsets import Onset, detect_onset
-from ..flats.radial import estimate_center, radial_profile
+from ..flats.radial import (
+    estimate_center,  # noqa: F401 (re-exported, as above)
+    estimate_center_rc,
+    radial_profile,
+)
 from .joint_fit import (
     CIRCLE_MODELS,
     N_CIRCLES,
@@ -39,6 +48,7 @@ __all__ = [
     "clean_flats",
     "joint_fits",
     "optical_center",
+    "optical_center_rc",
     "pixel_rival",
     "profiles_and_onsets",
     "ratio_images",
@@ -88,6 +98,7 @@ class Ratios:
     ratio_ok: list
     ref_peak: float | None
     centroids: list = None  # per flat: (dx, dy, sx, sy) of its valid pixels in each block
+    # (the offsets along the columns, x, then the rows, y, as :class:`BlockData` holds them)
 
 
 def without_band_gains(items, dark, saturation, sensor, origin_px):
@@ -262,9 +273,9 @@ def ratio_images(flats: Flats) -> Ratios:
                   block_centroids(flats.valids, block))
 
 
-@accepts_center_rc
-def optical_center(flats: Flats, ratios: Ratios, center_px=None):
-    """The optical centre (pixels), how it was found, and a note if it could not be.
+def optical_center_rc(flats: Flats, ratios: Ratios, center_rc=None):
+    """The optical centre ``(row, col)`` (pixels), how it was found, and a note if it could
+    not be.
 
     Parameters
     ----------
@@ -272,34 +283,60 @@ def optical_center(flats: Flats, ratios: Ratios, center_px=None):
     ratios : Ratios
         The flats' block means and ratios (:func:`ratio_images`); contours are traced in the
         ratios, else in the block means.
-    center_rc, center_px : (row, col), optional
-        Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
-        form. A given centre, full-resolution pixels; returned as it is (as ``(cx, cy)``).
+    center_rc : (row, col), optional
+        A given centre, full-resolution pixels; returned as it is.
 
     Returns
     -------
-    center : (float, float)
-        ``(cx, cy)`` in full-resolution pixels.
+    center_rc : (float, float)
+        ``(row, col)`` in full-resolution pixels.
     source : {"given", "contours", "image centre"}
     note : str or None
         Set when no fall-off was found and the image centre is used.
     """
-    if center_px is not None:
-        return check_center(center_px), "given", None
+    if center_rc is not None:
+        return check_center_rc(center_rc), "given", None
     c = None
     if not flats.single:
-        c, _ = estimate_center(ratios.ratios, ratios.ratio_ok)
+        c, _ = estimate_center_rc(ratios.ratios, ratios.ratio_ok)
     if c is None:
-        c, _ = estimate_center(ratios.images, ratios.enough)
+        c, _ = estimate_center_rc(ratios.images, ratios.enough)
     if c is None:
         shape = flats.shape
-        return (((shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0), "image centre",
+        return (((shape[0] - 1) / 2.0, (shape[1] - 1) / 2.0), "image centre",
                 "no radial fall-off to find the optical centre from: the image centre is used")
     b = ratios.block  # block coordinates -> pixels
     return (c[0] * b + (b - 1) / 2.0, c[1] * b + (b - 1) / 2.0), "contours", None
 
 
-def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_pitch_um,
+@accepts_center_rc
+def optical_center(flats: Flats, ratios: Ratios, center_px=None, *, center_rc=None):
+    """The optical centre x first, ``(cx, cy)``: the earlier form of
+    :func:`optical_center_rc`, which gives it row first; removed in snapcorr 0.3.
+
+    Parameters
+    ----------
+    flats, ratios
+        As for :func:`optical_center_rc`.
+    center_rc, center_px : (row, col), optional
+        A given centre; ``center_px=(cx, cy)``, in its old place, is the deprecated x-first
+        form.
+
+    Returns
+    -------
+    center : (float, float)
+        ``(cx, cy)``, x first.
+    source, note
+        As for :func:`optical_center_rc`.
+    """
+    if called_from_outside(2):
+        warn_x_first_return("optical_center", "optical_center_rc")
+    (row, col), source, note = optical_center_rc(flats, ratios, center_rc)
+    return (col, row), source, note
+
+
+@accepts_center_rc(old="center", new="center_rc")
+def profiles_and_onsets(flats: Flats, ratios: Ratios, center_rc, base: Lens, pixel_pitch_um,
                         fixed_h=None):
     """Radial profiles of every flat and of every ratio, and the onsets found in them by the
     paper's discontinuity (``"ratio"``) and by the area model per profile (``"model"``).
@@ -309,8 +346,9 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_
     flats : Flats
     ratios : Ratios
         From :func:`ratio_images` (its reference peak sets which pixels are lit).
-    center : (float, float)
-        Optical centre ``(cx, cy)``, full-resolution pixels.
+    center_rc : (row, col)
+        Optical centre, full-resolution pixels (``center=(cx, cy)`` is its deprecated
+        x-first form).
     base : Lens
         Its exit-pupil distance turns pixels into chief-ray angles.
     pixel_pitch_um : float
@@ -338,11 +376,11 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center, base: Lens, pixel_
         pimgs, _, pcnt, _, _ = block_average(flats.images, flats.valids, flats.variances, k)
         pvalid = [c >= 0.5 * k * k for c in pcnt]
         pimgs = [np.where(ok, im, 0.0) for im, ok in zip(pimgs, pvalid, strict=True)]
-        pcenter = ((center[0] - (k - 1) / 2.0) / k, (center[1] - (k - 1) / 2.0) / k)
+        pcenter = ((center_rc[0] - (k - 1) / 2.0) / k, (center_rc[1] - (k - 1) / 2.0) / k)
     else:
-        pimgs, pvalid, pcenter = flats.images, flats.valids, center
-    cra = cra_map(pimgs[0].shape, pixel_pitch_um * k, x, pcenter)
-    max_cra = float(cra_map(shape, pixel_pitch_um, x, center).max())
+        pimgs, pvalid, pcenter = flats.images, flats.valids, center_rc
+    cra = cra_map(pimgs[0].shape, pixel_pitch_um * k, x, center_rc=pcenter)
+    max_cra = float(cra_map(shape, pixel_pitch_um, x, center_rc=center_rc).max())
     fs = flats.f_numbers
     profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
                 for i, f in enumerate(fs)}
@@ -390,8 +428,8 @@ def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False):
     starts = [[R_F + h * math.tan(math.radians(th)), h, 0.0, 0.0]
               for h in ((fixed_h,) if fixed_h else (0.5 * x, 0.8 * x, 1.2 * x, 2.0 * x))
               for th in (0.1 * max_cra, 0.4 * max_cra, 0.7 * max_cra)]
-    none = fit_model(data, "none", [], center=(0.0, 0.0))
-    fit = fit_model(data, "one", starts, center=(0.0, 0.0), fixed_h=fixed_h, keep=3)
+    none = fit_model(data, "none", [], center_rc=(0.0, 0.0))
+    fit = fit_model(data, "one", starts, center_rc=(0.0, 0.0), fixed_h=fixed_h, keep=3)
     if not fit.success or fit.bic >= none.bic:
         return Onset(float("nan"), float("inf"), False, max_cra)
     P, h = fit.params["P_mm"], fit.params["h_mm"]
@@ -497,18 +535,18 @@ def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> Bloc
                      **common)
 
 
-def _starts_one(onset_fits, R, x, centers, max_cra, h_given):
+def _starts_one(onset_fits, R, x, centers_rc, max_cra, h_given):
     starts = []
-    for cx, cy in centers:
+    for row, col in centers_rc:
         for of in onset_fits:
             if of is not None and of.h_mm > 0 and of.P_mm > 0:
-                starts.append([of.P_mm, of.h_mm, cx, cy])
+                starts.append([of.P_mm, of.h_mm, row, col])
         for hf in (0.5, 0.8, 1.2, 2.0):
             h = h_given or hf * x
             # the fastest pupil cut from near the axis to the far corner of the field
             for frac in (0.15, 0.3, 0.45, 0.6, 0.75, 0.9):
                 th = math.radians(frac * max_cra)
-                starts.append([R[0] + h * math.tan(th), h, cx, cy])
+                starts.append([R[0] + h * math.tan(th), h, row, col])
     return starts
 
 
@@ -539,7 +577,8 @@ def _starts_more(fit: ModelFit, R, x, max_cra):
     return starts
 
 
-def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center=None):
+@accepts_center_rc(old="fix_center", new="fix_center_rc")
+def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center_rc=None):
     """The fit's circles and one more at ``h = x``, its P alone fitted: pixel vignetting.
 
     The pixel's acceptance cone is a circle that moves with the chief ray at the exit pupil's
@@ -565,8 +604,9 @@ def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center=None):
         The exit pupil's distance (mm): the pixel's circle's h, held.
     max_cra : float
         The largest chief-ray angle in the field (degrees), for the starting points.
-    fix_center : (float, float), optional
-        The centre, held, as in the other joint fits; None: fitted.
+    fix_center_rc : (row, col), optional
+        The centre, held, as in the other joint fits; None: fitted. ``fix_center=(cx, cy)``
+        is its deprecated x-first form.
 
     Returns
     -------
@@ -575,11 +615,13 @@ def pixel_rival(data: BlockData, fit: ModelFit, R, x, max_cra, fix_center=None):
     """
     n = N_CIRCLES[fit.model] + 1
     starts = [s for s in _starts_more(fit, R, x, max_cra) if s[-1] == x]
-    return fit_model(data, CIRCLE_MODELS[n], starts, center=fix_center, keep=1,
+    return fit_model(data, CIRCLE_MODELS[n], starts, center_rc=fix_center_rc, keep=1,
                      fixed={f"h{n}_mm": x})
 
 
-def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center, max_cra,
+@accepts_center_rc(old="centers", new="centers_rc", many=True)
+@accepts_center_rc(old="fix_center", new="fix_center_rc")
+def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers_rc, fix_center_rc, max_cra,
                *, fixed_h=None, max_circles=3, keep_going=None, progress=None, rivals=None):
     """Fit the area model with no circle, then one, two, three circles, each from the last.
 
@@ -596,12 +638,13 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         f-numbers of the flats, in the order of ``data``.
     onset_fits : iterable of (OnsetFit or None)
         Eq. (26) solutions used as starts for the first circle (those with ``P, h > 0``).
-    centers : list of (float, float)
-        Starting optical centres ``(cx, cy)``, pixels; the first is the no-circle model's
-        (and the one its floored criterion is taken at when the centre is fixed).
-    fix_center : (float, float) or None
-        Centre held fixed in the fits with circles (the caller passes ``centers[0]``);
-        None: fitted.
+    centers_rc : list of (row, col)
+        Starting optical centres, pixels; the first is the no-circle model's (and the one
+        its floored criterion is taken at when the centre is fixed). ``centers``, x first,
+        is its deprecated form.
+    fix_center_rc : (row, col) or None
+        Centre held fixed in the fits with circles (the caller passes ``centers_rc[0]``);
+        None: fitted. ``fix_center=(cx, cy)`` is its deprecated x-first form.
     max_cra : float
         Largest chief-ray angle of the field, degrees.
     fixed_h : float, optional
@@ -633,8 +676,8 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
     fits, bic = {}, {}
 
     def floored(name, fit):
-        c = centers[0] if name == "none" or fix_center is not None else None
-        return floor_chi2(data, fit, FLOOR_REL, center=c) + fit.k * math.log(fit.n)
+        c = centers_rc[0] if name == "none" or fix_center_rc is not None else None
+        return floor_chi2(data, fit, FLOOR_REL, center_rc=c) + fit.k * math.log(fit.n)
 
     def add(name, fit):
         fits[name] = fit
@@ -644,12 +687,13 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         if progress is not None:
             progress(what)
 
-    add("none", fit_model(data, "none", [], center=centers[0]))
+    add("none", fit_model(data, "none", [], center_rc=centers_rc[0]))
     if max_circles < 1:
         return fits, bic
     step("joint fit, one circle")
-    add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers, max_cra, fixed_h),
-                         center=fix_center, fixed_h=fixed_h))
+    add("one", fit_model(data, "one", _starts_one(onset_fits, R, x, centers_rc, max_cra,
+                                                  fixed_h),
+                         center_rc=fix_center_rc, fixed_h=fixed_h))
     single = not data.gains
     for n in range(2, max_circles + 1):
         if single or fixed_h is not None or (keep_going is not None
@@ -659,9 +703,9 @@ def joint_fits(data: BlockData, base: Lens, fs, onset_fits, centers, fix_center,
         step(f"joint fit, {n} circles")
         # two runs for a second circle; one for a third, which rarely matters
         add(CIRCLE_MODELS[n], fit_model(data, CIRCLE_MODELS[n], _starts_more(prev, R, x, max_cra),
-                                 center=fix_center, keep=2 if n == 2 else 1))
+                                 center_rc=fix_center_rc, keep=2 if n == 2 else 1))
         if n == 2 and rivals is not None:
-            pixel = pixel_rival(data, prev, R, x, max_cra, fix_center)
+            pixel = pixel_rival(data, prev, R, x, max_cra, fix_center_rc)
             b = floored(CIRCLE_MODELS[n], pixel)
             if pixel.success and b < bic[CIRCLE_MODELS[n]]:
                 # the second circle at h = x fits as well for one parameter less: the two

@@ -40,8 +40,8 @@ def _calibration_table(res, inputs):
         "snapcorr_version": __version__,
         "f_numbers": fs,
         "reference_f_number": res.reference_f_number if res.reference_f_number else "none",
-        "center_rc": [float(res.center_px[1]), float(res.center_px[0])],
-        "center_px": [float(c) for c in res.center_px],  # x first, for earlier readers
+        "center_rc": [float(c) for c in res.center_rc],
+        "center_px": [float(res.center_rc[1]), float(res.center_rc[0])],  # x first, for 0.1
         "center_source": res.center_source,
         "pixel_pitch_um": res.pixel_pitch_um,
         "image_shape_px": [int(res.shape[0]), int(res.shape[1])],

@@ -83,9 +83,9 @@ def test_a_circle_that_cuts_no_ray_has_no_standard_error():
                      xpix=xpix, ypix=ypix, R_mm=lens.exit_pupil_radius_mm(fs),
                      R_ref_mm=float(lens.exit_pupil_radius_mm(8.0)), pitch_mm=5.5e-3,
                      x_mm=21.0)
-    center = (1000.0, 1030.0)
-    data.q[:] = model_ratio(data, "one", [7.4236, 16.991, *center], _tan(data, *center))
-    fit = fit_model(data, "two", [[7.4, 17.0, *center, 200.0, 21.0]], center=center)
+    center = (1030.0, 1000.0)  # (row, col)
+    data.q[:] = model_ratio(data, "one", [7.4236, 16.991, *center], _tan(data, center))
+    fit = fit_model(data, "two", [[7.4, 17.0, *center, 200.0, 21.0]], center_rc=center)
     assert fit.params["P_mm"] == pytest.approx(7.4236, rel=1e-3)
     assert np.isfinite(fit.stderr["P_mm"]) and np.isfinite(fit.stderr["h_mm"])
     assert fit.stderr["P2_mm"] == np.inf and fit.stderr["h2_mm"] == np.inf

@@ -4,7 +4,7 @@ against direct averages."""
 import numpy as np
 import pytest
 
-from snapcorr.calibrate.flats.radial import estimate_center, radial_profile
+from snapcorr.calibrate.flats.radial import estimate_center, estimate_center_rc, radial_profile
 from snapcorr.optics import cra_map
 
 
@@ -12,8 +12,11 @@ def test_center_from_contours_of_a_shifted_fall_off():
     ny, nx = 200, 300
     yy, xx = np.mgrid[:ny, :nx]
     img = 1.0 - 1e-5 * ((xx - 190.4) ** 2 + (yy - 80.7) ** 2)
-    (cx, cy), spread = estimate_center([img])
-    assert abs(cx - 190.4) < 0.2 and abs(cy - 80.7) < 0.2 and spread < 0.5
+    (row, col), spread = estimate_center_rc([img])
+    assert abs(col - 190.4) < 0.2 and abs(row - 80.7) < 0.2 and spread < 0.5
+    # the earlier form gives the same centre x first, and says so
+    with pytest.warns(FutureWarning, match="estimate_center gives the optical centre x first"):
+        assert estimate_center([img]) == ((col, row), spread)
 
 
 def test_radial_profile_against_a_direct_average():

@@ -45,7 +45,7 @@ def _check(res, truth, *, rtol, onset_tol_deg=0.3, center_tol_px=1.0):
     true_on = truth.onset_cra_deg(fs)
     inside = true_on < res.max_cra_deg
     assert np.all(np.abs(res.model_onsets_deg()[inside] - true_on[inside]) < onset_tol_deg)
-    assert np.hypot(res.center_px[0] - CENTER[0], res.center_px[1] - CENTER[1]) < center_tol_px
+    assert np.hypot(res.center_rc[1] - CENTER[0], res.center_rc[0] - CENTER[1]) < center_tol_px
 
 
 
@@ -88,8 +88,10 @@ def test_lamp_and_plaque_within_two_percent():
 
 
 def test_given_center_is_kept():
-    res = _calibrate(_flats(PAPER, seed=3), PAPER, center_px=CENTER)
-    assert res.center_px == CENTER and res.center_source == "given"
+    res = _calibrate(_flats(PAPER, seed=3), PAPER, center_rc=CENTER[::-1])
+    assert res.center_rc == CENTER[::-1] and res.center_source == "given"
+    with pytest.warns(FutureWarning, match="LensCalibration.center_px gives the optical centre"):
+        assert res.center_px == CENTER
     _check(res, PAPER, rtol=0.01)
 
 
@@ -245,7 +247,7 @@ def test_optical_center_outside_the_image():
     res = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0.06,
                          pupil_magnification=1.3)
     assert res.model == "one" and res.method == "joint"
-    assert np.hypot(res.center_px[0] + 60, res.center_px[1] - 100) < 2
+    assert np.hypot(res.center_rc[1] + 60, res.center_rc[0] - 100) < 2
     assert abs(res.lens.vignetting[0][0] / 7.4236 - 1) < 0.01
     assert abs(res.lens.vignetting[0][1] / 16.991 - 1) < 0.01
 

@@ -224,7 +224,7 @@ def pixel_error(truth, res, scene, f_numbers, step=8):
     yy, xx = np.mgrid[0:rows:step, 0:cols:step]
     k = scene["pitch_um"] * 1e-3 / truth.exit_pupil_mm
     t_true = k * np.hypot(xx - scene["center_px"][0], yy - scene["center_px"][1]).ravel()
-    t_cal = k * np.hypot(xx - res.center_px[0], yy - res.center_px[1]).ravel()
+    t_cal = k * np.hypot(xx - res.center_rc[1], yy - res.center_rc[0]).ravel()
     got_truth = LensTruth(truth.exit_pupil_mm, lens_circles(res.lens), res.lens.magnification,
                           res.lens.pupil_magnification)
     worst = 0.0
@@ -266,8 +266,8 @@ def calibrate(truth, *, noise, seed, scene=HALF, f_numbers=F_NUMBERS, give_dark=
         circle_errors.append(best)
     spur = [c for c in spurious_circles(circles, truth, f_numbers)
             if c not in [tuple(t) for t in truth.circles]]
-    center = math.hypot(res.center_px[0] - scene["center_px"][0],
-                        res.center_px[1] - scene["center_px"][1])
+    center = math.hypot(res.center_rc[1] - scene["center_px"][0],
+                        res.center_rc[0] - scene["center_px"][1])
     return Outcome(truth, noise, seed, str(res.model), circles, max_cra,
                    field_cra_deg(scene, truth.exit_pupil_mm), err, at, circle_errors, center,
                    pixel_error(truth, res, scene, f_numbers), spur, res, scene,

@@ -34,7 +34,7 @@ def _data(flats):
 def test_a_stop_like_second_circle_is_refused(user_flats):
     data, base = _data(user_flats)
     R_fast = float(base.exit_pupil_radius_mm(FS[0]))
-    center = SCENE["center_px"]
+    center = SCENE["center_px"][::-1]  # the vector holds it row first
     one = fit_model(data, "one", [[9.5, 26.0, *center]])
     # the spurious solution seen on a user's flats: a stop at the fastest pupil's radius
     stop = fit_model(data, "two", [[9.5, 26.0, *center, R_fast, 0.03]], max_nfev=5)
@@ -97,8 +97,8 @@ def test_without_vignetting_the_center_is_not_taken_from_a_refused_fit():
     truth = LensTruth(X, (), 0.06, 1.3)
     res = calibrate_lens(make_flats(truth, FS, noise=0.005, seed=4, **SCENE), **KW)
     assert res.model == "none" and res.center_source == "contours"
-    assert np.hypot(res.center_px[0] - SCENE["center_px"][0],
-                    res.center_px[1] - SCENE["center_px"][1]) < 1.0
+    assert np.hypot(res.center_rc[1] - SCENE["center_px"][0],
+                    res.center_rc[0] - SCENE["center_px"][1]) < 1.0
 
 
 def test_max_circles_zero_tries_no_circle_and_says_so(user_flats):

@@ -68,7 +68,7 @@ def test_summary_prints_bic_and_chi2_compactly():
                           reduced_chi2=123456789.0)
     pred = SimpleNamespace(chi2={2.0: 987654321.0}, total=1987654321.0, n={2.0: 40})
     res = SimpleNamespace(
-        center_px=(1.0, 2.0), center_source="given", max_cra_deg=15.0,
+        center_rc=(2.0, 1.0), center_source="given", max_cra_deg=15.0,
         model_onsets_deg=lambda: np.array([np.inf]), f_numbers=np.array([2.0]),
         onsets={"ratio": {}, "model": {}}, onset_check_deg=lambda: None, onset_fits={},
         fits={"one": fit}, verdicts={"one": ModelVerdict("one", True, "the only model tried",

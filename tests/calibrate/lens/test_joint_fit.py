@@ -80,7 +80,7 @@ def model_of(valid, use_centroids=True, block_px=BLOCK):
                      **({"xoff": dx.ravel()[None], "yoff": dy.ravel()[None],
                          "xsd": sx.ravel()[None], "ysd": sy.ravel()[None]}
                         if use_centroids else {}))
-    return _block_model(data, "one", [P, H, *CENTER], *CENTER)[0].reshape(by.shape)
+    return _block_model(data, "one", [P, H, *CENTER[::-1]], CENTER[::-1])[0].reshape(by.shape)
 
 
 def test_the_chord_sampling_is_right_where_the_answer_is_known():
