@@ -15,6 +15,7 @@ with a unit-peak Gaussian of the file's width at its wavelength.
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -57,18 +58,21 @@ def read_older(path):
 
 def responses(sensor: MosaicFile, lens, f_number, cra_deg, n_eff, *, nodes=(64, 32)):
     """Every band's response at a pixel of chief-ray angle ``cra_deg`` (None: normal,
-    collimated incidence), on the file's grid: ``S sum_j w_j T_b(lambda / a_j)``."""
+    collimated incidence), on the file's grid: ``S sum_j w_j T_b(lambda / a_bj)``, with
+    ``a_bj = sqrt(1 - sin^2 phi_j / n_b^2)``; ``n_eff`` one value or one per band (in the
+    file's pattern order)."""
+    n = np.broadcast_to(np.asarray(n_eff, float), (sensor.curves.shape[0],))
     if cra_deg is None:
-        a, w = np.ones(1), np.ones(1)
+        sin2, w = np.zeros(1), np.ones(1)
     else:
         d = lens.exit_pupil_mm * np.tan(np.deg2rad(cra_deg))
         u, v, w = pupil_samples(lens, f_number, d, theta_nodes=nodes[0], r_nodes=nodes[1])
         t2 = ((u - d) ** 2 + v**2) / lens.exit_pupil_mm**2
-        a = np.sqrt(1.0 - t2 / (1.0 + t2) / n_eff**2)
+        sin2 = t2 / (1.0 + t2)
     out = np.zeros_like(sensor.curves)
-    for ak, wk in zip(a, w / w.sum(), strict=True):
-        x = sensor.grid / ak
+    for s2, wk in zip(sin2, w / w.sum(), strict=True):
         for b, curve in enumerate(sensor.curves):
+            x = sensor.grid / np.sqrt(1.0 - s2 / n[b] ** 2)
             out[b] += wk * np.interp(x, sensor.grid, curve, left=0.0, right=0.0)
     return out * sensor.bandpass
 
@@ -115,3 +119,24 @@ def soils_and_mixtures(n, seed):
     veg = leaves(n, seed + 1)
     frac = rng.uniform(0, 1, (n, 1))
     return frac * veg + (1 - frac) * soils[rng.integers(0, 2, n)] * rng.uniform(0.5, 1.6, (n, 1))
+
+
+def neodymium_glass(lam):
+    """A neodymium glass's transmittance from public data: colour-science's measured light
+    sources (Houser et al. 2013), the neodymium incandescent lamp over the plain incandescent
+    one, 380-780 nm at 5 nm, a cubic spline between, peak 0.92, held at its end values beyond.
+    Its absorption bands lie at 510-530, 570-600 and 730-760 nm."""
+    wl, spline = _neodymium()
+    return spline(np.clip(np.asarray(lam, float), wl[0], wl[-1]))
+
+
+@functools.cache
+def _neodymium():
+    import colour
+    from scipy.interpolate import CubicSpline
+
+    wl = np.arange(380.0, 781.0, 5.0)
+    nd = colour.SDS_LIGHT_SOURCES["Neodimium Incandescent"][wl]
+    plain = colour.SDS_LIGHT_SOURCES["Incandescent"][wl]
+    ratio = nd / plain
+    return wl, CubicSpline(wl, 0.92 * ratio / ratio.max())

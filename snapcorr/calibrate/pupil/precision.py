@@ -18,7 +18,7 @@ import numpy as np
 from ...optics.lens import Lens
 from ...spectra import colour_filter
 from .distance import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
-from .index import N_EFF_REL_STDERR
+from .index import N_EFF_BAND_STDERR, N_EFF_REL_STDERR
 from .measured_target import target_model
 from .solver import _pinv_solve, _prediction_derivatives, _project_off, _row_bands, _whiten
 from .target import check_modelled
@@ -233,10 +233,14 @@ class TargetPrecision:
         band = self.n_eff_band_stderr
         if band is not None:
             lo, hi = (100 * float(v) / self.n_eff for v in (np.min(band), np.max(band)))
-            can = bool(np.all(band < N_EFF_REL_STDERR * self.n_eff))
-            n += (f" (one per band: {lo:.2g}-{hi:.2g} %, "
-                  + ("so per band where the data ask for it)" if can else
-                     f"above {100 * N_EFF_REL_STDERR:g} %: one for the sensor)"))
+            pinned = int(np.sum(band < N_EFF_BAND_STDERR * self.n_eff))
+            own = int(np.sum(band < N_EFF_REL_STDERR * self.n_eff))
+            n += (f" (one per band: {lo:.2g}-{hi:.2g} %; where the data ask for it, {pinned} of "
+                  f"{band.size} bands pinned to {100 * N_EFF_BAND_STDERR:g} %"
+                  + (f", {own - pinned} more known to {100 * N_EFF_REL_STDERR:g} %"
+                     if own > pinned else "")
+                  + (f"; the {band.size - own} above {100 * N_EFF_REL_STDERR:g} %: one for "
+                     "the sensor)" if own < band.size else ")"))
         return (f"predicted: this target can give x +- {rel(self.x_stderr_mm, self.x_mm, ' mm')}"
                 f"{n}; the "
                 f"shift at {self.edge_mm:.3g} mm from the axis ({self.cwl_nm:.4g} nm) to +- "

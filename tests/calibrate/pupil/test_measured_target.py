@@ -48,7 +48,7 @@ def band_table(folder, target, f_number, n_nodes):
     with 24 the linear interpolation between them alone moved x by +0.2 %, 1.1 standard
     errors, on the colour filter; 96 in the default suite, 384 over seeds)."""
     _, mf = vendor_file(folder)
-    rho = getattr(sim, target)(mf.grid)[None]
+    rho = (getattr(sim, target, None) or getattr(mosaicsim, target))(mf.grid)[None]
     r_max2 = ((max(CENTER_RC[0], SIZE[0] - CENTER_RC[0]) ** 2
                + max(CENTER_RC[1], SIZE[1] - CENTER_RC[1]) ** 2) * (PITCH_UM * 1e-3) ** 2)
     d2 = np.linspace(0.0, r_max2 * 1.001, n_nodes)
@@ -105,12 +105,8 @@ def test_x_and_n_eff_from_a_didymium_like_glass(folder):
     assert np.hypot(got.center_rc[0] - CENTER_RC[0], got.center_rc[1] - CENTER_RC[1]) < 2.0
 
 
-@pytest.mark.slow  # about a minute a seed
-@pytest.mark.parametrize("target", [
-    "rare_earth_glass",
-    # x within 1 %, but biased: z of x 0.5, 3.1, 1.3 on seeds 10-12, all positive (not found)
-    pytest.param("colour_filter", marks=pytest.mark.xfail(reason="x biased by ~1.6 stderr")),
-])
+@pytest.mark.slow  # 15-40 s a seed, six seeds a target
+@pytest.mark.parametrize("target", ["rare_earth_glass", "colour_filter", "neodymium_glass"])
 def test_errors_over_seeds_are_honest(folder, target):
     z = []
     for seed in range(10, 16):
@@ -122,7 +118,8 @@ def test_errors_over_seeds_are_honest(folder, target):
     z = np.array(z)
     print(f"{target}: z of x, n_eff over seeds:", np.round(z, 2).tolist())
     assert np.all(np.abs(z) < 4), z
-    assert np.sqrt(np.mean(z**2, axis=0)).max() < 2.5, z
+    rms = np.sqrt(np.mean(z**2, axis=0))
+    assert np.all((0.5 < rms) & (rms < 2.0)), z
 
 
 def test_the_sensor_says_which_command_measures_n_eff(folder):
