@@ -21,16 +21,46 @@ _CLI_TERMS = {
 
 
 #: How the library's checks (:mod:`snapcorr._validation`) begin a message about an argument:
-#: with its keyword's name, then one of these.
-_CHECK_VERBS = re.compile(r"\s+(?:must\b|repeats\b|=)")
+#: with its keyword's name, then one of these, or the value itself (``target_fwhm_nm 0.5 nm
+#: is narrower ...``).
+_CHECK_VERBS = re.compile(r"\s+(?:must\b|repeats\b|=|[-+]?[0-9.]|\()")
+
+#: The units a library keyword carries and an option may leave out (``cra_deg`` is set by
+#: ``--cra``, ``cra_max_deg`` by ``--cra-max``): CONTRIBUTING's names of quantities.
+_UNITS = ("_deg", "_nm", "_mm", "_um", "_px", "_pct")
 
 
 def option_names(parser):
     """``{keyword: option}`` of a command's parser: the library keyword each option sets
-    (its ``dest``) and the option as it is typed, ``{"n_eff": "--n-eff"}``."""
-    return {a.dest: max(a.option_strings, key=len) for a in parser._actions
-            if a.option_strings and a.dest not in ("help", argparse.SUPPRESS)
-            and max(a.option_strings, key=len).startswith("--")}
+    (its ``dest``, and the dest with a unit where the option leaves the unit out) and the
+    option as it is typed, ``{"n_eff": "--n-eff", "cra_deg": "--cra"}``."""
+    options = {a.dest: max(a.option_strings, key=len) for a in parser._actions
+               if a.option_strings and a.dest not in ("help", argparse.SUPPRESS)
+               and max(a.option_strings, key=len).startswith("--")}
+    with_units = {dest + unit: option for dest, option in options.items()
+                  if not dest.endswith(_UNITS) for unit in _UNITS}
+    return {**{k: v for k, v in with_units.items() if k not in options}, **options}
+
+
+#: A flat-field reference as the library names it: ``dark``, ``white frame 2 of 3``, ``the
+#: white reference``.
+_REFERENCE = re.compile(r"^(?P<the>the )?(?P<label>dark|white)(?: frame (?P<k>\d+) of \d+)?"
+                        r"(?P<rest>(?: reference)?\b)")
+
+
+def name_references(message, files):
+    """A library message about a flat-field reference (``white frame 2 of 2 and the cube
+    ...``) naming the option and the file instead (``--white w2.hdr and the cube ...``);
+    ``files`` is ``{"dark": [paths], "white": [paths]}`` as the options gave them."""
+    m = _REFERENCE.match(message)
+    if m is None or not files.get(m["label"]):
+        return message
+    paths = files[m["label"]]
+    if message[m.end():].startswith(" frames "):  # the frames of one option among themselves
+        return f"--{m['label']} frames ({', '.join(map(str, paths))})" + message[m.end() + 7:]
+    k = int(m["k"]) - 1 if m["k"] else 0
+    name = f"--{m['label']}" + (f" {paths[k]}" if len(paths) == 1 or m["k"] else "")
+    return (m["the"] or "") + name + m["rest"] + message[m.end():]
 
 
 def _message(err, options=None):

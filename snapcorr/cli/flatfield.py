@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._errors import name_references
 from ._frames import (
     _check_phase,
     _default_saturation,
@@ -109,16 +110,14 @@ def run(args):
     raw = read(args.raw)
     darks = [read(p) for p in args.dark]
     whites = [read(p) for p in args.white]
-    for label, cubes, paths in (("--dark", darks, args.dark), ("--white", whites, args.white)):
-        for c, p in zip(cubes, paths, strict=True):
-            if c.sizes["band"] != raw.sizes["band"] or c.sizes["x"] != raw.sizes["x"]:
-                raise ValueError(f"{label} {p} is {c.shape[0]} x {c.shape[1]} x {c.shape[2]} "
-                                 f"but {args.raw} is {raw.shape[0]} x {raw.shape[1]} x "
-                                 f"{raw.shape[2]}: x and band must match")
     snapshot = sensor is not None and sensor.layout == "mosaic"
     _default_saturation(args, sensor, whites)
-    ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype,
-                   snapshot=snapshot)
+    try:  # the library checks every reference frame against the cube; its words, our options
+        ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype,
+                       snapshot=snapshot)
+    except ValueError as err:
+        raise ValueError(name_references(str(err), {"dark": args.dark, "white": args.white})) \
+            from None
     if args.filter_white:
         fw = read(args.filter_white)
         if fw.shape != raw.shape:

@@ -119,8 +119,13 @@ class FilterResponses:
                                  "the band")
         step = np.diff(grid)
         typical = float(np.median(step))
+        span = float(grid[-1] - grid[0])
         for b, band in enumerate(peaks):
             for p in band:
+                if p.fwhm_nm > span:  # no curve on the grid shows it; it would be reported
+                    raise ValueError(f"band {b}: a peak's FWHM of {p.fwhm_nm:g} nm is wider "
+                                     f"than the whole grid ({grid[0]:g}-{grid[-1]:g} nm); "
+                                     "the curve cannot show a band so wide")
                 # the grid's own step there, and never below its typical step: one step made
                 # tiny at a peak would otherwise let its stated width size the fine grids of
                 # the centre and width computations without bound

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import SENSOR_PX_MAX
+from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um
 from ..files.reading import check_input
 from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
@@ -250,10 +250,20 @@ def _sensor_info(f, root, variant):
         if n > SENSOR_PX_MAX:
             f.fail(f"<sensor_info/{tag}> is {n} px; no sensor is more than {SENSOR_PX_MAX} px "
                    "across")
-    pitch = f.number(si, "sensor_info", *tags("pixel_pitch_um", "pixel_pitch"), minimum=0,
-                     required=False, default=0.0)
-    bits = f.number(si, "sensor_info", *tags("bit_depth", "input_bpp"), integer=True,
-                    minimum=1, required=False)
+    pitch_tag = tags("pixel_pitch_um", "pixel_pitch")
+    pitch = f.number(si, "sensor_info", *pitch_tag, minimum=0, required=False, default=0.0)
+    if pitch > 0:  # 0: not given
+        try:
+            check_pixel_pitch_um(f"<sensor_info/{pitch_tag[0]}>", pitch)
+        except ValueError as err:
+            f.fail(str(err))
+    from .sensor import BIT_DEPTH_MAX  # the bound a Sensor's bit_depth takes
+
+    bits_tag = tags("bit_depth", "input_bpp")
+    bits = f.number(si, "sensor_info", *bits_tag, integer=True, minimum=1, required=False)
+    if bits is not None and bits > BIT_DEPTH_MAX:
+        f.fail(f"<sensor_info/{bits_tag[0]}> is {bits}: no camera's codes have more than "
+               f"{BIT_DEPTH_MAX} bits")
     return (rows, cols), (float(pitch) if pitch > 0 else None), bits
 
 
@@ -308,9 +318,15 @@ def _peaks(f, band, where):
 def _resolved(f, peaks, grid, where):
     """Refuse a peak narrower than the grid's step where it sits: the file's curve cannot
     show it, and what is sized by a band's width (the centres' and widths' fine grid) would
-    grow without bound as the stated width falls."""
+    grow without bound as the stated width falls. A peak wider than the whole grid is refused
+    too: the curve cannot show that either, and the width would be reported as the band's."""
     typical = float(np.median(np.diff(grid)))  # one step made tiny at a peak is no licence
+    span = float(grid[-1] - grid[0])
     for k, p in enumerate(peaks):
+        if p.fwhm_nm > span and grid[0] <= p.wavelength_nm <= grid[-1]:  # else: outside
+            f.fail(f"<{where}/peaks/peak[{k}]/fwhm_nm> is {p.fwhm_nm:g} nm, wider than the "
+                   f"whole response grid ({grid[0]:g}-{grid[-1]:g} nm): the measured curve "
+                   "cannot show a band so wide")
         step = max(float(np.interp(p.wavelength_nm, grid[1:], np.diff(grid))), typical)
         if p.fwhm_nm < step:
             f.fail(f"<{where}/peaks/peak[{k}]/fwhm_nm> is {p.fwhm_nm:g} nm, narrower than the "

@@ -37,25 +37,62 @@ FRAME_SUFFIXES = (".npy", ".tif", ".tiff", ".exr", ".hdr")
 #: A number in a file name: digits, with a decimal part where a point (or a comma) is followed
 #: by digits, and an exponent (``1e-3``); the sign before it kept apart (whether it is a sign
 #: is decided over all the names).
-_NUMBER = re.compile(r"([+-]?)([0-9]+(?:[.,][0-9]+)?(?:[eE][+-]?[0-9]+)?)")
+_NUMBER = re.compile(r"([+-]?)(\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?)")
+#: Three or more groups of digits joined by points (``12.5.3``, ``1.10.0``): no decimal number;
+#: each group is read as a whole number, the points as separators.
+_CHAIN = re.compile(r"\d+(?:\.\d+){2,}")
 #: How a folder's frames are ordered, recorded with them (``frame_order``).
 FRAME_ORDER = ("by name, numbers compared as numbers, exactly (decimal points and exponents "
-               "read as such, a decimal comma where every name's has as many digits after it; "
-               "a '-' or '+' before a number read as its sign only where names differ by it)")
+               "read as such, a decimal comma where every name's has as many digits after it, "
+               "digits joined by several points as whole numbers where every name's groups "
+               "have as many digits; a '-' or '+' before a number read as its sign only where "
+               "names differ by it, and where both readings give one order)")
 
 
 _ZERO = Decimal(0)
 
 
 def _tokens(name):
-    """``name`` as text and ``(sign, digits)`` pieces, the text in lower case."""
+    """``name`` as text and ``(sign, digits)`` pieces, the text in lower case; the groups of
+    a chain of points (:data:`_CHAIN`) each a whole number. Digits of any script count
+    (a full-width ten is ten)."""
     out, at = [], 0
-    for m in _NUMBER.finditer(name):
-        out.append(name[at:m.start()].lower())
+    for chain in _CHAIN.finditer(name):
+        out.extend(_number_tokens(name[at:chain.start()]))
+        for k, group in enumerate(chain.group().split(".")):
+            out[-1:] = [out[-1] + ("." if k else "")] if out else ["."]
+            out.extend([("", group), ""])
+        at = chain.end()
+    rest = _number_tokens(name[at:])
+    if out:
+        out[-1:] = [out[-1] + rest[0]]
+        out.extend(rest[1:])
+        return out
+    return rest
+
+
+def _number_tokens(text):
+    out, at = [], 0
+    for m in _NUMBER.finditer(text):
+        out.append(text[at:m.start()].lower())
         out.append((m.group(1), m.group(2)))
         at = m.end()
-    out.append(name[at:].lower())
+    out.append(text[at:].lower())
     return out
+
+
+def _chain_widths(names):
+    """Two names whose chains of points (:data:`_CHAIN`) have groups of different numbers of
+    digits at one place (the ``j``-th group of the ``i``-th chain), or None: there the
+    decimal and the separate readings of the points may order them differently."""
+    seen = {}
+    for n in names:
+        for i, chain in enumerate(_CHAIN.finditer(n)):
+            for j, group in enumerate(chain.group().split(".")[1:]):
+                other = seen.setdefault((i, j), (len(group), n))
+                if other[0] != len(group):
+                    return other[1], n
+    return None
 
 
 def natural_order(names):
@@ -68,7 +105,12 @@ def natural_order(names):
     a separator; otherwise the order is ambiguous, and refused. A ``-`` or ``+`` right
     before a number is its sign only where the names differ by it at that place (``z-0.5``,
     ``z+0``, ``z+0.5``); where every name has it (``frame-1``, ``2026-12-01``) it is a
-    separator. Names whose numbers are equal but written differently (``f1``, ``f01``) are
+    separator; in names of different forms (``x-1``, ``x0``, ``x1_2``) it is refused where
+    reading it as a sign and as a separator give different orders. Digits joined by several
+    points (``12.5.3``, ``1.10.0``) are no decimal: each group is a whole number, and names
+    whose groups at one place differ in their numbers of digits are refused (there the decimal
+    and the separate readings may differ). Digits of any script count (full-width, Arabic-Indic
+    digits). Names whose numbers are equal but written differently (``f1``, ``f01``) are
     ambiguous, and refused.
 
     Parameters
@@ -93,11 +135,30 @@ def natural_order(names):
                          "may be a decimal comma or a separator, and with different numbers of "
                          "digits after it the two orders differ; rename them (decimal points, "
                          "or zero-padded numbers)")
+    differ = _chain_widths(names)
+    if differ is not None:
+        raise ValueError(f"frames {differ[0]!r} and {differ[1]!r}: digits joined by several "
+                         "points may be decimals or numbers apart (a time 12.5.3, a version "
+                         "1.10.0), and with different numbers of digits after a point the two "
+                         "orders differ; rename them (zero-padded numbers)")
     signed = set()  # number places (by position in the names' pieces) whose sign varies
-    if len({len(t) for t in tokens}) == 1 and tokens:
-        for k in range(1, len(tokens[0]), 2):
-            if len({t[k][0].replace("+", "") for t in tokens}) > 1:
-                signed.add(k)
+    for k in range(1, max((len(t) for t in tokens), default=0), 2):
+        if len({t[k][0].replace("+", "") for t in tokens if len(t) > k}) > 1:
+            signed.add(k)
+    same_structure = len({len(t) for t in tokens}) == 1
+    if signed and not same_structure:  # a sign, or a separator: refused where they disagree
+        as_signs = _ordered(names, tokens, signed)
+        if as_signs != _ordered(names, tokens, set()):
+            raise ValueError(f"frames {as_signs[0]!r} and {as_signs[-1]!r}: a '-' or '+' "
+                             "before a number may be its sign or a separator, and in names of "
+                             "different forms the two orders differ; rename them (the same "
+                             "form for every name)")
+    return _ordered(names, tokens, signed)
+
+
+def _ordered(names, tokens, signed):
+    """``names`` sorted by their pieces (``tokens``), a number's sign read as one at the
+    places ``signed``; two names that compare equal are refused."""
 
     def key(t):
         out = []
@@ -121,6 +182,19 @@ def natural_order(names):
                              "their order is ambiguous; rename them (e.g. zero-padded "
                              "numbers) so that each name's number differs")
     return [n for _, n in keyed]
+
+
+def _refuse_one_frame_twice(found):
+    """Refuse two files of one name but for the suffix (``f1.npy`` and ``f1.tif``, in any
+    case): one frame saved twice would be streamed twice, as two frames taken."""
+    stems = {}
+    for name in sorted(found):
+        stem = Path(name).stem.lower()
+        if stem in stems:
+            raise ValueError(f"{stems[stem]} and {name} in the folder of frames differ only in "
+                             "their suffix: one frame in two formats would be streamed twice; "
+                             "keep one of them")
+        stems[stem] = name
 
 
 def read_frames(path, *, frames_per_chunk=1):
@@ -159,6 +233,7 @@ def read_frames(path, *, frames_per_chunk=1):
     if path.is_dir() and path.suffix.lower() != ".zarr":
         check_input(path, directory=True, what="folder of frames")
         found = {p.name: p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES}
+        _refuse_one_frame_twice(found)
         files = [found[n] for n in natural_order(list(found))]
         for p in files:  # a frame that cannot be read is an error, never left out
             if not p.is_file():

@@ -42,6 +42,9 @@ def _npy_layout(path):
             offset = fh.tell()
     except (OSError, ValueError):
         return None
+    if any(n < 0 for n in shape):  # numpy's header reader takes them; nothing else does
+        raise ValueError(f"{path}: its header gives the shape {shape}, with a negative size; "
+                         "the file is damaged or not written by numpy")
     if fortran or dtype.kind not in "iuf" or len(shape) not in (2, 3) or 0 in shape:
         return None
     if os.path.getsize(path) < offset + int(np.prod(shape)) * dtype.itemsize:

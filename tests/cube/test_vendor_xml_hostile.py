@@ -4,6 +4,7 @@ break later, refused where the vendor file is read."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -110,3 +111,48 @@ def test_a_response_of_subnormal_numbers_is_nowhere_positive(tmp_path):
     curves[4] = 1e-320
     _refused(write_newer(tmp_path / "sub.xml", dataclasses.replace(fx, curves=curves)),
              "band\\[4\\]/response> is nowhere positive")
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_a_peak_wider_than_the_whole_grid_is_refused(tmp_path, writer):
+    """A FWHM of 1e300 nm was accepted and shown as the band's width by ``snapcorr sensor``:
+    no curve on a 400-1000 nm grid shows a band so wide."""
+    fx = imec_4x4()
+    peaks = [list(p) for p in fx.peaks]
+    peaks[2] = [(peaks[2][0][0], 1e300, 0.5)]
+    path = writer(tmp_path / "wide.xml", dataclasses.replace(fx, peaks=peaks))
+    _refused(path, r"band\[2\]/peaks/peak\[0\]/fwhm_nm> is 1e\+300 nm, wider than the whole "
+                   r"response grid \(400-1000 nm\)")
+
+
+def test_filter_responses_refuse_a_peak_wider_than_their_grid():
+    from snapcorr.cube.responses import FilterResponses, Peak
+
+    grid = np.arange(400.0, 1001.0)
+    curve = np.exp(-0.5 * ((grid - 700.0) / 5.0) ** 2)
+    FilterResponses(grid, [curve], np.ones(grid.size), [[Peak(700.0, 600.0, 1.0)]])  # the span
+    with pytest.raises(ValueError, match="wider than the whole grid"):
+        FilterResponses(grid, [curve], np.ones(grid.size), [[Peak(700.0, 601.0, 1.0)]])
+
+
+@pytest.mark.parametrize("writer, old, new", [
+    (write_newer, "<bit_depth>10</bit_depth>", "<bit_depth>{}</bit_depth>"),
+    (write_older, "<pixel_pitch>", "<input_bpp>{}</input_bpp><pixel_pitch>"),
+])
+@pytest.mark.parametrize("bits", [33, 64, 100000])
+def test_a_bit_depth_beyond_any_cameras_names_the_file_and_element(tmp_path, writer, old, new,
+                                                                    bits):
+    """The sensor refused it as 'bit_depth must be ... 1-32', naming neither the file nor the
+    element; the reader now says where."""
+    path = writer(tmp_path / "bits.xml", imec_4x4(), replace={old: new.format(bits)})
+    tag = "bit_depth" if writer is write_newer else "input_bpp"
+    _refused(path, rf"<sensor_info/{tag}> is {bits}: no camera's codes have more than 32 bits")
+
+
+@pytest.mark.parametrize("writer, tag", [(write_newer, "pixel_pitch_um"),
+                                         (write_older, "pixel_pitch")])
+@pytest.mark.parametrize("pitch", ["1e300", "0.01", "20000"])
+def test_a_pixel_pitch_no_camera_has_names_the_file_and_element(tmp_path, writer, tag, pitch):
+    fx = dataclasses.replace(imec_4x4(), pitch=float(pitch))
+    _refused(writer(tmp_path / "pitch.xml", fx),
+             re.escape(f"<sensor_info/{tag}> = {float(pitch):g} um is no camera's pixel pitch"))

@@ -99,3 +99,19 @@ def test_npy_sidecar_carries_the_metadata_and_a_bare_npy_needs_wavelengths(tmp_p
     (tmp_path / "bare.npy.json").write_text('{"shape": [3, 4, 5]}')
     with pytest.raises(ValueError, match="do not belong together"):
         read_cube(tmp_path / "bare.npy", wavelength_nm=cube.wavelength.values)
+
+
+@pytest.mark.parametrize("shape", [(12, -10, 4), (-1, 8), (3, 4, -2)])
+@pytest.mark.parametrize("fortran", [False, True])
+def test_a_header_with_a_negative_size_is_refused_naming_the_file(tmp_path, shape, fortran):
+    """numpy's header reader takes a negative size; a raw, dark and white all of (12, -10, 4)
+    then failed with "length should not be negative", naming no file."""
+    import numpy.lib.format as npformat
+
+    path = tmp_path / "neg.npy"
+    with open(path, "wb") as fh:
+        npformat.write_array_header_1_0(fh, {"descr": "<f4", "fortran_order": fortran,
+                                             "shape": shape})
+        fh.write(b"\0" * 64)
+    with pytest.raises(ValueError, match=r"neg\.npy: its header gives the shape .* negative"):
+        read_cube(path, wavelength_nm=[500.0, 520.0, 540.0, 560.0])

@@ -1,0 +1,79 @@
+"""Library messages the command line used to pass on in the library's words: a keyword that
+carries a unit the option leaves out (``cra_deg`` for ``--cra``), a keyword followed by its
+value, and a flat-field reference named by its place instead of its option and file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hostile import assert_refused, save_cubes, write_envi
+
+from snapcorr.cli import build_parser
+from snapcorr.cli._errors import _message, command_parser, name_references, option_names
+
+
+def _options(command):
+    return option_names(command_parser(build_parser(), command))
+
+
+@pytest.mark.parametrize("command, keyword, option", [
+    ("shift", "cra_deg", "--cra"), ("budget", "cra_max_deg", "--cra-max"),
+    ("shift", "n_eff", "--n-eff"), ("correct", "tolerance_nm", "--tolerance-nm"),
+])
+def test_a_keyword_with_the_unit_the_option_leaves_out_names_the_option(command, keyword,
+                                                                        option):
+    options = _options(command)
+    assert options[keyword] == option
+    message = _message(ValueError(f"{keyword} must lie in [0, 36.21) deg, got 95.0"), options)
+    assert message == f"{option} must lie in [0, 36.21) deg, got 95.0"
+
+
+def test_a_keyword_followed_by_its_value_names_the_option():
+    """``target_fwhm_nm 0.5 nm is narrower ...`` reached the user as it was."""
+    message = _message(ValueError("target_fwhm_nm 0.5 nm is narrower than the widest"),
+                       _options("correct"))
+    assert message == "--target-fwhm-nm 0.5 nm is narrower than the widest"
+    # a message that only begins with a word of an option's name is left alone
+    assert _message(ValueError("lens profile not found: x.toml"), _options("correct")) == \
+        "lens profile not found: x.toml"
+
+
+def test_shift_names_cra_for_a_nan_angle(cli, tmp_path):
+    res = cli("shift", "--f-number", "2", "--cra", "nan", cwd=tmp_path)
+    line = assert_refused(res.returncode, res.stderr, "--cra must be finite")
+    assert "cra_deg" not in line
+
+
+@pytest.mark.parametrize("message, expected", [
+    ("white frame 2 of 2 and the cube have different wavelengths",
+     "--white w2.hdr and the cube have different wavelengths"),
+    ("dark has shape (12, 8, 4) but the cube (12, 10, 4)",
+     "--dark d.npy has shape (12, 8, 4) but the cube (12, 10, 4)"),
+    ("the white reference has 20 rows but the cube 12",
+     "the --white reference has 20 rows but the cube 12"),
+    ("dark frames differ in shape: (1, 2, 3) and (1, 2, 4)",
+     "--dark frames (d.npy) differ in shape: (1, 2, 3) and (1, 2, 4)"),
+    ("darkness is not a reference", "darkness is not a reference"),
+])
+def test_a_reference_is_named_by_its_option_and_file(message, expected):
+    files = {"dark": ["d.npy"], "white": ["w1.hdr", "w2.hdr"]}
+    assert name_references(message, files) == expected
+
+
+def test_a_second_white_of_other_wavelengths_names_its_file(cli, tmp_path):
+    """The library checks every frame (the command line's own copy of the check, which
+    looked at shapes only, is gone); it said 'white frame 2 of 2', no option, no file."""
+    save_cubes(tmp_path)
+    white = np.full((12, 10, 4), 400.0, np.float32)
+    write_envi(tmp_path / "w_same", white, wavelength=[500, 520, 540, 560])
+    write_envi(tmp_path / "w_other", white, wavelength=[600, 620, 640, 660])
+    res = cli("flatfield", "raw.npy", "--sensor", "sensor.toml", "--dark", "dark.npy",
+              "--white", "w_same.hdr", "--white", "w_other.hdr", "--out", "o.nc", cwd=tmp_path)
+    assert_refused(res.returncode, res.stderr, "--white w_other.hdr and the cube have "
+                   "different wavelengths")
+    np.save(tmp_path / "dark8.npy", np.full((12, 8, 4), 10.0, np.float32))
+    res = cli("flatfield", "raw.npy", "--sensor", "sensor.toml", "--dark", "dark8.npy",
+              "--white", "white.npy", "--out", "o.nc", cwd=tmp_path)
+    assert_refused(res.returncode, res.stderr, "--dark dark8.npy has shape (12, 8, 4) but the "
+                   "cube (12, 10, 4): x and band must match")
+    assert not (tmp_path / "o.nc").exists()

@@ -1,0 +1,62 @@
+"""Frame names whose order the numbers in them do not settle alone: digits joined by several
+points, a sign in names of different forms, digits of other scripts, and one frame saved in
+two formats."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from snapcorr.cube import read_frames
+from snapcorr.files.frames import natural_order
+
+
+@pytest.mark.parametrize("names", [
+    ["cap_12.5.3.npy", "cap_12.10.3.npy"],      # 12:05:03 and 12:10:03, unpadded
+    ["v1.9.0.tif", "v1.10.0.tif"],              # versions
+])
+def test_digits_joined_by_points_of_different_widths_are_refused(names):
+    """Read as decimals, 12.10 came before 12.5: the later time streamed first."""
+    with pytest.raises(ValueError, match="digits joined by several points"):
+        natural_order(names)
+
+
+@pytest.mark.parametrize("names", [
+    ["cap_09.59.59.npy", "cap_12.05.03.npy", "cap_12.10.03.npy"],  # padded: one order
+    ["x12.09.4.npy", "x12.10.3.npy", "x12.11.3.npy"],
+])
+def test_digits_joined_by_points_of_one_width_keep_their_order(names):
+    for shuffled in itertools.permutations(names):
+        assert natural_order(list(shuffled)) == names
+
+
+def test_a_sign_in_names_of_different_forms_is_refused_where_the_readings_differ():
+    """``x-1``, ``x0``, ``x1_2``: the sign was ignored (the names differ in form) and x-1
+    streamed last; as a sign it is first. The two readings differ: refused."""
+    with pytest.raises(ValueError, match="may be its sign or a separator"):
+        natural_order(["x-1.npy", "x1_2.npy", "x0.npy"])
+    # where both readings give one order, it is kept
+    assert natural_order(["z1_b.npy", "z-1.npy", "z0.npy"]) == ["z-1.npy", "z0.npy", "z1_b.npy"]
+
+
+def test_digits_of_other_scripts_are_numbers():
+    """Full-width digits were compared as text: a full-width ten came before a nine."""
+    ten, nine = "t\uff11\uff10.npy", "t\uff19.npy"  # full width
+    assert natural_order([ten, nine]) == [nine, ten]
+    twelve, three = "t\u0661\u0662.npy", "t\u0663.npy"  # Arabic-Indic
+    assert natural_order([twelve, three]) == [three, twelve]
+    with pytest.raises(ValueError, match="order is ambiguous"):
+        natural_order(["t1.npy", "t\uff11.npy"])  # one number written twice
+
+
+def test_one_frame_in_two_formats_is_refused(tmp_path):
+    """f1.npy beside f1.tif was streamed as two frames taken."""
+    import tifffile
+
+    for k in (1, 2):
+        np.save(tmp_path / f"f{k}.npy", np.full((4, 4), k, np.uint16))
+    tifffile.imwrite(tmp_path / "F1.TIF", np.full((4, 4), 1, np.uint16))
+    with pytest.raises(ValueError, match=r"F1\.TIF and f1\.npy .* differ only in their suffix"):
+        read_frames(tmp_path)
