@@ -20,6 +20,7 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import brentq
 
 from .._validation import check_curve, check_positive
 from .shift import check_n_eff, shift_nm
@@ -157,7 +158,6 @@ def _multi_lorentzian_shape(lam, k):
 @functools.cache
 def _multi_lorentzian_unit():
     """Scale ``k`` giving the product a FWHM of 1 nm, and the product's maximum."""
-    from scipy.optimize import brentq  # here: importing scipy.optimize costs a command 0.6 s
 
     def width(k):
         lam = np.linspace(-40 * k, 40 * k, 16001)

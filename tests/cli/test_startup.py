@@ -86,30 +86,3 @@ def test_the_command_lines_choices_are_the_librarys():
     assert _names.SHIFT_METHODS == tuple(optics.METHODS)
     assert _names.CORRECTION_MODELS == optics.MODELS
     assert _names.CALIBRATION_METHODS == calibrate.METHODS
-
-
-def test_the_physics_and_the_pipeline_import_no_fitting_library():
-    """``scipy.optimize`` (0.6 s of a command's start) is imported where a fit runs, not by
-    importing the physics or the pipeline that every ``flatfield --demosaic`` and ``stream``
-    loads; the fits that need it still run."""
-    script = """
-import sys
-import numpy as np
-import snapcorr.cli, snapcorr.optics, snapcorr.pipeline
-from snapcorr.cli import flatfield, stream
-print("scipy.optimize" in sys.modules)
-from snapcorr.optics import fit_n_eff
-from snapcorr.optics.profiles import _multi_lorentzian_unit, fwhm_of, _multi_lorentzian_shape
-aoi = np.array([0.0, 8.0, 16.0, 24.0])
-fit = fit_n_eff(aoi, 600.0 * np.sqrt(1 - np.sin(np.deg2rad(aoi)) ** 2 / 1.9 ** 2))
-k, _ = _multi_lorentzian_unit()
-lam = np.linspace(-40 * k, 40 * k, 16001)
-print(fit.n_eff, fwhm_of(lam, _multi_lorentzian_shape(lam, k)))
-"""
-    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=300)
-    assert res.returncode == 0, res.stderr
-    before, after = res.stdout.splitlines()
-    assert before == "False"
-    n_eff, fwhm = map(float, after.split())
-    assert abs(n_eff - 1.9) < 1e-9 and abs(fwhm - 1.0) < 1e-9
