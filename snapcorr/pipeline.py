@@ -241,9 +241,9 @@ def _check_origin(path, cube, rows, cols, origin):
 @accepts_center_rc
 def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=None,
                    f_number=None, sensor_origin_px=None, saturation=None, dtype="float32",
-                   resample=False, method="auto", tolerance_nm=None, center_px=None,
-                   virtual_bands=None, virtual_matrix=None, virtual_wavelengths_nm=None,
-                   virtual_fwhm_nm=None):
+                   resample=False, method="auto", tolerance_nm=None, center_rc=None,
+                   center_px=None, virtual_bands=None, virtual_matrix=None,
+                   virtual_wavelengths_nm=None, virtual_fwhm_nm=None):
     """Flat-field, demosaic and (with a lens) correct a stream of raw mosaic frames.
 
     Parameters
@@ -272,9 +272,9 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     resample : bool
         Also every frame's spectra on the nominal wavelengths (``resampled``).
     method, tolerance_nm, center_rc, center_px
-        The correction's model, tolerance and optical centre
+        The correction's model, tolerance and optical centre ``(row, col)`` in sensor pixels
         (:func:`~snapcorr.correct.correct_cube`; harmonised spectra are not offered for
-        streams).
+        streams). ``center_px=(cx, cy)``, x first, is the centre's deprecated form.
     virtual_bands, virtual_matrix, virtual_wavelengths_nm, virtual_fwhm_nm
         Also every frame's virtual bands (:func:`~snapcorr.correct.virtual_bands`, with a
         lens): the matrix (or the angle-aware table) and the band noise are chosen once, on
@@ -292,11 +292,12 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         dims = tuple(frames.dims) if isinstance(frames, xr.DataArray) else type(frames).__name__
         raise ValueError(f"a stream is a DataArray of dims (frame, y, x), got {dims}")
     if getattr(sensor, "layout", None) != "mosaic":
-        raise ValueError(f"a stream is raw mosaic frames: sensor {sensor.name!r} is not a "
-                         f"mosaic (layout {sensor.layout!r})")
+        name = getattr(sensor, "name", None) or type(sensor).__name__
+        raise ValueError(f"a stream is raw mosaic frames: sensor {name!r} is not a mosaic "
+                         f"(layout {getattr(sensor, 'layout', None)!r})")
     if (lens is None) != (f_number is None):
         raise ValueError("correcting a stream needs both a lens and an f-number")
-    if lens is None and (method != "auto" or tolerance_nm is not None or center_px is not None):
+    if lens is None and (method != "auto" or tolerance_nm is not None or center_rc is not None):
         raise ValueError("method, tolerance_nm and the optical centre choose the correction: "
                          "give a lens and an f-number too (the demosaicking method is "
                          "demosaic_method)")
@@ -316,7 +317,7 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
     job = _Job(dark=dark, white=white, sensor=sensor, demosaic_method=demosaic_method,
                sensor_origin_px=sensor_origin_px, saturation=saturation, dtype=dtype,
                lens=lens, f_number=f_number, resample=resample,
-               correction=_correction_options(method, tolerance_nm, center_px),
+               correction=_correction_options(method, tolerance_nm, center_rc),
                virtual=VirtualBandOptions(virtual_bands, virtual_matrix,
                                           virtual_wavelengths_nm, virtual_fwhm_nm))
     return _run(frames, job)
@@ -334,9 +335,9 @@ def _run(data, job, on_step=None):
     return data
 
 
-def _correction_options(method, tolerance_nm, center_px):
+def _correction_options(method, tolerance_nm, center_rc):
     """The keywords of :func:`~snapcorr.correct.correct_cube` that choose the correction."""
-    options = {"method": method, "center_px": center_px}
+    options = {"method": method, "center_rc": center_rc}
     if tolerance_nm is not None:
         options["tolerance_nm"] = tolerance_nm
     return options

@@ -168,3 +168,28 @@ def test_a_stream_of_another_layout_is_refused_before_anything_is_read():
     frames = xr.DataArray(np.ones((3, 8, 8), np.float32), dims=("frame", "y", "x"))
     with pytest.raises(ValueError, match="sensor 'scanner' is not a mosaic"):
         process_stream(frames, _Untouchable(), _Untouchable(), scanner)
+
+
+@pytest.mark.parametrize("sensor", [None, "imec_5x5_nir.toml", object()])
+def test_a_stream_with_no_sensor_object_is_refused_by_name(sensor):
+    frames = xr.DataArray(np.ones((3, 8, 8), np.float32), dims=("frame", "y", "x"))
+    with pytest.raises(ValueError, match="is not a mosaic"):
+        process_stream(frames, _Untouchable(), _Untouchable(), sensor)
+
+
+def test_a_stream_takes_the_optical_centre_row_first(frames):
+    sensor, paths = frames
+    lens = Lens.load(data.lens_path())
+    raw, dark, white = (read_mosaic_frame(paths[k], sensor) for k in ("raw", "dark", "white"))
+    stream = xr.concat([raw, raw], "frame").transpose("frame", "y", "x")
+    center = (412.5, 1190.0)  # (row, col): not the sensor's middle, and not symmetric
+    got = process_stream(stream, dark, white, sensor, demosaic_method="bilinear",
+                         sensor_origin_px=ORIGIN, saturation=1023, lens=lens, f_number=2.8,
+                         center_rc=center)
+    assert got.attrs["optical_center_rc"] == list(center)
+    with pytest.warns(FutureWarning, match="center_rc"):
+        old = process_stream(stream, dark, white, sensor, demosaic_method="bilinear",
+                             sensor_origin_px=ORIGIN, saturation=1023, lens=lens,
+                             f_number=2.8, center_px=center[::-1])
+    assert np.array_equal(old["wavelength_corrected"].values,
+                          got["wavelength_corrected"].values, equal_nan=True)
