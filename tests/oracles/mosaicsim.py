@@ -82,6 +82,35 @@ def band_values(R, spectra):
     return spectra @ R.T / R.sum(axis=1)
 
 
+def radial_table(sensor: MosaicFile, lens, f_number, reflectance, n_eff, *, center_rc, size,
+                 pitch_um, n_nodes):
+    """Every band's flat-fielded value of a uniform ``reflectance`` (``(n,)`` on the file's
+    grid) at ``n_nodes`` squared distances from the axis, even in d^2 from 0 to the farthest
+    corner of a ``size`` frame about ``center_rc``: ``(d2 mm^2, table (band, node))``."""
+    rows, cols = size
+    r_max2 = ((max(center_rc[0], rows - center_rc[0]) ** 2
+               + max(center_rc[1], cols - center_rc[1]) ** 2) * (pitch_um * 1e-3) ** 2)
+    d2 = np.linspace(0.0, r_max2 * 1.001, n_nodes)
+    cra = np.rad2deg(np.arctan(np.sqrt(d2) / lens.exit_pupil_mm))
+    values = [band_values(responses(sensor, lens, f_number, c, n_eff, nodes=(16, 8)),
+                          np.asarray(reflectance, float)[None])[0] for c in cra]
+    return d2, np.array(values).T
+
+
+def radial_frame(d2_nodes, table, *, center_rc, size, pitch_um, tile=4):
+    """The raw mosaic frame of :func:`radial_table`: band ``tile * r + c`` at row ``r``,
+    column ``c`` of every tile (pattern positions in reading order), each pixel its band's
+    value interpolated at its distance from the axis."""
+    rr, cc = np.mgrid[0:size[0], 0:size[1]]
+    d2 = ((rr - center_rc[0]) ** 2 + (cc - center_rc[1]) ** 2) * (pitch_um * 1e-3) ** 2
+    band = (rr % tile) * tile + cc % tile
+    raw = np.empty(size)
+    for b in range(table.shape[0]):
+        m = band == b
+        raw[m] = np.interp(d2[m], d2_nodes, table[b])
+    return raw
+
+
 def virtual_truth(sensor: MosaicFile, spectra, wavelengths=None, fwhm=None):
     """The ideal virtual bands' values: Gaussian-weighted means of the spectra."""
     wl = sensor.virtual_nm if wavelengths is None else np.asarray(wavelengths, float)

@@ -48,26 +48,15 @@ def band_table(folder, target, f_number, n_nodes):
     with 24 the linear interpolation between them alone moved x by +0.2 %, 1.1 standard
     errors, on the colour filter; 96 in the default suite, 384 over seeds)."""
     _, mf = vendor_file(folder)
-    rho = (getattr(sim, target, None) or getattr(mosaicsim, target))(mf.grid)[None]
-    r_max2 = ((max(CENTER_RC[0], SIZE[0] - CENTER_RC[0]) ** 2
-               + max(CENTER_RC[1], SIZE[1] - CENTER_RC[1]) ** 2) * (PITCH_UM * 1e-3) ** 2)
-    d2 = np.linspace(0.0, r_max2 * 1.001, n_nodes)
-    values = [mosaicsim.band_values(
-        mosaicsim.responses(mf, PAPER_TRUTH, f_number, np.rad2deg(np.arctan(np.sqrt(d) / X_MM)),
-                            N_EFF, nodes=(16, 8)), rho)[0] for d in d2]
-    return d2, np.array(values).T
+    rho = (getattr(sim, target, None) or getattr(mosaicsim, target))(mf.grid)
+    return mosaicsim.radial_table(mf, PAPER_TRUTH, f_number, rho, N_EFF, center_rc=CENTER_RC,
+                                  size=SIZE, pitch_um=PITCH_UM, n_nodes=n_nodes)
 
 
 def raw_frame(folder, target, f_number, noise, rng, n_nodes=96):
     """The raw mosaic frame: each pixel its band's value at its distance, plus noise."""
     d2n, table = band_table(folder, target, f_number, n_nodes)
-    rr, cc = np.mgrid[0:SIZE[0], 0:SIZE[1]]
-    d2 = ((rr - CENTER_RC[0]) ** 2 + (cc - CENTER_RC[1]) ** 2) * (PITCH_UM * 1e-3) ** 2
-    band = (rr % 4) * 4 + cc % 4
-    raw = np.empty(SIZE)
-    for b in range(table.shape[0]):
-        m = band == b
-        raw[m] = np.interp(d2[m], d2n, table[b])
+    raw = mosaicsim.radial_frame(d2n, table, center_rc=CENTER_RC, size=SIZE, pitch_um=PITCH_UM)
     return raw + rng.normal(0.0, noise, raw.shape)
 
 

@@ -46,31 +46,20 @@ TARGETS = {"neodymium glass": mosaicsim.neodymium_glass, "straight line": straig
 def band_table(folder, f_number, n_nodes, target="neodymium glass"):
     """Every band's flat-fielded value (pattern order) at ``n_nodes`` distances, even in d^2."""
     _, mf = vendor_file(folder)
-    rho = TARGETS[target](mf.grid)[None]
-    n = true_n_eff(mf.peaks_nm)
-    r_max2 = ((max(CENTER_RC[0], SIZE[0] - CENTER_RC[0]) ** 2
-               + max(CENTER_RC[1], SIZE[1] - CENTER_RC[1]) ** 2) * (PITCH_UM * 1e-3) ** 2)
-    d2 = np.linspace(0.0, r_max2 * 1.001, n_nodes)
-    values = [mosaicsim.band_values(
-        mosaicsim.responses(mf, PAPER_TRUTH, f_number, np.rad2deg(np.arctan(np.sqrt(d) / X_MM)),
-                            n, nodes=(16, 8)), rho)[0] for d in d2]
-    return d2, np.array(values).T
+    return mosaicsim.radial_table(mf, PAPER_TRUTH, f_number, TARGETS[target](mf.grid),
+                                  true_n_eff(mf.peaks_nm), center_rc=CENTER_RC, size=SIZE,
+                                  pitch_um=PITCH_UM, n_nodes=n_nodes)
 
 
 def cubes(folder, *, noise, seed, n_nodes=96, f_numbers=(1.4, 8.0), target="neodymium glass"):
     path, _ = vendor_file(folder)
     sensor = Sensor.load(path)
     rng = np.random.default_rng(seed)
-    rr, cc = np.mgrid[0:SIZE[0], 0:SIZE[1]]
-    d2 = ((rr - CENTER_RC[0]) ** 2 + (cc - CENTER_RC[1]) ** 2) * (PITCH_UM * 1e-3) ** 2
-    band = (rr % 4) * 4 + cc % 4  # the file's pattern positions in reading order
     out = {}
     for f in f_numbers:
         d2n, table = band_table(folder, f, n_nodes, target)
-        raw = np.empty(SIZE)
-        for b in range(table.shape[0]):
-            m = band == b
-            raw[m] = np.interp(d2[m], d2n, table[b])
+        raw = mosaicsim.radial_frame(d2n, table, center_rc=CENTER_RC, size=SIZE,
+                                     pitch_um=PITCH_UM)
         out[f] = mosaic_to_cube(raw + rng.normal(0.0, noise, SIZE), sensor)
     return out, sensor
 
