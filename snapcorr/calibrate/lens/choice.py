@@ -425,7 +425,8 @@ def choose(fits: dict, bic_floor: dict, base: Lens, f_numbers, max_cra_deg, *,
 MIN_MODEL_WEIGHT = 1e-4
 
 
-def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, rivals=None):
+def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, rivals=None,
+                        fit_err=None):
     """The error of the predicted mean shift that the choice of model leaves, per f-number.
 
     The rules choose a richer model only on strong evidence; where the flats cannot decide
@@ -439,18 +440,28 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
     about half. Empty when no model counts.
 
     A model with more circles than the chosen one (a circle the choice may have dropped)
-    weighs at least ``1 - 2 dk / G``: the share of its floored chi-square's fall ``G`` (for
-    ``dk`` more parameters) beyond the price the AIC asks, ``2 dk``; it counts where the AIC
-    would keep the circle the BIC's rules dropped. The chosen model's squared error, were
-    the richer one the lens, is ``d^2`` less the noise of ``d`` itself, which is about
-    ``d^2 dk / G`` (as a difference of two nested fits, ``d / sd(d)`` is about
-    ``sqrt(G / dk)``); the AIC's price keeps a circle fitted to noise (``G`` about ``dk``)
-    out. The BIC's ``ln n`` per parameter (11.5 for 1e5 blocks) is the price of a strong
-    claim that a circle is there, right for choosing; as the weight of "a circle may be
-    there" alone, it made a pixel circle that lowers the chi-square by 6.3 weigh 0.07, and a
-    0.19 nm error was reported as 0.065 nm. Where the weights add up to more than 1 (two
-    forms of the same dropped circle), they are scaled to 1: the error is then at most the
-    largest difference.
+    weighs at least its Akaike weight against the chosen one, ``1 / (1 + exp((2 dk - G) /
+    2))`` for ``dk`` more parameters and a fall ``G`` of the floored chi-square (Burnham &
+    Anderson 2002, Model Selection and Multimodel Inference, section 2.9): the AIC prices a
+    parameter at 2, not the BIC's ``ln n`` (11.5 for 1e5 blocks). The BIC's price is right
+    for choosing, a strong claim that a circle is there; as the weight of "a circle may be
+    there" it made the term vanish where the flats cannot tell the two lenses apart. And it
+    contributes ``d^2`` less the noise of ``d`` itself, ``s_rich^2 - s_chosen^2`` (the two
+    fits' own standard errors of the shift: for nested fits of the same data the variance of
+    their difference is the difference of their variances, Hausman 1978), at least 0: a
+    circle fitted to noise moves the shift by about its own error and adds nothing.
+
+    On counted-ray flats at 2 % noise (``benchmarks/calibration_coverage.py``) the paper's
+    lens plus a pixel-vignetting circle (seed 8) and the paper's lens alone (seed 2) both
+    drop the pixel circle, whose fit lowers the chi-square by 0.79 and 1.61 and moves the
+    shift by 0.134 and 0.178 nm (its own error 0.060 and 0.048 nm): the flats see the same in
+    both, yet the first is 0.209 nm off. The BIC's weight (0.005) reported that as 0.019 nm
+    (z 11), and so did an earlier floor of ``1 - 2 dk / G``, zero below the AIC's price. The
+    lens without the pixel circle pays for flats that cannot rule it out. At 0.5 % noise a
+    pixel circle fitted to noise (``G`` 0.34) moves the shift by 0.021 nm, under its own
+    error of 0.042 nm: without the noise's share it would have widened the error 2.8 times.
+    Where the weights add up to more than 1 (two forms of the same dropped circle), they are
+    scaled to 1: the error is then at most the largest difference.
 
     The rivals (``{name: (fit, floored BIC)}``, :func:`~snapcorr.calibrate.lens.stages.joint_fits`)
     count the same way where their circles are identifiable: the first circle plus pixel
@@ -471,6 +482,9 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
         Largest chief-ray angle of the field, degrees.
     rivals : dict, optional
         Name -> (fit, floored BIC) of further models.
+    fit_err : array_like, optional
+        The chosen model's own standard error of the shift per f-number
+        (:func:`shift_stderr_nm`); None: computed here.
 
     Returns
     -------
@@ -483,6 +497,7 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
                   if m != model and (v := verdicts.get(m)) is not None and not v.problems]
     candidates += [(fit, b) for fit, b in (rivals or {}).values()
                    if not check_circles(fit, base, fs, max_cra)]
+    own = None
     for fit, b in candidates:
         if not fit.success:
             continue
@@ -491,8 +506,13 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EffectiveIndexWarning)
-            d = shift_difference_nm(lens, lens_of(fit, base), fs, max_cra)
-        var += weight * np.nan_to_num(d) ** 2
+            d2 = np.nan_to_num(shift_difference_nm(lens, lens_of(fit, base), fs, max_cra)) ** 2
+            if N_CIRCLES[fit.model] > N_CIRCLES[fits[model].model]:
+                if own is None:
+                    own = _own_stderr(fits[model], base, fs, max_cra, fit_err)
+                rich = np.nan_to_num(shift_stderr_nm(fit, base, fs, max_cra), posinf=0.0)
+                d2 = np.clip(d2 - np.clip(rich**2 - own**2, 0.0, None), 0.0, None)
+        var += weight * d2
         total += weight
         used = True
     # the rivals are alternatives to one another (a pixel circle held at h = x or free):
@@ -500,14 +520,21 @@ def model_choice_stderr(fits, bic, verdicts, model, lens, base, fs, max_cra, riv
     return np.sqrt(var / max(total, 1.0)) if used else np.zeros(0)
 
 
+def _own_stderr(fit, base, fs, max_cra, fit_err):
+    """The chosen model's standard error of the shift per f-number (0 without circles)."""
+    if fit_err is None:
+        fit_err = shift_stderr_nm(fit, base, fs, max_cra) if fit.model != "none" else []
+    err = np.nan_to_num(np.asarray(fit_err, float), posinf=0.0)
+    return err if err.size == len(fs) else np.zeros(len(fs))
+
+
 def _choice_weight(fit, b, chosen, b_chosen):
     """A model's weight against the chosen one (:func:`model_choice_stderr`): from the
-    floored BIC, and for a model with more circles at least ``1 - 2 dk / G``."""
+    floored BIC, and for a model with more circles at least its Akaike weight."""
     delta = float(b - b_chosen)
     weight = 1.0 / (1.0 + math.exp(min(delta / 2.0, 700.0)))
     dk = fit.k - chosen.k
     if N_CIRCLES[fit.model] > N_CIRCLES[chosen.model] and dk > 0 and fit.n > 1:
         gain = dk * math.log(fit.n) - delta  # how much lower its floored chi-square is
-        if gain > 2 * dk:
-            weight = max(weight, 1.0 - 2 * dk / gain)
+        weight = max(weight, 1.0 / (1.0 + math.exp(min((2 * dk - gain) / 2.0, 700.0))))
     return weight

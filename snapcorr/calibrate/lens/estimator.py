@@ -52,7 +52,7 @@ def _shift_errors(used, fits, bic, verdicts, model, ons, center_rc, lens, base, 
                                                             stderr=stderr),
                                   ons.fits, center_rc, base, fs, max_cra)
     model_err = (choice.model_choice_stderr(fits, bic, verdicts, model, lens, base, fs,
-                                            max_cra, rivals)
+                                            max_cra, rivals, fit_err=fit_err)
                  if used == "joint" else np.zeros(0))
     return {"shift_stderr_fit_nm": fit_err, "shift_stderr_model_nm": model_err,
             "shift_stderr_noise_nm": noise_err,
