@@ -16,6 +16,7 @@ from ._flats import (
     _read_flats,
 )
 from ._frames import _read
+from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
@@ -108,11 +109,11 @@ def add_parser(subparsers):
     _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, default=None, metavar="UM",
                    help="pixel pitch of the flats, micrometres (default: the --sensor's)")
-    p.add_argument("--magnification", type=float, default=None,
+    p.add_argument("--magnification", type=_magnification, default=None,
                    help="linear magnification m (default: the --lens value, else 0, "
                    "focused at infinity, assumed: the flats cannot tell it, and the errors "
                    "then include m / m_P over [0, 0.1]; give 0 if focused at infinity)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
                    help="pupil magnification m_P (default: the --lens value, else 1, "
                    "assumed; with --magnification > 0 the errors then include m_P over "
                    "[0.5, 2])")

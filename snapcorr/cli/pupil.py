@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._frames import _read
+from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
@@ -69,9 +70,9 @@ def add_parser(subparsers):
     _add_target_fit_options(p)
     _add_pupil_option(p)
     _add_center(p, "optical centre in sensor pixels (default: found from the cubes)")
-    p.add_argument("--magnification", type=float, default=None,
+    p.add_argument("--magnification", type=_magnification, default=None,
                    help="linear magnification m without --lens (default 0)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
                    help="pupil magnification m_P without --lens (default 1)")
     p.add_argument("--tolerance-nm", type=_positive, default=None, metavar="NM",
                    help=TARGET_TOLERANCE_HELP)

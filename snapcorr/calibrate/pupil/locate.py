@@ -49,7 +49,7 @@ import numpy as np
 from ... import __version__
 from ..._coords import accepts_center_rc
 from ..._validation import renamed_keywords
-from ...optics.lens import Lens
+from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...spectra import colour_filter as colour_filter
 from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
 from .distance import HELDOUT_SKIP as HELDOUT_SKIP
@@ -271,6 +271,10 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     ImpreciseTargetError
         (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
     """
+    if magnification is not None:  # refused before any work, naming the keyword
+        magnification = check_magnification(magnification)
+    if pupil_magnification is not None:
+        pupil_magnification = check_pupil_magnification(pupil_magnification)
     if (lens is not None and lens.has_vignetting
             and pupil_radiance not in (None, lens.pupil_radiance)):
         raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} "
