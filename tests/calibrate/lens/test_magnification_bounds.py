@@ -57,22 +57,6 @@ def test_the_library_refuses_them_before_any_work(key, value):
         locate_pupil(NOT_DATA, sensor, **{key: value})
 
 
-@pytest.mark.parametrize("command", ["calibrate", "pupil"])
-@pytest.mark.parametrize("option, value", [("--magnification", "1e300"),
-                                           ("--magnification", "-0.5"),
-                                           ("--magnification", "inf"),
-                                           ("--pupil-magnification", "1e300"),
-                                           ("--pupil-magnification", "nan")])
-def test_the_commands_refuse_them_naming_the_option(command, option, value, cli, tmp_path):
-    args = {"calibrate": ["--flat", "2=missing.npy", "--exit-pupil-mm", "21",
-                          "--pixel-pitch-um", "5.5"],
-            "pupil": ["--cube", "2=missing.nc", "--sensor", "snapscan_vnir"]}[command]
-    res = cli(command, *args, f"{option}={value}", "--out", tmp_path / "l.toml")
-    assert res.returncode == 2, res.stderr
-    assert f"argument {option}: m" in res.stderr and "Traceback" not in res.stderr
-    assert "missing" not in res.stderr  # refused before any file is looked at
-
-
 @pytest.mark.parametrize("stated, want", [
     ("", ("neither", 0.0, (0.0, 0.1))),
     ("magnification = 0.06\n", ("m only", 0.06, (0.03, 0.12))),
