@@ -30,6 +30,7 @@ errors cover all the same.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -39,8 +40,10 @@ from .._coords import accepts_center_rc
 from .._validation import renamed_keywords
 from ..optics.lens import Lens
 from .lens import choice
-from .lens.calibration import LensCalibration, calibrate_lens
+from .lens.calibration import LensCalibration, calibrate_lens, checked_magnifications
+from .lens.magnification import ASSUMED_MAGNIFICATION, ASSUMED_PUPIL_MAGNIFICATION, ratio_range
 from .pupil.locate import PupilFit, choose_pupil, locate_pupil
+from .unknown_magnification import account_for_target_magnifications
 
 __all__ = ["LensAndPupil", "calibrate_with_target"]
 
@@ -122,7 +125,7 @@ class LensAndPupil:
 @renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=False,
-                          provisional_x_mm=None, magnification=0.0, pupil_magnification=1.0,
+                          provisional_x_mm=None, magnification=None, pupil_magnification=None,
                           dark=None, center_px=None, saturation=None, method="auto",
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
@@ -147,8 +150,15 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
     provisional_x_mm : float, optional
         Any positive x for the first calibration; only ``P / x``, ``h / x^2`` and the centre are
         kept from it. Default: the x at which the flats' corner sits at 20 degrees.
-    magnification, pupil_magnification, dark, center_px, saturation, method, max_circles, \
-tolerance_nm
+    magnification, pupil_magnification : float, optional
+        m and m_P of the working f-number, Eq. (27); None: not given. Those not given are
+        assumed (m = 0, m_P = 1) and judged over a plausible range as in
+        :func:`~snapcorr.calibrate.calibrate_lens`: the target is fitted again at its nodes
+        and the spread is in every joint error and the shift's
+        (:mod:`~snapcorr.calibrate.unknown_magnification`), with a
+        :class:`~snapcorr.calibrate.lens.magnification.MagnificationWarning`. Given values
+        (m = 0 alone included) are exact.
+    dark, center_px, saturation, method, max_circles, tolerance_nm
         As :func:`~snapcorr.calibrate.calibrate_lens` (``center_rc``, or the deprecated
         ``center_px``, in the flats' pixels).
     target_spectrum, sensor_origin_px, profile
@@ -179,8 +189,23 @@ tolerance_nm
     FeaturelessTargetError
         The target carries no information about x.
     """
-    if pupil_radiance == "auto":
-        return _either_pupil(locals())
+    args = dict(locals())
+    m, mp = checked_magnifications(magnification, pupil_magnification)  # before any work
+    given, _, rng = ratio_range(m, mp)
+    args.update(magnification=ASSUMED_MAGNIFICATION if m is None else m,
+                pupil_magnification=ASSUMED_PUPIL_MAGNIFICATION if mp is None else mp)
+    res = _either_pupil(args) if pupil_radiance == "auto" else _one_pupil(**args)
+    if rng[1] > rng[0]:  # m / m_P assumed: its spread in the errors, said and recorded
+        res = account_for_target_magnifications(res, given, rng, res._refit, stacklevel=5)
+    return res
+
+
+def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x_mm,
+               magnification, pupil_magnification, dark, center_px, saturation, method,
+               max_circles, tolerance_nm, target_spectrum, sensor_origin_px, profile, name,
+               inputs, target_inputs, progress, pupil_radiance, target_tolerance_nm,
+               report) -> LensAndPupil:
+    """:func:`calibrate_with_target` for one pupil and m, m_P settled (its body)."""
     flats = dict(flats)
     if not flats or not cubes:
         raise ValueError("give flat fields and target cubes (one of each at least)")
@@ -197,12 +222,13 @@ tolerance_nm
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
 
-    def fit_x(lens):  # the target with these circles scaled to every trial x
+    def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
         return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_px=centre,
                             target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
                             profile=profile, inputs=target_inputs, name=name,
                             progress=progress, scale_circles=True,
-                            tolerance_nm=target_tolerance_nm, report=report)
+                            tolerance_nm=None if again else target_tolerance_nm,
+                            report=None if again else report)
 
     pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
@@ -218,9 +244,13 @@ tolerance_nm
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
     total = np.hypot(own, x_part) if x_part.size else own
     lens = _profile(final, pupil, names, values, cov, total, x_part, provisional_x_mm)
-    return LensAndPupil(lens, final, pupil, names, values,
-                        np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
-                        float(provisional_x_mm), notes)
+    out = LensAndPupil(lens, final, pupil, names, values,
+                       np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
+                       float(provisional_x_mm), notes)
+    # the target fitted again with other circles, as this one was (the assumed magnifications'
+    # spread), the centre held where this fit found it
+    out._refit = functools.partial(fit_x, centre=pupil.center_px, again=True)
+    return out
 
 
 def _raw_mosaic_of(sensor, shape):
@@ -233,8 +263,7 @@ def _either_pupil(args):
     """``calibrate_with_target(pupil_radiance="auto")``: the paper's pupil unless the Lambertian one
     fits the target clearly better (:data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`)."""
     args = {k: v for k, v in args.items() if k != "pupil_radiance"}
-    runs = {name: calibrate_with_target(**args, pupil_radiance=name)
-            for name in ("paper", "lambertian")}
+    runs = {name: _one_pupil(**args, pupil_radiance=name) for name in ("paper", "lambertian")}
     return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()},
                         "the target's chi-square")
 

@@ -16,6 +16,7 @@ from ._flats import (
     _read_flats,
 )
 from ._frames import _read
+from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
@@ -108,11 +109,11 @@ def add_parser(subparsers):
     _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, default=None, metavar="UM",
                    help="pixel pitch of the flats, micrometres (default: the --sensor's)")
-    p.add_argument("--magnification", type=float, default=None,
+    p.add_argument("--magnification", type=_magnification, default=None,
                    help="linear magnification m (default: the --lens value, else 0, "
                    "focused at infinity, assumed: the flats cannot tell it, and the errors "
                    "then include m / m_P over [0, 0.1]; give 0 if focused at infinity)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
                    help="pupil magnification m_P (default: the --lens value, else 1, "
                    "assumed; with --magnification > 0 the errors then include m_P over "
                    "[0.5, 2])")
@@ -185,16 +186,6 @@ def run(args):
     return 0
 
 
-def _magnifications_said(args):
-    """With a target, m and m_P left out are assumed (0 and 1) and the errors do not hold
-    their spread: say so, and what to give."""
-    if args.magnification is None or (args.magnification and args.pupil_magnification is None):
-        print("note: --magnification / --pupil-magnification not given: m = 0 (focused at "
-              "infinity) and m_P = 1 assumed, and the flats cannot tell them (Eq. 27); "
-              "P and h scale with 1 / (1 + m / m_P) and the reported errors take the "
-              "assumption as exact: give both to be sure", file=sys.stderr)
-
-
 _TARGET_OPTIONS = ("fit_n_eff", "sensor_out", "target_spectrum", "target_tolerance_nm")
 
 
@@ -237,9 +228,8 @@ def _calibrate_with_target(args):
         with _StepBar("calibrating the flats, fitting x to the target") as bar:
             res = calibrate_with_target(
                 flats, cubes, sensor, pixel_pitch_um=args.pixel_pitch_um,
-                fit_n_eff=args.fit_n_eff, magnification=args.magnification or 0.0,
-                pupil_magnification=(args.pupil_magnification
-                                     if args.pupil_magnification is not None else 1.0),
+                fit_n_eff=args.fit_n_eff, magnification=args.magnification,
+                pupil_magnification=args.pupil_magnification,
                 dark=dark, center_px=args.center_px, saturation=sat, method=args.method,
                 max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
                 target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
@@ -249,7 +239,6 @@ def _calibrate_with_target(args):
                 report=_say_precision)
     except FeaturelessTargetError as err:
         raise ValueError(f"nothing written: {err}") from None
-    _magnifications_said(args)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     lens = dataclasses.replace(res.lens, calibration=cal)
     lens.save(args.out, overwrite=args.overwrite)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._frames import _read
+from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
@@ -69,10 +70,14 @@ def add_parser(subparsers):
     _add_target_fit_options(p)
     _add_pupil_option(p)
     _add_center(p, "optical centre in sensor pixels (default: found from the cubes)")
-    p.add_argument("--magnification", type=float, default=None,
-                   help="linear magnification m without --lens (default 0)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
-                   help="pupil magnification m_P without --lens (default 1)")
+    p.add_argument("--magnification", type=_magnification, default=None,
+                   help="linear magnification m (default: the --lens value, else 0, "
+                   "focused at infinity, assumed: the target cannot tell it, and the errors "
+                   "of x and n_eff then include m / m_P over [0, 0.1]; give 0 if focused at "
+                   "infinity)")
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
+                   help="pupil magnification m_P (default: the --lens value, else 1, "
+                   "assumed)")
     p.add_argument("--tolerance-nm", type=_positive, default=None, metavar="NM",
                    help=TARGET_TOLERANCE_HELP)
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",

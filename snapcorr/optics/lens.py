@@ -39,6 +39,37 @@ def _finite(name, value, *, positive=False):
     return v
 
 
+#: Largest linear magnification m a lens profile may state: ten times life size. Past it the
+#: lens is a microscope objective, whose cone the working f-number of Eq. (27) does not describe
+#: (and a typo such as 1e300 is refused before any fit, not met as an optimiser's failure).
+MAX_MAGNIFICATION = 10.0
+#: Range of the pupil magnification m_P (exit over entrance pupil diameter) a profile may
+#: state: real designs lie within about 0.3 (strong telephoto) to 4 (fish-eye retrofocus).
+PUPIL_MAGNIFICATION_BOUNDS = (0.1, 10.0)
+
+
+def check_magnification(value, name="magnification"):
+    """m as a float: finite, >= 0 (its magnitude) and at most :data:`MAX_MAGNIFICATION`;
+    ``name`` is the option or key the message names."""
+    m = _finite(name, value)
+    if not 0.0 <= m <= MAX_MAGNIFICATION:
+        raise ValueError(f"{name} must be between 0 (focused at infinity) and "
+                         f"{MAX_MAGNIFICATION:g} (its magnitude; past it the working f-number "
+                         f"of Eq. 27 does not hold), got {shown(value)}")
+    return m
+
+
+def check_pupil_magnification(value, name="pupil_magnification"):
+    """m_P as a float: finite and within :data:`PUPIL_MAGNIFICATION_BOUNDS`; ``name`` is the
+    option or key the message names."""
+    mp = _finite(name, value, positive=True)
+    lo, hi = PUPIL_MAGNIFICATION_BOUNDS
+    if not lo <= mp <= hi:
+        raise ValueError(f"{name} (exit over entrance pupil diameter) must be between {lo:g} "
+                         f"and {hi:g}, got {shown(value)}")
+    return mp
+
+
 def _check_placement(cal):
     """The ``[calibration]`` keys a correction reads to place the optical axis: centres as
     two finite numbers, the pitch as a camera's, the image size as two whole numbers > 0."""
@@ -127,9 +158,13 @@ class Lens:
         not move) and ``h < 0`` a circle moving against the chief ray. Empty: no optical
         vignetting.
     magnification : float
-        Linear magnification m (0: focused at infinity).
+        Linear magnification m (0: focused at infinity), its magnitude: 0 to
+        :data:`MAX_MAGNIFICATION`.
     pupil_magnification : float
-        Pupil magnification m_P (> 0).
+        Pupil magnification m_P, within :data:`PUPIL_MAGNIFICATION_BOUNDS`. A lens file whose
+        ``[lens]`` table leaves out either gets the default, recorded as assumed (a
+        ``[calibration.magnification]`` table): a calibration given the profile then judges
+        it over a plausible range (:mod:`snapcorr.calibrate.lens.magnification`).
     name : str, optional
         Human-readable name.
     calibration : dict, optional
@@ -169,15 +204,8 @@ class Lens:
         set_(self, "name", str(self.name))
         set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True))
         set_(self, "vignetting", _circles(self.vignetting))
-        m = _finite("magnification", self.magnification)
-        if m < 0:
-            raise ValueError(f"magnification must be >= 0 (its magnitude), got {m}")
-        set_(self, "magnification", m)
-        set_(
-            self,
-            "pupil_magnification",
-            _finite("pupil_magnification", self.pupil_magnification, positive=True),
-        )
+        set_(self, "magnification", check_magnification(self.magnification))
+        set_(self, "pupil_magnification", check_pupil_magnification(self.pupil_magnification))
         set_(self, "calibration", dict(self.calibration or {}))
         _check_placement(self.calibration)
 
@@ -378,7 +406,7 @@ class Lens:
         if "vignetting" in args and not isinstance(args["vignetting"], list):
             raise ValueError("[lens] vignetting must be [[lens.vignetting]] tables with "
                              "radius_mm and distance_mm")
-        return cls(**args, calibration=calibration or {})
+        return cls(**args, calibration=_unstated_magnifications(table, calibration or {}))
 
     @classmethod
     def load(cls, path) -> Lens:
@@ -409,6 +437,26 @@ class Lens:
         if self.calibration:
             parts.append({"calibration": self.calibration})
         return write_toml(path, parts, overwrite=overwrite)
+
+
+def _unstated_magnifications(table, calibration):
+    """``calibration`` with the record that m or m_P was not stated by the ``[lens]``
+    ``table`` (the defaults 0 and 1 are then assumptions, not the lens's): the
+    ``[calibration.magnification]`` table a calibration that assumed them writes
+    (``assumed = true``; ``given`` says which was stated), unless one is there already."""
+    stated = [k for k in ("magnification", "pupil_magnification") if k in table]
+    if len(stated) == 2 or "magnification" in calibration:
+        return calibration
+    given = {(): "neither", ("magnification",): "m only",
+             ("pupil_magnification",): "m_P only"}[tuple(stated)]
+    m = table.get("magnification")
+    if given == "m only" and isinstance(m, (int, float)) and not isinstance(m, bool) and m == 0:
+        return calibration  # m = 0 alone is exact: f_W = f whatever m_P
+    return {**calibration, "magnification": {
+        "assumed": True, "given": given,
+        "rule": "the lens profile states no " + " and no ".join(
+            k for k in ("magnification", "pupil_magnification") if k not in stated)
+        + ": the defaults (m = 0, m_P = 1) are assumed, not the lens's"}}
 
 
 def _check_pupil_radiance(name, value):

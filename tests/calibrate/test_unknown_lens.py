@@ -26,14 +26,14 @@ TRUTH = {"exit_pupil_mm": PAPER.exit_pupil_mm, "n_eff": N_EFF, "P_mm": PAPER.cir
          "h_mm": PAPER.circles[0][1], "center_row_px": CENTER[1], "center_col_px": CENTER[0]}
 
 
-def one_run(seed, fit_n_eff=True, noise=0.002):
+def one_run(seed, fit_n_eff=True, noise=0.002, magnifications=True):
     flats = make_flats(PAPER, FLAT_F_NUMBERS, shape=SHAPE, pitch_um=PITCH_UM,
                        center_px=CENTER, noise=0.005, seed=seed)
+    given = (dict(magnification=PAPER.magnification,
+                  pupil_magnification=PAPER.pupil_magnification) if magnifications else {})
     return calibrate_with_target(
         flats, cubes("colour_filter", "paper", (2.0, 8.0), noise=noise, seed=100 + seed),
-        sensor(), pixel_pitch_um=PITCH_UM, fit_n_eff=fit_n_eff,
-        magnification=PAPER.magnification, pupil_magnification=PAPER.pupil_magnification,
-        max_circles=1)
+        sensor(), pixel_pitch_um=PITCH_UM, fit_n_eff=fit_n_eff, **given, max_circles=1)
 
 
 def z_scores(got):

@@ -4,15 +4,12 @@ Flats from the independent simulator (tests/oracles/flatsim.py) of the paper's l
 m = 0.06, m_P = 1.3 (Goossens 2019, Sec. 5).
 """
 
-import argparse
-
 import numpy as np
 import pytest
 from conftest import PAPER_TRUTH
 from flatsim import make_flats
 
 from snapcorr import Lens
-from snapcorr.cli.calibrate import _magnifications_said
 
 F_NUMBERS = (1.4, 2.8, 11.0)
 SCENE = dict(shape=(128, 160), pitch_um=56.8, center_px=(87.4, 59.9))
@@ -64,9 +61,23 @@ def test_focused_at_infinity_needs_no_pupil_magnification(flats, cli):
     assert "magnification" not in Lens.load(flats / "inf.toml").calibration
 
 
-@pytest.mark.parametrize("m, mp, said", [(None, None, True), (0.06, None, True),
-                                         (0.0, None, False), (0.06, 1.3, False),
-                                         (None, 1.3, True)])
-def test_with_a_target_assumed_magnifications_are_said(m, mp, said, capsys):
-    _magnifications_said(argparse.Namespace(magnification=m, pupil_magnification=mp))
-    assert ("m = 0 (focused at infinity) and m_P = 1 assumed" in capsys.readouterr().err) == said
+def test_a_lens_profile_that_states_no_magnifications_does_not_give_them(flats, cli):
+    """--lens with a profile whose [lens] table leaves out m and m_P: assumed, so widened and
+    said, as without --lens; the same profile stating them: exact."""
+    for name, stated in (("none.toml", ""), ("both.toml", "magnification = 0.06\n"
+                                                         "pupil_magnification = 1.3\n")):
+        (flats / name).write_text(f"[lens]\nname = 'x known'\nexit_pupil_mm = 21.0\n{stated}")
+    run = [a for a in RUN if a not in ("--exit-pupil-mm", "21")]
+    res = cli("calibrate", *FLATS, *run, "--lens", "none.toml", "--out", "from_none.toml",
+              cwd=flats)
+    assert res.returncode == 0, res.stderr
+    assert "no magnifications given" in res.stderr and "magnifications assumed" in res.stdout
+    rec = Lens.load(flats / "from_none.toml").calibration["magnification"]
+    assert rec["assumed"] is True and rec["m_over_m_P_range"] == [0.0, 0.1]
+    P = Lens.load(flats / "from_none.toml").vignetting[0][0]
+    assert 0.5 < (P - PAPER_TRUTH.circles[0][0]) / rec["P_stderr_mm"][0] < 2
+    res = cli("calibrate", *FLATS, *run, "--lens", "both.toml", "--out", "from_both.toml",
+              cwd=flats)
+    assert res.returncode == 0, res.stderr
+    assert "magnification" not in res.stderr
+    assert "magnification" not in Lens.load(flats / "from_both.toml").calibration

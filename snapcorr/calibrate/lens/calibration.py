@@ -48,7 +48,7 @@ from ..._validation import (
     renamed_keywords,
 )
 from ...optics.chief_ray import cra_map
-from ...optics.lens import Lens
+from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...optics.shift import EffectiveIndexWarning
 from ..flats.cleaning import check_mosaic_sensor
 from . import choice, report, stages
@@ -337,6 +337,8 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
     -------
     LensCalibration
     """
+    magnification, pupil_magnification = checked_magnifications(magnification,
+                                                                pupil_magnification)
     given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
                        pupil_magnification, pupil_radiance)
     result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
@@ -359,6 +361,14 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
 LENS_RECORD_KEYS = {"exit_pupil_stderr_mm": "exit_pupil_stderr_mm",
                     "n_eff": "exit_pupil_n_eff", "n_eff_stderr": "exit_pupil_n_eff_stderr",
                     "n_eff_fitted": "exit_pupil_n_eff_fitted"}
+
+
+def checked_magnifications(magnification, pupil_magnification):
+    """m and m_P as given (None: not given), each refused, naming its keyword, if outside
+    physics (:func:`~snapcorr.optics.lens.check_magnification`), before any work."""
+    return (None if magnification is None else check_magnification(magnification),
+            None if pupil_magnification is None
+            else check_pupil_magnification(pupil_magnification))
 
 
 def _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,

@@ -63,7 +63,7 @@ __all__ = [
     "MagnificationSpread",
     "MagnificationWarning",
     "account_for_magnifications",
-        "ratio_range",
+    "ratio_range",
 ]
 
 #: What a calibration assumes when neither magnification is given: focused at infinity.
@@ -121,7 +121,9 @@ def ratio_range(magnification=None, pupil_magnification=None, lens=None):
     """How much of m and m_P was given, ``m / m_P`` used and its plausible range.
 
     A ``lens``'s values count as given (a lens file states them), unless its own record
-    says they were assumed (``[calibration.magnification]``, ``assumed = true``).
+    says they were assumed (``[calibration.magnification]``, ``assumed = true``; a profile
+    whose ``[lens]`` table states neither gets that record when loaded): then only the one
+    its ``given`` names, if any, counts.
 
     Parameters
     ----------
@@ -135,10 +137,12 @@ def ratio_range(magnification=None, pupil_magnification=None, lens=None):
     (str, float, (float, float))
         What was given (as :attr:`MagnificationSpread.given`), the ratio used, its range.
     """
-    if lens is not None and not _lens_assumed(lens):
-        magnification = lens.magnification if magnification is None else magnification
-        pupil_magnification = (lens.pupil_magnification if pupil_magnification is None
-                               else pupil_magnification)
+    if lens is not None:
+        stated = _lens_stated(lens)
+        if magnification is None and "m" in stated:
+            magnification = lens.magnification
+        if pupil_magnification is None and "m_P" in stated:
+            pupil_magnification = lens.pupil_magnification
     m = ASSUMED_MAGNIFICATION if magnification is None else float(magnification)
     mp = (ASSUMED_PUPIL_MAGNIFICATION if pupil_magnification is None
           else float(pupil_magnification))
@@ -155,9 +159,15 @@ def ratio_range(magnification=None, pupil_magnification=None, lens=None):
     return "neither", r, (0.0, MAX_M_OVER_M_P)
 
 
-def _lens_assumed(lens):
+def _lens_stated(lens):
+    """Which of m and m_P a ``lens`` states as its own: both, unless its record says some
+    were assumed (``[calibration.magnification]``, ``assumed = true``: by a calibration
+    that was not given them, or by a profile that does not state them); ``given`` there
+    names those that were."""
     rec = lens.calibration.get("magnification")
-    return isinstance(rec, dict) and rec.get("assumed") is True
+    if not (isinstance(rec, dict) and rec.get("assumed") is True):
+        return {"m", "m_P"}
+    return {"m only": {"m"}, "m_P only": {"m_P"}}.get(rec.get("given"), set())
 
 
 def _rescaled(lens, ratio, held):

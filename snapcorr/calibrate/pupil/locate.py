@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -49,8 +50,10 @@ import numpy as np
 from ... import __version__
 from ..._coords import accepts_center_rc
 from ..._validation import renamed_keywords
-from ...optics.lens import Lens
+from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...spectra import colour_filter as colour_filter
+from ..lens.magnification import ratio_range
+from . import magnification as _magnification
 from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
 from .distance import HELDOUT_SKIP as HELDOUT_SKIP
 from .distance import MAX_REL_STDERR as MAX_REL_STDERR
@@ -226,7 +229,13 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     sensor_origin_px : (row, col), optional
         Sensor position of the cubes' first pixel, for crops that do not carry positions.
     magnification, pupil_magnification : float, optional
-        When no lens is given (default 0 and 1).
+        m and m_P of the working f-number, Eq. (27), in place of the lens's; None: not given
+        (the lens's, if it states them). Those not given are assumed (m = 0, m_P = 1) and
+        judged over a plausible range (:func:`~snapcorr.calibrate.lens.magnification.
+        ratio_range`): the target is fitted again at its nodes and the spread is in the errors
+        of x and n_eff (:mod:`~snapcorr.calibrate.pupil.magnification`), with a
+        :class:`~snapcorr.calibrate.lens.magnification.MagnificationWarning`; a lens whose
+        circles came from flats at an assumed ratio has them rescaled to the ratio given.
     profile : str
         The filters' shape (a name in :data:`snapcorr.optics.PROFILES`); not used for a
         sensor with measured responses, whose whole curves are the filters
@@ -271,6 +280,40 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     ImpreciseTargetError
         (a ``FeaturelessTargetError``) The target cannot give the shift to ``tolerance_nm``.
     """
+    if magnification is not None:  # refused before any work, naming the keyword
+        magnification = check_magnification(magnification)
+    if pupil_magnification is not None:
+        pupil_magnification = check_pupil_magnification(pupil_magnification)
+    args = dict(locals())
+    given, _, rng = ratio_range(magnification, pupil_magnification, lens)
+    if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
+        args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
+    fit = _checked_locate(**args)
+    if rng[1] > rng[0]:  # m / m_P assumed: its spread in x's and n_eff's errors, said
+        fit = _magnification.account_for_pupil_magnifications(
+            fit, given, rng, functools.partial(_refit, args, fit), stacklevel=6)
+    return fit
+
+
+def _refit(args, fit, ratio):
+    """The fit of ``args`` made again at ``m / m_P = ratio`` (the lens's circles rescaled as
+    flats would give them there), the centre and pupil held at those of ``fit``."""
+    lens = args["lens"]
+    again = {**args, "center_px": fit.center_px, "pupil_radiance": fit.lens.pupil_radiance,
+             "tolerance_nm": None, "report": None, "magnification": ratio,
+             "pupil_magnification": 1.0}
+    if lens is not None:
+        again["lens"] = _magnification.at_ratio(lens, ratio)
+        if again["scale_circles"] is None:
+            again["scale_circles"] = "exit_pupil_scaling" in lens.calibration
+    return _locate(**again)
+
+
+def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum,
+                    sensor_origin_px, magnification, pupil_magnification, profile, n_bins,
+                    inputs, name, progress, scale_circles, pupil_radiance, tolerance_nm,
+                    report):
+    """:func:`locate_pupil` with m and m_P settled, the assumption's spread left out."""
     if (lens is not None and lens.has_vignetting
             and pupil_radiance not in (None, lens.pupil_radiance)):
         raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} "
@@ -405,7 +448,7 @@ def _either_pupil(args):
     fits = {}
     for name in ("paper", "lambertian"):
         try:
-            fits[name] = locate_pupil(**args, pupil_radiance=name)
+            fits[name] = _checked_locate(**args, pupil_radiance=name)
             args["report"] = None  # the precision said once, for the first pupil fitted
         except FeaturelessTargetError:
             raise
