@@ -43,6 +43,7 @@ import contextlib
 import errno
 import itertools
 import os
+import secrets
 import shutil
 import signal
 import sys
@@ -197,19 +198,40 @@ def _remove_left_over():
             remove_path(p, timeout_s=2.0, settle_s=0)
 
 
+#: The letters of a temporary's random part (as :mod:`tempfile` uses).
+_NAME_LETTERS = "abcdefghijklmnopqrstuvwxyz0123456789_"
+
+
 def _make_temporary(target, *, directory=False):
-    """A new hidden temporary file or folder next to ``target``, registered."""
+    """A new hidden temporary file or folder next to ``target``, registered.
+
+    The name is registered before the path is created: a signal's handler runs between any
+    two steps (and ``_LOCK`` holds off threads only), so created first, a path whose
+    registration an interruption prevented would stay behind. An interruption after the
+    path was created removes it."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    prefix, suffix = f".{target.stem}.", target.suffix
-    with _LOCK:  # registered before a signal can come between creating and registering
-        if directory:
-            tmp = tempfile.mkdtemp(dir=target.parent, prefix=prefix, suffix=suffix)
-        else:
-            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=prefix, suffix=suffix)
-            os.close(fd)
+    folder = os.path.abspath(target.parent)
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(tempfile.TMP_MAX):
+        name = "".join(secrets.choice(_NAME_LETTERS) for _ in range(8))
+        tmp = os.path.join(folder, f".{target.stem}.{name}{target.suffix}")
         _register(tmp)
-    return Path(tmp)
+        try:
+            if directory:
+                os.mkdir(tmp, 0o700)
+            else:
+                os.close(os.open(tmp, flags, 0o600))
+        except FileExistsError:  # another's: unregistered, never removed
+            _unregister(tmp)
+            continue
+        except BaseException:
+            remove_path(tmp, settle_s=0)  # created or not: gone
+            raise
+        return Path(tmp)
+    raise FileExistsError(errno.EEXIST, "no free temporary name next to the output",
+                          str(target))
 
 
 def _umask():

@@ -647,6 +647,28 @@ def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_pa
     assert not folder.exists()
 
 
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_a_signal_as_the_temporary_is_created_leaves_nothing(tmp_path, monkeypatch, kind):
+    """A handler runs between any two steps: here just after the temporary is created,
+    before the function creating it has returned."""
+    create = "open" if kind == "file" else "mkdir"
+    real = getattr(os, create)
+
+    def created_then_interrupted(path, *args, **kwargs):
+        result = real(path, *args, **kwargs)
+        if os.path.basename(os.fspath(path)).startswith(".x."):
+            monkeypatch.setattr(os, create, real)
+            raise KeyboardInterrupt("SIGTERM received")
+        return result
+
+    monkeypatch.setattr(os, create, created_then_interrupted)
+    registered = set(safety.temporary_paths())
+    write = safety.atomic_write if kind == "file" else safety.atomic_write_dir
+    with pytest.raises(KeyboardInterrupt):
+        write(tmp_path / ("x.nc" if kind == "file" else "x.zarr"), lambda tmp: None)
+    assert not list(tmp_path.iterdir()) and set(safety.temporary_paths()) == registered
+
+
 class _SignalledWhenCollected:
     """An object in a reference cycle whose finalizer a signal interrupts: the garbage
     collector runs it in the middle of any work (a progress bar left from an earlier step,
