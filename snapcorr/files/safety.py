@@ -43,7 +43,6 @@ import contextlib
 import errno
 import itertools
 import os
-import secrets
 import shutil
 import signal
 import sys
@@ -198,7 +197,8 @@ def _remove_left_over():
             remove_path(p, timeout_s=2.0, settle_s=0)
 
 
-#: The letters of a temporary's random part (as :mod:`tempfile` uses).
+#: The letters of a temporary's random part (as :mod:`tempfile` uses; :mod:`secrets` would
+#: add its import to every command's start).
 _NAME_LETTERS = "abcdefghijklmnopqrstuvwxyz0123456789_"
 
 
@@ -215,7 +215,7 @@ def _make_temporary(target, *, directory=False):
     flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
         | getattr(os, "O_CLOEXEC", 0)
     for _ in range(tempfile.TMP_MAX):
-        name = "".join(secrets.choice(_NAME_LETTERS) for _ in range(8))
+        name = "".join(_NAME_LETTERS[b % len(_NAME_LETTERS)] for b in os.urandom(8))
         tmp = os.path.join(folder, f".{target.stem}.{name}{target.suffix}")
         _register(tmp)
         try:
