@@ -28,12 +28,16 @@ Ownership
 
 Interruptions
     Temporary paths are kept in a registry while they exist. Inside :func:`cleanup_on_signals`
-    SIGTERM and SIGHUP interrupt the main thread as Ctrl-C does (``KeyboardInterrupt``), so
-    ``finally`` blocks run, and on leaving it every temporary still registered is removed.
+    SIGTERM, SIGHUP and Ctrl-C (SIGINT) interrupt the main thread (``KeyboardInterrupt``), so
+    ``finally`` blocks run, and on leaving it every temporary still registered is removed. An
+    interrupt is never lost: one that Python drops because it came while a finalizer ran (a
+    ``__del__`` run by the garbage collector in the middle of any work) is delivered again,
+    and once a signal has come no output is moved in until the block is left.
 """
 
 from __future__ import annotations
 
+import _thread
 import atexit
 import contextlib
 import errno
@@ -41,6 +45,7 @@ import itertools
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 import time
@@ -192,19 +197,41 @@ def _remove_left_over():
             remove_path(p, timeout_s=2.0, settle_s=0)
 
 
+#: The letters of a temporary's random part (as :mod:`tempfile` uses; :mod:`secrets` would
+#: add its import to every command's start).
+_NAME_LETTERS = "abcdefghijklmnopqrstuvwxyz0123456789_"
+
+
 def _make_temporary(target, *, directory=False):
-    """A new hidden temporary file or folder next to ``target``, registered."""
+    """A new hidden temporary file or folder next to ``target``, registered.
+
+    The name is registered before the path is created: a signal's handler runs between any
+    two steps (and ``_LOCK`` holds off threads only), so created first, a path whose
+    registration an interruption prevented would stay behind. An interruption after the
+    path was created removes it."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    prefix, suffix = f".{target.stem}.", target.suffix
-    with _LOCK:  # registered before a signal can come between creating and registering
-        if directory:
-            tmp = tempfile.mkdtemp(dir=target.parent, prefix=prefix, suffix=suffix)
-        else:
-            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=prefix, suffix=suffix)
-            os.close(fd)
+    folder = os.path.abspath(target.parent)
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(tempfile.TMP_MAX):
+        name = "".join(_NAME_LETTERS[b % len(_NAME_LETTERS)] for b in os.urandom(8))
+        tmp = os.path.join(folder, f".{target.stem}.{name}{target.suffix}")
         _register(tmp)
-    return Path(tmp)
+        try:
+            if directory:
+                os.mkdir(tmp, 0o700)
+            else:
+                os.close(os.open(tmp, flags, 0o600))
+        except FileExistsError:  # another's: unregistered, never removed
+            _unregister(tmp)
+            continue
+        except BaseException:
+            remove_path(tmp, settle_s=0)  # created or not: gone
+            raise
+        return Path(tmp)
+    raise FileExistsError(errno.EEXIST, "no free temporary name next to the output",
+                          str(target))
 
 
 def _umask():
@@ -415,6 +442,7 @@ def _replace(moves, expected):
     and checked against it; the old ones are deleted only once every new path is in place; on
     any failure (an interruption too) the new paths are taken out and the old ones put back.
     """
+    _refuse_if_interrupted()
     moves = [(Path(new), Path(target)) for new, target in moves]
     for new, target in moves:
         _check_kind(target, directory=new.is_dir())
@@ -555,23 +583,92 @@ def _stamp(new, target):
 
 # -- signals ---------------------------------------------------------------------------------
 
+#: The signal that came inside the open :func:`cleanup_on_signals` blocks (None: none yet),
+#: and the ``KeyboardInterrupt`` last raised for one (told from others when Python drops it).
+_RECEIVED = None
+_RAISED = None
+#: How many :func:`cleanup_on_signals` blocks of the main thread are open.
+_OPEN = 0
+
 
 def _interrupt(signum, frame):
-    raise KeyboardInterrupt(f"{signal.Signals(signum).name} received")
+    global _RECEIVED, _RAISED
+    _RECEIVED = signum
+    _RAISED = KeyboardInterrupt(f"{signal.Signals(signum).name} received")
+    raise _RAISED
+
+
+def _refuse_if_interrupted():
+    """Raise ``KeyboardInterrupt`` if a signal came inside the open :func:`cleanup_on_signals`
+    blocks: nothing is moved in after it, even if its interrupt was swallowed (a library's
+    ``except BaseException``) instead of ending the command."""
+    if _RECEIVED is not None:
+        raise KeyboardInterrupt(f"{signal.Signals(_RECEIVED).name} received")
+
+
+def _deliver_again(signum):
+    """In a thread of its own: interrupt the main thread again with ``signum`` (its handler
+    runs there at its next step), unless the blocks were left meanwhile."""
+    time.sleep(0.01)  # the main thread first leaves the finalizers it was in
+    if _RECEIVED == signum and signal.getsignal(signum) is _interrupt:
+        _thread.interrupt_main(signum)
+
+
+def _lost_interrupt_hook(previous):
+    """An ``unraisablehook`` that delivers again the interrupt Python dropped: raised while a
+    finalizer (``__del__``, a weak reference's callback) ran, it cannot leave the finalizer
+    and would otherwise be printed and forgotten, and the command would go on and write its
+    outputs. Everything else goes to ``previous``."""
+
+    def hook(unraisable):
+        if _RAISED is not None and unraisable.exc_value is _RAISED and _RECEIVED is not None:
+            # a thread of its own: threading's locks may be held where the finalizer ran
+            _thread.start_new_thread(_deliver_again, (_RECEIVED,))
+            return
+        previous(unraisable)
+
+    return hook
+
+
+def _take_signals(names):
+    """Install :func:`_interrupt` for the signals ``names`` and for SIGINT where Python's own
+    Ctrl-C handler has it (ignored, as in a background job, it stays ignored), and the hook
+    that delivers a dropped interrupt again. Returns what to restore."""
+    numbers = [getattr(signal, s) for s in names if hasattr(signal, s)]
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        numbers.append(signal.SIGINT)
+    previous = {s: signal.signal(s, _interrupt) for s in dict.fromkeys(numbers)}
+    hook = sys.unraisablehook
+    sys.unraisablehook = _lost_interrupt_hook(hook)
+    return previous, (sys.unraisablehook, hook)
+
+
+def _give_back_signals(previous, hooks):
+    """Restore the handlers and the hook :func:`_take_signals` replaced."""
+    global _RECEIVED, _RAISED
+    for s, handler in previous.items():
+        signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+    ours, hook = hooks
+    if sys.unraisablehook is ours:
+        sys.unraisablehook = hook
+    if _OPEN == 0:
+        _RECEIVED = _RAISED = None
 
 
 @contextlib.contextmanager
 def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
     """Clean up temporary files however a command ends.
 
-    Inside the block, ``signals`` (by default SIGTERM and SIGHUP; Ctrl-C, SIGINT, already
-    does this) raise ``KeyboardInterrupt`` in the main thread, so ``finally`` blocks run and
-    atomic writes remove their temporary files. On leaving, normally or by any exception,
-    every temporary path registered since entering and still present is removed (files
-    unlinked, folders deleted) with those signals and SIGINT ignored, and the previous
-    handlers are restored. Outside the main thread the handlers are left alone and only the
-    cleanup is done. The block is also a :func:`checked_outputs` scope: outputs checked in it
-    are replaced only as they were checked.
+    Inside the block, ``signals`` (by default SIGTERM and SIGHUP) and Ctrl-C (SIGINT, where
+    Python's own handler has it) raise ``KeyboardInterrupt`` in the main thread, so
+    ``finally`` blocks run and atomic writes remove their temporary files. An interrupt Python
+    drops (it came while a finalizer ran) is raised again, and after a signal no output is
+    moved in until the block is left. On leaving, normally or by any exception, every
+    temporary path registered since entering and still present is removed (files unlinked,
+    folders deleted) with those signals and SIGINT ignored, and the previous handlers are
+    restored. Outside the main thread the handlers are left alone and only the cleanup is
+    done. The block is also a :func:`checked_outputs` scope: outputs checked in it are
+    replaced only as they were checked.
 
     Examples
     --------
@@ -579,19 +676,19 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
     >>> with cleanup_on_signals():
     ...     pass
     """
+    global _OPEN
     before = set(map(str, temporary_paths()))
-    numbers = [getattr(signal, s) for s in signals if hasattr(signal, s)]
     main = threading.current_thread() is threading.main_thread()
-    previous = {}
+    previous, hooks = {}, None
     if main:
-        for s in numbers:
-            previous[s] = signal.signal(s, _interrupt)
+        previous, hooks = _take_signals(signals)
+        _OPEN += 1
     try:
         with checked_outputs():
             yield
     finally:
         if main:
-            for s in {*numbers, signal.SIGINT}:
+            for s in {*previous, signal.SIGINT}:
                 previous.setdefault(s, signal.getsignal(s))
                 signal.signal(s, signal.SIG_IGN)
         try:
@@ -600,5 +697,5 @@ def cleanup_on_signals(signals=("SIGTERM", "SIGHUP")):
                     remove_path(path)
         finally:
             if main:
-                for s, handler in previous.items():
-                    signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+                _OPEN -= 1
+                _give_back_signals(previous, hooks)

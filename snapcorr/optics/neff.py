@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import curve_fit
 
 __all__ = ["NeffFit", "fit_n_eff"]
 
@@ -68,6 +67,8 @@ def fit_n_eff(aoi_deg, center_nm, *, sigma_nm=None):
             "centre wavelengths do not move to the blue with angle; cannot fit an effective index"
         )
     p0 = (np.sqrt(icept), np.sqrt(-icept / slope))
+    from scipy.optimize import curve_fit  # here: not a cost of every import of optics
+
     (cwl, n), cov = curve_fit(
         _law, phi, lam, p0=p0, sigma=sigma_nm, absolute_sigma=sigma_nm is not None
     )

@@ -20,7 +20,6 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .._validation import check_curve, check_positive
 from .shift import check_n_eff, shift_nm
@@ -158,6 +157,7 @@ def _multi_lorentzian_shape(lam, k):
 @functools.cache
 def _multi_lorentzian_unit():
     """Scale ``k`` giving the product a FWHM of 1 nm, and the product's maximum."""
+    from scipy.optimize import brentq  # here: importing it costs every command 0.2-0.6 s
 
     def width(k):
         lam = np.linspace(-40 * k, 40 * k, 16001)

@@ -5,6 +5,7 @@ package's public names still work, imported at their first use."""
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 #: Libraries that take longer to import than numpy, or pull in those that do.
@@ -86,3 +87,56 @@ def test_the_command_lines_choices_are_the_librarys():
     assert _names.SHIFT_METHODS == tuple(optics.METHODS)
     assert _names.CORRECTION_MODELS == optics.MODELS
     assert _names.CALIBRATION_METHODS == calibrate.METHODS
+
+
+def test_the_physics_and_the_pipeline_import_no_fitting_library():
+    """``scipy.optimize`` (0.2-0.6 s of a command's start) is imported where a fit runs, not by
+    importing the physics or the pipeline that every ``flatfield --demosaic`` and ``stream``
+    loads; the fits that need it still run."""
+    script = """
+import sys
+import numpy as np
+import snapcorr.cli, snapcorr.optics, snapcorr.pipeline
+from snapcorr.cli import flatfield, stream
+print("scipy.optimize" in sys.modules)
+from snapcorr.optics import fit_n_eff
+from snapcorr.optics.profiles import _multi_lorentzian_unit, fwhm_of, _multi_lorentzian_shape
+aoi = np.array([0.0, 8.0, 16.0, 24.0])
+fit = fit_n_eff(aoi, 600.0 * np.sqrt(1 - np.sin(np.deg2rad(aoi)) ** 2 / 1.9 ** 2))
+k, _ = _multi_lorentzian_unit()
+lam = np.linspace(-40 * k, 40 * k, 16001)
+print(fit.n_eff, fwhm_of(lam, _multi_lorentzian_shape(lam, k)))
+"""
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr
+    before, after = res.stdout.splitlines()
+    assert before == "False"
+    n_eff, fwhm = map(float, after.split())
+    assert abs(n_eff - 1.9) < 1e-9 and abs(fwhm - 1.0) < 1e-9
+
+
+def _modules_imported(stderr):
+    """Every module name in ``python -X importtime``'s report."""
+    return {line.rsplit("|", 1)[1].strip() for line in stderr.splitlines()
+            if line.startswith("import time:") and line.count("|") == 2}
+
+
+def test_commands_that_fit_nothing_import_no_fitting_library(tmp_path):
+    """``flatfield`` (with ``--demosaic`` too) runs no fit: it never imports ``scipy.optimize``
+    (the command line's own start, through ``python -m snapcorr``, and its work)."""
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "raw.npy", rng.integers(100, 3000, (32, 32)).astype(np.uint16))
+    np.save(tmp_path / "dark.npy", np.full((32, 32), 64, np.uint16))
+    np.save(tmp_path / "white.npy", np.full((32, 32), 3500, np.uint16))
+    frames = ["raw.npy", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+              "mosaic_4x4_vis", "--sensor-origin-px", "400,800", "--quiet"]
+    for extra in (["--demosaic", "ri", "--out", "ff.zarr"], ["--out", "ff.nc"]):
+        res = subprocess.run([sys.executable, "-X", "importtime", "-m", "snapcorr",
+                              "flatfield", *frames, *extra], cwd=tmp_path,
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr[-2000:]
+        assert (tmp_path / extra[-1]).exists()
+        names = _modules_imported(res.stderr)
+        assert {"numpy", "dask.array", "xarray"} <= names  # the report was read
+        assert "scipy.optimize" not in names, extra

@@ -3,6 +3,7 @@ and no partial result behind."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -44,7 +45,8 @@ def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
     begun), wait ``after`` s and send ``signals`` (10 ms apart). Returns (status, stderr).
 
     An attempt where the result was written before the first signal arrived proves nothing
-    and is repeated."""
+    and is repeated; one whose result was still being written after it (its newest content
+    is later than the signal) shows the interrupt was lost, and fails."""
     for _ in range(attempts):
         proc = subprocess.Popen([sys.executable, "-m", "snapcorr", *map(str, args)], cwd=folder,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -59,6 +61,7 @@ def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
                     pytest.fail("no temporary appeared within 90 s")
                 time.sleep(0.01)
             time.sleep(after)
+            sent_ns = time.time_ns()
             for i, sig in enumerate(signals):
                 if proc.poll() is None:
                     proc.send_signal(sig)
@@ -71,6 +74,9 @@ def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
                 proc.communicate()
         if "wrote" not in stdout:
             return proc.returncode, stderr
+        if _last_written_ns(out) > sent_ns:
+            pytest.fail(f"the command went on writing after {signals[0].name} and finished "
+                        f"(status {proc.returncode}): the interrupt was lost\n{stderr}")
         # the write won the race: start again
         if out.is_dir():
             import shutil
@@ -79,6 +85,15 @@ def _interrupt(args, folder, out, signals, *, after=0.0, attempts=3):
         elif out.exists():
             out.unlink()
     pytest.fail(f"the write finished before the signal in {attempts} attempts")
+
+
+def _last_written_ns(out):
+    """When the content of the file or folder ``out`` was last written (the file system's
+    clock, which never runs ahead of ``time.time_ns``), ns."""
+    if not out.is_dir():
+        return out.stat().st_mtime_ns
+    return max(os.stat(os.path.join(root, f)).st_mtime_ns
+               for root, _, files in os.walk(out) for f in files)
 
 
 def _assert_interrupted_cleanly(status, err, folder, out):

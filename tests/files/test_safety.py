@@ -2,6 +2,7 @@
 overwriting, and interruptions. Every refusal is one clear line, raised before anything is
 written, with the inputs unchanged."""
 
+import gc
 import os
 import signal
 import socket
@@ -644,6 +645,67 @@ def test_cleanup_on_signals_turns_sigterm_into_an_interrupt_and_cleans_up(tmp_pa
         (folder / "c").mkdir(parents=True)
         safety._register(folder)
     assert not folder.exists()
+
+
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_a_signal_as_the_temporary_is_created_leaves_nothing(tmp_path, monkeypatch, kind):
+    """A handler runs between any two steps: here just after the temporary is created,
+    before the function creating it has returned."""
+    create = "open" if kind == "file" else "mkdir"
+    real = getattr(os, create)
+
+    def created_then_interrupted(path, *args, **kwargs):
+        result = real(path, *args, **kwargs)
+        if os.path.basename(os.fspath(path)).startswith(".x."):
+            monkeypatch.setattr(os, create, real)
+            raise KeyboardInterrupt("SIGTERM received")
+        return result
+
+    monkeypatch.setattr(os, create, created_then_interrupted)
+    registered = set(safety.temporary_paths())
+    write = safety.atomic_write if kind == "file" else safety.atomic_write_dir
+    with pytest.raises(KeyboardInterrupt):
+        write(tmp_path / ("x.nc" if kind == "file" else "x.zarr"), lambda tmp: None)
+    assert not list(tmp_path.iterdir()) and set(safety.temporary_paths()) == registered
+
+
+class _SignalledWhenCollected:
+    """An object in a reference cycle whose finalizer a signal interrupts: the garbage
+    collector runs it in the middle of any work (a progress bar left from an earlier step,
+    collected while a module is imported during a write)."""
+
+    def __init__(self, signum):
+        self.signum, self.cycle = signum, self
+
+    def __del__(self):
+        signal.raise_signal(self.signum)  # its handler runs here, inside the finalizer
+
+
+def _collect_during_a_signal(signum):
+    _SignalledWhenCollected(signum)
+    gc.collect()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupt_that_comes_while_a_finalizer_runs_is_not_lost(signum):
+    """Python drops an exception raised in a finalizer: the interrupt must come again."""
+    with pytest.raises(KeyboardInterrupt, match=signal.Signals(signum).name), \
+            safety.cleanup_on_signals():
+        _collect_during_a_signal(signum)
+        for _ in range(500):  # 5 s
+            time.sleep(0.01)
+
+
+def test_no_output_is_moved_in_after_a_signal_whose_interrupt_was_lost(tmp_path, monkeypatch):
+    """Whatever swallowed the interrupt, a write that ends after the signal is discarded."""
+    monkeypatch.setattr(safety, "_deliver_again", lambda signum: None, raising=False)
+    out = tmp_path / "x.txt"
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"), safety.cleanup_on_signals():
+        _collect_during_a_signal(signal.SIGTERM)
+        safety.atomic_write(out, lambda tmp: tmp.write_text("written after the signal"))
+    assert not list(tmp_path.iterdir())
+    safety.atomic_write(out, lambda tmp: tmp.write_text("a later command"))  # not held
+    assert out.read_text() == "a later command"
 
 
 def _sigint_default():
