@@ -61,7 +61,7 @@ def run(args):
     from ..budget import scene_budget, tolerance_ranges
     from ..spectra import parse_source
 
-    _check_outputs([args.plot], [args.cube, args.sensor, args.lens], args.overwrite,
+    _check_outputs({"--plot": args.plot}, [args.cube, args.sensor, args.lens], args.overwrite,
                    [(".png",)])
     if args.source.split(":")[0].strip().lower() == "cube" and args.cube is None:
         raise ValueError(f"--source {args.source} is the spectrum of a cube: give --cube CUBE")

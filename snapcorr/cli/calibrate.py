@@ -155,7 +155,8 @@ def run(args):
                          "(from snapcorr pupil), or --target-cube F_NUMBER=PATH (repeat) with "
                          "--sensor to fit it from a spectral target in the same run")
     inputs = [p for _, p in args.flat] + [args.dark, args.lens, args.sensor]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
+                   [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     if args.pupil == "auto":
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "

@@ -110,7 +110,7 @@ def run(args):
     from ..cube.derived import with_fwhm_table
 
     inputs = [args.cube, args.lens, args.sensor]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite,
+    _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
                    [(".nc", ".zarr", ".hdr"), (".png",)])
     if args.out.suffix.lower() == ".hdr" and (args.compression != "auto" or args.store_derived):
         raise ValueError("an ENVI result is written plainly and whole: --compression and "

@@ -89,7 +89,7 @@ def run(args):
     from ..pipeline import process_stream
 
     inputs = [args.frames, *args.dark, *args.white]
-    _check_outputs([args.out], inputs, args.overwrite, [(".zarr", ".nc")])
+    _check_outputs({"--out": args.out}, inputs, args.overwrite, [(".zarr", ".nc")])
     _check_storage_option(args)
     sensor = _sensor(args.sensor)
     if sensor.layout != "mosaic":

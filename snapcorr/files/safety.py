@@ -193,18 +193,51 @@ def _remove_left_over():
 
 
 def _make_temporary(target, *, directory=False):
-    """A new hidden temporary file or folder next to ``target``, registered."""
+    """A new hidden temporary file or folder next to ``target``, registered. A folder that
+    cannot be written in is said by the target's name, not the temporary's (which the user
+    never named)."""
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
     prefix, suffix = f".{target.stem}.", target.suffix
-    with _LOCK:  # registered before a signal can come between creating and registering
-        if directory:
-            tmp = tempfile.mkdtemp(dir=target.parent, prefix=prefix, suffix=suffix)
-        else:
-            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=prefix, suffix=suffix)
-            os.close(fd)
-        _register(tmp)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with _LOCK:  # registered before a signal can come between creating and registering
+            if directory:
+                tmp = tempfile.mkdtemp(dir=target.parent, prefix=prefix, suffix=suffix)
+            else:
+                fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=prefix, suffix=suffix)
+                os.close(fd)
+            _register(tmp)
+    except OSError as err:
+        raise _unwritable_folder(target, target.parent, err) from None
     return Path(tmp)
+
+
+def _unwritable_folder(target, folder, err, option=None):
+    """The error for ``target`` whose ``folder`` cannot be written in (``err``, the
+    ``OSError`` met), naming the ``option`` that gave it if there is one."""
+    named = f"{option} {target}" if option else str(target)
+    why = err.strerror or type(err).__name__
+    if isinstance(err, NotADirectoryError) or (os.path.lexists(folder)
+                                               and not os.path.isdir(folder)):
+        return ValueError(f"{named}: {folder} is not a folder; choose an output path in one")
+    if isinstance(err, FileNotFoundError) or not os.path.lexists(folder):
+        return ValueError(f"{named}: the folder {folder} does not exist; create it first")
+    return ValueError(f"{named}: cannot write in the folder {folder} ({why}); choose a folder "
+                      "you can write in")
+
+
+def _probe_folder(folder):
+    """Create and remove a hidden file in ``folder``: whether a file can be written there,
+    found by doing it (permission bits say nothing for root, nor for a read-only mount or an
+    access-control list). Raises the ``OSError`` met."""
+    with _LOCK:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".snapcorr-probe.")
+        os.close(fd)
+        _register(tmp)
+    try:
+        os.remove(tmp)
+    finally:
+        _unregister(tmp)
 
 
 def _umask():

@@ -63,9 +63,9 @@ def test_an_output_never_replaces_a_bundled_profile(tmp_path, cli):
     target = lens_path()
     before = target.read_bytes()
     with pytest.raises(ValueError, match=r"also an input|bundled"):
-        _check_outputs([target], ["edmund_optics_16mm"], True, [(".toml",)])
+        _check_outputs({"--out": target}, ["edmund_optics_16mm"], True, [(".toml",)])
     with pytest.raises(ValueError, match="bundled files"):
-        _check_outputs([target], [], True, [(".toml",)])
+        _check_outputs({"--out": target}, [], True, [(".toml",)])
     assert target.read_bytes() == before
 
 
