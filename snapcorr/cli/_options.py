@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import check_pack_range, check_positive
+from .._validation import F_NUMBER_MAX, check_f_number, check_pack_range, check_positive
 
 
 def _examples(examples):
@@ -112,6 +112,17 @@ def _positive(value):
             from None
 
 
+def _f_number(value):
+    """``--f-number F``: a finite number > 0 and at most
+    :data:`~snapcorr._validation.F_NUMBER_MAX` (the lens's own lower limit is checked with
+    the lens)."""
+    try:
+        return check_f_number("value", _number(value))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an f-number, a finite number > 0 and at "
+                                         f"most {F_NUMBER_MAX:g}, got {value!r}") from None
+
+
 def _wavelength_list(value):
     """``NM,NM,...`` or ``START:STOP:STEP`` (inclusive of STOP when it falls on a step)."""
     try:
@@ -142,9 +153,10 @@ def _flat_arg(value):
     f, path = value.split("=", 1)
     f = f.strip().lower().removeprefix("f").removeprefix("/")
     try:
-        fv = check_positive("the f-number", _number(f))
+        fv = check_f_number("the f-number", _number(f))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number > 0") from None
+        raise argparse.ArgumentTypeError(f"{value!r}: {f!r} is not an f-number: a finite "
+                                         f"number > 0 and at most {F_NUMBER_MAX:g}") from None
     if not path:
         raise argparse.ArgumentTypeError(f"{value!r}: no file after '='")
     return fv, Path(path)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ._frames import _read
-from ._options import SENSOR_HELP, _add_center, _lens, _positive, _sensor, add_command
+from ._options import SENSOR_HELP, _add_center, _f_number, _lens, _positive, _sensor, add_command
 from ._output import _check_outputs
 
 #: Its line in ``snapcorr --help``, and the start of its own.
@@ -32,7 +32,7 @@ def add_parser(subparsers):
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
     p.add_argument("--lens", required=True,
                    help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
-    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+    p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="f-number of the lens")
     p.add_argument("--source", required=True, metavar="SOURCE",
                    help="solar (Kurucz, 0.5 nm), solar:astm-g173 (at the ground, with O2 and "

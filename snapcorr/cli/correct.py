@@ -18,6 +18,7 @@ from ._options import (
     _add_virtual_options,
     _check_storage_option,
     _check_virtual_options,
+    _f_number,
     _lens,
     _origin_arg,
     _positive,
@@ -61,7 +62,7 @@ def add_parser(subparsers):
     p.add_argument("--lens", required=True,
                    help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
-    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+    p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="the f-number the cube was taken at")
     p.add_argument("--out", type=Path, required=True,
                    help="result: .nc or .zarr (everything, provenance in the attributes), or "

@@ -13,6 +13,7 @@ from ._options import (
     OVERWRITE_HELP,
     _add_center,
     _add_progress_options,
+    _f_number,
     _flat_arg,
     _lens,
     _one_per_f_number,
@@ -83,7 +84,7 @@ def add_parser(subparsers):
     g.add_argument("--predict", action="store_true",
                    help="print the predicted standard error of x for candidate targets (and "
                    "--target-spectrum) instead of fitting cubes")
-    g.add_argument("--f-number", type=_positive, action="append", default=[],
+    g.add_argument("--f-number", type=_f_number, action="append", default=[],
                    help="an f-number you would measure at (repeat)")
     g.add_argument("--noise-pct", type=_positive, default=None,
                    help="per-pixel noise, %% of the brightest band (default: 1)")

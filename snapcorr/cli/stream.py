@@ -18,6 +18,7 @@ from ._options import (
     _add_virtual_options,
     _check_storage_option,
     _check_virtual_options,
+    _f_number,
     _lens,
     _origin_arg,
     _positive,
@@ -66,7 +67,7 @@ def add_parser(subparsers):
     p.add_argument("--lens", default=None,
                    help="lens profile (.toml) or a bundled one: also the corrected "
                    "wavelengths (with --f-number)")
-    p.add_argument("--f-number", type=_positive, default=None, metavar="F",
+    p.add_argument("--f-number", type=_f_number, default=None, metavar="F",
                    help="the f-number the frames were taken at")
     p.add_argument("--resample", action="store_true",
                    help="also every frame's spectra on the nominal wavelengths")
