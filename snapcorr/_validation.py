@@ -188,6 +188,9 @@ def check_pair(name, value, what="two numbers"):
     -------
     (float, float)
     """
+    kind = _not_a_number(value)
+    if kind:  # True is no pixel position, nor "5" (float() takes both)
+        raise ValueError(f"{name} must be {what}, got {kind} ({shown(value)})")
     try:
         a, b = (float(c) for c in value)
     except (TypeError, ValueError, OverflowError):
