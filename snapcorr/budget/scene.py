@@ -130,8 +130,8 @@ def profile_of(sensor, profile=None):
     if profile is None:
         if sensor.profile not in SIGNAL_PROFILES:
             raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
-                             f"the budget does not model; name one it does: "
-                             f"{', '.join(SIGNAL_PROFILES)} (--profile, or profile= in Python)")
+                             f"the budget does not model; name one it does with profile=: "
+                             f"{', '.join(SIGNAL_PROFILES)}")
         profile = sensor.profile
     validate_method(profile, SIGNAL_PROFILES, "profile")
     return profile

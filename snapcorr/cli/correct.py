@@ -126,6 +126,7 @@ def run(args):
                          "--harmonise (or --method harmonised) too")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
+    _check_source_option(args, sensor)
     cube, mask = _correct_input(args, sensor)
     method, provenance = args.method, {}
     if args.source is not None:  # the scene budget chooses the model
@@ -186,6 +187,20 @@ def run(args):
             print(f"harmonised: not harmonised (NaN): {left_out}")
     _quicklook(args, "plot_correction", ds)
     return 0
+
+
+def _check_source_option(args, sensor):
+    """``--source`` lets the scene budget choose the model; the budget models only some filter
+    shapes, and ``correct`` has no option to name another: said before the cube is read."""
+    if args.source is None:
+        return
+    from ..budget import SIGNAL_PROFILES
+
+    if sensor.profile not in SIGNAL_PROFILES:
+        raise ValueError(f"--source chooses the model from a scene budget, which does not model "
+                         f"the {sensor.profile} filters of --sensor {args.sensor}: choose the "
+                         "model with --method instead (snapcorr budget --profile compares the "
+                         f"models for a {'/'.join(SIGNAL_PROFILES)} stand-in)")
 
 
 def _write_correction(args, ds, inputs, cube_name):

@@ -229,7 +229,7 @@ class Lens:
             raise ValueError(f"f/{bad:g} is below the physical limit: the working f-number "
                              f"(1 + m / m_P) f = {float(np.min(fw)):g} must be at least "
                              f"{MIN_WORKING_F_NUMBER:g} (a numerical aperture of 1 in air); "
-                             "check the f-number (--f-number)")
+                             "check the f-number")
         return fw
 
     def exit_pupil_radius_mm(self, f_number):
