@@ -35,6 +35,19 @@ def _lens(value):
     return Lens.load(value)
 
 
+def _source(value, cube=None):
+    """``--source``: the scene's spectrum (:func:`snapcorr.spectra.parse_source`), a refusal
+    naming the option."""
+    from ..spectra import parse_source
+
+    try:
+        return parse_source(value, cube)
+    except (ValueError, OSError) as err:
+        message = str(err)
+        raise ValueError(message if message.startswith("--source") else
+                         f"--source {value}: {message}") from None
+
+
 def _sensor(value):
     """``--sensor``: a sensor description (.toml, vendor .xml) or a bundled one by name."""
     from ..cube import Sensor

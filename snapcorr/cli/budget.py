@@ -18,6 +18,7 @@ from ._options import (
     _origin_arg,
     _positive,
     _sensor,
+    _source,
     add_command,
 )
 from ._output import _check_outputs
@@ -71,8 +72,6 @@ def add_parser(subparsers):
 
 def run(args):
     from ..budget import scene_budget, tolerance_ranges
-    from ..spectra import parse_source
-
     _check_outputs({"--plot": args.plot}, [args.cube, args.sensor, args.lens], args.overwrite,
                    [(".png",)])
     if args.source.split(":")[0].strip().lower() == "cube" and args.cube is None:
@@ -85,7 +84,7 @@ def run(args):
     if args.cube is not None:
         cube = _read(args.cube, sensor, args.sensor_origin_px)
         sensor.check_cube(cube, f"--cube {args.cube}")
-    source = parse_source(args.source, cube)
+    source = _source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
     from ..budget.scene import profile_of
 

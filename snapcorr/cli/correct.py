@@ -23,6 +23,7 @@ from ._options import (
     _origin_arg,
     _positive,
     _sensor,
+    _source,
     add_command,
 )
 from ._output import RAW_COPIES, _check_outputs, _print_virtual, _quicklook, _write_result
@@ -196,6 +197,8 @@ def _check_source_option(args, sensor):
         return
     from ..budget import SIGNAL_PROFILES
 
+    if args.source.split(":")[0].strip().lower() != "cube":  # the cube's: once it is read
+        _source(args.source)
     if sensor.profile not in SIGNAL_PROFILES:
         raise ValueError(f"--source chooses the model from a scene budget, which does not model "
                          f"the {sensor.profile} filters of --sensor {args.sensor}: choose the "

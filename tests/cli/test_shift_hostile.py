@@ -80,3 +80,14 @@ def test_a_lens_with_an_overflow_sized_value_is_refused_by_its_name(key):
     with pytest.raises(ValueError, match="must be at most") as err:
         Lens(**kwargs)
     assert (key if key != "vignetting" else "distance_mm") in str(err.value)
+
+
+@pytest.mark.parametrize("value", OVERFLOW)
+@pytest.mark.parametrize("command", ["budget", "correct"])
+def test_a_blackbody_source_of_overflow_temperature_names_the_option(command, value, cli,
+                                                                     tmp_path):
+    args = {"budget": ("budget", "--sensor", "snapscan_vnir", "--cra-max", "5"),
+            "correct": ("correct", tmp_path / "no_cube.nc", "--sensor", "snapscan_vnir",
+                        "--out", tmp_path / "o.nc")}[command]
+    rc, _, err = cli(*args, "--lens", LENS, "--f-number", "2", "--source", f"tungsten:{value}")
+    assert_refused(rc, err, "--source", "1e+06 K")
