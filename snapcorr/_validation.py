@@ -113,6 +113,14 @@ def check_positive(name, value):
 F_NUMBER_MAX = 1e6
 
 
+#: No lens's exit pupil or vignetting circle is further than this from the sensor, nor a
+#: circle wider (mm; a kilometre: a telecentric lens is x = ``inf``'s limit, reached long
+#: before): a larger value is a typo or a unit slip, and 1e200 overflows the optics.
+LENGTH_MAX_MM = 1e6
+#: No lens images at a magnification (or pupil magnification) beyond this.
+MAGNIFICATION_MAX = 1e3
+
+
 def check_f_number(name, value):
     """An f-number as a float: a finite number > 0 and at most :data:`F_NUMBER_MAX` (the
     lens's own lower limit, a numerical aperture of 1, is checked by the lens)."""

@@ -12,7 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import F_NUMBER_MAX, check_f_number, check_pack_range, check_positive
+from .._validation import (
+    F_NUMBER_MAX,
+    LENGTH_MAX_MM,
+    MAGNIFICATION_MAX,
+    check_f_number,
+    check_pack_range,
+    check_positive,
+)
 
 
 def _examples(examples):
@@ -134,6 +141,27 @@ def _f_number(value):
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an f-number, a finite number > 0 and at "
                                          f"most {F_NUMBER_MAX:g}, got {value!r}") from None
+
+
+def _bounded(low, high, what, unit="", *, above=True):
+    """An argument type: a finite number above ``low`` (or from it, ``above=False``) and at
+    most ``high``, ``what`` in the message (``"a magnification"``)."""
+    def parse(value):
+        v = _number(value)
+        if not (math.isfinite(v) and (v > low if above else v >= low) and v <= high):
+            raise argparse.ArgumentTypeError(
+                f"expected {what}, a finite number {'>' if above else '>='} {low:g} and at "
+                f"most {high:g}{unit}, got {value!r}")
+        return v
+    return parse
+
+
+#: ``--exit-pupil-mm`` and ``--vignetting-distance-mm``: a distance from the sensor, mm.
+_distance_mm = _bounded(0, LENGTH_MAX_MM, "a distance", " mm")
+#: ``--magnification``: |m|, 0 for a distant scene.
+_magnification = _bounded(0, MAGNIFICATION_MAX, "a magnification", above=False)
+#: ``--pupil-magnification``: m_P > 0.
+_pupil_magnification = _bounded(0, MAGNIFICATION_MAX, "a pupil magnification")
 
 
 def _wavelength_list(value):

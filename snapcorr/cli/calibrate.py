@@ -20,10 +20,13 @@ from ._options import (
     OVERWRITE_HELP,
     _add_center,
     _add_progress_options,
+    _distance_mm,
     _flat_arg,
     _lens,
+    _magnification,
     _one_per_f_number,
     _positive,
+    _pupil_magnification,
     _sensor,
     add_command,
 )
@@ -84,7 +87,7 @@ def add_parser(subparsers):
                    "several bands or TIFF pages in a file are averaged); repeat for each "
                    "f-number")
     x = p.add_mutually_exclusive_group()
-    x.add_argument("--exit-pupil-mm", type=_positive, metavar="X",
+    x.add_argument("--exit-pupil-mm", type=_distance_mm, metavar="X",
                    help="distance x from the sensor to the exit pupil, mm, when known")
     x.add_argument("--lens", default=None, metavar="LENS.toml",
                    help="take x (and m, m_P unless given) from this lens profile, e.g. the "
@@ -108,11 +111,11 @@ def add_parser(subparsers):
     _add_pupil_option(t)
     p.add_argument("--pixel-pitch-um", type=_positive, default=None, metavar="UM",
                    help="pixel pitch of the flats, micrometres (default: the --sensor's)")
-    p.add_argument("--magnification", type=float, default=None,
+    p.add_argument("--magnification", type=_magnification, default=None,
                    help="linear magnification m (default: the --lens value, else 0, "
                    "focused at infinity, assumed: the flats cannot tell it, and the errors "
                    "then include m / m_P over [0, 0.1]; give 0 if focused at infinity)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
                    help="pupil magnification m_P (default: the --lens value, else 1, "
                    "assumed; with --magnification > 0 the errors then include m_P over "
                    "[0.5, 2])")
@@ -124,7 +127,7 @@ def add_parser(subparsers):
     p.add_argument("--method", default="auto", choices=list(CALIBRATION_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "
                    "the paper's onsets predict flats left out of the fit better)")
-    p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
+    p.add_argument("--vignetting-distance-mm", type=_distance_mm, default=None, metavar="H",
                    help="h, when known (needed with a single f-number)")
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="value at or above which a pixel is saturated (default: the "

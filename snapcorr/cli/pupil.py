@@ -16,8 +16,10 @@ from ._options import (
     _f_number,
     _flat_arg,
     _lens,
+    _magnification,
     _one_per_f_number,
     _positive,
+    _pupil_magnification,
     _sensor,
     add_command,
 )
@@ -70,9 +72,9 @@ def add_parser(subparsers):
     _add_target_fit_options(p)
     _add_pupil_option(p)
     _add_center(p, "optical centre in sensor pixels (default: found from the cubes)")
-    p.add_argument("--magnification", type=float, default=None,
+    p.add_argument("--magnification", type=_magnification, default=None,
                    help="linear magnification m without --lens (default 0)")
-    p.add_argument("--pupil-magnification", type=_positive, default=None,
+    p.add_argument("--pupil-magnification", type=_pupil_magnification, default=None,
                    help="pupil magnification m_P without --lens (default 1)")
     p.add_argument("--tolerance-nm", type=_positive, default=None, metavar="NM",
                    help=TARGET_TOLERANCE_HELP)

@@ -20,6 +20,8 @@ import numpy as np
 from .._bundled import profile_path
 from .._validation import (
     F_NUMBER_MAX,
+    LENGTH_MAX_MM,
+    MAGNIFICATION_MAX,
     called_from_outside,
     check_numbers,
     shown,
@@ -28,14 +30,6 @@ from .._validation import (
 from ..files.toml import read_toml, write_toml
 
 __all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
-
-
-#: No lens's exit pupil or vignetting circle is further than this from the sensor, nor a
-#: circle wider (mm; a kilometre: a telecentric lens is x = ``inf``'s limit, reached long
-#: before): a larger value is a typo or a unit slip, and 1e200 overflows the optics.
-LENGTH_MAX_MM = 1e6
-#: No lens images at a magnification (or pupil magnification) beyond this.
-MAGNIFICATION_MAX = 1e3
 
 
 def _finite(name, value, *, positive=False, at_most=None, unit=""):

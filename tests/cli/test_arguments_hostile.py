@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 import pytest
-from hostile import refused_in_one_line
+from hostile import assert_refused, refused_in_one_line
 
 from snapcorr.data import lens_path
 
@@ -79,3 +79,24 @@ def test_two_outputs_of_one_command_may_not_meet(small, cli):
                         "--out", "o.zarr", "--plot", "o.zarr/q.png", cwd=small))
     assert "one lies in the other" in err
     assert not (small / "o.zarr").exists()
+
+
+LENS_OPTIONS = {"calibrate": ["--exit-pupil-mm", "--magnification", "--pupil-magnification",
+                              "--vignetting-distance-mm"],
+                "pupil": ["--magnification", "--pupil-magnification"]}
+
+
+@pytest.mark.parametrize("value", ["1e200", "1e308", "inf", "nan"])
+@pytest.mark.parametrize(("command", "option"),
+                         [(c, o) for c, options in LENS_OPTIONS.items() for o in options])
+def test_a_lens_number_of_overflow_size_is_refused_by_its_option_before_any_read(
+        tmp_path, command, option, value, cli):
+    """Refused as the options are read, with the range: 1e200 was refused only after the
+    flats were read and fitted, and --vignetting-distance-mm by the circle's name."""
+    first = {"calibrate": ("calibrate", "--flat", "2=f2.npy", "--flat", "4=f4.npy"),
+             "pupil": ("pupil", "--cube", "2=c2.nc", "--sensor", "snapscan_vnir")}[command]
+    rest = [] if option == "--exit-pupil-mm" or command == "pupil" else ["--exit-pupil-mm",
+                                                                          "21"]
+    rc, _, err = cli(*first, *rest, option, value, "--out", "l.toml", cwd=tmp_path)
+    assert_refused(rc, err, option, "at most")
+    assert rc == 2  # a usage error: nothing was read
