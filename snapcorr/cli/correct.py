@@ -133,6 +133,9 @@ def run(args):
     if args.source is not None:  # the scene budget chooses the model
         from ..budget import recommend_model
 
+        if args.source.strip().lower().startswith("cube:"):  # one pixel's: checked, named
+            _source(args.source, cube)
+
         method, _, provenance = recommend_model(
             cube, sensor, args.f_number, lens, args.source,
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,

@@ -140,3 +140,15 @@ def test_budget_places_a_cropped_cube_with_sensor_origin_px(tmp_path, cli):
     rc, out, err = cli(*args, "--sensor-origin-px", "1000,1000")
     assert rc == 0, err
     assert "CRA up to 0.5" in out, out  # a crop near the sensor's centre
+
+
+def test_correct_names_source_for_a_pixel_outside_the_cube(tmp_path, cli):
+    from snapcorr.cube import Sensor, make_cube, write_cube
+
+    sensor = Sensor.load("snapscan_vnir")
+    write_cube(make_cube(np.full((4, 5, len(sensor.cwl_nm)), 0.5, np.float32), sensor.cwl_nm,
+                         name="reflectance"), tmp_path / "crop.nc")
+    rc, _, err = cli("correct", tmp_path / "crop.nc", "--lens", LENS, "--sensor",
+                     "snapscan_vnir", "--f-number", "2", "--sensor-origin-px", "1000,1000",
+                     "--source", "cube:99,99", "--out", tmp_path / "o.nc")
+    assert_refused(rc, err, "--source cube:99,99", "outside")
