@@ -165,6 +165,9 @@ def _old_into_rc(func, sig, old, new, many):
             if declared:
                 bound.arguments[old] = None
             bound.arguments[new] = swapped
+        elif bound.arguments.get(new) is not None:  # given row first: checked here, by name
+            for c in (bound.arguments[new] if many else [bound.arguments[new]]):
+                check_pair(new, c, "two numbers (row, col) in pixels")
         return func(*bound.args, **bound.kwargs)
 
     if not declared:

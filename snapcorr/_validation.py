@@ -107,6 +107,28 @@ def check_positive(name, value):
     return v
 
 
+#: The largest f-number taken: a pinhole camera's is a few hundred, and past this the cone is
+#: the pinhole limit already (the mean shift is the chief ray's to 1e-9 nm); far larger ones
+#: (1e200) leave an exit pupil too small to compute with, and are a typo.
+F_NUMBER_MAX = 1e6
+
+
+#: No lens's exit pupil or vignetting circle is further than this from the sensor, nor a
+#: circle wider (mm; a kilometre: a telecentric lens is x = ``inf``'s limit, reached long
+#: before): a larger value is a typo or a unit slip, and 1e200 overflows the optics.
+LENGTH_MAX_MM = 1e6
+
+
+def check_f_number(name, value):
+    """An f-number as a float: a finite number > 0 and at most :data:`F_NUMBER_MAX` (the
+    lens's own lower limit, a numerical aperture of 1, is checked by the lens)."""
+    v = check_positive(name, value)
+    if v > F_NUMBER_MAX:
+        raise ValueError(f"{name} must be at most {F_NUMBER_MAX:g} (a pinhole's is a few "
+                         f"hundred), got {shown(value)}")
+    return v
+
+
 #: No sensor is more pixels across than this (the largest made are near 20 000): a size read
 #: from a file beyond it is a mistake, refused before anything is sized by it.
 SENSOR_PX_MAX = 100_000
@@ -172,6 +194,9 @@ def check_pair(name, value, what="two numbers"):
     -------
     (float, float)
     """
+    kind = _not_a_number(value)
+    if kind:  # True is no pixel position, nor "5" (float() takes both)
+        raise ValueError(f"{name} must be {what}, got {kind} ({shown(value)})")
     try:
         a, b = (float(c) for c in value)
     except (TypeError, ValueError, OverflowError):

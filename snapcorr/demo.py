@@ -26,6 +26,7 @@ import numpy as np
 from . import __version__
 from .data import lens_path
 from .files.marks import written_by_snapcorr
+from .files.outputs import check_folder_writable
 from .files.png import save_png
 from .files.reading import NotRegularFileError, file_kind, read_regular
 from .files.safety import atomic_write, checked_outputs, last_written, note_checked
@@ -131,6 +132,10 @@ def check_out_dir(out_dir, *, overwrite=False):
     out = Path(out_dir)
     if os.path.lexists(out) and not out.is_dir():
         raise ValueError(f"{out} is not a folder; choose another --out")
+    folder = out  # the folder written in: out, or the first folder above it that exists
+    while not os.path.lexists(folder) and folder.parent != folder:
+        folder = folder.parent
+    check_folder_writable(out, "--out", folder=folder)  # probed, before any work
     for name in (MARKER, *OUTPUTS):  # before anything is examined: only this is replaced
         note_checked(out / name)
     if not out.is_dir():

@@ -126,12 +126,19 @@ def solar(model="kurucz", smoothing_nm=0.5, step_nm=0.1, range_nm=(300.0, 1100.0
     return Spectrum(grid, values, f"sun (Kurucz, {smoothing_nm:g} nm sliding average)")
 
 
+#: The hottest blackbody a source may be (K): past it the spectrum over any band set is
+#: Rayleigh-Jeans' already, and a larger value is a typo.
+TEMPERATURE_MAX_K = 1e6
+
+
 def blackbody(temperature_k, wavelength_nm=None) -> Spectrum:
     """Planck's law at ``temperature_k`` (relative spectral radiance); a tungsten lamp at its
     colour temperature."""
     t = float(temperature_k)
-    if not (math.isfinite(t) and t > 0):
-        raise ValueError(f"a temperature must be > 0 K, got {temperature_k!r}")
+    if not (math.isfinite(t) and 0 < t <= TEMPERATURE_MAX_K):
+        raise ValueError(f"a temperature must be finite, > 0 and at most "
+                         f"{TEMPERATURE_MAX_K:g} K (the hottest stars are near 5e4 K), got "
+                         f"{temperature_k!r}")
     lam = np.arange(250.0, 2500.01, 0.5) if wavelength_nm is None else np.asarray(
         wavelength_nm, float)
     with np.errstate(over="ignore"):

@@ -185,3 +185,31 @@ def refused_in_one_line(res):
     assert "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1, \
         res.stderr
     return res.stderr
+
+
+def read_only(monkeypatch, folder):
+    """Make ``folder`` refuse new entries as a read-only folder does for a user who is not
+    root (tests may run as root, who may write anywhere): creating a file or a folder directly
+    in it raises ``PermissionError``, as the kernel would. Everything that creates a file
+    (``tempfile``, and with it every writer and the output probe) goes through ``os.open`` or
+    ``os.mkdir``."""
+    import errno
+
+    folder = os.path.realpath(folder)
+    real_open, real_mkdir = os.open, os.mkdir
+
+    def refused(path):
+        return os.path.dirname(os.path.realpath(os.fspath(path))) == folder
+
+    def fake_open(path, flags, *args, **kwargs):
+        if flags & os.O_CREAT and refused(path):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    def fake_mkdir(path, *args, **kwargs):
+        if refused(path):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(path))
+        return real_mkdir(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", fake_open)
+    monkeypatch.setattr(os, "mkdir", fake_mkdir)

@@ -141,3 +141,49 @@ def test_a_centre_argument_of_another_name_keeps_its_old_x_first_keyword():
     with pytest.raises(ValueError, match="two numbers"):
         renamed(1, fix_center=(1.0,))
 
+
+
+def _centre_takers():
+    """Every public function taking a row-first centre, with its centre arguments' names."""
+    for name, func in sorted(_public_functions().items()):
+        params = inspect.signature(func).parameters
+        names = [p for p in ("center_rc", "fix_center_rc", "centers_rc") if p in params]
+        if names and hasattr(func, "__wrapped__"):  # through accepts_center_rc
+            yield name, func, names
+
+
+@pytest.mark.parametrize("bad", [(True, 5), (5, np.bool_(False)), (np.nan, 5), (5, np.inf),
+                                 ("5", 5)], ids=["bool", "numpy-bool", "nan", "inf", "text"])
+def test_every_public_function_refuses_a_centre_that_is_no_pixel_position(bad):
+    """A centre is checked where it comes in (accepts_center_rc), named, before any work: a
+    bool is no row (True was taken as row 1), nor text, nor a non-finite number."""
+    wrong = []
+    for name, func, names in _centre_takers():
+        for arg in names:
+            required = [p for p in inspect.signature(func).parameters.values()
+                        if p.default is inspect.Parameter.empty
+                        and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+                        and p.name not in names]
+            value = [bad] if arg == "centers_rc" else bad
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    func(**dict.fromkeys((p.name for p in required), None), **{arg: value})
+                except ValueError as err:
+                    if arg in str(err) and ("finite" in str(err) or "got" in str(err)):
+                        continue
+                    wrong.append(f"{name}({arg}=): {err}")
+                    continue
+                except Exception as err:  # any other failure is the finding
+                    wrong.append(f"{name}({arg}=): {type(err).__name__}: {err}")
+                    continue
+            wrong.append(f"{name}({arg}=) accepted {bad!r}")
+    assert not wrong, "\n".join(wrong)
+
+
+@pytest.mark.parametrize("keyword", ["center_rc", "center_px"])
+def test_a_boolean_centre_is_refused_by_its_name(keyword):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(ValueError, match=f"{keyword} must be two numbers.*a boolean"):
+            cra_map((3, 5), 5.5, 21.0, **{keyword: (True, 5)})

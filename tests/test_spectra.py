@@ -25,10 +25,10 @@ def test_sources_parse_and_bad_sources_are_refused(tmp_path):
     assert s(450.0) == pytest.approx(1.5)
     np.save(tmp_path / "s.npy", np.array([[400.0, 500.0, 600.0], [1.0, 2.0, 3.0]]))
     assert spectra.read_spectrum(tmp_path / "s.npy")(450.0) == pytest.approx(1.5)
-    for bad, msg in (("tungsten:hot", "temperature"), ("tungsten:-5", "> 0 K"),
+    for bad, msg in (("tungsten:hot", "temperature"), ("tungsten:-5", "> 0 and at most"),
                      ("nothing.csv", "no spectrum file"), ("sun", "unknown source"),
                      ("cube", "needs a cube"), ("tungsten:5", "emits nothing"),
-                     ("solar:moon", "solar model")):
+                     ("solar:moon", "solar model"), ("tungsten:1e200", "at most 1e\\+06 K")):
         with pytest.raises(ValueError, match=msg):
             spectra.parse_source(bad)
     (tmp_path / "bad.txt").write_text("1 2 3\n4 5 6\n7 8 9\n")

@@ -14,7 +14,7 @@ import numpy as np
 import xarray as xr
 
 from .._coords import accepts_center_rc
-from .._validation import check_positive, validate_method
+from .._validation import check_f_number, check_positive, validate_method
 from ..optics import CORRECTION_MODELS, Lens, mean_shift
 from ..optics.response import kernel_bins
 from .report import Budget
@@ -74,7 +74,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
-    f = check_positive("f_number", f_number)
+    f = check_f_number("f_number", f_number)
     cra_max = float(cra_max_deg)
     cutoff = float(lens.cutoff_cra_deg(f))
     if not (math.isfinite(cra_max) and 0 <= cra_max < cutoff):
@@ -130,8 +130,8 @@ def profile_of(sensor, profile=None):
     if profile is None:
         if sensor.profile not in SIGNAL_PROFILES:
             raise ValueError(f"the sensor {sensor.name!r} has {sensor.profile} filters, which "
-                             f"the budget does not model; name one it does: "
-                             f"{', '.join(SIGNAL_PROFILES)} (--profile, or profile= in Python)")
+                             f"the budget does not model; name one it does with profile=: "
+                             f"{', '.join(SIGNAL_PROFILES)}")
         profile = sensor.profile
     validate_method(profile, SIGNAL_PROFILES, "profile")
     return profile

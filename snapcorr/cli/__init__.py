@@ -4,10 +4,10 @@ Every expected failure becomes one line on stderr and a non-zero exit status; in
 written over, outputs appear whole or not at all (also on Ctrl-C and SIGTERM).
 
 Each command is a module of its name (``snapcorr.cli.correct`` is ``snapcorr correct``) with
-``add_parser(subparsers)`` and ``run(args)``; the pieces they share are ``_options`` (argument
-types, option groups), ``_output`` (outputs checked and written), ``_frames`` (inputs read),
-``_flats`` (the flats of ``calibrate``), ``_targets`` (a fit to a target's cubes), ``_progress``
-(progress bars) and ``_errors`` (one-line messages).
+``add_parser(subparsers)`` and ``run(args)``; the pieces they share are ``_options`` (option
+groups; the argument types of ``_types``), ``_output`` (outputs checked and written),
+``_frames`` (inputs read), ``_flats`` (the flats of ``calibrate``), ``_targets`` (a fit to a
+target's cubes), ``_progress`` (progress bars) and ``_errors`` (one-line messages).
 """
 
 from __future__ import annotations

@@ -67,10 +67,14 @@ def _message(err, options=None):
     """The exception as one line, in command-line terms; a library check's message that
     begins with a keyword one of ``options`` sets (``{keyword: option}``) names the option
     instead (``n_eff must be ...`` is ``--n-eff must be ...``). Only at the start: a message
-    about a file's key begins with the file (``lens.toml: n_eff must ...``)."""
+    about a file's key begins with the file (``lens.toml: n_eff must ...``). A keyword the
+    library names as Python's ``keyword=`` is the option too, where the command has one (a
+    library message names no option: which a command has, only the command knows)."""
     message = " ".join(str(err).split())  # libraries' messages may span lines
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
+    for keyword, option in (options or {}).items():
+        message = re.sub(rf"(?<![\w-]){re.escape(keyword)}=(?![\w(\[\"'])", option, message)
     for keyword, option in (options or {}).items():
         if message.startswith(keyword) and _CHECK_VERBS.match(message, len(keyword)):
             return option + message[len(keyword):]

@@ -8,13 +8,17 @@ from .._bundled import input_path as _input_path
 
 
 def _check_outputs(outputs, inputs, overwrite, suffixes):
-    """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
-    (without ``--overwrite``), have the wrong suffix or no folder to go in
-    (:func:`snapcorr.files.check_outputs`; bundled profiles are never replaced)."""
+    """Refuse, before any work or any write, outputs that are, contain or lie in an input,
+    that exist (without ``--overwrite``), have the wrong suffix or no folder to go in that can
+    be written in (:func:`snapcorr.files.check_outputs`; bundled profiles are never replaced).
+
+    ``outputs`` is ``{option: path}`` (``{"--out": args.out, "--plot": args.plot}``; a None
+    path is not asked for): a refusal of a folder names the option."""
     from ..files.outputs import check_outputs
 
-    check_outputs(outputs, [_input_path(i) for i in inputs if i is not None],
-                  overwrite=overwrite, suffixes=suffixes, protected=_bundled_folder())
+    check_outputs(list(outputs.values()), [_input_path(i) for i in inputs if i is not None],
+                  overwrite=overwrite, suffixes=suffixes, protected=_bundled_folder(),
+                  names=list(outputs))
 
 
 #: The copies of the input a flat-field result keeps (``--no-input`` leaves them out).

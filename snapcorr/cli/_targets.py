@@ -52,7 +52,8 @@ def _check_target_outputs(args, seen, inputs, cubes):
     if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
         raise ValueError(f"--sensor-out needs --fit-n-eff and {cubes} at two or more "
                          "f-numbers (one f-number fixes only x * n_eff)")
-    _check_outputs([args.out, args.plot, args.sensor_out], inputs, args.overwrite,
+    _check_outputs({"--out": args.out, "--plot": args.plot, "--sensor-out": args.sensor_out},
+                   inputs, args.overwrite,
                    [(".toml",), (".png",), (".toml",)])
 
 

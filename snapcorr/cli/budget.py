@@ -9,7 +9,18 @@ from pathlib import Path
 import numpy as np
 
 from ._frames import _read
-from ._options import SENSOR_HELP, _add_center, _lens, _positive, _sensor, add_command
+from ._options import (
+    ORIGIN_HELP,
+    SENSOR_HELP,
+    _add_center,
+    _f_number,
+    _lens,
+    _origin_arg,
+    _positive,
+    _sensor,
+    _source,
+    add_command,
+)
 from ._output import _check_outputs
 
 #: Its line in ``snapcorr --help``, and the start of its own.
@@ -32,7 +43,7 @@ def add_parser(subparsers):
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
     p.add_argument("--lens", required=True,
                    help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
-    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+    p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="f-number of the lens")
     p.add_argument("--source", required=True, metavar="SOURCE",
                    help="solar (Kurucz, 0.5 nm), solar:astm-g173 (at the ground, with O2 and "
@@ -46,6 +57,8 @@ def add_parser(subparsers):
                    help="a cube: its pixels set the field, and --source cube its spectrum")
     _add_center(p, "optical centre in the cube's sensor pixels, for --cube (default: "
                    "from the lens calibration, else the sensor's centre)")
+    p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
+                   help="with --cube: " + ORIGIN_HELP)
     p.add_argument("--cra-max", type=_positive, default=None, metavar="DEG",
                    help="the field to cover (default: the sensor's size_px, or the cube)")
     p.add_argument("--profile", default=None, choices=["gaussian", "multi_lorentzian", "pi"],
@@ -59,19 +72,19 @@ def add_parser(subparsers):
 
 def run(args):
     from ..budget import scene_budget, tolerance_ranges
-    from ..spectra import parse_source
-
-    _check_outputs([args.plot], [args.cube, args.sensor, args.lens], args.overwrite,
+    _check_outputs({"--plot": args.plot}, [args.cube, args.sensor, args.lens], args.overwrite,
                    [(".png",)])
     if args.source.split(":")[0].strip().lower() == "cube" and args.cube is None:
         raise ValueError(f"--source {args.source} is the spectrum of a cube: give --cube CUBE")
+    if args.sensor_origin_px is not None and args.cube is None:
+        raise ValueError("--sensor-origin-px places --cube on the sensor: give --cube CUBE")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     cube = None
     if args.cube is not None:
-        cube = _read(args.cube, sensor)
+        cube = _read(args.cube, sensor, args.sensor_origin_px)
         sensor.check_cube(cube, f"--cube {args.cube}")
-    source = parse_source(args.source, cube)
+    source = _source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
     from ..budget.scene import profile_of
 
@@ -100,7 +113,8 @@ def _budget_field(args, lens, sensor, cube):
         return args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
     if cube is not None:
         center_rc = None if args.center_px is None else tuple(args.center_px)[::-1]
-        cra_max = float(cube_cra(cube, sensor, lens, center_rc=center_rc).cra_deg.max())
+        cra_max = float(cube_cra(cube, sensor, lens, center_rc=center_rc,
+                                 sensor_origin_px=args.sensor_origin_px).cra_deg.max())
         return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
     if sensor.field_radius_mm is not None:
         cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))

@@ -16,15 +16,17 @@ from ._flats import (
     _read_flats,
 )
 from ._frames import _read
-from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
     _add_progress_options,
+    _distance_mm,
     _flat_arg,
     _lens,
+    _magnification,
     _one_per_f_number,
     _positive,
+    _pupil_magnification,
     _sensor,
     add_command,
 )
@@ -85,7 +87,7 @@ def add_parser(subparsers):
                    "several bands or TIFF pages in a file are averaged); repeat for each "
                    "f-number")
     x = p.add_mutually_exclusive_group()
-    x.add_argument("--exit-pupil-mm", type=_positive, metavar="X",
+    x.add_argument("--exit-pupil-mm", type=_distance_mm, metavar="X",
                    help="distance x from the sensor to the exit pupil, mm, when known")
     x.add_argument("--lens", default=None, metavar="LENS.toml",
                    help="take x (and m, m_P unless given) from this lens profile, e.g. the "
@@ -125,7 +127,7 @@ def add_parser(subparsers):
     p.add_argument("--method", default="auto", choices=list(CALIBRATION_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "
                    "the paper's onsets predict flats left out of the fit better)")
-    p.add_argument("--vignetting-distance-mm", type=float, default=None, metavar="H",
+    p.add_argument("--vignetting-distance-mm", type=_distance_mm, default=None, metavar="H",
                    help="h, when known (needed with a single f-number)")
     p.add_argument("--saturation", type=_positive, default=None, metavar="DN",
                    help="value at or above which a pixel is saturated (default: the "
@@ -156,7 +158,8 @@ def run(args):
                          "(from snapcorr pupil), or --target-cube F_NUMBER=PATH (repeat) with "
                          "--sensor to fit it from a spectral target in the same run")
     inputs = [p for _, p in args.flat] + [args.dark, args.lens, args.sensor]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
+                   [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     if args.pupil == "auto":
         raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "

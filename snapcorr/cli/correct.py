@@ -18,10 +18,12 @@ from ._options import (
     _add_virtual_options,
     _check_storage_option,
     _check_virtual_options,
+    _f_number,
     _lens,
     _origin_arg,
     _positive,
     _sensor,
+    _source,
     add_command,
 )
 from ._output import RAW_COPIES, _check_outputs, _print_virtual, _quicklook, _write_result
@@ -61,7 +63,7 @@ def add_parser(subparsers):
     p.add_argument("--lens", required=True,
                    help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
-    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+    p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="the f-number the cube was taken at")
     p.add_argument("--out", type=Path, required=True,
                    help="result: .nc or .zarr (everything, provenance in the attributes), or "
@@ -110,7 +112,7 @@ def run(args):
     from ..cube.derived import with_fwhm_table
 
     inputs = [args.cube, args.lens, args.sensor]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite,
+    _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
                    [(".nc", ".zarr", ".hdr"), (".png",)])
     if args.out.suffix.lower() == ".hdr" and (args.compression != "auto" or args.store_derived):
         raise ValueError("an ENVI result is written plainly and whole: --compression and "
@@ -125,10 +127,14 @@ def run(args):
                          "--harmonise (or --method harmonised) too")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
+    _check_source_option(args, sensor)
     cube, mask = _correct_input(args, sensor)
     method, provenance = args.method, {}
     if args.source is not None:  # the scene budget chooses the model
         from ..budget import recommend_model
+
+        if args.source.strip().lower().startswith("cube:"):  # one pixel's: checked, named
+            _source(args.source, cube)
 
         method, _, provenance = recommend_model(
             cube, sensor, args.f_number, lens, args.source,
@@ -185,6 +191,22 @@ def run(args):
             print(f"harmonised: not harmonised (NaN): {left_out}")
     _quicklook(args, "plot_correction", ds)
     return 0
+
+
+def _check_source_option(args, sensor):
+    """``--source`` lets the scene budget choose the model; the budget models only some filter
+    shapes, and ``correct`` has no option to name another: said before the cube is read."""
+    if args.source is None:
+        return
+    from ..budget import SIGNAL_PROFILES
+
+    if args.source.split(":")[0].strip().lower() != "cube":  # the cube's: once it is read
+        _source(args.source)
+    if sensor.profile not in SIGNAL_PROFILES:
+        raise ValueError(f"--source chooses the model from a scene budget, which does not model "
+                         f"the {sensor.profile} filters of --sensor {args.sensor}: choose the "
+                         "model with --method instead (snapcorr budget --profile compares the "
+                         f"models for a {'/'.join(SIGNAL_PROFILES)} stand-in)")
 
 
 def _write_correction(args, ds, inputs, cube_name):

@@ -95,7 +95,8 @@ def run(args):
     from ..cube.flatfield import check_masked
 
     inputs = [p for p in (args.raw, *args.dark, *args.white, args.filter_white) if p]
-    _check_outputs([args.out, args.plot], inputs, args.overwrite, [(".nc", ".zarr"), (".png",)])
+    _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
+                   [(".nc", ".zarr"), (".png",)])
     _check_storage_option(args)
     sensor = _sensor(args.sensor) if args.sensor else None
     if args.sensor_origin_px is not None and sensor is None:

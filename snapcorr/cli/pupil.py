@@ -9,15 +9,17 @@ from pathlib import Path
 import numpy as np
 
 from ._frames import _read
-from ._magnifications import _magnification, _pupil_magnification
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
     _add_progress_options,
+    _f_number,
     _flat_arg,
     _lens,
+    _magnification,
     _one_per_f_number,
     _positive,
+    _pupil_magnification,
     _sensor,
     add_command,
 )
@@ -88,7 +90,7 @@ def add_parser(subparsers):
     g.add_argument("--predict", action="store_true",
                    help="print the predicted standard error of x for candidate targets (and "
                    "--target-spectrum) instead of fitting cubes")
-    g.add_argument("--f-number", type=_positive, action="append", default=[],
+    g.add_argument("--f-number", type=_f_number, action="append", default=[],
                    help="an f-number you would measure at (repeat)")
     g.add_argument("--noise-pct", type=_positive, default=None,
                    help="per-pixel noise, %% of the brightest band (default: 1)")

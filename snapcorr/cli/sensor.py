@@ -52,7 +52,8 @@ def add_parser(subparsers):
 
 def run(args):
     inputs = [args.file]
-    _check_outputs([args.toml, args.plot], inputs, args.overwrite, [(".toml",), (".png",)])
+    _check_outputs({"--toml": args.toml, "--plot": args.plot}, inputs, args.overwrite,
+                   [(".toml",), (".png",)])
     sensor = _sensor(args.file)
     if args.phase_from is not None:
         return _print_phase(args, sensor)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._names import MEAN_SHIFT_METHOD_NAMES
-from ._options import _lens, _positive, add_command
+from ._options import _f_number, _lens, _positive, add_command
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = "mean central-wavelength shift at chief-ray angles (Eq. 22-23)"
@@ -22,7 +22,7 @@ def add_parser(subparsers):
     p = add_command(subparsers, "shift", HELP, EXAMPLES)
     p.add_argument("--lens", default="edmund_optics_16mm",
                    help="lens profile (.toml) or a bundled lens name (default: %(default)s)")
-    p.add_argument("--f-number", type=_positive, required=True, metavar="F",
+    p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="f-number of the lens")
     p.add_argument("--cra", type=float, nargs="+", required=True, metavar="DEG",
                    help="chief-ray angles, degrees (one or more)")

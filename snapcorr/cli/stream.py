@@ -13,11 +13,13 @@ from ._options import (
     OVERWRITE_HELP,
     SENSOR_HELP,
     STORAGE_CHOICES,
+    _add_center,
     _add_output_options,
     _add_progress_options,
     _add_virtual_options,
     _check_storage_option,
     _check_virtual_options,
+    _f_number,
     _lens,
     _origin_arg,
     _positive,
@@ -66,8 +68,10 @@ def add_parser(subparsers):
     p.add_argument("--lens", default=None,
                    help="lens profile (.toml) or a bundled one: also the corrected "
                    "wavelengths (with --f-number)")
-    p.add_argument("--f-number", type=_positive, default=None, metavar="F",
+    p.add_argument("--f-number", type=_f_number, default=None, metavar="F",
                    help="the f-number the frames were taken at")
+    _add_center(p, "with --lens: optical centre in sensor pixels (default: the lens "
+                   "profile's, converted to this pixel pitch, else the sensor's centre)")
     p.add_argument("--resample", action="store_true",
                    help="also every frame's spectra on the nominal wavelengths")
     _add_virtual_options(p)
@@ -89,7 +93,7 @@ def run(args):
     from ..pipeline import process_stream
 
     inputs = [args.frames, *args.dark, *args.white]
-    _check_outputs([args.out], inputs, args.overwrite, [(".zarr", ".nc")])
+    _check_outputs({"--out": args.out}, inputs, args.overwrite, [(".zarr", ".nc")])
     _check_storage_option(args)
     sensor = _sensor(args.sensor)
     if sensor.layout != "mosaic":
@@ -97,6 +101,9 @@ def run(args):
                          f"mosaic (layout {sensor.layout!r})")
     if (args.lens is None) != (args.f_number is None):
         raise ValueError("correcting a stream needs both --lens and --f-number")
+    if args.center_px is not None and args.lens is None:
+        raise ValueError("--center places the lens's optical centre: give --lens and "
+                         "--f-number too")
     if args.resample and args.lens is None:
         raise ValueError("--resample needs --lens and --f-number")
     _check_virtual_options(args, sensor)
@@ -109,6 +116,7 @@ def run(args):
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, sensor_origin_px=args.sensor_origin_px,
+                        center_px=args.center_px,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample,
                         virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
                         virtual_wavelengths_nm=args.virtual_wavelengths,

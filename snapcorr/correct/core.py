@@ -14,7 +14,7 @@ import xarray as xr
 
 from .. import __version__
 from .._coords import accepts_center_rc
-from .._validation import check_positive, validate_method
+from .._validation import check_f_number, check_positive, validate_method
 from ..cube.derived import corrected_wavelength
 from ..cube.flatfield import cf_attrs
 from ..cube.model import check_cube
@@ -234,7 +234,7 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
         raise TypeError(f"correct_cube(cube, sensor, f_number, lens) takes a Sensor and a Lens,"
                         f" got {type(sensor).__name__} and {type(lens).__name__}")
     validate_method(method, ("auto", *MODELS))
-    f = check_positive("f_number", f_number)
+    f = check_f_number("f_number", f_number)
     check_positive("tolerance_nm", tolerance_nm)
     if target_fwhm_nm is not None and not (harmonise or method == "harmonised"):
         raise ValueError("target_fwhm_nm sets the common response of harmonise=True")

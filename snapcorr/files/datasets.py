@@ -118,11 +118,36 @@ def refuse_packed_counts(var, path, *, counts=False):
                      "variable the units of the physical values it holds")
 
 
+#: The ``(y, x, band)`` variables snapcorr writes beside a cube (the input's copies, the
+#: results computed from it, the angles and masks): never the cube a file is read as while
+#: another is there.
+_BESIDE_THE_CUBE = ("raw", "filter_white_raw", "resampled", "harmonised", "wavelength_corrected",
+                   "fwhm_corrected", "wavelength_scale", "cra", "cra_deg", "mask",
+                   "transmittance_mask")
+
+
+def _the_cube(path, cubes, what="cubes (y, x, band)"):
+    """Which of the variables ``cubes`` (of one shape: ``what``) is the cube: ``radiance``,
+    ``reflectance`` or ``transmittance`` (or ``frame``), else the one that is none of
+    :data:`_BESIDE_THE_CUBE`; two or more such are refused (which one is meant cannot be
+    told), naming them."""
+    preferred = [n for n in ("radiance", "reflectance", "transmittance", "frame") if n in cubes]
+    if preferred:
+        return preferred[0]
+    unknown = [n for n in cubes if n not in _BESIDE_THE_CUBE]
+    if len(unknown) > 1:
+        raise ValueError(f"{path} holds {len(unknown)} {what}: "
+                         f"{', '.join(map(str, unknown))}; which one to read cannot be told: "
+                         "save the one you need alone (or name it radiance, reflectance or "
+                         "transmittance)")
+    return (unknown or cubes)[0]
+
+
 def _read_xarray(path, fmt, chunks):
     """The cube of a netCDF file or Zarr store (a ``(y, x)`` frame as one band): its
-    ``radiance``, ``reflectance`` or ``transmittance``, else its first ``(y, x, band)``
-    variable. With :class:`~snapcorr.files.storage._Rows` chunks, the variable is cut into
-    blocks of rows from its shape (each block reads its rows only)."""
+    ``radiance``, ``reflectance`` or ``transmittance``, else its one other ``(y, x, band)``
+    variable (:func:`_the_cube`). With :class:`~snapcorr.files.storage._Rows` chunks, the
+    variable is cut into blocks of rows from its shape (each block reads its rows only)."""
     ds = _open_dataset(path, fmt, chunks)
     for var in ds.variables.values():
         var.attrs = decode_attrs(var.attrs)
@@ -131,8 +156,7 @@ def _read_xarray(path, fmt, chunks):
     if not cubes and left_out:  # a result without its input: its mask or angles are no cube
         raise ValueError(f"{path} holds no cube: its input was left out ({left_out})")
     if cubes:
-        preferred = [n for n in ("radiance", "reflectance", "transmittance") if n in cubes]
-        var = _rows(ds[(preferred or cubes)[0]], chunks)
+        var = _rows(ds[_the_cube(path, cubes)], chunks)
     else:
         frames = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x")]
         if any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars):
@@ -142,7 +166,8 @@ def _read_xarray(path, fmt, chunks):
         if not frames:
             raise ValueError(f"{path} holds no (y, x, band) variable")
         # chunked first: expand_dims would read a variable that is not a dask array whole
-        var = _rows(ds[frames[0]], chunks).expand_dims("band", axis=2)
+        var = _rows(ds[_the_cube(path, frames, "frames (y, x)")], chunks).expand_dims(
+            "band", axis=2)
     refuse_packed_counts(var, path)
     attrs = {**decode_attrs(ds.attrs), **var.attrs}  # the variables' are decoded above
     found = _File(path, fmt, var, name=var.name, attrs=attrs)

@@ -23,9 +23,9 @@ from pathlib import Path
 from .marks import _check_content, _written_by_snapcorr
 from .reading import file_kind
 from .registry import FILE_FORMATS, input_files
-from .safety import note_checked, refuse_inputs
+from .safety import _probe_folder, _unwritable_folder, note_checked, refuse_inputs
 
-__all__ = ["check_outputs", "check_replaceable"]
+__all__ = ["check_folder_writable", "check_outputs", "check_replaceable"]
 
 
 def _targets(fmt, path):
@@ -109,9 +109,41 @@ def _protected(protected):
     return [Path(os.path.realpath(p)) for p in protected if p is not None]
 
 
-def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=()):
+def check_folder_writable(path, option=None, *, folder=None):
+    """Refuse, before any work, an output ``path`` whose folder does not exist, is not a
+    folder or cannot be written in: found by creating and removing a hidden file there
+    (permission bits say nothing for root, nor for a read-only mount).
+
+    Parameters
+    ----------
+    path : str or Path
+        The output (a file, or a Zarr store or other folder to be made in its folder).
+    option : str, optional
+        The option that gave it (``"--out"``), named in the message.
+    folder : str or Path, optional
+        The folder to write in; default: ``path``'s.
+
+    Raises
+    ------
+    ValueError
+        The folder is missing, not a folder, or cannot be written in; the message names the
+        option, the output and the folder.
+    """
+    path = Path(path)
+    folder = Path(folder) if folder is not None else (path.parent if path.parent.parts
+                                                       else Path("."))
+    try:
+        if not folder.is_dir():
+            raise (NotADirectoryError if os.path.lexists(folder) else FileNotFoundError)()
+        _probe_folder(folder)
+    except OSError as err:
+        raise _unwritable_folder(path, folder, err, option) from None
+
+
+def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=(), names=None):
     """Refuse, before any long work, outputs that are, contain or lie in an input, that exist
-    (without ``overwrite``), have the wrong suffix or no folder to go in.
+    (without ``overwrite``), have the wrong suffix, or no folder to go in that can be written
+    in (:func:`check_folder_writable`: each is probed before any is written).
 
     Parameters
     ----------
@@ -125,6 +157,9 @@ def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=()):
         For each output, the suffixes it may end in (lower case, ``".nc"``).
     protected : str or Path or iterable of them, optional
         Folders whose existing files are never replaced (snapcorr's bundled profiles).
+    names : sequence of str, optional
+        For each output, the option that gives it (``"--out"``), named in a refusal of its
+        folder.
 
     Raises
     ------
@@ -138,7 +173,8 @@ def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=()):
     family = _input_family([i for i in inputs if i is not None])
     folders = _protected(protected)
     seen = []
-    for out, allowed in zip(outputs, suffixes, strict=True):
+    names = [None] * len(outputs) if names is None else names
+    for out, allowed, name in zip(outputs, suffixes, names, strict=True):
         if out is None:
             continue
         out = Path(out)
@@ -155,6 +191,7 @@ def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=()):
         _refuse_sources(out, res, srcs)
         _check_output(out, res, allowed, overwrite)
         refuse_inputs([out], family)  # hard links, and the files that belong to an input
+        check_folder_writable(out, name, folder=res.parent)  # probed: root passes any mode
 
 
 def _refuse_sources(out, res, srcs):
@@ -177,5 +214,3 @@ def _check_output(out, res, allowed, overwrite):
     if os.path.lexists(out) and not overwrite:
         raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
     check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced
-    if not res.parent.is_dir():
-        raise ValueError(f"{out.parent} is not a folder; create it first")

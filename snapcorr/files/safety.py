@@ -208,9 +208,13 @@ def _make_temporary(target, *, directory=False):
     The name is registered before the path is created: a signal's handler runs between any
     two steps (and ``_LOCK`` holds off threads only), so created first, a path whose
     registration an interruption prevented would stay behind. An interruption after the
-    path was created removes it."""
+    path was created removes it. A folder that cannot be written in is said by the target's
+    name, not the temporary's (which the user never named)."""
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise _unwritable_folder(target, target.parent, err) from None
     folder = os.path.abspath(target.parent)
     flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
         | getattr(os, "O_CLOEXEC", 0)
@@ -226,12 +230,43 @@ def _make_temporary(target, *, directory=False):
         except FileExistsError:  # another's: unregistered, never removed
             _unregister(tmp)
             continue
+        except OSError as err:
+            remove_path(tmp, settle_s=0)
+            raise _unwritable_folder(target, target.parent, err) from None
         except BaseException:
             remove_path(tmp, settle_s=0)  # created or not: gone
             raise
         return Path(tmp)
     raise FileExistsError(errno.EEXIST, "no free temporary name next to the output",
                           str(target))
+
+
+def _unwritable_folder(target, folder, err, option=None):
+    """The error for ``target`` whose ``folder`` cannot be written in (``err``, the
+    ``OSError`` met), naming the ``option`` that gave it if there is one."""
+    named = f"{option} {target}" if option else str(target)
+    why = err.strerror or type(err).__name__
+    if isinstance(err, NotADirectoryError) or (os.path.lexists(folder)
+                                               and not os.path.isdir(folder)):
+        return ValueError(f"{named}: {folder} is not a folder; choose an output path in one")
+    if isinstance(err, FileNotFoundError) or not os.path.lexists(folder):
+        return ValueError(f"{named}: the folder {folder} does not exist; create it first")
+    return ValueError(f"{named}: cannot write in the folder {folder} ({why}); choose a folder "
+                      "you can write in")
+
+
+def _probe_folder(folder):
+    """Create and remove a hidden file in ``folder``: whether a file can be written there,
+    found by doing it (permission bits say nothing for root, nor for a read-only mount or an
+    access-control list). Raises the ``OSError`` met."""
+    with _LOCK:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".snapcorr-probe.")
+        os.close(fd)
+        _register(tmp)
+    try:
+        os.remove(tmp)
+    finally:
+        _unregister(tmp)
 
 
 def _umask():

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import check_positive, check_positive_array, validate_method
+from .._validation import check_f_number, check_positive, check_positive_array, validate_method
 from .lens import Lens
 from .profiles import FILTER_PROFILES
 from .response import kernel_bins, kernel_bins_batch
@@ -190,7 +190,7 @@ class _Bands:
         cwl = np.atleast_1d(np.asarray(cwl_nm, float))
         fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape).astype(float)
         n = np.broadcast_to(np.asarray(check_n_eff(n_eff), float), cwl.shape).astype(float)
-        check_positive("f_number", f_number)
+        check_f_number("f_number", f_number)
         check_positive_array("cwl_nm", cwl, "nm")
         check_positive_array("fwhm_nm", fwhm, "nm")
         self.cwl, self.n, self.method = cwl, n, method

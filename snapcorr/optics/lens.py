@@ -18,13 +18,29 @@ from pathlib import Path
 import numpy as np
 
 from .._bundled import profile_path
-from .._validation import called_from_outside, check_numbers, shown, warn_renamed
+from .._validation import (
+    F_NUMBER_MAX,
+    LENGTH_MAX_MM,
+    called_from_outside,
+    check_numbers,
+    shown,
+    warn_renamed,
+)
 from ..files.toml import read_toml, write_toml
 
 __all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
 
 
-def _finite(name, value, *, positive=False):
+def _finite(name, value, *, positive=False, at_most=None, unit=""):
+    """``value`` as a float: finite (and > 0 with ``positive``; at most ``at_most`` in size)."""
+    v = _finite_number(name, value, positive=positive)
+    if at_most is not None and abs(v) > at_most:
+        raise ValueError(f"{name} must be at most {at_most:g}{unit} in size (no lens's is "
+                         f"larger: check the value and its unit), got {shown(value)}")
+    return v
+
+
+def _finite_number(name, value, *, positive=False):
     if isinstance(value, (bool, np.bool_)):  # TOML's `true` is not 1 mm
         raise TypeError(f"{name} must be a number, got a boolean ({value!r})")
     need = "a finite number > 0" if positive else "a finite number"
@@ -120,8 +136,10 @@ def _circles(vignetting):
         except (TypeError, ValueError, OverflowError):
             raise TypeError(f"vignetting circle {i + 1} must be a (P, h) pair in mm, got {c!r}")\
                 from None
-        out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True),
-                    _finite(f"vignetting circle {i + 1} distance_mm (h)", h)))
+        out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True,
+                            at_most=LENGTH_MAX_MM, unit=" mm"),
+                    _finite(f"vignetting circle {i + 1} distance_mm (h)", h,
+                            at_most=LENGTH_MAX_MM, unit=" mm")))
     return tuple(out)
 
 
@@ -202,7 +220,8 @@ class Lens:
             raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
                             "name is a keyword argument: Lens(x, ..., name='...'))")
         set_(self, "name", str(self.name))
-        set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True))
+        set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True,
+                                            at_most=LENGTH_MAX_MM, unit=" mm"))
         set_(self, "vignetting", _circles(self.vignetting))
         set_(self, "magnification", check_magnification(self.magnification))
         set_(self, "pupil_magnification", check_pupil_magnification(self.pupil_magnification))
@@ -221,13 +240,16 @@ class Lens:
         f = np.asarray(f_number, dtype=float)
         if not np.all(np.isfinite(f)) or np.any(f <= 0):
             raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+        if np.any(f > F_NUMBER_MAX):
+            raise ValueError(f"f_number must be at most {F_NUMBER_MAX:g} (a pinhole's is a "
+                             f"few hundred), got {float(np.max(f)):g}")
         fw = (1.0 + self.magnification / self.pupil_magnification) * f
         if np.any(fw < MIN_WORKING_F_NUMBER):
             bad = float(np.min(f))
             raise ValueError(f"f/{bad:g} is below the physical limit: the working f-number "
                              f"(1 + m / m_P) f = {float(np.min(fw)):g} must be at least "
                              f"{MIN_WORKING_F_NUMBER:g} (a numerical aperture of 1 in air); "
-                             "check the f-number (--f-number)")
+                             "check the f-number")
         return fw
 
     def exit_pupil_radius_mm(self, f_number):

@@ -12,7 +12,7 @@ import functools
 import numpy as np
 
 from .._names import CORRECTION_MODELS
-from .._validation import check_positive, check_positive_array, validate_method
+from .._validation import check_f_number, check_positive, check_positive_array, validate_method
 from . import goossens2019 as g19
 from .lens import Lens
 from .table import ShiftGrid, ShiftTable
@@ -280,7 +280,7 @@ def choose_model(cwl_nm, n_eff, f_number, cra_max_deg, lens, *, tolerance_nm):
     """
     cwl = np.asarray(cwl_nm, float)
     n = np.asarray(n_eff, float)
-    f = check_positive("f_number", f_number)
+    f = check_f_number("f_number", f_number)
     tol = check_positive("tolerance_nm", tolerance_nm)
     cra_max = float(cra_max_deg)
     if not 0 <= cra_max < 90:

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import check_positive
+from .._validation import check_f_number, check_positive
 from .bandwidth import FwhmTable, refine_nodes
 from .lens import Lens
 from .response import kernel_bins
@@ -174,7 +174,7 @@ def responses_behind_lens(responses, n_eff, f_number, cra_deg, lens: Lens, *,
         ``S(lambda) sum_k w_k T_b(lambda / a_k)``; NaN rows at angles where no light reaches
         the pixel.
     """
-    check_positive("f_number", f_number)
+    check_f_number("f_number", f_number)
     grid = responses.wavelength_nm
     out_nm = grid if wavelength_nm is None else np.asarray(wavelength_nm, float)
     u = np.arange(np.log(grid[0]), np.log(grid[-1]) + WHOLE_STEP, WHOLE_STEP)
@@ -247,7 +247,7 @@ def common_responses(responses, n_eff, f_number, cra_deg, lens: Lens, *, extra_v
     """
     from scipy.ndimage import gaussian_filter1d
 
-    check_positive("f_number", f_number)
+    check_f_number("f_number", f_number)
     grid = responses.wavelength_nm
     nb = responses.n_bands
     u = np.arange(np.log(grid[0]), np.log(grid[-1]) + WHOLE_STEP, WHOLE_STEP)

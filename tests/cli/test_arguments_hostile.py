@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 import pytest
-from hostile import refused_in_one_line
+from hostile import assert_refused, refused_in_one_line
 
 from snapcorr.data import lens_path
 
@@ -63,9 +63,9 @@ def test_an_output_never_replaces_a_bundled_profile(tmp_path, cli):
     target = lens_path()
     before = target.read_bytes()
     with pytest.raises(ValueError, match=r"also an input|bundled"):
-        _check_outputs([target], ["edmund_optics_16mm"], True, [(".toml",)])
+        _check_outputs({"--out": target}, ["edmund_optics_16mm"], True, [(".toml",)])
     with pytest.raises(ValueError, match="bundled files"):
-        _check_outputs([target], [], True, [(".toml",)])
+        _check_outputs({"--out": target}, [], True, [(".toml",)])
     assert target.read_bytes() == before
 
 
@@ -79,3 +79,26 @@ def test_two_outputs_of_one_command_may_not_meet(small, cli):
                         "--out", "o.zarr", "--plot", "o.zarr/q.png", cwd=small))
     assert "one lies in the other" in err
     assert not (small / "o.zarr").exists()
+
+
+LENS_OPTIONS = {"calibrate": ["--exit-pupil-mm", "--magnification", "--pupil-magnification",
+                              "--vignetting-distance-mm"],
+                "pupil": ["--magnification", "--pupil-magnification"]}
+
+
+@pytest.mark.parametrize("value", ["1e200", "1e308", "inf", "nan"])
+@pytest.mark.parametrize(("command", "option"),
+                         [(c, o) for c, options in LENS_OPTIONS.items() for o in options])
+def test_a_lens_number_of_overflow_size_is_refused_by_its_option_before_any_read(
+        tmp_path, command, option, value, cli):
+    """Refused as the options are read, with the range: 1e200 was refused only after the
+    flats were read and fitted, and --vignetting-distance-mm by the circle's name."""
+    first = {"calibrate": ("calibrate", "--flat", "2=f2.npy", "--flat", "4=f4.npy"),
+             "pupil": ("pupil", "--cube", "2=c2.nc", "--sensor", "snapscan_vnir")}[command]
+    rest = [] if option == "--exit-pupil-mm" or command == "pupil" else ["--exit-pupil-mm",
+                                                                          "21"]
+    rc, _, err = cli(*first, *rest, option, value, "--out", "l.toml", cwd=tmp_path)
+    line = assert_refused(rc, err, option)
+    # with the range the option allows (a magnification's from the lens's own check)
+    assert any(w in line for w in ("at most", "between", "finite")), line
+    assert rc == 2  # a usage error: nothing was read

@@ -134,8 +134,9 @@ def test_help_shows_the_command_shape(cli):
 
 def test_missing_output_folder_is_refused_before_any_work(flats, cli):
     res = cli("calibrate", *FLATS, *OPTICS, "--out", "nowhere/x.toml", "--plot", "o.png", cwd=flats)
-    assert res.returncode == 1 and "not a folder" in res.stderr
-    assert "read f/" not in res.stderr and not (flats / "o.png").exists()
+    assert res.returncode == 1 and "--out nowhere/x.toml" in res.stderr
+    assert "does not exist" in res.stderr and "read f/" not in res.stderr
+    assert not (flats / "o.png").exists()
 
 
 def test_multipage_tiff_pages_are_averaged(flats):

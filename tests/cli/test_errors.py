@@ -52,3 +52,11 @@ def test_a_check_naming_a_keyword_names_the_option_instead():
         assert _message(ValueError(kept), options) == kept
     assert _message(ValueError("n_eff = 9 is no index"), options) == "--n-eff = 9 is no index"
     assert command_parser(build_parser(), "nope") is None
+
+
+def test_a_python_keyword_in_a_message_is_the_option_only_where_the_command_has_one():
+    err = ValueError("the budget does not model it; name one it does with profile=: gaussian")
+    assert _message(err, {"profile": "--profile"}).endswith("with --profile: gaussian")
+    assert "profile=" in _message(err, {"method": "--method"})  # no --profile: not invented
+    assert _message(ValueError("pass overwrite=True"), {"overwrite": "--overwrite"}) == \
+        "pass --overwrite"

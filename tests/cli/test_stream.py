@@ -18,3 +18,34 @@ def test_options_that_do_not_go_together_are_one_line(tmp_path, cli, extra, word
     assert rc == 1 and not out and err.count("\n") == 1, err
     assert err.startswith("snapcorr stream: error: ") and words in err, err
     assert not (tmp_path / "s.zarr").exists()
+
+
+def test_center_places_the_lens_centre_of_a_stream(tmp_path, monkeypatch, cli):
+    """The optical centre the corrected wavelengths need can be given (a lens profile from
+    another pixel pitch asks for --center), row first, as to correct."""
+    import numpy as np
+
+    import snapcorr.pipeline
+
+    for name, shape in (("frames", (2, 8, 8)), ("d", (8, 8)), ("w", (8, 8))):
+        np.save(tmp_path / f"{name}.npy", np.full(shape, 100 if name == "d" else 900,
+                                                    np.uint16))
+    seen = {}
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped here")
+
+    monkeypatch.setattr(snapcorr.pipeline, "process_stream", capture)
+    _, _, err = cli("stream", "frames.npy", "--dark", "d.npy", "--white", "w.npy", "--sensor",
+                     "mosaic_4x4_vis", "--lens", "edmund_optics_16mm", "--f-number", "2",
+                     "--center", "3,5", "--out", "s.zarr", cwd=tmp_path)
+    assert "stopped here" in err, err
+    assert tuple(seen["center_px"]) == (5.0, 3.0)  # the internal (cx, cy)
+
+
+def test_center_without_a_lens_is_one_line(tmp_path, cli):
+    rc, _, err = cli("stream", "frames.zarr", "--dark", "d.npy", "--white", "w.npy",
+                       "--sensor", "mosaic_4x4_vis", "--center", "3,5", "--out", "s.zarr",
+                       cwd=tmp_path)
+    assert rc == 1 and "--center" in err and "--lens" in err, err

@@ -3,6 +3,7 @@
 import os
 
 import pytest
+from hostile import read_only
 
 from snapcorr.files.outputs import check_outputs
 from snapcorr.files.toml import write_toml
@@ -99,6 +100,35 @@ def test_a_folder_is_never_replaced_by_a_file(tmp_path):
 def test_an_output_without_its_folder_is_refused(tmp_path):
     with pytest.raises(ValueError, match="create it first"):
         _check([tmp_path / "no" / "x.nc"])
+
+
+def test_an_output_in_a_read_only_folder_is_refused_by_its_option(tmp_path, monkeypatch):
+    (tmp_path / "ro").mkdir()
+    read_only(monkeypatch, tmp_path / "ro")
+    with pytest.raises(ValueError, match=r"--plot .*x\.png: cannot write in the folder"):
+        check_outputs([tmp_path / "x.nc", tmp_path / "ro" / "x.png"], [], overwrite=False,
+                      suffixes=[(".nc",), (".png",)], names=["--out", "--plot"])
+    assert os.listdir(tmp_path / "ro") == []  # the probe left nothing behind
+
+
+def test_the_probe_leaves_nothing_behind(tmp_path):
+    _check([tmp_path / "x.nc", tmp_path / "y.zarr"])
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_library_write_to_a_read_only_folder_names_the_target(tmp_path, monkeypatch):
+    import numpy as np
+
+    from snapcorr.cube import make_cube, write_cube
+
+    (tmp_path / "ro").mkdir()
+    read_only(monkeypatch, tmp_path / "ro")
+    cube = make_cube(np.ones((2, 3, 4), np.float32), [500.0, 520.0, 540.0, 560.0])
+    for name in ("c.nc", "c.zarr", "c.hdr"):
+        with pytest.raises(ValueError, match="cannot write in the folder") as err:
+            write_cube(cube, tmp_path / "ro" / name)
+        message = str(err.value)  # an ENVI pair: its header or its data file
+        assert "/ro/c." in message and "/." not in message, message
 
 
 @pytest.mark.parametrize("protected", ["folder", ["folder"]])

@@ -112,3 +112,52 @@ def test_unreadable_envi_data_is_one_error_line(tmp_path, monkeypatch, cli):
         assert snapshot(tmp_path) == before
     finally:
         os.chmod(tmp_path / "scene.raw", 0o644)
+
+
+def _two_cubes(path, names=("a", "b"), dims=("y", "x", "band")):
+    import xarray as xr
+
+    shape = (4, 5, 3)[:len(dims)]
+    rng = np.random.default_rng(0)
+    ds = xr.Dataset({n: (dims, rng.random(shape)) for n in names},
+                    coords={"wavelength": ("band", [500.0, 600.0, 700.0])} if "band" in dims
+                    else {})
+    if path.suffix == ".zarr":
+        ds.to_zarr(path)
+    else:
+        ds.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_a_file_of_two_unknown_cubes_is_refused_naming_them(tmp_path, ext):
+    from snapcorr.cube import read_cube
+
+    path = _two_cubes(tmp_path / f"two{ext}", ("scene_a", "scene_b"))
+    with pytest.raises(ValueError, match=r"two\.\w+ holds 2 cubes .*scene_a, scene_b.*alone"):
+        read_cube(path)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_a_file_of_two_unknown_frames_is_refused_naming_them(tmp_path, ext):
+    from snapcorr.cube import read_frame
+
+    path = _two_cubes(tmp_path / f"two{ext}", ("dark_a", "dark_b"), dims=("y", "x"))
+    with pytest.raises(ValueError, match=r"holds 2 frames .*dark_a, dark_b"):
+        read_frame(path)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_one_unknown_cube_beside_snapcorrs_own_variables_is_read(tmp_path, ext):
+    from snapcorr.cube import read_cube
+
+    path = _two_cubes(tmp_path / f"one{ext}", ("resampled", "scene", "harmonised"))
+    assert read_cube(path).name == "scene"
+
+
+def test_correct_refuses_a_file_of_two_unknown_cubes_in_one_line(tmp_path, cli):
+    _two_cubes(tmp_path / "two.nc")
+    rc, _, err = cli("correct", tmp_path / "two.nc", "--lens", "edmund_optics_16mm", "--sensor",
+                     "snapscan_vnir", "--f-number", "2", "--out", tmp_path / "o.nc")
+    assert_refused(rc, err, "two.nc", "a, b")
+    assert not (tmp_path / "o.nc").exists()

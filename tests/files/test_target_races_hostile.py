@@ -141,7 +141,7 @@ def test_the_command_lines_output_check_holds_until_the_write(tmp_path, cli, mon
     check = cli_module._check_outputs
     probe = tmp_path / "probe.toml"
     with _io.checked_outputs():
-        check([probe], [], True, [(".toml",)])
+        check({"--toml": probe}, [], True, [(".toml",)])
         noted = _io._target_key(probe) in _io._CHECKED
     if not noted:
         pytest.xfail("snapcorr/cli/_output.py _check_outputs does not note absent outputs yet: it "
