@@ -26,7 +26,7 @@ from .safety import atomic_write, atomic_write_dir
 from .storage import FileFormat, _File, _Rows
 
 __all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORAGE_DTYPES", "STORED_FROM",
-           "check_storage", "refuse_packed_counts"]
+           "check_storage", "refuse_packed_counts", "which_cube"]
 
 
 # -- reading ---------------------------------------------------------------------------------
@@ -126,11 +126,19 @@ _BESIDE_THE_CUBE = ("raw", "filter_white_raw", "resampled", "harmonised", "wavel
                    "transmittance_mask")
 
 
-def _the_cube(path, cubes, what="cubes (y, x, band)"):
+def which_cube(path, cubes, what="cubes (y, x, band)"):
     """Which of the variables ``cubes`` (of one shape: ``what``) is the cube: ``radiance``,
     ``reflectance`` or ``transmittance`` (or ``frame``), else the one that is none of
     :data:`_BESIDE_THE_CUBE`; two or more such are refused (which one is meant cannot be
-    told), naming them."""
+    told), naming them and ``path`` (a file, or what holds them).
+
+    Examples
+    --------
+    >>> which_cube("a.nc", ["raw", "reflectance"])
+    'reflectance'
+    >>> which_cube("a.nc", ["raw", "sample"])
+    'sample'
+    """
     preferred = [n for n in ("radiance", "reflectance", "transmittance", "frame") if n in cubes]
     if preferred:
         return preferred[0]
@@ -146,7 +154,7 @@ def _the_cube(path, cubes, what="cubes (y, x, band)"):
 def _read_xarray(path, fmt, chunks):
     """The cube of a netCDF file or Zarr store (a ``(y, x)`` frame as one band): its
     ``radiance``, ``reflectance`` or ``transmittance``, else its one other ``(y, x, band)``
-    variable (:func:`_the_cube`). With :class:`~snapcorr.files.storage._Rows` chunks, the
+    variable (:func:`which_cube`). With :class:`~snapcorr.files.storage._Rows` chunks, the
     variable is cut into blocks of rows from its shape (each block reads its rows only)."""
     ds = _open_dataset(path, fmt, chunks)
     for var in ds.variables.values():
@@ -156,7 +164,7 @@ def _read_xarray(path, fmt, chunks):
     if not cubes and left_out:  # a result without its input: its mask or angles are no cube
         raise ValueError(f"{path} holds no cube: its input was left out ({left_out})")
     if cubes:
-        var = _rows(ds[_the_cube(path, cubes)], chunks)
+        var = _rows(ds[which_cube(path, cubes)], chunks)
     else:
         frames = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x")]
         if any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars):
@@ -166,7 +174,7 @@ def _read_xarray(path, fmt, chunks):
         if not frames:
             raise ValueError(f"{path} holds no (y, x, band) variable")
         # chunked first: expand_dims would read a variable that is not a dask array whole
-        var = _rows(ds[_the_cube(path, frames, "frames (y, x)")], chunks).expand_dims(
+        var = _rows(ds[which_cube(path, frames, "frames (y, x)")], chunks).expand_dims(
             "band", axis=2)
     refuse_packed_counts(var, path)
     attrs = {**decode_attrs(ds.attrs), **var.attrs}  # the variables' are decoded above

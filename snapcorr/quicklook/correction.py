@@ -31,9 +31,14 @@ _NOT_CUBE = {"wavelength_corrected", "resampled", "wavelength_scale", "mask", *_
 
 
 def _cube_name(ds):
-    for n, v in ds.data_vars.items():
-        if set(v.dims) == {"y", "x", "band"} and n not in _NOT_CUBE:
-            return n
+    """The correction result's input cube (:func:`~snapcorr.files.datasets.which_cube`: two
+    of unknown names are refused, not the first drawn)."""
+    from ..files.datasets import which_cube
+
+    cubes = [n for n, v in ds.data_vars.items()
+             if set(v.dims) == {"y", "x", "band"} and n not in _NOT_CUBE]
+    if cubes:
+        return which_cube("the correction result", cubes)
     raise ValueError("not a correction result: no input cube (a (y, x, band) variable other "
                      "than wavelength_corrected and resampled); see "
                      "snapcorr.correct.correct_cube")

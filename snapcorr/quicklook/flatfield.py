@@ -35,7 +35,9 @@ def _result_name(ds):
     if not others:
         raise ValueError("not a flat-field result: no 'reflectance' or 'transmittance' "
                          "variable with dims (y, x, band); see snapcorr.cube.flatfield")
-    return others[0]
+    from ..files.datasets import which_cube
+
+    return which_cube("the flat-field result", others)  # two unknown: refused, not the first
 
 
 def plot_flatfield(ds, path, *, overwrite=False, title=None):

@@ -132,3 +132,26 @@ def test_correction_quicklook_draws_virtual_bands_and_leaves_no_empty_band(figur
         gap = (boxes[ax].y0 - max(below, default=0.0)) / fig.dpi
         assert gap < 0.5, (ax.get_title(), gap)
 
+
+
+def test_a_result_with_two_unknown_cubes_is_refused_not_the_first_drawn(flat, corrected,
+                                                                       tmp_path):
+    """The quick looks choose the cube as the readers do: two (y, x, band) variables of
+    unknown names cannot be told apart, so neither is drawn (the first one was)."""
+    name = next(n for n, v in corrected.data_vars.items()
+                if set(v.dims) == {"y", "x", "band"}
+                and n not in ("wavelength_corrected", "resampled", "wavelength_scale", "mask",
+                              "cra", "cra_deg"))
+    two = corrected.rename({name: "scene_a"})
+    two["scene_b"] = two["scene_a"] * 2
+    with pytest.raises(ValueError, match="scene_a, scene_b"):
+        plot_correction(two, tmp_path / "c.png")
+    ff = flat.rename({"reflectance": "scene_a"})
+    ff["scene_b"] = ff["scene_a"] * 2
+    with pytest.raises(ValueError, match="scene_a, scene_b"):
+        plot_flatfield(ff, tmp_path / "f.png")
+    assert not list(tmp_path.iterdir())
+    # one unknown beside snapcorr's own variables is the cube
+    one = corrected.rename({name: "scene_a"})
+    plot_correction(one, tmp_path / "c.png")
+    assert (tmp_path / "c.png").is_file()
