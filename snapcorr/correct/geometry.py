@@ -198,6 +198,8 @@ def _calibrated_center_rc(cal, sensor):
         col, row = check_center(cal["center_px"], "the lens calibration's center_px")
     p_cal = float(cal["pixel_pitch_um"])
     p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
+    if cal.get("sensor_origin_rc") is not None:
+        return _crop_center_rc(cal, sensor, (row, col), p_cal, p)
     size = cal.get("image_size_px")
     same_pitch = abs(p_cal - p) < 1e-9 * p
     if same_pitch and (size is None or sensor.size_px is None):
@@ -225,6 +227,20 @@ def _calibrated_center_rc(cal, sensor):
     k = p_cal / p
     return ((row + 0.5) * k - 0.5, (col + 0.5) * k - 0.5), \
         f"lens calibration ({p_cal:g} um pixels, converted through mm)"
+
+
+def _crop_center_rc(cal, sensor, center, p_cal, p):
+    """A centre measured on flats that are a crop of this sensor, its first pixel at the
+    calibration's ``sensor_origin_rc``: in the sensor's pixels, the crop's centre plus the
+    origin (the same pixel grid: the pitch must agree)."""
+    r0, c0 = check_center_rc(cal["sensor_origin_rc"], "the lens calibration's sensor_origin_rc")
+    if abs(p_cal - p) > 1e-9 * p:
+        raise PlacementError(
+            f"the lens profile's optical centre was measured on a crop of {p_cal:g} um pixels "
+            f"and this sensor has {p:g} um: give --center ROW,COL (center_rc) in this "
+            "sensor's pixels")
+    return ((center[0] + r0, center[1] + c0),
+            f"lens calibration (flats cropped at sensor row {r0:g}, column {c0:g})")
 
 
 class CubeCRA(NamedTuple):

@@ -252,3 +252,23 @@ def test_the_x_first_returns_still_work_and_say_what_replaces_them():
         cube_cra(cube, WIDE, PAPER, center_rc=(7.25, 31.5))
         optical_center_rc(cube, WIDE, PAPER)
         correct_cube(cube, WIDE, 2.8, PAPER, center_rc=(7.25, 31.5))
+
+
+def test_a_centre_measured_on_cropped_flats_is_placed_by_their_origin():
+    """Raw flats of a crop at sensor row 5, column 7 (``calibrate --sensor-origin-px 5,7``):
+    the profile's centre is the crop's, and the sensor's is that plus the origin. It was
+    refused, the crop's image size not being the sensor's (or, were they alike, taken as the
+    sensor's own pixels)."""
+    sensor = Sensor("mosaic", "snapscan", 28.4, FULL.cwl_nm, 10.0, 1.7, size_px=(300, 400))
+    cal = {"center_rc": [169.75, 112.75], "center_px": [112.75, 169.75],
+           "pixel_pitch_um": 28.4, "image_size_px": [320, 256], "sensor_origin_rc": [5, 7]}
+    lens = replace(PAPER_LENS, name="cal", calibration=cal)
+    cra, center, source = cube_cra(_cube(sensor, ny=300, nx=400), sensor, lens)
+    assert center == (174.75, 119.75) and "row 5, column 7" in source
+    assert cra[0, 0, 0] == pytest.approx(_by_hand(
+        np.array([0.0]), np.array([0.0]), 174.75, 119.75, pitch_mm=28.4e-3,
+        x_mm=PAPER_LENS.exit_pupil_mm)[0, 0], rel=1e-12)
+    # another pixel grid: the crop's centre cannot be placed
+    binned = Sensor("binned", "snapscan", 56.8, FULL.cwl_nm, 10.0, 1.7, size_px=(150, 200))
+    with pytest.raises(PlacementError, match="crop"):
+        cube_cra(_cube(binned, ny=150, nx=200), binned, lens)

@@ -127,6 +127,15 @@ def test_a_crop_off_the_tile_grid_calibrates_as_well(light, without_pattern):
     _check_lens(res)
     assert _worst_shift_error(res) / _worst_shift_error(without_pattern) < 1.5
     assert res.lens.calibration["band_gains"]["sensor_origin_rc"] == list(CROP_ORIGIN)
+    # the centre, measured on the crop, is placed on the sensor by the origin it records
+    from snapcorr.correct.geometry import optical_center_rc
+    from snapcorr.cube import make_cube
+
+    sensor = _sensor(CROP_SENSOR, CROP_AREA)
+    cube = make_cube(np.ones((*CROP_SENSOR, 1)), [500.0])
+    (row, col), _ = optical_center_rc(cube, sensor, res.lens)
+    assert abs(row - (CENTER[1] + CROP_ORIGIN[0])) < 0.5
+    assert abs(col - (CENTER[0] + CROP_ORIGIN[1])) < 0.5
 
 
 def test_sensor_mistakes_are_value_errors(light):
