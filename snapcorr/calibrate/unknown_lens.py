@@ -217,7 +217,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
                   pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
                   saturation=saturation, method=method, max_circles=max_circles,
                   tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress,
-                  pupil_radiance=pupil_radiance, sensor=_raw_mosaic_of(sensor, shape))
+                  pupil_radiance=pupil_radiance,
+                  **_raw_mosaic_of(sensor, shape, sensor_origin_px))
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
@@ -253,10 +254,17 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     return out
 
 
-def _raw_mosaic_of(sensor, shape):
-    """``sensor`` when flats of ``shape`` are its raw whole-sensor frames, else None."""
-    whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
-    return sensor if getattr(sensor, "layout", None) == "mosaic" and whole else None
+def _raw_mosaic_of(sensor, shape, sensor_origin_px=None):
+    """The keywords of :func:`calibrate_lens` for flats of ``shape`` that are raw frames of a
+    mosaic ``sensor``: the whole sensor's, or a crop's at ``sensor_origin_px`` (the target
+    cubes' origin: the flats and the cubes are taken of the same pixels); else none."""
+    if getattr(sensor, "layout", None) != "mosaic":
+        return {"sensor": None}
+    if sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px):
+        return {"sensor": sensor}
+    if sensor_origin_px is not None:
+        return {"sensor": sensor, "sensor_origin_px": sensor_origin_px}
+    return {"sensor": None}
 
 
 def _either_pupil(args):

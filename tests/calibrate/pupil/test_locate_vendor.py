@@ -155,3 +155,49 @@ def test_mosaic_frames_of_a_given_target():
     ratio = (raw - dark)[lit] / (white - dark)[lit]
     assert abs(np.median(ratio) - 0.4) < 0.01
     assert np.percentile(ratio, 99) - np.percentile(ratio, 1) < 0.25  # noise only
+
+
+#: A crop off the tile grid (the 5 x 5 tile) that keeps the far corner, where the circle cuts:
+#: rows 101-1087, columns 203-2047 of the sensor.
+CROP = (slice(101, 1088), slice(203, 2048))
+
+
+@pytest.mark.slow  # four fifths of the sensor: three raw flats, two target frames
+def test_calibrate_one_command_on_a_crop_of_the_vendor_sensor(cli, tmp_path):
+    """Raw flats and target frames of the same crop, placed by ``--sensor-origin-px``: the
+    band gains are divided out by the layout the origin gives (before, the flats were taken
+    as a pattern-free image and refused for their tile), and the profile's centre, measured
+    on the crop, is placed on the sensor by the origin it records. Its field reaches 15.8 deg
+    (the sensor's 17.0): the circle's onset at f/4 lies beyond it, so the flats are taken at
+    f/2, 2.8 and 11 (at f/2, 4 and 11 one onset is left, too few to tell P from h)."""
+    from snapcorr.correct.geometry import optical_center_rc
+    from snapcorr.cube import mosaic_to_cube
+
+    flats, dark = raw_flats(f_numbers=(2.0, 2.8, 11.0))
+    origin = (CROP[0].start, CROP[1].start)
+    args = []
+    for f, img in flats.items():
+        np.save(tmp_path / f"flat_f{f:g}.npy", img[CROP])
+        args += ["--flat", f"{f:g}={tmp_path / f'flat_f{f:g}.npy'}"]
+    np.save(tmp_path / "dark.npy", dark[CROP])
+    for f, img in target_frames().items():
+        np.save(tmp_path / f"glass_f{f:g}.npy", img[CROP].astype(np.float32))
+        args += ["--target-cube", f"{f:g}={tmp_path / f'glass_f{f:g}.npy'}"]
+    res = cli("calibrate", *args, "--dark", tmp_path / "dark.npy", "--sensor", "imec_5x5_nir",
+              "--sensor-origin-px", f"{origin[0]},{origin[1]}",
+              "--pixel-pitch-um", str(PITCH_UM), "--magnification", "0.06",
+              "--pupil-magnification", "1.3", "--max-circles", "1", "--pupil", "paper",
+              "--fit-n-eff", "--target-tolerance-nm", "0.1",  # a crop pins less
+              "--out", tmp_path / "lens.toml")
+    assert res.returncode == 0, res.stdout + res.stderr
+    lens = Lens.load(tmp_path / "lens.toml")
+    assert abs(lens.exit_pupil_mm / X_MM - 1) < 0.01
+    (P, h), = lens.vignetting
+    (P0, h0), = PAPER_TRUTH.circles
+    assert abs(P / P0 - 1) < 0.01 and abs(h / h0 - 1) < 0.01
+    assert abs(lens.calibration["n_eff"] / N_EFF - 1) < 0.01
+    assert lens.calibration["sensor_origin_rc"] == list(origin)
+    sensor = Sensor.load(data.sensor_path("imec_5x5_nir"))
+    cube = mosaic_to_cube(np.load(tmp_path / "glass_f8.npy"), sensor, sensor_origin_px=origin)
+    center, source = optical_center_rc(cube, sensor, lens)
+    assert np.hypot(center[0] - CENTER_RC[0], center[1] - CENTER_RC[1]) < 1.0, (center, source)
