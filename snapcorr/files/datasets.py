@@ -132,6 +132,20 @@ def which_cube(path, cubes, what="cubes (y, x, band)"):
     :data:`_BESIDE_THE_CUBE`; two or more such are refused (which one is meant cannot be
     told), naming them and ``path`` (a file, or what holds them).
 
+    Parameters
+    ----------
+    path : str or Path
+        The file (or what holds the variables), for the message.
+    cubes : sequence of str
+        The names of the variables of one shape.
+    what : str
+        What they are, for the message (``"frames (y, x)"``).
+
+    Returns
+    -------
+    str
+        The name of the cube.
+
     Examples
     --------
     >>> which_cube("a.nc", ["raw", "reflectance"])
