@@ -130,6 +130,17 @@ def check_out_dir(out_dir, *, overwrite=False):
     appears or changes there later is not replaced.
     """
     out = Path(out_dir)
+    try:
+        return _check_out_dir(out, overwrite)
+    except OSError as err:  # a name too long, a loop of links: said by the option
+        if isinstance(err, FileExistsError):
+            raise
+        raise ValueError(f"--out {out}: {err.strerror or type(err).__name__}; choose another "
+                         "folder") from None
+
+
+def _check_out_dir(out, overwrite):
+    """:func:`check_out_dir`'s body."""
     if os.path.lexists(out) and not out.is_dir():
         raise ValueError(f"{out} is not a folder; choose another --out")
     folder = out  # the folder written in: out, or the first folder above it that exists

@@ -177,21 +177,34 @@ def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=(), names=N
     for out, allowed, name in zip(outputs, suffixes, names, strict=True):
         if out is None:
             continue
-        out = Path(out)
-        res = Path(os.path.realpath(out))
-        for bundled in folders:
-            if res.is_relative_to(bundled) and os.path.lexists(res):
-                raise ValueError(f"output {out} is one of snapcorr's bundled files "
-                                 f"({bundled}), never replaced; give your own a new name")
-        for other, given in seen:  # two outputs of one command: neither in the other
-            if res == other or res.is_relative_to(other) or other.is_relative_to(res):
-                raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
-                                 "other; give each its own path")
-        seen.append((res, out))
-        _refuse_sources(out, res, srcs)
-        _check_output(out, res, allowed, overwrite)
-        refuse_inputs([out], family)  # hard links, and the files that belong to an input
-        check_folder_writable(out, name, folder=res.parent)  # probed: root passes any mode
+        try:
+            _check_one(Path(out), allowed, name, overwrite, srcs, family, folders, seen)
+        except (ValueError, FileExistsError) as err:  # named by the option that gave it
+            if name is None or str(err).startswith(name):
+                raise
+            raise type(err)(f"{name} {err}") from None
+        except OSError as err:  # a name too long, a loop of links: said, not a traceback
+            raise ValueError(f"{name + ' ' if name else ''}{out}: "
+                             f"{err.strerror or type(err).__name__}; choose another output "
+                             "path") from None
+
+
+def _check_one(out, allowed, name, overwrite, srcs, family, folders, seen):
+    """:func:`check_outputs` for one output (``seen``: the outputs checked before it)."""
+    res = Path(os.path.realpath(out))
+    for bundled in folders:
+        if res.is_relative_to(bundled) and os.path.lexists(res):
+            raise ValueError(f"output {out} is one of snapcorr's bundled files "
+                             f"({bundled}), never replaced; give your own a new name")
+    for other, given in seen:  # two outputs of one command: neither in the other
+        if res == other or res.is_relative_to(other) or other.is_relative_to(res):
+            raise ValueError(f"outputs {given} and {out} are the same or one lies in the "
+                             "other; give each its own path")
+    seen.append((res, out))
+    _refuse_sources(out, res, srcs)
+    _check_output(out, res, allowed, overwrite)
+    refuse_inputs([out], family)  # hard links, and the files that belong to an input
+    check_folder_writable(out, name, folder=res.parent)  # probed: root passes any mode
 
 
 def _refuse_sources(out, res, srcs):

@@ -249,7 +249,7 @@ def _unwritable_folder(target, folder, err, option=None):
     if isinstance(err, NotADirectoryError) or (os.path.lexists(folder)
                                                and not os.path.isdir(folder)):
         return ValueError(f"{named}: {folder} is not a folder; choose an output path in one")
-    if isinstance(err, FileNotFoundError) or not os.path.lexists(folder):
+    if not os.path.lexists(folder):  # ENOENT in a folder that exists (/proc): cannot write
         return ValueError(f"{named}: the folder {folder} does not exist; create it first")
     return ValueError(f"{named}: cannot write in the folder {folder} ({why}); choose a folder "
                       "you can write in")

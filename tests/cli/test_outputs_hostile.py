@@ -90,3 +90,34 @@ def test_stream_refuses_a_read_only_folder_before_reading(tmp_path, monkeypatch,
     rc, _, err = cli("stream", "missing_frames", "--dark", "d.npy", "--white", "w.npy",
                      "--sensor", "mosaic_4x4_vis", "--out", "ro/s.zarr")
     assert_refused(rc, err, "--out", "ro/s.zarr", "write")
+
+
+LONG = "n" * 300  # past any file system's 255 bytes a name
+
+
+@pytest.mark.parametrize("bad", ["suffix", "long", "proc"])
+@pytest.mark.parametrize(("command", "option"), CASES)
+def test_every_refused_output_names_its_option(tmp_path, monkeypatch, cli, command, option,
+                                               bad):
+    """A wrong suffix and a name too long were said without the option (or as a bare
+    ``[Errno 36]``), and a folder that exists but cannot hold files (/proc) was said not to
+    exist."""
+    monkeypatch.chdir(tmp_path)
+    before, outputs = COMMANDS[command](tmp_path)
+    name = outputs[option]
+    given = {"suffix": name + ".txt", "long": LONG + name, "proc": f"/proc/{name}"}[bad]
+    args = []
+    for o, n in outputs.items():
+        args += [o, given if o == option else n]
+    rc, _, err = cli(*before, *args)
+    line = assert_refused(rc, err, option)
+    assert {"suffix": "must end in", "long": "too long", "proc": "cannot write"}[bad] in line
+    assert "Errno" not in line and "does not exist" not in line, line
+    assert not any((tmp_path / n).exists() for n in outputs.values())
+
+
+def test_demo_names_its_option_for_a_name_too_long(tmp_path, monkeypatch, cli):
+    monkeypatch.chdir(tmp_path)
+    rc, _, err = cli("demo", "--out", LONG)
+    line = assert_refused(rc, err, "--out", "too long")
+    assert "Errno" not in line
