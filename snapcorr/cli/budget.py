@@ -80,6 +80,7 @@ def run(args):
         raise ValueError("--sensor-origin-px places --cube on the sensor: give --cube CUBE")
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
+    sensor.require("n_eff", "the budget")  # before anything is computed with an unknown index
     cube = None
     if args.cube is not None:
         cube = _read(args.cube, sensor, args.sensor_origin_px)
@@ -116,6 +117,17 @@ def _budget_field(args, lens, sensor, cube):
         cra_max = float(cube_cra(cube, sensor, lens, center_rc=center_rc,
                                  sensor_origin_px=args.sensor_origin_px).cra_deg.max())
         return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
+    if args.center_px is not None and sensor.size_px is not None:  # the axis off the middle
+        (rows, cols), (cx, cy) = sensor.size_px, args.center_px
+        pitch_mm = sensor.require("pixel_pitch_um", "the field about --center") * 1e-3
+        far = max(math.hypot(r - cy, c - cx) for r in (-0.5, rows - 0.5)
+                  for c in (-0.5, cols - 0.5))
+        cra_max = math.degrees(math.atan(far * pitch_mm / lens.exit_pupil_mm))
+        return cra_max, (f"the sensor's {rows} x {cols} px field about --center {cy:g},{cx:g}, "
+                         f"CRA up to {cra_max:.2f} deg at its farthest corner")
+    if args.center_px is not None:
+        raise ValueError(f"--center places the optical axis on the sensor {sensor.name!r}, "
+                         "which has no size_px: give --cube CUBE or --cra-max DEG")
     if sensor.field_radius_mm is not None:
         cra_max = math.degrees(math.atan(sensor.field_radius_mm / lens.exit_pupil_mm))
         return cra_max, (f"the sensor's {sensor.size_px[0]} x {sensor.size_px[1]} px field, "

@@ -78,6 +78,10 @@ def _print_phase(args, sensor):
     if args.toml or args.plot:
         raise ValueError("--phase-from reads a white frame: give --toml and --plot in a run "
                          "of their own")
+    if sensor.layout != "mosaic" or sensor.responses is None:
+        what = "not a mosaic" if sensor.layout != "mosaic" else "a mosaic without them"
+        raise ValueError(f"--phase-from reads a white through a mosaic's measured responses: "
+                         f"{args.file} is {what} (a vendor calibration file gives them)")
     white = _read_frame_checked(args.phase_from, sensor, "--phase-from")
     dark = (None if args.dark is None else
             _read_frame_checked(args.dark, sensor, "--dark", white.shape))

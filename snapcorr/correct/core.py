@@ -224,8 +224,9 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
         cube, mask = sensor.in_band_order(cube, mask)
     check_cube(cube)
     if cube.name in RESULT_NAMES:  # e.g. a resampled cube read back from its own file
-        raise ValueError(f"the cube is named {cube.name!r}, a name the result gives another "
-                         "variable: rename it first (cube.rename('radiance'))")
+        raise ValueError(f"the cube is named {cube.name!r}, a result of a correction: correct "
+                         "the cube it was made from (a result's name cannot be its input's: "
+                         "in Python, rename it)")
     if (resample or harmonise) and cube.sizes["band"] < 2:
         what = "resample" if resample else "harmonise"
         raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "

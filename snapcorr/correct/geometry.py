@@ -111,7 +111,7 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
             f"the cube carries no sensor positions, and the bands of the mosaic sensor "
             f"{sensor.name!r} sit at different places in each {sensor.mosaic_shape[0]} x "
             f"{sensor.mosaic_shape[1]} tile: give the raw 2-D frame (it is split with the "
-            "sensor's band offsets), a cube made by mosaic_to_cube (or written by snapcorr), or "
+            "sensor's band offsets), a tile cube snapcorr split or wrote (it carries them), or "
             "--sensor-origin-px ROW,COL if cube pixel (y, x) is the tile whose top-left sensor "
             "pixel is (ROW + y * tile rows, COL + x * tile columns)")
     else:

@@ -61,8 +61,8 @@ def _model(sensor, f, cra_max, lens, method, tolerance_nm):
     only the model "none" allows)."""
     cwl = np.asarray(sensor.cwl_nm, float)
     if sensor.n_eff is None and method != "none":
-        sensor.require("n_eff", f"the wavelength correction (--method {method}; --method "
-                                "none keeps the nominal wavelengths)")
+        sensor.require("n_eff", f"the wavelength correction (method {method}; method= none "
+                                "keeps the nominal wavelengths)")
     n_eff = np.asarray(sensor.n_eff if sensor.n_eff is not None else np.ones(cwl.size), float)
     measured = sensor.responses is not None
     if method == "asymptotic" and measured:

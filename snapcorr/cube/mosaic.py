@@ -54,7 +54,7 @@ def mosaic_to_cube(raw, sensor: Sensor, *, sensor_origin_px=None, attrs=None):
     if not hasattr(raw, "ndim"):
         raw = np.asarray(raw)
     if raw.ndim != 2:
-        hint = (" (a cube is already split into bands: read it with read_cube)"
+        hint = (" (a cube is already split into bands: give its raw 2-D frame)"
                 if raw.ndim == 3 else "")
         raise ValueError(f"a raw mosaic frame is 2-D, got shape {raw.shape}{hint}")
     r0, c0 = _origin(raw.shape, sensor, sensor_origin_px)
@@ -235,6 +235,6 @@ def frame_saturation(sensor, whites, saturation=None, *, what="the white"):
             raise ValueError(
                 f"{what} holds values up to {top:g}, above the largest {sensor.bit_depth}-bit "
                 f"code ({full}) of the sensor {sensor.name!r}: the frames are in other units "
-                "(scaled, or another camera mode); give the saturation level (--saturation "
-                "DN, saturation=) or bit_depth in a sensor TOML")
+                "(scaled, or another camera mode); give the saturation level in DN "
+                "(saturation=) or bit_depth in a sensor TOML")
     return float(full)

@@ -174,17 +174,19 @@ def _read_xarray(path, fmt, chunks):
     for var in ds.variables.values():
         var.attrs = decode_attrs(var.attrs)
     cubes = [v for v in ds.data_vars if tuple(ds[v].dims) == DIMS and ds[v].dtype.kind != "b"]
+    stream = any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars)
+    if not cubes and stream:  # the reason first: a stream is not one cube, input or not
+        raise ValueError(f"{path} holds a stream of cubes (frame, y, x, band), not one "
+                         "cube: snapcorr stream --lens LENS --f-number F corrects a stream "
+                         "(in Python, snapcorr.cube.read_dataset opens it)")
     left_out = ds.attrs.get("input_left_out")
     if not cubes and left_out:  # a result without its input: its mask or angles are no cube
-        raise ValueError(f"{path} holds no cube: its input was left out ({left_out})")
+        raise ValueError(f"{path} holds no cube: its input was left out when it was written "
+                         f"({left_out})")
     if cubes:
         var = _rows(ds[which_cube(path, cubes)], chunks)
     else:
         frames = [v for v in ds.data_vars if tuple(ds[v].dims) == ("y", "x")]
-        if any(tuple(ds[v].dims) == ("frame", *DIMS) for v in ds.data_vars):
-            raise ValueError(f"{path} holds a stream of cubes (frame, y, x, band), not one "
-                             "cube: snapcorr stream --lens LENS --f-number F corrects a stream "
-                             "(in Python, snapcorr.cube.read_dataset opens it)")
         if not frames:
             raise ValueError(f"{path} holds no (y, x, band) variable")
         # chunked first: expand_dims would read a variable that is not a dask array whole

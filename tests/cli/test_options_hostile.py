@@ -65,3 +65,41 @@ def test_a_pack_range_not_finite_lo_below_hi_is_one_usage_line(value, capsys):
     assert rc == 2 and err.count("\n") == 1, err
     assert "argument --pack-range" in err and "expected finite LO < HI" in err, err
     assert "Traceback" not in err and "missing.hdr" not in err
+
+
+def test_phase_from_on_a_sensor_without_a_mosaic_is_refused_by_its_option(tmp_path, cli):
+    np.save(tmp_path / "w.npy", np.ones((64, 64)))
+    rc, _, err = cli("sensor", "snapscan_vnir", "--phase-from", tmp_path / "w.npy")
+    assert_refused(rc, err, "--phase-from", "not a mosaic")  # was 'NoneType' ... subscriptable
+
+
+def test_a_budget_centre_without_a_cube_sets_the_field_about_it(cli):
+    """``--center`` without ``--cube`` was ignored (the same budget as without it); the field
+    is now the sensor's about that centre, its farthest corner worked out here."""
+    import math
+
+    from snapcorr import Lens, data
+    from snapcorr.cube import Sensor
+
+    base = ("budget", "--sensor", "mosaic_4x4_vis", "--lens", "edmund_optics_16mm",
+            "--f-number", "2", "--source", "solar")
+    plain, off = cli(*base), cli(*base, "--center=-5,5")
+    assert plain.returncode == off.returncode == 0, off.stderr
+    assert "about --center -5,5" in off.stdout and off.stdout != plain.stdout
+    sensor = Sensor.load(data.sensor_path("mosaic_4x4_vis"))
+    lens = Lens.load(data.lens_path("edmund_optics_16mm"))
+    rows, cols = sensor.size_px
+    far = math.hypot(rows - 0.5 + 5, cols - 0.5 - 5) * sensor.pixel_pitch_um * 1e-3
+    assert f"CRA up to {math.degrees(math.atan(far / lens.exit_pupil_mm)):.2f} deg" in off.stdout
+
+
+def test_a_budget_of_a_sensor_without_n_eff_says_how_to_measure_it(tmp_path, cli):
+    from snapcorr import data
+
+    toml = tmp_path / "v.toml"
+    vendor = data.sensor_path("imec_5x5_nir").parent / "CMV2K-SSM5x5-600_875-5.5.9.2.xml"
+    assert cli("sensor", vendor, "--toml", toml).returncode == 0
+    rc, _, err = cli("budget", "--sensor", toml, "--lens", "edmund_optics_16mm", "--f-number",
+                     "2", "--source", "solar")
+    line = assert_refused(rc, err, "n_eff")
+    assert "nan" not in line, line  # was: n_eff must be a finite ... (got [nan])

@@ -223,5 +223,5 @@ def test_envi_result_refuses_what_it_cannot_do_before_any_work(files, cli):
     # a cube read back from a result under a result's name is refused, not overwritten
     resampled = read_cube(d / "r_harmonised.hdr")
     assert resampled.name == "harmonised"
-    with pytest.raises(ValueError, match="a name the result gives another variable"):
+    with pytest.raises(ValueError, match="a result of a correction"):
         correct_cube(resampled, sensor, 1.4, PAPER_LENS, harmonise=True)

@@ -161,3 +161,20 @@ def test_correct_refuses_a_file_of_two_unknown_cubes_in_one_line(tmp_path, cli):
                      "snapscan_vnir", "--f-number", "2", "--out", tmp_path / "o.nc")
     assert_refused(rc, err, "two.nc", "a, b")
     assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_a_stream_written_without_its_input_is_said_to_be_a_stream(tmp_path, ext):
+    """A stream's file whose raw input was left out (``--no-input``) was said to hold no cube
+    for that reason, naming an option the reading command may not have; the reason is that it
+    is a stream."""
+    import xarray as xr
+
+    from snapcorr.cube import read_cube
+
+    ds = xr.Dataset({"reflectance": (("frame", "y", "x", "band"), np.ones((2, 3, 4, 5)))},
+                    attrs={"input_left_out": "raw (--no-input)"})
+    path = tmp_path / f"s{ext}"
+    ds.to_netcdf(path) if ext == ".nc" else ds.to_zarr(path)
+    with pytest.raises(ValueError, match="holds a stream of cubes"):
+        read_cube(path)
