@@ -31,18 +31,38 @@ from ..files.toml import read_toml, write_toml
 __all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
 
 
+def _spells_a_number(text):
+    """Whether ``text`` reads as a number (a file's ``"21"``, not a lens's name)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+#: The shortest exit-pupil distance or circle radius a lens has, mm (a micron): below it the
+#: optics divide by next to nothing (1e-310 overflowed), and it is a typo or a unit slip.
+LENGTH_MIN_MM = 1e-3
+
+
 def _finite(name, value, *, positive=False, at_most=None, unit=""):
-    """``value`` as a float: finite (and > 0 with ``positive``; at most ``at_most`` in size)."""
+    """``value`` as a float: finite (and, with ``positive``, at least :data:`LENGTH_MIN_MM`
+    where ``at_most`` bounds a length; at most ``at_most`` in size)."""
     v = _finite_number(name, value, positive=positive)
     if at_most is not None and abs(v) > at_most:
         raise ValueError(f"{name} must be at most {at_most:g}{unit} in size (no lens's is "
                          f"larger: check the value and its unit), got {shown(value)}")
+    if positive and at_most is not None and v < LENGTH_MIN_MM:
+        raise ValueError(f"{name} must be at least {LENGTH_MIN_MM:g}{unit} (no lens's is "
+                         f"smaller: check the value and its unit), got {shown(value)}")
     return v
 
 
 def _finite_number(name, value, *, positive=False):
     if isinstance(value, (bool, np.bool_)):  # TOML's `true` is not 1 mm
         raise TypeError(f"{name} must be a number, got a boolean ({value!r})")
+    if isinstance(value, (str, bytes)):  # a TOML's "0.06" is text, as "21" is
+        raise TypeError(f"{name} must be a number, got the text {value!r}")
     need = "a finite number > 0" if positive else "a finite number"
     try:
         v = float(value)
@@ -216,7 +236,7 @@ class Lens:
     def __post_init__(self):
         set_ = object.__setattr__
         _check_pupil_radiance("pupil_radiance", self.pupil_radiance)
-        if isinstance(self.exit_pupil_mm, str):
+        if isinstance(self.exit_pupil_mm, str) and not _spells_a_number(self.exit_pupil_mm):
             raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
                             "name is a keyword argument: Lens(x, ..., name='...'))")
         set_(self, "name", str(self.name))

@@ -91,3 +91,22 @@ def test_a_blackbody_source_of_overflow_temperature_names_the_option(command, va
                         "--out", tmp_path / "o.nc")}[command]
     rc, _, err = cli(*args, "--lens", LENS, "--f-number", "2", "--source", f"tungsten:{value}")
     assert_refused(rc, err, "--source", "1e+06 K")
+
+
+@pytest.mark.parametrize(("key", "value", "words"), [
+    ("magnification", '"0.06"', "text"), ("pupil_magnification", '"1.3"', "text"),
+    ("exit_pupil_mm", '"21"', "text"), ("exit_pupil_mm", "1e-310", "at least"),
+])
+def test_a_lens_file_number_given_as_text_or_next_to_nothing_is_refused(tmp_path, key, value,
+                                                                        words):
+    """Text was read as the number it spells for the magnifications (and counted as given),
+    and a 1e-310 mm exit pupil was accepted, to overflow later."""
+    from snapcorr import Lens
+
+    keys = {"exit_pupil_mm": "21.0", "magnification": "0.06", "pupil_magnification": "1.3"}
+    keys[key] = value
+    path = tmp_path / "l.toml"
+    path.write_text("[lens]\nname = 'l'\n" + "".join(f"{k} = {v}\n" for k, v in keys.items()))
+    with pytest.raises((TypeError, ValueError), match=words) as err:
+        Lens.load(path)
+    assert key in str(err.value)
