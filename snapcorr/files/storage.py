@@ -117,8 +117,9 @@ class _File:
 def _rows_per_block(nx, nb, dtype, target_bytes):
     """Rows of ``nx`` pixels of ``nb`` bands of ``dtype`` in a block of about ``target_bytes``,
     at least one; a value counts as at least 4 bytes (computations widen smaller types to
-    float32)."""
-    return max(1, target_bytes // (nx * nb * max(np.dtype(dtype).itemsize, 4)))
+    float32); an empty row (no pixel or no band: refused once read) is one block."""
+    row_bytes = nx * nb * max(np.dtype(dtype).itemsize, 4)
+    return max(1, target_bytes // row_bytes) if row_bytes > 0 else 1
 
 
 @dataclass(frozen=True)

@@ -178,3 +178,16 @@ def test_a_stream_written_without_its_input_is_said_to_be_a_stream(tmp_path, ext
     ds.to_netcdf(path) if ext == ".nc" else ds.to_zarr(path)
     with pytest.raises(ValueError, match="holds a stream of cubes"):
         read_cube(path)
+
+
+@pytest.mark.parametrize("shape", [(4, 4, 0), (4, 0, 16), (0, 4, 16)])
+def test_an_empty_npy_cube_read_in_blocks_is_refused_for_what_it_is(tmp_path, shape):
+    """Read in blocks of rows (as the commands read), a cube without bands failed with a
+    ZeroDivisionError from sizing the blocks."""
+    from snapcorr.cube import read_cube
+
+    np.save(tmp_path / "e.npy", np.zeros(shape, np.float32))
+    with pytest.raises(ValueError) as err:
+        read_cube(tmp_path / "e.npy", wavelength_nm=np.arange(max(shape[2], 1)) + 500.0,
+                  chunks="rows")
+    assert "ZeroDivision" not in str(err.value) and "e.npy" in str(err.value)
