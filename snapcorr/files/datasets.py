@@ -154,7 +154,10 @@ def which_cube(path, cubes, what="cubes (y, x, band)"):
     'sample'
     """
     preferred = [n for n in ("radiance", "reflectance", "transmittance", "frame") if n in cubes]
-    if preferred:
+    if "radiance" in preferred and "reflectance" in preferred:  # two cubes, neither beside
+        raise ValueError(f"{path} holds a radiance and a reflectance cube; which one to read "
+                         "cannot be told: save the one you need alone")
+    if preferred:  # a flat-field result's transmittance is its filter's, beside reflectance
         return preferred[0]
     unknown = [n for n in cubes if n not in _BESIDE_THE_CUBE]
     if len(unknown) > 1:

@@ -191,3 +191,24 @@ def test_an_empty_npy_cube_read_in_blocks_is_refused_for_what_it_is(tmp_path, sh
         read_cube(tmp_path / "e.npy", wavelength_nm=np.arange(max(shape[2], 1)) + 500.0,
                   chunks="rows")
     assert "ZeroDivision" not in str(err.value) and "e.npy" in str(err.value)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_a_file_of_a_radiance_and_a_reflectance_cube_is_refused(tmp_path, ext):
+    """The radiance was read, silently; a reflectance with its filter's transmittance beside
+    it (a flat-field result) is still read as the reflectance."""
+    import xarray as xr
+
+    from snapcorr.cube import read_cube
+
+    wl = {"wavelength": ("band", np.arange(5) + 500.0)}
+    both = xr.Dataset({n: (("y", "x", "band"), np.ones((3, 4, 5))) for n in
+                       ("reflectance", "radiance")}, coords=wl)
+    path = tmp_path / f"two{ext}"
+    both.to_netcdf(path) if ext == ".nc" else both.to_zarr(path)
+    with pytest.raises(ValueError, match="radiance and a reflectance"):
+        read_cube(path)
+    ff = both.rename({"radiance": "transmittance"})
+    path = tmp_path / f"ff{ext}"
+    ff.to_netcdf(path) if ext == ".nc" else ff.to_zarr(path)
+    assert read_cube(path).name == "reflectance"
