@@ -136,12 +136,39 @@ def _what_sets_it(errs, k, misfit_scale):
     return f"{advice} ({share})"
 
 
+#: How :func:`~snapcorr.calibrate.lens.choice.check_circles` says a circle's onset falls
+#: inside the field at too few f-numbers.
+_TOO_FEW_ONSETS = "starts cutting the pupil inside the field at"
+
+
+def _refuse_unpinned_vignetting(fits, verdicts):
+    """Refuse flats whose fall-off a circle describes (to within :data:`MISFIT_CHI2`) where
+    the rules could not keep it and no circle is left: a profile without vignetting would be
+    a confident wrong answer (its shift error 0 where the circle moves it by nm). Only where
+    the circle fails on the number of its onsets alone: a stop-like circle that rescales one
+    flat, or one the flats leave loose, is no evidence of vignetting."""
+    def onsets_only(v):  # pinned otherwise: bounded, moving with the CRA, converged
+        return v is not None and v.problems and all(_TOO_FEW_ONSETS in p for p in v.problems)
+
+    better = [m for m, f in fits.items() if m != "none" and f.success
+              and f.reduced_chi2 <= MISFIT_CHI2 and onsets_only(verdicts.get(m))]
+    if better:
+        m = better[0]
+        raise ValueError(
+            f"the flats show vignetting they cannot pin: without a circle the reduced chi2 is "
+            f"{fits['none'].reduced_chi2:.1f}, with {report.CIRCLES[m]} "
+            f"{fits[m].reduced_chi2:.2f}, but {verdicts[m].problems[0]}; take flats at more "
+            "f-numbers between the fastest and the slowest (each circle's onset must fall "
+            "inside the field at two), or of the whole field")
+
+
 def _decide_method(method, model, fits, verdicts, ons, max_cra, x, predict):
     """The estimator used, why, the circles of the profile, notes, and the predictive scores
     (``{estimator: Prediction}``, empty where none were compared)."""
     chosen = fits[model]
     notes, scores = [], {}
     if model == "none" and fits["none"].reduced_chi2 > MISFIT_CHI2:
+        _refuse_unpinned_vignetting(fits, verdicts)
         notes.append(f"no model describes these flats well (reduced chi2 without a circle "
                      f"{fits['none'].reduced_chi2:.1f}); check the optical centre, the "
                      "f-numbers and the files")
