@@ -80,6 +80,15 @@ def _number(text):
         return float("nan")
 
 
+def _numeric_text(value):
+    """A command-line string as a float, refused as itself where it is no number (``True``
+    and ``''`` were said to be NaN)."""
+    v = _number(value)
+    if math.isnan(v) and str(value).strip().lower() not in ("nan", "+nan", "-nan"):
+        raise argparse.ArgumentTypeError(f"expected a number, got {value!r}")
+    return v
+
+
 def _positive(value):
     try:
         return check_positive("value", _number(value))
@@ -120,7 +129,7 @@ def _magnification(value):
     from ..optics.lens import check_magnification
 
     try:
-        return check_magnification(_number(value), "m")
+        return check_magnification(_numeric_text(value), "m")
     except (TypeError, ValueError) as err:
         raise argparse.ArgumentTypeError(str(err)) from None
 
@@ -131,7 +140,7 @@ def _pupil_magnification(value):
     from ..optics.lens import check_pupil_magnification
 
     try:
-        return check_pupil_magnification(_number(value), "m_P")
+        return check_pupil_magnification(_numeric_text(value), "m_P")
     except (TypeError, ValueError) as err:
         raise argparse.ArgumentTypeError(str(err)) from None
 

@@ -38,3 +38,11 @@ def test_a_lens_number_past_any_lens_is_refused(kind, good, bad):
 def test_a_centre_no_sensor_has_is_refused(value):
     with pytest.raises(argparse.ArgumentTypeError):
         _types._center_rc_arg(value)
+
+
+@pytest.mark.parametrize("kind", ["_magnification", "_pupil_magnification"])
+@pytest.mark.parametrize("text", ["True", "", "0.06mm"])
+def test_a_magnification_that_is_no_number_is_echoed(kind, text):
+    """It was said to be NaN (``m must be a finite number, got nan``)."""
+    with pytest.raises(argparse.ArgumentTypeError, match=f"got {text!r}"):
+        getattr(_types, kind)(text)
