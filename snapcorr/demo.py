@@ -265,7 +265,8 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
 
     Refuses, before any work, a folder holding files the demo did not make unless
     ``overwrite``, and even then files of its names snapcorr did not write
-    (:func:`check_out_dir`); :data:`MARKER` is written last, listing the files written.
+    (:func:`check_out_dir`); :data:`MARKER` is written after each output, listing the files
+    written so far (a run cut short can be run again in the same folder).
 
     Parameters
     ----------
@@ -295,21 +296,24 @@ def _run(out, lens, echo):
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = save_png(fig, out / "mean_shift.png", dpi=120)
+    _write_marker(out)  # after every output: an interrupted run leaves what it vouches for
+
     def write_csv(p):
         np.savetxt(p, np.array(rows), delimiter=",", header=_CSV_HEADER, comments="",
                    fmt="%.6f")
 
     table = atomic_write(out / "mean_shift.csv", write_csv)
+    _write_marker(out)
     echo("\n".join(lines))
     echo("")
     echo("The paper's experiment, simulated (about half a minute) ...")
     from .paper_experiment import run as run_experiment
 
-    exp_lines, _ = run_experiment(out, echo=echo)
+    exp_lines, _ = run_experiment(out, echo=echo, written=lambda: _write_marker(out))
     lines += ["", "The paper's experiment, simulated end to end:", *exp_lines]
     text = "\n".join(lines) + "\n"
     summary = atomic_write(out / "summary.txt", lambda p: p.write_text(text, encoding="utf-8"))
-    _write_marker(out)  # last: it vouches only for what the demo wrote
+    _write_marker(out)  # it vouches only for what the demo wrote
     echo(f"wrote {', '.join(str(out / n) for n in OUTPUTS)}")
     return {"figure": figure, "table": table, "summary": summary,
             "spectra": out / "spectra.png", "calibration": out / "calibration.png",

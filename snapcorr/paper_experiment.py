@@ -109,14 +109,19 @@ def paper_metrics(spectra, wavelengths, grid):
     return worst_r, max_err
 
 
-def run(out, *, echo=print, seed=2019):
+def run(out, *, echo=print, seed=2019, written=None):
     """Simulate, calibrate, flat-field and correct; write figures; return summary lines.
 
     Writes ``calibration.png`` (the paper's Fig. 8 from the simulated flats), ``lens.toml``
     (the calibrated profile), ``spectra.png`` (the paper's Fig. 9-11: spectra at CRA 1.9, 10.3
     and 17.4 deg, uncorrected and corrected by both models, f/1.4-f/8) and ``maps.png`` (CRA
-    and shift over the image at f/1.4).
+    and shift over the image at f/1.4); ``written()``, if given, is called after each step
+    that wrote files (the demo's marker follows them, so an interrupted run can be rerun).
     """
+    def step_done():
+        if written is not None:
+            written()
+
     from pathlib import Path
 
     out = Path(out)
@@ -129,6 +134,7 @@ def run(out, *, echo=print, seed=2019):
     # 1. the lens, from flat fields (512 x 320 at 22 um: a 2048 x 1280, 5.5 um sensor)
     flat_center = (155.4, 262.8)  # (row, col): the optical axis a little off the image centre
     cal = _calibrate(out, truth, f_numbers, flat_center, rng)
+    step_done()
     lens = cal.lens
     lines.append(f"1. calibration from simulated flats (f/1.4-f/8, 1 % noise): {cal.method}, "
                  f"{cal.model} circle(s): {lens.describe_vignetting()} (true "
@@ -146,9 +152,11 @@ def run(out, *, echo=print, seed=2019):
     # 3. spectra at the paper's three positions, 5 x 5 pixels each
     spots = _spots(shape, true_center, cras)
     lines += _compare_spectra(out / "spectra.png", results, f_numbers, cras, spots, cwl)
+    step_done()
 
     # 4. maps at f/1.4
     _draw_maps(out / "maps.png", results[1.4]["vignetted"], cwl)
+    step_done()
 
     m = results[1.4]
     lines.append(

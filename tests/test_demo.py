@@ -81,7 +81,8 @@ def test_the_demo_marker_never_vouches_for_a_file_put_there_during_the_run(tmp_p
     with pytest.raises(FileExistsError, match=r"mean_shift\.csv appeared after snapcorr checked"):
         quick_demo(dm)
     assert (dm / "mean_shift.csv").read_text() == "the user's own table\n"
-    assert not (dm / demo.MARKER).exists()  # written last: never planted by a failed run
+    # a failed run's marker vouches for what it moved in, never for the user's table
+    assert json.loads((dm / demo.MARKER).read_text())["files"].keys() == {"mean_shift.png"}
     # and the marker lists only files the demo moved in itself
     monkeypatch.setattr(demo, "atomic_write", original)
     (dm / "mean_shift.csv").unlink()
@@ -103,3 +104,28 @@ def test_the_demo_writes_its_marker_atomically_never_through_what_was_there(tmp_
     quick_demo(dm)
     assert (tmp_path / "hard-link-to-marker").read_bytes() == kept  # replaced, not rewritten
     assert not stat.S_ISLNK(os.lstat(dm / MARKER).st_mode)
+
+
+def test_a_demo_cut_short_can_be_run_again_in_its_folder(tmp_path, monkeypatch):
+    """Interrupted in the experiment (Ctrl-C), the demo left its first outputs and no marker,
+    and a second run in the same folder was refused as holding files the demo did not make."""
+    import snapcorr.paper_experiment
+    from snapcorr.demo import MARKER, check_out_dir, run_demo
+
+    def cut_short(out, *, echo=print, written=None, **kwargs):
+        from snapcorr import Lens
+
+        snapcorr_png(Path(out) / "calibration.png")
+        Lens(21.0, [(7.4, 17.0)], 0.06, 1.3, name="demo").save(Path(out) / "lens.toml")
+        written()
+        raise KeyboardInterrupt("SIGINT received")
+
+    monkeypatch.setattr(snapcorr.paper_experiment, "run", cut_short)
+    dm = tmp_path / "dm"
+    with pytest.raises(KeyboardInterrupt):
+        run_demo(dm, echo=lambda *a: None)
+    listed = set(json.loads((dm / MARKER).read_text())["files"])
+    assert listed == {"mean_shift.png", "mean_shift.csv", "calibration.png", "lens.toml"}
+    check_out_dir(dm)  # a second run is not refused
+    monkeypatch.setattr(snapcorr.paper_experiment, "run", _fake_experiment)
+    run_demo(dm, echo=lambda *a: None)
