@@ -100,6 +100,17 @@ def raw_flats(f_numbers=FLAT_F, *, seed=2):
             np.full(SIZE, 100, np.uint16))
 
 
+def _lens_within_one_percent(path):
+    """The profile the command wrote: x, P, h and n_eff each within 1 % of the truth."""
+    lens = Lens.load(path)
+    assert abs(lens.exit_pupil_mm / X_MM - 1) < 0.01
+    (P, h), = lens.vignetting
+    (P0, h0), = PAPER_TRUTH.circles
+    assert abs(P / P0 - 1) < 0.01 and abs(h / h0 - 1) < 0.01
+    assert abs(lens.calibration["n_eff"] / N_EFF - 1) < 0.01
+    return lens
+
+
 def test_the_file_layout_is_the_sensors():
     """The band map read from the file is the layout snapcorr reads (the frames above put
     each band where the sensor's cube will look for it)."""
@@ -129,13 +140,7 @@ def test_calibrate_one_command_on_the_vendor_sensor(cli, tmp_path):
               "--fit-n-eff", "--out", tmp_path / "lens.toml",
               "--sensor-out", tmp_path / "sensor.toml")
     assert res.returncode == 0, res.stdout + res.stderr
-    lens = Lens.load(tmp_path / "lens.toml")
-    assert abs(lens.exit_pupil_mm / X_MM - 1) < 0.01
-    (P, h), = lens.vignetting
-    (P0, h0), = PAPER_TRUTH.circles
-    assert abs(P / P0 - 1) < 0.01 and abs(h / h0 - 1) < 0.01
-    cal = lens.calibration
-    assert abs(cal["n_eff"] / N_EFF - 1) < 0.01
+    _lens_within_one_percent(tmp_path / "lens.toml")
     sensor = Sensor.load(tmp_path / "sensor.toml")
     assert sensor.responses is not None  # the vendor file's curves, named by the TOML
     assert "CMV2K-SSM5x5-600_875-5.5.9.2.xml" in (tmp_path / "sensor.toml").read_text()
@@ -190,12 +195,7 @@ def test_calibrate_one_command_on_a_crop_of_the_vendor_sensor(cli, tmp_path):
               "--fit-n-eff", "--target-tolerance-nm", "0.1",  # a crop pins less
               "--out", tmp_path / "lens.toml")
     assert res.returncode == 0, res.stdout + res.stderr
-    lens = Lens.load(tmp_path / "lens.toml")
-    assert abs(lens.exit_pupil_mm / X_MM - 1) < 0.01
-    (P, h), = lens.vignetting
-    (P0, h0), = PAPER_TRUTH.circles
-    assert abs(P / P0 - 1) < 0.01 and abs(h / h0 - 1) < 0.01
-    assert abs(lens.calibration["n_eff"] / N_EFF - 1) < 0.01
+    lens = _lens_within_one_percent(tmp_path / "lens.toml")
     assert lens.calibration["sensor_origin_rc"] == list(origin)
     sensor = Sensor.load(data.sensor_path("imec_5x5_nir"))
     cube = mosaic_to_cube(np.load(tmp_path / "glass_f8.npy"), sensor, sensor_origin_px=origin)
