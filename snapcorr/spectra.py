@@ -1,5 +1,6 @@
 """Source spectra: the sun, blackbodies (tungsten lamps), spectrum files and a cube's own;
-and the transmittance of the colour filter in Goossens et al. 2019 (:func:`colour_filter`).
+the transmittance of the colour filter in Goossens et al. 2019 (:func:`colour_filter`) and the
+published reflectances of a standard colour chart's patches (:func:`colour_checker`).
 
 A :class:`Spectrum` is sampled at increasing wavelengths and interpolated linearly between
 them; asking for it outside its range is an error, never a silent zero. The scene budget
@@ -8,6 +9,7 @@ them; asking for it outside its range is an error, never a silent zero. The scen
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -19,9 +21,11 @@ import numpy as np
 from ._validation import validate_method
 
 __all__ = [
+    "COLOUR_CHECKER_PATCHES",
     "SOLAR_MODELS",
     "Spectrum",
     "blackbody",
+    "colour_checker",
     "colour_filter",
     "cube_spectrum",
     "parse_source",
@@ -299,3 +303,77 @@ def colour_filter(wavelength_nm):
     edge = 1.0 / (1.0 + np.exp(-(lam - 640.0) / 9.0))
     notch = 1.0 - 0.45 * np.exp(-0.5 * ((lam - 760.0) / 12.0) ** 2)
     return 0.04 + 0.9 * edge * notch
+
+
+#: The 24 patches of the X-Rite (Macbeth) ColorChecker Classic, in the chart's reading order
+#: (:func:`colour_checker`).
+COLOUR_CHECKER_PATCHES = (
+    "dark skin", "light skin", "blue sky", "foliage", "blue flower", "bluish green", "orange",
+    "purplish blue", "moderate red", "purple", "yellow green", "orange yellow", "blue", "green",
+    "red", "yellow", "magenta", "cyan", "white 9.5 (.05 D)", "neutral 8 (.23 D)",
+    "neutral 6.5 (.44 D)", "neutral 5 (.70 D)", "neutral 3.5 (1.05 D)", "black 2 (1.5 D)")
+
+
+@functools.cache
+def _colour_checker_table():
+    from ._bundled import calibration_dir
+
+    path = calibration_dir() / "targets" / "colour_checker_ohta.csv"
+    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
+             if ln.strip() and not ln.startswith("#")]
+    names = tuple(lines[0].split(",")[1:])
+    if names != COLOUR_CHECKER_PATCHES:
+        raise ValueError(f"{path} does not hold the chart's 24 patches in reading order")
+    table = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    table.setflags(write=False)
+    return table
+
+
+def colour_checker(patch) -> Spectrum:
+    """The published spectral reflectance of one patch of the X-Rite (Macbeth) ColorChecker
+    Classic: N. Ohta's measurement [1]_, 380-780 nm at 5 nm (``calibration/targets/``).
+
+    A chart's own patches differ from these by a few per cent, and the published values end at
+    780 nm. The exit-pupil fit solves for the target's spectrum and does not need them:
+    :func:`snapcorr.calibrate.colour_chart_precision` uses them to predict how well each patch
+    can pin ``x`` and ``n_eff`` on a sensor whose bands lie within their range.
+
+    Parameters
+    ----------
+    patch : str or int
+        A name of :data:`COLOUR_CHECKER_PATCHES` (any case), or the patch's number 1-24 in
+        reading order (1 dark skin, 15 red, 24 black).
+
+    Returns
+    -------
+    Spectrum
+        Named ``"ColorChecker <patch>"``; asking for it outside 380-780 nm is an error.
+
+    References
+    ----------
+    .. [1] N. Ohta, "The basis of color reproduction engineering", Corona-sha (1997); the
+       values as colour-science 0.4.7 ships them (``SDS_COLOURCHECKERS["ColorChecker N
+       Ohta"]``, BSD-3-Clause).
+
+    Examples
+    --------
+    >>> red = colour_checker("red")
+    >>> float(red(700.0)) > 5 * float(red(450.0))
+    True
+    >>> colour_checker(15).name
+    'ColorChecker red'
+    """
+    if isinstance(patch, (bool, np.bool_)) or not isinstance(patch, (str, int, np.integer)):
+        raise ValueError(f"patch must be a patch's name or number 1-24, got {patch!r}")
+    if isinstance(patch, str):
+        names = [n.lower() for n in COLOUR_CHECKER_PATCHES]
+        if patch.strip().lower() not in names:
+            raise ValueError(f"no ColorChecker patch named {patch!r}; the patches: "
+                             + ", ".join(COLOUR_CHECKER_PATCHES))
+        i = names.index(patch.strip().lower())
+    else:
+        if not 1 <= int(patch) <= len(COLOUR_CHECKER_PATCHES):
+            raise ValueError(f"the ColorChecker's patches are numbered 1-24, got {patch!r}")
+        i = int(patch) - 1
+    table = _colour_checker_table()
+    return Spectrum(table[:, 0], table[:, 1 + i], name=f"ColorChecker {COLOUR_CHECKER_PATCHES[i]}")

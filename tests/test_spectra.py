@@ -80,3 +80,32 @@ def test_the_colour_filter_has_one_home_and_is_re_exported():
     np.testing.assert_allclose(spectra.colour_filter(lam), 0.04 + 0.9 * edge * notch,
                                rtol=0, atol=1e-15)
     assert spectra.colour_filter(700.0).shape == ()
+
+
+def test_the_colour_checker_is_n_ohtas_as_colour_science_ships_it():
+    """Every patch's bundled reflectance against colour-science's own copy of N. Ohta's
+    measurement (to its rounding), by name and by number in reading order."""
+    import colour
+
+    sds = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
+    assert tuple(sds) == spectra.COLOUR_CHECKER_PATCHES
+    for i, (name, sd) in enumerate(sds.items(), start=1):
+        got = spectra.colour_checker(name.upper())
+        np.testing.assert_allclose(got.wavelength_nm, sd.wavelengths)
+        np.testing.assert_allclose(got.values, sd.values, atol=5e-5)
+        assert spectra.colour_checker(i).name == f"ColorChecker {name}"
+
+
+@pytest.mark.parametrize("patch, match", [("crimson", "no ColorChecker patch named 'crimson'"),
+                                          (0, "numbered 1-24"), (25, "numbered 1-24"),
+                                          (True, "name or number"), (15.0, "name or number")])
+def test_a_patch_that_is_not_on_the_chart_is_refused(patch, match):
+    with pytest.raises(ValueError, match=match):
+        spectra.colour_checker(patch)
+
+
+def test_a_patch_is_not_known_beyond_its_published_range():
+    red = spectra.colour_checker("red")
+    assert float(red(780.0)) > 0.5
+    with pytest.raises(ValueError):
+        red(800.0)

@@ -20,6 +20,7 @@ from .pupil.locate import (
     locate_pupil,
     pupil_precision,
 )
+from .pupil.precision import colour_chart_precision
 from .unknown_lens import LensAndPupil, calibrate_with_target
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "calibrate_lens",
     "calibrate_with_target",
     "clean_flat",
+    "colour_chart_precision",
     "detect_onset",
     "estimate_center",
     "estimate_center_rc",

@@ -173,25 +173,62 @@ def _pupil_predict(args):
           "band per pixel" + (", n_eff fitted too" if args.fit_n_eff else ""))
     print(f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
           + (f" {'n_eff':>12s}" if args.fit_n_eff else ""))
-    with _StepBar("bounds for each target", total=2 * len(targets)) as bar:
+    fit_n = args.fit_n_eff and len(fs) > 1
+
+    def line(name, row):
+        cells = [_precision_cell(p) for p in row]
+        extra = ""
+        if args.fit_n_eff:
+            extra = (f" {'x * n_eff only':>12s}" if len(fs) < 2 else
+                     f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else f" {'-':>12s}")
+        print(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
+
+    from ..spectra import COLOUR_CHECKER_PATCHES
+
+    with _StepBar("bounds for each target",
+                  total=2 * len(targets) + len(COLOUR_CHECKER_PATCHES) + 1) as bar:
         for name, S in targets.items():
             row = []
             for known in (False, True):
                 bar.step(f"{name[:24]}, spectrum {'known' if known else 'unknown'}")
-                p = pupil_precision(S, sensor, fs, lens, noise=noise,
-                                    fit_n_eff=args.fit_n_eff and len(fs) > 1,
-                                    spectrum_known=known)
-                row.append(p)
-            cells = [_precision_cell(p) for p in row]
-            extra = ""
-            if args.fit_n_eff:
-                extra = (f" {'x * n_eff only':>12s}" if len(fs) < 2 else
-                         f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else
-                         f" {'-':>12s}")
-            print(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
+                row.append(pupil_precision(S, sensor, fs, lens, noise=noise, fit_n_eff=fit_n,
+                                           spectrum_known=known))
+            line(name, row)
+        chart = _chart_line(sensor, fs, lens, noise, fit_n, bar)
+        if isinstance(chart, str):
+            print(chart)
+        else:
+            best, rest = chart
+            line(f"ColorChecker {best[0]}", best[1])
+            print(rest)
     print("noise only: a target that is not uniform, or filters of another shape than the "
           "sensor file says, add errors of their own")
     return 0
+
+
+def _chart_line(sensor, fs, lens, noise, fit_n, bar):
+    """The colour chart's best patch (its bounds, spectrum unknown and known) and a line on
+    the others; or why the chart cannot be judged on this sensor."""
+    from ..calibrate import colour_chart_precision, pupil_precision
+    from ..spectra import colour_checker
+
+    try:
+        ranked = colour_chart_precision(sensor, fs, lens, noise=noise, fit_n_eff=fit_n,
+                                        on_patch=lambda p: bar.step(f"ColorChecker {p[:14]}"))
+    except ValueError as exc:
+        return f"{'ColorChecker (24 patches)':34s} not judged: {exc}"
+    name, unknown = ranked[0]
+    bar.step(f"ColorChecker {name[:14]}, spectrum known")
+    sp = colour_checker(name)
+    known = pupil_precision(lambda lam: np.interp(lam, sp.wavelength_nm, sp.values), sensor,
+                            fs, lens, noise=noise, fit_n_eff=fit_n, spectrum_known=True)
+    nxt = ", ".join(f"{n} {p.x_stderr_mm:.2g}" for n, p in ranked[1:4] if p.informative)
+    worst = ranked[-1]
+    rest = (f"  (the best of the chart's 24 patches, published spectra; next, x in mm with the "
+            f"spectrum unknown: {nxt or 'none informative'}; the least, {worst[0]}: "
+            + (f"{worst[1].x_stderr_mm:.2g} mm" if worst[1].informative else "no information")
+            + ")")
+    return (name, [unknown, known]), rest
 
 
 def _precision_cell(p):

@@ -160,6 +160,22 @@ def test_predict_ranks_the_targets(files, cli):
     assert "no information" in rows["white tile"]
     assert "mm (" in rows["rare-earth glass"]
     assert any("glass.csv" in k for k in rows)
+    # bands to 878 nm: the chart's published spectra end at 780 nm, and it is not judged
+    chart = rows["ColorChecker (24 patches)"]
+    assert "not judged" in chart and "380-780 nm" in chart and "470-878 nm" in chart
+
+
+def test_predict_judges_a_colour_chart_on_a_visible_sensor(files, cli):
+    """Bands within 380-780 nm: the chart's best patch gets its row (spectrum unknown and
+    known), the next ones and the least informative said after it."""
+    res = cli("pupil", "--predict", "--sensor", files / "sensor_white.toml", "--f-number",
+              "2", "--f-number", "8", "--fit-n-eff")
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    i = next(i for i, ln in enumerate(lines) if ln.startswith("ColorChecker "))
+    assert lines[i].count("mm (") == 2  # spectrum unknown, known
+    assert "the best of the chart's 24 patches" in lines[i + 1]
+    assert "the least, " in lines[i + 1]
 
 
 def test_help_shows_the_two_step_workflow(cli):

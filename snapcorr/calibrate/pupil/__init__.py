@@ -12,6 +12,7 @@ from .locate import (
     locate_pupil,
     pupil_precision,
 )
+from .precision import colour_chart_precision
 
 __all__ = [
     "CANDIDATE_TARGETS",
@@ -19,6 +20,7 @@ __all__ = [
     "ImpreciseTargetError",
     "Precision",
     "PupilFit",
+    "colour_chart_precision",
     "estimate_target_center",
     "locate_pupil",
     "pupil_precision",
