@@ -118,7 +118,8 @@ def _own_mark(path):
 def check_out_dir(out_dir, *, overwrite=False):
     """The demo's output folder, refused if it holds files the demo did not make.
 
-    Everything is checked before the demo does any work. A folder that does not exist yet,
+    Everything is checked before the demo does any work. A folder that does not exist yet
+    (in a folder that does: a missing parent is refused, as for every command's output),
     is empty, or holds :data:`MARKER` is fine, and what the demo writes there
     (:data:`OUTPUTS`) may replace a file only if the marker lists that very file (its size and
     SHA-256); any other file of those names only with ``overwrite=True``, and only if it
@@ -143,9 +144,9 @@ def _check_out_dir(out, overwrite):
     """:func:`check_out_dir`'s body."""
     if os.path.lexists(out) and not out.is_dir():
         raise ValueError(f"{out} is not a folder; choose another --out")
-    folder = out  # the folder written in: out, or the first folder above it that exists
-    while not os.path.lexists(folder) and folder.parent != folder:
-        folder = folder.parent
+    # the folder written in: out, or the folder it is made in, which must exist (as every
+    # command's output's folder must)
+    folder = out if os.path.lexists(out) else (out.parent if out.parent.parts else Path("."))
     check_folder_writable(out, "--out", folder=folder)  # probed, before any work
     for name in (MARKER, *OUTPUTS):  # before anything is examined: only this is replaced
         note_checked(out / name)
@@ -271,7 +272,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     Parameters
     ----------
     out_dir : str or Path
-        Output folder, created if missing.
+        Output folder, created if missing; the folder it is made in must exist.
     lens : Lens, optional
         The lens of part 1 (default: the bundled Edmund Optics 16 mm profile); the simulated
         experiment uses its own.
@@ -292,7 +293,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
 
 
 def _run(out, lens, echo):
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)  # in a folder that exists (checked)
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = save_png(fig, out / "mean_shift.png", dpi=120)
