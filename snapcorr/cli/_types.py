@@ -45,6 +45,7 @@ def _pair_arg(what, names, *, integer=False):
                                                  f"{value!r}")
             return int(a), int(b)
         return a, b
+    parse.number_pair = True  # a negative first number is its value (cli._negative_pairs)
     return parse
 
 
@@ -70,6 +71,9 @@ def _pack_range_arg(value):
         return check_pack_range("--pack-range", lo, hi)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--pack-range ")) from None
+
+
+_pack_range_arg.number_pair = True  # LO < 0 is its value, not an option (cli._negative_pairs)
 
 
 def _number(text):
