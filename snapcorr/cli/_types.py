@@ -13,6 +13,7 @@ import numpy as np
 from .._validation import (
     F_NUMBER_MAX,
     LENGTH_MAX_MM,
+    LENGTH_MIN_MM,
     check_f_number,
     check_pack_range,
     check_positive,
@@ -125,8 +126,10 @@ def _bounded(low, high, what, unit="", *, above=True):
     return parse
 
 
-#: ``--exit-pupil-mm`` and ``--vignetting-distance-mm``: a distance from the sensor, mm.
-_distance_mm = _bounded(0, LENGTH_MAX_MM, "a distance", " mm")
+#: ``--exit-pupil-mm`` and ``--vignetting-distance-mm``: a distance from the sensor, mm, within
+#: a lens's bounds (a micron: below it the optics divide by next to nothing).
+_distance_mm = _bounded(LENGTH_MIN_MM, LENGTH_MAX_MM, "a distance", " mm", above=False)
+
 def _magnification(value):
     """``--magnification``: m, finite, >= 0 and within the bound a lens profile has
     (:data:`snapcorr.optics.lens.MAX_MAGNIFICATION`), refused before anything is read."""
