@@ -274,7 +274,7 @@ def _check_enough_flats(items, vignetting_distance_mm):
         raise ValueError(
             f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
             "from its distance h (Eq. 26 needs two or more onsets): give flats at two or more "
-            "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
+            "f-numbers, or give h (vignetting_distance_mm=)")
 
 
 @renamed_keywords(pupil="pupil_radiance")
