@@ -118,6 +118,11 @@ F_NUMBER_MAX = 1e6
 #: before): a larger value is a typo or a unit slip, and 1e200 overflows the optics.
 LENGTH_MAX_MM = 1e6
 
+#: The shortest exit-pupil distance, circle radius or distance ``|h|`` of a moving vignetting
+#: circle a lens has (``h = 0`` is a stop), mm (a micron): below it the optics divide by next to
+#: nothing (1e-310 overflowed), and it is a typo or a unit slip.
+LENGTH_MIN_MM = 1e-3
+
 
 def check_f_number(name, value):
     """An f-number as a float: a finite number > 0 and at most :data:`F_NUMBER_MAX` (the

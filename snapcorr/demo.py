@@ -66,7 +66,7 @@ def _read_marker(out):
     except FileNotFoundError:
         return None
     not_marker = (f"{path} exists and is {{}}, not the marker snapcorr demo writes (a "
-                  "regular file): remove it or choose another --out")
+                  "regular file): remove it or choose another folder (out_dir=)")
     if not stat.S_ISREG(mode):
         raise ValueError(not_marker.format(file_kind(mode)))
     try:
@@ -75,7 +75,7 @@ def _read_marker(out):
         raise ValueError(not_marker.format("not a marker-sized regular file")) from None
     except OSError as err:
         raise ValueError(f"{path}: cannot read it ({err.strerror or err}); remove it or "
-                         "choose another --out") from None
+                         "choose another folder (out_dir=)") from None
     try:
         doc = json.loads(data)
     except ValueError:
@@ -118,7 +118,8 @@ def _own_mark(path):
 def check_out_dir(out_dir, *, overwrite=False):
     """The demo's output folder, refused if it holds files the demo did not make.
 
-    Everything is checked before the demo does any work. A folder that does not exist yet,
+    Everything is checked before the demo does any work. A folder that does not exist yet
+    (in a folder that does: a missing parent is refused, as for every command's output),
     is empty, or holds :data:`MARKER` is fine, and what the demo writes there
     (:data:`OUTPUTS`) may replace a file only if the marker lists that very file (its size and
     SHA-256); any other file of those names only with ``overwrite=True``, and only if it
@@ -135,18 +136,18 @@ def check_out_dir(out_dir, *, overwrite=False):
     except OSError as err:  # a name too long, a loop of links: said by the option
         if isinstance(err, FileExistsError):
             raise
-        raise ValueError(f"--out {out}: {err.strerror or type(err).__name__}; choose another "
-                         "folder") from None
+        raise ValueError(f"out_dir {out}: {err.strerror or type(err).__name__}; choose "
+                         "another folder") from None
 
 
 def _check_out_dir(out, overwrite):
     """:func:`check_out_dir`'s body."""
     if os.path.lexists(out) and not out.is_dir():
-        raise ValueError(f"{out} is not a folder; choose another --out")
-    folder = out  # the folder written in: out, or the first folder above it that exists
-    while not os.path.lexists(folder) and folder.parent != folder:
-        folder = folder.parent
-    check_folder_writable(out, "--out", folder=folder)  # probed, before any work
+        raise ValueError(f"{out} is not a folder; choose another folder (out_dir=)")
+    # the folder written in: out, or the folder it is made in, which must exist (as every
+    # command's output's folder must)
+    folder = out if os.path.lexists(out) else (out.parent if out.parent.parts else Path("."))
+    check_folder_writable(out, "out_dir", folder=folder)  # probed, before any work
     for name in (MARKER, *OUTPUTS):  # before anything is examined: only this is replaced
         note_checked(out / name)
     if not out.is_dir():
@@ -156,8 +157,8 @@ def _check_out_dir(out, overwrite):
         names = sorted(p.name for p in out.iterdir())
         raise FileExistsError(
             f"{out} holds files snapcorr demo did not make ({', '.join(names[:4])}"
-            f"{', ...' if len(names) > 4 else ''}); choose an empty or new folder with --out, "
-            "or pass --overwrite to replace the files of the same names snapcorr wrote")
+            f"{', ...' if len(names) > 4 else ''}); choose an empty or new folder (out_dir=), "
+            "or pass overwrite=True to replace the files of the same names snapcorr wrote")
     theirs = []
     for name in OUTPUTS:
         path = out / name
@@ -167,7 +168,8 @@ def _check_out_dir(out, overwrite):
             continue
         if not stat.S_ISREG(mode):
             raise ValueError(f"{path} exists and is {file_kind(mode)}; snapcorr demo replaces "
-                             "only files it wrote: move it away or choose another --out")
+                             "only files it wrote: move it away or choose another folder "
+                             "(out_dir=)")
         if not (vouched and name in vouched and _vouched(path, vouched[name])):
             theirs.append(name)
     if theirs and not overwrite:
@@ -176,13 +178,14 @@ def _check_out_dir(out, overwrite):
                f"its marker {MARKER} does not list {them} as the demo wrote {them}")
         raise FileExistsError(
             f"{out} holds {', '.join(theirs)}, which snapcorr demo did not write ({why}); "
-            "choose an empty or new folder with --out, or pass --overwrite to replace the "
-            "files of the same names snapcorr wrote")
+            "choose an empty or new folder (out_dir=), or pass overwrite=True to replace "
+            "the files of the same names snapcorr wrote")
     for name in theirs:
         ours, found = _own_mark(out / name)
         if not ours:
-            raise ValueError(f"{out / name} exists and is {found}; --overwrite replaces only "
-                             "what snapcorr wrote: move it away or choose another --out")
+            raise ValueError(f"{out / name} exists and is {found}; overwrite=True replaces "
+                             "only what snapcorr wrote: move it away or choose another folder "
+                             "(out_dir=)")
     return out
 
 
@@ -271,7 +274,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
     Parameters
     ----------
     out_dir : str or Path
-        Output folder, created if missing.
+        Output folder, created if missing; the folder it is made in must exist.
     lens : Lens, optional
         The lens of part 1 (default: the bundled Edmund Optics 16 mm profile); the simulated
         experiment uses its own.
@@ -292,7 +295,7 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
 
 
 def _run(out, lens, echo):
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)  # in a folder that exists (checked)
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = save_png(fig, out / "mean_shift.png", dpi=120)

@@ -230,10 +230,10 @@ def _check_origin(path, cube, rows, cols, origin):
         have = have if have.ndim == 2 else have[:, None]
         if have.shape[0] != want.shape[0] or not np.array_equal(
                 np.broadcast_to(have, want.shape) if have.shape[1] == 1 else have, want):
-            raise ValueError(f"--sensor-origin-px {origin[0]},{origin[1]} disagrees with the "
+            raise ValueError(f"sensor_origin_px ({origin[0]}, {origin[1]}) disagrees with the "
                              f"sensor positions {path} records (its first pixel at row "
                              f"{int(np.min(cube['sensor_row']))}, col "
-                             f"{int(np.min(cube['sensor_col']))}); leave the option out: the "
+                             f"{int(np.min(cube['sensor_col']))}); leave it out: the "
                              "file's positions are used")
 
 

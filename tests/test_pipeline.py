@@ -117,8 +117,8 @@ def test_an_origin_the_file_contradicts_is_refused(tmp_path):
     write_dataset(read_cube_or_frame(_written(cube, tmp_path), sensor, (10, 20))
                   .to_dataset(name="radiance"), path)
     assert int(read_cube_or_frame(path, sensor, (10, 20))["sensor_row"].min()) == 10
-    with pytest.raises(ValueError, match=r"--sensor-origin-px 11,20 disagrees .* row 10, "
-                                         r"col 20.*leave the option out"):
+    with pytest.raises(ValueError, match=r"sensor_origin_px \(11, 20\) disagrees .* row 10, "
+                                         r"col 20.*leave it out"):
         read_cube_or_frame(path, sensor, (11, 20))
 
 

@@ -165,7 +165,7 @@ class Budget:
         tol = self._tol(tolerance_pct)
         path = None if path is None else Path(path)
         if path is not None and path.exists() and not overwrite:
-            raise ValueError(f"{path} exists; use overwrite=True (--overwrite) to replace it")
+            raise ValueError(f"{path} exists; use overwrite=True to replace it")
         if path is None:
             import matplotlib.pyplot as plt
 

@@ -321,7 +321,7 @@ def _flat_block(cal: LensCalibration):
         if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(want))):
             raise ValueError("the flats' joint fit has no finite covariance (P, h or the "
                              "centre undetermined): no joint errors can be given; add flats at "
-                             "more f-numbers or give --center ROW,COL")
+                             "more f-numbers or give center_rc= (row, col)")
         d = np.divide(want, raw, out=np.ones_like(want), where=raw > 0)
         return names, values, cov * np.outer(d, d)
     of = cal.onset_fits[cal.method.split("-")[1]]

@@ -75,22 +75,46 @@ class _Version(argparse.Action):
         parser.exit()
 
 
-def _negative_pairs(argv):
-    """``--pack-range -0.5,3.5`` as ``--pack-range=-0.5,3.5``: argparse takes a value that
-    starts with ``-`` and is not a plain number for an option, and the default range starts
-    with one."""
-    out, rest = [], iter(argv)
-    for arg in rest:
-        if arg == "--pack-range":
-            value = next(rest, None)
-            if value is not None and value.startswith("-") and not value.startswith("--"):
-                out.append(f"--pack-range={value}")
-                continue
-            out.extend([arg] if value is None else [arg, value])
+def _pair_options(parser, argv):
+    """The options of ``argv``'s command that take a pair of numbers (their argument type is
+    marked ``number_pair``: :mod:`._types`), as they may be typed: in full, or shortened as
+    argparse allows (``--cent`` where no other option starts so)."""
+    command = next((a for a in argv if not a.startswith("-")), None)
+    sub = command_parser(parser, command) if command else None
+    if sub is None:
+        return set()
+    pairs = {s for a in sub._actions if getattr(a.type, "number_pair", False)
+             for s in a.option_strings}
+    long = [s for a in sub._actions for s in a.option_strings if s.startswith("--")]
+
+    def names_one_pair(prefix):  # as argparse resolves a shortened option: a single match
+        matches = [o for o in long if o.startswith(prefix)]
+        return len(matches) == 1 and matches[0] in pairs
+
+    return pairs | {o[:n] for o in pairs if o.startswith("--") for n in range(3, len(o))
+                    if names_one_pair(o[:n])}
+
+
+def _negative_pairs(parser, argv):
+    """``--center -5,5`` as ``--center=-5,5`` for every option of the command that takes a
+    pair of numbers: argparse takes a value that starts with ``-`` and is not a plain number
+    for an option (and refused ``--center -5,5`` as ``--center`` without its argument)."""
+    options = _pair_options(parser, argv)
+    out, i = [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--":  # what follows is no option
+            out.extend(argv[i:])
+            break
+        value = argv[i + 1] if i + 1 < len(argv) else None
+        if arg in options and value is not None and value.startswith("-") \
+                and not value.startswith("--") and "," in value:
+            out.append(f"{arg}={value}")
+            i += 2
             continue
         out.append(arg)
+        i += 1
     return out
-
 
 
 def build_parser():
@@ -129,7 +153,7 @@ def main(argv=None):
     from ..files.safety import cleanup_on_signals
 
     parser = build_parser()
-    argv = _negative_pairs(sys.argv[1:] if argv is None else list(argv))
+    argv = _negative_pairs(parser, sys.argv[1:] if argv is None else list(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # usage errors and --help: argparse has printed them

@@ -23,7 +23,11 @@ _CLI_TERMS = {
 #: How the library's checks (:mod:`snapcorr._validation`) begin a message about an argument:
 #: with its keyword's name, then one of these, or the value itself (``target_fwhm_nm 0.5 nm
 #: is narrower ...``).
-_CHECK_VERBS = re.compile(r"\s+(?:must\b|repeats\b|=|[-+]?[0-9.]|\()")
+_CHECK_VERBS = re.compile(r"\s+(?:must\b|repeats\b|=|[-+]?[0-9.]|\()|\s+\S+:\s")
+
+#: Library keywords an option sets under another name (its ``dest``): ``center_rc`` is set by
+#: ``--center``, the demo's ``out_dir`` by ``--out``.
+_KEYWORD_DESTS = {"center_rc": "center", "out_dir": "out"}
 
 #: The units a library keyword carries and an option may leave out (``cra_deg`` is set by
 #: ``--cra``, ``cra_max_deg`` by ``--cra-max``): CONTRIBUTING's names of quantities.
@@ -39,7 +43,9 @@ def option_names(parser):
                and max(a.option_strings, key=len).startswith("--")}
     with_units = {dest + unit: option for dest, option in options.items()
                   if not dest.endswith(_UNITS) for unit in _UNITS}
-    return {**{k: v for k, v in with_units.items() if k not in options}, **options}
+    aliases = {k: options[d] for k, d in _KEYWORD_DESTS.items() if d in options}
+    return {**{k: v for k, v in {**with_units, **aliases}.items() if k not in options},
+            **options}
 
 
 #: A flat-field reference as the library names it: ``dark``, ``white frame 2 of 3``, ``the
@@ -69,12 +75,20 @@ def _message(err, options=None):
     instead (``n_eff must be ...`` is ``--n-eff must be ...``). Only at the start: a message
     about a file's key begins with the file (``lens.toml: n_eff must ...``). A keyword the
     library names as Python's ``keyword=`` is the option too, where the command has one (a
-    library message names no option: which a command has, only the command knows)."""
+    library message names no option: which a command has, only the command knows), and
+    ``keyword='choice'``, ``keyword=True`` and ``keyword= (a, b)`` the option as typed
+    (``--virtual-bands fitted``, ``--fit-n-eff``, ``--sensor-origin-px a,b``)."""
     message = " ".join(str(err).split())  # libraries' messages may span lines
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
     for keyword, option in (options or {}).items():
-        message = re.sub(rf"(?<![\w-]){re.escape(keyword)}=(?![\w(\[\"'])", option, message)
+        k = rf"(?<![\w-]){re.escape(keyword)}="
+        # keyword='fitted' is the option and its choice, keyword=True the flag, keyword=
+        # (row, col) the option and its pair as typed (ROW,COL)
+        message = re.sub(k + r"(['\"])([\w.+-]+)\1", rf"{option} \2", message)
+        message = re.sub(k + r"True\b", option, message)
+        message = re.sub(k + r" \(([^(),]+), ([^(),]+)\)", rf"{option} \1,\2", message)
+        message = re.sub(k + r"(?![\w(\[\"'])", option, message)
     for keyword, option in (options or {}).items():
         if message.startswith(keyword) and _CHECK_VERBS.match(message, len(keyword)):
             return option + message[len(keyword):]

@@ -13,6 +13,7 @@ import numpy as np
 from .._validation import (
     F_NUMBER_MAX,
     LENGTH_MAX_MM,
+    LENGTH_MIN_MM,
     check_f_number,
     check_pack_range,
     check_positive,
@@ -45,6 +46,7 @@ def _pair_arg(what, names, *, integer=False):
                                                  f"{value!r}")
             return int(a), int(b)
         return a, b
+    parse.number_pair = True  # a negative first number is its value (cli._negative_pairs)
     return parse
 
 
@@ -70,6 +72,9 @@ def _pack_range_arg(value):
         return check_pack_range("--pack-range", lo, hi)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--pack-range ")) from None
+
+
+_pack_range_arg.number_pair = True  # LO < 0 is its value, not an option (cli._negative_pairs)
 
 
 def _number(text):
@@ -121,8 +126,10 @@ def _bounded(low, high, what, unit="", *, above=True):
     return parse
 
 
-#: ``--exit-pupil-mm`` and ``--vignetting-distance-mm``: a distance from the sensor, mm.
-_distance_mm = _bounded(0, LENGTH_MAX_MM, "a distance", " mm")
+#: ``--exit-pupil-mm`` and ``--vignetting-distance-mm``: a distance from the sensor, mm, within
+#: a lens's bounds (a micron: below it the optics divide by next to nothing).
+_distance_mm = _bounded(LENGTH_MIN_MM, LENGTH_MAX_MM, "a distance", " mm", above=False)
+
 def _magnification(value):
     """``--magnification``: m, finite, >= 0 and within the bound a lens profile has
     (:data:`snapcorr.optics.lens.MAX_MAGNIFICATION`), refused before anything is read."""

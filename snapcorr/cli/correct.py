@@ -128,7 +128,12 @@ def run(args):
     lens = _lens(args.lens)
     sensor = _sensor(args.sensor)
     _check_source_option(args, sensor)
-    cube, mask = _correct_input(args, sensor)
+    try:
+        cube, mask = _correct_input(args, sensor)
+    except ValueError:  # a result's image of other bands (virtual): refused as that first
+        _refuse_a_result(args.cube, _result_image(args.cube))
+        raise
+    _refuse_a_result(args.cube, cube)
     method, provenance = args.method, {}
     if args.source is not None:  # the scene budget chooses the model
         from ..budget import recommend_model
@@ -191,6 +196,31 @@ def run(args):
             print(f"harmonised: not harmonised (NaN): {left_out}")
     _quicklook(args, "plot_correction", ds)
     return 0
+
+
+def _refuse_a_result(path, cube):
+    """Refuse an image of a correction's result (``X_resampled.hdr``, a cube named
+    ``resampled``...) by its file: its values no longer sit at one pixel's filters, and a
+    command line cannot rename it, as the library's refusal says a Python caller may."""
+    from ..correct.core import RESULT_NAMES
+
+    if cube is None or cube.name not in RESULT_NAMES:
+        return
+    made_from = cube.attrs.get("cube_file")
+    source = f" ({made_from!s:.200}, as the result records)" if made_from else ""
+    raise ValueError(f"{path} holds {cube.name!r}, an image of a correction's result, not a "
+                     f"cube to correct: correct the cube it was made from{source}")
+
+
+def _result_image(path):
+    """The cube of ``path`` read without the sensor's wavelengths (its own name and
+    provenance), or None where it cannot be read so either."""
+    from ..files.api import read_cube
+
+    try:
+        return read_cube(path, chunks="rows")
+    except (ValueError, TypeError, OSError):
+        return None
 
 
 def _check_source_option(args, sensor):

@@ -230,7 +230,7 @@ def _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm, target_fwh
     if (resample or harmonise) and cube.sizes["band"] < 2:
         what = "resample" if resample else "harmonise"
         raise ValueError(f"{what} interpolates along each pixel's spectrum, and a one-band "
-                         f"cube has none: leave out {what}=True (--{what})")
+                         f"cube has none: leave out {what}=True")
     if not isinstance(sensor, Sensor) or not isinstance(lens, Lens):
         raise TypeError(f"correct_cube(cube, sensor, f_number, lens) takes a Sensor and a Lens,"
                         f" got {type(sensor).__name__} and {type(lens).__name__}")

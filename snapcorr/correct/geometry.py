@@ -99,7 +99,7 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
                 raise PlacementError(
                     f"the cube records its first pixel at sensor row {rows[0, 0]:g}, column "
                     f"{cols[0, 0]:g}, but the origin given is ({r0:g}, {c0:g}); leave out "
-                    "--sensor-origin-px (sensor_origin_px) or fix it")
+                    "sensor_origin_px= or fix it")
     elif sensor_origin_px is not None:
         r0, c0 = check_pair("sensor_origin_px", sensor_origin_px, "two numbers (row, col)")
         if r0 != round(r0) or c0 != round(c0):
@@ -112,7 +112,7 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
             f"{sensor.name!r} sit at different places in each {sensor.mosaic_shape[0]} x "
             f"{sensor.mosaic_shape[1]} tile: give the raw 2-D frame (it is split with the "
             "sensor's band offsets), a tile cube snapcorr split or wrote (it carries them), or "
-            "--sensor-origin-px ROW,COL if cube pixel (y, x) is the tile whose top-left sensor "
+            "sensor_origin_px= (row, col) if cube pixel (y, x) is the tile whose top-left sensor "
             "pixel is (ROW + y * tile rows, COL + x * tile columns)")
     else:
         frame = _full_frame(lens, sensor)
@@ -121,8 +121,8 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
             if abs(fr - ny) > _SAME_AREA_PX or abs(fc - nx) > _SAME_AREA_PX:
                 raise PlacementError(
                     f"the cube is {ny} x {nx} px but {what} is {fr:g} x {fc:g} px, and the "
-                    "cube does not say where it sits: give --sensor-origin-px ROW,COL "
-                    "(sensor_origin_px), the sensor row and column of its first pixel")
+                    "cube does not say where it sits: give sensor_origin_px= (row, col), the "
+                    "sensor row and column of its first pixel")
         rows, cols = (a.astype(float) for a in sensor_positions(sensor, ny, nx, (0, 0)))
     if sensor.size_px is not None and (rows.min() < 0 or cols.min() < 0
                                        or rows.max() >= sensor.size_px[0]
@@ -130,8 +130,8 @@ def cube_positions(cube, sensor, lens=None, sensor_origin_px=None):
         raise PlacementError(
             f"the cube covers sensor rows {rows.min():g}-{rows.max():g} and columns "
             f"{cols.min():g}-{cols.max():g}, outside the {sensor.size_px[0]} x "
-            f"{sensor.size_px[1]} px sensor {sensor.name!r}: check --sensor-origin-px "
-            "(sensor_origin_px) and --sensor")
+            f"{sensor.size_px[1]} px sensor {sensor.name!r}: check sensor_origin_px= and "
+            "sensor=")
     if np.all(rows == rows[:, :1]) and np.all(cols == cols[:, :1]):
         rows, cols = rows[:, :1], cols[:, :1]  # every band at the same position
     return rows, cols
@@ -220,7 +220,7 @@ def _calibrated_center_rc(cal, sensor):
         raise PlacementError(
             f"the lens profile's optical centre was measured with {p_cal:g} um pixels and "
             f"this sensor has {p:g} um, but {why}, so the centre cannot be carried over: "
-            "give --center ROW,COL (center_rc) in this sensor's pixels")
+            "give center_rc= (row, col) in this sensor's pixels")
     if same_pitch:
         return (row, col), "lens calibration"
     # pixel i covers [i, i + 1) pitches from the image's edge: centres sit at i + 0.5
@@ -237,8 +237,8 @@ def _crop_center_rc(cal, sensor, center, p_cal, p):
     if abs(p_cal - p) > 1e-9 * p:
         raise PlacementError(
             f"the lens profile's optical centre was measured on a crop of {p_cal:g} um pixels "
-            f"and this sensor has {p:g} um: give --center ROW,COL (center_rc) in this "
-            "sensor's pixels")
+            f"and this sensor has {p:g} um: give center_rc= (row, col) in this sensor's "
+            "pixels")
     return ((center[0] + r0, center[1] + c0),
             f"lens calibration (flats cropped at sensor row {r0:g}, column {c0:g})")
 

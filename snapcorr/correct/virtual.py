@@ -88,7 +88,7 @@ def _vendor(sensor, name, reflectance):
     """The vendor matrix to apply, and what it is."""
     if not sensor.matrices:
         raise ValueError(f"the sensor {sensor.name!r} has no correction matrix (vendor "
-                         "calibration files carry them); use --virtual-bands fitted")
+                         "calibration files carry them); use virtual_bands='fitted'")
     names = [m.name for m in sensor.matrices]
     if name is not None:
         if name not in names:
@@ -379,13 +379,13 @@ def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=Non
     reflectance = _is_reflectance(cube)
     if method != "vendor":
         if sensor.responses is None:
-            raise ValueError(f"--virtual-bands {method} needs the bands' measured responses, "
-                             f"and the sensor {sensor.name!r} has none: give its vendor "
-                             "calibration file (.xml) as --sensor")
+            raise ValueError(f"virtual_bands={method!r} needs the bands' measured responses, "
+                             f"and the sensor {sensor.name!r} has none: give the sensor of its "
+                             "vendor calibration file (.xml) as sensor=")
         if not reflectance:
-            raise ValueError(f"--virtual-bands {method} estimates reflectance: flat-field the "
-                             "cube first (snapcorr flatfield); the vendor's irradiance matrix "
-                             "applies to counts (--virtual-bands vendor)")
+            raise ValueError(f"virtual_bands={method!r} estimates reflectance: flat-field "
+                             "the cube first (snapcorr flatfield); the vendor's irradiance "
+                             "matrix applies to counts (virtual_bands='vendor')")
     geometry = (f_number, lens, cra_deg)
     noise_model = sample = None
     if reflectance and sensor.responses is not None:  # the band noise, for every estimate
@@ -612,9 +612,9 @@ def _estimated(cube, sample, sensor, method, geometry, wavelengths_nm, fwhm_nm, 
                       f"{_rms_text(alpha)} ({why})")
         return _with_error(ds, sample, sensor, A, wl, fw, noise_model, geometry)
     if f_number is None or lens is None or cra is None:
-        raise ValueError("--virtual-bands angle-aware needs the lens, the f-number and each "
+        raise ValueError("virtual_bands='angle-aware' needs the lens, the f-number and each "
                          "pixel's chief-ray angle (correct_cube gives them)")
-    n_eff = sensor.require("n_eff", "--virtual-bands angle-aware (each pixel's responses)")
+    n_eff = sensor.require("n_eff", "virtual_bands='angle-aware' (each pixel's responses)")
     with one_blas_thread():  # small matrices (module _threads)
         table = VirtualTable.build(sensor.responses, g, n_eff, f_number, lens,
                                    cra_max_deg=max(float(np.nanmax(cra)), 1e-6), alpha=alpha,

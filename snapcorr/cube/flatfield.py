@@ -54,7 +54,7 @@ def check_masked(ds, *, warn_fraction=MASKED_WARN_FRACTION):
     causes = ("likely the white reference is nowhere above the dark, the cube holds no "
               "finite value" + (f", or the values reach the saturation level {sat:g}"
                                 if sat is not None else "")
-              + "; check the dark and white files" + (" and --saturation" if sat else ""))
+              + "; check the dark and white files" + (" and saturation=" if sat else ""))
     if n == total:
         raise ValueError(f"every value of the {' x '.join(map(str, ds['mask'].shape))} cube is "
                          f"masked: {causes}")

@@ -89,16 +89,13 @@ def _origin(shape, sensor, sensor_origin_px):
             raise ValueError(
                 f"a frame of {shape[0]} x {shape[1]} px at sensor row {r0}, column {c0} reaches "
                 f"beyond the sensor {sensor.name!r} ({sensor.size_px[0]} x "
-                f"{sensor.size_px[1]} px): check sensor_origin_px (--sensor-origin-px ROW,COL, "
-                "row "
-                "first) and the sensor")
+                f"{sensor.size_px[1]} px): check sensor_origin_px= (row, col) and the sensor")
         return r0, c0
     if sensor.size_px is not None and tuple(shape) != tuple(sensor.size_px):
         raise ValueError(
             f"the frame is {shape[0]} x {shape[1]} px but the sensor {sensor.name!r} is "
             f"{sensor.size_px[0]} x {sensor.size_px[1]} px: for a crop or a region of interest "
-            "give the sensor row and column of its first pixel (sensor_origin_px, "
-            "--sensor-origin-px ROW,COL)")
+            "give the sensor row and column of its first pixel, sensor_origin_px= (row, col)")
     return 0, 0
 
 

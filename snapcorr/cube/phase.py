@@ -389,7 +389,7 @@ def check_mosaic_phase(white, sensor, sensor_origin_px=None, *, dark=None, satur
         raise ValueError(
             f"{what} is a {shape[0]} x {shape[1]} px crop of the {sensor.size_px[0]} x "
             f"{sensor.size_px[1]} px sensor: give the sensor row and column of its first pixel "
-            "(sensor_origin_px, --sensor-origin-px ROW,COL), which set its chief-ray angles; "
+            "(sensor_origin_px=), which set its chief-ray angles; "
             + found.describe())
     if found.agrees is not False:
         return found
@@ -402,5 +402,5 @@ def check_mosaic_phase(white, sensor, sensor_origin_px=None, *, dark=None, satur
               else f"the stated origin {near[0]},{near[1]}'s")
     raise ValueError(
         f"{what} shows the mosaic at another phase than {stated}: {found.describe()}; "
-        f"an origin with the white's phase is {shown[0]},{shown[1]} (--sensor-origin-px "
-        "ROW,COL, row first); check the origin and the sensor file")
+        f"an origin with the white's phase is {shown[0]},{shown[1]} (sensor_origin_px=, row "
+        "first); check the origin and the sensor file")

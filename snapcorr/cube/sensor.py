@@ -52,7 +52,8 @@ _NEEDS = {
               "give it in a sensor TOML naming the file (vendor_file = ..., n_eff = ...), from "
               "the vendor's design value or a measurement (`snapcorr pupil --fit-n-eff` fits "
               "it from cubes of a spectral target at two f-numbers, measured responses "
-              "included, and --sensor-out writes that TOML)"),
+              "included, and its --sensor-out writes that TOML; in Python, "
+              "snapcorr.calibrate.locate_pupil with fit_n_eff)"),
     "pixel_pitch_um": ("its pixel pitch, which its file gives as 0 (unknown); give "
                        "pixel_pitch_um in a sensor TOML naming the file (vendor_file = ..., "
                        "pixel_pitch_um = ...)"),

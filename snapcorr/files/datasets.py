@@ -425,7 +425,7 @@ def _pack_range(name, var, pack_range):
         return RATIO_PACK_RANGE
     raise ValueError(f"{name} is in units {units!r}: uint16 packs a range of values, chosen "
                      "for ratios (units '1': -0.5 to 3.5) but not known for these; give the "
-                     "range (--pack-range LO,HI from the command line)")
+                     "range (pack_range=)")
 
 
 def _store(ds, path, fmt, compression="auto"):

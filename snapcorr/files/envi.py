@@ -219,6 +219,13 @@ def _envi_data_file(hdr, interleave):
                      f"for {looked}); put the data file beside it")
 
 
+#: The nominal wavelengths (nm) of an image of a correction's result whose every pixel has its
+#: own (:mod:`snapcorr.files.envi_result`): a header key of snapcorr's, which other readers
+#: leave alone (given as ``wavelength``, they would plot each pixel at the nominal ones), and
+#: snapcorr reads as the bands' nominal wavelengths, as the result's ``.nc`` holds them.
+NOMINAL_KEY = "snapcorr nominal wavelength"
+
+
 def _envi_list(h, key, hdr):
     if key not in h:
         return None
@@ -287,9 +294,12 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
                                         "ignore value NaN")
     elif ignore is not None:
         attrs["data_ignore_value"] = ignore
-    found = _File(hdr, "envi", data, wavelength=_envi_list(h, "wavelength", hdr),
-                  units=h.get("wavelength units"), fwhm=_envi_list(h, "fwhm", hdr),
-                  fwhm_units=h.get("wavelength units"), name=h.get("snapcorr name"))
+    wavelength, units = _envi_list(h, "wavelength", hdr), h.get("wavelength units")
+    if wavelength is None and NOMINAL_KEY in h:  # snapcorr's result: its bands' nominal ones
+        wavelength, units = _envi_list(h, NOMINAL_KEY, hdr), "nm"
+    found = _File(hdr, "envi", data, wavelength=wavelength, units=units,
+                  fwhm=_envi_list(h, "fwhm", hdr), fwhm_units=h.get("wavelength units"),
+                  name=h.get("snapcorr name"))
     stored = h.get("snapcorr attrs")
     if isinstance(stored, str) and stored.startswith(JSON_PREFIX):
         try:

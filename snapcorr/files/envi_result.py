@@ -21,7 +21,8 @@ A header carries ``wavelength`` (and ``fwhm``) only where every pixel of a band 
 the resampled, harmonised and virtual cubes. The input's values sit at each pixel's own
 wavelengths, so their header gives none (a reader would otherwise plot them at the nominal
 ones, the error the correction removes) and names ``STEM_wavelength_corrected.hdr`` instead;
-``snapcorr nominal wavelength`` lists the nominal ones. Every header holds the result's
+``snapcorr nominal wavelength`` lists the nominal ones (which snapcorr's readers take as
+the bands', as the result's ``.nc`` holds them). Every header holds the result's
 provenance (``snapcorr attrs``, JSON). Dask images are written chunk by chunk into each file's
 memory map, so a result larger than memory can be written.
 """
@@ -35,7 +36,7 @@ import numpy as np
 import xarray as xr
 
 from .attrs import JSON_PREFIX, _json_attrs, _positions, _version
-from .envi import _envi_position_keys, _quiet_spectral
+from .envi import NOMINAL_KEY, _envi_position_keys, _quiet_spectral
 from .outputs import _check_targets, _check_writable
 from .safety import atomic_write_files
 
@@ -102,7 +103,7 @@ def _header(ds, name, var, stem, nominal, positions):
     elif "band" in var.dims:
         # each pixel has its own wavelengths: none in the header, where they would be
         # taken for every pixel's
-        header["snapcorr nominal wavelength"] = nominal
+        header[NOMINAL_KEY] = nominal
         header["band names"] = [f"nominal {w:g} nm" for w in nominal]
         header["description"] += (f"; each pixel's wavelengths are in "
                                   f"{stem}_wavelength_corrected.hdr (nm)")

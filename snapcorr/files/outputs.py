@@ -53,7 +53,7 @@ def _check_targets(fmt, targets, *, overwrite, inputs):
             continue
         if not overwrite:
             raise FileExistsError(f"{target} exists; choose another name or pass "
-                                  "overwrite=True (--overwrite)")
+                                  "overwrite=True")
         try:
             st = os.stat(target)
         except OSError as err:
@@ -225,5 +225,5 @@ def _check_output(out, res, allowed, overwrite):
         raise ValueError(f"{out} exists and is a {'folder' if out.is_dir() else 'file'}; "
                          "it is never replaced: choose another output path")
     if os.path.lexists(out) and not overwrite:
-        raise FileExistsError(f"{out} exists; choose another name or pass --overwrite")
+        raise FileExistsError(f"{out} exists; choose another name or pass overwrite=True")
     check_replaceable(out)  # notes what is there now (nothing, too): only that is replaced

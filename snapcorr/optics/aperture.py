@@ -214,7 +214,8 @@ def overlap_area_mm2(radii_mm, centers_mm):
     r, c = np.asarray(both[:k]), np.asarray(both[k:])
     lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
     points = [lo, hi]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # centres next to each other cross far away: u overflows to inf, taken as no crossing
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for i in range(k):
             for j in range(i + 1, k):
                 u = (r[i] ** 2 - r[j] ** 2 + c[j] ** 2 - c[i] ** 2) / (2.0 * (c[j] - c[i]))

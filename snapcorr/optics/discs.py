@@ -76,13 +76,14 @@ def boundary(radii, centers) -> Boundary:
         for j in range(i + 1, k):
             D = np.abs(c[j] - c[i])
             Ds = np.where(D > 0, D, 1.0)
-            with np.errstate(divide="ignore", invalid="ignore"):
+            # centres next to each other cross far away (a overflows to inf: outside)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 # distance of the crossing from c_i along the line, towards c_j
                 a = (r[i] ** 2 - r[j] ** 2 + Ds * Ds) / (2.0 * Ds)
-            u = c[i] + np.sign(c[j] - c[i]) * a
-            heron = (r[i] + r[j] - Ds) * (r[j] + Ds - r[i]) * (r[i] + Ds - r[j]) * (
-                r[i] + r[j] + Ds)
-            y = np.sqrt(np.clip(heron, 0.0, None)) / (2.0 * Ds)
+                u = c[i] + np.sign(c[j] - c[i]) * a
+                heron = (r[i] + r[j] - Ds) * (r[j] + Ds - r[i]) * (r[i] + Ds - r[j]) * (
+                    r[i] + r[j] + Ds)
+                y = np.sqrt(np.clip(heron, 0.0, None)) / (2.0 * Ds)
             inside = (D > 0) & (u > lo) & (u < hi) & (heron > 0)
             points.append(np.where(inside, u, lo))
             heights.append(np.where(inside, y, 0.0))

@@ -21,6 +21,7 @@ from .._bundled import profile_path
 from .._validation import (
     F_NUMBER_MAX,
     LENGTH_MAX_MM,
+    LENGTH_MIN_MM,
     called_from_outside,
     check_numbers,
     shown,
@@ -40,11 +41,6 @@ def _spells_a_number(text):
     return True
 
 
-#: The shortest exit-pupil distance or circle radius a lens has, mm (a micron): below it the
-#: optics divide by next to nothing (1e-310 overflowed), and it is a typo or a unit slip.
-LENGTH_MIN_MM = 1e-3
-
-
 def _finite(name, value, *, positive=False, at_most=None, unit=""):
     """``value`` as a float: finite (and, with ``positive``, at least :data:`LENGTH_MIN_MM`
     where ``at_most`` bounds a length; at most ``at_most`` in size)."""
@@ -55,6 +51,27 @@ def _finite(name, value, *, positive=False, at_most=None, unit=""):
     if positive and at_most is not None and v < LENGTH_MIN_MM:
         raise ValueError(f"{name} must be at least {LENGTH_MIN_MM:g}{unit} (no lens's is "
                          f"smaller: check the value and its unit), got {shown(value)}")
+    return v
+
+
+def check_length_mm(name, value):
+    """An exit-pupil distance or circle radius as a float: finite, from
+    :data:`LENGTH_MIN_MM` to :data:`LENGTH_MAX_MM`."""
+    return _finite(name, value, positive=True, at_most=LENGTH_MAX_MM, unit=" mm")
+
+
+def check_distance_mm(name, value):
+    """A vignetting circle's distance h as a float: finite, at most :data:`LENGTH_MAX_MM` in
+    size, and 0 (a stop: a circle that does not move) or at least :data:`LENGTH_MIN_MM` in
+    size. Nearer 0, a circle's onset ``arctan((P - R) / |h|)`` and its crossings with the
+    other discs divide by next to nothing (1e-310 overflowed, and a fit's onsets were NaN);
+    such a circle moves by less than a micron up to 45 deg, a stop, and the value is a typo
+    or a unit slip."""
+    v = _finite(name, value, at_most=LENGTH_MAX_MM, unit=" mm")
+    if v != 0 and abs(v) < LENGTH_MIN_MM:
+        raise ValueError(f"{name} must be 0 (a stop) or at least {LENGTH_MIN_MM:g} mm in size "
+                         f"(nearer, it is a stop for every chief ray up to 45 deg: check the "
+                         f"value and its unit), got {shown(value)}")
     return v
 
 
@@ -158,8 +175,7 @@ def _circles(vignetting):
                 from None
         out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True,
                             at_most=LENGTH_MAX_MM, unit=" mm"),
-                    _finite(f"vignetting circle {i + 1} distance_mm (h)", h,
-                            at_most=LENGTH_MAX_MM, unit=" mm")))
+                    check_distance_mm(f"vignetting circle {i + 1} distance_mm (h)", h)))
     return tuple(out)
 
 
@@ -444,7 +460,7 @@ class Lens:
                                  f"(got only {sorted(given)})")
             args["vignetting"] = [(
                 _finite("vignetting_radius_mm", table["vignetting_radius_mm"], positive=True),
-                _finite("vignetting_distance_mm", table["vignetting_distance_mm"]))]
+                check_distance_mm("vignetting_distance_mm", table["vignetting_distance_mm"]))]
         if "vignetting" in args and not isinstance(args["vignetting"], list):
             raise ValueError("[lens] vignetting must be [[lens.vignetting]] tables with "
                              "radius_mm and distance_mm")

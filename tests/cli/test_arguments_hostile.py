@@ -86,6 +86,18 @@ LENS_OPTIONS = {"calibrate": ["--exit-pupil-mm", "--magnification", "--pupil-mag
                 "pupil": ["--magnification", "--pupil-magnification"]}
 
 
+@pytest.mark.parametrize("value", ["1e-310", "5e-324", "0.0009"])
+@pytest.mark.parametrize("option", ["--exit-pupil-mm", "--vignetting-distance-mm"])
+def test_a_length_below_a_micron_is_refused_by_its_option_before_any_read(tmp_path, option,
+                                                                          value, cli):
+    """--vignetting-distance-mm 1e-310 flooded overflow warnings and wrote NaN onsets."""
+    rest = [] if option == "--exit-pupil-mm" else ["--exit-pupil-mm", "21"]
+    rc, _, err = cli("calibrate", "--flat", "2=f2.npy", "--flat", "4=f4.npy", *rest, option,
+                     value, "--out", "l.toml", cwd=tmp_path)
+    line = assert_refused(rc, err, option, ">= 0.001")
+    assert rc == 2 and "overflow" not in err, line
+
+
 @pytest.mark.parametrize("value", ["1e200", "1e308", "inf", "nan"])
 @pytest.mark.parametrize(("command", "option"),
                          [(c, o) for c, options in LENS_OPTIONS.items() for o in options])

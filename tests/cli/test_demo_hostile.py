@@ -47,6 +47,19 @@ def test_demo_refuses_a_file_as_its_folder(tmp_path, monkeypatch, cli):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("given", ["missing/demo", "missing/deeper/demo"])
+def test_demo_refuses_a_folder_whose_parent_does_not_exist(tmp_path, monkeypatch, cli, given):
+    """As every command refuses an output whose folder does not exist: the demo made every
+    missing folder above its own (a typo in a parent's name went unnoticed)."""
+    monkeypatch.chdir(tmp_path)
+    before = snapshot(tmp_path)
+    _forbid_demo_work(monkeypatch)
+    rc, out, err = cli("demo", "--out", given)
+    line = assert_refused(rc, err, "--out", given, "does not exist")
+    assert "\n" not in line and not out.strip()
+    assert snapshot(tmp_path) == before
+
+
 @pytest.mark.slow
 def test_demo_runs_in_a_new_folder(tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)

@@ -23,7 +23,7 @@ def test_a_stated_origin_must_agree_with_the_recorded_one():
     rows, cols = sensor_positions(sensor, 6, 8, (10, 20))
     _check_origin("c.nc", cube, rows, cols, (10, 20))  # agrees: nothing said
     rows, cols = sensor_positions(sensor, 6, 8, (12, 20))
-    with pytest.raises(ValueError, match=r"--sensor-origin-px 12,20 disagrees with the sensor "
+    with pytest.raises(ValueError, match=r"sensor_origin_px \(12, 20\) disagrees with the sensor "
                        r"positions c.nc records \(its first pixel at row 10, col 20\)"):
         _check_origin("c.nc", cube, rows, cols, (12, 20))
 

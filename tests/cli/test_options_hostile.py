@@ -103,3 +103,61 @@ def test_a_budget_of_a_sensor_without_n_eff_says_how_to_measure_it(tmp_path, cli
                      "2", "--source", "solar")
     line = assert_refused(rc, err, "n_eff")
     assert "nan" not in line, line  # was: n_eff must be a finite ... (got [nan])
+
+
+#: For each command with options taking a pair of numbers: what it needs besides them.
+PAIR_COMMANDS = {
+    "correct": ["scene.nc", "--lens", "edmund_optics_16mm", "--sensor", "snapscan_vnir",
+                "--f-number", "2", "--out", "o.nc"],
+    "budget": ["--sensor", "snapscan_vnir", "--lens", "edmund_optics_16mm", "--f-number", "2",
+               "--source", "flat"],
+    "calibrate": ["--flat", "2=f2.npy", "--flat", "8=f8.npy", "--exit-pupil-mm", "21",
+                  "--out", "l.toml"],
+}
+
+
+def _parsed(monkeypatch, command, argv):
+    """The options ``snapcorr COMMAND ARGV`` reaches its command with (it is not run)."""
+    import importlib
+
+    from snapcorr.cli import main
+
+    seen = {}
+    monkeypatch.setattr(importlib.import_module(f"snapcorr.cli.{command}"), "run",
+                        lambda args: seen.setdefault("args", args) and 0)
+    rc = main([command, *argv])
+    return rc, seen.get("args")
+
+
+@pytest.mark.parametrize("command", sorted(PAIR_COMMANDS))
+@pytest.mark.parametrize(("typed", "dest", "expected"), [
+    (["--center", "-5,5"], "center", (-5.0, 5.0)),
+    (["--center-px", "-5.5,2"], "center_px", (-5.5, 2.0)),
+    (["--center-p", "-1e1,3"], "center_px", (-10.0, 3.0)),  # shortened, as argparse allows
+])
+def test_a_pair_starting_with_a_minus_is_the_options_value(monkeypatch, capsys, command, typed,
+                                                           dest, expected):
+    """``--center -5,5`` (a centre outside the crop) was taken for an option of its own and
+    refused as '--center: expected one argument'."""
+    rc, args = _parsed(monkeypatch, command, [*PAIR_COMMANDS[command], *typed])
+    assert rc == 0, capsys.readouterr().err
+    assert getattr(args, dest) == expected
+
+
+@pytest.mark.parametrize("command", ["correct", "sensor"])
+def test_a_negative_origin_is_refused_by_its_own_check(monkeypatch, capsys, command):
+    """A negative crop origin reaches the origin's own check, which says what it may be."""
+    argv = PAIR_COMMANDS.get(command, ["snapscan_vnir"])
+    rc, args = _parsed(monkeypatch, command, [*argv, "--sensor-origin-px", "-1,2"])
+    err = capsys.readouterr().err
+    assert rc == 2 and args is None
+    assert "--sensor-origin-px" in err and "whole pixels >= 0" in err, err
+    assert "expected one argument" not in err
+
+
+def test_a_value_after_the_end_of_options_is_left_alone():
+    from snapcorr.cli import _negative_pairs, build_parser
+
+    given = ["correct", "--center", "-5,5", "--", "--center", "-1,1"]
+    assert _negative_pairs(build_parser(), given) == ["correct", "--center=-5,5", "--",
+                                                      "--center", "-1,1"]

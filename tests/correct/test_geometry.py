@@ -50,7 +50,7 @@ def test_center_from_the_lens_calibration_only_for_the_same_pitch():
     other = replace(PAPER_LENS, name="cal",
                     calibration={"center_px": [3.0, 4.0], "pixel_pitch_um": 5.5})
     # another pitch and no image size to match the areas: refused, never the image centre
-    with pytest.raises(PlacementError, match="--center ROW,COL"):
+    with pytest.raises(PlacementError, match=r"center_rc= \(row, col\)"):
         cube_cra(cube, s, other)
 
 
@@ -106,7 +106,7 @@ def _by_hand(rows, cols, row, col, pitch_mm=5.5e-3, x_mm=21.0):
 
 def test_a_crop_of_unknown_place_is_refused_and_placed_by_its_origin():
     crop = _cube(FULL, ny=256, nx=256)
-    with pytest.raises(PlacementError, match="--sensor-origin-px"):
+    with pytest.raises(PlacementError, match="sensor_origin_px="):
         correct_cube(crop, FULL, 2.8, PAPER)
     cra, center, source = cube_cra(crop, FULL, PAPER, sensor_origin_px=(1500, 100))
     assert source == "sensor centre" and center == (1023.5, 1023.5)
@@ -154,11 +154,11 @@ def test_the_calibrated_center_is_carried_to_binned_pixels_through_millimetres()
     assert cra[300, 700, 0] == pytest.approx(full, rel=1e-12)
     # a sensor of another physical size: the areas cannot be matched
     other = Sensor("other", "snapscan", 11.0, FULL.cwl_nm, 10.0, 1.7, size_px=(1000, 1024))
-    with pytest.raises(PlacementError, match="--center ROW,COL"):
+    with pytest.raises(PlacementError, match=r"center_rc= \(row, col\)"):
         cube_cra(_cube(other, ny=1000, nx=1024), other, lens)
     # ... also at the same pitch: a smaller sensor is not the calibration's pixel grid
     small = Sensor("small", "snapscan", 5.5, FULL.cwl_nm, 10.0, 1.7, size_px=(1024, 1024))
-    with pytest.raises(PlacementError, match="--center ROW,COL"):
+    with pytest.raises(PlacementError, match=r"center_rc= \(row, col\)"):
         cube_cra(_cube(small, ny=1024, nx=1024), small, lens)
     # a crop of the calibrated sensor (placed by its origin) keeps the calibrated centre
     cra, center, _ = cube_cra(_cube(FULL, ny=64, nx=64), FULL, lens,

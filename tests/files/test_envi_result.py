@@ -225,3 +225,50 @@ def test_envi_result_refuses_what_it_cannot_do_before_any_work(files, cli):
     assert resampled.name == "harmonised"
     with pytest.raises(ValueError, match="a result of a correction"):
         correct_cube(resampled, sensor, 1.4, PAPER_LENS, harmonise=True)
+
+
+@pytest.mark.filterwarnings("ignore:Image data contains NaN")
+def test_every_image_of_an_envi_result_reads_back_as_the_result_holds_it(files, cli):
+    """Its images at each pixel's own wavelengths were refused by read_cube ('carries no
+    wavelengths; pass wavelength_nm'), though their headers name the bands' nominal ones."""
+    d, cube, _, sensor = files
+    _correct(cli, d, "r.hdr", "--resample", "--harmonise")
+    _correct(cli, d, "r.nc", "--resample", "--harmonise")
+    with read_dataset(d / "r.nc") as ref:
+        for name, file in (("reflectance", "r.hdr"),
+                           ("wavelength_corrected", "r_wavelength_corrected.hdr"),
+                           ("fwhm_corrected", "r_fwhm_corrected.hdr"),
+                           ("resampled", "r_resampled.hdr"), ("harmonised", "r_harmonised.hdr")):
+            got = read_cube(d / file)
+            assert got.name == name
+            np.testing.assert_array_equal(got.wavelength.values, sensor.cwl_nm, err_msg=file)
+            np.testing.assert_array_equal(
+                got.values, ref[name].transpose("y", "x", "band").values.astype(got.dtype),
+                err_msg=file)
+    # the input's values are the input, back at its nominal wavelengths
+    again = read_cube(d / "r.hdr")
+    np.testing.assert_array_equal(again.values, cube.values)
+    np.testing.assert_array_equal(again.wavelength.values, cube.wavelength.values)
+
+
+@pytest.mark.filterwarnings("ignore:Image data contains NaN")
+@pytest.mark.parametrize("image", ["resampled", "harmonised", "wavelength_corrected",
+                                   "virtual"])
+def test_correct_refuses_an_image_of_its_own_result_naming_the_file(files, cli, image):
+    """The refusal said 'the cube is named ...' with no file, and 'in Python, rename it' to a
+    command line; a result's virtual bands (other bands than the sensor's) were said to be of
+    another sensor."""
+    d, *_ = files
+    _correct(cli, d, "r.hdr", "--resample", "--harmonise")
+    if image == "virtual":  # three virtual bands, as a result records them
+        write_cube(make_cube(np.ones((24, 32, 3), np.float32), [550.0, 650.0, 750.0],
+                             name="virtual", attrs={"cube_file": "cube.nc"}),
+                   d / "r_virtual.hdr")
+    res = cli("correct", f"r_{image}.hdr", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--out", "again.nc", cwd=d)
+    assert res.returncode == 1
+    line = res.stderr.strip()
+    assert "\n" not in line, line
+    assert f"r_{image}.hdr holds '{image}'" in line and "correct the cube it was made from " \
+        "(cube.nc" in line, line
+    assert "Python" not in line and not (d / "again.nc").exists()

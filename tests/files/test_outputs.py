@@ -79,7 +79,7 @@ def test_a_wrong_suffix_is_refused(tmp_path):
 def test_an_existing_output_needs_overwrite(tmp_path):
     out = tmp_path / "lens.toml"
     write_toml(out, {"lens": {"name": "a"}})
-    with pytest.raises(FileExistsError, match="pass --overwrite"):
+    with pytest.raises(FileExistsError, match="pass overwrite=True"):
         _check([out], suffixes=[(".toml",)])
     _check([out], suffixes=[(".toml",)], overwrite=True)
 

@@ -131,3 +131,61 @@ def test_a_lens_file_with_a_pitch_as_text_is_refused(tmp_path, cli):
     err = refused_in_one_line(cli("shift", "--lens", "l.toml", "--f-number", "2.8", "--cra", "5",
                         cwd=tmp_path))
     assert "pixel_pitch_um must be a number, got text" in err
+
+
+TINY_H = ["1e-310", "-1e-310", "5e-324", "1e-30", "-0.0009"]
+
+
+@pytest.mark.parametrize("h", TINY_H)
+@pytest.mark.parametrize("circles", ["one", "second of two"])
+def test_a_vignetting_distance_next_to_zero_is_refused_and_zero_is_a_stop(h, circles):
+    """|h| below a micron overflowed the onset arctan((P - R) / |h|) and the discs' crossings
+    (a warning per pixel, NaN onsets in a calibration); h = 0 is a stop, which never cuts a
+    pupil smaller than itself."""
+    import warnings
+
+    first = [] if circles == "one" else [(7.4236, 16.991)]
+    k = len(first) + 1
+    with pytest.raises(ValueError, match=rf"circle {k} distance_mm \(h\) must be 0 \(a stop\) or"
+                                         r" at least 0\.001 mm"):
+        Lens(21.0, [*first, (9.0, float(h))], 0.06, 1.3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stop = Lens(21.0, [*first, (9.0, 0.0)], 0.06, 1.3)
+        near = Lens(21.0, [*first, (9.0, 1e-3)], 0.06, 1.3)
+        assert stop.circle_onsets_cra_deg(8.0)[-1] == np.inf  # P > R: never cuts
+        assert near.circle_onsets_cra_deg(8.0)[-1] == pytest.approx(89.99, abs=0.01)
+        assert np.all(np.isfinite(near.relative_illumination(1.4, [0.0, 10.0, 20.0])))
+
+
+@pytest.mark.parametrize("form", ["single", "tables"])
+def test_a_lens_file_with_a_vignetting_distance_next_to_zero_is_refused(tmp_path, form, cli):
+    text = (lens_text(vignetting_distance_mm="1e-310") if form == "single" else
+            "[lens]\nexit_pupil_mm = 21.0\n[[lens.vignetting]]\nradius_mm = 7.4\n"
+            "distance_mm = 16.9\n[[lens.vignetting]]\nradius_mm = 9.0\ndistance_mm = 1e-310\n")
+    (tmp_path / "lens.toml").write_text(text)
+    key = "vignetting_distance_mm" if form == "single" else r"circle 2 distance_mm \(h\)"
+    with pytest.raises(ValueError, match=rf"{key} must be 0 \(a stop\) or at least 0\.001"):
+        Lens.load(tmp_path / "lens.toml")
+    rc, _, err = cli("shift", "--lens", tmp_path / "lens.toml", "--f-number", "2", "--cra",
+                     "10", "--cwl-nm", "700", "--n-eff", "1.7")
+    assert_refused(rc, err, "lens.toml", "0.001")
+    assert "overflow" not in err
+
+
+def test_discs_with_centres_next_to_each_other_overlap_without_a_warning():
+    """A crossing of two discs whose centres lie 1e-300 mm apart is far outside them: the
+    area is the coincident discs' (it overflowed with a warning, per pixel)."""
+    import warnings
+
+    from snapcorr.optics import discs
+    from snapcorr.optics.aperture import overlap_area_mm2
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for apart in (1e-300, 5e-324):
+            assert overlap_area_mm2([3.0, 7.4], [0.0, apart]) == pytest.approx(9 * np.pi)
+            b = discs.boundary([3.0, 7.4, 9.0], [0.0, apart, 2 * apart])
+            assert np.all(np.isfinite(b.u)) and np.all(np.isfinite(b.y))
+        lens = Lens(21.0, [(7.4236, 16.991), (9.0, 30.0)], 0.06, 1.3)
+        assert lens.relative_illumination(1.4, [1e-300, 0.0]) == pytest.approx([1.0, 1.0])

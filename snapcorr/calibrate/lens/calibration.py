@@ -48,7 +48,12 @@ from ..._validation import (
     renamed_keywords,
 )
 from ...optics.chief_ray import cra_map
-from ...optics.lens import Lens, check_magnification, check_pupil_magnification
+from ...optics.lens import (
+    Lens,
+    check_length_mm,
+    check_magnification,
+    check_pupil_magnification,
+)
 from ...optics.shift import EffectiveIndexWarning
 from ..flats.cleaning import check_mosaic_sensor
 from . import choice, report, stages
@@ -239,10 +244,14 @@ def _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm, c
     """Every number checked (:func:`_check_choice_args` too), as floats."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    exit_pupil_mm = check_positive("exit_pupil_mm", exit_pupil_mm)
+    # the lens's own bounds (a micron to a kilometre), before any flat is read
+    exit_pupil_mm = check_length_mm("exit_pupil_mm", check_positive("exit_pupil_mm",
+                                                                   exit_pupil_mm))
     pixel_pitch_um = check_pixel_pitch_um("pixel_pitch_um", pixel_pitch_um)
     if vignetting_distance_mm is not None:
-        vignetting_distance_mm = check_positive("vignetting_distance_mm", vignetting_distance_mm)
+        vignetting_distance_mm = check_length_mm(
+            "vignetting_distance_mm", check_positive("vignetting_distance_mm",
+                                                     vignetting_distance_mm))
     if center_rc is not None:
         center_rc = check_center_rc(center_rc)
     if exit_pupil_stderr_mm is not None:
@@ -265,7 +274,7 @@ def _check_enough_flats(items, vignetting_distance_mm):
         raise ValueError(
             f"one f-number (f/{items[0][0]:g}) cannot tell the vignetting circle's radius P "
             "from its distance h (Eq. 26 needs two or more onsets): give flats at two or more "
-            "f-numbers, or give h (vignetting_distance_mm / --vignetting-distance-mm)")
+            "f-numbers, or give h (vignetting_distance_mm=)")
 
 
 @renamed_keywords(pupil="pupil_radiance")
@@ -299,8 +308,8 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
     saturation : float or mapping, optional
         Values at or above are saturated and ignored (one level, or f-number -> level).
     vignetting_distance_mm : float, optional
-        h, if known; then one circle is fitted. Required with a single f-number, whose flat
-        cannot tell P from h.
+        h, if known (> 0: at least :data:`~snapcorr._validation.LENGTH_MIN_MM`); then one
+        circle is fitted. Required with a single f-number, whose flat cannot tell P from h.
     method : {"auto", "joint", "onset-ratio", "onset-model"}
         ``"joint"``: the area model fitted to every ratio image at once; ``"onset-ratio"``:
         the paper's onsets of the ratio profiles, then Eq. 26; ``"onset-model"``: onsets from

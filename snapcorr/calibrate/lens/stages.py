@@ -148,7 +148,7 @@ def _pattern_hint(img, saturation, pixel_gains):
     if pixel_gains or plain.mean() < 0.5:
         return ""
     return ("; most pixels stand out from their neighbours: if these are raw frames of a "
-            "snapshot mosaic, give its sensor (sensor=, --sensor) so that the band gains are "
+            "snapshot mosaic, give its sensor (sensor=) so that the band gains are "
             "divided out")
 
 
@@ -235,7 +235,7 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
             k, spread = period
             raise ValueError(f"the flat at f/{f:g} repeats a {k} x {k} pattern of pixel gains "
                              f"(its positions' means differ by {100 * spread:.0f} %): raw "
-                             "frames of a snapshot mosaic; give its sensor (sensor=, --sensor) "
+                             "frames of a snapshot mosaic; give its sensor (sensor=) "
                              "so that the band gains are divided out")
         images.append(image)
         valids.append(ok)
@@ -410,7 +410,7 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center_rc, base: Lens, pix
                 raise ValueError(
                     f"the flat at f/{f:g} divided by the flat at f/{float(fs[-1]):g} leaves no "
                     "profile with a spread to read an onset from (fewer than 8 bins that vary"
-                    "): are they the same frames? Each --flat must be taken at its own "
+                    "): are they the same frames? Each flat must be taken at its own "
                     "f-number")
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
         onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,

@@ -319,7 +319,8 @@ def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectru
         raise ValueError(f"the lens's vignetting circles belong to the {lens.pupil_radiance} "
                          "pupil (its radius sets their onsets); the "
                          f"{pupil_radiance} pupil would need them found again: fit flats and "
-                         "target together, which chooses the pupil (snapcorr calibrate "
+                         "target together, which chooses the pupil (calibrate_with_target "
+                         "with pupil_radiance 'auto'; on the command line snapcorr calibrate "
                          "--target-cube --pupil auto)")
     if pupil_radiance == "auto":
         return _either_pupil(locals())

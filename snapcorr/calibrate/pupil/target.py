@@ -67,8 +67,9 @@ def check_modelled(sensor, what, *, fit_n_eff=False, measured=True):
     if sensor.responses is not None and not measured:
         raise ValueError(f"{what} models each band by the sensor's filter shape about its "
                          f"centre; the sensor {sensor.name!r} has measured responses behind a "
-                         "band-pass (a vendor file), which it does not model yet (snapcorr "
-                         "pupil --fit-n-eff does: fit the cubes directly)")
+                         "band-pass (a vendor file), which it does not model yet "
+                         "(locate_pupil with fit_n_eff does, on the command line snapcorr "
+                         "pupil --fit-n-eff: fit the cubes directly)")
     if sensor.n_eff is None and fit_n_eff:
         return np.full(sensor.n_bands, N_EFF_START)
     return np.asarray(sensor.require("n_eff", what), float)

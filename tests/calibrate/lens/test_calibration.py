@@ -356,6 +356,23 @@ def test_bad_library_inputs_are_value_errors():
                        pixel_pitch_um=0.01)
 
 
+@pytest.mark.parametrize("key", ["vignetting_distance_mm", "exit_pupil_mm"])
+@pytest.mark.parametrize("value", [1e-310, 5e-324, 1e-4])
+def test_a_length_below_a_micron_is_refused_before_the_flats_are_read(key, value):
+    """h = 1e-310 flooded overflow warnings through the fit and wrote NaN onsets; x = 1e-310
+    was refused only by the lens, after the flats were read."""
+    def unread(path):
+        raise AssertionError("the refusal must come before any flat is read")
+
+    kw = {"exit_pupil_mm": 21.0, "pixel_pitch_um": 44.0, key: value}
+    with pytest.raises(ValueError, match=rf"^{key} must be at least 0\.001 mm"), \
+            pytest.MonkeyPatch.context() as mp:
+        import snapcorr.calibrate.lens.calibration as calibration
+
+        mp.setattr(calibration, "_check_inputs", unread)
+        calibrate_lens({2.0: "f2.npy", 4.0: "f4.npy"}, **kw)
+
+
 @pytest.mark.slow
 def test_standard_errors_cover_the_truth_over_seeds():
     # z = (estimate - truth) / stderr over seeds: no estimator may be confidently wrong
