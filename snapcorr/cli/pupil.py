@@ -148,11 +148,26 @@ def run(args):
     return 0
 
 
+#: Options of a fit that --predict would not use: refused with it, not ignored.
+_FIT_ONLY = (("out", "--out"), ("sensor_out", "--sensor-out"), ("plot", "--plot"),
+             ("name", "--name"), ("overwrite", "--overwrite"),
+             ("sensor_origin_px", "--sensor-origin-px"), ("pupil", "--pupil"),
+             ("center", "--center"), ("center_px", "--center-px"),
+             ("magnification", "--magnification"),
+             ("pupil_magnification", "--pupil-magnification"),
+             ("tolerance_nm", "--tolerance-nm"))
+
+
 def _pupil_predict(args):
     from ..calibrate import CANDIDATE_TARGETS, pupil_precision
 
     if args.cube:
         raise ValueError("--predict compares targets before measuring; leave out --cube")
+    given = [opt for dest, opt in _FIT_ONLY if getattr(args, dest) not in (None, False)]
+    if given:
+        raise ValueError(f"{', '.join(given)} go{'es' if len(given) == 1 else ''} with a fit "
+                         "to cubes (--cube), not --predict, which writes nothing and takes "
+                         "the lens from --lens")
     if not args.f_number:
         raise ValueError("give the f-numbers you would measure at: --f-number F (repeat)")
     sensor = _sensor(args.sensor)

@@ -165,6 +165,21 @@ def test_predict_ranks_the_targets(files, cli):
     assert "not judged" in chart and "380-780 nm" in chart and "470-878 nm" in chart
 
 
+@pytest.mark.parametrize("extra", [["--out", "{d}/never.toml"], ["--plot", "{d}/never.png"],
+                                   ["--magnification", "0.06"], ["--center", "5,5"],
+                                   ["--tolerance-nm", "0.1"], ["--overwrite"]])
+def test_predict_refuses_the_options_of_a_fit(files, cli, extra):
+    """--predict writes nothing and takes the lens from --lens: a fit's options are refused
+    by name, not ignored."""
+    before = snapshot(files)
+    res = cli("pupil", "--predict", "--sensor", files / "sensor.toml", "--f-number", "2",
+              *[a.format(d=files) for a in extra])
+    assert res.returncode != 0
+    assert extra[0] in res.stderr and "not --predict" in res.stderr
+    assert "Traceback" not in res.stderr
+    assert snapshot(files) == before
+
+
 def test_predict_judges_a_colour_chart_on_a_visible_sensor(files, cli):
     """Bands within 380-780 nm: the chart's best patch gets its row (spectrum unknown and
     known), the next ones and the least informative said after it."""
