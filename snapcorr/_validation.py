@@ -123,6 +123,10 @@ LENGTH_MAX_MM = 1e6
 #: nothing (1e-310 overflowed), and it is a typo or a unit slip.
 LENGTH_MIN_MM = 1e-3
 
+#: Pixel positions (optical centres, a crop's origin) further out than this are a typo: no
+#: sensor is this wide.
+PIXELS_MAX = 1_000_000
+
 
 def check_f_number(name, value):
     """An f-number as a float: a finite number > 0 and at most :data:`F_NUMBER_MAX` (the

@@ -14,13 +14,13 @@ from .._validation import (
     F_NUMBER_MAX,
     LENGTH_MAX_MM,
     LENGTH_MIN_MM,
+    PIXELS_MAX,
     check_f_number,
     check_pack_range,
     check_positive,
 )
 
-#: Pixel positions further out than this are a typo: no sensor is this wide.
-_MAX_PX = 1_000_000
+_MAX_PX = PIXELS_MAX
 
 
 #: The most wavelengths a list may give (a step of 0.01 nm over 100 nm-10 um).

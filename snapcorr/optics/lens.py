@@ -125,13 +125,30 @@ def check_pupil_magnification(value, name="pupil_magnification"):
 
 def _check_placement(cal):
     """The ``[calibration]`` keys a correction reads to place the optical axis: centres as
-    two finite numbers, the pitch as a camera's, the image size as two whole numbers > 0."""
-    from .._validation import check_integers, check_pair, check_pixel_pitch_um
+    two finite numbers within :data:`~snapcorr._validation.PIXELS_MAX` pixels, the flats'
+    origin on the sensor (``sensor_origin_rc``, a crop's first pixel) as two whole numbers
+    from 0 to that, the pitch as a camera's, the image size as two whole numbers > 0; the
+    bounds the command line's ``--center`` and ``--sensor-origin-px`` have."""
+    from .._validation import PIXELS_MAX, check_integers, check_pair, check_pixel_pitch_um
 
     for key in ("center_rc", "center_px"):
         if key in cal:
             check_numbers(f"[calibration] {key}", cal[key])
-            check_pair(f"[calibration] {key}", _as_list(cal[key], key), "two numbers (pixels)")
+            pair = check_pair(f"[calibration] {key}", _as_list(cal[key], key),
+                              "two numbers (pixels)")
+            if max(abs(v) for v in pair) > PIXELS_MAX:
+                raise ValueError(f"[calibration] {key} lies {max(abs(v) for v in pair):.3g} "
+                                 f"pixels out; no sensor is wider than {PIXELS_MAX:,} pixels, "
+                                 f"got {shown(cal[key])}")
+    if cal.get("sensor_origin_rc") is not None:
+        origin = cal["sensor_origin_rc"]
+        check_numbers("[calibration] sensor_origin_rc", origin)
+        o = check_pair("[calibration] sensor_origin_rc", _as_list(origin, "sensor_origin_rc"),
+                       "a row and a column (whole pixels)")
+        if min(o) < 0 or max(o) > PIXELS_MAX or any(v != round(v) for v in o):
+            raise ValueError("[calibration] sensor_origin_rc (the flats' first pixel on the "
+                             f"sensor) must be a row and a column, whole pixels from 0 to "
+                             f"{PIXELS_MAX:,}, got {shown(origin)}")
     if "pixel_pitch_um" in cal:
         check_pixel_pitch_um("[calibration] pixel_pitch_um", cal["pixel_pitch_um"])
     if "image_size_px" in cal:

@@ -272,3 +272,7 @@ def test_a_centre_measured_on_cropped_flats_is_placed_by_their_origin():
     binned = Sensor("binned", "snapscan", 56.8, FULL.cwl_nm, 10.0, 1.7, size_px=(150, 200))
     with pytest.raises(PlacementError, match="crop"):
         cube_cra(_cube(binned, ny=150, nx=200), binned, lens)
+    # a crop that does not fit on this sensor is not placed on it
+    beyond = replace(lens, calibration={**cal, "sensor_origin_rc": [50, 90]})
+    with pytest.raises(PlacementError, match=r"256 x 320 px crop at sensor row 50, column 90"):
+        cube_cra(_cube(sensor, ny=300, nx=400), sensor, beyond)

@@ -111,6 +111,14 @@ def test_a_huge_integer_in_a_lens_file_is_one_line(tmp_path, cli, body):
     ({"image_size_px": [640.5, 512]}, "image_size_px must be whole numbers"),
     ({"center_rc": [1.0, "a"]}, "center_rc must be a number, got text"),
     ({"center_px": 3}, "center_px must be a list of two numbers"),
+    # the bounds --center and --sensor-origin-px have on the command line
+    ({"center_rc": [1e7, 1e7]}, "no sensor is wider than 1,000,000 pixels"),
+    ({"center_px": [-2e6, 5.0]}, "no sensor is wider"),
+    ({"sensor_origin_rc": [-100000, -100000]}, "whole pixels from 0"),
+    ({"sensor_origin_rc": [0.5, 3.7]}, "whole pixels from 0"),
+    ({"sensor_origin_rc": [1e30, 0]}, "whole pixels from 0"),
+    ({"sensor_origin_rc": [True, 0]}, "sensor_origin_rc must be a number, got a boolean"),
+    ({"sensor_origin_rc": [1, 2, 3]}, "sensor_origin_rc"),
 ])
 def test_the_placement_keys_of_a_calibration_are_checked(calibration, match):
     """These keys place the optical axis on another sensor (correct reads them), so a wrong
