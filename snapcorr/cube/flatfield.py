@@ -205,6 +205,7 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
         variables with its dims. For numpy inputs the mask is checked at
         once (:func:`check_masked`); for lazy ones call it before writing.
     """
+    _refuse_ratios(raw, dark, white)
     if not isinstance(raw, xr.DataArray) and getattr(raw, "ndim", None) == 2:
         raw = xr.DataArray(raw, dims=("y", "x"))  # a frame as numpy or dask
     if isinstance(raw, xr.DataArray) and tuple(raw.dims) in (("y", "x"), ("frame", "y", "x")):
@@ -220,6 +221,24 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
     w, white_bad = _average_reference("white", whites, raw, dtype, saturation, snapshot)
     return _result(raw, raw, d, w, dark_bad | white_bad, saturation, name, dtype,
                    (len(darks), len(whites)), frame=False)
+
+
+#: Names of quantities that are already a ratio to a white: a flat field's result, not counts.
+_RATIOS = ("reflectance", "transmittance")
+
+
+def _refuse_ratios(raw, dark, white):
+    """A cube or frame named as a flat field's result (:data:`_RATIOS`), given as the raw,
+    a dark or a white: refused, naming the argument (flat-fielding it again divides a ratio
+    by counts, and every value comes out wrong without a masked pixel)."""
+    for what, value in (("raw", raw), ("dark", dark), ("white", white)):
+        for v in (value if isinstance(value, (list, tuple)) else [value]):
+            name = getattr(v, "name", None)
+            if isinstance(v, xr.DataArray) and name in _RATIOS:
+                source = v.attrs.get("source") or "a ratio to a white"
+                label = "the raw input" if what == "raw" else f"the {what}"
+                raise ValueError(f"{label} is a {name} (a flat field's result: {source}), not "
+                                 "raw counts: flat-field the raw frames it was made from")
 
 
 def _result(raw, plain, d, w, reference_bad, saturation, name, dtype, counts, *, frame):

@@ -63,3 +63,30 @@ def test_reference_with_more_rows_than_the_cube_is_refused(tmp_path, monkeypatch
     rc, _, err = cli(*FF, "--out", "o.nc")
     assert_refused(rc, err, which)
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("which", ["raw", "dark", "white"])
+def test_a_flat_field_result_is_not_taken_as_counts(tmp_path, monkeypatch, which, cli):
+    """A reflectance snapcorr wrote, given again as the raw (or a reference): every value came
+    out wrong (-0.03 everywhere) with no pixel masked; now refused, naming what it is."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    rc, _, err = cli(*FF, "--out", "ff.nc")
+    assert rc == 0, err
+    args = list(FF)
+    args[args.index(f"{which}.npy")] = "ff.nc"
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*args, "--out", "again.nc")
+    assert_refused(rc, err, "is a reflectance (a flat field's result", "not raw counts")
+    assert snapshot(tmp_path) == before
+
+
+def test_the_library_refuses_a_ratio_as_counts():
+    from snapcorr.cube import flatfield, make_cube
+
+    counts = make_cube(np.full((4, 5, 3), 100.0), [500.0, 510.0, 520.0])
+    ratio = flatfield(counts, counts * 0.1, counts * 2)["reflectance"]
+    with pytest.raises(ValueError, match="the raw input is a reflectance"):
+        flatfield(ratio, counts * 0.1, counts * 2)
+    with pytest.raises(ValueError, match="the white is a reflectance"):
+        flatfield(counts, counts * 0.1, [counts * 2, ratio])
