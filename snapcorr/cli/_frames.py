@@ -44,8 +44,16 @@ def _default_saturation(args, sensor, whites):
     if args.saturation is None:
         args.saturation = frame_saturation(sensor, whites, what=f"--white {args.white[0]}")
         if args.saturation is not None:
-            print(f"saturation: {args.saturation:g} DN, the largest {sensor.bit_depth}-bit code "
-                  "of the sensor (--saturation DN to change)", file=sys.stderr)
+            import numpy as np
+
+            by_sensor = sensor is not None and sensor.full_scale_dn is not None
+            if not by_sensor and not any(float(np.nanmax(np.asarray(w))) >= args.saturation
+                                         for w in whites):
+                return  # the type's largest code, which no white reaches: nothing to say
+            of = (f"{sensor.bit_depth}-bit code of the sensor" if by_sensor else
+                  f"code of the whites' type, {np.dtype(whites[0].dtype)}")
+            print(f"saturation: {args.saturation:g} DN, the largest {of} (--saturation DN to "
+                  "change)", file=sys.stderr)
 
 
 def _check_phase(args, sensor):

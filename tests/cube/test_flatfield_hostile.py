@@ -90,3 +90,20 @@ def test_the_library_refuses_a_ratio_as_counts():
         flatfield(ratio, counts * 0.1, counts * 2)
     with pytest.raises(ValueError, match="the white is a reflectance"):
         flatfield(counts, counts * 0.1, [counts * 2, ratio])
+
+
+def test_a_white_at_its_types_largest_code_is_saturated_without_a_bit_depth(tmp_path,
+                                                                           monkeypatch, cli):
+    """A sensor that states no bit depth, whites stored as uint16: a pixel at 65535 was
+    clipped by the file if not by the sensor, and is masked as calibrate masks it (it was
+    taken as a white of 65535 and gave a reflectance too low by the clipping)."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, dtype=np.uint16, white=60000)
+    white = np.load("white.npy")
+    white[:3] = 65535
+    np.save("white.npy", white)
+    rc, _, err = cli(*FF, "--out", "ff.nc")
+    assert rc == 0, err
+    assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err
+    mask = read_result(tmp_path / "ff.nc")["mask"].values
+    assert mask[:3].all() and not mask[3:].any()
