@@ -16,15 +16,20 @@ import numpy as np
 @numba.njit(cache=True)
 def _pack(flat, offset, scale, top, out, fill):  # pragma: no cover - compiled
     zero = flat.dtype.type(0)
+    clipped = 0
     for i in range(flat.size):
         v = flat[i]
         if np.isnan(v):
             out[i] = fill
         else:
-            out[i] = np.uint16(np.rint(min(max((v - offset) / scale, zero), top)))
+            c = (v - offset) / scale
+            if c < zero or c > top:
+                clipped += 1
+            out[i] = np.uint16(np.rint(min(max(c, zero), top)))
+    return clipped
 
 
-def pack_uint16(values, offset, scale, top, fill):
+def pack_uint16(values, offset, scale, top, fill, clipped=None):
     """``round(clip((values - offset) / scale, 0, top))`` as uint16, NaN as ``fill``: values
     beyond the packed range (``offset`` to ``offset + top * scale``) are stored at its ends.
 
@@ -38,6 +43,9 @@ def pack_uint16(values, offset, scale, top, fill):
         The largest code of a value (``valid_range``'s upper end).
     fill : int
         The code of NaN (``_FillValue``).
+    clipped : list, optional
+        Given, the count of values beyond the packed range (stored at its ends) and of
+        values in all is appended to it as a pair (one per call: a block of a dask array).
 
     Returns
     -------
@@ -49,5 +57,7 @@ def pack_uint16(values, offset, scale, top, fill):
     t = values.dtype.type
     flat = np.ascontiguousarray(values).reshape(-1)
     out = np.empty(flat.size, np.uint16)
-    _pack(flat, t(offset), t(scale), t(top), out, np.uint16(fill))
+    n = _pack(flat, t(offset), t(scale), t(top), out, np.uint16(fill))
+    if clipped is not None:
+        clipped.append((int(n), int(flat.size)))
     return out.reshape(values.shape)

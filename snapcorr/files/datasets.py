@@ -399,7 +399,8 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
             scale = (hi - lo) / PACKED_TOP
             # half a step, and float32's rounding in packing and unpacking
             error = scale / 2 + 4 * float(np.finfo(np.float32).eps) * max(abs(lo), abs(hi))
-            var = var.clip(lo, hi)
+            # clipped as it is packed, where the values beyond the range are counted
+            # (:func:`_packed`, :func:`_say_clipped`)
             encoding.update(dtype="uint16", scale_factor=np.float32(scale),
                             add_offset=np.float32(lo), _FillValue=np.uint16(PACKED_FILL))
             attrs["valid_range"] = np.array([0, PACKED_TOP], np.uint16)
@@ -575,12 +576,13 @@ def _in_zarr_blocks(ds):
     return out
 
 
-def _packed(ds):
+def _packed(ds, clipped):
     """``ds`` with each variable :func:`stored_as` gave the uint16 CF packing replaced by its
     codes, packed in one pass (:func:`~snapcorr.files._packing.pack_uint16`, block by block
     for dask), the packing's ``scale_factor``, ``add_offset`` and ``_FillValue`` moved to its
     attributes: stored as they are, read back by any CF reader as xarray's own encoding of
-    the values would be."""
+    the values would be. ``clipped`` (a dict) gets each variable's ``(counts, lo, hi)``: the
+    packing appends to ``counts`` as its blocks are written (:func:`_say_clipped`)."""
     names = [n for n in ds.data_vars
              if ds[n].encoding.get("dtype") == "uint16" and "scale_factor" in ds[n].encoding
              and np.issubdtype(ds[n].dtype, np.floating)]
@@ -594,9 +596,11 @@ def _packed(ds):
         enc = dict(var.encoding)
         scale, offset = enc.pop("scale_factor"), enc.pop("add_offset", np.float32(0))
         fill = enc.pop("_FillValue", np.uint16(PACKED_FILL))
+        counts = clipped.setdefault(name, ([], float(offset),
+                                           float(offset) + PACKED_TOP * float(scale)))[0]
 
-        def pack(a, offset=offset, scale=scale, fill=fill):
-            return pack_uint16(a, offset, scale, PACKED_TOP, fill)
+        def pack(a, offset=offset, scale=scale, fill=fill, counts=counts):
+            return pack_uint16(a, offset, scale, PACKED_TOP, fill, clipped=counts)
 
         data = var.data
         codes = (data.map_blocks(pack, dtype=np.uint16) if var.chunks is not None
@@ -614,7 +618,8 @@ def _store_dataset(ds, path, fmt, compression="auto"):
     # which can hold the whole cube. Apart, each streams through in bounded memory.
     if fmt == "zarr":
         ds = _in_zarr_blocks(ds)
-    ds = _packed(ds)
+    clipped = {}
+    ds = _packed(ds, clipped)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()
@@ -634,6 +639,7 @@ def _store_dataset(ds, path, fmt, compression="auto"):
 
         with dask_threads():
             atomic_write(path, write)
+        _say_clipped(clipped, path)
         return path
 
     def write_zarr(tmp):
@@ -658,7 +664,25 @@ def _store_dataset(ds, path, fmt, compression="auto"):
 
     with dask_threads():
         atomic_write_dir(path, write_zarr)
+    _say_clipped(clipped, path)
     return path
+
+
+class PackingClipWarning(UserWarning):
+    """Values beyond a uint16 packing's range were stored at its ends."""
+
+
+def _say_clipped(clipped, path):
+    """One warning per variable whose packing stored values beyond its range at its ends
+    (the counts :func:`_packed` collected while the blocks were written)."""
+    for name, (counts, lo, hi) in clipped.items():
+        n = sum(c for c, _ in counts)
+        total = sum(t for _, t in counts)
+        if n:
+            warnings.warn(PackingClipWarning(
+                f"{path}: {n} of {total} values of {name!r} ({100 * n / total:.3g} %) lie "
+                f"beyond the uint16 packing's range {lo:.6g} to {hi:.6g} and are stored at its "
+                "ends: widen the packing range, or store float32"), stacklevel=3)
 
 
 def _read_netcdf(path, data_file, chunks, what, drop_alpha):

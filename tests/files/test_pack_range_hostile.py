@@ -107,3 +107,32 @@ def test_a_pack_range_without_uint16_names_the_option(tmp_path, capsys, dtype):
                str(tmp_path / "ff.zarr")])
     err = capsys.readouterr().err
     assert rc == 1 and "--pack-range goes with --dtype uint16" in err, err
+
+
+@pytest.mark.parametrize("suffix", [".nc", ".zarr"])
+@pytest.mark.parametrize("lazy", [False, True])
+def test_values_beyond_the_packing_range_are_counted_and_said(tmp_path, suffix, lazy):
+    """Values beyond the range are stored at its ends (as documented) and now said, with their
+    count, once per variable, for numpy and dask cubes alike (the blocks' counts summed); a
+    range that holds every value says nothing. Before, 4096 values of 4096 were clipped with
+    the summary's '0 masked' and no word."""
+    import warnings
+
+    from snapcorr.cube import make_cube
+    from snapcorr.files import write_dataset
+    from snapcorr.files.datasets import PackingClipWarning
+
+    values = np.linspace(-0.2, 1.0, 6 * 5 * 4).reshape(6, 5, 4)
+    cube = make_cube(values, [500.0, 510.0, 520.0, 530.0]).rename("reflectance")
+    cube.attrs["units"] = "1"
+    if lazy:
+        cube = cube.chunk({"y": 2})
+    ds = cube.to_dataset()
+    outside = int(np.sum((values < 0.0) | (values > 0.5)))
+    with pytest.warns(PackingClipWarning) as record:
+        write_dataset(ds, tmp_path / f"c{suffix}", dtype="uint16", pack_range=(0.0, 0.5))
+    said = [str(w.message) for w in record if w.category is PackingClipWarning]
+    assert len(said) == 1 and f"{outside} of {values.size} values of 'reflectance'" in said[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PackingClipWarning)
+        write_dataset(ds, tmp_path / f"d{suffix}", dtype="uint16", pack_range=(-0.5, 1.5))
