@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 
 from .._validation import called_from_outside, renamed_keywords, warn_renamed
-from .mosaic import _filter_part, _origin
+from .mosaic import _filter_part, _origin, frame_saturation
 from .sensor import Sensor
 
 __all__ = ["LAMP_DEGREE", "MISFIT_MAX", "RATIO_MIN", "MosaicPhase", "check_mosaic_phase",
@@ -288,7 +288,9 @@ def mosaic_phase(white, sensor, *, dark=None, sensor_origin_px=None, saturation=
         The stated sensor row and column of the frame's first pixel, compared with what the
         white shows (a whole-sensor frame needs none).
     saturation : float, optional
-        Digital number at or above which a white pixel is saturated (left out).
+        Digital number at or above which a white pixel is saturated (left out). Default: the
+        sensor's largest code (its bit depth), else the white's type's largest code
+        (:func:`~snapcorr.cube.mosaic.frame_saturation`).
     degree : int
         Degree of the polynomial fitted as the unknown lamp.
 
@@ -314,6 +316,11 @@ def mosaic_phase(white, sensor, *, dark=None, sensor_origin_px=None, saturation=
         sensor.check_cube(white, "the white")
         means, n, k, stated = _cube_means(white, dark, sensor)
     else:
+        if saturation is None:  # the sensor's largest code, or the white's type's
+            try:
+                saturation = frame_saturation(sensor, [white])
+            except ValueError:  # a white in other units than the bit depth: none is known
+                saturation = None
         means, n, k, stated = _frame_means(white, dark, sensor, sensor_origin_px, saturation)
     if means is None:
         raise ValueError("the white holds no whole tile of usable values (finite, above the "

@@ -159,6 +159,19 @@ def test_saturated_and_dead_pixels_are_left_out(vendor):
     assert mosaic_phase(white, sensor, dark=dark, saturation=1023).phase_px == (0, 0)
 
 
+def test_the_sensors_largest_code_is_saturated_by_default(vendor):
+    """The sensor's bit depth sets the saturation where none is given, as in flatfield: a
+    white clipped at its largest code everywhere is said to hold nothing usable (it was
+    said to fit no phase within 10 %), and a few clipped pixels are left out."""
+    fx, sensor, _ = vendor
+    assert sensor.full_scale_dn == 1023
+    white, dark = white_frame(fx, (64, 64), (8, 8), lamp("tungsten", fx.grid), seed=9)
+    with pytest.raises(ValueError, match="no whole tile of usable values"):
+        mosaic_phase(np.full_like(white, 1023.0), sensor, dark=dark)
+    white[::7, ::5] = 1023.0
+    assert mosaic_phase(white, sensor, dark=dark).phase_px == (0, 0)
+
+
 def test_a_sensor_without_measured_responses_is_not_checked():
     import snapcorr.data
 
