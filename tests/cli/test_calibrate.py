@@ -280,3 +280,24 @@ def test_the_pixel_pitch_is_the_sensors_or_asked_for(flats, cli):
     args = types.SimpleNamespace(pixel_pitch_um=None, sensor="imec_5x5_nir")
     _pitch_option(args, Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir")))
     assert args.pixel_pitch_um == 5.5
+
+
+@pytest.mark.parametrize("center, words", [
+    ("5000,5000", ["86.", "row 5000, column 5000", "lies outside the 256 x 256 px flats",
+                   "--center"]),
+    ("140,119", ["row 140, column 119", "check the pixel pitch"]),
+])
+def test_flats_spanning_too_few_angles_say_about_which_centre(flats, cli, center, words):
+    """A centre far off the flats (a typo) leaves them a sliver of chief-ray angles far out:
+    the message gives the span, the centre and, when it lies outside the flats, names
+    --center (it named only the pitch and x, and gave the span as its far end, 86 deg)."""
+    optics = list(OPTICS)
+    optics[optics.index("--pixel-pitch-um") + 1] = "0.2" if center == "140,119" else str(PITCH)
+    res = cli("calibrate", *FLATS[:4], *optics, "--center", center, "--out", "never.toml",
+              cwd=flats)
+    assert res.returncode != 0
+    line = res.stderr.strip().splitlines()[-1]
+    assert "too few to see a fall-off" in line, line
+    for w in words:
+        assert w in line, (w, line)
+    assert not (flats / "never.toml").exists()

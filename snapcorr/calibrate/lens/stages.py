@@ -380,17 +380,23 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center_rc, base: Lens, pix
     else:
         pimgs, pvalid, pcenter = flats.images, flats.valids, center_rc
     cra = cra_map(pimgs[0].shape, pixel_pitch_um * k, x, center_rc=pcenter)
-    max_cra = float(cra_map(shape, pixel_pitch_um, x, center_rc=center_rc).max())
+    full_cra = cra_map(shape, pixel_pitch_um, x, center_rc=center_rc)
+    max_cra, min_cra = float(full_cra.max()), float(full_cra.min())
     fs = flats.f_numbers
     profiles = {float(f): radial_profile(pimgs[i], pvalid[i], cra, bin_deg=BIN_DEG)
                 for i, f in enumerate(fs)}
     short = [f for f, p in profiles.items() if p.cra_deg.size < 8]
     if short:
         n_bins = profiles[short[0]].cra_deg.size
+        r, c = center_rc
+        outside = not (-0.5 <= r <= shape[0] - 0.5 and -0.5 <= c <= shape[1] - 0.5)
         raise ValueError(
-            f"the flats span only {max_cra:.2f} deg of chief-ray angle ({n_bins} bins of "
-            f"{BIN_DEG} deg): too few to see a fall-off; check the pixel pitch and the "
-            "exit-pupil distance, and that the flats hold signal")
+            f"the flats span only {min_cra:.2f}-{max_cra:.2f} deg of chief-ray angle "
+            f"({n_bins} bins of {BIN_DEG} deg) about the optical centre at row {r:g}, column "
+            f"{c:g}: too few to see a fall-off; "
+            + (f"that centre lies outside the {shape[0]} x {shape[1]} px flats: check it "
+               "(center_rc=), " if outside else "check ")
+            + "the pixel pitch and the exit-pupil distance, and that the flats hold signal")
     R = base.exit_pupil_radius_mm(fs)
     single = flats.single
     R_ref = None if single else float(R[-1])
