@@ -213,6 +213,9 @@ def _read_cube_or_frame(path, sensor, origin):
         from .cube import sensor_positions
         from .cube.model import with_positions
 
+        # the positions are the sensor's bands': a cube listing them in another order (by
+        # falling wavelength, the vendor's tile order) takes the sensor's first
+        cube, mask = sensor.in_band_order(cube, mask)
         rows, cols = sensor_positions(sensor, cube.sizes["y"], cube.sizes["x"], origin)
         if "sensor_row" not in cube.coords:
             cube = with_positions(cube, rows, cols)

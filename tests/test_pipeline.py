@@ -193,3 +193,28 @@ def test_a_stream_takes_the_optical_centre_row_first(frames):
                              f_number=2.8, center_px=center[::-1])
     assert np.array_equal(old["wavelength_corrected"].values,
                           got["wavelength_corrected"].values, equal_nan=True)
+
+
+def test_a_cube_in_falling_wavelength_order_is_placed_band_by_band(tmp_path):
+    """A cube listing the mosaic's bands from red to blue, placed by an origin: each band gets
+    its own tile position (the 470 nm band the sensor's first), and the correction takes it.
+    Before, the positions went to the file's order and were then reordered with the bands:
+    the first band was said to sit at row 3, column 3 and the origin refused."""
+    import xarray as xr
+
+    from snapcorr import Lens
+    from snapcorr.correct import correct_cube
+    from snapcorr.cube import Sensor
+    from snapcorr.pipeline import read_cube_or_frame
+
+    sensor = Sensor.load("mosaic_4x4_vis")
+    wl = np.asarray(sensor.cwl_nm, float)[::-1]
+    xr.Dataset({"reflectance": (("y", "x", "band"), np.ones((4, 5, wl.size), "float32"))},
+               coords={"wavelength": ("band", wl)}).to_netcdf(tmp_path / "rev.nc")
+    cube = read_cube_or_frame(tmp_path / "rev.nc", sensor, (8, 12))
+    np.testing.assert_array_equal(cube["wavelength"].values, sensor.cwl_nm)
+    offsets = sensor.band_offsets_at((8, 12))
+    for b in range(wl.size):
+        assert int(cube["sensor_row"].values[0, b]) == 8 + offsets[b][0]
+        assert int(cube["sensor_col"].values[0, b]) == 12 + offsets[b][1]
+    correct_cube(cube, sensor, 2.0, Lens.load("edmund_optics_16mm"))
