@@ -251,7 +251,7 @@ def colour_chart_precision(sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_e
         raise ValueError(f"the ColorChecker's published spectra cover {w0:g}-{w1:g} nm and the "
                          f"sensor {sensor.name!r} responds over {lo:.0f}-{hi:.0f} nm: what its "
                          "patches can pin there is not known (use a target whose spectrum "
-                         "covers the bands: --target-spectrum)")
+                         "covers the bands)")
 
     def held(sp):  # where no band responds the value does not matter: held at its ends
         return lambda lam: np.interp(lam, sp.wavelength_nm, sp.values)
