@@ -127,6 +127,27 @@ LENGTH_MIN_MM = 1e-3
 #: sensor is this wide.
 PIXELS_MAX = 1_000_000
 
+#: No lens has more projected vignetting circles than this: each is an aperture's edge (a
+#: lens element's rim, the mount, a baffle) seen from the sensor, and an objective has a
+#: handful; a calibration fits at most 3. The optics' cost grows with the square of the count
+#: (a profile of 1000 circles took gigabytes and minutes), so a longer list is refused.
+MAX_VIGNETTING_CIRCLES = 8
+
+#: The most discs a pixel looks through: the exit pupil, :data:`MAX_VIGNETTING_CIRCLES`
+#: circles and its own acceptance circle (pixel vignetting).
+MAX_DISCS = MAX_VIGNETTING_CIRCLES + 2
+
+
+def check_disc_count(name, n, *, what="discs", most=MAX_DISCS):
+    """Refuse ``n`` (the length of the sequence ``name``) beyond ``most``: no lens has that
+    many apertures (:data:`MAX_VIGNETTING_CIRCLES`). ``n`` None: more than ``most`` (an
+    iterator read no further)."""
+    if n is None or n > most:
+        count = f"more than {most}" if n is None else n
+        raise ValueError(f"{name} holds {count} {what}; at most {most} are taken (no lens has more "
+                         f"than {MAX_VIGNETTING_CIRCLES} vignetting circles: a longer list is a "
+                         "mistake)")
+
 
 def check_f_number(name, value):
     """An f-number as a float: a finite number > 0 and at most :data:`F_NUMBER_MAX` (the

@@ -197,7 +197,11 @@ def read_spectrum(path) -> Spectrum:
         raise ValueError(f"{p}: need two columns of numbers (wavelength nm, value)") from None
     if a.ndim == 2 and a.shape[0] == 2 and a.shape[1] != 2:
         a = a.T
-    if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 2:
+    if a.ndim == 2 and a.shape[1] == 2 and a.shape[0] < 2:
+        held = "no row" if a.shape[0] == 0 else "one row"
+        raise ValueError(f"{p}: {held} of (wavelength nm, value); a spectrum needs at least two "
+                         "rows, one per wavelength")
+    if a.ndim != 2 or a.shape[1] != 2:
         raise ValueError(f"{p}: need two columns (wavelength nm, value), got shape {a.shape}")
     order = np.argsort(a[:, 0])
     try:

@@ -69,6 +69,25 @@ def test_read_spectrum_takes_ordinary_files(tmp_path):
             spectra.read_spectrum(p)
 
 
+
+def test_a_spectrum_of_one_row_is_told_it_needs_two_rows(tmp_path, cli):
+    """One row was refused as ``need two columns ..., got shape (1, 2)``: it has two columns,
+    it lacks a second row."""
+    import numpy as np
+
+    p = tmp_path / "one_row.csv"
+    p.write_text("500 1\n")
+    np.save(tmp_path / "empty.npy", np.zeros((0, 2)))
+    for path, held in ((p, "one row"), (tmp_path / "empty.npy", "no row")):
+        with pytest.raises(ValueError, match=rf"{held} of \(wavelength nm, value\); a spectrum "
+                                             "needs at least two rows"):
+            spectra.read_spectrum(path)
+    res = cli("budget", "--sensor", "mosaic_4x4_vis", "--lens", "edmund_optics_16mm",
+              "--f-number", "2", "--source", "one_row.csv", cwd=tmp_path)
+    assert res.returncode == 1 and "needs at least two rows" in res.stderr
+    assert "column" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
+
+
 def test_the_colour_filter_has_one_home_and_is_re_exported():
     assert paper.colour_filter is spectra.colour_filter
     assert exit_pupil.colour_filter is spectra.colour_filter

@@ -17,6 +17,9 @@ _CLI_TERMS = {
     "but wavelength_nm gives": "but the --sensor has",
     "(read a 2-D frame with read_frame)": "(a 2-D raw frame of a mosaic camera is read with "
                                           "that camera's --sensor, whose layout is mosaic)",
+    "read it with read_cube, or save the one band you need": "give the camera's raw 2-D "
+                                                             "frame, or save the one band you "
+                                                             "need as a file of its own",
 }
 
 

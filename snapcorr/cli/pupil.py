@@ -182,6 +182,7 @@ def _pupil_predict(args):
     args.noise_pct = 1.0 if args.noise_pct is None else args.noise_pct
     noise = args.noise_pct / 100.0
     fs = sorted(set(args.f_number))
+    lens.working_f_number(fs)  # an f-number below the lens's limit is refused before any output
     print(f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
           f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
           f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "

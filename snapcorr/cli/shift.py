@@ -49,9 +49,11 @@ def run(args):
     cutoff = float(lens.cutoff_cra_deg(args.f_number))
     past = np.abs(cra) >= cutoff
     if np.any(past):
-        raise ValueError(f"CRA {float(np.abs(cra[past]).max()):g} deg is past the full cut-off "
-                         f"at {cutoff:.2f} deg for f/{args.f_number:g} (the lens's vignetting "
-                         "circles leave no light); give smaller --cra values")
+        given = float(cra.flat[np.argmax(np.abs(cra))])  # as given, its sign kept
+        raise ValueError(f"--cra {given:g} deg is past the full cut-off at {cutoff:.2f} deg "
+                         f"(of either sign) for f/{args.f_number:g}: the lens's vignetting "
+                         "circles leave no light; give --cra values between "
+                         f"-{cutoff:.2f} and {cutoff:.2f}")
     shift = mean_shift(args.cwl_nm, args.n_eff, args.f_number, cra, lens, method=args.method,
                        tolerance_nm=args.tolerance_nm)
     if args.method == "auto":

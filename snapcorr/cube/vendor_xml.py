@@ -42,9 +42,10 @@ from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
 
-#: Larger than any calibration file (a 5x5 sensor's is 0.4 MB): a bigger file is refused
-#: before it is parsed.
-MAX_FILE_BYTES = 64 * 2**20
+#: Far larger than any calibration file (a 5x5 sensor's is 0.4 MB, the largest a few MB): a
+#: bigger file is refused by its size before it is parsed (parsing takes about ten times the
+#: file's size in memory: a 60 MB file took 580 MB and 10 s only to be refused after).
+MAX_FILE_BYTES = 16 * 2**20
 #: More samples than any curve of a calibration file holds (0.01 nm steps over 400-1400 nm):
 #: a count or a list beyond it is refused before anything is sized by it.
 MAX_SAMPLES = 100_000
@@ -217,8 +218,9 @@ def read_vendor_file(path) -> VendorCalibration:
     except FileNotFoundError:
         raise FileNotFoundError(f"sensor calibration file not found: {f.path}") from None
     if size > MAX_FILE_BYTES:
-        f.fail(f"{size / 2**20:.0f} MiB is larger than any sensor calibration file "
-               f"(limit {MAX_FILE_BYTES / 2**20:.0f} MiB); is this the right file?")
+        f.fail(f"it holds {size / 2**20:.1f} MiB, far more than any sensor calibration file "
+               f"(a few MB): a file larger than {MAX_FILE_BYTES / 2**20:.0f} MiB is refused "
+               "unread; is this the right file?")
     try:
         root = ElementTree.parse(f.path).getroot()
     except OSError as err:  # a path that names no real file's bytes (/proc/self/mem: EIO)
@@ -226,8 +228,7 @@ def read_vendor_file(path) -> VendorCalibration:
     except ElementTree.ParseError as err:
         f.fail(f"not well-formed XML ({err})")
     except DefusedXmlException as err:
-        f.fail(f"refused: the XML uses {type(err).__name__} (entities or external "
-               "references), which a calibration file never needs")
+        f.fail(_unsafe_xml(err))
     if root.tag != "sensor_calibration":
         f.fail(f"root element <{root.tag}>, expected <sensor_calibration>: not a sensor "
                "calibration file")
@@ -235,6 +236,21 @@ def read_vendor_file(path) -> VendorCalibration:
     if info.find("filter_zones") is not None:
         return _newer(f, root, info)
     return _older(f, root, info)
+
+
+def _unsafe_xml(err):
+    """Why an XML that ``defusedxml`` stopped is refused, in words."""
+    from defusedxml.common import EntitiesForbidden, ExternalReferenceForbidden
+
+    if isinstance(err, EntitiesForbidden):
+        what = ("it declares entities (<!ENTITY ...>), text the parser would expand in "
+                "place: a few such lines can grow to gigabytes")
+    elif isinstance(err, ExternalReferenceForbidden):
+        what = "it refers to an external file or address, which the parser would read"
+    else:
+        what = "it has a document type declaration (<!DOCTYPE ...>) this reader does not take"
+    return (f"refused: {what}; a sensor calibration file has none: is this the "
+            "vendor's file, unchanged?")
 
 
 def _sensor_info(f, root, variant):

@@ -7,7 +7,8 @@
 - a multi-page TIFF, one frame per page (read through OpenImageIO page by page);
 - a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
   taken in the order of their names (numbers in names compared as numbers, decimals and
-  signs included: :func:`natural_order`; recorded as ``frame_order``).
+  signs included: :func:`natural_order`; recorded as ``frame_order``); hidden files, whose
+  names start with a point (``.t0.npy``), are left out.
 
 Nothing is read until computed (only the files' headers), so memory does not grow with the
 number of frames. A ``frame`` coordinate (times, say) of a ``.zarr`` or ``.nc`` is kept.
@@ -45,8 +46,11 @@ _CHAIN = re.compile(r"\d+(?:\.\d+){2,}")
 FRAME_ORDER = ("by name, numbers compared as numbers, exactly (decimal points and exponents "
                "read as such, a decimal comma where every name's has as many digits after it, "
                "digits joined by several points as whole numbers where every name's groups "
-               "have as many digits; a '-' or '+' before a number read as its sign only where "
-               "names differ by it, and where both readings give one order)")
+               "have as many digits, digits after a point with no digit before it (t.5) where "
+               "reading the point as a decimal point and as a separator give one order; a '-' "
+               "or '+' before a number read as its sign only where names differ by it, and "
+               "where both readings give one order); hidden files (names starting with '.') "
+               "left out")
 
 
 _ZERO = Decimal(0)
@@ -109,7 +113,11 @@ def natural_order(names):
     reading it as a sign and as a separator give different orders. Digits joined by several
     points (``12.5.3``, ``1.10.0``) are no decimal: each group is a whole number, and names
     whose groups at one place differ in their numbers of digits are refused (there the decimal
-    and the separate readings may differ). Digits of any script count (full-width, Arabic-Indic
+    and the separate readings may differ). Digits after a point with no digit before it
+    (``t.5``) may be a decimal (0.5) or a number after a separator (5): names are refused
+    where the two readings order them differently (``t.5``, ``t.25``, ``t1``; ``img.1``,
+    ``img.10``, equal as decimals) and taken where they agree (``f.001``, ``f.002``). Digits of
+    any script count (full-width, Arabic-Indic
     digits). Names whose numbers are equal but written differently (``f1``, ``f01``) are
     ambiguous, and refused.
 
@@ -153,7 +161,47 @@ def natural_order(names):
                              "before a number may be its sign or a separator, and in names of "
                              "different forms the two orders differ; rename them (the same "
                              "form for every name)")
-    return _ordered(names, tokens, signed)
+    order = _ordered(names, tokens, signed)
+    _refuse_point_led_ambiguity(names, tokens, signed, order)
+    return order
+
+
+def _point_led(tokens):
+    """The positions of ``tokens`` (one name's pieces) whose number follows a point with no
+    digit before it (``t.5``, ``.25``): no chain's group (text ``"."`` between two numbers)
+    and no sign between the point and the digits."""
+    return [k for k in range(1, len(tokens), 2)
+            if tokens[k - 1].endswith(".") and not tokens[k][0]
+            and not (tokens[k - 1] == "." and k >= 2)]
+
+
+def _refuse_point_led_ambiguity(names, tokens, signed, order):
+    """Refuse names whose point before digits (``t.5``, ``t.25``, ``t1``) is read as a
+    decimal point and as a separator in two different orders (or as a decimal makes two
+    names equal, ``t.1`` and ``t.10``); ``order`` is the separator reading's."""
+    places = [_point_led(t) for t in tokens]
+    if not any(places):
+        return
+    as_decimal = []
+    for t, ks in zip(tokens, places, strict=True):
+        t = list(t)
+        for k in ks:
+            digits = t[k][1]
+            if digits.isdigit():
+                t[k - 1], t[k] = t[k - 1][:-1], ("", "0." + digits)
+        as_decimal.append(t)
+    try:
+        other = _ordered(names, as_decimal, signed)
+    except _SameNumber as err:  # two names equal as decimals (t.1, t.10)
+        a, b = sorted(err.names, key=order.index)
+    else:
+        if other == order:
+            return
+        a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
+    raise ValueError(f"frames {a!r} and {b!r}: digits after a point with no digit before it "
+                     "(t.5) may be a decimal (0.5) or a number after a separator (5), and the "
+                     "two readings order them differently; rename them (t0.5, or numbers after "
+                     "the point of as many digits, zero-padded)")
 
 
 def _ordered(names, tokens, signed):
@@ -178,10 +226,18 @@ def _ordered(names, tokens, signed):
     keyed = sorted(zip((key(t) for t in tokens), names, strict=True), key=lambda kv: kv[0])
     for (k0, a), (k1, b) in itertools.pairwise(keyed):
         if k0 == k1:
-            raise ValueError(f"frames {a!r} and {b!r} have the same number in their names: "
-                             "their order is ambiguous; rename them (e.g. zero-padded "
-                             "numbers) so that each name's number differs")
+            raise _SameNumber(a, b, f"frames {a!r} and {b!r} have the same number in their "
+                              "names: their order is ambiguous; rename them (e.g. zero-padded "
+                              "numbers) so that each name's number differs")
     return [n for _, n in keyed]
+
+
+class _SameNumber(ValueError):
+    """Two frame names that compare equal (``names``)."""
+
+    def __init__(self, a, b, message):
+        super().__init__(message)
+        self.names = (a, b)
 
 
 def _refuse_one_frame_twice(found):
@@ -232,7 +288,9 @@ def read_frames(path, *, frames_per_chunk=1):
         raise FileNotFoundError(f"no such file or folder of frames: {path}")
     if path.is_dir() and path.suffix.lower() != ".zarr":
         check_input(path, directory=True, what="folder of frames")
-        found = {p.name: p for p in path.iterdir() if p.suffix.lower() in FRAME_SUFFIXES}
+        # hidden files (a viewer's or a copy's, ".t0.npy") are no frames taken
+        found = {p.name: p for p in path.iterdir()
+                 if p.suffix.lower() in FRAME_SUFFIXES and not p.name.startswith(".")}
         _refuse_one_frame_twice(found)
         files = [found[n] for n in natural_order(list(found))]
         for p in files:  # a frame that cannot be read is an error, never left out

@@ -13,11 +13,19 @@ from pathlib import Path
 
 from .marks import toml_mark
 from .outputs import check_replaceable
-from .reading import check_input
+from .reading import check_input, read_regular
 from .safety import atomic_write
 
 __all__ = ["read_toml", "write_toml"]
 
+#: Larger than any TOML snapcorr reads (a lens profile or sensor description is a few kB, a
+#: calibration's record with it some tens): a bigger file is refused by its size before it is
+#: parsed.
+MAX_TOML_BYTES = 4 * 2**20
+#: Deeper than any table or array of a snapcorr TOML nests (a lens file's reaches 4): past it
+#: the parser and every reader after it recurse once per level (5000 levels overflowed
+#: Python's stack inside the parser).
+MAX_TOML_DEPTH = 32
 
 
 def read_toml(path, table, what, *, others=("calibration",)):
@@ -52,8 +60,11 @@ def read_toml(path, table, what, *, others=("calibration",)):
     path = Path(path)
     try:
         check_input(path, what=what)
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
+        size = path.stat().st_size
+        if size > MAX_TOML_BYTES:
+            raise ValueError(_too_large(path, size, what))
+        data = read_regular(path, MAX_TOML_BYTES)
+        doc = tomllib.loads(data.decode("utf-8"))
     except FileNotFoundError:
         raise FileNotFoundError(f"{what} not found: {path}") from None
     except OSError as err:  # bytes that cannot be read (/proc/self/mem: EIO)
@@ -62,6 +73,10 @@ def read_toml(path, table, what, *, others=("calibration",)):
         raise ValueError(f"{path} is not valid TOML: {err}") from None
     except UnicodeDecodeError:
         raise ValueError(f"{path} is not valid TOML: not UTF-8 text") from None
+    except RecursionError:  # arrays or inline tables nested thousands deep
+        raise ValueError(_too_deep(path, what)) from None
+    if _too_nested(doc):
+        raise ValueError(_too_deep(path, what))
     if table not in doc:
         raise ValueError(f"{path} has no [{table}] table")
     extra = sorted(set(doc) - {table, *others})
@@ -72,6 +87,29 @@ def read_toml(path, table, what, *, others=("calibration",)):
                          f"holds [{table}]{hint}"
                          + "".join(f" and optionally [{o}]" for o in others))
     return doc
+
+
+def _too_large(path, size, what):
+    return (f"{path} holds {size / 2**20:.1f} MiB; a {what} is a few kB, and a TOML larger "
+            f"than {MAX_TOML_BYTES / 2**20:g} MiB is refused unread: is this the right file?")
+
+
+def _too_deep(path, what):
+    return (f"{path}: its arrays or tables nest more than {MAX_TOML_DEPTH} levels deep; a "
+            f"{what} nests a few: is this the right file?")
+
+
+def _too_nested(doc):
+    """Whether the tables and arrays of ``doc`` nest deeper than :data:`MAX_TOML_DEPTH` (the
+    document itself is level 1), walked without recursion."""
+    stack = [(doc, 1)]
+    while stack:
+        value, level = stack.pop()
+        if level > MAX_TOML_DEPTH:
+            return True
+        items = value.values() if isinstance(value, dict) else value
+        stack.extend((v, level + 1) for v in items if isinstance(v, (dict, list)))
+    return False
 
 
 

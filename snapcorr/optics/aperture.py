@@ -21,6 +21,7 @@ import itertools
 
 import numpy as np
 
+from .._validation import MAX_VIGNETTING_CIRCLES, check_disc_count
 from .discs import _segment, arc_half_angle, extreme_radii
 
 __all__ = [
@@ -35,6 +36,11 @@ __all__ = [
     "overlap_area_mm2",
     "vignetted_area_mm2",
 ]
+
+
+def _check_circle_count(P_mm):
+    """Refuse more circles in the list ``P_mm`` than a lens has."""
+    check_disc_count("P_mm", len(P_mm), what="circles", most=MAX_VIGNETTING_CIRCLES)
 
 
 def _re_arccos(num, den):
@@ -132,6 +138,7 @@ def gamma(r_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *, h_ge_x=None):
         Radians in [0, pi], the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
+        _check_circle_count(P_mm)
         return arc_half_angle(r_mm, d_mm, [R_mm, *P_mm], [0.0, *dv_mm])
     e = eta(r_mm, R_mm, d_mm)
     if P_mm is None:
@@ -164,6 +171,7 @@ def vignetted_area_mm2(R_mm, P_mm, dv_mm):
         Area in mm^2, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
+        _check_circle_count(P_mm)
         return overlap_area_mm2([R_mm, *P_mm], [0.0, *dv_mm])
     R, P, dv = (np.asarray(v, float) for v in (R_mm, P_mm, dv_mm))
     dv = np.abs(dv)
@@ -210,6 +218,7 @@ def overlap_area_mm2(radii_mm, centers_mm):
     k = len(radii_mm)
     if k < 1 or len(centers_mm) != k:
         raise ValueError("need one centre per radius, for at least one disc")
+    check_disc_count("radii_mm", k)
     both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii_mm, *centers_mm)])
     r, c = np.asarray(both[:k]), np.asarray(both[k:])
     lo, hi = np.max(c - r, axis=0), np.min(c + r, axis=0)
@@ -298,6 +307,7 @@ def max_radius_mm(R_mm, d_mm, P_mm=None, dv_mm=None):
         Radius in mm, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
+        _check_circle_count(P_mm)
         return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[1]
     d, R = np.asarray(d_mm, float), np.asarray(R_mm, float)
     if P_mm is None:
@@ -339,6 +349,7 @@ def min_radius_mm(R_mm, d_mm, P_mm=None, dv_mm=None):
         Radius in mm, the broadcast shape.
     """
     if isinstance(P_mm, (list, tuple)):  # several circles
+        _check_circle_count(P_mm)
         return extreme_radii(d_mm, [R_mm, *P_mm], [0.0, *dv_mm])[0]
     d, R = np.abs(np.asarray(d_mm, float)), np.asarray(R_mm, float)
     if P_mm is None:

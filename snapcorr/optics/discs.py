@@ -11,7 +11,8 @@ chain of circular arcs. Everything here works on that chain, for any number of d
 two discs it reduces to the arcs of Eq. (34)-(35).
 
 All functions take ``radii`` and ``centres`` as sequences (one entry per disc) of arrays that
-broadcast together.
+broadcast together; at most :data:`~snapcorr._validation.MAX_DISCS` discs (the pupil, the
+circles of a lens and a pixel's acceptance circle).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+from .._validation import check_disc_count
 
 __all__ = [
     "Boundary",
@@ -50,6 +53,7 @@ def _stack(radii, centers):
     k = len(radii)
     if k < 1 or len(centers) != k:
         raise ValueError("need one centre per radius, for at least one disc")
+    check_disc_count("radii", k)
     both = np.broadcast_arrays(*[np.asarray(v, float) for v in (*radii, *centers)])
     return np.asarray(both[:k]), np.asarray(both[k:])
 

@@ -38,6 +38,7 @@ from functools import cache
 
 import numpy as np
 
+from .._validation import MAX_VIGNETTING_CIRCLES, check_disc_count
 from . import discs
 from .aperture import (
     gamma,
@@ -193,6 +194,7 @@ def circle_list(P_mm, dv_mm):
     if isinstance(P_mm, (list, tuple)):
         if not isinstance(dv_mm, (list, tuple)) or len(dv_mm) != len(P_mm):
             raise ValueError("give one circle centre dv_mm per radius P_mm")
+        check_disc_count("P_mm", len(P_mm), what="circles", most=MAX_VIGNETTING_CIRCLES)
         return list(zip(P_mm, dv_mm, strict=True))
     return [(P_mm, dv_mm)]
 

@@ -10,6 +10,7 @@ References
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import sys
 from dataclasses import dataclass, field
@@ -22,7 +23,9 @@ from .._validation import (
     F_NUMBER_MAX,
     LENGTH_MAX_MM,
     LENGTH_MIN_MM,
+    MAX_VIGNETTING_CIRCLES,
     called_from_outside,
+    check_disc_count,
     check_numbers,
     shown,
     warn_renamed,
@@ -172,7 +175,11 @@ def _circles(vignetting):
         return ()
     if isinstance(vignetting, (str, bytes, dict)) or not hasattr(vignetting, "__iter__"):
         raise TypeError(f"vignetting must be a list of (P, h) pairs in mm, got {vignetting!r}")
-    items = list(vignetting)
+    # at most one past the bound is read: an endless iterator is refused too
+    items = list(itertools.islice(vignetting, MAX_VIGNETTING_CIRCLES + 1))
+    if len(items) > MAX_VIGNETTING_CIRCLES:
+        n = len(vignetting) if hasattr(vignetting, "__len__") else None
+        check_disc_count("vignetting", n, what="circles", most=MAX_VIGNETTING_CIRCLES)
     if len(items) == 2 and all(isinstance(v, (int, float, np.number)) for v in items):
         raise TypeError(f"vignetting is a list of (P, h) pairs: write vignetting=[{tuple(items)}]"
                         " for one circle")
@@ -227,7 +234,7 @@ class Lens:
         plane (Eq. 9). ``h`` may be any finite number: ``h > x`` and ``h < x`` are the two
         regimes of Eq. (18), ``h = x`` is pixel vignetting, ``h = 0`` a stop (a circle that does
         not move) and ``h < 0`` a circle moving against the chief ray. Empty: no optical
-        vignetting.
+        vignetting. At most :data:`~snapcorr._validation.MAX_VIGNETTING_CIRCLES` (8) circles.
     magnification : float
         Linear magnification m (0: focused at infinity), its magnitude: 0 to
         :data:`MAX_MAGNIFICATION`.

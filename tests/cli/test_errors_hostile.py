@@ -77,3 +77,21 @@ def test_a_second_white_of_other_wavelengths_names_its_file(cli, tmp_path):
     assert_refused(res.returncode, res.stderr, "--dark dark8.npy has shape (12, 8, 4) but the "
                    "cube (12, 10, 4): x and band must match")
     assert not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize("command", ["sensor", "stream"])
+def test_a_cube_given_for_a_frame_is_told_in_command_line_terms(cli, tmp_path, command):
+    """``read it with read_cube`` reached a command-line user, who has no read_cube."""
+    np.save(tmp_path / "cube3.npy", np.ones((64, 64, 3), np.uint16))
+    if command == "sensor":
+        args = ("sensor", "imec_5x5_nir", "--phase-from", "cube3.npy")
+    else:
+        (tmp_path / "frames").mkdir()
+        np.save(tmp_path / "frames" / "f1.npy", np.ones((64, 64, 3), np.uint16))
+        np.save(tmp_path / "dark.npy", np.full((64, 64), 100, np.uint16))
+        np.save(tmp_path / "white.npy", np.full((64, 64), 3500, np.uint16))
+        args = ("stream", "frames", "--dark", "dark.npy", "--white", "white.npy", "--sensor",
+                "mosaic_4x4_vis", "--sensor-origin-px", "0,0", "--out", "s.zarr")
+    rc, _, err = cli(*args, cwd=tmp_path)
+    line = assert_refused(rc, err, "3 bands", "give the camera's raw 2-D frame")
+    assert "read_cube" not in line

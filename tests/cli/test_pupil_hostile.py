@@ -22,3 +22,12 @@ def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path
     assert res.returncode == 1 and "Traceback" not in res.stderr
     assert "no annulus" in res.stderr and "zero-size" not in res.stderr
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_predict_refuses_an_impossible_f_number_before_printing_anything(cli):
+    """``--f-number 0.3`` printed the table's two header lines, then the refusal."""
+    res = cli("pupil", "--predict", "--sensor", "snapscan_vnir", "--lens", "edmund_optics_16mm",
+              "--f-number", "2", "--f-number", "0.3")
+    assert res.returncode == 1 and res.stdout == ""
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "f/0.3 is below the physical limit" in lines[0]

@@ -26,6 +26,15 @@ def test_shift_past_the_cutoff_says_so_and_gives_the_angle(cli):
     assert any(abs(v - cutoff) < 0.051 for v in numbers), f"no {cutoff:.2f} in: {line}"
 
 
+
+@pytest.mark.parametrize("cra", [["-89.9"], ["10", "-50", "40"]])
+def test_shift_past_the_cutoff_names_the_angle_as_given(cli, cra):
+    """``--cra=-89.9`` was told ``CRA 89.9 deg is past ...``: the sign was dropped."""
+    rc, _, err = cli("shift", "--f-number", "2", "--cra", *cra)
+    assert_refused(rc, err, f"--cra {min(cra, key=float)} deg is past the full cut-off at "
+                            "36.21 deg (of either sign)")
+
+
 OVERFLOW = ["1e200", "1e308", "inf", "nan"]
 
 

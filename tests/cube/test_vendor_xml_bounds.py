@@ -146,3 +146,21 @@ def test_a_matrix_of_wavelengths_that_are_not_nm_is_refused(tmp_path, how, words
     wl = wl / 1000 if how == "um" else np.r_[wl[0], wl[:-1]]
     fx.matrices[0] = (name, kind, wl, fw, coeffs)
     _refused(write_newer(tmp_path / "wl.xml", fx), f"matrix 'hsi_reflectance'.*{words}")
+
+
+def test_a_file_far_larger_than_any_calibration_file_is_refused_by_its_size(tmp_path):
+    """A 60 MB file was parsed (580 MB, 10 s) before it was refused; one past 16 MiB, here a
+    real file padded with a comment, is refused unread, the size and the bound named."""
+    fx = imec_4x4()
+    path = write_newer(tmp_path / "huge.xml", fx)
+    text = path.read_text()
+    cut = text.rindex("</sensor_calibration>")
+    path.write_text(text[:cut] + "<!--" + "x" * (17 * 2**20) + "-->" + text[cut:])
+    tracemalloc.start()
+    try:
+        message = _refused(path, r"it holds 17\.\d MiB, far more than any sensor calibration "
+                                 r"file \(a few MB\): a file larger than 16 MiB is refused")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 2**20, (peak, message)

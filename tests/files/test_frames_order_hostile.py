@@ -1,10 +1,11 @@
 """Frame names whose order the numbers in them do not settle alone: digits joined by several
-points, a sign in names of different forms, digits of other scripts, and one frame saved in
-two formats."""
+points, digits after a point with none before it, a sign in names of different forms, digits
+of other scripts, one frame saved in two formats, and hidden files beside the frames."""
 
 from __future__ import annotations
 
 import itertools
+import re
 
 import numpy as np
 import pytest
@@ -60,3 +61,38 @@ def test_one_frame_in_two_formats_is_refused(tmp_path):
     tifffile.imwrite(tmp_path / "F1.TIF", np.full((4, 4), 1, np.uint16))
     with pytest.raises(ValueError, match=r"F1\.TIF and f1\.npy .* differ only in their suffix"):
         read_frames(tmp_path)
+
+
+@pytest.mark.parametrize("names, pair", [
+    (["t.5.npy", "t.25.npy", "t1.npy"], ("t1.npy", "t.25.npy")),  # 0.5, 0.25, 1 or 5, 25, 1
+    (["t.5.npy", "t0.25.npy", "t1.npy"], ("t1.npy", "t.5.npy")),
+    (["img.1.tif", "img.2.tif", "img.10.tif"], ("img.1.tif", "img.10.tif")),  # .1 == .10
+])
+def test_digits_after_a_point_alone_read_two_ways_are_refused(names, pair):
+    """t.5, t.25, t1 streamed as t1, t.5, t.25 (read as 5 and 25 after a separator) while
+    t0.5 is read as a decimal; where reading the point as a decimal point orders them
+    otherwise, they are refused, the two frames named."""
+    for shuffled in itertools.permutations(names):
+        with pytest.raises(ValueError, match=rf"frames '{re.escape(pair[0])}' and "
+                                             rf"'{re.escape(pair[1])}': digits after a point "
+                                             "with no digit before it"):
+            natural_order(list(shuffled))
+
+
+@pytest.mark.parametrize("names", [
+    ["f.001.npy", "f.002.npy", "f.010.npy"],  # as many digits: one order either way
+    ["a.5.npy", "b.25.npy"],
+])
+def test_digits_after_a_point_alone_read_one_way_keep_their_order(names):
+    for shuffled in itertools.permutations(names):
+        assert natural_order(list(shuffled)) == names
+
+
+def test_hidden_files_in_a_folder_of_frames_are_left_out(tmp_path):
+    """A hidden .t0.npy (a copy's, a viewer's) was streamed as the first frame."""
+    for k, name in enumerate([".t0.npy", "t1.npy", "t2.npy", "._t3.npy"]):
+        np.save(tmp_path / name, np.full((4, 4), k, np.float32))
+    frames = read_frames(tmp_path)
+    assert frames.attrs["frame_files"] == ["t1.npy", "t2.npy"]
+    assert "hidden files (names starting with '.') left out" in frames.attrs["frame_order"]
+    np.testing.assert_array_equal(frames.values[:, 0, 0], [1, 2])

@@ -197,3 +197,63 @@ def test_discs_with_centres_next_to_each_other_overlap_without_a_warning():
             assert np.all(np.isfinite(b.u)) and np.all(np.isfinite(b.y))
         lens = Lens(21.0, [(7.4236, 16.991), (9.0, 30.0)], 0.06, 1.3)
         assert lens.relative_illumination(1.4, [1e-300, 0.0]) == pytest.approx([1.0, 1.0])
+
+
+def _circles(n):
+    return [(5.0 + i * 1e-3, 17.0 + i * 0.01) for i in range(n)]
+
+
+@pytest.mark.parametrize("form", ["tables", "inline"])
+def test_a_lens_file_with_more_circles_than_a_lens_has_is_refused(tmp_path, form, cli):
+    """The optics' cost grows with the square of the circle count: 1000 circles in a 50 kB
+    profile took gigabytes and minutes before any output. Nine, one past the bound, are
+    refused on reading, in one line naming the file and the bound; eight load."""
+    def text(n):
+        head = "[lens]\nexit_pupil_mm = 21.0\nmagnification = 0.06\npupil_magnification = 1.3\n"
+        if form == "inline":
+            return head + "vignetting = [" + ", ".join(f"[{P}, {h}]" for P, h in _circles(n)) \
+                + "]\n"
+        return head + "".join(f"[[lens.vignetting]]\nradius_mm = {P}\ndistance_mm = {h}\n"
+                              for P, h in _circles(n))
+
+    (tmp_path / "ok.toml").write_text(text(8))
+    assert len(Lens.load(tmp_path / "ok.toml").vignetting) == 8
+    (tmp_path / "many.toml").write_text(text(9))
+    with pytest.raises(ValueError, match=r"many\.toml: vignetting holds 9 circles; at most 8"):
+        Lens.load(tmp_path / "many.toml")
+    err = refused_in_one_line(cli("shift", "--lens", "many.toml", "--f-number", "2", "--cra",
+                                  "10", cwd=tmp_path))
+    assert "many.toml" in err and "9 circles" in err and "at most 8" in err
+
+
+def test_more_circles_than_a_lens_has_are_refused_by_every_entry():
+    """Lens() (a list or an endless iterator, read no further than the bound) and the
+    functions taking circles as lists (P_mm, dv_mm) or discs (radii): each refuses the list
+    naming its argument."""
+    import itertools
+
+    from snapcorr.optics import aperture, discs, goossens2019
+
+    with pytest.raises(ValueError, match="vignetting holds 9 circles; at most 8"):
+        Lens(21.0, _circles(9))
+    with pytest.raises(ValueError, match="vignetting holds more than 8 circles"):
+        Lens(21.0, itertools.repeat((5.0, 17.0)))
+    assert len(Lens(21.0, _circles(8)).vignetting) == 8
+    P = [5.0] * 9
+    dv = [0.1 * i for i in range(9)]
+    for call in (lambda: aperture.gamma(1.0, 3.0, 0.5, P, dv),
+                 lambda: aperture.vignetted_area_mm2(3.0, P, dv),
+                 lambda: aperture.max_radius_mm(3.0, 0.5, P, dv),
+                 lambda: aperture.min_radius_mm(3.0, 0.5, P, dv),
+                 lambda: goossens2019.kernel(-1.0, 700.0, 1.7, 21.0, 3.0, 0.5, P, dv),
+                 lambda: goossens2019.mean_shift_contour(700.0, 1.7, 21.0, 3.0, 0.5, P, dv),
+                 lambda: goossens2019.mean_shift_riemann(700.0, 1.7, 21.0, 3.0, 0.5, P, dv)):
+        with pytest.raises(ValueError, match="P_mm holds 9 circles; at most 8"):
+            call()
+    r, c = [3.0] * 11, [0.01 * i for i in range(11)]
+    with pytest.raises(ValueError, match="radii_mm holds 11 discs; at most 10"):
+        aperture.overlap_area_mm2(r, c)
+    for call in (lambda: discs.boundary(r, c), lambda: discs.arc_half_angle(1.0, 0.0, r, c),
+                 lambda: discs.extreme_radii(0.0, r, c)):
+        with pytest.raises(ValueError, match="radii holds 11 discs; at most 10"):
+            call()
