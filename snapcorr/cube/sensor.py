@@ -624,7 +624,13 @@ class Sensor:
             raise ValueError(f"a sensor naming vendor_file takes its other keys from that file; "
                              f"it may add or override only {list(VENDOR_OVERRIDES)}, got "
                              f"{unknown}")
-        return cls.from_vendor(path.parent / vendor, calibration=calibration, **table)
+        target = path.parent / vendor
+        if not target.exists():
+            raise FileNotFoundError(
+                f"{path}: its vendor_file {vendor!r} is not found (looked for "
+                f"{target.resolve()}, relative to the sensor file): put the vendor's .xml "
+                "there, or correct vendor_file")
+        return cls.from_vendor(target, calibration=calibration, **table)
 
     def save(self, path, *, overwrite=False) -> Path:
         """Write the description as TOML, atomically; never replaces a file unless asked.

@@ -57,3 +57,25 @@ def test_the_n_eff_line_to_fill_in_names_the_command(layout, cli):
     text = (d / "link" / "fitted.toml").read_text()
     assert "\nn_eff = 1.83\n" in text and "# n_eff = 1.7" not in text
     assert Sensor.load(d / "link" / "fitted.toml").n_eff == (1.83,) * 16
+
+
+def test_a_toml_moved_away_from_its_vendor_file_says_where_it_looked(layout, cli):
+    """A sensor TOML copied to another folder: its relative vendor_file is not found there.
+    The message names the TOML, the vendor_file as written and the path it was looked for at
+    (it gave only '../vend/imec_4x4.xml', which the user cannot place)."""
+    d, real = layout
+    out = Sensor.load(real).save(d / "real" / "sub" / "s.toml")
+    moved = d / "elsewhere"
+    moved.mkdir()
+    (moved / "s.toml").write_text(out.read_text())
+    with pytest.raises(FileNotFoundError) as info:
+        Sensor.load(moved / "s.toml")
+    text = str(info.value)
+    assert str(moved / "s.toml") in text and "vendor_file" in text
+    import tomllib
+
+    vendor = tomllib.loads(out.read_text())["sensor"]["vendor_file"]
+    assert repr(vendor) in text and f"looked for {(moved / vendor).resolve()}," in text
+    res = cli("sensor", moved / "s.toml")
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "looked for" in res.stderr
