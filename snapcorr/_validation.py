@@ -412,3 +412,16 @@ def check_pack_range(name, lo, hi, codes=65534):
                          "float32), so neighbouring codes read back as one value; give a "
                          "wider range, or one nearer 0")
     return lo, hi
+
+
+def parse_json(text):
+    """``json.loads(text)``, a nesting deeper than Python's reader goes refused as
+    ``ValueError`` like any other JSON it cannot read (it raised ``RecursionError``: a file
+    of 100 000 brackets gave a traceback where a malformed one gave a message)."""
+    import json
+
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply to read (thousands of levels: no metadata "
+                         "is)") from None

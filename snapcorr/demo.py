@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from ._validation import parse_json
 from .data import lens_path
 from .files.marks import written_by_snapcorr
 from .files.outputs import check_folder_writable
@@ -77,7 +78,7 @@ def _read_marker(out):
         raise ValueError(f"{path}: cannot read it ({err.strerror or err}); remove it or "
                          "choose another folder (out_dir=)") from None
     try:
-        doc = json.loads(data)
+        doc = parse_json(data)
     except ValueError:
         return {}
     files = doc.get("files") if isinstance(doc, dict) else None

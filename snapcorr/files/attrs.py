@@ -20,6 +20,7 @@ import json
 
 import numpy as np
 
+from .._validation import parse_json
 from ..cube.model import POSITION_DIMS
 
 __all__ = ["JSON_PREFIX", "decode_attrs", "encode_attrs"]
@@ -109,14 +110,14 @@ def decode_attrs(attrs):
             value = value.decode("utf-8", "replace")
         if isinstance(value, str) and value.startswith(JSON_PREFIX):
             with contextlib.suppress(ValueError):
-                value = json.loads(value[len(JSON_PREFIX):])
+                value = parse_json(value[len(JSON_PREFIX):])
         out[key] = value
     return out
 
 
 def _json_attrs(attrs, where):
     """Attributes for a JSON document (TIFF, EXR, sidecars, ENVI): checked, numpy to Python."""
-    return json.loads(_to_json(dict(attrs), where))
+    return parse_json(_to_json(dict(attrs), where))
 
 
 # -- sensor positions ------------------------------------------------------------------------

@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .._threads import dask_threads
+from .._validation import parse_json
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
@@ -37,7 +37,7 @@ def _zarr_consolidated(path):
     meta = Path(path) / "zarr.json"
     if meta.is_file():
         try:
-            return json.loads(meta.read_text(encoding="utf-8")).get(
+            return parse_json(meta.read_text(encoding="utf-8")).get(
                 "consolidated_metadata") is not None
         except (OSError, ValueError, AttributeError):
             return False

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._validation import parse_json
 from ..cube.model import POSITION_DIMS
 from .attrs import JSON_PREFIX, _one_line, _version
 from .reading import check_input
@@ -303,7 +304,7 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
     stored = h.get("snapcorr attrs")
     if isinstance(stored, str) and stored.startswith(JSON_PREFIX):
         try:
-            attrs.update(json.loads(stored[len(JSON_PREFIX):]))
+            attrs.update(parse_json(stored[len(JSON_PREFIX):]))
         except ValueError:
             raise ValueError(f"{hdr}: 'snapcorr attrs' is not valid JSON") from None
     found.attrs = attrs

@@ -13,6 +13,7 @@ import re
 
 import numpy as np
 
+from .._validation import parse_json
 from ..cube.model import POSITION_DIMS
 from .attrs import _one_line
 from .reading import open_image
@@ -44,7 +45,7 @@ def _description(attrs):
     if not (isinstance(desc, str) and desc.startswith("{")):
         return {}
     try:
-        meta = json.loads(desc)
+        meta = parse_json(desc)
     except ValueError:
         return {}
     return meta if isinstance(meta, dict) else {}

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._validation import parse_json
 from .reading import (
     NotRegularFileError,
     _found,
@@ -79,7 +80,7 @@ def untie_mark(value):
     if m is None:
         return None
     try:
-        name = json.loads(m.group(2))
+        name = parse_json(m.group(2))
     except ValueError:
         return None
     return (name, m.group(3)) if isinstance(name, str) else None
@@ -337,7 +338,7 @@ def _netcdf_description(fh):
 def _read_json(path):
     """The JSON document at ``path`` (a regular file, bounded), else None."""
     try:
-        return json.loads(read_regular(path, _META_LIMIT))
+        return parse_json(read_regular(path, _META_LIMIT))
     except (OSError, ValueError):  # NotRegularFileError is a ValueError
         return None
 
@@ -452,7 +453,7 @@ def _tie_envi_header(new, name):
 
 def _tie_sidecar(new, name):
     try:
-        meta = json.loads(Path(new).read_text(encoding="utf-8"))
+        meta = parse_json(Path(new).read_text(encoding="utf-8"))
     except (UnicodeDecodeError, ValueError, IsADirectoryError):
         return
     if isinstance(meta, dict) and _is_mark(meta.get("written_by")):
@@ -545,7 +546,7 @@ def _written_by_snapcorr(target, role):
         finally:
             inp.close()
         try:
-            meta = json.loads(desc) if isinstance(desc, str) else {}
+            meta = parse_json(desc) if isinstance(desc, str) else {}
         except ValueError:
             meta = {}
         if isinstance(meta, dict) and (_is_mark(meta.get("written_by"))

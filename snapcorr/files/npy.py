@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._validation import parse_json
 from ..cube.model import DIMS, POSITION_DIMS
 from .attrs import _one_line
 from .reading import _sidecar, check_input
@@ -111,7 +112,7 @@ def _npy_found(path, data, file_ndim):
 def _read_sidecar(side, path):
     check_input(side, what="sidecar")
     try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
+        meta = parse_json(side.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as err:
         raise ValueError(f"{path}: its sidecar {side.name} is not readable JSON "
                          f"({_one_line(err)}); fix or remove it") from None

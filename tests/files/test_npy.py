@@ -115,3 +115,20 @@ def test_a_header_with_a_negative_size_is_refused_naming_the_file(tmp_path, shap
         fh.write(b"\0" * 64)
     with pytest.raises(ValueError, match=r"neg\.npy: its header gives the shape .* negative"):
         read_cube(path, wavelength_nm=[500.0, 520.0, 540.0, 560.0])
+
+
+def test_a_sidecar_nested_past_the_json_readers_depth_is_one_line(tmp_path, cli):
+    """100 000 brackets in a .npy's sidecar: refused as unreadable JSON naming the sidecar, as
+    a malformed one is (it gave a RecursionError message, and the JSON readers of every other
+    format the same)."""
+    cube = _mosaic_cube()
+    write_cube(cube, tmp_path / "c.npy")
+    (tmp_path / "c.npy.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ValueError, match=r"sidecar c.npy.json is not readable JSON \(JSON "
+                                         r"nested too deeply"):
+        read_cube(tmp_path / "c.npy")
+    from snapcorr._validation import parse_json
+
+    with pytest.raises(ValueError, match="nested too deeply"):
+        parse_json('{"a": ' * 50_000 + "1" + "}" * 50_000)
+    assert parse_json('{"a": [1, 2]}') == {"a": [1, 2]}
