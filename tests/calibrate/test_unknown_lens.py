@@ -230,3 +230,23 @@ def test_the_centre_is_taken_row_first_and_its_x_first_form_warns():
     with pytest.raises(TypeError, match="give the optical centre once"):
         calibrate_with_target(flats, data, sensor(), center_rc=(row, col),
                               center_px=(col, row), **kw)
+
+
+@pytest.mark.parametrize("given", [["--center", "37.25,81.5"], ["--center-px", "81.5,37.25"]],
+                         ids=["center", "center-px"])
+def test_the_command_gives_the_centre_row_first(files, cli, monkeypatch, tmp_path, given):
+    """calibrate --target-cube: --center ROW,COL reaches the calibration as center_rc=(row,
+    col); --center-px CX,CY, its deprecated x-first form, as the same row-first pair."""
+    import snapcorr.calibrate
+
+    seen = {}
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped here")
+
+    monkeypatch.setattr(snapcorr.calibrate, "calibrate_with_target", capture)
+    res = cli("calibrate", *_args(files), *given, "--out", tmp_path / "l.toml")
+    assert res.returncode == 1 and "stopped here" in res.stderr, res.stderr
+    assert seen["center_rc"] == (37.25, 81.5) and "center_px" not in seen
+    assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")
