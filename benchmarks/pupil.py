@@ -140,7 +140,8 @@ def _fit_summary(fit):
     n_se = None if fit.n_eff_stderr is None else float(fit.n_eff_stderr[0])
     return {"x_mm": fit.exit_pupil_mm, "x_stderr_mm": fit.exit_pupil_stderr_mm,
             "n_eff": float(fit.n_eff[0]), "n_eff_stderr": n_se, "n_eff_mode": fit.n_eff_fitted,
-            "chi2_red": fit.chi2_red, "center_px": list(fit.center_px),
+            "chi2_red": fit.chi2_red,
+            "center_px": [fit.center_rc[1], fit.center_rc[0]],  # x first, as the table says it
             "notes": list(fit.notes)}
 
 

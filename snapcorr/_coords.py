@@ -7,12 +7,11 @@ ROW,COL``). Rows and columns count from the first pixel's centre, 0.
 
 The optical centre used to be given x first (``center_px=(cx, cy)``, ``--center-px CX,CY``).
 Those forms still work and warn (``FutureWarning``); they are never reinterpreted, and giving
-both forms is an error. :func:`accepts_center_rc` does it for a public function in either of
-two forms: one whose body takes ``center_rc`` (row first, as inside ``optics``, ``budget``,
-``simulate``, ``correct`` and the lens calibration, ``calibrate.lens`` and
-``calibrate.flats``), the old ``center_px`` turned into it; or one whose body still takes the
-internal x-first ``center_px`` (the exit-pupil fit, ``calibrate.pupil`` and
-``calibrate_with_target``, and ``process_stream``), ``center_rc`` turned into that. The same
+both forms is an error. :func:`accepts_center_rc` does it for a public function whose body
+takes ``center_rc``, row first, as every body inside snapcorr does (``optics``, ``budget``,
+``simulate``, ``correct``, ``pipeline``, the lens calibration in ``calibrate.lens`` and
+``calibrate.flats``, the exit-pupil fit in ``calibrate.pupil`` and ``calibrate_with_target``,
+and the commands): the old ``center_px`` is turned into it where it comes in. The same
 decorator, given the names, does it for a centre argument of another name (the joint fit's
 ``center`` and ``fix_center``, now ``center_rc`` and ``fix_center_rc``). Renamed arguments
 other than the centre go through :func:`snapcorr._validation.renamed_keywords`.
@@ -62,30 +61,29 @@ def warn_x_first_return(old, new, *, stacklevel=4):
 
 
 def center_from_rc(center_rc, name="center_rc"):
-    """``(cx, cy)``, the internal form, from a public ``(row, col)``."""
+    """``(cx, cy)``, the x-first form of 0.1, from ``(row, col)``, checked."""
     row, col = check_pair(name, center_rc, "two numbers (row, col) in pixels")
     return (col, row)
 
 
 def rc_from_center(center_px):
-    """``[row, col]`` from the internal ``(cx, cy)``."""
+    """``[row, col]`` from the x-first ``(cx, cy)`` of 0.1."""
     return [float(center_px[1]), float(center_px[0])]
 
 
 def accepts_center_rc(func=None, *, old="center_px", new="center_rc", many=False):
-    """Let ``func`` take the optical centre both ways, ``center_rc=(row, col)`` and the
-    deprecated x-first ``center_px=(cx, cy)``, warning when a caller outside snapcorr gives
-    ``center_px`` and refusing both at once.
+    """Let ``func``, whose body takes the optical centre row first, ``center_rc=(row, col)``,
+    take it also in its deprecated x-first form ``center_px=(cx, cy)``, swapped into
+    ``center_rc``, warning when a caller outside snapcorr gives it and refusing both at once.
 
-    A ``func`` that declares ``center_rc`` gets ``center_rc`` only: a ``center_px`` given
-    (keyword, or in its old positional place where ``func`` still declares it) is swapped into
-    it. A ``func`` that declares only ``center_px`` (the internal ``(cx, cy)``) gets
-    ``center_px`` only, and a keyword-only ``center_rc`` is added to its signature.
+    ``func`` declares ``center_rc``, and ``center_px`` too: in its old place, for the callers
+    that give it by position, or keyword-only. A ``center_rc`` given is checked here, by name;
+    an old ``center_px`` is checked, swapped into ``center_rc`` and passed on as None.
 
     Used as ``@accepts_center_rc(old="center", new="center_rc")``, the same for a centre
-    argument of another name (``fix_center`` and ``fix_center_rc``...): a ``func`` that
-    declares ``new`` gets the old keyword swapped into it; with ``many``, the argument is a
-    sequence of centres, each swapped.
+    argument of another name (``fix_center`` and ``fix_center_rc``...); where ``func`` does not
+    declare ``old``, it is added to the signature, keyword-only. With ``many``, the argument is
+    a sequence of centres, each swapped.
 
     Parameters
     ----------
@@ -93,48 +91,15 @@ def accepts_center_rc(func=None, *, old="center_px", new="center_rc", many=False
         The function; left out, a decorator with these names is returned.
     old, new : str
         The x-first argument's name and the row-first one's (default ``center_px`` and
-        ``center_rc``). Unless they are those two, ``func`` must declare ``new``; ``old``,
-        where it does not declare it, is added as a keyword-only argument.
+        ``center_rc``); ``func`` must declare ``new``.
     many : bool
         The argument is a sequence of centres (``centers``), each swapped.
     """
     if func is None:
         return functools.partial(accepts_center_rc, old=old, new=new, many=many)
     sig = inspect.signature(func)
-    if new in sig.parameters:
-        return _old_into_rc(func, sig, old, new, many)
-    if (old, new, many) != ("center_px", "center_rc", False):
+    if new not in sig.parameters:
         raise TypeError(f"{func.__name__} takes no {new}")
-    params = list(sig.parameters.values())
-    if "center_px" not in sig.parameters:
-        raise TypeError(f"{func.__name__} takes no center_px")
-    new = inspect.Parameter("center_rc", inspect.Parameter.KEYWORD_ONLY, default=None)
-    at = [p.name for p in params].index("center_px")
-    if params[at].kind != inspect.Parameter.KEYWORD_ONLY:  # after every keyword-only one
-        at = len([p for p in params if p.kind != inspect.Parameter.VAR_KEYWORD])
-    signature = sig.replace(parameters=[*params[:at], new, *params[at:]])
-
-    @functools.wraps(func)
-    def wrapper(*args, center_rc=None, **kwargs):
-        bound = sig.bind_partial(*args, **kwargs)
-        old = bound.arguments.get("center_px")
-        if center_rc is not None:
-            if old is not None:
-                raise TypeError(f"{func.__name__}: give the optical centre once, as "
-                                "center_rc=(row, col); center_px is its old x-first form")
-            bound.arguments["center_px"] = center_from_rc(center_rc)
-        elif old is not None and called_from_outside(2):
-            cx, cy = check_pair("center_px", old, "two numbers (cx, cy) in pixels")
-            warnings.warn(CENTER_PX_DEPRECATION.format(row=cy, col=cx), FutureWarning,
-                          stacklevel=2)
-        return func(*bound.args, **bound.kwargs)
-
-    wrapper.__signature__ = signature
-    return wrapper
-
-
-def _old_into_rc(func, sig, old, new, many):
-    """:func:`accepts_center_rc` for a ``func`` whose body takes ``new``, row first."""
     declared = old in sig.parameters
     if not declared and old == "center_px" and new == "center_rc":
         raise TypeError(f"{func.__name__} takes center_rc but not its earlier form center_px")

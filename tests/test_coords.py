@@ -143,6 +143,18 @@ def test_a_centre_argument_of_another_name_keeps_its_old_x_first_keyword():
 
 
 
+def test_a_body_taking_the_centre_x_first_is_refused():
+    """Every body inside snapcorr takes the centre row first: the decorator turns only the old
+    x-first keyword into center_rc, and refuses a body that would take it x first."""
+    from snapcorr._coords import accepts_center_rc
+
+    def x_first(a, center_px=None):
+        return center_px
+
+    with pytest.raises(TypeError, match="x_first takes no center_rc"):
+        accepts_center_rc(x_first)
+
+
 def _centre_takers():
     """Every public function taking a row-first centre, with its centre arguments' names."""
     for name, func in sorted(_public_functions().items()):

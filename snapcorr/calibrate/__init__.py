@@ -17,6 +17,7 @@ from .pupil.locate import (
     Precision,
     PupilFit,
     estimate_target_center,
+    estimate_target_center_rc,
     locate_pupil,
     pupil_precision,
 )
@@ -45,6 +46,7 @@ __all__ = [
     "estimate_center",
     "estimate_center_rc",
     "estimate_target_center",
+    "estimate_target_center_rc",
     "locate_pupil",
     "noise_model",
     "pupil_precision",

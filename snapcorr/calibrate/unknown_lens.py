@@ -126,7 +126,8 @@ class LensAndPupil:
 @accepts_center_rc
 def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=False,
                           provisional_x_mm=None, magnification=None, pupil_magnification=None,
-                          dark=None, center_px=None, saturation=None, method="auto",
+                          dark=None, center_rc=None, center_px=None, saturation=None,
+                          method="auto",
                           max_circles=3, tolerance_nm=choice.TOLERANCE_NM,
                           target_spectrum=None, sensor_origin_px=None, profile="gaussian",
                           name="calibrated lens", inputs=None, target_inputs=None,
@@ -158,9 +159,9 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
         (:mod:`~snapcorr.calibrate.unknown_magnification`), with a
         :class:`~snapcorr.calibrate.lens.magnification.MagnificationWarning`. Given values
         (m = 0 alone included) are exact.
-    dark, center_px, saturation, method, max_circles, tolerance_nm
-        As :func:`~snapcorr.calibrate.calibrate_lens` (``center_rc``, or the deprecated
-        ``center_px``, in the flats' pixels).
+    dark, center_rc, center_px, saturation, method, max_circles, tolerance_nm
+        As :func:`~snapcorr.calibrate.calibrate_lens` (the optical centre ``center_rc=(row,
+        col)`` in the flats' pixels; ``center_px=(cx, cy)`` is its deprecated x-first form).
     target_spectrum, sensor_origin_px, profile
         As :func:`~snapcorr.calibrate.locate_pupil`.
     name : str
@@ -190,6 +191,7 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
         The target carries no information about x.
     """
     args = dict(locals())
+    del args["center_px"]  # turned into center_rc by accepts_center_rc
     m, mp = checked_magnifications(magnification, pupil_magnification)  # before any work
     given, _, rng = ratio_range(m, mp)
     args.update(magnification=ASSUMED_MAGNIFICATION if m is None else m,
@@ -201,11 +203,12 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
 
 
 def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x_mm,
-               magnification, pupil_magnification, dark, center_px, saturation, method,
+               magnification, pupil_magnification, dark, center_rc, saturation, method,
                max_circles, tolerance_nm, target_spectrum, sensor_origin_px, profile, name,
                inputs, target_inputs, progress, pupil_radiance, target_tolerance_nm,
                report) -> LensAndPupil:
-    """:func:`calibrate_with_target` for one pupil and m, m_P settled (its body)."""
+    """:func:`calibrate_with_target` for one pupil and m, m_P settled (its body); every
+    centre ``(row, col)``."""
     flats = dict(flats)
     if not flats or not cubes:
         raise ValueError("give flat fields and target cubes (one of each at least)")
@@ -214,7 +217,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
         half_diag_mm = 0.5 * math.hypot(*shape[:2]) * float(pixel_pitch_um) * 1e-3
         provisional_x_mm = half_diag_mm / math.tan(math.radians(20.0))
     common = dict(pixel_pitch_um=pixel_pitch_um, magnification=magnification,
-                  pupil_magnification=pupil_magnification, dark=dark, center_px=center_px,
+                  pupil_magnification=pupil_magnification, dark=dark, center_rc=center_rc,
                   saturation=saturation, method=method, max_circles=max_circles,
                   tolerance_nm=tolerance_nm, name=name, inputs=inputs, progress=progress,
                   pupil_radiance=pupil_radiance,
@@ -224,7 +227,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
 
     def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
-        return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_px=centre,
+        return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
                             target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
                             profile=profile, inputs=target_inputs, name=name,
                             progress=progress, scale_circles=True,
@@ -250,7 +253,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
                        float(provisional_x_mm), notes)
     # the target fitted again with other circles, as this one was (the assumed magnifications'
     # spread), the centre held where this fit found it
-    out._refit = functools.partial(fit_x, centre=pupil.center_px, again=True)
+    out._refit = functools.partial(fit_x, centre=pupil.center_rc, again=True)
     return out
 
 
@@ -277,11 +280,12 @@ def _either_pupil(args):
 
 
 def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
-    """The flats' optical centre in the cubes' sensor pixels, or None (found from the cubes)."""
-    from ..correct.geometry import PlacementError, optical_center
+    """The flats' optical centre ``(row, col)`` in the cubes' sensor pixels, or None (found
+    from the cubes)."""
+    from ..correct.geometry import PlacementError, optical_center_rc
 
     try:
-        centre, _ = optical_center(next(iter(cubes.values())), sensor, lens)
+        centre, _ = optical_center_rc(next(iter(cubes.values())), sensor, lens)
     except PlacementError as err:
         notes.append(f"the flats' optical centre could not be carried to the cubes ({err}); "
                      "the target's fit found its own")

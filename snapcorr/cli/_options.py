@@ -141,18 +141,18 @@ def _add_center(p, help_text):
 
 
 def _center_option(args):
-    """``args.center_px``, the internal (cx, cy), from ``--center ROW,COL`` or the deprecated
-    ``--center-px CX,CY`` (said on stderr; giving both is an error)."""
+    """``args.center_rc``, the optical centre ``(row, col)`` (None if not given), from
+    ``--center ROW,COL`` or the deprecated ``--center-px CX,CY`` (said on stderr; giving both is
+    an error)."""
+    args.center_rc = getattr(args, "center", None)
     if getattr(args, "center_px", None) is not None:
-        if args.center is not None:
+        if args.center_rc is not None:
             raise ValueError("give the optical centre once: --center ROW,COL (--center-px "
                              "CX,CY is its old x-first form)")
         cx, cy = args.center_px
         print(f"snapcorr {args.command}: --center-px CX,CY is deprecated and will be removed; "
               f"give --center ROW,COL (here --center {cy:g},{cx:g})", file=sys.stderr)
-    elif getattr(args, "center", None) is not None:
-        row, col = args.center
-        args.center_px = (col, row)
+        args.center_rc = (cy, cx)
 
 
 def _add_virtual_options(p):

@@ -113,19 +113,18 @@ def _budget_field(args, lens, sensor, cube):
     if args.cra_max is not None:
         return args.cra_max, f"CRA up to {args.cra_max:g} deg (--cra-max)"
     if cube is not None:
-        center_rc = None if args.center_px is None else tuple(args.center_px)[::-1]
-        cra_max = float(cube_cra(cube, sensor, lens, center_rc=center_rc,
+        cra_max = float(cube_cra(cube, sensor, lens, center_rc=args.center_rc,
                                  sensor_origin_px=args.sensor_origin_px).cra_deg.max())
         return cra_max, f"the cube's pixels, CRA up to {cra_max:.2f} deg"
-    if args.center_px is not None and sensor.size_px is not None:  # the axis off the middle
-        (rows, cols), (cx, cy) = sensor.size_px, args.center_px
+    if args.center_rc is not None and sensor.size_px is not None:  # the axis off the middle
+        (rows, cols), (row, col) = sensor.size_px, args.center_rc
         pitch_mm = sensor.require("pixel_pitch_um", "the field about --center") * 1e-3
-        far = max(math.hypot(r - cy, c - cx) for r in (-0.5, rows - 0.5)
+        far = max(math.hypot(r - row, c - col) for r in (-0.5, rows - 0.5)
                   for c in (-0.5, cols - 0.5))
         cra_max = math.degrees(math.atan(far * pitch_mm / lens.exit_pupil_mm))
-        return cra_max, (f"the sensor's {rows} x {cols} px field about --center {cy:g},{cx:g}, "
+        return cra_max, (f"the sensor's {rows} x {cols} px field about --center {row:g},{col:g}, "
                          f"CRA up to {cra_max:.2f} deg at its farthest corner")
-    if args.center_px is not None:
+    if args.center_rc is not None:
         raise ValueError(f"--center places the optical axis on the sensor {sensor.name!r}, "
                          "which has no size_px: give --cube CUBE or --cra-max DEG")
     if sensor.field_radius_mm is not None:

@@ -144,11 +144,11 @@ def run(args):
         method, _, provenance = recommend_model(
             cube, sensor, args.f_number, lens, args.source,
             tolerance_pct=0.5 if args.tolerance_pct is None else args.tolerance_pct,
-            center_px=args.center_px, sensor_origin_px=args.sensor_origin_px)
+            center_rc=args.center_rc, sensor_origin_px=args.sensor_origin_px)
     _check_virtual_options(args, sensor)
     with _StageBar("correcting: chief-ray angles, models and tables", count=False):
         ds = correct_cube(cube, sensor, args.f_number, lens, method=method,
-                          tolerance_nm=args.tolerance_nm, center_px=args.center_px,
+                          tolerance_nm=args.tolerance_nm, center_rc=args.center_rc,
                           sensor_origin_px=args.sensor_origin_px, resample=args.resample,
                           harmonise=args.harmonise, target_fwhm_nm=args.target_fwhm_nm,
                           mask=mask, virtual_bands=args.virtual_bands,

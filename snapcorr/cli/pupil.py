@@ -123,7 +123,7 @@ def run(args):
     try:
         with _StepBar("fitting the exit pupil") as bar:
             fit = locate_pupil(cubes, sensor, lens=lens, fit_n_eff=args.fit_n_eff,
-                               center_px=args.center_px, target_spectrum=spectrum,
+                               center_rc=args.center_rc, target_spectrum=spectrum,
                                sensor_origin_px=args.sensor_origin_px,
                                magnification=args.magnification,
                                pupil_magnification=args.pupil_magnification,

@@ -101,7 +101,7 @@ def run(args):
                          f"mosaic (layout {sensor.layout!r})")
     if (args.lens is None) != (args.f_number is None):
         raise ValueError("correcting a stream needs both --lens and --f-number")
-    if args.center_px is not None and args.lens is None:
+    if args.center_rc is not None and args.lens is None:
         raise ValueError("--center places the lens's optical centre: give --lens and "
                          "--f-number too")
     if args.resample and args.lens is None:
@@ -116,7 +116,7 @@ def run(args):
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, sensor_origin_px=args.sensor_origin_px,
-                        center_px=args.center_px,
+                        center_rc=args.center_rc,
                         saturation=args.saturation, dtype=args.dtype, resample=args.resample,
                         virtual_bands=args.virtual_bands, virtual_matrix=args.virtual_matrix,
                         virtual_wavelengths_nm=args.virtual_wavelengths,

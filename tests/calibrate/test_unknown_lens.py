@@ -196,3 +196,57 @@ def test_pupil_is_the_earlier_name_of_pupil_radiance():
     with pytest.raises(TypeError, match="give pupil_radiance once"):
         calibrate_with_target(flats, data, sensor(), pixel_pitch_um=PITCH_UM, pupil="paper",
                               pupil_radiance="paper")
+
+
+def test_the_centre_is_taken_row_first_and_its_x_first_form_warns():
+    """center_rc=(row, col), off both middles of the frame, is the flats' centre, held, and
+    the target's, carried to the cubes by the flats' lens; center_px=(cx, cy), the x-first
+    form of 0.1, gives the same calibration and warns."""
+    row, col = 37.25, 81.5
+    flats = make_flats(PAPER, FLAT_F_NUMBERS, shape=SHAPE, pitch_um=PITCH_UM,
+                       center_px=(col, row), noise=0.005, seed=4)
+    data = cubes("colour_filter", "paper", (2.0, 8.0), noise=0.002, seed=104,
+                 center=(col, row))
+    kw = dict(pixel_pitch_um=PITCH_UM, magnification=PAPER.magnification,
+              pupil_magnification=PAPER.pupil_magnification, max_circles=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FutureWarning)
+        new = calibrate_with_target(flats, data, sensor(), center_rc=(row, col), **kw)
+        assert new.calibration.center_rc == (row, col)
+        assert new.calibration.center_source == "given"
+        assert new.pupil.center_rc == (row, col)
+    assert abs(new.pupil.exit_pupil_mm / PAPER.exit_pupil_mm - 1) < 0.01, new.summary()
+    assert abs(new.lens.vignetting[0][0] / PAPER.circles[0][0] - 1) < 0.01, new.summary()
+    cal = new.lens.calibration
+    assert cal["center_rc"] == [row, col] and cal["exit_pupil_fit"]["center_rc"] == [row, col]
+    with pytest.warns(FutureWarning, match=r"center_px is the old x-first form .* "
+                                           r"center_rc=\(37\.25, 81\.5\)"):
+        old = calibrate_with_target(flats, data, sensor(), center_px=(col, row), **kw)
+    assert old.names == new.names
+    np.testing.assert_array_equal(old.values, new.values)
+    np.testing.assert_array_equal(old.covariance, new.covariance)
+    assert {k: v for k, v in old.lens.calibration.items() if k != "date"} == \
+        {k: v for k, v in cal.items() if k != "date"}
+    with pytest.raises(TypeError, match="give the optical centre once"):
+        calibrate_with_target(flats, data, sensor(), center_rc=(row, col),
+                              center_px=(col, row), **kw)
+
+
+@pytest.mark.parametrize("given", [["--center", "37.25,81.5"], ["--center-px", "81.5,37.25"]],
+                         ids=["center", "center-px"])
+def test_the_command_gives_the_centre_row_first(files, cli, monkeypatch, tmp_path, given):
+    """calibrate --target-cube: --center ROW,COL reaches the calibration as center_rc=(row,
+    col); --center-px CX,CY, its deprecated x-first form, as the same row-first pair."""
+    import snapcorr.calibrate
+
+    seen = {}
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped here")
+
+    monkeypatch.setattr(snapcorr.calibrate, "calibrate_with_target", capture)
+    res = cli("calibrate", *_args(files), *given, "--out", tmp_path / "l.toml")
+    assert res.returncode == 1 and "stopped here" in res.stderr, res.stderr
+    assert seen["center_rc"] == (37.25, 81.5) and "center_px" not in seen
+    assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")

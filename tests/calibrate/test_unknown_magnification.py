@@ -135,7 +135,7 @@ def _defaults():
     import inspect
 
     sig = inspect.signature(calibrate_with_target)
-    skip = {"flats", "cubes", "sensor", "magnification", "pupil_magnification", "center_rc"}
+    skip = {"flats", "cubes", "sensor", "magnification", "pupil_magnification", "center_px"}
     return {k: p.default for k, p in sig.parameters.items()
             if k not in skip and p.default is not inspect.Parameter.empty}
 

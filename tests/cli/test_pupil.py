@@ -200,3 +200,24 @@ def test_help_shows_the_two_step_workflow(cli):
     assert "--predict" in text and "snapcorr calibrate" in text
     assert "circles are scaled to the x found" in text
     assert "--sensor-out" in text
+
+
+@pytest.mark.parametrize("given", [["--center", "37.25,81.5"], ["--center-px", "81.5,37.25"]],
+                         ids=["center", "center-px"])
+def test_the_centre_reaches_the_fit_row_first(files, cli, monkeypatch, tmp_path, given):
+    """--center ROW,COL reaches the fit as center_rc=(row, col); --center-px CX,CY, its
+    deprecated x-first form, as the same row-first pair, said on stderr."""
+    import snapcorr.calibrate
+
+    seen = {}
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped here")
+
+    monkeypatch.setattr(snapcorr.calibrate, "locate_pupil", capture)
+    res = cli("pupil", "--cube", f"2={files / 'glass_f2.nc'}", "--sensor",
+              files / "sensor.toml", *given, "--out", tmp_path / "l.toml")
+    assert res.returncode == 1 and "stopped here" in res.stderr, res.stderr
+    assert seen["center_rc"] == (37.25, 81.5) and "center_px" not in seen
+    assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")

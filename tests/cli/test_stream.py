@@ -20,9 +20,12 @@ def test_options_that_do_not_go_together_are_one_line(tmp_path, cli, extra, word
     assert not (tmp_path / "s.zarr").exists()
 
 
-def test_center_places_the_lens_centre_of_a_stream(tmp_path, monkeypatch, cli):
+@pytest.mark.parametrize("given", [["--center", "3,5"], ["--center-px", "5,3"]],
+                         ids=["center", "center-px"])
+def test_center_places_the_lens_centre_of_a_stream(tmp_path, monkeypatch, cli, given):
     """The optical centre the corrected wavelengths need can be given (a lens profile from
-    another pixel pitch asks for --center), row first, as to correct."""
+    another pixel pitch asks for --center), row first, as to correct; --center-px, x first,
+    is its deprecated form and reaches the stream as the same row-first pair."""
     import numpy as np
 
     import snapcorr.pipeline
@@ -39,9 +42,10 @@ def test_center_places_the_lens_centre_of_a_stream(tmp_path, monkeypatch, cli):
     monkeypatch.setattr(snapcorr.pipeline, "process_stream", capture)
     _, _, err = cli("stream", "frames.npy", "--dark", "d.npy", "--white", "w.npy", "--sensor",
                      "mosaic_4x4_vis", "--lens", "edmund_optics_16mm", "--f-number", "2",
-                     "--center", "3,5", "--out", "s.zarr", cwd=tmp_path)
+                     *given, "--out", "s.zarr", cwd=tmp_path)
     assert "stopped here" in err, err
-    assert tuple(seen["center_px"]) == (5.0, 3.0)  # the internal (cx, cy)
+    assert seen["center_rc"] == (3.0, 5.0) and "center_px" not in seen
+    assert ("--center-px CX,CY is deprecated" in err) == (given[0] == "--center-px"), err
 
 
 def test_center_without_a_lens_is_one_line(tmp_path, cli):

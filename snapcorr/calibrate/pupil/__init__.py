@@ -9,6 +9,7 @@ from .locate import (
     Precision,
     PupilFit,
     estimate_target_center,
+    estimate_target_center_rc,
     locate_pupil,
     pupil_precision,
 )
@@ -22,6 +23,7 @@ __all__ = [
     "PupilFit",
     "colour_chart_precision",
     "estimate_target_center",
+    "estimate_target_center_rc",
     "locate_pupil",
     "pupil_precision",
 ]

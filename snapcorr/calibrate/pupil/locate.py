@@ -25,7 +25,7 @@ The fit runs in stages, each in its own module; this one is the entry point: it 
 together, assembles the result and re-exports every name callers import from here.
 
 * :mod:`~snapcorr.calibrate.pupil.target`: the input: the cubes and the target's spectrum
-  checked, the optical centre (:func:`estimate_target_center`) and the annuli about it;
+  checked, the optical centre (:func:`estimate_target_center_rc`) and the annuli about it;
 * :mod:`~snapcorr.calibrate.pupil.distance`: the search for ``x`` and the test that the target
   shows a shift at all (in sample and held out, :class:`FeaturelessTargetError`);
 * :mod:`~snapcorr.calibrate.pupil.index`: the ladder of effective-index models;
@@ -48,7 +48,7 @@ import numpy as np
 # ``name as name``: re-exported (the stages' constants and the named targets) for the callers
 # that import it from here
 from ... import __version__
-from ..._coords import accepts_center_rc
+from ..._coords import accepts_center_rc, called_from_outside, warn_x_first_return
 from ..._validation import renamed_keywords
 from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...spectra import colour_filter as colour_filter
@@ -91,6 +91,7 @@ from .target import (
     _spectrum,
     check_modelled,
     estimate_target_center,
+    estimate_target_center_rc,
 )
 from .target_model import TargetModel, scaled_circles
 
@@ -101,6 +102,7 @@ __all__ = [
     "Precision",
     "PupilFit",
     "estimate_target_center",
+    "estimate_target_center_rc",
     "locate_pupil",
     "pupil_precision",
 ]
@@ -126,6 +128,11 @@ class PupilFit:
     x_n_eff_mm, x_n_eff_stderr_mm : float
         The product ``x * mean(n_eff)`` and its standard error (what the field alone fixes).
     chi2_red : float
+    center_rc : (float, float)
+        The optical centre used, ``(row, col)`` sensor pixels (``center_px``, x first, is its
+        earlier form, deprecated).
+    center_source : str
+        ``"given"``, or where it was found and its standard errors.
     lens : Lens
         The profile to write: ``x``, the circles and magnifications of the lens given.
     notes : list of str
@@ -140,7 +147,7 @@ class PupilFit:
     x_n_eff_stderr_mm: float
     chi2_red: float
     dof: int
-    center_px: tuple
+    center_rc: tuple
     center_source: str
     spectrum: str
     lens: Lens
@@ -153,9 +160,12 @@ class PupilFit:
     """The precision predicted before the least squares (:class:`TargetPrecision`)."""
 
     @property
-    def center_rc(self) -> tuple:
-        """The optical centre, ``(row, col)`` pixels (``center_px`` is x first)."""
-        return (self.center_px[1], self.center_px[0])
+    def center_px(self) -> tuple:
+        """The optical centre used x first, ``(cx, cy)``: the earlier form of
+        :attr:`center_rc`, removed in snapcorr 0.3."""
+        if called_from_outside(2):
+            warn_x_first_return("PupilFit.center_px", "PupilFit.center_rc", stacklevel=3)
+        return (self.center_rc[1], self.center_rc[0])
 
     def summary(self) -> str:
         lines = [f"exit pupil x = {self.exit_pupil_mm:.4g} +- {self.exit_pupil_stderr_mm:.2g} mm"
@@ -170,7 +180,7 @@ class PupilFit:
         elif self.n_eff_fitted == "product":
             lines.append(f"x * n_eff = {self.x_n_eff_mm:.4g} +- {self.x_n_eff_stderr_mm:.2g} mm "
                          f"(x assumes the sensor's n_eff = {np.mean(n):.4g})")
-        lines.append(f"optical centre row {self.center_px[1]:.2f}, col {self.center_px[0]:.2f} "
+        lines.append(f"optical centre row {self.center_rc[0]:.2f}, col {self.center_rc[1]:.2f} "
                      f"({self.center_source}); target spectrum {self.spectrum}")
         lines.extend(f"note: {t}" for t in self.notes)
         return "\n".join(lines)
@@ -198,8 +208,8 @@ class PupilFit:
 @renamed_keywords(pupil="pupil_radiance")
 @accepts_center_rc
 @_one_blas_thread
-def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_px=None,
-                 target_spectrum=None, sensor_origin_px=None, magnification=None,
+def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, center_rc=None,
+                 center_px=None, target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
                  name=None, progress=None, scale_circles=None, pupil_radiance=None,
                  tolerance_nm=None, report=None) -> PupilFit:
@@ -285,6 +295,7 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     if pupil_magnification is not None:
         pupil_magnification = check_pupil_magnification(pupil_magnification)
     args = dict(locals())
+    del args["center_px"]  # turned into center_rc by accepts_center_rc
     given, _, rng = ratio_range(magnification, pupil_magnification, lens)
     if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
         args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
@@ -299,7 +310,7 @@ def _refit(args, fit, ratio):
     """The fit of ``args`` made again at ``m / m_P = ratio`` (the lens's circles rescaled as
     flats would give them there), the centre and pupil held at those of ``fit``."""
     lens = args["lens"]
-    again = {**args, "center_px": fit.center_px, "pupil_radiance": fit.lens.pupil_radiance,
+    again = {**args, "center_rc": fit.center_rc, "pupil_radiance": fit.lens.pupil_radiance,
              "tolerance_nm": None, "report": None, "magnification": ratio,
              "pupil_magnification": 1.0}
     if lens is not None:
@@ -309,7 +320,7 @@ def _refit(args, fit, ratio):
     return _locate(**again)
 
 
-def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum,
+def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum,
                     sensor_origin_px, magnification, pupil_magnification, profile, n_bins,
                     inputs, name, progress, scale_circles, pupil_radiance, tolerance_nm,
                     report):
@@ -327,10 +338,10 @@ def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectru
     return _locate(**locals())
 
 
-def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, sensor_origin_px,
+def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, sensor_origin_px,
             magnification, pupil_magnification, profile, n_bins, inputs, name, progress,
             scale_circles, pupil_radiance, tolerance_nm, report):
-    """:func:`locate_pupil` for one pupil (its body)."""
+    """:func:`locate_pupil` for one pupil (its body); the centre ``(row, col)``."""
     n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
                               fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
     if sensor.responses is not None:  # each band's whole measured curve, not a profile
@@ -342,7 +353,7 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
         base = dataclasses.replace(base, pupil_radiance=pupil_radiance)
     spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
     nb = sensor.n_bands
-    bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_px,
+    bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_rc,
                                           n_bins)
     r_max = _field_radius(bins)
     x_lo, x_hi = _trial_range(r_max)
@@ -400,14 +411,16 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_px, target_spectrum, senso
                     notes, cov * scale, pred)
 
 
-def _edge_mm(sensor, center, r_max):
-    """The distance from the axis the prediction speaks of: the sensor's farthest corner
-    (the field the lens profile serves), or the cubes' field without a sensor size."""
+def _edge_mm(sensor, center_rc, r_max):
+    """The distance from the axis (at ``center_rc``, ``(row, col)``) the prediction speaks of:
+    the sensor's farthest corner (the field the lens profile serves), or the cubes' field
+    without a sensor size."""
     if sensor.size_px is None:
         return r_max
     rows, cols = sensor.size_px
-    cx, cy = center
-    far = max(math.hypot(r - cy, c - cx) for r in (-0.5, rows - 0.5) for c in (-0.5, cols - 0.5))
+    row, col = center_rc
+    far = max(math.hypot(r - row, c - col) for r in (-0.5, rows - 0.5)
+              for c in (-0.5, cols - 0.5))
     return max(far * sensor.pixel_pitch_mm, r_max)
 
 
@@ -508,7 +521,7 @@ def _validity_notes(r_max, x, cone_rad, chi2_red):
     return notes
 
 
-def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof, center,
+def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof, center_rc,
                  center_source, sensor, cubes, spectrum_desc, profile, inputs, name,
                  circles_at=None):
     def r(v, d=6):
@@ -529,8 +542,8 @@ def _result_lens(base, lens, x, x_err, n, n_err, mode, xn, xn_err, chi2_red, dof
         "target_spectrum": spectrum_desc,
         "filter_profile": profile,
         "sensor": sensor.name,
-        "center_rc": [r(center[1], 8), r(center[0], 8)],
-        "center_px": [r(center[0], 8), r(center[1], 8)],  # x first, for earlier readers
+        "center_rc": [r(center_rc[0], 8), r(center_rc[1], 8)],
+        "center_px": [r(center_rc[1], 8), r(center_rc[0], 8)],  # x first, for earlier readers
         "center_source": center_source,
         "pixel_pitch_um": float(sensor.pixel_pitch_um),
         "snapcorr_version": __version__,

@@ -3,8 +3,8 @@
 Before :func:`~snapcorr.calibrate.pupil.locate.locate_pupil` fits anything, its inputs are
 checked and reduced here: the sensor's indices (:func:`check_modelled`), the cubes (one per
 f-number, the sensor's bands), the target's spectrum (given or unknown), then the optical
-centre, estimated from the fastest cube where it is not given
-(:func:`estimate_target_center`), and every cube's radial annuli about it
+centre ``(row, col)``, estimated from the fastest cube where it is not given
+(:func:`estimate_target_center_rc`), and every cube's radial annuli about it
 (:func:`~snapcorr.calibrate.pupil.target_model.radial_bins`), which the fit stage
 (:mod:`~snapcorr.calibrate.pupil.distance`) models. :class:`FeaturelessTargetError`, raised here
 for a constant spectrum and by the fit stage for a target whose shift is not seen, lives here
@@ -19,10 +19,16 @@ import warnings
 import numpy as np
 from scipy import optimize
 
-from ..._validation import check_center, check_positive
+from ..._coords import called_from_outside, warn_x_first_return
+from ..._validation import (
+    check_center,  # noqa: F401 (calibrate.pupil_target re-exports it)
+    check_center_rc,
+    check_positive,
+)
 from .target_model import radial_bins
 
-__all__ = ["FeaturelessTargetError", "check_modelled", "estimate_target_center"]
+__all__ = ["FeaturelessTargetError", "check_modelled", "estimate_target_center",
+           "estimate_target_center_rc"]
 
 #: Cubes up to this size are read into memory once; larger ones band by band.
 IN_MEMORY_BYTES = 2 << 30
@@ -129,11 +135,37 @@ def _block_mean(img, k):
 
 def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use=12,
                            block=4, degree=4):
-    """The optical centre (column, row) in sensor pixels from a cube of a uniform target.
+    """The optical centre x first, ``(cx, cy)``: the earlier form of
+    :func:`estimate_target_center_rc`, which gives it row first; removed in snapcorr 0.3.
+
+    Parameters
+    ----------
+    band_image, n_bands, rows, cols, n_use, block, degree
+        As for :func:`estimate_target_center_rc`.
+    start : (cx, cy), optional
+        Where the search starts, x first (default: the middle of the cube's sensor
+        positions).
+
+    Returns
+    -------
+    (cx, cy), (sx, sy) : the centre and its standard errors, pixels, x first.
+    """
+    if called_from_outside(2):
+        warn_x_first_return("estimate_target_center", "estimate_target_center_rc",
+                            stacklevel=3)
+    (row, col), (s_row, s_col) = estimate_target_center_rc(
+        band_image, n_bands, rows, cols, start_rc=None if start is None else
+        (start[1], start[0]), n_use=n_use, block=block, degree=degree)
+    return (col, row), (s_col, s_row)
+
+
+def estimate_target_center_rc(band_image, n_bands, rows, cols, *, start_rc=None, n_use=12,
+                              block=4, degree=4):
+    """The optical centre ``(row, col)`` in sensor pixels from a cube of a uniform target.
 
     Every band's image is a function of the distance to the centre only; the centre is where
     a polynomial in ``d^2`` (per band, solved for) fits the most informative bands best
-    (``scipy.optimize.least_squares`` on ``(cx, cy)``; the images block-averaged).
+    (``scipy.optimize.least_squares`` on the centre; the images block-averaged).
 
     Parameters
     ----------
@@ -144,7 +176,7 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
     rows, cols : ndarray, shape (ny, nb or 1) and (nx, nb or 1)
         Sensor row and column of the cube's pixels
         (:func:`snapcorr.correct.geometry.cube_positions`).
-    start : (cx, cy), optional
+    start_rc : (row, col), optional
         Where the search starts (default: the middle of the cube's sensor positions).
     n_use : int
         How many bands are fitted: those whose spread over the field is largest against their
@@ -156,7 +188,7 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
 
     Returns
     -------
-    (cx, cy), (sx, sy) : the centre and its standard errors, pixels.
+    (row, col), (s_row, s_col) : the centre and its standard errors, pixels.
     """
     stats_ = []
     for b in range(n_bands):
@@ -184,8 +216,12 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
         rr.append(r[ok])
         cc.append(c[ok])
     scale = float(max(np.ptp(np.concatenate(rr)), np.ptp(np.concatenate(cc)), 1.0))
-    if start is None:
+    # the solver's vector is (col, row), the order every fit was checked with (its steps'
+    # rounding depends on it): p[0] the column, p[1] the row
+    if start_rc is None:
         start = (0.5 * (cols.min() + cols.max()), 0.5 * (rows.min() + rows.max()))
+    else:
+        start = (start_rc[1], start_rc[0])
 
     def residuals(p):
         out = []
@@ -205,7 +241,7 @@ def estimate_target_center(band_image, n_bands, rows, cols, *, start=None, n_use
         err = tuple(float(v) for v in np.sqrt(np.clip(np.diag(cov), 0, None)))
     except np.linalg.LinAlgError:
         err = (math.inf, math.inf)
-    return (float(sol.x[0]), float(sol.x[1])), err
+    return (float(sol.x[1]), float(sol.x[0])), (err[1], err[0])
 
 
 # -- the annuli ---------------------------------------------------------------------------
@@ -218,21 +254,23 @@ def _band_reader(cube):
     return lambda b: np.asarray(cube.isel(band=b).values, float)
 
 
-def _annuli(cubes, sensor, lens, sensor_origin_px, center_px, n_bins):
-    """Every cube's radial annuli about the optical centre (given or found), and the centre."""
+def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
+    """Every cube's radial annuli about the optical centre (given or found), and the centre,
+    ``(row, col)``."""
     from ...correct.geometry import cube_positions
 
     pitch = sensor.pixel_pitch_mm
     positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
     nb = sensor.n_bands
-    if center_px is not None:
-        center, center_source = check_center(center_px), "given"
+    if center_rc is not None:
+        center, center_source = check_center_rc(center_rc), "given"
     else:
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]
-        center, err = estimate_target_center(_band_reader(cubes[f0]), nb, rows, cols)
-        center_source = f"found from the f/{f0:g} cube (+- {err[0]:.2g}, {err[1]:.2g} px)"
-    bins = [radial_bins(_band_reader(c), nb, *positions[f], center, pitch, f_number=f,
-                        n_bins=n_bins)
+        center, err = estimate_target_center_rc(_band_reader(cubes[f0]), nb, rows, cols)
+        # the column's error first, as the records written before say it
+        center_source = f"found from the f/{f0:g} cube (+- {err[1]:.2g}, {err[0]:.2g} px)"
+    bins = [radial_bins(_band_reader(c), nb, *positions[f], None, pitch, center_rc=center,
+                        f_number=f, n_bins=n_bins)
             for f, c in cubes.items()]
     return bins, center, center_source

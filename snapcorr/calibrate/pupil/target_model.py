@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._coords import accepts_center_rc
+from ..._validation import check_center_rc
 from ...optics.goossens2019 import PupilCutOffError
 from ...optics.lens import Lens
 from ...optics.profiles import PROFILES
@@ -85,16 +86,17 @@ class RadialBins:
         return self.mean.shape[0]
 
 
-def _band_rho(rows, cols, b, center_px, pitch_mm):
+def _band_rho(rows, cols, b, center_rc, pitch_mm):
+    """Band ``b``'s ``d^2`` (mm^2) about ``center_rc = (row, col)`` on its pixel grid."""
     r = rows[:, min(b, rows.shape[1] - 1)]
     c = cols[:, min(b, cols.shape[1] - 1)]
-    cx, cy = center_px
-    return (((r - cy) * pitch_mm) ** 2)[:, None] + (((c - cx) * pitch_mm) ** 2)[None, :]
+    row, col = center_rc
+    return (((r - row) * pitch_mm) ** 2)[:, None] + (((c - col) * pitch_mm) ** 2)[None, :]
 
 
 @accepts_center_rc
 def radial_bins(band_image, n_bands, rows, cols, center_px, pitch_mm, *, f_number,
-                n_bins=96, min_count=16):
+                n_bins=96, min_count=16, center_rc=None):
     """Reduce a cube to means over annuli of equal area about the optical centre.
 
     Parameters
@@ -105,25 +107,26 @@ def radial_bins(band_image, n_bands, rows, cols, center_px, pitch_mm, *, f_numbe
     rows, cols : ndarray, shape (ny, n_bands or 1), (nx, n_bands or 1)
         Sensor row and column of every cube pixel (see
         :func:`~snapcorr.correct.geometry.cube_positions`).
-    center_px : (cx, cy)
-        Optical centre in sensor pixels, x first (deprecated: give ``center_rc=(row, col)``
-        instead, as a keyword, and ``None`` here).
-    center_rc : (row, col), optional
-        The same, row first.
+    center_px : (cx, cy) or None
+        The optical centre x first: its deprecated form, kept in its place for the callers of
+        earlier releases; give ``None`` here and ``center_rc``.
     pitch_mm : float
     f_number : float
     n_bins : int
         Bins between the smallest and largest ``d^2`` the cube covers.
     min_count : int
         Fewer finite pixels than this leave a band's bin empty (NaN).
+    center_rc : (row, col)
+        Optical centre in sensor pixels, row first.
 
     Returns
     -------
     RadialBins
     """
-    cx, cy = center_px
-    dy = (rows - cy) * pitch_mm
-    dx = (cols - cx) * pitch_mm
+    center_rc = check_center_rc(center_rc)
+    row, col = center_rc
+    dy = (rows - row) * pitch_mm
+    dx = (cols - col) * pitch_mm
     lo = float(np.min(np.min(dy**2, axis=0) + np.min(dx**2, axis=0)))
     hi = float(np.max(np.max(dy**2, axis=0) + np.max(dx**2, axis=0)))
     edges = np.linspace(lo, hi + 1e-9 * max(hi, 1e-12), n_bins + 1)
@@ -131,7 +134,7 @@ def radial_bins(band_image, n_bands, rows, cols, center_px, pitch_mm, *, f_numbe
     count, rho_b, var_rho, mean, stderr = (np.full(shape, np.nan) for _ in range(5))
     for b in range(n_bands):
         v = np.asarray(band_image(b), dtype=float)
-        rho = _band_rho(rows, cols, b, center_px, pitch_mm)
+        rho = _band_rho(rows, cols, b, center_rc, pitch_mm)
         ok = np.isfinite(v)
         rho, v = rho[ok], v[ok]
         idx = np.clip(np.searchsorted(edges, rho, side="right") - 1, 0, n_bins - 1)

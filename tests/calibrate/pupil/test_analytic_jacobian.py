@@ -34,7 +34,8 @@ def folder(tmp_path_factory):
 
 
 def gaussian_bins(n_bins=16):
-    bins, _, _ = _annuli(tp.cubes("glass"), tp.sensor(), PAPER_LENS, None, tp.CENTER, n_bins)
+    bins, _, _ = _annuli(tp.cubes("glass"), tp.sensor(), PAPER_LENS, None, tp.CENTER[::-1],
+                         n_bins)  # the centre (row, col)
     return bins
 
 

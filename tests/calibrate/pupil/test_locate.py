@@ -84,7 +84,7 @@ def test_x_within_one_percent_with_n_eff_known(target, lens):
     assert 0.7 < got.chi2_red < 1.5
     # the centre was found, not given
     assert "found" in got.center_source
-    assert np.hypot(got.center_px[0] - CENTER[0], got.center_px[1] - CENTER[1]) < 0.5
+    assert np.hypot(got.center_rc[1] - CENTER[0], got.center_rc[0] - CENTER[1]) < 0.5
 
 
 @pytest.mark.parametrize("lens", ["paper", pytest.param("plain", marks=pytest.mark.slow)])
@@ -124,9 +124,40 @@ def test_known_spectrum_and_given_center():
     # every evaluation of the model is announced, for a progress bar
     assert len(steps) > 5 and all(s.startswith("model at x = ") for s in steps)
     assert got.center_source == "given"
-    assert got.center_px == CENTER
+    assert got.center_rc == (CENTER[1], CENTER[0])
     assert abs(got.exit_pupil_mm - 21.0) < 0.01 * 21.0
     assert "given" in got.spectrum
+
+
+def test_the_centre_is_taken_row_first_and_its_x_first_form_warns():
+    """center_rc=(row, col), off both middles of the frame (the pair swapped would put the
+    axis 50 px away, which chi-square and x show): the fit about it, recorded and summarised
+    row first; center_px=(cx, cy), the x-first form of 0.1, gives the same fit and warns, and
+    the result's center_px gives the centre x first, warning too."""
+    row, col = 37.25, 81.5
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5, center=(col, row))
+    kw = {"lens": as_lens(PLAIN), "target_spectrum": sim.colour_filter, "n_bins": 32}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FutureWarning)
+        new = locate_pupil(data, sensor(), center_rc=(row, col), **kw)
+        assert new.center_rc == (row, col) and new.center_source == "given"
+    assert abs(new.exit_pupil_mm - PLAIN.exit_pupil_mm) < 0.02 * PLAIN.exit_pupil_mm
+    assert new.chi2_red < 1.5
+    cal = new.lens.calibration
+    assert cal["center_rc"] == [row, col] and cal["center_px"] == [col, row]
+    assert "optical centre row 37.25, col 81.50 (given)" in new.summary()
+    with pytest.warns(FutureWarning, match=r"center_px is the old x-first form .* "
+                                           r"center_rc=\(37\.25, 81\.5\)"):
+        old = locate_pupil(data, sensor(), center_px=(col, row), **kw)
+    assert (old.exit_pupil_mm, old.exit_pupil_stderr_mm, old.chi2_red) == (
+        new.exit_pupil_mm, new.exit_pupil_stderr_mm, new.chi2_red)
+    assert {k: v for k, v in old.lens.calibration.items() if k != "date"} == \
+        {k: v for k, v in cal.items() if k != "date"}
+    with pytest.warns(FutureWarning, match="PupilFit.center_px gives the optical centre x "
+                                           "first"):
+        assert old.center_px == (col, row)
+    with pytest.raises(TypeError, match="give the optical centre once"):
+        locate_pupil(data, sensor(), center_rc=(row, col), center_px=(col, row), **kw)
 
 
 def test_precision_predicts_the_reported_error():
@@ -187,7 +218,7 @@ def test_masked_pixels_and_a_dead_band():
     err = got.exit_pupil_mm - PAPER.exit_pupil_mm
     assert abs(err) < 4 * got.exit_pupil_stderr_mm
     assert abs(err) < 0.01 * PAPER.exit_pupil_mm
-    assert np.hypot(got.center_px[0] - CENTER[0], got.center_px[1] - CENTER[1]) < 0.5
+    assert np.hypot(got.center_rc[1] - CENTER[0], got.center_rc[0] - CENTER[1]) < 0.5
 
 
 @pytest.mark.slow

@@ -5,6 +5,8 @@ The centre is found in images made here as a function of each pixel's own distan
 chosen centre; the block means are checked against the mean of each block taken one at a time.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import PAPER_LENS
@@ -19,6 +21,7 @@ from snapcorr.calibrate.pupil.target import (
     _spectrum,
     check_modelled,
     estimate_target_center,
+    estimate_target_center_rc,
 )
 from snapcorr.cube import Sensor, make_cube
 
@@ -47,7 +50,8 @@ def test_the_centre_of_a_radial_pattern_is_found_within_its_errors():
     imgs = _radial_cube(truth)
     rows = np.arange(imgs.shape[1], dtype=float)[:, None]
     cols = np.arange(imgs.shape[2], dtype=float)[:, None]
-    (cx, cy), (sx, sy) = estimate_target_center(lambda b: imgs[b], imgs.shape[0], rows, cols)
+    (cy, cx), (sy, sx) = estimate_target_center_rc(lambda b: imgs[b], imgs.shape[0], rows,
+                                                   cols)
     assert abs(cx - truth[0]) < 0.2 and abs(cy - truth[1]) < 0.2
     assert abs(cx - truth[0]) < 5 * sx and abs(cy - truth[1]) < 5 * sy
     assert 0 < sx < 0.2 and 0 < sy < 0.2
@@ -59,8 +63,28 @@ def test_a_crop_finds_the_centre_in_sensor_pixels():
     imgs = _radial_cube(truth)[:, 10:, 20:]
     rows = np.arange(10, 72, dtype=float)[:, None]
     cols = np.arange(20, 96, dtype=float)[:, None]
-    (cx, cy), _ = estimate_target_center(lambda b: imgs[b], imgs.shape[0], rows, cols)
+    (cy, cx), _ = estimate_target_center_rc(lambda b: imgs[b], imgs.shape[0], rows, cols)
     assert abs(cx - truth[0]) < 0.3 and abs(cy - truth[1]) < 0.3
+
+
+def test_the_centre_is_given_row_first_and_its_x_first_form_warns():
+    """estimate_target_center_rc gives (row, col) and their errors in that order; the x-first
+    estimate_target_center of 0.1 gives the same numbers swapped, start included, and warns."""
+    row, col = 37.25, 81.5  # off both middles of a frame wider than tall
+    imgs = _radial_cube((col, row), shape=(64, 112))
+    rows = np.arange(64, dtype=float)[:, None]
+    cols = np.arange(112, dtype=float)[:, None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        (r, c), (sr, sc) = estimate_target_center_rc(lambda b: imgs[b], imgs.shape[0], rows,
+                                                     cols, start_rc=(30.0, 70.0))
+    assert abs(r - row) < 0.2 and abs(c - col) < 0.2
+    assert abs(r - row) < 5 * sr and abs(c - col) < 5 * sc and 0 < sr < 0.2 and 0 < sc < 0.2
+    with pytest.warns(FutureWarning, match="estimate_target_center gives the optical centre x "
+                                           "first, .* use estimate_target_center_rc"):
+        old = estimate_target_center(lambda b: imgs[b], imgs.shape[0], rows, cols,
+                                     start=(70.0, 30.0))
+    assert old == ((c, r), (sc, sr))
 
 
 def test_block_means_are_each_blocks_own_mean_and_skip_masked_pixels():

@@ -6,6 +6,8 @@ inside each annulus; the merged annuli against the annuli binned coarsely from t
 derivative matrices against the exact derivatives of a parabola.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -65,6 +67,38 @@ def test_annulus_means_and_counts_are_those_of_each_pixels_own_distance():
             assert got.mean[b, i] == pytest.approx(v.mean(), rel=1e-12)
             assert got.rho_band[b, i] == pytest.approx(d2.mean(), rel=1e-12)
             assert got.var_rho[b, i] == pytest.approx(d2.var(), rel=1e-6, abs=1e-15)
+
+
+def test_the_centre_is_row_first_and_its_x_first_form_warns_with_the_same_annuli():
+    """center_rc=(row, col), off both middles of a frame wider than tall: the annuli hold each
+    pixel's own distance from that row and column; center_px=(cx, cy) in its old place, the
+    x-first form of 0.1, gives the same annuli and warns."""
+    shape, row, col = (48, 100), 37.25, 81.5
+    imgs = np.random.default_rng(6).normal(1.0, 0.2, (2, *shape))
+    rows = np.arange(shape[0], dtype=float)[:, None]
+    cols = np.arange(shape[1], dtype=float)[:, None]
+    kw = dict(f_number=2.0, n_bins=8, min_count=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        new = radial_bins(lambda b: imgs[b], 2, rows, cols, None, PITCH_MM,
+                          center_rc=(row, col), **kw)
+    r, c = np.mgrid[:shape[0], :shape[1]]
+    d2 = ((r - row) * PITCH_MM) ** 2 + ((c - col) * PITCH_MM) ** 2
+    for b in range(2):  # every pixel counted once, at its own distance
+        assert new.count[b].sum() == d2.size
+        assert np.sum(new.rho_band[b] * new.count[b]) / d2.size == pytest.approx(d2.mean(),
+                                                                                 rel=1e-12)
+    first = d2 < d2.min() + (d2.max() - d2.min()) / 8  # the annulus about the centre itself
+    assert new.count[0, 0] == first.sum()
+    assert new.rho_band[0, 0] == pytest.approx(d2[first].mean(), rel=1e-12)
+    with pytest.warns(FutureWarning, match=r"center_px is the old x-first form .* "
+                                           r"center_rc=\(37\.25, 81\.5\)"):
+        old = radial_bins(lambda b: imgs[b], 2, rows, cols, (col, row), PITCH_MM, **kw)
+    for name in ("rho", "rho_band", "var_rho", "mean", "stderr", "count"):
+        np.testing.assert_array_equal(getattr(old, name), getattr(new, name), err_msg=name)
+    with pytest.raises(TypeError, match="give the optical centre once"):
+        radial_bins(lambda b: imgs[b], 2, rows, cols, (col, row), PITCH_MM,
+                    center_rc=(row, col), **kw)
 
 
 def test_the_standard_error_is_the_scatter_about_a_straight_line_in_d2():
