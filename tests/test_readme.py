@@ -19,7 +19,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 FENCE = re.compile(r"^```(\w*)([^\n]*)\n(.*?)^```", re.M | re.S)
 OPTION = re.compile(r"(?<![\w-])(?:--[a-z][a-z0-9-]*|-[a-zA-Z](?![\w-]))")
 #: Options the parser still takes but the README must not show (deprecated forms).
-DEPRECATED = {"--center-px"}
+DEPRECATED = {"--center-px", "--pupil"}  # earlier names, still taken
 
 
 def blocks(language, walkthrough=None):

@@ -35,10 +35,13 @@ def _add_target_fit_options(group, when=""):
 
 
 def _add_pupil_option(group):
-    """``--pupil``: how the light fills the exit pupil
-    (``snapcorr.optics.lens.PUPIL_RADIANCE_MODELS``)."""
-    group.add_argument("--pupil", default=None, choices=["paper", "lambertian", "auto"],
-                       help="how the light fills the exit pupil: paper (Goossens 2019 Eq. 28, "
+    """``--pupil-radiance``: how the light fills the exit pupil
+    (``snapcorr.optics.lens.PUPIL_RADIANCE_MODELS``, ``Lens.pupil_radiance``); ``--pupil``, its
+    earlier name, still taken."""
+    group.add_argument("--pupil-radiance", "--pupil", dest="pupil", default=None,
+                       choices=["paper", "lambertian", "auto"],
+                       help="how the light fills the exit pupil (--pupil, the earlier name, "
+                       "is still taken): paper (Goossens 2019 Eq. 28, "
                        "uniform per area), lambertian (sine condition, uniform in direction "
                        "cosines) or auto (both fitted to the target, the Lambertian kept only "
                        "for a chi-square gain above 10; twice the time). Default: auto with "

@@ -162,8 +162,9 @@ def run(args):
                    [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     if args.pupil == "auto":
-        raise ValueError("--pupil auto chooses by a spectral target's fit, which flats alone "
-                         "cannot make: give --target-cube, or --pupil paper or lambertian")
+        raise ValueError("--pupil-radiance auto chooses by a spectral target's fit, which "
+                         "flats alone cannot make: give --target-cube, or --pupil-radiance "
+                         "paper or lambertian")
     _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
     with _StepBar("calibrating") as bar:

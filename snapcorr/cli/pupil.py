@@ -151,7 +151,7 @@ def run(args):
 #: Options of a fit that --predict would not use: refused with it, not ignored.
 _FIT_ONLY = (("out", "--out"), ("sensor_out", "--sensor-out"), ("plot", "--plot"),
              ("name", "--name"), ("overwrite", "--overwrite"),
-             ("sensor_origin_px", "--sensor-origin-px"), ("pupil", "--pupil"),
+             ("sensor_origin_px", "--sensor-origin-px"), ("pupil", "--pupil-radiance"),
              ("center", "--center"), ("center_px", "--center-px"),
              ("magnification", "--magnification"),
              ("pupil_magnification", "--pupil-magnification"),

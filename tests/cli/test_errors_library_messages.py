@@ -33,7 +33,7 @@ JUSTIFIED = {
     ("calibrate/pupil/locate.py", "--target-cube"): "the calibrate command line that fits flats "
                                                     "and target together, beside "
                                                     "calibrate_with_target",
-    ("calibrate/pupil/locate.py", "--pupil"): "the same command line",
+    ("calibrate/pupil/locate.py", "--pupil-radiance"): "the same command line",
 }
 
 

@@ -221,3 +221,19 @@ def test_the_centre_reaches_the_fit_row_first(files, cli, monkeypatch, tmp_path,
     assert res.returncode == 1 and "stopped here" in res.stderr, res.stderr
     assert seen["center_rc"] == (37.25, 81.5) and "center_px" not in seen
     assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")
+
+
+@pytest.mark.parametrize("command", ["pupil", "calibrate"])
+def test_the_pupil_radiance_option_and_its_earlier_name_are_one(command):
+    """--pupil-radiance names what it chooses (Lens.pupil_radiance: how light fills the exit
+    pupil); --pupil, its earlier name, gives the same value."""
+    from snapcorr.cli import build_parser
+
+    base = (["pupil", "--sensor", "s.toml"] if command == "pupil"
+            else ["calibrate", "--flat", "2=f.npy", "--out", "l.toml"])
+    parser = build_parser()
+    new = parser.parse_args([*base, "--pupil-radiance", "lambertian"])
+    old = parser.parse_args([*base, "--pupil", "lambertian"])
+    assert new.pupil == old.pupil == "lambertian"
+    assert "--pupil-radiance" in parser._subparsers._group_actions[0].choices[command] \
+        .format_help()

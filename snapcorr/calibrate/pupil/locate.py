@@ -332,7 +332,7 @@ def _checked_locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectru
                          f"{pupil_radiance} pupil would need them found again: fit flats and "
                          "target together, which chooses the pupil (calibrate_with_target "
                          "with pupil_radiance 'auto'; on the command line snapcorr calibrate "
-                         "--target-cube --pupil auto)")
+                         "--target-cube --pupil-radiance auto)")
     if pupil_radiance == "auto":
         return _either_pupil(locals())
     return _locate(**locals())
