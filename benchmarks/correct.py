@@ -26,7 +26,7 @@ _CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 from snapcorr import Lens
-from snapcorr.correct import correct_cube, cube_cra_deg, relative_shift
+from snapcorr.correct import correct_cube, cube_cra, relative_shift
 from snapcorr.cube import Sensor, make_cube
 n, what = int(sys.argv[1]), sys.argv[2]
 lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, name="Edmund Optics 16 mm")
@@ -45,12 +45,12 @@ out["copy_first_s"] = copies[0]  # fresh memory
 
 def job():
     if what == "shiftmap":
-        cra = cube_cra_deg(cube, sensor, lens)[0]
+        cra = cube_cra(cube, sensor, lens).cra_deg
         return relative_shift(1.7, 1.4, cra[:, :, 0], lens, model="vignetted",
                               tolerance_nm=0.01, cwl_max_nm=900.0)
     if what == "resample":  # the Numba pass alone
         from snapcorr.correct.resample import resample_to_nominal
-        cra = cube_cra_deg(cube, sensor, lens)[0]
+        cra = cube_cra(cube, sensor, lens).cra_deg
         scale = 1.0 + relative_shift(1.7, 1.4, cra, lens, model="vignetted",
                                      tolerance_nm=0.01, cwl_max_nm=900.0)
         t = time.perf_counter()

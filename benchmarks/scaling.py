@@ -151,10 +151,10 @@ def _child():
             del ds, result
         out["seconds"] = min(runs)
         out["peak_bytes"] = _peak() - base
-        from snapcorr.correct import cube_cra_deg, relative_shift
+        from snapcorr.correct import cube_cra, relative_shift
         from snapcorr.correct.resample import resample_to_nominal
 
-        cra = cube_cra_deg(cube, sens, LENS)[0]
+        cra = cube_cra(cube, sens, LENS).cra_deg
         scale = 1.0 + relative_shift(1.7, F_NUMBER, cra, LENS, model="vignetted",
                                      tolerance_nm=0.01, cwl_max_nm=900.0)
         t = time.perf_counter()
