@@ -61,8 +61,9 @@ def _open_dataset(path, fmt, chunks):
     if isinstance(chunks, _Rows):
         if fmt == "netcdf":
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)
-        return xr.open_dataset(path, engine="zarr", consolidated=_zarr_consolidated(path),
-                               chunks=None, cache=False)
+        return _unpacked_as_stored(xr.open_dataset(
+            path, engine="zarr", consolidated=_zarr_consolidated(path), chunks=None,
+            cache=False))
     if fmt == "netcdf":
         with warnings.catch_warnings():
             # blocks that split the file's own chunks read some of them twice: a cost, not an
@@ -76,7 +77,21 @@ def _open_dataset(path, fmt, chunks):
                       chunks=None if chunks is None else {})
     if chunks:
         ds = ds.chunk({d: c for d, c in chunks.items() if d in ds.dims})
-    return ds
+    return _unpacked_as_stored(ds)
+
+
+def _unpacked_as_stored(ds):
+    """A Zarr store's uint16-packed variables unpacked to float32, the type of their
+    ``scale_factor`` as written (Zarr keeps attributes as JSON, where it became a float64, and
+    xarray unpacked to float64: twice the memory of the same file read from netCDF)."""
+    out = ds
+    for name, var in ds.data_vars.items():
+        enc = var.encoding
+        if (np.dtype(enc.get("dtype", var.dtype)) == np.uint16 and "scale_factor" in enc
+                and var.dtype == np.float64):
+            out = out.assign({name: var.astype(np.float32)})
+            out[name].encoding = enc
+    return out
 
 
 #: CF attributes by which a reader turns stored numbers into others (unpacking, and fill
