@@ -205,8 +205,8 @@ def frame_saturation(sensor, whites, saturation=None, *, what="the white"):
     ``saturation`` where given; else the sensor's largest code (``2**bit_depth - 1``, a
     vendor file's bit depth), refused where a white holds larger values (frames scaled to
     other units, or a camera mode of another depth: a wrong level would mask every bright
-    pixel, or none); else, for whites stored as integers, the largest code of their type
-    (65535 for uint16: a pixel there was clipped by the file if not by the sensor).
+    pixel, or none); else, for whites all stored as one integer type, that type's largest
+    code (65535 for uint16: a pixel there was clipped by the file if not by the sensor).
 
     Parameters
     ----------
@@ -226,9 +226,9 @@ def frame_saturation(sensor, whites, saturation=None, *, what="the white"):
         return saturation
     if sensor is None or sensor.full_scale_dn is None:
         types = {np.dtype(getattr(w, "dtype", np.asarray(w).dtype)) for w in whites}
-        if types and all(np.issubdtype(t, np.integer) for t in types):
-            return float(min(np.iinfo(t).max for t in types))
-        return None
+        if len(types) == 1 and np.issubdtype(next(iter(types)), np.integer):
+            return float(np.iinfo(next(iter(types))).max)
+        return None  # floats, or whites of several types: no one code is the largest
     full = sensor.full_scale_dn
     for w in whites:
         values = np.asarray(getattr(w, "data", w))

@@ -319,8 +319,8 @@ def mosaic_phase(white, sensor, *, dark=None, sensor_origin_px=None, saturation=
         if saturation is None:  # the sensor's largest code, or the white's type's
             try:
                 saturation = frame_saturation(sensor, [white])
-            except ValueError:  # a white in other units than the bit depth: none is known
-                saturation = None
+            except ValueError:  # a white in other units than the bit depth: its saturation
+                saturation = None  # is not known, and the phase needs none (flatfield refuses)
         means, n, k, stated = _frame_means(white, dark, sensor, sensor_origin_px, saturation)
     if means is None:
         raise ValueError("the white holds no whole tile of usable values (finite, above the "

@@ -16,6 +16,7 @@ import numpy as np
 @numba.njit(cache=True)
 def _pack(flat, offset, scale, top, out, fill):  # pragma: no cover - compiled
     zero = flat.dtype.type(0)
+    half = flat.dtype.type(0.5)
     clipped = 0
     for i in range(flat.size):
         v = flat[i]
@@ -23,7 +24,7 @@ def _pack(flat, offset, scale, top, out, fill):  # pragma: no cover - compiled
             out[i] = fill
         else:
             c = (v - offset) / scale
-            if c < zero or c > top:
+            if c < -half or c > top + half:  # beyond the half step rounding takes to an end
                 clipped += 1
             out[i] = np.uint16(np.rint(min(max(c, zero), top)))
     return clipped
@@ -44,8 +45,10 @@ def pack_uint16(values, offset, scale, top, fill, clipped=None):
     fill : int
         The code of NaN (``_FillValue``).
     clipped : list, optional
-        Given, the count of values beyond the packed range (stored at its ends) and of
-        values in all is appended to it as a pair (one per call: a block of a dask array).
+        Given, the count of values beyond the packed range by more than half a step
+        (stored at its ends) and of values in all is appended to it as a pair (one per call:
+        a block of a dask array). A value at an end (which float32's step may put a hair
+        beyond it) is not counted.
 
     Returns
     -------

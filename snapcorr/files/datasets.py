@@ -63,7 +63,7 @@ def _open_dataset(path, fmt, chunks):
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)
         return _unpacked_as_stored(xr.open_dataset(
             path, engine="zarr", consolidated=_zarr_consolidated(path), chunks=None,
-            cache=False))
+            cache=False, mask_and_scale=False))
     if fmt == "netcdf":
         with warnings.catch_warnings():
             # blocks that split the file's own chunks read some of them twice: a cost, not an
@@ -73,25 +73,26 @@ def _open_dataset(path, fmt, chunks):
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
     # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
     # directly, chunks that split the stored ones make xarray warn).
-    ds = xr.open_zarr(path, consolidated=_zarr_consolidated(path),
-                      chunks=None if chunks is None else {})
+    ds = _unpacked_as_stored(xr.open_zarr(path, consolidated=_zarr_consolidated(path),
+                                          chunks=None if chunks is None else {},
+                                          mask_and_scale=False))
     if chunks:
         ds = ds.chunk({d: c for d, c in chunks.items() if d in ds.dims})
-    return _unpacked_as_stored(ds)
+    return ds
 
 
 def _unpacked_as_stored(ds):
-    """A Zarr store's uint16-packed variables unpacked to float32, the type of their
-    ``scale_factor`` as written (Zarr keeps attributes as JSON, where it became a float64, and
-    xarray unpacked to float64: twice the memory of the same file read from netCDF)."""
-    out = ds
-    for name, var in ds.data_vars.items():
-        enc = var.encoding
-        if (np.dtype(enc.get("dtype", var.dtype)) == np.uint16 and "scale_factor" in enc
-                and var.dtype == np.float64):
-            out = out.assign({name: var.astype(np.float32)})
-            out[name].encoding = enc
-    return out
+    """A Zarr store opened without unpacking (``mask_and_scale=False``), unpacked lazily as
+    netCDF's reader does it: a uint16 variable's ``scale_factor`` and ``add_offset`` in
+    float32, the type they were written in, so it reads back as float32 with netCDF's values
+    (Zarr keeps attributes as JSON, where they became float64, and xarray unpacked to float64:
+    twice the memory). Fill values of every variable are masked as before."""
+    for var in ds.variables.values():
+        if var.dtype == np.uint16 and "scale_factor" in var.attrs:
+            for key in ("scale_factor", "add_offset"):
+                if key in var.attrs:
+                    var.attrs[key] = np.float32(var.attrs[key])
+    return xr.decode_cf(ds, mask_and_scale=True, decode_times=False, decode_coords=False)
 
 
 #: CF attributes by which a reader turns stored numbers into others (unpacking, and fill

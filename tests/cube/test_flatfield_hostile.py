@@ -107,3 +107,14 @@ def test_a_white_at_its_types_largest_code_is_saturated_without_a_bit_depth(tmp_
     assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err
     mask = read_result(tmp_path / "ff.nc")["mask"].values
     assert mask[:3].all() and not mask[3:].any()
+
+
+def test_whites_of_two_integer_types_get_no_saturation_of_one(tmp_path):
+    """A uint8 and a uint16 white: no one code is the largest, and 255 would mask nearly every
+    uint16 pixel; no level is taken."""
+    from snapcorr.cube.mosaic import frame_saturation
+
+    whites = [np.full((4, 4), 200, np.uint8), np.full((4, 4), 60000, np.uint16)]
+    assert frame_saturation(None, whites) is None
+    assert frame_saturation(None, whites[1:]) == 65535.0
+    assert frame_saturation(None, [np.full((4, 4), 0.5)]) is None

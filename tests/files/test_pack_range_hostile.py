@@ -136,3 +136,18 @@ def test_values_beyond_the_packing_range_are_counted_and_said(tmp_path, suffix, 
     with warnings.catch_warnings():
         warnings.simplefilter("error", PackingClipWarning)
         write_dataset(ds, tmp_path / f"d{suffix}", dtype="uint16", pack_range=(-0.5, 1.5))
+
+
+@pytest.mark.parametrize("lo, hi", [(-0.5, 3.5), (0.0, 0.1), (0.3, 1.7), (-1.0, 1.0)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_values_at_the_ends_of_the_range_are_not_counted_as_clipped(lo, hi, dtype):
+    """float32's step puts the top end a hair beyond the last code: it is stored there, not
+    clipped (it was counted, a warning for a cube that fits); beyond half a step it is."""
+    from snapcorr.files._packing import pack_uint16
+
+    scale, offset = np.float32((hi - lo) / 65534), np.float32(lo)
+    counts = []
+    pack_uint16(np.array([lo, hi], dtype), offset, scale, 65534, 65535, clipped=counts)
+    pack_uint16(np.array([lo - 2 * float(scale), hi + 2 * float(scale)], dtype), offset, scale,
+                65534, 65535, clipped=counts)
+    assert counts == [(0, 2), (2, 2)]
