@@ -34,6 +34,18 @@ def called_from_outside(depth):
     return not (name == "snapcorr" or name.startswith("snapcorr."))
 
 
+def outside_stacklevel():
+    """The ``stacklevel`` that makes a warning raised by the caller of this function name the
+    first line outside snapcorr (the user's call, however deep the call went inside)."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None:
+        name = frame.f_globals.get("__name__", "")
+        if not (name == "snapcorr" or name.startswith("snapcorr.")):
+            return level
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def warn_renamed(old, new, *, stacklevel=3):
     """Warn (``FutureWarning``) that ``old`` is the earlier name of ``new`` and goes in
     :data:`REMOVAL_VERSION`.

@@ -21,7 +21,7 @@ from .pupil.locate import (
     locate_pupil,
     pupil_precision,
 )
-from .pupil.precision import colour_chart_precision
+from .pupil.precision import OutsideChartError, colour_chart_precision
 from .unknown_lens import LensAndPupil, calibrate_with_target
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "ModelVerdict",
     "Onset",
     "OnsetFit",
+    "OutsideChartError",
     "Precision",
     "PupilFit",
     "RadialProfile",

@@ -225,17 +225,21 @@ def _pupil_predict(args):
 def _chart_line(sensor, fs, lens, noise, fit_n, bar):
     """The colour chart's best patch (its bounds, spectrum unknown and known) and a line on
     the others; or why the chart cannot be judged on this sensor."""
-    from ..calibrate import colour_chart_precision, pupil_precision
+    from ..calibrate.pupil.precision import (
+        OutsideChartError,
+        colour_chart_precision,
+        pupil_precision,
+    )
     from ..spectra import colour_checker
 
     try:
         ranked = colour_chart_precision(sensor, fs, lens, noise=noise, fit_n_eff=fit_n,
                                         on_patch=lambda p: bar.step(f"ColorChecker {p[:14]}"))
-    except ValueError as exc:
+    except OutsideChartError as exc:  # said before any bound is computed
         return f"{'ColorChecker (24 patches)':34s} not judged: {exc}"
     name, unknown = ranked[0]
     bar.step(f"ColorChecker {name[:14]}, spectrum known")
-    sp = colour_checker(name)
+    sp = colour_checker(name)  # held at its ends, where no band responds
     known = pupil_precision(lambda lam: np.interp(lam, sp.wavelength_nm, sp.values), sensor,
                             fs, lens, noise=noise, fit_n_eff=fit_n, spectrum_known=True)
     nxt = ", ".join(f"{n} {p.x_stderr_mm:.2g}" for n, p in ranked[1:4] if p.informative)

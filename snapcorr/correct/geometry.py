@@ -234,20 +234,20 @@ def _crop_center_rc(cal, sensor, center, p_cal, p):
     calibration's ``sensor_origin_rc``: in the sensor's pixels, the crop's centre plus the
     origin (the same pixel grid: the pitch must agree)."""
     r0, c0 = check_center_rc(cal["sensor_origin_rc"], "the lens calibration's sensor_origin_rc")
+    if abs(p_cal - p) > 1e-9 * p:
+        raise PlacementError(
+            f"the lens profile's optical centre was measured on a crop of {p_cal:g} um pixels "
+            f"and this sensor has {p:g} um: give center_rc= (row, col) in this sensor's "
+            "pixels")
     size = sensor.size_px
     if size is not None:
-        w, h = cal.get("image_size_px", (1, 1))  # the flats' [width, height]
+        w, h = cal.get("image_size_px", (1, 1))  # the flats' [width, height], these pixels
         if r0 + h > size[0] or c0 + w > size[1]:
             raise PlacementError(
                 f"the lens profile's flats were a {h} x {w} px crop at sensor row {r0:g}, "
                 f"column {c0:g} (its sensor_origin_rc), which reaches beyond the sensor "
                 f"{sensor.name!r} ({size[0]} x {size[1]} px): check the profile and the sensor, "
                 "or give center_rc= (row, col) in this sensor's pixels")
-    if abs(p_cal - p) > 1e-9 * p:
-        raise PlacementError(
-            f"the lens profile's optical centre was measured on a crop of {p_cal:g} um pixels "
-            f"and this sensor has {p:g} um: give center_rc= (row, col) in this sensor's "
-            "pixels")
     return ((center[0] + r0, center[1] + c0),
             f"lens calibration (flats cropped at sensor row {r0:g}, column {c0:g})")
 

@@ -628,8 +628,9 @@ class Sensor:
         if not target.exists():
             raise FileNotFoundError(
                 f"{path}: its vendor_file {vendor!r} is not found (looked for "
-                f"{target.resolve()}, relative to the sensor file): put the vendor's .xml "
-                "there, or correct vendor_file")
+                f"{target.resolve()}"
+                + ("" if Path(vendor).is_absolute() else ", relative to the sensor file")
+                + "): put the vendor's .xml there, or correct vendor_file")
         return cls.from_vendor(target, calibration=calibration, **table)
 
     def save(self, path, *, overwrite=False) -> Path:

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .._threads import dask_threads
-from .._validation import parse_json
+from .._validation import outside_stacklevel, parse_json
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
@@ -376,9 +376,11 @@ STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer
 
 def stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
-    cast, or clipped and given the CF packing (``scale_factor``, ``add_offset``,
-    ``_FillValue``, ``valid_range``) a reader applies, the packing error and the clipping
-    said in the variable's attributes. A camera's numbers are never packed: the input's
+    cast (float16 clipped to its range), or given the CF packing (``scale_factor``,
+    ``add_offset``, ``_FillValue``, ``valid_range``) a reader applies, the packing error and
+    the clipping said in the variable's attributes; the values are clipped to the packing's
+    range as they are packed (:func:`_packed`, which counts them), so a uint16 layout is
+    written through :func:`_store_dataset` only. A camera's numbers are never packed: the input's
     copy (raw counts) keeps its own type, and a cube of counts is refused."""
     check_storage(dtype, pack_range, fmt)
     if dtype is None:
@@ -698,7 +700,8 @@ def _say_clipped(clipped, path):
             warnings.warn(PackingClipWarning(
                 f"{path}: {n} of {total} values of {name!r} ({100 * n / total:.3g} %) lie "
                 f"beyond the uint16 packing's range {lo:.6g} to {hi:.6g} and are stored at its "
-                "ends: widen the packing range, or store float32"), stacklevel=3)
+                "ends: widen the packing range, or store float32"),
+                stacklevel=outside_stacklevel())
 
 
 def _read_netcdf(path, data_file, chunks, what, drop_alpha):

@@ -195,8 +195,9 @@ def overlap_area_mm2(radii_mm, centers_mm):
     area is ``int 2 min_k c_k(u) du`` with ``c_k`` the half-chord of disc ``k`` at position
     ``u``. Two half-chords are equal at one ``u`` only (``r_i^2 - (u - c_i)^2`` is linear in
     ``u`` after subtracting), so between those points a single disc bounds the area, and each
-    piece integrates in closed form (a circular segment). Exact for any number of discs; with
-    two it equals Eq. (33) of Goossens et al. 2019.
+    piece integrates in closed form (a circular segment). Exact for any number of discs (up
+    to :data:`~snapcorr._validation.MAX_DISCS`); with two it equals Eq. (33) of Goossens et
+    al. 2019.
 
     Parameters
     ----------

@@ -7,7 +7,8 @@ the intersection of discs with collinear centres: a region symmetric about that 
 above by ``y(u) = min_k c_k(u)``, with ``c_k`` the half-chord of disc ``k`` at position ``u``
 along the line. Two half-chords are equal at one ``u`` only, so the sorted crossings cut
 ``[lo, hi]`` into pieces on each of which one disc bounds the region: the upper boundary is a
-chain of circular arcs. Everything here works on that chain, for any number of discs; with
+chain of circular arcs. Everything here works on that chain, for any number of discs (up to
+:data:`~snapcorr._validation.MAX_DISCS`, the most a lens gives); with
 two discs it reduces to the arcs of Eq. (34)-(35).
 
 All functions take ``radii`` and ``centres`` as sequences (one entry per disc) of arrays that

@@ -133,6 +133,7 @@ def test_values_beyond_the_packing_range_are_counted_and_said(tmp_path, suffix, 
         write_dataset(ds, tmp_path / f"c{suffix}", dtype="uint16", pack_range=(0.0, 0.5))
     said = [str(w.message) for w in record if w.category is PackingClipWarning]
     assert len(said) == 1 and f"{outside} of {values.size} values of 'reflectance'" in said[0]
+    assert {w.filename for w in record if w.category is PackingClipWarning} == {__file__}
     with warnings.catch_warnings():
         warnings.simplefilter("error", PackingClipWarning)
         write_dataset(ds, tmp_path / f"d{suffix}", dtype="uint16", pack_range=(-0.5, 1.5))

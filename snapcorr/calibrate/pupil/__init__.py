@@ -13,12 +13,13 @@ from .locate import (
     locate_pupil,
     pupil_precision,
 )
-from .precision import colour_chart_precision
+from .precision import OutsideChartError, colour_chart_precision
 
 __all__ = [
     "CANDIDATE_TARGETS",
     "FeaturelessTargetError",
     "ImpreciseTargetError",
+    "OutsideChartError",
     "Precision",
     "PupilFit",
     "colour_chart_precision",

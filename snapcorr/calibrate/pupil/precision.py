@@ -25,7 +25,8 @@ from .solver import _pinv_solve, _prediction_derivatives, _project_off, _row_ban
 from .target import check_modelled
 from .target_model import PRIOR_SD, RadialBins
 
-__all__ = ["CANDIDATE_TARGETS", "Precision", "colour_chart_precision", "pupil_precision"]
+__all__ = ["CANDIDATE_TARGETS", "OutsideChartError", "Precision", "colour_chart_precision",
+           "pupil_precision"]
 
 # -- choosing a target ----------------------------------------------------------------------
 # (the colour filter of Goossens et al. 2019 is :func:`snapcorr.spectra.colour_filter`)
@@ -203,14 +204,43 @@ RESPONDS_FRACTION = 1e-3
 def _responding_range_nm(sensor):
     """The wavelengths where any of the sensor's bands responds: its measured responses above
     :data:`RESPONDS_FRACTION` of their peaks, or modelled filters to 2.5 FWHM each side of their
-    centres (a Gaussian's 1e-7 there)."""
+    centres (a Gaussian's 3e-8 there; wider than a measured curve's cut, as a modelled profile
+    may have wings)."""
     if sensor.responses is not None:
         eff = sensor.responses.effective
         on = np.any(eff > RESPONDS_FRACTION * eff.max(axis=1, keepdims=True), axis=0)
         grid = sensor.responses.wavelength_nm[on]
+        if grid.size == 0:  # responses checked at load are positive somewhere: a guard only
+            raise ValueError(f"the sensor {sensor.name!r} responds nowhere on its grid")
         return float(grid.min()), float(grid.max())
     cwl, fwhm = (np.asarray(v, float) for v in (sensor.cwl_nm, sensor.fwhm_nm))
     return float(np.min(cwl - 2.5 * fwhm)), float(np.max(cwl + 2.5 * fwhm))
+
+
+class OutsideChartError(ValueError):
+    """The sensor's bands respond where the colour chart's published spectra say nothing
+    (:func:`colour_chart_precision`)."""
+
+
+def _held(spectrum):
+    """``spectrum`` (a :class:`~snapcorr.spectra.Spectrum`) as ``S(lambda)`` held at its end
+    values outside its range, where no band responds (:func:`_beyond_the_chart`)."""
+    return lambda lam: np.interp(lam, spectrum.wavelength_nm, spectrum.values)
+
+
+def _beyond_the_chart(sensor):
+    """Why the colour chart's published spectra cannot judge ``sensor`` (its bands respond
+    outside them), or None."""
+    from ...spectra import colour_checker
+
+    lo, hi = _responding_range_nm(sensor)
+    grid = colour_checker(1).wavelength_nm
+    w0, w1 = float(grid[0]), float(grid[-1])
+    if lo < w0 or hi > w1:
+        return (f"the ColorChecker's published spectra cover {w0:g}-{w1:g} nm and the sensor "
+                f"{sensor.name!r} responds over {lo:.0f}-{hi:.0f} nm: what its patches can "
+                "pin there is not known (use a target whose spectrum covers the bands)")
+    return None
 
 
 def colour_chart_precision(sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_eff=False,
@@ -238,29 +268,22 @@ def colour_chart_precision(sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_e
 
     Raises
     ------
-    ValueError
-        Where the sensor's bands respond outside 380-780 nm, the range of the published
-        spectra (a near-infrared sensor): what a patch does there is not known.
+    OutsideChartError
+        A ``ValueError``, where the sensor's bands respond outside 380-780 nm, the range of
+        the published spectra (a near-infrared sensor): what a patch does there is not known.
     """
     from ...spectra import COLOUR_CHECKER_PATCHES, colour_checker
 
+    beyond = _beyond_the_chart(sensor)
+    if beyond is not None:
+        raise OutsideChartError(beyond)
     spectra = [colour_checker(p) for p in COLOUR_CHECKER_PATCHES]
-    lo, hi = _responding_range_nm(sensor)
-    w0, w1 = float(spectra[0].wavelength_nm[0]), float(spectra[0].wavelength_nm[-1])
-    if lo < w0 or hi > w1:
-        raise ValueError(f"the ColorChecker's published spectra cover {w0:g}-{w1:g} nm and the "
-                         f"sensor {sensor.name!r} responds over {lo:.0f}-{hi:.0f} nm: what its "
-                         "patches can pin there is not known (use a target whose spectrum "
-                         "covers the bands)")
-
-    def held(sp):  # where no band responds the value does not matter: held at its ends
-        return lambda lam: np.interp(lam, sp.wavelength_nm, sp.values)
 
     out = []
     for name, sp in zip(COLOUR_CHECKER_PATCHES, spectra, strict=True):
         if on_patch is not None:
             on_patch(name)
-        out.append((name, pupil_precision(held(sp), sensor, f_numbers, lens, noise=noise,
+        out.append((name, pupil_precision(_held(sp), sensor, f_numbers, lens, noise=noise,
                                           fit_n_eff=fit_n_eff, spectrum_known=spectrum_known,
                                           size_px=size_px, n_bins=n_bins,
                                           absolute_noise=absolute_noise)))

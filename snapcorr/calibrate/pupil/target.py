@@ -268,8 +268,8 @@ def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]
         center, err = estimate_target_center_rc(_band_reader(cubes[f0]), nb, rows, cols)
-        # the column's error first, as the records written before say it
-        center_source = f"found from the f/{f0:g} cube (+- {err[1]:.2g}, {err[0]:.2g} px)"
+        center_source = (f"found from the f/{f0:g} cube (+- {err[0]:.2g} px in the row, "
+                         f"{err[1]:.2g} px in the column)")
     bins = [radial_bins(_band_reader(c), nb, *positions[f], None, pitch, center_rc=center,
                         f_number=f, n_bins=n_bins)
             for f, c in cubes.items()]
