@@ -219,8 +219,8 @@ def _result_image(path):
 
     try:
         return read_cube(path, chunks="rows")
-    except (ValueError, TypeError, OSError):
-        return None
+    except Exception:  # a second look inside an error's handler: any failure
+        return None  # leaves the first error to be said, never a traceback of its own
 
 
 def _check_source_option(args, sensor):
