@@ -47,7 +47,8 @@ FRAME_ORDER = ("by name, numbers compared as numbers, exactly (decimal points an
                "read as such, a decimal comma where every name's has as many digits after it, "
                "digits joined by several points as whole numbers where every name's groups "
                "have as many digits, digits after a point with no digit before it (t.5) where "
-               "reading the point as a decimal point and as a separator give one order; a '-' "
+               "reading the point as a decimal point and as a separator give one order, or as "
+               "numbers after a separator where two would be one decimal (.1, .10); a '-' "
                "or '+' before a number read as its sign only where names differ by it, and "
                "where both readings give one order); hidden files (names starting with '.') "
                "left out")
@@ -115,8 +116,9 @@ def natural_order(names):
     whose groups at one place differ in their numbers of digits are refused (there the decimal
     and the separate readings may differ). Digits after a point with no digit before it
     (``t.5``) may be a decimal (0.5) or a number after a separator (5): names are refused
-    where the two readings order them differently (``t.5``, ``t.25``, ``t1``; ``img.1``,
-    ``img.10``, equal as decimals) and taken where they agree (``f.001``, ``f.002``). Digits of
+    where the two readings order them differently (``t.5``, ``t.25``, ``t1``) and taken where
+    they agree (``f.001``, ``f.002``) or where only one can be meant (``img.1`` ... ``img.10``,
+    equal as decimals, are numbers after a separator). Digits of
     any script count (full-width, Arabic-Indic
     digits). Names whose numbers are equal but written differently (``f1``, ``f01``) are
     ambiguous, and refused.
@@ -177,8 +179,9 @@ def _point_led(tokens):
 
 def _refuse_point_led_ambiguity(names, tokens, signed, order):
     """Refuse names whose point before digits (``t.5``, ``t.25``, ``t1``) is read as a
-    decimal point and as a separator in two different orders (or as a decimal makes two
-    names equal, ``t.1`` and ``t.10``); ``order`` is the separator reading's."""
+    decimal point and as a separator in two different orders; where the decimal reading makes
+    two names equal (``img.1`` and ``img.10``) it cannot be meant, and the separator's stands.
+    ``order`` is the separator reading's."""
     places = [_point_led(t) for t in tokens]
     if not any(places):
         return
@@ -192,12 +195,11 @@ def _refuse_point_led_ambiguity(names, tokens, signed, order):
         as_decimal.append(t)
     try:
         other = _ordered(names, as_decimal, signed)
-    except _SameNumber as err:  # two names equal as decimals (t.1, t.10)
-        a, b = sorted(err.names, key=order.index)
-    else:
-        if other == order:
-            return
-        a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
+    except _SameNumber:  # two names equal as decimals (img.1, img.10): no decimals, then,
+        return  # but numbers after a separator, the one reading left
+    if other == order:
+        return
+    a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
     raise ValueError(f"frames {a!r} and {b!r}: digits after a point with no digit before it "
                      "(t.5) may be a decimal (0.5) or a number after a separator (5), and the "
                      "two readings order them differently; rename them (t0.5, or numbers after "

@@ -66,7 +66,7 @@ def test_one_frame_in_two_formats_is_refused(tmp_path):
 @pytest.mark.parametrize("names, pair", [
     (["t.5.npy", "t.25.npy", "t1.npy"], ("t1.npy", "t.25.npy")),  # 0.5, 0.25, 1 or 5, 25, 1
     (["t.5.npy", "t0.25.npy", "t1.npy"], ("t1.npy", "t.5.npy")),
-    (["img.1.tif", "img.2.tif", "img.10.tif"], ("img.1.tif", "img.10.tif")),  # .1 == .10
+    (["img.1.tif", "img.2.tif", "img.15.tif"], ("img.2.tif", "img.15.tif")),  # 0.15 or 15
 ])
 def test_digits_after_a_point_alone_read_two_ways_are_refused(names, pair):
     """t.5, t.25, t1 streamed as t1, t.5, t.25 (read as 5 and 25 after a separator) while
@@ -82,6 +82,8 @@ def test_digits_after_a_point_alone_read_two_ways_are_refused(names, pair):
 @pytest.mark.parametrize("names", [
     ["f.001.npy", "f.002.npy", "f.010.npy"],  # as many digits: one order either way
     ["a.5.npy", "b.25.npy"],
+    # .1 and .10 are one decimal: these are numbers after a separator, the one reading left
+    ["img.1.tif", "img.2.tif", "img.9.tif", "img.10.tif", "img.11.tif"],
 ])
 def test_digits_after_a_point_alone_read_one_way_keep_their_order(names):
     for shuffled in itertools.permutations(names):
