@@ -16,6 +16,7 @@ from .._lazy import lazy_names
 #: Public name -> the module that defines it. Loaded at first use: the format-blind modules
 #: (safety, reading, marks) import no reader, so the command line starts without them.
 _HOMES = {
+    "PackingClipWarning": "snapcorr.files.datasets",
     "check_outputs": "snapcorr.files.outputs",
     "read_array": "snapcorr.files.api",
     "read_cube": "snapcorr.files.api",

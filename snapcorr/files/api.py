@@ -510,6 +510,11 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
     Returns
     -------
     Path
+
+    Warns
+    -----
+    PackingClipWarning
+        Once per packed variable with values beyond its range (the count and the share).
     """
     path = Path(path)
     found = format_by_suffix(path.suffix)

@@ -26,7 +26,7 @@ from .safety import atomic_write, atomic_write_dir
 from .storage import FileFormat, _File, _Rows
 
 __all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORAGE_DTYPES", "STORED_FROM",
-           "check_storage", "refuse_packed_counts", "which_cube"]
+           "PackingClipWarning", "check_storage", "refuse_packed_counts", "which_cube"]
 
 
 # -- reading ---------------------------------------------------------------------------------

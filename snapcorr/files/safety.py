@@ -211,10 +211,9 @@ def _make_temporary(target, *, directory=False):
     path was created removes it. A folder that cannot be written in is said by the target's
     name, not the temporary's (which the user never named)."""
     target = Path(target)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise _unwritable_folder(target, target.parent, err) from None
+    if not os.path.isdir(target.parent):  # never made: a mistyped folder would be taken
+        raise _unwritable_folder(target, target.parent,   # for a new one, silently
+                                 FileNotFoundError(errno.ENOENT, "no such folder"))
     folder = os.path.abspath(target.parent)
     flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
         | getattr(os, "O_CLOEXEC", 0)

@@ -12,7 +12,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from snapcorr.cube import make_cube, read_frame
 from snapcorr.cube.model import with_positions
-from snapcorr.files.api import read_cube, write_cube
+from snapcorr.files.api import read_cube, write_cube, write_dataset
+from snapcorr.files.toml import write_toml
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -117,6 +118,21 @@ def test_writers_protect_existing_files_and_inputs(tmp_path):
     with pytest.raises(ValueError, match="also an input"):
         write_cube(cube, path, overwrite=True, inputs=[path])
     write_cube(cube, path, overwrite=True)
+
+
+@pytest.mark.parametrize("ext", [".hdr", ".tif", ".exr", ".nc", ".zarr", ".npy"])
+def test_writers_refuse_a_folder_that_does_not_exist(tmp_path, ext):
+    """A mistyped folder is not made: the writers refuse it, as the command line does, and
+    leave nothing behind."""
+    cube = _cube(np.float32)
+    with pytest.raises(ValueError, match="does not exist; create it first"):
+        write_cube(cube, tmp_path / "no" / "such" / f"c{ext}")
+    with pytest.raises(ValueError, match="does not exist; create it first"):
+        write_toml(tmp_path / "missing" / "p.toml", {"a": 1})
+    if ext in (".nc", ".zarr"):
+        with pytest.raises(ValueError, match="does not exist; create it first"):
+            write_dataset(cube.to_dataset(), tmp_path / "gone" / f"d{ext}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
 def _envi(tmp_path, shape=(6, 5, 4)):

@@ -119,8 +119,7 @@ def test_values_beyond_the_packing_range_are_counted_and_said(tmp_path, suffix, 
     import warnings
 
     from snapcorr.cube import make_cube
-    from snapcorr.files import write_dataset
-    from snapcorr.files.datasets import PackingClipWarning
+    from snapcorr.files import PackingClipWarning, write_dataset
 
     values = np.linspace(-0.2, 1.0, 6 * 5 * 4).reshape(6, 5, 4)
     cube = make_cube(values, [500.0, 510.0, 520.0, 530.0]).rename("reflectance")
