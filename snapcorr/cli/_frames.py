@@ -38,22 +38,25 @@ def _read_frame_checked(path, sensor, what, shape=None):
 
 
 def _default_saturation(args, sensor, whites):
-    """``--saturation`` defaults to the sensor's largest code (its bit depth), said on stderr."""
+    """``--saturation`` defaults to the sensor's largest code (its bit depth), else to the
+    whites' integer type's. Returns what to say of it once the work is done (None where it
+    was given or none applies): the level, whence, and how to change it (a camera of fewer
+    bits than its files' type saturates below the type's largest code)."""
     from ..cube.mosaic import frame_saturation
 
+    if args.saturation is not None:
+        return None
+    args.saturation = frame_saturation(sensor, whites, what=f"--white {args.white[0]}")
     if args.saturation is None:
-        args.saturation = frame_saturation(sensor, whites, what=f"--white {args.white[0]}")
-        if args.saturation is not None:
-            import numpy as np
+        return None
+    import numpy as np
 
-            by_sensor = sensor is not None and sensor.full_scale_dn is not None
-            if not by_sensor and not any(float(np.nanmax(np.asarray(w))) >= args.saturation
-                                         for w in whites):
-                return  # the type's largest code, which no white reaches: nothing to say
-            of = (f"{sensor.bit_depth}-bit code of the sensor" if by_sensor else
-                  f"code of the whites' type, {np.dtype(whites[0].dtype)}")
-            print(f"saturation: {args.saturation:g} DN, the largest {of} (--saturation DN to "
-                  "change)", file=sys.stderr)
+    if sensor is not None and sensor.full_scale_dn is not None:
+        of, change = f"{sensor.bit_depth}-bit code of the sensor", "--saturation DN"
+    else:
+        of = f"code of the whites' type, {np.dtype(whites[0].dtype)}"
+        change = "--saturation DN, or bit_depth in a sensor TOML, for fewer bits"
+    return f"saturation: {args.saturation:g} DN, the largest {of} ({change})"
 
 
 def _check_phase(args, sensor):
@@ -82,7 +85,7 @@ def _flatfield_demosaic(args, sensor, inputs):
     raw = _read_frame_checked(args.raw, sensor, "the raw frame")
     darks = [_read_frame_checked(p, sensor, "--dark", raw.shape) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", raw.shape) for p in args.white]
-    _default_saturation(args, sensor, whites)
+    said = _default_saturation(args, sensor, whites)
     fw = (_read_frame_checked(args.filter_white, sensor, "--filter-white", raw.shape)
           if args.filter_white else None)
     with _StageBar("flat-fielding (checking the mask)"):
@@ -103,6 +106,8 @@ def _flatfield_demosaic(args, sensor, inputs):
           f"and columns {ds.attrs['mosaic_area_px']} (first row, first column, rows, columns); "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
+    if said:
+        print(said, file=sys.stderr)
     _quicklook(args, "plot_flatfield", ds)
     return 0
 

@@ -3,6 +3,7 @@ raw mosaic frame (then demosaicked with ``--demosaic``)."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ._errors import name_references
@@ -112,7 +113,7 @@ def run(args):
     darks = [read(p) for p in args.dark]
     whites = [read(p) for p in args.white]
     snapshot = sensor is not None and sensor.layout == "mosaic"
-    _default_saturation(args, sensor, whites)
+    said = _default_saturation(args, sensor, whites)
     try:  # the library checks every reference frame against the cube; its words, our options
         ds = flatfield(raw, darks, whites, saturation=args.saturation, dtype=args.dtype,
                        snapshot=snapshot)
@@ -142,6 +143,8 @@ def run(args):
           f"{_stored_type(args, ds['reflectance'].dtype)}), "
           f"{len(darks)} dark and {len(whites)} white frame(s) averaged; {n_masked} of {total} "
           f"values masked ({100 * n_masked / total:.2f} %)")
+    if said:
+        print(said, file=sys.stderr)
     _quicklook(args, "plot_flatfield", ds)
     return 0
 

@@ -290,7 +290,10 @@ def mosaic_phase(white, sensor, *, dark=None, sensor_origin_px=None, saturation=
     saturation : float, optional
         Digital number at or above which a white pixel is saturated (left out). Default: the
         sensor's largest code (its bit depth), else the white's type's largest code
-        (:func:`~snapcorr.cube.mosaic.frame_saturation`).
+        (:func:`~snapcorr.cube.mosaic.frame_saturation`); none for a white holding values
+        above the sensor's largest code (scaled frames: no level is known, every pixel is
+        used, and the phase, a ratio of the tiles' means, needs none; ``flatfield`` refuses
+        such a white).
     degree : int
         Degree of the polynomial fitted as the unknown lamp.
 

@@ -109,6 +109,22 @@ def test_a_white_at_its_types_largest_code_is_saturated_without_a_bit_depth(tmp_
     assert mask[:3].all() and not mask[3:].any()
 
 
+def test_the_types_saturation_is_said_even_where_no_white_reaches_it(tmp_path, monkeypatch,
+                                                                      cli):
+    """uint16 whites of a 12-bit camera peak at 4095: the type's 65535 then masks nothing the
+    camera clipped, which the user must hear (before, it was said only where a white
+    reached 65535, and finding that out read every white once more)."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, dtype=np.uint16, white=4000)
+    white = np.load("white.npy")
+    white[:3] = 4095
+    np.save("white.npy", white)
+    rc, _, err = cli(*FF, "--out", "ff.nc")
+    assert rc == 0, err
+    assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err
+    assert "bit_depth in a sensor TOML" in err
+
+
 def test_whites_of_two_integer_types_get_no_saturation_of_one(tmp_path):
     """A uint8 and a uint16 white: no one code is the largest, and 255 would mask nearly every
     uint16 pixel; no level is taken."""
