@@ -181,19 +181,30 @@ def summarise(rows, echo=print):
                 models[r["model"]] = models.get(r["model"], 0) + 1
 
             def per_circle(col, sel=sel):
+                """RMS z of each circle over the seeds that found every circle, and how
+                many did: where fewer than all, the circles were kept where the noise made
+                them look stronger, and their z is conditional on that choice."""
                 vals = [[float(v) for v in r[col].split()] for r in sel if r[col]]
                 if not vals:
-                    return "-"
+                    return [], 0
                 n = max(map(len, vals))
-                return " ".join(f"{_rms([v[i] for v in vals if len(v) == n]):.2f}"
-                                for i in range(n))
+                kept = [v for v in vals if len(v) == n]
+                return [_rms([v[i] for v in kept]) for i in range(n)], len(kept)
 
+            def text(rms, kept, sel=sel):
+                if not rms:
+                    return "-"
+                said = " ".join(f"{v:.2f}" for v in rms)
+                return said if kept == len(sel) else f"{said} ({kept} of {len(sel)} seeds)"
+
+            (zP, nP), (zh, nh) = per_circle("z_P"), per_circle("z_h")
             line = dict(case=key, noise=noise,
                         models=", ".join(f"{k} x{v}" for k, v in models.items()),
                         max_err=max(r["shift_error_nm"] for r in sel),
                         reported=float(np.nanmedian([r["reported_nm"] for r in sel])),
                         z_shift=_rms([r["z_shift"] for r in sel]),
-                        z_P=per_circle("z_P"), z_h=per_circle("z_h"))
+                        z_P=text(zP, nP), z_h=text(zh, nh), z_P_values=zP, z_h_values=zh,
+                        circles_found=nP, seeds=len(sel))
             lines.append(line)
             echo(f"{key:<13} {100 * noise:>4.1f}%  {line['models']:<18} "
                  f"{line['max_err']:>10.4f} {line['reported']:>11.4f} {line['z_shift']:>11.2f}"

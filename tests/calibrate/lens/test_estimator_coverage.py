@@ -162,18 +162,42 @@ def test_a_dropped_circle_counts_beyond_its_own_noise(key, noise, seed, z_range,
 
 @pytest.mark.slow
 def test_every_reported_error_covers():
-    """The table of benchmarks/README.md: in every cell (lens type x noise, four seeds), the
-    RMS of error over reported error of the shift, of each P and of each h is in
-    [0.5, 2]."""
+    """The table of benchmarks/README.md, four seeds a cell (lens type x noise): the errors
+    over the reported errors of the shift, and of each P and each h where every seed found
+    every circle, are as a unit normal's. Four draws decide little (the RMS of four unit
+    normals lies below 0.5 one time in eleven), so each cell's RMS must lie in the band that
+    holds it with probability 1 - 1 % / (the number of RMS tested), from the chi-square law;
+    the table's [0.5, 2] is for its 8-16 seeds. Where the rules kept a circle in some seeds
+    only, they kept it where the noise made it look stronger than it is: its z there is
+    conditional on that choice, not a coverage figure (the shift's error carries the
+    choice, through its model-choice term)."""
+    from scipy.stats import chi2
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from benchmarks import calibration_coverage as cc
 
     rows = cc.main(workers=2, out="calibration_rays_test.csv")
     (Path(cc.HERE) / "calibration_rays_test.csv").unlink(missing_ok=True)
-    bad = []
-    for line in cc.summarise(rows, echo=lambda *_: None):
-        values = [line["z_shift"]] + [float(v) for col in ("z_P", "z_h")
-                                      for v in line[col].split() if line[col] != "-"]
-        if not all(0.5 <= v <= 2.0 for v in values if np.isfinite(v)):
-            bad.append(line)
-    assert not bad, bad
+    draws = {}  # (case, noise, what) -> the z of every seed
+    for r in rows:
+        cell = (r["case"], r["noise"])
+        draws.setdefault((*cell, "shift"), []).append(r["z_shift"])
+        for col in ("z_P", "z_h"):
+            for i, v in enumerate(r[col].split()):
+                draws.setdefault((*cell, f"{col} {i}"), []).append(float(v))
+    seeds = {}
+    for r in rows:
+        seeds[(r["case"], r["noise"])] = seeds.get((r["case"], r["noise"]), 0) + 1
+    tested = {k: np.asarray(v, float) for k, v in draws.items()
+              if k[2] == "shift" or len(v) == seeds[k[:2]]}
+    tested = {k: v[np.isfinite(v)] for k, v in tested.items()}  # h held at x: no z
+    tested = {k: v for k, v in tested.items() if v.size}
+    alpha = 0.01 / len(tested)
+    bad = {}
+    for k, v in tested.items():
+        n = v.size
+        lo, hi = (math.sqrt(chi2.ppf(q, n) / n) for q in (alpha / 2, 1 - alpha / 2))
+        rms = math.sqrt(np.mean(v * v))
+        if not lo <= rms <= hi:
+            bad[k] = (round(rms, 2), round(lo, 2), round(hi, 2))
+    assert len(tested) >= 30 and not bad, bad
