@@ -45,7 +45,7 @@ def add_parser(subparsers):
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help="with --phase-from: the stated sensor row and column of the white's "
                    "first pixel, checked against what the white shows (a whole-sensor frame "
-                   "needs none)")
+                   "needs none); exit status 1 where it disagrees, or no phase fits")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=run)
 
@@ -97,5 +97,5 @@ def _print_phase(args, sensor):
               + ("" if found.agrees else
                  " (an origin that agrees: {},{})".format(
                      *found.origin_px(args.sensor_origin_px or (0, 0)))))
-    return 0 if found.phase_px is not None else 1
+    return 0 if found.phase_px is not None and found.agrees is not False else 1
 

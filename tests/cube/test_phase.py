@@ -193,6 +193,20 @@ def test_sensor_phase_from_prints_the_phase(vendor, tmp_path):
     assert "first pixel sits at row 1, col 2 of the 4 x 4 tile" in out
 
 
+def test_sensor_phase_from_fails_where_the_stated_origin_disagrees(vendor, tmp_path):
+    """A script checking a crop's origin learns of a disagreement by the exit status, not
+    only by reading the word (before: DISAGREES, exit status 0)."""
+    fx, _, path = vendor
+    white, dark = white_frame(fx, (64, 64), (101, 202), lamp("LED-B3", fx.grid), seed=1)
+    np.save(tmp_path / "white.npy", white.astype(np.uint16))
+    np.save(tmp_path / "dark.npy", dark.astype(np.uint16))
+    for origin, status, word in (("101,202", 0, "agrees"), ("102,202", 1, "DISAGREES")):
+        code, out, err = run_cli("sensor", str(path), "--phase-from", str(tmp_path / "white.npy"),
+                                 "--dark", str(tmp_path / "dark.npy"), "--sensor-origin-px",
+                                 origin)
+        assert code == status and f"--sensor-origin-px {origin}: {word}" in out, (out, err)
+
+
 @pytest.fixture(scope="module")
 def crop_files(vendor, tmp_path_factory):
     """A 64 x 64 crop at sensor row 101, column 202: raw (a grey target), dark and white, and
