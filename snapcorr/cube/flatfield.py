@@ -228,17 +228,27 @@ _RATIOS = ("reflectance", "transmittance")
 
 
 def _refuse_ratios(raw, dark, white):
-    """A cube or frame named as a flat field's result (:data:`_RATIOS`), given as the raw,
-    a dark or a white: refused, naming the argument (flat-fielding it again divides a ratio
-    by counts, and every value comes out wrong without a masked pixel)."""
+    """A cube or frame that says it is a flat field's result, given as the raw, a dark or a
+    white: named as one (:data:`_RATIOS`, as a name or a ``long_name``), or in units of
+    ``"1"`` (a ratio: counts have none, or ``DN``). Refused, naming the argument and, of
+    several frames, which (flat-fielding it again divides a ratio by counts, and every value
+    comes out wrong without a masked pixel)."""
     for what, value in (("raw", raw), ("dark", dark), ("white", white)):
-        for v in (value if isinstance(value, (list, tuple)) else [value]):
-            name = getattr(v, "name", None)
-            if isinstance(v, xr.DataArray) and name in _RATIOS:
-                source = v.attrs.get("source") or "a ratio to a white"
-                label = "the raw input" if what == "raw" else f"the {what}"
-                raise ValueError(f"{label} is a {name} (a flat field's result: {source}), not "
-                                 "raw counts: flat-field the raw frames it was made from")
+        values = value if isinstance(value, (list, tuple)) else [value]
+        for k, v in enumerate(values, 1):
+            if not isinstance(v, xr.DataArray):
+                continue
+            said = [n for n in (v.name, v.attrs.get("long_name")) if n in _RATIOS]
+            units = str(v.attrs.get("units", "")).strip()
+            if not said and units != "1":
+                continue
+            kind = f"a {said[0]}" if said else "a ratio (units '1')"
+            source = v.attrs.get("source") or "a ratio to a white"
+            label = ("the raw input" if what == "raw" else
+                     f"the {what} frame {k} of {len(values)}" if len(values) > 1 else
+                     f"the {what}")
+            raise ValueError(f"{label} is {kind} (a flat field's result: {source}), not raw "
+                             "counts: flat-field the raw frames it was made from")
 
 
 def _result(raw, plain, d, w, reference_bad, saturation, name, dtype, counts, *, frame):

@@ -88,8 +88,37 @@ def test_the_library_refuses_a_ratio_as_counts():
     ratio = flatfield(counts, counts * 0.1, counts * 2)["reflectance"]
     with pytest.raises(ValueError, match="the raw input is a reflectance"):
         flatfield(ratio, counts * 0.1, counts * 2)
-    with pytest.raises(ValueError, match="the white is a reflectance"):
+    with pytest.raises(ValueError, match="the white frame 2 of 2 is a reflectance"):
         flatfield(counts, counts * 0.1, [counts * 2, ratio])
+
+
+def test_a_ratio_under_another_name_is_not_taken_as_counts(tmp_path, monkeypatch, cli):
+    """A reflectance renamed (written as 'radiance') still says what it is, by its long_name
+    and by its units of 1: refused as the raw input (before, flat-fielded again: every
+    value -0.03, none masked), and of two whites the one that is a ratio is named."""
+    from snapcorr.cube import flatfield, make_cube
+    from snapcorr.files import write_cube
+
+    counts = make_cube(np.full((4, 5, 3), 100.0), [500.0, 510.0, 520.0])
+    ratio = flatfield(counts, counts * 0.1, counts * 2)["reflectance"]
+    for v in (ratio.rename("radiance"),
+              ratio.rename("radiance").assign_attrs(long_name="radiance")):
+        with pytest.raises(ValueError, match="the raw input is a"):
+            flatfield(v, counts * 0.1, counts * 2)
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    rc, _, err = cli(*FF, "--out", "ff.nc")
+    assert rc == 0, err
+    from snapcorr.files import read_cube
+
+    write_cube(read_cube("ff.nc").rename("radiance"), tmp_path / "renamed.hdr")
+    args = list(FF)
+    args[args.index("raw.npy")] = "renamed.hdr"
+    rc, _, err = cli(*args, "--out", "again.nc")
+    assert_refused(rc, err, "raw input is a", "not raw counts")
+    args = [*FF, "--white", "renamed.hdr"]
+    rc, _, err = cli(*args, "--out", "again.nc")
+    assert_refused(rc, err, "--white renamed.hdr is a", "not raw counts")
 
 
 def test_a_white_at_its_types_largest_code_is_saturated_without_a_bit_depth(tmp_path,
