@@ -106,8 +106,39 @@ def command_parser(parser, command):
     return None
 
 
+#: The namespace's record of the single-value options given, while it is parsed.
+_GIVEN = "_options_given"
+
+
+class _StoreOnce(argparse._StoreAction):
+    """An option that takes one value, refused when given twice (argparse keeps the last
+    without a word: ``--out a.toml --out b.toml`` wrote only b.toml), under one name or two
+    (``--pupil-radiance`` and its alias ``--pupil``)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault(_GIVEN, {})
+        if self.dest in given:
+            first = given[self.dest]
+            said = (f"{option_string} is given twice" if first == option_string else
+                    f"{first} and {option_string} are one option, given twice")
+            parser.error(f"{said}: give it once")
+        given[self.dest] = option_string
+        super().__call__(parser, namespace, values, option_string)
+
+
 class _Parser(argparse.ArgumentParser):
-    """Usage errors as one line, like every other error, with where to read more."""
+    """Usage errors as one line, like every other error, with where to read more; an option
+    of one value given twice is one of them (:class:`_StoreOnce`)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.register("action", None, _StoreOnce)
+        self.register("action", "store", _StoreOnce)
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, rest = super().parse_known_args(args, namespace)
+        namespace.__dict__.pop(_GIVEN, None)
+        return namespace, rest
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -161,3 +161,31 @@ def test_a_value_after_the_end_of_options_is_left_alone():
     given = ["correct", "--center", "-5,5", "--", "--center", "-1,1"]
     assert _negative_pairs(build_parser(), given) == ["correct", "--center=-5,5", "--",
                                                       "--center", "-1,1"]
+
+
+@pytest.mark.parametrize("args, said", [
+    (("shift", "--f-number", "2", "--f-number", "1e5", "--cwl-nm", "500", "--n-eff", "1.7",
+      "--cra", "10"), "--f-number is given twice"),
+    (("shift", "--f-number=2", "--cwl-nm", "500", "--n-eff", "1.7", "--cra", "10",
+      "--f-number=4"), "--f-number is given twice"),
+    (("pupil", "--predict", "--pupil-radiance", "paper", "--pupil", "lambertian"),
+     "--pupil-radiance and --pupil are one option, given twice"),
+])
+def test_an_option_of_one_value_given_twice_is_refused(tmp_path, monkeypatch, args, said, cli):
+    """argparse keeps the last of a repeated option without a word: --out a.toml --out
+    b.toml wrote only b.toml, --f-number 2 --f-number 1e5 took 1e5, and an alias given
+    after its option won."""
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = cli(*args)
+    assert rc == 2 and said in err and "give it once" in err and not out, (out, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_options_that_gather_values_still_take_many(tmp_path, monkeypatch, cli):
+    """--dark and --white are lists: given twice, both frames are averaged."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path)
+    rc, out, err = cli("flatfield", "raw.npy", "--dark", "dark.npy", "--dark", "dark.npy",
+                     "--white", "white.npy", "--white", "white.npy", "--sensor", "sensor.toml",
+                     "--out", "o.nc")
+    assert rc == 0 and "2 dark and 2 white frame(s) averaged" in out, err
