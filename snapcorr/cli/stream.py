@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._frames import _read_frame_checked
+from ._frames import _default_saturation, _read_frame_checked
 from ._options import (
     DTYPE_HELP,
     ORIGIN_HELP,
@@ -114,6 +114,7 @@ def run(args):
     frames = read_frames(args.frames)
     darks = [_read_frame_checked(p, sensor, "--dark", frames.shape[1:]) for p in args.dark]
     whites = [_read_frame_checked(p, sensor, "--white", frames.shape[1:]) for p in args.white]
+    said = _default_saturation(args, sensor, whites)
     ds = process_stream(frames, darks, whites, sensor, demosaic_method=args.demosaic, lens=lens,
                         f_number=args.f_number, sensor_origin_px=args.sensor_origin_px,
                         center_rc=args.center_rc,
@@ -138,8 +139,13 @@ def run(args):
              f"{ds.attrs['cra_max_deg']:.2f} deg)" if lens else ", not corrected (no --lens)")
           + ("; resampled onto the nominal wavelengths" if args.resample else ""))
     _print_virtual(args, ds)
-    if args.saturation is None and sensor.full_scale_dn is not None:
-        print(f"saturation: {sensor.full_scale_dn} DN, the largest {sensor.bit_depth}-bit code "
-              "of the sensor (--saturation DN to change)", file=sys.stderr)
+    if said:
+        print(said, file=sys.stderr)
+    if n_masked == cube.size:  # flatfield refuses this before its one pass; a stream would
+        from ..cube.flatfield import masked_causes  # need two, and keeps what it wrote
+
+        raise ValueError(f"every value of the {cube.sizes['frame']} frames is masked: "
+                         f"{masked_causes(args.saturation, '--saturation')} ({args.out} "
+                         "holds them, with the raw frames)")
     return 0
 

@@ -34,6 +34,16 @@ def cf_attrs(name):
             }.get(name, {"long_name": name})
 
 
+def masked_causes(saturation, option="saturation="):
+    """What masks a flat field's every value, for a message (``option``: how the saturation
+    level is set, where it is)."""
+    sat = saturation
+    return ("likely the white reference is nowhere above the dark, the cube holds no finite "
+            "value" + (f", or the values reach the saturation level {sat:g}"
+                       if sat is not None else "")
+            + "; check the dark and white files" + (f" and {option}" if sat else ""))
+
+
 def check_masked(ds, *, warn_fraction=MASKED_WARN_FRACTION):
     """Count the masked values of a :func:`flatfield` result; refuse when all are masked.
 
@@ -50,11 +60,7 @@ def check_masked(ds, *, warn_fraction=MASKED_WARN_FRACTION):
         Every value is masked: nothing in the result would mean anything.
     """
     n, total = int(ds["n_masked"]), int(ds["mask"].size)
-    sat = ds.attrs.get("saturation")
-    causes = ("likely the white reference is nowhere above the dark, the cube holds no "
-              "finite value" + (f", or the values reach the saturation level {sat:g}"
-                                if sat is not None else "")
-              + "; check the dark and white files" + (" and saturation=" if sat else ""))
+    causes = masked_causes(ds.attrs.get("saturation"))
     if n == total:
         raise ValueError(f"every value of the {' x '.join(map(str, ds['mask'].shape))} cube is "
                          f"masked: {causes}")

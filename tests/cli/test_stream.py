@@ -53,3 +53,24 @@ def test_center_without_a_lens_is_one_line(tmp_path, cli):
                        "--sensor", "mosaic_4x4_vis", "--center", "3,5", "--out", "s.zarr",
                        cwd=tmp_path)
     assert rc == 1 and "--center" in err and "--lens" in err, err
+
+
+def test_a_stream_whose_every_value_is_masked_fails_and_says_its_saturation(tmp_path, cli):
+    """Frames all at 65535 (saturated): every value masked, which flatfield refuses; the
+    stream said 'wrote ... 100.00 % masked' with exit status 0. Now status 1 and why; the
+    default saturation of the frames' uint16 type is said, as flatfield says it."""
+    import numpy as np
+
+    np.save(tmp_path / "frames.npy", np.full((3, 8, 8), 65535, np.uint16))
+    np.save(tmp_path / "d.npy", np.full((8, 8), 100, np.uint16))
+    np.save(tmp_path / "w.npy", np.full((8, 8), 900, np.uint16))
+    args = ("stream", "frames.npy", "--dark", "d.npy", "--white", "w.npy", "--sensor",
+            "mosaic_4x4_vis", "--sensor-origin-px", "0,0")
+    rc, out, err = cli(*args, "--out", "s.zarr", cwd=tmp_path)
+    assert rc == 1 and "every value of the 3 frames is masked" in err, (out, err)
+    assert "saturation level 65535" in err and "--saturation" in err, err
+    assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err, err
+    np.save(tmp_path / "frames.npy", np.full((3, 8, 8), 500, np.uint16))
+    rc, out, err = cli(*args, "--out", "t.zarr", cwd=tmp_path)
+    assert rc == 0 and "0 of 3072 values masked" in out, (out, err)
+    assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err, err
