@@ -73,6 +73,10 @@ class Spectrum:
     def __call__(self, wavelength_nm):
         lam = np.asarray(wavelength_nm, float)
         lo, hi = self.wavelength_nm[0], self.wavelength_nm[-1]
+        # NaN fails every comparison: the range check below would let it through
+        if lam.size and not np.all(np.isfinite(lam)):
+            raise ValueError(f"the spectrum {self.name!r} is asked for at a wavelength that "
+                             "is not a finite number")
         if lam.size and (lam.min() < lo - 1e-9 or lam.max() > hi + 1e-9):
             raise ValueError(f"the spectrum {self.name!r} covers {lo:g}-{hi:g} nm; "
                              f"{lam.min():.4g}-{lam.max():.4g} nm is needed")

@@ -128,3 +128,19 @@ def test_a_patch_is_not_known_beyond_its_published_range():
     assert float(red(780.0)) > 0.5
     with pytest.raises(ValueError):
         red(800.0)
+
+
+def test_a_spectrum_is_not_read_at_nan_or_beyond_its_range_whatever_comes_with_it():
+    """NaN fails every comparison, so [NaN, 300] passed the range check of a 380-780 nm
+    spectrum and gave [nan, 0.052]; NaN alone gave NaN."""
+    import pytest
+
+    from snapcorr.spectra import colour_checker
+
+    red = colour_checker("red")
+    for asked in ([np.nan, 300.0], np.nan, [500.0, np.inf]):
+        with pytest.raises(ValueError, match="not a finite number"):
+            red(asked)
+    with pytest.raises(ValueError, match="covers 380-780 nm"):
+        red([500.0, 300.0])
+    assert np.isfinite(red([500.0, 600.0])).all()
