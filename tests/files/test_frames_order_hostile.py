@@ -59,7 +59,8 @@ def test_one_frame_in_two_formats_is_refused(tmp_path):
     for k in (1, 2):
         np.save(tmp_path / f"f{k}.npy", np.full((4, 4), k, np.uint16))
     tifffile.imwrite(tmp_path / "F1.TIF", np.full((4, 4), 1, np.uint16))
-    with pytest.raises(ValueError, match=r"F1\.TIF and f1\.npy .* differ only in their suffix"):
+    with pytest.raises(ValueError, match=r"F1\.TIF and f1\.npy .* differ only in their suffix "
+                                         "and case"):
         read_frames(tmp_path)
 
 
