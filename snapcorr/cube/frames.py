@@ -6,7 +6,6 @@ from snapcorr.files.datasets import _open_dataset as _open_dataset
 from snapcorr.files.datasets import refuse_packed_counts as refuse_packed_counts
 from snapcorr.files.frames import _NUMBER as _NUMBER
 from snapcorr.files.frames import _OIIO_TYPES as _OIIO_TYPES
-from snapcorr.files.frames import _ZERO as _ZERO
 from snapcorr.files.frames import FRAME_ORDER as FRAME_ORDER
 from snapcorr.files.frames import FRAME_SUFFIXES as FRAME_SUFFIXES
 from snapcorr.files.frames import _npy_stack as _npy_stack
