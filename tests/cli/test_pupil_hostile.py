@@ -7,7 +7,8 @@ import numpy as np
 
 def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path, cli):
     """A 40 x 40 crop of a mosaic (10 x 10 tiles) leaves no annulus with a standard error:
-    the pupil fit is refused saying why, not by numpy's 'zero-size array' of an empty fit."""
+    the pupil fit is refused saying why (the cube too small: fewer than 24 pixels a side),
+    not by numpy's 'zero-size array' of an empty fit."""
     from snapcorr.data import mosaic_frames
 
     r0, c0 = 520, 1000
@@ -20,7 +21,7 @@ def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path
     res = cli("pupil", "--cube", "2=t.nc", "--cube", "8=t.nc", "--sensor", "mosaic_4x4_vis",
               "--out", "x.toml", "--quiet", cwd=tmp_path)
     assert res.returncode == 1 and "Traceback" not in res.stderr
-    assert "no annulus" in res.stderr and "zero-size" not in res.stderr
+    assert "10 x 10 pixels: too few" in res.stderr and "zero-size" not in res.stderr
     assert not (tmp_path / "x.toml").exists()
 
 

@@ -116,6 +116,32 @@ def _synthetic_bins(sensor, f_number, n_bins, size_px=None):
 
 
 @_one_blas_thread
+def _checked_arguments(sensor, f_numbers, lens, size_px, n_bins):
+    """The size, the f-numbers and the annuli of a prediction, checked before anything is
+    sized by them (a size of 1e9 x 1e9 pixels asked for 7.5 GiB)."""
+    from ..._validation import SENSOR_PX_MAX, check_f_number, check_integers, shown
+    from ...cube.sensor import Sensor
+    from .target import check_n_bins
+
+    for name, value, kind, how in (("sensor", sensor, Sensor, "snapcorr.cube.Sensor.load"),
+                                   ("lens", lens, Lens, "snapcorr.Lens.load")):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} must be a {kind.__name__} ({how}(NAME or PATH)), got "
+                            f"{type(value).__name__} {shown(value)}")
+    size = size_px if size_px is not None else sensor.size_px
+    if size is None:
+        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
+    size = check_integers("size_px", size)
+    if size.shape != (2,) or not np.all((size >= 1) & (size <= SENSOR_PX_MAX)):
+        raise ValueError(f"size_px must be (rows, columns), each 1 to {SENSOR_PX_MAX}, got "
+                         f"{shown(size_px if size_px is not None else sensor.size_px)}")
+    values = np.atleast_1d(np.asarray(f_numbers, dtype=object)).ravel()
+    if not values.size:
+        raise ValueError("f_numbers must hold at least one f-number")
+    return (tuple(int(v) for v in size), [check_f_number("f_numbers", v) for v in values],
+            check_n_bins(n_bins))
+
+
 def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_eff=False,
                     spectrum_known=False, size_px=None, n_bins=64, profile="gaussian",
                     absolute_noise=False):
@@ -150,9 +176,7 @@ def pupil_precision(spectrum, sensor, f_numbers, lens: Lens, *, noise=0.01, fit_
         For a target without features ``x_stderr_mm`` is ``inf`` or merely huge (the bound of
         an almost singular information); ``informative`` is False either way.
     """
-    size = size_px or sensor.size_px
-    if size is None:
-        raise ValueError(f"the sensor {sensor.name!r} has no size_px: give size_px")
+    size, f_numbers, n_bins = _checked_arguments(sensor, f_numbers, lens, size_px, n_bins)
     if not (math.isfinite(noise) and noise > 0):
         raise ValueError(f"noise must be > 0, got {noise!r}")
     n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
@@ -274,6 +298,7 @@ def colour_chart_precision(sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_e
     """
     from ...spectra import COLOUR_CHECKER_PATCHES, colour_checker
 
+    _checked_arguments(sensor, f_numbers, lens, size_px, n_bins)  # before 24 patches' work
     beyond = _beyond_the_chart(sensor)
     if beyond is not None:
         raise OutsideChartError(beyond)

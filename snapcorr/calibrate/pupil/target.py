@@ -81,6 +81,29 @@ def check_modelled(sensor, what, *, fit_n_eff=False, measured=True):
     return np.asarray(sensor.require("n_eff", what), float)
 
 
+#: The fewest pixels a target cube has on each side: the optical centre is found on blocks
+#: of 4 x 4 pixels, with a polynomial of degree 4 in the squared distance, which needs more
+#: blocks than that across (an 8 x 8 crop ended in numpy's "zero-size array" error).
+MIN_CUBE_SIDE_PX = 24
+
+#: The most annuli the field is cut into, and the fewest: each annulus is a row of the model
+#: for every band, so a count sizes the fit (1e9 asked for 7.5 GiB), and fewer than 8 cannot
+#: follow the shift's growth across the field (one annulus ranked a grey patch best).
+N_BINS_RANGE = (8, 4096)
+
+
+def check_n_bins(n_bins):
+    """``n_bins`` as an int inside :data:`N_BINS_RANGE`, or a clear ``ValueError``."""
+    from ..._validation import check_integers, shown
+
+    n = check_integers("n_bins", n_bins)
+    lo, hi = N_BINS_RANGE
+    if n.ndim or not lo <= int(n) <= hi:
+        raise ValueError(f"n_bins must be one whole number from {lo} to {hi} (the annuli the "
+                         f"field is cut into), got {shown(n_bins)}")
+    return int(n)
+
+
 def _check_cubes(cubes, sensor):
     if not cubes:
         raise ValueError("give at least one cube")
@@ -90,6 +113,11 @@ def _check_cubes(cubes, sensor):
         if fv in out:
             raise ValueError(f"f/{fv:g} given twice")
         sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
+        ny, nx = (int(cube.sizes[d]) for d in ("y", "x"))
+        if min(ny, nx) < MIN_CUBE_SIDE_PX:
+            raise ValueError(f"the f/{fv:g} cube is {ny} x {nx} pixels: too few to find the "
+                             f"optical centre and follow the shift across the field (at least "
+                             f"{MIN_CUBE_SIDE_PX} on each side)")
         if not bool(np.isfinite(cube).any()):
             raise ValueError(f"the f/{fv:g} cube has no finite value (every pixel NaN or "
                              "infinite): nothing to fit")
@@ -254,6 +282,40 @@ def _band_reader(cube):
     return lambda b: np.asarray(cube.isel(band=b).values, float)
 
 
+#: A given optical centre is refused where the cubes place it more than this many standard
+#: errors away (the found centre's errors run up to several times small on crops: a wide
+#: margin) ...
+GIVEN_CENTER_SIGMAS = 20.0
+#: ... and further than this share of the cubes' diagonal: x is fitted to the annuli about
+#: the centre, so a wrong one gives a wrong x (--center 5000,5000 on a 1088 x 2048 sensor:
+#: x = 86 +- 0.25 mm for 21 mm).
+GIVEN_CENTER_SHARE = 0.25
+
+
+def _check_given_center(center, cubes, nb, positions):
+    """Refuse a given centre the cubes contradict (:data:`GIVEN_CENTER_SIGMAS`,
+    :data:`GIVEN_CENTER_SHARE`); where they cannot place it, the given one stands."""
+    f0 = min(cubes)
+    rows, cols = positions[f0]
+    try:
+        found, err = estimate_target_center_rc(_band_reader(cubes[f0]), nb, rows, cols)
+    except (ValueError, np.linalg.LinAlgError):
+        return
+    err = np.asarray(err, float)
+    if not np.all(np.isfinite(err)) or np.any(err <= 0):
+        return
+    d = np.subtract(center, found)
+    z = float(np.hypot(*(d / err)))
+    span = float(np.hypot(np.ptp(rows), np.ptp(cols)))
+    if z > GIVEN_CENTER_SIGMAS and float(np.hypot(*d)) > GIVEN_CENTER_SHARE * span:
+        raise ValueError(
+            f"the optical centre given (row {center[0]:g}, col {center[1]:g}) is "
+            f"{float(np.hypot(*d)):.0f} px ({z:.0f} standard errors) from where the f/{f0:g} "
+            f"cube places it (row {found[0]:.1f} +- {err[0]:.2g}, col {found[1]:.1f} +- "
+            f"{err[1]:.2g}): give the centre in sensor pixels of the lens these cubes were "
+            "taken with, or leave it out to use the one found")
+
+
 def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
     """Every cube's radial annuli about the optical centre (given or found), and the centre,
     ``(row, col)``."""
@@ -264,6 +326,7 @@ def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
     nb = sensor.n_bands
     if center_rc is not None:
         center, center_source = check_center_rc(center_rc), "given"
+        _check_given_center(center, cubes, nb, positions)
     else:
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]

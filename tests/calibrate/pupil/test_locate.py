@@ -160,6 +160,73 @@ def test_the_centre_is_taken_row_first_and_its_x_first_form_warns():
         locate_pupil(data, sensor(), center_rc=(row, col), center_px=(col, row), **kw)
 
 
+def test_a_given_centre_the_cubes_contradict_is_refused():
+    """x is fitted to the annuli about the centre: one given far from where the cubes place
+    the axis fitted x = 86 +- 0.25 mm for 21 on a vendor sensor (reduced chi-square 1.49,
+    written without a word). Refused, saying where the cubes place it; a centre the cubes
+    cannot contradict (a few pixels off) is taken as given."""
+    row, col = 37.25, 81.5
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5, center=(col, row))
+    kw = {"lens": as_lens(PLAIN), "target_spectrum": sim.colour_filter, "n_bins": 32}
+    for far in ((500.0, 500.0), (row + 80.0, col - 60.0)):
+        with pytest.raises(ValueError, match=r"optical centre given .* standard errors\) from "
+                                             r"where the f/2 cube places it \(row 37\.\d"):
+            locate_pupil(data, sensor(), center_rc=far, **kw)
+    near = locate_pupil(data, sensor(), center_rc=(row + 1.0, col - 1.0), **kw)
+    assert near.center_source == "given"
+
+
+def test_the_fits_arguments_are_checked_before_anything_is_sized_by_them():
+    """n_bins of 1e9 asked for 7.5 GiB, a size of 1e9 x 1e9 pixels as much, an empty list of
+    f-numbers ended in min()'s message, a lens by name in an AttributeError, one annulus
+    ranked a grey patch best, and a crop of 2 x 2 pixels in numpy's 'zero-size array'."""
+    from snapcorr.calibrate import colour_chart_precision
+
+    vis = Sensor.load("mosaic_4x4_vis")
+    lens = as_lens(PAPER)
+    for kw, said in ((dict(n_bins=10**9), "n_bins must be one whole number from 8 to 4096"),
+                     (dict(n_bins=1), "n_bins must be one whole number from 8"),
+                     (dict(n_bins=2.5), "n_bins must be whole numbers"),
+                     (dict(size_px=(10**9, 10**9)), "size_px must be"),
+                     (dict(size_px=(0, 0)), "size_px must be"),
+                     (dict(size_px=(-5, 5)), "size_px must be")):
+        with pytest.raises(ValueError, match=said):
+            colour_chart_precision(vis, [2.0], lens, **kw)
+        with pytest.raises(ValueError, match=said):
+            pupil_precision(sim.colour_filter, sensor(), [2.0], lens,
+                            **{"size_px": SHAPE, **kw})
+    with pytest.raises(ValueError, match="at least one f-number"):
+        colour_chart_precision(vis, [], lens)
+    with pytest.raises(ValueError, match="f_numbers must be"):
+        colour_chart_precision(vis, [2.0, float("nan")], lens)
+    for bad in (None, "edmund_optics_16mm"):
+        with pytest.raises(TypeError, match=r"lens must be a Lens \(snapcorr\.Lens\.load"):
+            colour_chart_precision(vis, [2.0], bad)
+    with pytest.raises(TypeError, match="sensor must be a Sensor"):
+        colour_chart_precision("mosaic_4x4_vis", [2.0], lens)
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    with pytest.raises(ValueError, match="n_bins must be one whole number"):
+        locate_pupil(data, sensor(), lens=as_lens(PLAIN), n_bins=10**9)
+    small = {2.0: data[2.0].isel(y=slice(0, 20), x=slice(0, 30))}
+    with pytest.raises(ValueError, match=r"the f/2 cube is 20 x 30 pixels: too few .* \(at "
+                                         r"least 24 on each side\)"):
+        locate_pupil(small, sensor(), lens=as_lens(PLAIN))
+
+
+def test_a_misfit_beyond_the_noise_is_said_whatever_its_size():
+    """A reduced chi-square of 1.49 over 2601 degrees of freedom is not noise (a wrong
+    centre); the note said so only above 2. 1.03 over 2138 is noise, and so is 1.5 over
+    20."""
+    from snapcorr.calibrate.pupil.locate import _validity_notes
+
+    def said(chi2_red, dof):
+        return any("more than the noise explains" in n
+                   for n in _validity_notes(1.0, 21.0, 0.1, chi2_red, dof))
+
+    assert said(1.49, 2601) and said(2.5, 5)
+    assert not said(1.03, 2138) and not said(1.5, 20) and not said(1.09, 10**6)
+
+
 def test_precision_predicts_the_reported_error():
     """The Cramer-Rao bound for the same sensor, lens and noise is the error the fit
     reports, and a white tile has none."""
