@@ -363,9 +363,15 @@ def check_numbers(name, value):
     return value
 
 
-def check_integers(name, value):
-    """``value`` (a number or nested list) as an int array, refusing booleans and numbers
-    that are not whole (``4.7`` is not silently 4)."""
+#: The largest whole number :func:`check_integers` takes unless told a bound: every integer
+#: up to it is exact as a float (2**53), and far inside int64, so no cast wraps it.
+INTEGER_MAX = 2**53
+
+
+def check_integers(name, value, most=INTEGER_MAX):
+    """``value`` (a number or nested list) as an int array, refusing booleans, numbers that
+    are not whole (``4.7`` is not silently 4) and numbers larger than ``most`` in size
+    (before the cast to int64: ``1e20`` cast is no number, and numpy warns of it)."""
     check_numbers(name, value)
     try:
         arr = np.asarray(value, dtype=float)
@@ -373,6 +379,9 @@ def check_integers(name, value):
         raise ValueError(f"{name} must be whole numbers, got {shown(value)}") from None
     if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
         raise ValueError(f"{name} must be whole numbers, got {shown(value)}")
+    if np.any(np.abs(arr) > most):  # refused before the cast (1e20 cast to int64 is garbage)
+        raise ValueError(f"{name} must be whole numbers of at most {most:,}, got "
+                         f"{shown(value)}")
     return arr.astype(np.int64)
 
 

@@ -174,10 +174,11 @@ class Sensor:
         if self.layout == "mosaic":
             if self.mosaic_shape is None or self.band_offset is None:
                 raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")
-            shape = tuple(int(v) for v in check_integers("mosaic_shape", self.mosaic_shape).ravel())
+            shape = tuple(int(v) for v in check_integers("mosaic_shape", self.mosaic_shape,
+                                                          SENSOR_PX_MAX).ravel())
             if len(shape) != 2 or min(shape) < 1:
                 raise ValueError(f"mosaic_shape must be [rows, cols] >= 1, got {shape}")
-            off = check_integers("band_offset", self.band_offset)
+            off = check_integers("band_offset", self.band_offset, SENSOR_PX_MAX)
             if off.shape != (n, 2):
                 raise ValueError(f"band_offset must list one [row, col] per band ({n}), got "
                                  f"shape {off.shape}")
@@ -190,14 +191,14 @@ class Sensor:
         elif self.mosaic_shape is not None or self.band_offset is not None:
             raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
         if self.size_px is not None:
-            size = check_integers("size_px", self.size_px)
+            size = check_integers("size_px", self.size_px, SENSOR_PX_MAX)
             if size.shape != (2,) or np.any(size < 1) or np.any(size > SENSOR_PX_MAX):
                 raise ValueError(f"size_px must be [rows, cols], whole numbers 1-"
                                  f"{SENSOR_PX_MAX}, got {shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
         if self.bit_depth is not None:
-            bits = check_integers("bit_depth", self.bit_depth)
+            bits = check_integers("bit_depth", self.bit_depth, BIT_DEPTH_MAX)
             if bits.shape != () or not 1 <= int(bits) <= BIT_DEPTH_MAX:
                 raise ValueError(f"bit_depth must be a whole number of bits, 1-{BIT_DEPTH_MAX}, "
                                  f"got {shown(self.bit_depth)}")
@@ -234,11 +235,11 @@ class Sensor:
         if self.filter_area_px is not None:
             if self.layout != "mosaic":
                 raise ValueError("filter_area_px applies to layout = 'mosaic' only")
-            area = check_integers("filter_area_px", self.filter_area_px)
+            area = check_integers("filter_area_px", self.filter_area_px, SENSOR_PX_MAX)
             if area.shape != (4,) or np.any(area[:2] < 0) or np.any(area[2:] < 1):
                 raise ValueError(f"filter_area_px must be [row, col, rows, cols] (whole "
                                  f"numbers, offsets >= 0, sizes >= 1), got "
-                                 f"{self.filter_area_px!r}")
+                                 f"{shown(self.filter_area_px)}")
             if self.size_px is not None and (area[0] + area[2] > self.size_px[0]
                                              or area[1] + area[3] > self.size_px[1]):
                 raise ValueError(f"filter_area_px {area.tolist()} extends beyond size_px "

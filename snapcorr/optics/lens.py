@@ -156,7 +156,8 @@ def _check_placement(cal):
         check_pixel_pitch_um("[calibration] pixel_pitch_um", cal["pixel_pitch_um"])
     if "image_size_px" in cal:
         size = check_integers("[calibration] image_size_px", _as_list(cal["image_size_px"],
-                                                                        "image_size_px"))
+                                                                        "image_size_px"),
+                              PIXELS_MAX)
         if size.shape != (2,) or np.any(size <= 0):
             raise ValueError("[calibration] image_size_px must be two whole numbers > 0 "
                              f"([width, height]), got {shown(cal['image_size_px'])}")

@@ -109,6 +109,9 @@ def test_a_huge_integer_in_a_lens_file_is_one_line(tmp_path, cli, body):
     ({"image_size_px": 5}, "image_size_px must be a list of two numbers"),
     ({"image_size_px": [1, 2, 3]}, "image_size_px must be two whole numbers"),
     ({"image_size_px": [640.5, 512]}, "image_size_px must be whole numbers"),
+    # beyond int64: refused before the cast, which made garbage and a numpy warning
+    ({"image_size_px": [10**20, 512]}, "image_size_px must be whole numbers of at most "
+                                        "1,000,000"),
     ({"center_rc": [1.0, "a"]}, "center_rc must be a number, got text"),
     ({"center_px": 3}, "center_px must be a list of two numbers"),
     # the bounds --center and --sensor-origin-px have on the command line
