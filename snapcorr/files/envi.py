@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import parse_json
+from .._validation import parse_json, shown
 from ..cube.model import POSITION_DIMS
 from .attrs import JSON_PREFIX, _one_line, _version
 from .reading import check_input
@@ -304,9 +304,15 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
     stored = h.get("snapcorr attrs")
     if isinstance(stored, str) and stored.startswith(JSON_PREFIX):
         try:
-            attrs.update(parse_json(stored[len(JSON_PREFIX):]))
+            decoded = parse_json(stored[len(JSON_PREFIX):])
         except ValueError:
             raise ValueError(f"{hdr}: 'snapcorr attrs' is not valid JSON") from None
+        if not isinstance(decoded, dict):  # a list or a number has no attribute names
+            raise ValueError(f"{hdr}: 'snapcorr attrs' must hold a JSON object "
+                             f"({{\"name\": value, ...}}), got "
+                             + (_JSON_KINDS.get(type(decoded), "a value") + " "
+                                + shown(decoded) if decoded is not None else "null"))
+        attrs.update(decoded)
     found.attrs = attrs
     for name in POSITION_DIMS:
         key = "snapcorr " + name.replace("_", " ")
@@ -321,6 +327,11 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
                                  "are needed")
             found.positions[name] = {"values": np.reshape(values, (n, bands)).tolist()}
     return found
+
+
+#: What a JSON document that is no object holds, in JSON's words.
+_JSON_KINDS = {list: "an array", str: "a string", int: "a number", float: "a number",
+               bool: "true or false", type(None): "null"}
 
 
 def _envi_numbers(h, key, hdr, scalar=False):
