@@ -95,9 +95,17 @@ def renamed_keywords(**renames):
     return decorate
 
 
-def shown(value, limit=40):
+def shown(value, limit=40, *, quote=True):
     """``repr(value)`` cut to ``limit`` characters, for messages (a 400-digit integer from a
-    TOML file is no better shown whole)."""
+    TOML file is no better shown whole, nor ten megabytes of digits from an XML element).
+    ``quote=False`` shows a string as it is, not its ``repr`` (``'byte order = 2'``). A long
+    string is cut before its ``repr`` is taken: the time is the limit's, not the value's."""
+    if isinstance(value, str):
+        cut = value[:limit + 1]
+        r = repr(cut) if quote else cut
+        if len(cut) <= limit and len(r) <= limit:
+            return r
+        return r[:limit - 3] + "..."
     r = repr(value)
     return r if len(r) <= limit else r[:limit - 3] + "..."
 
