@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um
+from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um, shown
 from ..files.reading import check_input
 from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
 
@@ -53,6 +53,8 @@ MAX_SAMPLES = 100_000
 #: with its separators: a list longer than this per value it should hold is refused before
 #: it is split.
 MAX_CHARS_PER_VALUE = 64
+#: The attribute a file states an element's count of values in (``nr_elements="601"``).
+COUNT_ATTRIBUTE = "nr_elements"
 _SPLIT = re.compile(r"[,\s;]+")
 #: A whole number as files write one: ASCII digits (``str.isdigit`` also takes "²").
 _WHOLE = re.compile(r"-?[0-9]+")
@@ -130,13 +132,15 @@ class _File:
             self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {text!r}")
         return value
 
-    def numbers(self, node, where, count=None):
+    def numbers(self, node, where, count=None, holder=None):
         """The numbers of a ``values`` attribute or of the element's text.
 
         The text's length is bounded before it is split and the count compared before any
         value is parsed: a list of millions of numbers is refused in the time it takes to
         measure it, not after every value is read (at most :data:`MAX_SAMPLES` values, or
-        ``count``).
+        ``count``). A count the file states (``nr_elements`` of the element, or of
+        ``holder``, the element that holds it: ``<response_composition nr_elements="601">
+        <data>``) must be the number of values there, compared before they are parsed.
         """
         text = node.get("values")
         if text is None:
@@ -147,6 +151,9 @@ class _File:
                       f"{most} numbers take" + ("" if count is not None else
                                                 " (no calibration curve has more samples)"))
         parts = [p for p in _SPLIT.split(text.strip()) if p]
+        for el, at in ((node, where), (holder, where.rpartition("/")[0])):
+            if el is not None and el.get(COUNT_ATTRIBUTE) is not None:
+                self._stated(el.get(COUNT_ATTRIBUTE), at, len(parts), where)
         if count is not None and len(parts) != count:
             self.fail(f"<{where}> holds {len(parts)} values, expected {count}")
         if len(parts) > MAX_SAMPLES:
@@ -164,6 +171,15 @@ class _File:
         if not np.all(np.isfinite(values)):
             self.fail(f"<{where}> holds a value that is not finite")
         return values
+
+    def _stated(self, raw, at, found, where):
+        """Refuse a count ``raw`` stated on ``<at>`` that is not the ``found`` values of
+        ``<where>``: a file whose counts disagree is no file its writer finished."""
+        said = f'<{at}> states {COUNT_ATTRIBUTE}="{shown(raw, quote=False)}"'
+        if not _WHOLE.fullmatch(raw.strip()) or raw.strip().startswith("-"):
+            self.fail(f"{said}: not a whole number >= 0")
+        if len(raw.strip()) > 20 or int(raw) != found:
+            self.fail(f"{said}, but <{where}> holds {found} values")
 
     def curve(self, values, where):
         """A transmission or response curve: not negative beyond measurement noise
@@ -370,11 +386,13 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         band = by_index[i]
         peaks.append(_peaks(f, band, w))
         _resolved(f, peaks[-1], grid, w)
-        node = band
+        node = holder = band
         for tag in response_tag:
-            node = f.child(node, w, tag)
+            holder, node = node, f.child(node, w, tag)
         where_curve = f"{w}/{'/'.join(response_tag)}"
-        curves.append(f.curve(f.numbers(node, where_curve, count=grid.size), where_curve))
+        curves.append(f.curve(f.numbers(node, where_curve, count=grid.size,
+                                        holder=holder if holder is not band else None),
+                              where_curve))
     return np.array(curves), tuple(peaks)
 
 
@@ -409,8 +427,9 @@ def _older(f, root, info):
     rej = info.find("rejection_filter")
     if rej is not None:
         where = "filter_info/rejection_filter"
-        node = f.child(f.child(rej, where, "filter_response"), where, "data")
-        values = f.curve(f.numbers(node, f"{where}/filter_response/data"),
+        holder = f.child(rej, where, "filter_response")
+        node = f.child(holder, where, "data")
+        values = f.curve(f.numbers(node, f"{where}/filter_response/data", holder=holder),
                          f"{where}/filter_response/data")
         if rej.find("wavelength_start_nm") is not None:
             own = _grid_from_range(f, rej, where)
@@ -451,9 +470,10 @@ def _older_matrix(f, sci, n_bands, fwhm):
     for k, band in enumerate(sci.find("virtual_bands").findall("band")):
         w = f"{where}/band[{k}]"
         wl.append(f.number(band, w, "wavelength_nm"))
-        node = f.child(f.child(band, w, "custom_spectral_correction"),
-                       f"{w}/custom_spectral_correction", "data")
-        rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands))
+        holder = f.child(band, w, "custom_spectral_correction")
+        node = f.child(holder, f"{w}/custom_spectral_correction", "data")
+        rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands,
+                              holder=holder))
     if not rows:
         f.fail(f"<{where}> lists no virtual band")
     try:

@@ -156,3 +156,51 @@ def test_a_pixel_pitch_no_camera_has_names_the_file_and_element(tmp_path, writer
     fx = dataclasses.replace(imec_4x4(), pitch=float(pitch))
     _refused(writer(tmp_path / "pitch.xml", fx),
              re.escape(f"<sensor_info/{tag}> = {float(pitch):g} um is no camera's pixel pitch"))
+
+
+def _real(tmp_path, name, old, new):
+    """The real CMV2K file with its first ``old`` replaced by ``new``."""
+    from conftest import VENDOR_XML
+
+    text = VENDOR_XML.read_text(encoding="utf-8")
+    assert old in text, old
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("old", "new", "element"), [
+    ('<custom_spectral_correction version="0" nr_elements="25">',
+     '<custom_spectral_correction version="0" nr_elements="999999999999">',
+     r"virtual_bands/band\[0\]/custom_spectral_correction> states nr_elements=\"999999999999\", "
+     r"but <[^>]*/data> holds 25 values"),
+    ('<custom_spectral_correction version="0" nr_elements="25">',
+     '<custom_spectral_correction version="0" nr_elements="24">', "holds 25 values"),
+    ('<response_composition version="0" nr_elements="601">',
+     '<response_composition version="0" nr_elements="600">',
+     r"bands/band\[0\]/response_composition> states nr_elements=\"600\", but .* 601 values"),
+    ('<filter_response version="0" nr_elements="601">',
+     '<filter_response version="0" nr_elements="6010">',
+     r"rejection_filter/filter_response> states nr_elements=\"6010\", but .* 601 values"),
+    ('<filter_response version="0" nr_elements="601">',
+     '<filter_response version="0" nr_elements="six">', "not a whole number"),
+])
+def test_a_stated_count_that_disagrees_with_the_values_is_refused(tmp_path, old, new, element):
+    """nr_elements="999999999999" on a row of 25 coefficients was read as if it said 25."""
+    _refused(_real(tmp_path, "count.xml", old, new), element)
+
+
+def test_a_stated_count_is_compared_before_the_values_are_parsed(tmp_path):
+    """A stated count that disagrees is refused before any value is read as a number: the
+    count, not the word among the values, is what the message says."""
+    from conftest import VENDOR_XML
+
+    text = VENDOR_XML.read_text(encoding="utf-8")
+    text = text.replace('<custom_spectral_correction version="0" nr_elements="25">\n'
+                        '                        <data>',
+                        '<custom_spectral_correction version="0" nr_elements="27">\n'
+                        '                        <data>word, ', 1)
+    assert "<data>word, " in text
+    path = tmp_path / "first.xml"
+    path.write_text(text, encoding="utf-8")
+    _refused(path, r"states nr_elements=\"27\", but .* holds 26 values")
