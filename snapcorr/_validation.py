@@ -98,8 +98,21 @@ def renamed_keywords(**renames):
 def shown(value, limit=40, *, quote=True):
     """``repr(value)`` cut to ``limit`` characters, for messages (a 400-digit integer from a
     TOML file is no better shown whole, nor ten megabytes of digits from an XML element).
-    ``quote=False`` shows a string as it is, not its ``repr`` (``'byte order = 2'``). A long
-    string is cut before its ``repr`` is taken: the time is the limit's, not the value's."""
+
+    Parameters
+    ----------
+    value : object
+        What a message quotes; a long string is cut before its ``repr`` is taken (the time
+        is the limit's, not the value's).
+    limit : int
+        The most characters shown, ``...`` included.
+    quote : bool
+        False: a string as it is, not its ``repr`` (``byte order = 2``).
+
+    Returns
+    -------
+    str
+    """
     if isinstance(value, str):
         cut = value[:limit + 1]
         r = repr(cut) if quote else cut
@@ -379,7 +392,21 @@ INTEGER_MAX = 2**53
 def check_integers(name, value, most=INTEGER_MAX):
     """``value`` (a number or nested list) as an int array, refusing booleans, numbers that
     are not whole (``4.7`` is not silently 4) and numbers larger than ``most`` in size
-    (before the cast to int64: ``1e20`` cast is no number, and numpy warns of it)."""
+    (before the cast to int64: ``1e20`` cast is no number, and numpy warns of it).
+
+    Parameters
+    ----------
+    name : str
+        The key or argument, for the message.
+    value : int or nested list of int
+        The numbers.
+    most : int
+        The largest size taken (:data:`INTEGER_MAX` unless the caller knows a bound).
+
+    Returns
+    -------
+    ndarray of int64
+    """
     check_numbers(name, value)
     try:
         arr = np.asarray(value, dtype=float)
