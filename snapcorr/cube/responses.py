@@ -30,6 +30,10 @@ PASSBAND_FRACTION = 0.5
 #: How far below zero a measured curve may dip, as a fraction of its largest value
 #: (measurement noise about a zero baseline: a real band-pass dips to -0.0008 of 0.97).
 NOISE_FRACTION = 0.01
+#: The narrowest virtual band, in steps of the responses' grid: a Gaussian narrower than
+#: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none). The
+#: bound of ``--virtual-fwhm-nm`` and of a vendor file's virtual-band widths alike.
+MIN_FWHM_STEPS = 2.0
 
 
 class Peak(NamedTuple):

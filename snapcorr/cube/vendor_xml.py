@@ -38,7 +38,13 @@ import numpy as np
 
 from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um, shown
 from ..files.reading import check_input
-from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
+from .responses import (
+    MIN_FWHM_STEPS,
+    NOISE_FRACTION,
+    CorrectionMatrix,
+    FilterResponses,
+    Peak,
+)
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
 
@@ -450,7 +456,7 @@ def _older(f, root, info):
     if sci is not None and sci.find("virtual_bands") is not None:
         fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
                         required=False, default=np.nan)
-        matrices = (_older_matrix(f, sci, n_bands, fwhm),)
+        matrices = (_older_matrix(f, sci, n_bands, fwhm, grid),)
     _matrices_on_grid(f, matrices, grid, "spectral_correction_info/virtual_bands")
     return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
                              matrices, bits)
@@ -464,12 +470,13 @@ def _responses(f, grid, curves, system, peaks, name):
         f.fail(str(err))
 
 
-def _older_matrix(f, sci, n_bands, fwhm):
+def _older_matrix(f, sci, n_bands, fwhm, grid):
     where = "spectral_correction_info/virtual_bands"
     rows, wl = [], []
     for k, band in enumerate(sci.find("virtual_bands").findall("band")):
         w = f"{where}/band[{k}]"
         wl.append(f.number(band, w, "wavelength_nm"))
+        _virtual_width(f, fwhm, wl[-1], grid, "spectral_correction_info/fwhm_virtual_filters_nm")
         holder = f.child(band, w, "custom_spectral_correction")
         node = f.child(holder, f"{w}/custom_spectral_correction", "data")
         rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands,
@@ -480,6 +487,24 @@ def _older_matrix(f, sci, n_bands, fwhm):
         return CorrectionMatrix("custom", "irradiance", wl, np.full(len(wl), fwhm), rows)
     except ValueError as err:
         f.fail(str(err))
+
+
+def _virtual_width(f, fwhm, wavelength_nm, grid, tag):
+    """Refuse a virtual band's stated width (``<tag>``; NaN: not given) the responses' grid
+    cannot make: narrower than :data:`~snapcorr.cube.responses.MIN_FWHM_STEPS` of its steps
+    where the band sits (the bound a width asked for in a correction has: 1e-300 nm made
+    Gaussians that overflowed and drew nothing), or wider than the whole grid."""
+    if not np.isfinite(fwhm):
+        return
+    step = float(np.interp(wavelength_nm, grid[1:], np.diff(grid)))
+    if fwhm < MIN_FWHM_STEPS * step:
+        f.fail(f"<{tag}> is {fwhm:g} nm at {wavelength_nm:g} nm, narrower than the responses' "
+               f"grid resolves ({MIN_FWHM_STEPS:g} of its {step:g} nm steps): a virtual band "
+               f"is at least {MIN_FWHM_STEPS * step:g} nm wide there")
+    span = float(grid[-1] - grid[0])
+    if fwhm > span:
+        f.fail(f"<{tag}> is {fwhm:g} nm, wider than the whole response grid "
+               f"({grid[0]:g}-{grid[-1]:g} nm): the bands cannot make a virtual band so wide")
 
 
 def _matrices_on_grid(f, matrices, grid, where):
@@ -534,7 +559,7 @@ def _newer(f, root, info):
         names.append((kind.text or "").strip() if kind is not None and kind.text else
                      f"component {k}")
     responses = _responses(f, grid, curves, system, peaks, " x ".join(names) or "none")
-    matrices = tuple(_newer_matrix(f, m, k, n_bands)
+    matrices = tuple(_newer_matrix(f, m, k, n_bands, grid)
                      for k, m in enumerate(root.iter("correction_matrix")))
     names_seen = [m.name for m in matrices]
     if len(set(names_seen)) != len(names_seen):
@@ -544,7 +569,7 @@ def _newer(f, root, info):
                              matrices, bits)
 
 
-def _newer_matrix(f, m, k, n_bands):
+def _newer_matrix(f, m, k, n_bands, grid):
     where = f"correction_matrices/correction_matrix[{k}]"
     name_node = f.child(m, where, "name")
     name = (name_node.text or "").strip() or f"matrix {k}"
@@ -558,6 +583,7 @@ def _newer_matrix(f, m, k, n_bands):
         w = f"{where}/virtual_bands/virtual_band[{j}]"
         wl.append(f.number(vb, w, "wavelength_nm"))
         fw.append(f.number(vb, w, "fwhm_nm", required=False, default=np.nan))
+        _virtual_width(f, fw[-1], wl[-1], grid, f"{w}/fwhm_nm")
         rows.append(f.numbers(f.child(vb, w, "coefficients"), f"{w}/coefficients",
                               count=n_bands))
     if not rows:

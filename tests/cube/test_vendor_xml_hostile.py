@@ -204,3 +204,30 @@ def test_a_stated_count_is_compared_before_the_values_are_parsed(tmp_path):
     path = tmp_path / "first.xml"
     path.write_text(text, encoding="utf-8")
     _refused(path, r"states nr_elements=\"27\", but .* holds 26 values")
+
+
+@pytest.mark.parametrize("fwhm", ["1e-300", "1", "1e300"])
+def test_an_older_virtual_band_width_the_grid_cannot_make_is_refused(tmp_path, fwhm):
+    """<fwhm_virtual_filters_nm>1e-300</...> was read (0 was refused), and the sensor's plot
+    then overflowed and drew no Gaussians: the width has the bound a correction's virtual
+    width has, two steps of the response grid (2 nm here), and at most the whole grid."""
+    path = _real(tmp_path, "fw.xml", "<fwhm_virtual_filters_nm>15<",
+                 f"<fwhm_virtual_filters_nm>{fwhm}<")
+    _refused(path, re.escape(f"<spectral_correction_info/fwhm_virtual_filters_nm> is "
+                             f"{float(fwhm):g} nm"))
+
+
+def test_an_older_virtual_band_width_of_two_grid_steps_is_read(tmp_path):
+    path = _real(tmp_path, "fw.xml", "<fwhm_virtual_filters_nm>15<",
+                 "<fwhm_virtual_filters_nm>2<")
+    assert np.all(Sensor.load(path).matrices[0].fwhm_nm == 2.0)
+
+
+def test_a_newer_virtual_band_width_the_grid_cannot_make_is_refused(tmp_path):
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[-1]
+    fw = np.array(fw, float)
+    fw[3] = 1e-300
+    fx = dataclasses.replace(fx, matrices=[*fx.matrices[:-1], (name, kind, wl, fw, coeffs)])
+    _refused(write_newer(tmp_path / "fw.xml", fx),
+             r"virtual_band\[3\]/fwhm_nm> is 1e-300 nm at .* narrower than the responses' grid")
