@@ -124,18 +124,21 @@ class _File:
         if node is None:
             return default
         text = (node.text or "").strip()
+        if len(text) > MAX_CHARS_PER_VALUE:  # measured, not parsed: 10 MiB of digits took 1 s
+            self.fail(f"<{where}/{tags[0]}> holds {len(text):,} characters, {shown(text)}: "
+                      f"no number is written in more than {MAX_CHARS_PER_VALUE}")
         try:
             value = float(text) if "_" not in text else float("x")
         except ValueError:
-            self.fail(f"<{where}/{tags[0]}> must be a number, got {text[:40]!r}")
+            self.fail(f"<{where}/{tags[0]}> must be a number, got {shown(text)}")
         if not np.isfinite(value):
-            self.fail(f"<{where}/{tags[0]}> must be finite, got {text!r}")
+            self.fail(f"<{where}/{tags[0]}> must be finite, got {shown(text)}")
         if integer:
             if value != round(value):
-                self.fail(f"<{where}/{tags[0]}> must be a whole number, got {text!r}")
+                self.fail(f"<{where}/{tags[0]}> must be a whole number, got {shown(text)}")
             value = round(value)
         if minimum is not None and value < minimum:
-            self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {text!r}")
+            self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {shown(text)}")
         return value
 
     def numbers(self, node, where, count=None, holder=None):
@@ -171,7 +174,7 @@ class _File:
             values = np.array([float(p) for p in parts])
         except ValueError:
             bad = next(p for p in parts if not _is_float(p))
-            self.fail(f"<{where}> holds {bad[:40]!r}, not a number")
+            self.fail(f"<{where}> holds {shown(bad)}, not a number")
         if values.size == 0:
             self.fail(f"<{where}> holds no numbers")
         if not np.all(np.isfinite(values)):
@@ -252,8 +255,8 @@ def read_vendor_file(path) -> VendorCalibration:
     except DefusedXmlException as err:
         f.fail(_unsafe_xml(err))
     if root.tag != "sensor_calibration":
-        f.fail(f"root element <{root.tag}>, expected <sensor_calibration>: not a sensor "
-               "calibration file")
+        f.fail(f"root element <{shown(root.tag, quote=False)}>, expected <sensor_calibration>: "
+               "not a sensor calibration file")
     info = f.child(root, "sensor_calibration", "filter_info")
     if info.find("filter_zones") is not None:
         return _newer(f, root, info)
@@ -308,7 +311,8 @@ def _sensor_info(f, root, variant):
 def _layout(f, el, where):
     layout = (el.get("layout") or "MOSAIC").strip().upper()
     if layout != "MOSAIC":
-        f.fail(f"<{where}> has layout {layout}; only MOSAIC sensors are read for now")
+        f.fail(f"<{where}> has layout {shown(layout, quote=False)}; only MOSAIC sensors are "
+               "read for now")
 
 
 def _area_and_tile(f, el, where, size_px):
@@ -378,7 +382,7 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         raw = next((band.get(a) for a in index_attrs if band.get(a) is not None), None)
         if raw is None or not _WHOLE.fullmatch(raw.strip()) or raw.strip().startswith("-"):
             f.fail(f"a <{where}/band> has no whole-number {index_attrs[0]} attribute "
-                   f"(got {raw!r})")
+                   f"(got {shown(raw)})")
         i = int(raw)
         if i in by_index:
             f.fail(f"<{where}> lists band {i} twice")
@@ -513,7 +517,7 @@ def _matrices_on_grid(f, matrices, grid, where):
     for m in matrices:
         out = [w for w in np.asarray(m.wavelength_nm, float) if not grid[0] <= w <= grid[-1]]
         if out:
-            f.fail(f"<{where}> {m.name!r} has a virtual band at {out[0]:g} nm, outside the "
+            f.fail(f"<{where}> {shown(m.name)} has a virtual band at {out[0]:g} nm, outside the "
                    f"responses' {grid[0]:g}-{grid[-1]:g} nm")
 
 
@@ -563,7 +567,7 @@ def _newer(f, root, info):
                      for k, m in enumerate(root.iter("correction_matrix")))
     names_seen = [m.name for m in matrices]
     if len(set(names_seen)) != len(names_seen):
-        f.fail(f"two correction matrices share a name ({names_seen})")
+        f.fail(f"two correction matrices share a name ({shown(names_seen, 80)})")
     _matrices_on_grid(f, matrices, grid, "correction_matrices/correction_matrix")
     return VendorCalibration(str(f.path), "newer", size, pitch, area, tile, responses,
                              matrices, bits)
@@ -576,7 +580,7 @@ def _newer_matrix(f, m, k, n_bands, grid):
     kind_node = f.child(m, where, "type")
     kind = (kind_node.text or "").strip().lower()
     if kind not in ("reflectance", "irradiance"):
-        f.fail(f"<{where}/type> is {kind!r}; expected reflectance or irradiance")
+        f.fail(f"<{where}/type> is {shown(kind)}; expected reflectance or irradiance")
     rows, wl, fw = [], [], []
     vbs = f.child(m, where, "virtual_bands").findall("virtual_band")
     for j, vb in enumerate(vbs):

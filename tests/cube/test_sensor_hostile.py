@@ -96,3 +96,13 @@ def test_a_whole_number_beyond_int64_is_refused_before_any_cast(tmp_path, cli, k
     (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
     err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
     assert key in err and "warning" not in err and "cast" not in err, err
+
+
+@pytest.mark.parametrize("key, value", [
+    ("layout", '"' + "x" * 100_000 + '"'),
+    ("profile", '"' + "y" * 100_000 + '"'),
+], ids=["layout", "profile"])
+def test_text_of_100_kb_in_a_sensor_file_is_quoted_as_an_excerpt(tmp_path, cli, key, value):
+    (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
+    err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
+    assert len(err) < 400 and value[1:21] in err, err[:500]

@@ -275,3 +275,21 @@ def test_envi_snapcorr_attrs_that_are_no_json_object_are_refused(tmp_path, monke
                      "--sensor", "sensor.toml", "--out", "o.nc")
     line = assert_refused(rc, err, "scene.hdr", "snapcorr attrs", "JSON object")
     assert "dictionary update" not in line
+
+
+@pytest.mark.parametrize("field, value", [
+    ("byte order", "1" * 100_000),
+    ("interleave", "x" * 100_000),
+    ("data ignore value", "y" * 100_000),
+    ("samples", "9" * 100_000),
+], ids=["byte-order", "interleave", "data-ignore-value", "samples"])
+def test_an_envi_header_value_of_100_kb_is_quoted_as_an_excerpt(tmp_path, monkeypatch, cli,
+                                                                field, value):
+    """A header line of 100 000 characters was quoted whole in the error."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, shape=(6, 5, 4))
+    write_envi(tmp_path / "scene", np.ones((6, 5, 4), np.float32), fields={field: value})
+    rc, _, err = cli("flatfield", "scene.hdr", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "sensor.toml", "--out", "o.nc")
+    line = assert_refused(rc, err, "scene.hdr", field)
+    assert len(line) < 300 and value[:20] in line, line[:400]

@@ -260,3 +260,14 @@ def test_more_circles_than_a_lens_has_are_refused_by_every_entry():
                  lambda: discs.extreme_radii(0.0, r, c)):
         with pytest.raises(ValueError, match="radii holds 11 discs; at most 10"):
             call()
+
+
+@pytest.mark.parametrize("body", [
+    '[lens]\nexit_pupil_mm = "' + "x" * 100_000 + '"\n',
+    '[lens]\nexit_pupil_mm = 21.0\nvignetting = ["' + "v" * 100_000 + '"]\n',
+], ids=["exit_pupil_mm", "vignetting"])
+def test_text_of_100_kb_in_a_lens_file_is_quoted_as_an_excerpt(tmp_path, cli, body):
+    (tmp_path / "l.toml").write_text(body)
+    err = refused_in_one_line(cli("shift", "--lens", "l.toml", "--f-number", "2.8", "--cra",
+                                  "5", cwd=tmp_path))
+    assert len(err) < 400, err[:500]
