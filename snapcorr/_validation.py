@@ -95,9 +95,30 @@ def renamed_keywords(**renames):
     return decorate
 
 
-def shown(value, limit=40):
+def shown(value, limit=40, *, quote=True):
     """``repr(value)`` cut to ``limit`` characters, for messages (a 400-digit integer from a
-    TOML file is no better shown whole)."""
+    TOML file is no better shown whole, nor ten megabytes of digits from an XML element).
+
+    Parameters
+    ----------
+    value : object
+        What a message quotes; a long string is cut before its ``repr`` is taken (the time
+        is the limit's, not the value's).
+    limit : int
+        The most characters shown, ``...`` included.
+    quote : bool
+        False: a string as it is, not its ``repr`` (``byte order = 2``).
+
+    Returns
+    -------
+    str
+    """
+    if isinstance(value, str):
+        cut = value[:limit + 1]
+        r = repr(cut) if quote else cut
+        if len(cut) <= limit and len(r) <= limit:
+            return r
+        return r[:limit - 3] + "..."
     r = repr(value)
     return r if len(r) <= limit else r[:limit - 3] + "..."
 
@@ -363,9 +384,29 @@ def check_numbers(name, value):
     return value
 
 
-def check_integers(name, value):
-    """``value`` (a number or nested list) as an int array, refusing booleans and numbers
-    that are not whole (``4.7`` is not silently 4)."""
+#: The largest whole number :func:`check_integers` takes unless told a bound: every integer
+#: up to it is exact as a float (2**53), and far inside int64, so no cast wraps it.
+INTEGER_MAX = 2**53
+
+
+def check_integers(name, value, most=INTEGER_MAX):
+    """``value`` (a number or nested list) as an int array, refusing booleans, numbers that
+    are not whole (``4.7`` is not silently 4) and numbers larger than ``most`` in size
+    (before the cast to int64: ``1e20`` cast is no number, and numpy warns of it).
+
+    Parameters
+    ----------
+    name : str
+        The key or argument, for the message.
+    value : int or nested list of int
+        The numbers.
+    most : int
+        The largest size taken (:data:`INTEGER_MAX` unless the caller knows a bound).
+
+    Returns
+    -------
+    ndarray of int64
+    """
     check_numbers(name, value)
     try:
         arr = np.asarray(value, dtype=float)
@@ -373,6 +414,9 @@ def check_integers(name, value):
         raise ValueError(f"{name} must be whole numbers, got {shown(value)}") from None
     if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
         raise ValueError(f"{name} must be whole numbers, got {shown(value)}")
+    if np.any(np.abs(arr) > most):  # refused before the cast (1e20 cast to int64 is garbage)
+        raise ValueError(f"{name} must be whole numbers of at most {most:,}, got "
+                         f"{shown(value)}")
     return arr.astype(np.int64)
 
 

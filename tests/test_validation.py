@@ -71,6 +71,17 @@ def test_shown_cuts_long_values():
     assert len(big) == 40 and big.endswith("...") and big.startswith("1000")
 
 
+def test_shown_cuts_a_long_string_before_taking_its_repr():
+    """Ten megabytes of digits from a file are shown as 40 characters, the repr taken of the
+    cut (a string of quotes and backslashes grows under repr, and is cut after)."""
+    text = "1" * 10 * 2**20
+    assert shown(text) == "'" + "1" * 36 + "..."
+    assert shown(text, quote=False) == "1" * 37 + "..."
+    assert shown("short") == "'short'" and shown("short", quote=False) == "short"
+    assert len(shown("\\" * 1000)) == 40 and len(shown("a" * 39)) == 40
+    assert shown("a" * 38) == "'" + "a" * 38 + "'"
+
+
 @pytest.mark.parametrize(("value", "msg"), [
     (True, "a number, got a boolean"), ("1.7", "a number, got text"), ([1.0], "a number"),
     (0.0, "a finite number > 0"), (-2, "a finite number > 0"),

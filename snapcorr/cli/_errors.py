@@ -81,7 +81,8 @@ def _message(err, options=None):
     library message names no option: which a command has, only the command knows), and
     ``keyword='choice'``, ``keyword=True`` and ``keyword= (a, b)`` the option as typed
     (``--virtual-bands fitted``, ``--fit-n-eff``, ``--sensor-origin-px a,b``)."""
-    message = " ".join(str(err).split())  # libraries' messages may span lines
+    message = _cut(str(err))
+    message = " ".join(message.split())  # libraries' messages may span lines
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
     for keyword, option in (options or {}).items():
@@ -96,6 +97,20 @@ def _message(err, options=None):
         if message.startswith(keyword) and _CHECK_VERBS.match(message, len(keyword)):
             return option + message[len(keyword):]
     return message
+
+
+#: The longest message said whole, in characters: every message of snapcorr's is far shorter
+#: (a few hundred); a longer one quotes something whole (a library's, or a value read from a
+#: file), and is cut before it is rewritten, so that the rewriting takes the time of this
+#: many characters (ten megabytes took 33 s) and the line stays one a terminal shows.
+MESSAGE_MAX = 2000
+
+
+def _cut(text):
+    """``text`` cut to :data:`MESSAGE_MAX` characters, saying how much was left out."""
+    if len(text) <= MESSAGE_MAX:
+        return text
+    return f"{text[:MESSAGE_MAX]}... ({len(text) - MESSAGE_MAX:,} more characters left out)"
 
 
 def command_parser(parser, command):

@@ -44,6 +44,7 @@ import xarray as xr
 
 from .._threads import one_blas_thread
 from .._validation import validate_method
+from ..cube import responses as _responses
 from ..cube.flatfield import cf_attrs
 
 __all__ = ["VIRTUAL_METHODS", "VirtualBandOptions", "apply_virtual", "virtual_bands",
@@ -116,9 +117,9 @@ def _vendor(sensor, name, reflectance):
     return chosen, A, how
 
 
-#: The narrowest virtual band, in steps of the responses' grid: a Gaussian narrower than
-#: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none).
-MIN_FWHM_STEPS = 2.0
+#: The narrowest virtual band, in steps of the responses' grid: kept with the responses
+#: (:data:`snapcorr.cube.responses.MIN_FWHM_STEPS`), whose vendor files state widths too.
+MIN_FWHM_STEPS = _responses.MIN_FWHM_STEPS
 
 
 def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):

@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._validation import check_wavelengths_nm
+from .._validation import check_wavelengths_nm, shown
 
 __all__ = ["MATRIX_KINDS", "CorrectionMatrix", "FilterResponses", "Peak"]
 
@@ -30,6 +30,10 @@ PASSBAND_FRACTION = 0.5
 #: How far below zero a measured curve may dip, as a fraction of its largest value
 #: (measurement noise about a zero baseline: a real band-pass dips to -0.0008 of 0.97).
 NOISE_FRACTION = 0.01
+#: The narrowest virtual band, in steps of the responses' grid: a Gaussian narrower than
+#: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none). The
+#: bound of ``--virtual-fwhm-nm`` and of a vendor file's virtual-band widths alike.
+MIN_FWHM_STEPS = 2.0
 
 
 class Peak(NamedTuple):
@@ -209,19 +213,20 @@ class CorrectionMatrix:
         set_ = object.__setattr__
         if self.kind not in MATRIX_KINDS:
             raise ValueError(f"a correction matrix's type must be one of {MATRIX_KINDS}, got "
-                             f"{self.kind!r}")
+                             f"{shown(self.kind)}")
         wl = np.atleast_1d(np.asarray(self.wavelength_nm, float))
         if wl.ndim != 1 or wl.size == 0:
-            raise ValueError(f"matrix {self.name!r}: virtual band wavelengths must be a list of "
-                             "numbers")
+            raise ValueError(f"matrix {shown(self.name)}: virtual band wavelengths must be a "
+                             "list of numbers")
         # in nm, distinct: a result's virtual bands are written with them and read back
-        wl = check_wavelengths_nm("virtual band wavelengths", wl, where=f"matrix {self.name!r}")
+        wl = check_wavelengths_nm("virtual band wavelengths", wl,
+                                  where=f"matrix {shown(self.name)}")
         fw = np.broadcast_to(np.asarray(self.fwhm_nm, float), wl.shape)
         if np.any(fw[np.isfinite(fw)] <= 0) or np.any(np.isinf(fw)):
-            raise ValueError(f"matrix {self.name!r}: virtual band widths must be > 0")
+            raise ValueError(f"matrix {shown(self.name)}: virtual band widths must be > 0")
         c = np.asarray(self.coefficients, float)
         if c.ndim != 2 or c.shape[0] != wl.size or not np.all(np.isfinite(c)):
-            raise ValueError(f"matrix {self.name!r}: coefficients must be finite, one row per "
+            raise ValueError(f"matrix {shown(self.name)}: coefficients must be finite, one row per "
                              f"virtual band ({wl.size}), got shape {c.shape}")
         set_(self, "name", str(self.name))
         set_(self, "wavelength_nm", _frozen(wl))

@@ -154,7 +154,7 @@ class Sensor:
     def __post_init__(self):
         set_ = object.__setattr__
         if self.layout not in LAYOUTS:
-            raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
+            raise ValueError(f"layout must be one of {LAYOUTS}, got {shown(self.layout)}")
         set_(self, "name", str(self.name))
         if self.pixel_pitch_um is not None:
             set_(self, "pixel_pitch_um", check_pixel_pitch_um("pixel_pitch_um",
@@ -174,10 +174,11 @@ class Sensor:
         if self.layout == "mosaic":
             if self.mosaic_shape is None or self.band_offset is None:
                 raise ValueError("a mosaic sensor needs mosaic_shape and band_offset")
-            shape = tuple(int(v) for v in check_integers("mosaic_shape", self.mosaic_shape).ravel())
+            shape = tuple(int(v) for v in check_integers("mosaic_shape", self.mosaic_shape,
+                                                          SENSOR_PX_MAX).ravel())
             if len(shape) != 2 or min(shape) < 1:
                 raise ValueError(f"mosaic_shape must be [rows, cols] >= 1, got {shape}")
-            off = check_integers("band_offset", self.band_offset)
+            off = check_integers("band_offset", self.band_offset, SENSOR_PX_MAX)
             if off.shape != (n, 2):
                 raise ValueError(f"band_offset must list one [row, col] per band ({n}), got "
                                  f"shape {off.shape}")
@@ -190,14 +191,14 @@ class Sensor:
         elif self.mosaic_shape is not None or self.band_offset is not None:
             raise ValueError("mosaic_shape and band_offset apply to layout = 'mosaic' only")
         if self.size_px is not None:
-            size = check_integers("size_px", self.size_px)
+            size = check_integers("size_px", self.size_px, SENSOR_PX_MAX)
             if size.shape != (2,) or np.any(size < 1) or np.any(size > SENSOR_PX_MAX):
                 raise ValueError(f"size_px must be [rows, cols], whole numbers 1-"
                                  f"{SENSOR_PX_MAX}, got {shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
         set_(self, "profile", str(self.profile))
         if self.bit_depth is not None:
-            bits = check_integers("bit_depth", self.bit_depth)
+            bits = check_integers("bit_depth", self.bit_depth, BIT_DEPTH_MAX)
             if bits.shape != () or not 1 <= int(bits) <= BIT_DEPTH_MAX:
                 raise ValueError(f"bit_depth must be a whole number of bits, 1-{BIT_DEPTH_MAX}, "
                                  f"got {shown(self.bit_depth)}")
@@ -217,7 +218,7 @@ class Sensor:
                 raise ValueError(f"the measured responses have {self.responses.n_bands} bands, "
                                  f"cwl_nm {n}")
             if self.profile not in ("gaussian", MEASURED):  # gaussian: the default, unset
-                raise ValueError(f"profile {self.profile!r} and measured responses both say "
+                raise ValueError(f"profile {shown(self.profile)} and measured responses both say "
                                  "what the filters are; the measured responses are used")
             set_(self, "profile", MEASURED)
         elif self.profile == MEASURED:
@@ -228,17 +229,17 @@ class Sensor:
             if not isinstance(m, CorrectionMatrix):
                 raise TypeError("matrices must be CorrectionMatrix objects")
             if m.coefficients.shape[1] != n:
-                raise ValueError(f"correction matrix {m.name!r} has {m.coefficients.shape[1]} "
+                raise ValueError(f"correction matrix {shown(m.name)} has {m.coefficients.shape[1]} "
                                  f"columns, the sensor {n} bands")
         set_(self, "matrices", matrices)
         if self.filter_area_px is not None:
             if self.layout != "mosaic":
                 raise ValueError("filter_area_px applies to layout = 'mosaic' only")
-            area = check_integers("filter_area_px", self.filter_area_px)
+            area = check_integers("filter_area_px", self.filter_area_px, SENSOR_PX_MAX)
             if area.shape != (4,) or np.any(area[:2] < 0) or np.any(area[2:] < 1):
                 raise ValueError(f"filter_area_px must be [row, col, rows, cols] (whole "
                                  f"numbers, offsets >= 0, sizes >= 1), got "
-                                 f"{self.filter_area_px!r}")
+                                 f"{shown(self.filter_area_px)}")
             if self.size_px is not None and (area[0] + area[2] > self.size_px[0]
                                              or area[1] + area[3] > self.size_px[1]):
                 raise ValueError(f"filter_area_px {area.tolist()} extends beyond size_px "
@@ -345,7 +346,7 @@ class Sensor:
         """
         value = getattr(self, key)
         if value is None:
-            raise ValueError(f"{what} needs the sensor {self.name!r} to give {_NEEDS[key]}")
+            raise ValueError(f"{what} needs the sensor {shown(self.name)} to give {_NEEDS[key]}")
         return value
 
     @property
@@ -371,7 +372,8 @@ class Sensor:
         ndarray of int, shape (n_bands, 2)
         """
         if self.layout != "mosaic":
-            raise ValueError(f"sensor {self.name!r} is not a mosaic (layout {self.layout!r})")
+            raise ValueError(f"sensor {shown(self.name)} is not a mosaic (layout "
+                             f"{shown(self.layout)})")
         tile = np.array(self.mosaic_shape)
         corner = np.asarray(sensor_origin_px, dtype=np.int64)
         phase = (corner - np.array(self.tile_origin_px)) % tile
@@ -423,14 +425,15 @@ class Sensor:
         """
         nb = cube.sizes.get("band")
         if nb != self.n_bands:
-            raise ValueError(f"{what} has {nb} bands, the sensor {self.name!r} {self.n_bands}; "
-                             "use the sensor it was taken with")
+            raise ValueError(f"{what} has {nb} bands, the sensor {shown(self.name)} "
+                             f"{self.n_bands}; use the sensor it was taken with")
         if "wavelength" in cube.coords:
             off = np.max(np.abs(np.asarray(cube["wavelength"].values, float)
                                 - np.asarray(self.cwl_nm, float)))
             if not off <= atol_nm:
-                raise ValueError(f"{what}'s wavelengths differ from the sensor {self.name!r}'s "
-                                 f"(by up to {off:.3g} nm); use the matching sensor")
+                raise ValueError(f"{what}'s wavelengths differ from the sensor "
+                                 f"{shown(self.name)}'s (by up to {off:.3g} nm); use the "
+                                 "matching sensor")
 
     def describe(self) -> str:
         """What the description holds, as text: layout, area, bands (with their main peaks
@@ -509,7 +512,7 @@ class Sensor:
                 d["bit_depth"] = self.bit_depth
             return d
         if self.responses is not None or self.matrices:
-            raise ValueError(f"the sensor {self.name!r} has measured responses or correction "
+            raise ValueError(f"the sensor {shown(self.name)} has measured responses or correction "
                              "matrices but no vendor file to name; a sensor TOML holds them only "
                              "as the vendor's file it names (vendor_file)")
         d = {"name": self.name, "layout": self.layout, "pixel_pitch_um": self.pixel_pitch_um,
@@ -536,9 +539,9 @@ class Sensor:
     def from_dict(cls, table: dict, *, calibration: dict | None = None) -> Sensor:
         unknown = set(table) - _KEYS
         if unknown:
-            raise ValueError(f"unknown key(s) in [sensor]: {sorted(unknown)}; valid keys are "
-                             f"{sorted(_KEYS)} (or vendor_file, naming a vendor calibration "
-                             ".xml)")
+            raise ValueError(f"unknown key(s) in [sensor]: {shown(sorted(unknown), 120)}; "
+                             f"valid keys are {sorted(_KEYS)} (or vendor_file, naming a vendor "
+                             "calibration .xml)")
         missing = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff"} - set(table)
         if missing:
             raise ValueError(f"[sensor] is missing required key(s) {sorted(missing)}")
@@ -623,11 +626,11 @@ class Sensor:
         if unknown:
             raise ValueError(f"a sensor naming vendor_file takes its other keys from that file; "
                              f"it may add or override only {list(VENDOR_OVERRIDES)}, got "
-                             f"{unknown}")
+                             f"{shown(unknown, 120)}")
         target = path.parent / vendor
         if not target.exists():
             raise FileNotFoundError(
-                f"{path}: its vendor_file {vendor!r} is not found (looked for "
+                f"{path}: its vendor_file {shown(vendor)} is not found (looked for "
                 f"{target.resolve()}"
                 + ("" if Path(vendor).is_absolute() else ", relative to the sensor file")
                 + "): put the vendor's .xml there, or correct vendor_file")
@@ -668,7 +671,7 @@ def _read_shape_cached(path):
     p = Path(path)
     if p.suffix.lower() not in (".csv", ".txt", ".tsv", ".dat"):
         raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)} or a two-column "
-                         f"file (.csv, .txt), got {p.name!r}")
+                         f"file (.csv, .txt), got {shown(p.name)}")
     from ..files.reading import check_input
 
     try:
@@ -685,7 +688,7 @@ def _read_shape_cached(path):
             rows.append([float(v) for v in parts])
         except ValueError:
             if rows:  # a header is allowed before the numbers only
-                raise ValueError(f"{p}, line {k + 1}: not numbers: {line!r}") from None
+                raise ValueError(f"{p}, line {k + 1}: not numbers: {shown(line)}") from None
     if not rows or any(len(r) != 2 for r in rows) or len(rows) < 3:
         raise ValueError(f"{p}: need two columns (offset from the band's centre, nm; "
                          "transmission) and at least 3 rows")

@@ -36,9 +36,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um
+from .._validation import SENSOR_PX_MAX, check_pixel_pitch_um, shown
 from ..files.reading import check_input
-from .responses import NOISE_FRACTION, CorrectionMatrix, FilterResponses, Peak
+from .responses import (
+    MIN_FWHM_STEPS,
+    NOISE_FRACTION,
+    CorrectionMatrix,
+    FilterResponses,
+    Peak,
+)
 
 __all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
 
@@ -53,6 +59,8 @@ MAX_SAMPLES = 100_000
 #: with its separators: a list longer than this per value it should hold is refused before
 #: it is split.
 MAX_CHARS_PER_VALUE = 64
+#: The attribute a file states an element's count of values in (``nr_elements="601"``).
+COUNT_ATTRIBUTE = "nr_elements"
 _SPLIT = re.compile(r"[,\s;]+")
 #: A whole number as files write one: ASCII digits (``str.isdigit`` also takes "²").
 _WHOLE = re.compile(r"-?[0-9]+")
@@ -116,27 +124,32 @@ class _File:
         if node is None:
             return default
         text = (node.text or "").strip()
+        if len(text) > MAX_CHARS_PER_VALUE:  # measured, not parsed: 10 MiB of digits took 1 s
+            self.fail(f"<{where}/{tags[0]}> holds {len(text):,} characters, {shown(text)}: "
+                      f"no number is written in more than {MAX_CHARS_PER_VALUE}")
         try:
             value = float(text) if "_" not in text else float("x")
         except ValueError:
-            self.fail(f"<{where}/{tags[0]}> must be a number, got {text[:40]!r}")
+            self.fail(f"<{where}/{tags[0]}> must be a number, got {shown(text)}")
         if not np.isfinite(value):
-            self.fail(f"<{where}/{tags[0]}> must be finite, got {text!r}")
+            self.fail(f"<{where}/{tags[0]}> must be finite, got {shown(text)}")
         if integer:
             if value != round(value):
-                self.fail(f"<{where}/{tags[0]}> must be a whole number, got {text!r}")
+                self.fail(f"<{where}/{tags[0]}> must be a whole number, got {shown(text)}")
             value = round(value)
         if minimum is not None and value < minimum:
-            self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {text!r}")
+            self.fail(f"<{where}/{tags[0]}> must be >= {minimum}, got {shown(text)}")
         return value
 
-    def numbers(self, node, where, count=None):
+    def numbers(self, node, where, count=None, holder=None):
         """The numbers of a ``values`` attribute or of the element's text.
 
         The text's length is bounded before it is split and the count compared before any
         value is parsed: a list of millions of numbers is refused in the time it takes to
         measure it, not after every value is read (at most :data:`MAX_SAMPLES` values, or
-        ``count``).
+        ``count``). A count the file states (``nr_elements`` of the element, or of
+        ``holder``, the element that holds it: ``<response_composition nr_elements="601">
+        <data>``) must be the number of values there, compared before they are parsed.
         """
         text = node.get("values")
         if text is None:
@@ -147,6 +160,9 @@ class _File:
                       f"{most} numbers take" + ("" if count is not None else
                                                 " (no calibration curve has more samples)"))
         parts = [p for p in _SPLIT.split(text.strip()) if p]
+        for el, at in ((node, where), (holder, where.rpartition("/")[0])):
+            if el is not None and el.get(COUNT_ATTRIBUTE) is not None:
+                self._stated(el.get(COUNT_ATTRIBUTE), at, len(parts), where)
         if count is not None and len(parts) != count:
             self.fail(f"<{where}> holds {len(parts)} values, expected {count}")
         if len(parts) > MAX_SAMPLES:
@@ -158,12 +174,21 @@ class _File:
             values = np.array([float(p) for p in parts])
         except ValueError:
             bad = next(p for p in parts if not _is_float(p))
-            self.fail(f"<{where}> holds {bad[:40]!r}, not a number")
+            self.fail(f"<{where}> holds {shown(bad)}, not a number")
         if values.size == 0:
             self.fail(f"<{where}> holds no numbers")
         if not np.all(np.isfinite(values)):
             self.fail(f"<{where}> holds a value that is not finite")
         return values
+
+    def _stated(self, raw, at, found, where):
+        """Refuse a count ``raw`` stated on ``<at>`` that is not the ``found`` values of
+        ``<where>``: a file whose counts disagree is no file its writer finished."""
+        said = f'<{at}> states {COUNT_ATTRIBUTE}="{shown(raw, quote=False)}"'
+        if not _WHOLE.fullmatch(raw.strip()) or raw.strip().startswith("-"):
+            self.fail(f"{said}: not a whole number >= 0")
+        if len(raw.strip()) > 20 or int(raw) != found:
+            self.fail(f"{said}, but <{where}> holds {found} values")
 
     def curve(self, values, where):
         """A transmission or response curve: not negative beyond measurement noise
@@ -230,8 +255,8 @@ def read_vendor_file(path) -> VendorCalibration:
     except DefusedXmlException as err:
         f.fail(_unsafe_xml(err))
     if root.tag != "sensor_calibration":
-        f.fail(f"root element <{root.tag}>, expected <sensor_calibration>: not a sensor "
-               "calibration file")
+        f.fail(f"root element <{shown(root.tag, quote=False)}>, expected <sensor_calibration>: "
+               "not a sensor calibration file")
     info = f.child(root, "sensor_calibration", "filter_info")
     if info.find("filter_zones") is not None:
         return _newer(f, root, info)
@@ -286,7 +311,8 @@ def _sensor_info(f, root, variant):
 def _layout(f, el, where):
     layout = (el.get("layout") or "MOSAIC").strip().upper()
     if layout != "MOSAIC":
-        f.fail(f"<{where}> has layout {layout}; only MOSAIC sensors are read for now")
+        f.fail(f"<{where}> has layout {shown(layout, quote=False)}; only MOSAIC sensors are "
+               "read for now")
 
 
 def _area_and_tile(f, el, where, size_px):
@@ -356,7 +382,7 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         raw = next((band.get(a) for a in index_attrs if band.get(a) is not None), None)
         if raw is None or not _WHOLE.fullmatch(raw.strip()) or raw.strip().startswith("-"):
             f.fail(f"a <{where}/band> has no whole-number {index_attrs[0]} attribute "
-                   f"(got {raw!r})")
+                   f"(got {shown(raw)})")
         i = int(raw)
         if i in by_index:
             f.fail(f"<{where}> lists band {i} twice")
@@ -370,11 +396,13 @@ def _bands(f, bands_el, where, index_attrs, n_bands, grid, response_tag):
         band = by_index[i]
         peaks.append(_peaks(f, band, w))
         _resolved(f, peaks[-1], grid, w)
-        node = band
+        node = holder = band
         for tag in response_tag:
-            node = f.child(node, w, tag)
+            holder, node = node, f.child(node, w, tag)
         where_curve = f"{w}/{'/'.join(response_tag)}"
-        curves.append(f.curve(f.numbers(node, where_curve, count=grid.size), where_curve))
+        curves.append(f.curve(f.numbers(node, where_curve, count=grid.size,
+                                        holder=holder if holder is not band else None),
+                              where_curve))
     return np.array(curves), tuple(peaks)
 
 
@@ -409,8 +437,9 @@ def _older(f, root, info):
     rej = info.find("rejection_filter")
     if rej is not None:
         where = "filter_info/rejection_filter"
-        node = f.child(f.child(rej, where, "filter_response"), where, "data")
-        values = f.curve(f.numbers(node, f"{where}/filter_response/data"),
+        holder = f.child(rej, where, "filter_response")
+        node = f.child(holder, where, "data")
+        values = f.curve(f.numbers(node, f"{where}/filter_response/data", holder=holder),
                          f"{where}/filter_response/data")
         if rej.find("wavelength_start_nm") is not None:
             own = _grid_from_range(f, rej, where)
@@ -431,7 +460,7 @@ def _older(f, root, info):
     if sci is not None and sci.find("virtual_bands") is not None:
         fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
                         required=False, default=np.nan)
-        matrices = (_older_matrix(f, sci, n_bands, fwhm),)
+        matrices = (_older_matrix(f, sci, n_bands, fwhm, grid),)
     _matrices_on_grid(f, matrices, grid, "spectral_correction_info/virtual_bands")
     return VendorCalibration(str(f.path), "older", size, pitch, area, tile, responses,
                              matrices, bits)
@@ -445,15 +474,17 @@ def _responses(f, grid, curves, system, peaks, name):
         f.fail(str(err))
 
 
-def _older_matrix(f, sci, n_bands, fwhm):
+def _older_matrix(f, sci, n_bands, fwhm, grid):
     where = "spectral_correction_info/virtual_bands"
     rows, wl = [], []
     for k, band in enumerate(sci.find("virtual_bands").findall("band")):
         w = f"{where}/band[{k}]"
         wl.append(f.number(band, w, "wavelength_nm"))
-        node = f.child(f.child(band, w, "custom_spectral_correction"),
-                       f"{w}/custom_spectral_correction", "data")
-        rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands))
+        _virtual_width(f, fwhm, wl[-1], grid, "spectral_correction_info/fwhm_virtual_filters_nm")
+        holder = f.child(band, w, "custom_spectral_correction")
+        node = f.child(holder, f"{w}/custom_spectral_correction", "data")
+        rows.append(f.numbers(node, f"{w}/custom_spectral_correction/data", count=n_bands,
+                              holder=holder))
     if not rows:
         f.fail(f"<{where}> lists no virtual band")
     try:
@@ -462,13 +493,31 @@ def _older_matrix(f, sci, n_bands, fwhm):
         f.fail(str(err))
 
 
+def _virtual_width(f, fwhm, wavelength_nm, grid, tag):
+    """Refuse a virtual band's stated width (``<tag>``; NaN: not given) the responses' grid
+    cannot make: narrower than :data:`~snapcorr.cube.responses.MIN_FWHM_STEPS` of its steps
+    where the band sits (the bound a width asked for in a correction has: 1e-300 nm made
+    Gaussians that overflowed and drew nothing), or wider than the whole grid."""
+    if not np.isfinite(fwhm):
+        return
+    step = float(np.interp(wavelength_nm, grid[1:], np.diff(grid)))
+    if fwhm < MIN_FWHM_STEPS * step:
+        f.fail(f"<{tag}> is {fwhm:g} nm at {wavelength_nm:g} nm, narrower than the responses' "
+               f"grid resolves ({MIN_FWHM_STEPS:g} of its {step:g} nm steps): a virtual band "
+               f"is at least {MIN_FWHM_STEPS * step:g} nm wide there")
+    span = float(grid[-1] - grid[0])
+    if fwhm > span:
+        f.fail(f"<{tag}> is {fwhm:g} nm, wider than the whole response grid "
+               f"({grid[0]:g}-{grid[-1]:g} nm): the bands cannot make a virtual band so wide")
+
+
 def _matrices_on_grid(f, matrices, grid, where):
     """Refuse a virtual band centred outside the measured responses: the matrix makes it from
     the bands, which see nothing there, and its wavelength would label the output."""
     for m in matrices:
         out = [w for w in np.asarray(m.wavelength_nm, float) if not grid[0] <= w <= grid[-1]]
         if out:
-            f.fail(f"<{where}> {m.name!r} has a virtual band at {out[0]:g} nm, outside the "
+            f.fail(f"<{where}> {shown(m.name)} has a virtual band at {out[0]:g} nm, outside the "
                    f"responses' {grid[0]:g}-{grid[-1]:g} nm")
 
 
@@ -514,30 +563,31 @@ def _newer(f, root, info):
         names.append((kind.text or "").strip() if kind is not None and kind.text else
                      f"component {k}")
     responses = _responses(f, grid, curves, system, peaks, " x ".join(names) or "none")
-    matrices = tuple(_newer_matrix(f, m, k, n_bands)
+    matrices = tuple(_newer_matrix(f, m, k, n_bands, grid)
                      for k, m in enumerate(root.iter("correction_matrix")))
     names_seen = [m.name for m in matrices]
     if len(set(names_seen)) != len(names_seen):
-        f.fail(f"two correction matrices share a name ({names_seen})")
+        f.fail(f"two correction matrices share a name ({shown(names_seen, 80)})")
     _matrices_on_grid(f, matrices, grid, "correction_matrices/correction_matrix")
     return VendorCalibration(str(f.path), "newer", size, pitch, area, tile, responses,
                              matrices, bits)
 
 
-def _newer_matrix(f, m, k, n_bands):
+def _newer_matrix(f, m, k, n_bands, grid):
     where = f"correction_matrices/correction_matrix[{k}]"
     name_node = f.child(m, where, "name")
     name = (name_node.text or "").strip() or f"matrix {k}"
     kind_node = f.child(m, where, "type")
     kind = (kind_node.text or "").strip().lower()
     if kind not in ("reflectance", "irradiance"):
-        f.fail(f"<{where}/type> is {kind!r}; expected reflectance or irradiance")
+        f.fail(f"<{where}/type> is {shown(kind)}; expected reflectance or irradiance")
     rows, wl, fw = [], [], []
     vbs = f.child(m, where, "virtual_bands").findall("virtual_band")
     for j, vb in enumerate(vbs):
         w = f"{where}/virtual_bands/virtual_band[{j}]"
         wl.append(f.number(vb, w, "wavelength_nm"))
         fw.append(f.number(vb, w, "fwhm_nm", required=False, default=np.nan))
+        _virtual_width(f, fw[-1], wl[-1], grid, f"{w}/fwhm_nm")
         rows.append(f.numbers(f.child(vb, w, "coefficients"), f"{w}/coefficients",
                               count=n_bands))
     if not rows:

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .._threads import dask_threads
-from .._validation import outside_stacklevel, parse_json
+from .._validation import outside_stacklevel, parse_json, shown
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
@@ -127,7 +127,7 @@ def refuse_packed_counts(var, path, *, counts=False):
     units = str(var.attrs.get("units", "")).strip().lower()
     if stored.kind not in "iu" or not packing or not (counts or units in COUNT_UNITS):
         return
-    said = ", ".join(f"{k} {np.asarray(v).tolist()!r}" for k, v in packing.items())
+    said = ", ".join(f"{k} {shown(np.asarray(v).tolist())}" for k, v in packing.items())
     raise ValueError(f"{path}: {var.name} is stored as {stored} with {said}, which a reader "
                      "applies (scaled, or fill values made NaN), so the camera's numbers would "
                      "not be read as they are; store the counts without them, or give the "
@@ -397,7 +397,7 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
                     if k not in (*PACKING, *STORED_TYPE, "dtype", "valid_range")}
         if dtype != "float32" and _in_counts(name, var):
             units = attrs.get("units")
-            said = f"units {units!r}" if units else "no units"
+            said = f"units {shown(units)}" if units else "no units"
             raise ValueError(f"{name} has {said}, which says it holds a camera's numbers: "
                              f"those are stored as they are, never as {dtype}; {dtype} is for "
                              "physical values (flat-field the counts first, or give the cube "
@@ -442,7 +442,7 @@ def _pack_range(name, var, pack_range):
     units = str(var.attrs.get("units", "")).strip()
     if units == "1":
         return RATIO_PACK_RANGE
-    raise ValueError(f"{name} is in units {units!r}: uint16 packs a range of values, chosen "
+    raise ValueError(f"{name} is in units {shown(units)}: uint16 packs a range of values, chosen "
                      "for ratios (units '1': -0.5 to 3.5) but not known for these; give the "
                      "range (pack_range=)")
 
@@ -698,7 +698,7 @@ def _say_clipped(clipped, path):
         total = sum(t for _, t in counts)
         if n:
             warnings.warn(PackingClipWarning(
-                f"{path}: {n} of {total} values of {name!r} ({100 * n / total:.3g} %) lie "
+                f"{path}: {n} of {total} values of {shown(name)} ({100 * n / total:.3g} %) lie "
                 f"beyond the uint16 packing's range {lo:.6g} to {hi:.6g} and are stored at its "
                 "ends: widen the packing range, or store float32"),
                 stacklevel=outside_stacklevel())

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import parse_json
+from .._validation import parse_json, shown
 from ..cube.model import POSITION_DIMS
 from .attrs import JSON_PREFIX, _one_line, _version
 from .reading import check_input
@@ -66,8 +66,16 @@ def _envi_int(h, key, hdr, *, minimum, default=None, what="a whole number"):
     except ValueError:
         value = None
     if value is None or value < minimum:
-        raise ValueError(f"{hdr}: '{key} = {text}' must be {what}; fix the header")
+        raise ValueError(f"{hdr}: {_said(key, text)} must be {what}; fix the header")
     return value
+
+
+def _said(key, value):
+    """``'key = value'`` as a header gives it, the value cut (a line of megabytes is no
+    better shown whole)."""
+    text = (", ".join(map(str, value[:20])) if isinstance(value, (list, tuple))
+            else str(value))
+    return f"'{key} = {shown(text, quote=False)}'"
 
 
 def _envi_header(hdr):
@@ -94,7 +102,7 @@ def _envi_header(hdr):
     order = _envi_int(h, "byte order", hdr, minimum=0,
                       what="0 (little-endian) or 1 (big-endian)")
     if order not in (0, 1):
-        raise ValueError(f"{hdr}: 'byte order = {h['byte order']}' must be 0 (little-endian) "
+        raise ValueError(f"{hdr}: {_said('byte order', h['byte order'])} must be 0 (little-endian) "
                          "or 1 (big-endian); fix the header")
     code = _envi_int(h, "data type", hdr, minimum=0, what="an ENVI data type code")
     if code in _ENVI_COMPLEX:
@@ -102,13 +110,13 @@ def _envi_header(hdr):
                          "real numbers (convert the data to its magnitude or real part)")
     if code not in _ENVI_DTYPES:
         codes = ", ".join(map(str, _ENVI_DTYPES))
-        raise ValueError(f"{hdr}: 'data type = {h['data type']}' is not an ENVI data type "
+        raise ValueError(f"{hdr}: {_said('data type', h['data type'])} is not an ENVI data type "
                          f"snapcorr can read ({codes}: integers and floats); fix the header")
     if "interleave" not in h:
         raise ValueError(f"{hdr}: the header has no 'interleave'; add it (bsq, bil or bip)")
     interleave = str(h["interleave"]).strip().lower()
     if interleave not in ("bsq", "bil", "bip"):
-        raise ValueError(f"{hdr}: 'interleave = {h['interleave']}' must be bsq, bil or "
+        raise ValueError(f"{hdr}: {_said('interleave', h['interleave'])} must be bsq, bil or "
                          "bip; fix the header")
     for key in ("major frame offsets", "minor frame offsets"):
         if key in h:
@@ -271,8 +279,8 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
         try:
             ignore = float(h["data ignore value"])
         except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"{hdr}: 'data ignore value = {h['data ignore value']}' is not a "
-                             "number; fix the header") from None
+            said = _said("data ignore value", h["data ignore value"])
+            raise ValueError(f"{hdr}: {said} is not a number; fix the header") from None
     values = _envi_values(h, hdr, bands)
     if values is not None and what != "cube":
         raise ValueError(f"{hdr}: its data gain / offset values, reflectance scale factor or "
@@ -304,9 +312,15 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
     stored = h.get("snapcorr attrs")
     if isinstance(stored, str) and stored.startswith(JSON_PREFIX):
         try:
-            attrs.update(parse_json(stored[len(JSON_PREFIX):]))
+            decoded = parse_json(stored[len(JSON_PREFIX):])
         except ValueError:
             raise ValueError(f"{hdr}: 'snapcorr attrs' is not valid JSON") from None
+        if not isinstance(decoded, dict):  # a list or a number has no attribute names
+            raise ValueError(f"{hdr}: 'snapcorr attrs' must hold a JSON object "
+                             f"({{\"name\": value, ...}}), got "
+                             + (_JSON_KINDS.get(type(decoded), "a value") + " "
+                                + shown(decoded) if decoded is not None else "null"))
+        attrs.update(decoded)
     found.attrs = attrs
     for name in POSITION_DIMS:
         key = "snapcorr " + name.replace("_", " ")
@@ -321,6 +335,11 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
                                  "are needed")
             found.positions[name] = {"values": np.reshape(values, (n, bands)).tolist()}
     return found
+
+
+#: What a JSON document that is no object holds, in JSON's words.
+_JSON_KINDS = {list: "an array", str: "a string", int: "a number", float: "a number",
+               bool: "true or false", type(None): "null"}
 
 
 def _envi_numbers(h, key, hdr, scalar=False):

@@ -13,7 +13,7 @@ import re
 
 import numpy as np
 
-from .._validation import parse_json
+from .._validation import parse_json, shown
 from ..cube.model import POSITION_DIMS
 from .attrs import _one_line
 from .reading import open_image
@@ -216,7 +216,7 @@ def _described_dtype(path, data, dtype):
     try:
         dtype = np.dtype(dtype)
     except TypeError:
-        raise ValueError(f"{path}: the description names an unknown dtype {dtype!r}") from None
+        raise ValueError(f"{path}: the description names an unknown dtype {shown(dtype)}") from None
     if dtype == data.dtype:
         return data
     if dtype in _EXR_EXACT:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._validation import shown
 from ..cube.model import DIMS
 from .blockfile import RowBlockFile, lazy_file_array
 
@@ -186,7 +187,7 @@ def _to_nm(values, units, where):
         key = "nm"
     scale = UNITS_TO_NM.get(key)
     if scale is None:
-        raise ValueError(f"{where}: units {units!r} are not a length (nm, um, mm or m and "
+        raise ValueError(f"{where}: units {shown(units)} are not a length (nm, um, mm or m and "
                          "their spellings); pass wavelength_nm or fix the file's units")
     try:
         v = np.asarray(values, dtype=float).ravel()

@@ -80,9 +80,9 @@ def check_distance_mm(name, value):
 
 def _finite_number(name, value, *, positive=False):
     if isinstance(value, (bool, np.bool_)):  # TOML's `true` is not 1 mm
-        raise TypeError(f"{name} must be a number, got a boolean ({value!r})")
+        raise TypeError(f"{name} must be a number, got a boolean ({shown(value)})")
     if isinstance(value, (str, bytes)):  # a TOML's "0.06" is text, as "21" is
-        raise TypeError(f"{name} must be a number, got the text {value!r}")
+        raise TypeError(f"{name} must be a number, got the text {shown(value)}")
     need = "a finite number > 0" if positive else "a finite number"
     try:
         v = float(value)
@@ -156,7 +156,8 @@ def _check_placement(cal):
         check_pixel_pitch_um("[calibration] pixel_pitch_um", cal["pixel_pitch_um"])
     if "image_size_px" in cal:
         size = check_integers("[calibration] image_size_px", _as_list(cal["image_size_px"],
-                                                                        "image_size_px"))
+                                                                        "image_size_px"),
+                              PIXELS_MAX)
         if size.shape != (2,) or np.any(size <= 0):
             raise ValueError("[calibration] image_size_px must be two whole numbers > 0 "
                              f"([width, height]), got {shown(cal['image_size_px'])}")
@@ -174,7 +175,7 @@ def _circles(vignetting):
     if vignetting is None:
         return ()
     if isinstance(vignetting, (str, bytes, dict)) or not hasattr(vignetting, "__iter__"):
-        raise TypeError(f"vignetting must be a list of (P, h) pairs in mm, got {vignetting!r}")
+        raise TypeError(f"vignetting must be a list of (P, h) pairs in mm, got {shown(vignetting)}")
     # at most one past the bound is read: an endless iterator is refused too
     items = list(itertools.islice(vignetting, MAX_VIGNETTING_CIRCLES + 1))
     if len(items) > MAX_VIGNETTING_CIRCLES:
@@ -190,12 +191,13 @@ def _circles(vignetting):
             missing = {"radius_mm", "distance_mm"} - set(c)
             if unknown or missing:
                 raise ValueError(f"vignetting circle {i + 1} needs exactly radius_mm and "
-                                 f"distance_mm (got {sorted(c)})")
+                                 f"distance_mm (got {shown(sorted(c), 80)})")
             c = (c["radius_mm"], c["distance_mm"])
         try:
             P, h = c
         except (TypeError, ValueError, OverflowError):
-            raise TypeError(f"vignetting circle {i + 1} must be a (P, h) pair in mm, got {c!r}")\
+            raise TypeError(f"vignetting circle {i + 1} must be a (P, h) pair in mm, got "
+                            f"{shown(c)}")\
                 from None
         out.append((_finite(f"vignetting circle {i + 1} radius_mm (P)", P, positive=True,
                             at_most=LENGTH_MAX_MM, unit=" mm"),
@@ -277,7 +279,7 @@ class Lens:
         set_ = object.__setattr__
         _check_pupil_radiance("pupil_radiance", self.pupil_radiance)
         if isinstance(self.exit_pupil_mm, str) and not _spells_a_number(self.exit_pupil_mm):
-            raise TypeError(f"exit_pupil_mm must be a number, got {self.exit_pupil_mm!r} (the "
+            raise TypeError(f"exit_pupil_mm must be a number, got {shown(self.exit_pupil_mm)} (the "
                             "name is a keyword argument: Lens(x, ..., name='...'))")
         set_(self, "name", str(self.name))
         set_(self, "exit_pupil_mm", _finite("exit_pupil_mm", self.exit_pupil_mm, positive=True,
@@ -299,7 +301,7 @@ class Lens:
         :data:`MIN_WORKING_F_NUMBER` (a numerical aperture of 1 in air)."""
         f = np.asarray(f_number, dtype=float)
         if not np.all(np.isfinite(f)) or np.any(f <= 0):
-            raise ValueError(f"f_number must be finite and > 0, got {f_number!r}")
+            raise ValueError(f"f_number must be finite and > 0, got {shown(f_number)}")
         if np.any(f > F_NUMBER_MAX):
             raise ValueError(f"f_number must be at most {F_NUMBER_MAX:g} (a pinhole's is a "
                              f"few hundred), got {float(np.max(f)):g}")
@@ -466,8 +468,8 @@ class Lens:
                  "pupil", "pupil_radiance"}
         unknown = set(table) - known - single
         if unknown:
-            raise ValueError(f"unknown key(s) in [lens]: {sorted(unknown)}; valid keys are "
-                             f"{sorted(known)} (or {sorted(single)} for one circle)")
+            raise ValueError(f"unknown key(s) in [lens]: {shown(sorted(unknown), 120)}; "
+                             f"valid keys are {sorted(known)} (or {sorted(single)} for one circle)")
         if "exit_pupil_mm" not in table:
             raise ValueError("[lens] is missing required key(s) ['exit_pupil_mm']")
         args = {k: v for k, v in table.items() if k not in single}
@@ -544,7 +546,7 @@ def _unstated_magnifications(table, calibration):
 def _check_pupil_radiance(name, value):
     if value not in PUPIL_RADIANCE_MODELS:
         raise ValueError(f"{name} must be one of {', '.join(PUPIL_RADIANCE_MODELS)}, got "
-                         f"{value!r}")
+                         f"{shown(value)}")
 
 
 def _pupil(self):

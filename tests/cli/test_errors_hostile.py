@@ -95,3 +95,31 @@ def test_a_cube_given_for_a_frame_is_told_in_command_line_terms(cli, tmp_path, c
     rc, _, err = cli(*args, cwd=tmp_path)
     line = assert_refused(rc, err, "3 bands", "give the camera's raw 2-D frame")
     assert "read_cube" not in line
+
+
+def test_a_message_of_megabytes_is_cut_before_it_is_rewritten():
+    """A library message quoting ten megabytes of a file was rewritten whole (33 s for the
+    correct command's 161 keywords, the line 10 MB long): it is cut first, the start said as
+    it was, with how much was left out; the rewriting still applies to what is said."""
+    from snapcorr.cli._errors import MESSAGE_MAX
+
+    text = "n_eff must be finite, got '" + "1" * 10 * 2**20 + "'"
+    message = _message(ValueError(text), _options("shift"))
+    assert message.startswith("--n-eff must be finite, got '111")
+    assert len(message) < MESSAGE_MAX + 100
+    assert message.endswith(f"({len(text) - MESSAGE_MAX:,} more characters left out)")
+    # a message of ordinary length is said whole
+    assert _message(ValueError("x" * MESSAGE_MAX), {}) == "x" * MESSAGE_MAX
+
+
+def test_a_vendor_file_with_megabytes_of_digits_is_one_short_line(tmp_path, cli):
+    """<width> of ten megabytes of '1' took 33 s and printed a line of 10,485,844 bytes."""
+    from conftest import VENDOR_XML
+
+    text = VENDOR_XML.read_text(encoding="utf-8")
+    assert "<width>2048</width>" in text
+    (tmp_path / "x.xml").write_text(text.replace("<width>2048</width>",
+                                                 "<width>" + "1" * 10 * 2**20 + "</width>", 1))
+    rc, _, err = cli("sensor", "x.xml", cwd=tmp_path)
+    line = assert_refused(rc, err, "x.xml", "<sensor_info/width>", "10,485,760 characters")
+    assert len(err) < 300 and "1" * 30 in line, err[:400]

@@ -77,3 +77,32 @@ def test_a_huge_integer_in_a_sensor_file_is_one_line(tmp_path, cli, key):
         f"{k} = {v}\n" for k, v in table.items()))
     err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
     assert key in err and len(err) < 300
+
+
+BEYOND_INT64 = "100000000000000000000"  # 1e20: a float, but no int64
+
+
+@pytest.mark.parametrize("key, value", [
+    ("size_px", f"[{BEYOND_INT64}, 2]"),
+    ("mosaic_shape", f"[{BEYOND_INT64}, 4]"),
+    ("band_offset", "[" + ", ".join(f"[{r}, {c}]" for r in range(4) for c in range(4))
+     .replace("[3, 3]", f"[3, {BEYOND_INT64}]") + "]"),
+    ("filter_area_px", f"[0, 0, {BEYOND_INT64}, 4]"),
+    ("bit_depth", BEYOND_INT64),
+])
+def test_a_whole_number_beyond_int64_is_refused_before_any_cast(tmp_path, cli, key, value):
+    """1e20 cast to int64 is no number (numpy warned 'invalid value encountered in cast'
+    before the error): it is refused, naming the key, with no warning."""
+    (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
+    err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
+    assert key in err and "warning" not in err and "cast" not in err, err
+
+
+@pytest.mark.parametrize("key, value", [
+    ("layout", '"' + "x" * 100_000 + '"'),
+    ("profile", '"' + "y" * 100_000 + '"'),
+], ids=["layout", "profile"])
+def test_text_of_100_kb_in_a_sensor_file_is_quoted_as_an_excerpt(tmp_path, cli, key, value):
+    (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
+    err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
+    assert len(err) < 400 and value[1:21] in err, err[:500]

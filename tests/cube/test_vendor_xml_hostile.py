@@ -156,3 +156,78 @@ def test_a_pixel_pitch_no_camera_has_names_the_file_and_element(tmp_path, writer
     fx = dataclasses.replace(imec_4x4(), pitch=float(pitch))
     _refused(writer(tmp_path / "pitch.xml", fx),
              re.escape(f"<sensor_info/{tag}> = {float(pitch):g} um is no camera's pixel pitch"))
+
+
+def _real(tmp_path, name, old, new):
+    """The real CMV2K file with its first ``old`` replaced by ``new``."""
+    from conftest import VENDOR_XML
+
+    text = VENDOR_XML.read_text(encoding="utf-8")
+    assert old in text, old
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("old", "new", "element"), [
+    ('<custom_spectral_correction version="0" nr_elements="25">',
+     '<custom_spectral_correction version="0" nr_elements="999999999999">',
+     r"virtual_bands/band\[0\]/custom_spectral_correction> states nr_elements=\"999999999999\", "
+     r"but <[^>]*/data> holds 25 values"),
+    ('<custom_spectral_correction version="0" nr_elements="25">',
+     '<custom_spectral_correction version="0" nr_elements="24">', "holds 25 values"),
+    ('<response_composition version="0" nr_elements="601">',
+     '<response_composition version="0" nr_elements="600">',
+     r"bands/band\[0\]/response_composition> states nr_elements=\"600\", but .* 601 values"),
+    ('<filter_response version="0" nr_elements="601">',
+     '<filter_response version="0" nr_elements="6010">',
+     r"rejection_filter/filter_response> states nr_elements=\"6010\", but .* 601 values"),
+    ('<filter_response version="0" nr_elements="601">',
+     '<filter_response version="0" nr_elements="six">', "not a whole number"),
+])
+def test_a_stated_count_that_disagrees_with_the_values_is_refused(tmp_path, old, new, element):
+    """nr_elements="999999999999" on a row of 25 coefficients was read as if it said 25."""
+    _refused(_real(tmp_path, "count.xml", old, new), element)
+
+
+def test_a_stated_count_is_compared_before_the_values_are_parsed(tmp_path):
+    """A stated count that disagrees is refused before any value is read as a number: the
+    count, not the word among the values, is what the message says."""
+    from conftest import VENDOR_XML
+
+    text = VENDOR_XML.read_text(encoding="utf-8")
+    text = text.replace('<custom_spectral_correction version="0" nr_elements="25">\n'
+                        '                        <data>',
+                        '<custom_spectral_correction version="0" nr_elements="27">\n'
+                        '                        <data>word, ', 1)
+    assert "<data>word, " in text
+    path = tmp_path / "first.xml"
+    path.write_text(text, encoding="utf-8")
+    _refused(path, r"states nr_elements=\"27\", but .* holds 26 values")
+
+
+@pytest.mark.parametrize("fwhm", ["1e-300", "1", "1e300"])
+def test_an_older_virtual_band_width_the_grid_cannot_make_is_refused(tmp_path, fwhm):
+    """<fwhm_virtual_filters_nm>1e-300</...> was read (0 was refused), and the sensor's plot
+    then overflowed and drew no Gaussians: the width has the bound a correction's virtual
+    width has, two steps of the response grid (2 nm here), and at most the whole grid."""
+    path = _real(tmp_path, "fw.xml", "<fwhm_virtual_filters_nm>15<",
+                 f"<fwhm_virtual_filters_nm>{fwhm}<")
+    _refused(path, re.escape(f"<spectral_correction_info/fwhm_virtual_filters_nm> is "
+                             f"{float(fwhm):g} nm"))
+
+
+def test_an_older_virtual_band_width_of_two_grid_steps_is_read(tmp_path):
+    path = _real(tmp_path, "fw.xml", "<fwhm_virtual_filters_nm>15<",
+                 "<fwhm_virtual_filters_nm>2<")
+    assert np.all(Sensor.load(path).matrices[0].fwhm_nm == 2.0)
+
+
+def test_a_newer_virtual_band_width_the_grid_cannot_make_is_refused(tmp_path):
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[-1]
+    fw = np.array(fw, float)
+    fw[3] = 1e-300
+    fx = dataclasses.replace(fx, matrices=[*fx.matrices[:-1], (name, kind, wl, fw, coeffs)])
+    _refused(write_newer(tmp_path / "fw.xml", fx),
+             r"virtual_band\[3\]/fwhm_nm> is 1e-300 nm at .* narrower than the responses' grid")

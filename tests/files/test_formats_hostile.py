@@ -260,3 +260,36 @@ def test_a_pickled_npy_is_refused_without_numpys_advice(tmp_path):
     with pytest.raises(ValueError, match="pickled Python objects") as info:
         read_cube(path)
     assert "allow_pickle" not in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("stored", ["[1,2]", "5", '"text"', "null"])
+def test_envi_snapcorr_attrs_that_are_no_json_object_are_refused(tmp_path, monkeypatch, cli,
+                                                                 stored):
+    """'snapcorr attrs = json:[1,2]' was refused as 'cannot convert dictionary update sequence
+    element #0 to a sequence', naming neither the file nor the key."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, shape=(6, 5, 4))
+    write_envi(tmp_path / "scene", np.ones((6, 5, 4), np.float32),
+               fields={"snapcorr attrs": f"json:{stored}"})
+    rc, _, err = cli("flatfield", "scene.hdr", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "sensor.toml", "--out", "o.nc")
+    line = assert_refused(rc, err, "scene.hdr", "snapcorr attrs", "JSON object")
+    assert "dictionary update" not in line
+
+
+@pytest.mark.parametrize("field, value", [
+    ("byte order", "1" * 100_000),
+    ("interleave", "x" * 100_000),
+    ("data ignore value", "y" * 100_000),
+    ("samples", "9" * 100_000),
+], ids=["byte-order", "interleave", "data-ignore-value", "samples"])
+def test_an_envi_header_value_of_100_kb_is_quoted_as_an_excerpt(tmp_path, monkeypatch, cli,
+                                                                field, value):
+    """A header line of 100 000 characters was quoted whole in the error."""
+    monkeypatch.chdir(tmp_path)
+    save_cubes(tmp_path, shape=(6, 5, 4))
+    write_envi(tmp_path / "scene", np.ones((6, 5, 4), np.float32), fields={field: value})
+    rc, _, err = cli("flatfield", "scene.hdr", "--dark", "dark.npy", "--white", "white.npy",
+                     "--sensor", "sensor.toml", "--out", "o.nc")
+    line = assert_refused(rc, err, "scene.hdr", field)
+    assert len(line) < 300 and value[:20] in line, line[:400]

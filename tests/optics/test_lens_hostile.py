@@ -109,6 +109,9 @@ def test_a_huge_integer_in_a_lens_file_is_one_line(tmp_path, cli, body):
     ({"image_size_px": 5}, "image_size_px must be a list of two numbers"),
     ({"image_size_px": [1, 2, 3]}, "image_size_px must be two whole numbers"),
     ({"image_size_px": [640.5, 512]}, "image_size_px must be whole numbers"),
+    # beyond int64: refused before the cast, which made garbage and a numpy warning
+    ({"image_size_px": [10**20, 512]}, "image_size_px must be whole numbers of at most "
+                                        "1,000,000"),
     ({"center_rc": [1.0, "a"]}, "center_rc must be a number, got text"),
     ({"center_px": 3}, "center_px must be a list of two numbers"),
     # the bounds --center and --sensor-origin-px have on the command line
@@ -257,3 +260,14 @@ def test_more_circles_than_a_lens_has_are_refused_by_every_entry():
                  lambda: discs.extreme_radii(0.0, r, c)):
         with pytest.raises(ValueError, match="radii holds 11 discs; at most 10"):
             call()
+
+
+@pytest.mark.parametrize("body", [
+    '[lens]\nexit_pupil_mm = "' + "x" * 100_000 + '"\n',
+    '[lens]\nexit_pupil_mm = 21.0\nvignetting = ["' + "v" * 100_000 + '"]\n',
+], ids=["exit_pupil_mm", "vignetting"])
+def test_text_of_100_kb_in_a_lens_file_is_quoted_as_an_excerpt(tmp_path, cli, body):
+    (tmp_path / "l.toml").write_text(body)
+    err = refused_in_one_line(cli("shift", "--lens", "l.toml", "--f-number", "2.8", "--cra",
+                                  "5", cwd=tmp_path))
+    assert len(err) < 400, err[:500]
