@@ -96,7 +96,14 @@ from ..cube.model import (
     make_cube,
 )
 from .attrs import _decode_positions, _json_attrs, _one_line, _positions, decode_attrs
-from .datasets import COMPRESSIONS, _encoded, _open_dataset, _to_dataset, stored_as
+from .datasets import (
+    COMPRESSIONS,
+    _encoded,
+    _IncompleteStore,
+    _open_dataset,
+    _to_dataset,
+    stored_as,
+)
 from .marks import writer_mark
 from .outputs import _check_targets, _check_writable
 from .reading import check_input
@@ -384,6 +391,8 @@ def read_dataset(path, *, chunks=None):
     check_input(path, directory=found.directory, what="result")
     try:
         ds = _open_dataset(path, fmt, chunks)
+    except _IncompleteStore:
+        raise
     except Exception as err:  # the libraries' own error types: report them plainly
         raise ValueError(f"{path}: cannot read it as {fmt}: {type(err).__name__}: "
                          f"{_one_line(err)}") from None
