@@ -510,7 +510,9 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
         rounding); values outside the range are stored as its ends (clipped). Each packed
         variable says its packing, its error and the clipping in its ``storage`` and
         ``packing_error`` attributes. ``"float16"``
-        (Zarr only; netCDF has no such type): relative error at most 4.9e-4. A camera's
+        (Zarr only; netCDF has no such type): relative error at most 4.9e-4; finite values
+        beyond its range, +-65504, are stored as +-65504 (clipped, said in ``storage``),
+        infinities and NaN as they are. A camera's
         numbers are never stored as either: the input's copy (``raw``) keeps its type, and
         other values in counts (or without units) are refused.
     pack_range : (float, float), optional

@@ -480,7 +480,8 @@ STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer
 
 def stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
-    cast (float16 clipped to its range), or given the CF packing (``scale_factor``,
+    cast (float16's finite values clipped to its range as they are written, and counted), or
+    given the CF packing (``scale_factor``,
     ``add_offset``, ``_FillValue``, ``valid_range``) a reader applies, the packing error and
     the clipping said in the variable's attributes; the values are clipped to the packing's
     range as they are packed (:func:`_packed`, which counts them), so a uint16 layout is
@@ -510,11 +511,13 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
             var = var.astype(np.float32)
             encoding["dtype"] = "float32"
         elif dtype == "float16":
-            var = var.clip(-FLOAT16_MAX, FLOAT16_MAX)
+            # clipped as it is cast, where the values beyond float16's range are counted
+            # (:func:`_packed`, :func:`_say_clipped`); infinities and NaN kept
             encoding["dtype"] = "float16"
             attrs["storage"] = ("float16: relative error at most 2**-11 (4.9e-4) of the value "
-                                f"(absolute 6e-8 below 6.1e-5); values beyond +-{FLOAT16_MAX:g} "
-                                "are stored as +-65504 (clipped)")
+                                "(absolute 6e-8 below 6.1e-5); finite values beyond "
+                                f"+-{FLOAT16_MAX:g} (float16's range) are stored as "
+                                f"+-{FLOAT16_MAX:g} (clipped); infinities and NaN as they are")
             attrs["packing_error"] = "relative 4.9e-4"
         else:
             lo, hi = _pack_range(name, var, pack_range)
@@ -703,12 +706,17 @@ def _packed(ds, clipped):
     codes, packed in one pass (:func:`~snapcorr.files._packing.pack_uint16`, block by block
     for dask), the packing's ``scale_factor``, ``add_offset`` and ``_FillValue`` moved to its
     attributes: stored as they are, read back by any CF reader as xarray's own encoding of
-    the values would be. ``clipped`` (a dict) gets each variable's ``(counts, lo, hi)``: the
-    packing appends to ``counts`` as its blocks are written (:func:`_say_clipped`)."""
+    the values would be; and each float variable stored as float16 with its finite values
+    beyond float16's range clipped to its ends (:func:`_float16_clipped`; cast, they would
+    become infinities). ``clipped`` (a dict) gets each variable's ``(counts, range, advice)``:
+    the packing appends to ``counts`` as its blocks are written (:func:`_say_clipped`)."""
     names = [n for n in ds.data_vars
              if ds[n].encoding.get("dtype") == "uint16" and "scale_factor" in ds[n].encoding
              and np.issubdtype(ds[n].dtype, np.floating)]
-    if not names:
+    halves = [n for n in ds.data_vars
+              if np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)) == np.float16
+              and ds[n].dtype.kind == "f" and ds[n].dtype.itemsize > 2]
+    if not names and not halves:
         return ds
     from ._packing import pack_uint16
 
@@ -718,8 +726,10 @@ def _packed(ds, clipped):
         enc = dict(var.encoding)
         scale, offset = enc.pop("scale_factor"), enc.pop("add_offset", np.float32(0))
         fill = enc.pop("_FillValue", np.uint16(PACKED_FILL))
-        counts = clipped.setdefault(name, ([], float(offset),
-                                           float(offset) + PACKED_TOP * float(scale)))[0]
+        hi = float(offset) + PACKED_TOP * float(scale)
+        counts = clipped.setdefault(name, (
+            [], f"the uint16 packing's range {float(offset):.6g} to {hi:.6g}",
+            "widen the packing range, or store float32"))[0]
 
         def pack(a, offset=offset, scale=scale, fill=fill, counts=counts):
             return pack_uint16(a, offset, scale, PACKED_TOP, fill, clipped=counts)
@@ -731,7 +741,35 @@ def _packed(ds, clipped):
                                                "add_offset": offset, "_FillValue": fill},
                              {**enc, "dtype": "uint16"})
         out[name] = xr.DataArray(packed, coords=var.coords)
+    for name in halves:
+        var = ds[name]
+        counts = clipped.setdefault(name, (
+            [], f"float16's range -{FLOAT16_MAX:g} to {FLOAT16_MAX:g}",
+            "store float32, or uint16 with a packing range that holds them"))[0]
+
+        def clip(a, counts=counts):
+            return _float16_clipped(a, counts)
+
+        data = var.data
+        kept = (data.map_blocks(clip, dtype=var.dtype) if var.chunks is not None
+                else clip(np.asarray(data)))
+        out[name] = var.copy(data=kept)  # its attributes and encoding (float16) kept
     return out
+
+
+def _float16_clipped(values, counts):
+    """``values`` (floats wider than float16) with the finite ones that float16 cannot hold
+    (those its cast makes infinite: 65520 and beyond, the rounding takes smaller ones to
+    65504) set to +-65504, infinities and NaN kept; the count of those and of the values in
+    all appended to ``counts`` as a pair."""
+    values = np.asarray(values)
+    with np.errstate(over="ignore", invalid="ignore"):
+        beyond = np.isfinite(values) & np.isinf(values.astype(np.float16))
+    n = int(np.count_nonzero(beyond))
+    counts.append((n, int(values.size)))
+    if n:
+        values = np.where(beyond, np.copysign(values.dtype.type(FLOAT16_MAX), values), values)
+    return values
 
 
 def _store_dataset(ds, path, fmt, compression="auto"):
@@ -808,20 +846,20 @@ def _every_chunk_written(ds):
 
 
 class PackingClipWarning(UserWarning):
-    """Values beyond a uint16 packing's range were stored at its ends."""
+    """Values beyond a uint16 packing's range, or finite values beyond float16's, were stored
+    at its ends."""
 
 
 def _say_clipped(clipped, path):
     """One warning per variable whose packing stored values beyond its range at its ends
     (the counts :func:`_packed` collected while the blocks were written)."""
-    for name, (counts, lo, hi) in clipped.items():
+    for name, (counts, beyond, advice) in clipped.items():
         n = sum(c for c, _ in counts)
         total = sum(t for _, t in counts)
         if n:
             warnings.warn(PackingClipWarning(
                 f"{path}: {n} of {total} values of {name!r} ({100 * n / total:.3g} %) lie "
-                f"beyond the uint16 packing's range {lo:.6g} to {hi:.6g} and are stored at its "
-                "ends: widen the packing range, or store float32"),
+                f"beyond {beyond} and are stored at its ends: {advice}"),
                 stacklevel=outside_stacklevel())
 
 
