@@ -90,8 +90,8 @@ def _missing_chunks(arr, folder):
 
 
 class _IncompleteStore(ValueError):
-    """A Zarr store lacks chunks that would read as valid values
-    (:func:`_refuse_missing_chunks`)."""
+    """A Zarr store or netCDF-4 file lacks chunks that would read as valid values
+    (:func:`_refuse_missing_chunks`, :func:`_refuse_unwritten_hdf5_chunks`)."""
 
 
 def _refuse_missing_chunks(path, arrays, cf=True):
@@ -133,6 +133,47 @@ def _refuse_missing_chunks(path, arrays, cf=True):
                 "holding only the fill value: write with write_empty_chunks=True)")
 
 
+def _refuse_unwritten_hdf5_chunks(path):
+    """Refuse a netCDF-4 (HDF5) file whose variables of two or more dims lack chunks (or, not
+    chunked, their storage) that would read as valid values: HDF5 reads a chunk never
+    written (a writer stopped part way, a variable created and not filled) as the fill
+    value, 0 unless one is set. The count comes from the chunk index (no data read). As for
+    Zarr (:func:`_refuse_missing_chunks`), a fill value that reads as missing (NaN, the CF
+    ``_FillValue`` xarray masks) is accepted; snapcorr writes every chunk."""
+    import math
+
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except Exception:  # not HDF5 after all: xarray's open says what it is
+        return
+    with f:
+        for name, d in f.items():
+            if not isinstance(d, h5py.Dataset) or d.ndim < 2 or d.size == 0:
+                continue
+            fill = d.fillvalue
+            if d.dtype.kind not in "iuf" or (d.dtype.kind == "f" and np.isnan(fill)):
+                continue
+            said = d.attrs.get("_FillValue", d.attrs.get("missing_value"))
+            if said is not None and bool(np.all(np.asarray(said) == fill)):
+                continue
+            if d.chunks is None:
+                every = 1
+                missing = int(d.id.get_storage_size() == 0)
+            else:
+                every = math.prod(math.ceil(n / c) for n, c in zip(d.shape, d.chunks,
+                                                                    strict=True))
+                missing = every - d.id.get_num_chunks()
+            if missing > 0:
+                raise _IncompleteStore(
+                    f"{path}: variable {name!r} lacks {missing} of its {every} chunks, never "
+                    f"written; HDF5 would read them as its fill value "
+                    f"{np.asarray(fill).tolist()!r}, a valid {d.dtype} value, so the data "
+                    "read would be wrong: the file is incomplete (its writer stopped part "
+                    "way?); write it again")
+
+
 def _refuse_incomplete_zarr(path):
     """:func:`_refuse_missing_chunks` for the arrays of the Zarr store at ``path`` (the root
     group's, those xarray reads)."""
@@ -162,6 +203,8 @@ def _open_dataset(path, fmt, chunks):
     cut from it)."""
     if fmt == "zarr":
         _refuse_incomplete_zarr(path)
+    elif _netcdf_engine(path) == "h5netcdf":
+        _refuse_unwritten_hdf5_chunks(path)
     if isinstance(chunks, _Rows):
         if fmt == "netcdf":
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)

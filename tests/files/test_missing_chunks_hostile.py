@@ -1,6 +1,7 @@
 """A Zarr store lacking chunks: zarr reads each as the array's fill value, which for integers
 (and floats filled with a number) is a valid value, so the store is refused; a fill value that
-reads as missing (NaN, a boolean mask's false) is not, and snapcorr's own stores are whole."""
+reads as missing (NaN, a boolean mask's false) is not, and snapcorr's own stores are whole.
+A netCDF-4 file whose chunks were never written (HDF5 reads them as the fill value) likewise."""
 
 from __future__ import annotations
 
@@ -198,3 +199,60 @@ def test_a_sharded_cube_lacking_a_shard_is_refused(tmp_path):
     (path / "raw" / "c" / "3" / "0" / "0").unlink()
     with pytest.raises(ValueError, match="variable 'raw' lacks 1 of its 4 shards"):
         read_cube(path)
+
+
+def _partial_netcdf(path, contiguous=False, fill=None):
+    """A netCDF-4 file whose raw cube has its last 16 rows never written (all of it, not
+    chunked), as a writer stopped part way leaves it."""
+    import h5netcdf
+
+    with h5netcdf.File(path, "w") as f:
+        f.dimensions = {"y": 64, "x": 64, "band": 3}
+        wl = f.create_variable("wavelength", ("band",), "f8")
+        wl[:] = WL
+        wl.attrs["units"] = "nm"
+        kw = {} if contiguous else {"chunks": (16, 64, 3)}
+        if fill is not None:
+            kw["fillvalue"] = fill
+        raw = f.create_variable("raw", ("y", "x", "band"), "u2", **kw)
+        raw.attrs["units"] = "count"
+        if not contiguous:
+            raw[:48] = 1500
+    return path
+
+
+def test_a_netcdf_cube_with_chunks_never_written_is_refused(tmp_path):
+    path = _partial_netcdf(tmp_path / "part.nc")
+    with pytest.raises(ValueError, match=r"part\.nc: variable 'raw' lacks 1 of its 4 chunks, "
+                                         r"never written.*fill value 0"):
+        read_cube(path)
+    with pytest.raises(ValueError, match="lacks 1 of its 4 chunks"):
+        read_dataset(path)
+    path = _partial_netcdf(tmp_path / "empty.nc", contiguous=True)
+    with pytest.raises(ValueError, match="variable 'raw' lacks 1 of its 1 chunks"):
+        read_cube(path)
+
+
+def test_netcdf_chunks_never_written_that_read_as_missing_are_accepted(tmp_path):
+    """A CF _FillValue: xarray reads the chunks never written as NaN (missing, not wrong)."""
+    import h5py
+
+    path = _partial_netcdf(tmp_path / "part.nc", fill=65535)
+    with h5py.File(path, "a") as f:
+        f["raw"].attrs["_FillValue"] = np.uint16(65535)
+    back = read_dataset(path)
+    assert np.isnan(back["raw"].values[48:]).all() and (back["raw"].values[:48] == 1500).all()
+
+
+def test_a_netcdf_result_with_a_chunk_of_zeros_reads_back(tmp_path):
+    a = np.full((64, 64, 3), 1500, np.uint16)
+    a[:16] = 0
+    write_cube(make_cube(da.from_array(a, chunks=(16, 64, 3)), WL), tmp_path / "a.nc")
+    np.testing.assert_array_equal(read_cube(tmp_path / "a.nc").values, a)
+    values = np.zeros((32, 8, 3), np.float32)
+    ds = make_cube(da.from_array(values, chunks=(8, 8, 3)), WL, name="reflectance",
+                   attrs={"units": "1"}).to_dataset()
+    for dtype in (None, "uint16"):
+        write_dataset(ds, tmp_path / f"r{dtype}.nc", dtype=dtype)
+        np.testing.assert_allclose(read_dataset(tmp_path / f"r{dtype}.nc")["reflectance"],
+                                   values, atol=1e-4)
