@@ -525,7 +525,8 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
     Warns
     -----
     PackingClipWarning
-        Once per packed variable with values beyond its range (the count and the share).
+        Once per packed variable with values beyond its range (the count and the share), and
+        for float16 once per variable with finite values beyond +-65504.
     """
     path = Path(path)
     found = format_by_suffix(path.suffix)
