@@ -551,7 +551,10 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
                              "physical values (flat-field the counts first, or give the cube "
                              "its units)")
         if dtype == "float32":
-            var = var.astype(np.float32)
+            if fmt == "envi" or var.dtype.itemsize <= 4:  # (ENVI is written from the values)
+                var = var.astype(np.float32)
+            # else cast as it is written, where finite values beyond float32's range, which
+            # the cast would make infinite, are clipped and counted (:func:`_packed`)
             encoding["dtype"] = "float32"
         elif dtype == "float16":
             # clipped as it is cast, where the values beyond float16's range are counted
@@ -690,7 +693,8 @@ def _hdf5_chunks(var):
         whole = blocks[:-1] if len(blocks) > 1 else blocks
         common = int(np.gcd.reduce(np.asarray(whole, dtype=np.int64)))
         sizes.append(common if 2 * common >= blocks[0] else int(blocks[0]))
-    while int(np.prod(sizes, dtype=np.int64)) * var.dtype.itemsize > HDF5_MAX_CHUNK_BYTES:
+    itemsize = np.dtype(var.encoding.get("dtype", var.dtype)).itemsize  # as stored
+    while int(np.prod(sizes, dtype=np.int64)) * itemsize > HDF5_MAX_CHUNK_BYTES:
         longest = int(np.argmax(sizes))
         if sizes[longest] == 1:
             break
@@ -749,17 +753,20 @@ def _packed(ds, clipped):
     codes, packed in one pass (:func:`~snapcorr.files._packing.pack_uint16`, block by block
     for dask), the packing's ``scale_factor``, ``add_offset`` and ``_FillValue`` moved to its
     attributes: stored as they are, read back by any CF reader as xarray's own encoding of
-    the values would be; and each float variable stored as float16 with its finite values
-    beyond float16's range clipped to its ends (:func:`_float16_clipped`; cast, they would
-    become infinities). ``clipped`` (a dict) gets each variable's ``(counts, range, advice)``:
-    the packing appends to ``counts`` as its blocks are written (:func:`_say_clipped`)."""
+    the values would be; and each float variable stored as a narrower float (float16,
+    float32 from float64) with its finite values beyond that type's range clipped to its ends
+    (:func:`_narrowed`; cast, they would become infinities). ``clipped`` (a dict) gets each
+    variable's ``(counts, range, advice)``: the packing appends to ``counts`` as its blocks
+    are written (:func:`_say_clipped`)."""
     names = [n for n in ds.data_vars
              if ds[n].encoding.get("dtype") == "uint16" and "scale_factor" in ds[n].encoding
              and np.issubdtype(ds[n].dtype, np.floating)]
-    halves = [n for n in ds.data_vars
-              if np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)) == np.float16
-              and ds[n].dtype.kind == "f" and ds[n].dtype.itemsize > 2]
-    if not names and not halves:
+    narrowed = [n for n in ds.data_vars
+                if ds[n].dtype.kind == "f"
+                and np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)).kind == "f"
+                and np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)).itemsize
+                < ds[n].dtype.itemsize]
+    if not names and not narrowed:
         return ds
     from ._packing import pack_uint16
 
@@ -784,34 +791,39 @@ def _packed(ds, clipped):
                                                "add_offset": offset, "_FillValue": fill},
                              {**enc, "dtype": "uint16"})
         out[name] = xr.DataArray(packed, coords=var.coords)
-    for name in halves:
+    for name in narrowed:
         var = ds[name]
+        to = np.dtype(var.encoding["dtype"])
+        top = float(np.finfo(to).max)
         counts = clipped.setdefault(name, (
-            [], f"float16's range -{FLOAT16_MAX:g} to {FLOAT16_MAX:g}",
-            "store float32, or uint16 with a packing range that holds them"))[0]
+            [], f"{to}'s range -{top:g} to {top:g}",
+            "store float32, or uint16 with a packing range that holds them"
+            if to == np.float16 else f"keep their {var.dtype} (no dtype)"))[0]
 
-        def clip(a, counts=counts):
-            return _float16_clipped(a, counts)
+        def clip(a, counts=counts, to=to):
+            return _narrowed(a, to, counts)
 
         data = var.data
         kept = (data.map_blocks(clip, dtype=var.dtype) if var.chunks is not None
                 else clip(np.asarray(data)))
-        out[name] = var.copy(data=kept)  # its attributes and encoding (float16) kept
+        out[name] = var.copy(data=kept)  # its attributes and encoding (the narrower type)
     return out
 
 
-def _float16_clipped(values, counts):
-    """``values`` (floats wider than float16) with the finite ones that float16 cannot hold
-    (those its cast makes infinite: 65520 and beyond, the rounding takes smaller ones to
-    65504) set to +-65504, infinities and NaN kept; the count of those and of the values in
-    all appended to ``counts`` as a pair."""
+def _narrowed(values, to, counts):
+    """``values`` (floats wider than the float type ``to``) with the finite ones that ``to``
+    cannot hold (those its cast makes infinite: for float16 65520 and beyond, the rounding
+    takes smaller ones to 65504) set to its largest finite value of their sign, infinities
+    and NaN kept; the count of those and of the values in all appended to ``counts`` as a
+    pair."""
     values = np.asarray(values)
     with np.errstate(over="ignore", invalid="ignore"):
-        beyond = np.isfinite(values) & np.isinf(values.astype(np.float16))
+        beyond = np.isfinite(values) & np.isinf(values.astype(to))
     n = int(np.count_nonzero(beyond))
     counts.append((n, int(values.size)))
     if n:
-        values = np.where(beyond, np.copysign(values.dtype.type(FLOAT16_MAX), values), values)
+        top = values.dtype.type(np.finfo(to).max)
+        values = np.where(beyond, np.copysign(top, values), values)
     return values
 
 

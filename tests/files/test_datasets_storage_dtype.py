@@ -291,3 +291,22 @@ def test_a_packed_cube_reads_back_as_float32_from_zarr_as_from_netcdf(tmp_path, 
         got[suffix] = np.asarray(back.values)
     np.testing.assert_array_equal(got[".nc"], got[".zarr"])
     np.testing.assert_allclose(got[".nc"], cube.values, atol=1e-4)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_float32_from_float64_says_the_finite_values_it_clips(tmp_path, ext):
+    """float64 values beyond float32's range were cast to infinities, unsaid; they are now
+    stored at float32's ends and said, as float16 and uint16 say theirs."""
+    from snapcorr.files import PackingClipWarning
+
+    values = np.array([[[1e39, -1e40, np.inf, 0.5]]])
+    ds = make_cube(values, WL[:4], name="radiance", attrs={"units": "W m-2"}).to_dataset()
+    with pytest.warns(PackingClipWarning, match=r"2 of 4 values of 'radiance' .* float32's "
+                                                r"range") as record:
+        write_dataset(ds, tmp_path / f"r{ext}", dtype="float32")
+    assert {w.filename for w in record if w.category is PackingClipWarning} == {__file__}
+    with _open(tmp_path / f"r{ext}") as back:
+        assert back["radiance"].encoding["dtype"] == np.float32
+        got = back["radiance"].values[0, 0]
+    top = np.finfo(np.float32).max
+    np.testing.assert_array_equal(got, np.array([top, -top, np.inf, 0.5], np.float32))
