@@ -817,13 +817,17 @@ def _narrowed(values, to, counts):
     and NaN kept; the count of those and of the values in all appended to ``counts`` as a
     pair."""
     values = np.asarray(values)
-    with np.errstate(over="ignore", invalid="ignore"):
-        beyond = np.isfinite(values) & np.isinf(values.astype(to))
+    top = float(np.finfo(to).max)
+    # halfway from the largest finite value to the next power of two: from there on the cast
+    # rounds to infinity (65520 for float16), in the values' own type
+    info = np.finfo(to)
+    edge = values.dtype.type(top + 2.0 ** (info.maxexp - 2 - info.nmant))
+    magnitude = np.abs(values)
+    beyond = (magnitude >= edge) & (magnitude != np.inf)
     n = int(np.count_nonzero(beyond))
     counts.append((n, int(values.size)))
     if n:
-        top = values.dtype.type(np.finfo(to).max)
-        values = np.where(beyond, np.copysign(top, values), values)
+        values = np.where(beyond, np.copysign(values.dtype.type(top), values), values)
     return values
 
 
