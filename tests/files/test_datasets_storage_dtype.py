@@ -310,3 +310,24 @@ def test_float32_from_float64_says_the_finite_values_it_clips(tmp_path, ext):
         got = back["radiance"].values[0, 0]
     top = np.finfo(np.float32).max
     np.testing.assert_array_equal(got, np.array([top, -top, np.inf, 0.5], np.float32))
+
+
+@pytest.mark.parametrize(("wide", "narrow"), [(np.float32, np.float16), (np.float64, np.float16),
+                                              (np.float64, np.float32)])
+def test_the_narrower_float_clip_counts_what_the_cast_makes_infinite(wide, narrow):
+    """The values counted and clipped are exactly those numpy's cast rounds to infinity."""
+    from snapcorr.files.datasets import _narrowed
+
+    info = np.finfo(narrow)
+    edge = wide(float(info.max) + 2.0 ** (info.maxexp - 2 - info.nmant))
+    one = np.array([info.max, np.nextafter(edge, wide(0)), edge,
+                    np.nextafter(edge, wide(np.inf)), np.inf, np.nan, 1.0], wide)
+    values = np.concatenate([one, -one])
+    with np.errstate(over="ignore"):
+        made_infinite = np.isfinite(values) & np.isinf(values.astype(narrow))
+    counts = []
+    out = _narrowed(values, np.dtype(narrow), counts)
+    assert counts == [(int(made_infinite.sum()), values.size)] and made_infinite.sum() == 4
+    stored = out.astype(narrow)
+    np.testing.assert_array_equal(np.isinf(stored), np.isinf(values))
+    np.testing.assert_array_equal(np.isnan(stored), np.isnan(values))
