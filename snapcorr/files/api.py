@@ -96,7 +96,14 @@ from ..cube.model import (
     make_cube,
 )
 from .attrs import _decode_positions, _json_attrs, _one_line, _positions, decode_attrs
-from .datasets import COMPRESSIONS, _encoded, _open_dataset, _to_dataset, stored_as
+from .datasets import (
+    COMPRESSIONS,
+    _encoded,
+    _IncompleteStore,
+    _open_dataset,
+    _to_dataset,
+    stored_as,
+)
 from .marks import writer_mark
 from .outputs import _check_targets, _check_writable
 from .reading import check_input
@@ -384,6 +391,8 @@ def read_dataset(path, *, chunks=None):
     check_input(path, directory=found.directory, what="result")
     try:
         ds = _open_dataset(path, fmt, chunks)
+    except _IncompleteStore:
+        raise
     except Exception as err:  # the libraries' own error types: report them plainly
         raise ValueError(f"{path}: cannot read it as {fmt}: {type(err).__name__}: "
                          f"{_one_line(err)}") from None
@@ -501,7 +510,9 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
         rounding); values outside the range are stored as its ends (clipped). Each packed
         variable says its packing, its error and the clipping in its ``storage`` and
         ``packing_error`` attributes. ``"float16"``
-        (Zarr only; netCDF has no such type): relative error at most 4.9e-4. A camera's
+        (Zarr only; netCDF has no such type): relative error at most 4.9e-4; finite values
+        beyond its range, +-65504, are stored as +-65504 (clipped, said in ``storage``),
+        infinities and NaN as they are. A camera's
         numbers are never stored as either: the input's copy (``raw``) keeps its type, and
         other values in counts (or without units) are refused.
     pack_range : (float, float), optional
@@ -514,7 +525,8 @@ def write_dataset(ds, path, *, overwrite=False, inputs=(), compression="auto",
     Warns
     -----
     PackingClipWarning
-        Once per packed variable with values beyond its range (the count and the share).
+        Once per packed variable with values beyond its range (the count and the share), and
+        for float16 once per variable with finite values beyond +-65504.
     """
     path = Path(path)
     found = format_by_suffix(path.suffix)

@@ -44,6 +44,149 @@ def _zarr_consolidated(path):
     return (Path(path) / ".zmetadata").is_file()
 
 
+def _fill_is_missing(arr, cf=True):
+    """Whether a Zarr array's fill value reads as missing rather than as a value: booleans
+    (snapcorr leaves out a mask's all-false chunks), floats whose fill value is NaN and,
+    with ``cf`` (read through xarray, which masks it), a fill value that is the CF
+    ``_FillValue`` (Zarr 2's fill value is; Zarr 3's when the attributes say so)."""
+    fill = arr.fill_value
+    if arr.dtype == bool:
+        return True
+    if fill is None:
+        return False
+    if arr.dtype.kind == "f" and np.isnan(fill):
+        return True
+    if not cf:
+        return False
+    if arr.metadata.zarr_format == 2:
+        return True
+    said = arr.attrs.get("_FillValue", arr.attrs.get("missing_value"))
+    try:
+        return said is not None and bool(np.all(np.asarray(said, arr.dtype) == fill))
+    except (TypeError, ValueError, OverflowError):
+        return False
+
+
+def _missing_chunks(arr, folder):
+    """``(missing, all)``: how many of a Zarr array's stored objects (chunks, or shards when
+    it is sharded) are not in its ``folder``, from a listing of its files (no data read;
+    zarr's own ``nchunks_initialized`` compares each key with a list of them, quadratic: 7.9 s
+    for 20 000 chunks, against 2.7 s here, nearly all of it listing their folders)."""
+    import itertools
+    import math
+    import os
+
+    grid = [math.ceil(n / c) for n, c in zip(arr.shape, arr.shards or arr.chunks,
+                                               strict=True)]
+    stored = set()
+    for top, _, files in os.walk(folder):
+        rel = os.path.relpath(top, folder)
+        prefix = "" if rel == "." else rel.replace(os.sep, "/") + "/"
+        stored.update(prefix + f for f in files)
+    every = math.prod(grid)
+    found = sum(arr.metadata.encode_chunk_key(c) in stored
+                for c in itertools.product(*map(range, grid)))
+    return every - found, every
+
+
+class _IncompleteStore(ValueError):
+    """A Zarr store or netCDF-4 file lacks chunks that would read as valid values
+    (:func:`_refuse_missing_chunks`, :func:`_refuse_unwritten_hdf5_chunks`)."""
+
+
+def _refuse_missing_chunks(path, arrays, cf=True):
+    """Refuse a Zarr store whose arrays lack chunks that would read as valid values.
+
+    Zarr reads a chunk missing from the store as the array's fill value. Where that is a
+    valid datum (integers, floats with a fill value other than NaN) a deleted or never
+    written chunk would read as a block of, say, zeros, with nothing to tell it from data.
+    Arrays of two or more dims are checked (an image's values, a stream's frames, the
+    sensor positions); scalars and coordinates, whose all-fill chunks writers leave out (a
+    count of zero masked values), are not. Arrays whose fill value reads as missing
+    (:func:`_fill_is_missing`) are not refused either.
+
+    Parameters
+    ----------
+    path : str or Path
+        The store, for the message.
+    arrays : iterable of (str, path, zarr.Array)
+        Its arrays: the name, the folder holding the array's files, the array.
+    cf : bool
+        They are read through xarray, which masks a CF ``_FillValue`` (NaN, missing).
+
+    Raises
+    ------
+    ValueError
+        Naming the store, the variable and how many chunks it lacks.
+    """
+    for name, folder, arr in arrays:
+        if arr.ndim < 2 or _fill_is_missing(arr, cf):
+            continue
+        missing, every = _missing_chunks(arr, Path(folder))
+        if missing > 0:
+            raise _IncompleteStore(
+                f"{path}: variable {name!r} lacks {missing} of its {every} "
+                f"{'shards' if arr.shards else 'chunks'} in the store; "
+                f"Zarr would read them as its fill value {np.asarray(arr.fill_value).tolist()!r}"
+                f", a valid {arr.dtype} value, so the data read would be wrong: restore the "
+                "missing chunks or write the store again (a writer that leaves out chunks "
+                "holding only the fill value: write with write_empty_chunks=True)")
+
+
+def _refuse_unwritten_hdf5_chunks(path):
+    """Refuse a netCDF-4 (HDF5) file whose variables of two or more dims lack chunks (or, not
+    chunked, their storage) that would read as valid values: HDF5 reads a chunk never
+    written (a writer stopped part way, a variable created and not filled) as the fill
+    value, 0 unless one is set. The count comes from the chunk index (no data read). As for
+    Zarr (:func:`_refuse_missing_chunks`), a fill value that reads as missing (NaN, the CF
+    ``_FillValue`` xarray masks) is accepted; snapcorr writes every chunk."""
+    import math
+
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except Exception:  # not HDF5 after all: xarray's open says what it is
+        return
+    with f:
+        for name, d in f.items():
+            if not isinstance(d, h5py.Dataset) or d.ndim < 2 or d.size == 0:
+                continue
+            fill = d.fillvalue
+            if d.dtype.kind not in "iuf" or (d.dtype.kind == "f" and np.isnan(fill)):
+                continue
+            said = d.attrs.get("_FillValue", d.attrs.get("missing_value"))
+            if said is not None and bool(np.all(np.asarray(said) == fill)):
+                continue
+            if d.chunks is None:
+                every = 1
+                missing = int(d.id.get_storage_size() == 0)
+            else:
+                every = math.prod(math.ceil(n / c) for n, c in zip(d.shape, d.chunks,
+                                                                    strict=True))
+                missing = every - d.id.get_num_chunks()
+            if missing > 0:
+                raise _IncompleteStore(
+                    f"{path}: variable {name!r} lacks {missing} of its {every} chunks, never "
+                    f"written; HDF5 would read them as its fill value "
+                    f"{np.asarray(fill).tolist()!r}, a valid {d.dtype} value, so the data "
+                    "read would be wrong: the file is incomplete (its writer stopped part "
+                    "way?); write it again")
+
+
+def _refuse_incomplete_zarr(path):
+    """:func:`_refuse_missing_chunks` for the arrays of the Zarr store at ``path`` (the root
+    group's, those xarray reads)."""
+    import zarr
+
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except Exception:  # not a group: xarray's open says what it is
+        return
+    _refuse_missing_chunks(path, ((name, Path(path) / name, arr)
+                                  for name, arr in group.arrays()))
+
+
 def _netcdf_engine(path):
     """h5netcdf for netCDF-4 (HDF5), SciPy's reader for netCDF-3 (classic, 64-bit offset
     and CDF-5 files begin with ``CDF``), which h5netcdf cannot open."""
@@ -58,6 +201,10 @@ def _open_dataset(path, fmt, chunks):
     caller to chunk the variable it reads once it knows its shape (opened with ``chunks={}``
     instead, a contiguous netCDF variable would be one dask chunk, read whole by every block
     cut from it)."""
+    if fmt == "zarr":
+        _refuse_incomplete_zarr(path)
+    elif _netcdf_engine(path) == "h5netcdf":
+        _refuse_unwritten_hdf5_chunks(path)
     if isinstance(chunks, _Rows):
         if fmt == "netcdf":
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)
@@ -376,7 +523,8 @@ STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer
 
 def stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
-    cast (float16 clipped to its range), or given the CF packing (``scale_factor``,
+    cast (float16's finite values clipped to its range as they are written, and counted), or
+    given the CF packing (``scale_factor``,
     ``add_offset``, ``_FillValue``, ``valid_range``) a reader applies, the packing error and
     the clipping said in the variable's attributes; the values are clipped to the packing's
     range as they are packed (:func:`_packed`, which counts them), so a uint16 layout is
@@ -403,14 +551,19 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
                              "physical values (flat-field the counts first, or give the cube "
                              "its units)")
         if dtype == "float32":
-            var = var.astype(np.float32)
+            if fmt == "envi" or var.dtype.itemsize <= 4:  # (ENVI is written from the values)
+                var = var.astype(np.float32)
+            # else cast as it is written, where finite values beyond float32's range, which
+            # the cast would make infinite, are clipped and counted (:func:`_packed`)
             encoding["dtype"] = "float32"
         elif dtype == "float16":
-            var = var.clip(-FLOAT16_MAX, FLOAT16_MAX)
+            # clipped as it is cast, where the values beyond float16's range are counted
+            # (:func:`_packed`, :func:`_say_clipped`); infinities and NaN kept
             encoding["dtype"] = "float16"
             attrs["storage"] = ("float16: relative error at most 2**-11 (4.9e-4) of the value "
-                                f"(absolute 6e-8 below 6.1e-5); values beyond +-{FLOAT16_MAX:g} "
-                                "are stored as +-65504 (clipped)")
+                                "(absolute 6e-8 below 6.1e-5); finite values beyond "
+                                f"+-{FLOAT16_MAX:g} (float16's range) are stored as "
+                                f"+-{FLOAT16_MAX:g} (clipped); infinities and NaN as they are")
             attrs["packing_error"] = "relative 4.9e-4"
         else:
             lo, hi = _pack_range(name, var, pack_range)
@@ -540,7 +693,8 @@ def _hdf5_chunks(var):
         whole = blocks[:-1] if len(blocks) > 1 else blocks
         common = int(np.gcd.reduce(np.asarray(whole, dtype=np.int64)))
         sizes.append(common if 2 * common >= blocks[0] else int(blocks[0]))
-    while int(np.prod(sizes, dtype=np.int64)) * var.dtype.itemsize > HDF5_MAX_CHUNK_BYTES:
+    itemsize = np.dtype(var.encoding.get("dtype", var.dtype)).itemsize  # as stored
+    while int(np.prod(sizes, dtype=np.int64)) * itemsize > HDF5_MAX_CHUNK_BYTES:
         longest = int(np.argmax(sizes))
         if sizes[longest] == 1:
             break
@@ -599,12 +753,20 @@ def _packed(ds, clipped):
     codes, packed in one pass (:func:`~snapcorr.files._packing.pack_uint16`, block by block
     for dask), the packing's ``scale_factor``, ``add_offset`` and ``_FillValue`` moved to its
     attributes: stored as they are, read back by any CF reader as xarray's own encoding of
-    the values would be. ``clipped`` (a dict) gets each variable's ``(counts, lo, hi)``: the
-    packing appends to ``counts`` as its blocks are written (:func:`_say_clipped`)."""
+    the values would be; and each float variable stored as a narrower float (float16,
+    float32 from float64) with its finite values beyond that type's range clipped to its ends
+    (:func:`_narrowed`; cast, they would become infinities). ``clipped`` (a dict) gets each
+    variable's ``(counts, range, advice)``: the packing appends to ``counts`` as its blocks
+    are written (:func:`_say_clipped`)."""
     names = [n for n in ds.data_vars
              if ds[n].encoding.get("dtype") == "uint16" and "scale_factor" in ds[n].encoding
              and np.issubdtype(ds[n].dtype, np.floating)]
-    if not names:
+    narrowed = [n for n in ds.data_vars
+                if ds[n].dtype.kind == "f"
+                and np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)).kind == "f"
+                and np.dtype(ds[n].encoding.get("dtype", ds[n].dtype)).itemsize
+                < ds[n].dtype.itemsize]
+    if not names and not narrowed:
         return ds
     from ._packing import pack_uint16
 
@@ -614,8 +776,10 @@ def _packed(ds, clipped):
         enc = dict(var.encoding)
         scale, offset = enc.pop("scale_factor"), enc.pop("add_offset", np.float32(0))
         fill = enc.pop("_FillValue", np.uint16(PACKED_FILL))
-        counts = clipped.setdefault(name, ([], float(offset),
-                                           float(offset) + PACKED_TOP * float(scale)))[0]
+        hi = float(offset) + PACKED_TOP * float(scale)
+        counts = clipped.setdefault(name, (
+            [], f"the uint16 packing's range {float(offset):.6g} to {hi:.6g}",
+            "widen the packing range, or store float32"))[0]
 
         def pack(a, offset=offset, scale=scale, fill=fill, counts=counts):
             return pack_uint16(a, offset, scale, PACKED_TOP, fill, clipped=counts)
@@ -627,7 +791,44 @@ def _packed(ds, clipped):
                                                "add_offset": offset, "_FillValue": fill},
                              {**enc, "dtype": "uint16"})
         out[name] = xr.DataArray(packed, coords=var.coords)
+    for name in narrowed:
+        var = ds[name]
+        to = np.dtype(var.encoding["dtype"])
+        top = float(np.finfo(to).max)
+        counts = clipped.setdefault(name, (
+            [], f"{to}'s range -{top:g} to {top:g}",
+            "store float32, or uint16 with a packing range that holds them"
+            if to == np.float16 else f"keep their {var.dtype} (no dtype)"))[0]
+
+        def clip(a, counts=counts, to=to):
+            return _narrowed(a, to, counts)
+
+        data = var.data
+        kept = (data.map_blocks(clip, dtype=var.dtype) if var.chunks is not None
+                else clip(np.asarray(data)))
+        out[name] = var.copy(data=kept)  # its attributes and encoding (the narrower type)
     return out
+
+
+def _narrowed(values, to, counts):
+    """``values`` (floats wider than the float type ``to``) with the finite ones that ``to``
+    cannot hold (those its cast makes infinite: for float16 65520 and beyond, the rounding
+    takes smaller ones to 65504) set to its largest finite value of their sign, infinities
+    and NaN kept; the count of those and of the values in all appended to ``counts`` as a
+    pair."""
+    values = np.asarray(values)
+    top = float(np.finfo(to).max)
+    # halfway from the largest finite value to the next power of two: from there on the cast
+    # rounds to infinity (65520 for float16), in the values' own type
+    info = np.finfo(to)
+    edge = values.dtype.type(top + 2.0 ** (info.maxexp - 2 - info.nmant))
+    magnitude = np.abs(values)
+    beyond = (magnitude >= edge) & (magnitude != np.inf)
+    n = int(np.count_nonzero(beyond))
+    counts.append((n, int(values.size)))
+    if n:
+        values = np.where(beyond, np.copysign(values.dtype.type(top), values), values)
+    return values
 
 
 def _store_dataset(ds, path, fmt, compression="auto"):
@@ -660,16 +861,18 @@ def _store_dataset(ds, path, fmt, compression="auto"):
         _say_clipped(clipped, path)
         return path
 
+    every_chunk = _every_chunk_written(first)
+
     def write_zarr(tmp):
         import zarr
 
-        first.to_zarr(tmp, mode="w", consolidated=False,
-                      encoding=_zarr_encoding(first, compression))
+        every_chunk.to_zarr(tmp, mode="w", consolidated=False,
+                            encoding=_zarr_encoding(first, compression))
         for group in groups:
             # the coordinates went in with the first pass (sensor positions, the corrected
             # wavelengths' compact form): zarr refuses an encoding for a variable that already
             # exists, so later passes give one for their own variables only
-            part = ds[group]
+            part = _every_chunk_written(ds[group])
             part.to_zarr(tmp, mode="a", consolidated=False,
                          encoding={k: e for k, e in _zarr_encoding(part, compression).items()
                                    if k not in first.variables})
@@ -686,21 +889,36 @@ def _store_dataset(ds, path, fmt, compression="auto"):
     return path
 
 
+def _every_chunk_written(ds):
+    """``ds`` with every variable but the booleans stored whole in Zarr, none of its chunks
+    left out for holding only the fill value: a reader cannot tell a chunk left out from one
+    lost, and refuses a store that lacks chunks of valid values
+    (:func:`_refuse_missing_chunks`). :func:`_zarr_encoding` says so for the variables it
+    gives an encoding; this for the others (a source's own compression kept, a scalar, a
+    coordinate). A mask's all-false chunks are still left out: missing, a boolean reads
+    false, as snapcorr's reader accepts."""
+    out = ds.copy()
+    for var in out.variables.values():
+        if var.dtype != bool:
+            var.encoding = {**var.encoding, "write_empty_chunks": True}
+    return out
+
+
 class PackingClipWarning(UserWarning):
-    """Values beyond a uint16 packing's range were stored at its ends."""
+    """Values beyond a uint16 packing's range, or finite values beyond float16's, were stored
+    at its ends."""
 
 
 def _say_clipped(clipped, path):
     """One warning per variable whose packing stored values beyond its range at its ends
     (the counts :func:`_packed` collected while the blocks were written)."""
-    for name, (counts, lo, hi) in clipped.items():
+    for name, (counts, beyond, advice) in clipped.items():
         n = sum(c for c, _ in counts)
         total = sum(t for _, t in counts)
         if n:
             warnings.warn(PackingClipWarning(
                 f"{path}: {n} of {total} values of {shown(name)} ({100 * n / total:.3g} %) lie "
-                f"beyond the uint16 packing's range {lo:.6g} to {hi:.6g} and are stored at its "
-                "ends: widen the packing range, or store float32"),
+                f"beyond {beyond} and are stored at its ends: {advice}"),
                 stacklevel=outside_stacklevel())
 
 

@@ -26,7 +26,7 @@ import numpy as np
 import xarray as xr
 
 from .api import read_frame
-from .datasets import _open_dataset, refuse_packed_counts
+from .datasets import _IncompleteStore, _open_dataset, _refuse_missing_chunks, refuse_packed_counts
 from .reading import check_input, open_image
 from .registry import format_by_suffix
 
@@ -456,6 +456,8 @@ def _xarray_stack(path, fmt):
     check_input(path, directory=fmt == "zarr", what="stream")
     try:
         ds = _open_dataset(path, fmt, {})
+    except _IncompleteStore:
+        raise
     except Exception as err:  # the libraries' own types: perhaps a plain zarr array
         if fmt != "zarr":
             raise ValueError(f"{path}: cannot read it as netcdf: {type(err).__name__}") \
@@ -521,6 +523,7 @@ def _plain_zarr(path, first_error):
             from None
     if arr.ndim != 3:
         raise ValueError(f"{path} holds a {arr.ndim}-D array; a stream is (frame, y, x)")
+    _refuse_missing_chunks(path, [("the array", path, arr)], cf=False)  # read as stored, unmasked
     return da.from_zarr(arr)
 
 

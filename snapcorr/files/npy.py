@@ -93,20 +93,49 @@ def _npy_found(path, data, file_ndim):
     side = _sidecar(path)
     if os.path.lexists(side):
         meta = _read_sidecar(side, path)
-        shape = meta.get("shape")
-        if shape is not None and list(shape) != list(data.shape[:file_ndim]):
-            raise ValueError(f"{path}: its sidecar {side.name} describes shape {shape} but the "
-                             f"array is {list(data.shape[:file_ndim])}; the two files do not "
-                             "belong together (remove or fix the sidecar)")
+        _check_sidecar(meta, side, path, list(data.shape[:file_ndim]), data.dtype)
         found.wavelength = meta.get("wavelength_nm")
         found.fwhm = meta.get("fwhm_nm")
         found.name = meta.get("name")
-        if isinstance(meta.get("attrs"), dict):
+        if meta.get("attrs") is not None:
             found.attrs.update(meta["attrs"])
         for key in POSITION_DIMS:
-            if isinstance(meta.get(key), dict):
+            if meta.get(key) is not None:
                 found.positions[key] = meta[key]
     return found
+
+
+def _check_sidecar(meta, side, path, shape, dtype):
+    """Refuse a sidecar that describes another array than the ``.npy`` holds (its ``shape``, a
+    list of whole numbers, or its ``dtype``, the type's name; byte order aside: snapcorr
+    writes the machine's own) or whose fields are not of their kind (``name`` a string,
+    ``attrs`` and the sensor positions objects)."""
+    def refuse(what):
+        raise ValueError(f"{path}: its sidecar {side.name} {what}; the two files do not "
+                         "belong together or the sidecar is damaged (remove or fix it)")
+
+    said = meta.get("shape")
+    if said is not None:
+        if not (isinstance(said, list)
+                and all(isinstance(n, int) and not isinstance(n, bool) for n in said)):
+            refuse(f"gives the shape {said!r}, not a list of whole numbers")
+        if said != shape:
+            refuse(f"describes shape {said} but the array is {shape}")
+    said = meta.get("dtype")
+    if said is not None:
+        try:
+            named = np.dtype(said) if isinstance(said, str) else None
+        except TypeError:
+            named = None
+        if named is None:
+            refuse(f"names the dtype {said!r}, which is no numpy type")
+        if named.newbyteorder("=") != np.dtype(dtype).newbyteorder("="):
+            refuse(f"describes {named} values but the array holds {np.dtype(dtype)}")
+    if meta.get("name") is not None and not isinstance(meta["name"], str):
+        refuse(f"gives the name {meta['name']!r}, not a string")
+    for key in ("attrs", *POSITION_DIMS):
+        if meta.get(key) is not None and not isinstance(meta[key], dict):
+            refuse(f"gives {key} as {type(meta[key]).__name__}, not a JSON object")
 
 
 def _read_sidecar(side, path):

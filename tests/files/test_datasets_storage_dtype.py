@@ -123,12 +123,96 @@ def test_packing_what_has_no_known_range_or_holds_counts_is_refused(tmp_path):
 
 
 def test_float16_clips_what_it_cannot_hold(tmp_path):
+    from snapcorr.files import PackingClipWarning
+
     ds = xr.Dataset({"radiance": (("y", "x", "band"), np.full((2, 3, NB), 1e6, np.float32),
                                   {"units": "W m-2"})})
-    write_dataset(ds, tmp_path / "h.zarr", dtype="float16")
+    with pytest.warns(PackingClipWarning, match=f"{2 * 3 * NB} of {2 * 3 * NB} values"):
+        write_dataset(ds, tmp_path / "h.zarr", dtype="float16")
     with _open(tmp_path / "h.zarr") as back:
         assert np.all(back["radiance"].values == 65504)
         assert "clipped" in back["radiance"].attrs["storage"]
+
+
+def _ratios(values, lazy=False):
+    values = np.asarray(values, np.float32)[None, None, :]
+    cube = make_cube(values, np.linspace(500.0, 500.0 + 10 * (values.shape[2] - 1),
+                                         values.shape[2]), name="reflectance",
+                     attrs={"units": "1"})
+    return xr.Dataset({"reflectance": cube.chunk({"band": 2}) if lazy else cube})
+
+
+def test_float16_keeps_infinities_as_they_are(tmp_path):
+    import warnings
+
+    from snapcorr.files import PackingClipWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PackingClipWarning)  # infinities are not clipped
+        write_dataset(_ratios([np.inf, np.nan, -np.inf]), tmp_path / "x.zarr", dtype="float16")
+    with _open(tmp_path / "x.zarr") as back:  # xarray's own reader
+        assert back["reflectance"].encoding["dtype"] == np.float16
+        values = back["reflectance"].values[0, 0]
+    assert values[0] == np.inf and np.isnan(values[1]) and values[2] == -np.inf
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_float16_says_the_finite_values_it_clips(tmp_path, lazy):
+    """Finite values float16 cannot hold (its cast would make them infinite) are stored at
+    its ends, counted and said as uint16's packing says them; 65519 rounds to 65504 (not
+    clipped), 65520 would be infinite (clipped)."""
+    from snapcorr.files import PackingClipWarning
+
+    given = [119800.0, -1e5, 65519.0, 65520.0, 0.5, np.inf, np.nan]
+    with pytest.warns(PackingClipWarning) as record:
+        write_dataset(_ratios(given, lazy), tmp_path / "x.zarr", dtype="float16")
+    said = [w for w in record if w.category is PackingClipWarning]
+    assert len(said) == 1 and said[0].filename == __file__
+    assert "3 of 7 values of 'reflectance'" in str(said[0].message)
+    assert "float16's range -65504 to 65504" in str(said[0].message)
+    with _open(tmp_path / "x.zarr") as back:
+        values = back["reflectance"].values[0, 0].astype(np.float64)
+        storage = back["reflectance"].attrs["storage"]
+    np.testing.assert_array_equal(values[:6], [65504, -65504, 65504, 65504, 0.5, np.inf])
+    assert np.isnan(values[6])
+    assert "+-65504 (clipped)" in storage and "infinities and NaN as they are" in storage
+
+
+def test_float16_kept_from_a_store_clips_and_says_it(tmp_path):
+    """A variable read from a float16 store keeps float16 as its encoding: new values written
+    with it are clipped and said as ``dtype="float16"`` does, not cast to infinities."""
+    from snapcorr.files import PackingClipWarning
+
+    write_dataset(_ratios([0.5, 0.25]), tmp_path / "a.zarr", dtype="float16")
+    ds = read_dataset(tmp_path / "a.zarr")
+    ds["reflectance"] = ds["reflectance"].copy(data=np.full((1, 1, 2), 7e4, np.float32))
+    assert ds["reflectance"].encoding["dtype"] == np.float16
+    with pytest.warns(PackingClipWarning, match="2 of 2 values"):
+        write_dataset(ds, tmp_path / "b.zarr")
+    with _open(tmp_path / "b.zarr") as back:
+        np.testing.assert_array_equal(back["reflectance"].values, 65504)
+
+
+def test_the_command_line_says_float16_clipped_values(tmp_path, capsys):
+    from snapcorr.cli import main
+
+    raw = np.full((4, 4, 3), 1000, np.uint16)
+    raw[0, 0, 0] = 60000
+    white = np.full((4, 4, 3), 3000.0, np.float32)
+    white[0, 0, 0] = 100.5  # (60000 - 100) / 0.5 = 119800
+    wl = [500.0, 550.0, 600.0]
+    write_cube(make_cube(raw, wl), tmp_path / "raw.hdr")
+    write_cube(make_cube(np.full((4, 4, 3), 100.0, np.float32), wl, attrs={"units": "count"}),
+               tmp_path / "dark.hdr")
+    write_cube(make_cube(white, wl, attrs={"units": "count"}), tmp_path / "white.hdr")
+    assert main(["flatfield", str(tmp_path / "raw.hdr"), "--dark", str(tmp_path / "dark.hdr"),
+                 "--white", str(tmp_path / "white.hdr"), "--dtype", "float16", "--out",
+                 str(tmp_path / "x.zarr")]) == 0
+    err = capsys.readouterr().err
+    assert "snapcorr: warning:" in err
+    assert "1 of 48 values of 'reflectance'" in err and "float16's range" in err
+    with _open(tmp_path / "x.zarr") as back:
+        assert back["reflectance"].values[0, 0, 0] == 65504
 
 
 def test_the_command_line_stores_as_asked_and_refuses_envi_packing(tmp_path, cli):
@@ -207,3 +291,43 @@ def test_a_packed_cube_reads_back_as_float32_from_zarr_as_from_netcdf(tmp_path, 
         got[suffix] = np.asarray(back.values)
     np.testing.assert_array_equal(got[".nc"], got[".zarr"])
     np.testing.assert_allclose(got[".nc"], cube.values, atol=1e-4)
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_float32_from_float64_says_the_finite_values_it_clips(tmp_path, ext):
+    """float64 values beyond float32's range were cast to infinities, unsaid; they are now
+    stored at float32's ends and said, as float16 and uint16 say theirs."""
+    from snapcorr.files import PackingClipWarning
+
+    values = np.array([[[1e39, -1e40, np.inf, 0.5]]])
+    ds = make_cube(values, WL[:4], name="radiance", attrs={"units": "W m-2"}).to_dataset()
+    with pytest.warns(PackingClipWarning, match=r"2 of 4 values of 'radiance' .* float32's "
+                                                r"range") as record:
+        write_dataset(ds, tmp_path / f"r{ext}", dtype="float32")
+    assert {w.filename for w in record if w.category is PackingClipWarning} == {__file__}
+    with _open(tmp_path / f"r{ext}") as back:
+        assert back["radiance"].encoding["dtype"] == np.float32
+        got = back["radiance"].values[0, 0]
+    top = np.finfo(np.float32).max
+    np.testing.assert_array_equal(got, np.array([top, -top, np.inf, 0.5], np.float32))
+
+
+@pytest.mark.parametrize(("wide", "narrow"), [(np.float32, np.float16), (np.float64, np.float16),
+                                              (np.float64, np.float32)])
+def test_the_narrower_float_clip_counts_what_the_cast_makes_infinite(wide, narrow):
+    """The values counted and clipped are exactly those numpy's cast rounds to infinity."""
+    from snapcorr.files.datasets import _narrowed
+
+    info = np.finfo(narrow)
+    edge = wide(float(info.max) + 2.0 ** (info.maxexp - 2 - info.nmant))
+    one = np.array([info.max, np.nextafter(edge, wide(0)), edge,
+                    np.nextafter(edge, wide(np.inf)), np.inf, np.nan, 1.0], wide)
+    values = np.concatenate([one, -one])
+    with np.errstate(over="ignore"):
+        made_infinite = np.isfinite(values) & np.isinf(values.astype(narrow))
+    counts = []
+    out = _narrowed(values, np.dtype(narrow), counts)
+    assert counts == [(int(made_infinite.sum()), values.size)] and made_infinite.sum() == 4
+    stored = out.astype(narrow)
+    np.testing.assert_array_equal(np.isinf(stored), np.isinf(values))
+    np.testing.assert_array_equal(np.isnan(stored), np.isnan(values))

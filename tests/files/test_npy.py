@@ -132,3 +132,54 @@ def test_a_sidecar_nested_past_the_json_readers_depth_is_one_line(tmp_path, cli)
     with pytest.raises(ValueError, match="nested too deeply"):
         parse_json('{"a": ' * 50_000 + "1" + "}" * 50_000)
     assert parse_json('{"a": [1, 2]}') == {"a": [1, 2]}
+
+
+def _with_sidecar(tmp_path, stored=np.float32, order="C", **fields):
+    """A cube of ``stored`` values snapcorr wrote as .npy, its sidecar's ``fields`` replaced."""
+    path = tmp_path / "c.npy"
+    write_cube(make_cube(_data(stored), WAVELENGTHS), path, overwrite=True)
+    if order == "F":  # the same array stored in Fortran order (read through numpy's map)
+        np.save(path, _data(stored, order))
+    side = tmp_path / "c.npy.json"
+    meta = json.loads(side.read_text())
+    side.write_text(json.dumps({**meta, **fields}))
+    return path
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize(("stored", "said"), [(np.float32, "uint16"), (np.uint16, "float32"),
+                                              (np.float64, "float32"), (np.int32, "uint32")])
+def test_a_sidecar_of_another_dtype_is_refused(tmp_path, order, stored, said):
+    path = _with_sidecar(tmp_path, stored, order, dtype=said)
+    with pytest.raises(ValueError, match=rf"c\.npy: its sidecar c\.npy\.json describes {said} "
+                                         rf"values but the array holds {np.dtype(stored)}"):
+        read_cube(path)
+    with pytest.raises(ValueError, match="describes"):
+        read_cube(path, chunks={"y": 4})
+
+
+@pytest.mark.parametrize("said", ["nonsense", 5, ["float32"]])
+def test_a_sidecar_naming_no_dtype_is_refused(tmp_path, said):
+    with pytest.raises(ValueError, match=r"names the dtype .* which is no numpy type"):
+        read_cube(_with_sidecar(tmp_path, dtype=said))
+
+
+def test_a_sidecar_dtype_in_another_spelling_or_byte_order_is_read(tmp_path):
+    for said in ("float32", "<f4", ">f4", "f4"):
+        assert read_cube(_with_sidecar(tmp_path, dtype=said)).dtype == np.float32
+    path = tmp_path / "c.npy"  # the array big-endian, the sidecar as snapcorr writes it
+    np.save(path, _data(np.float32).astype(">f4"))
+    assert read_cube(path).dtype.kind == "f"
+
+
+@pytest.mark.parametrize(("fields", "words"), [
+    ({"shape": [13.0, 7, 3]}, r"gives the shape \[13.0, 7, 3\], not a list of whole numbers"),
+    ({"shape": 13}, "gives the shape 13, not a list"),
+    ({"shape": [True, 7, 3]}, "gives the shape"),
+    ({"name": 5}, "gives the name 5, not a string"),
+    ({"attrs": [1, 2]}, "gives attrs as list, not a JSON object"),
+    ({"sensor_row": [0, 1]}, "gives sensor_row as list, not a JSON object"),
+])
+def test_sidecar_fields_of_another_kind_are_refused(tmp_path, fields, words):
+    with pytest.raises(ValueError, match=rf"c\.npy: its sidecar c\.npy\.json {words}"):
+        read_cube(_with_sidecar(tmp_path, **fields))
