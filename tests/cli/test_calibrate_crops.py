@@ -115,6 +115,27 @@ def test_flats_are_read_rows_first(crops, cli):
     assert "read f/2: white_f2.npy (256 x 320 px)" in res.stderr, res.stderr
 
 
+def test_a_flat_fields_result_is_no_calibration_flat(crops, cli):
+    """A reflectance (or any variable in units of 1) given as a flat is a ratio to a white:
+    its vignetting divided out, it calibrated a lens without any. Refused, naming it."""
+    import xarray as xr
+
+    for f in (2, 11):
+        with xr.open_dataset(crops / f"tgt_a_f{f}.nc") as ds:
+            signal = ds["reflectance"].mean("band").rename("signal").load()
+        signal.attrs = {"units": "1"}
+        signal.to_dataset().to_netcdf(crops / f"ratio_f{f}.nc")
+    for stem, kind in (("tgt_a", "a reflectance"), ("ratio", "a ratio (units '1')")):
+        path = f"{stem}_f2.nc"
+        res = cli("calibrate", "--flat", f"2={path}", "--flat", f"11={stem}_f11.nc",
+                  "--exit-pupil-mm", "21", "--pixel-pitch-um", "5.5", "--out", "ratio.toml",
+                  cwd=crops)
+        assert res.returncode == 1, res.stderr
+        line = res.stderr.strip().splitlines()[-1]
+        assert f"the flat field {path} is {kind}" in line, line
+        assert not (crops / "ratio.toml").exists()
+
+
 def test_raw_vendor_flats_at_another_phase_are_refused(tmp_path, cli):
     """A crop of the vendor camera's raw whites at rows 300:550, columns 500:800, said to be
     at 301,500: calibrate took it (flatfield refuses such a white by its mosaic's phase)."""
