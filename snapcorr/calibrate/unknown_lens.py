@@ -224,7 +224,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
                   **_raw_mosaic_of(sensor, shape, sensor_origin_px))
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
-    centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
+    centre = (None if first.center_source == "image centre"  # assumed there, not found
+              else _target_center(cubes, sensor, first.lens, sensor_origin_px, notes))
 
     def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
         return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
@@ -248,6 +249,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
     total = np.hypot(own, x_part) if x_part.size else own
     lens = _profile(final, pupil, names, values, cov, total, x_part, provisional_x_mm)
+    if final.center_source == "image centre":
+        lens = _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes)
     out = LensAndPupil(lens, final, pupil, names, values,
                        np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
                        float(provisional_x_mm), notes)
@@ -291,6 +294,30 @@ def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
                      "the target's fit found its own")
         return None
     return centre
+
+
+def _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes):
+    """The profile of flats that show no fall-off to find the optical centre from (their image
+    centre was only assumed): the centre the target's fit found instead, in the flats' pixels
+    (less the crop's origin) where they are the sensor's own; else the image centre, recorded
+    as assumed."""
+    import dataclasses
+
+    table = dict(lens.calibration)
+    p = getattr(sensor, "pixel_pitch_um", None)
+    if p and abs(float(pixel_pitch_um) - float(p)) <= 1e-9 * float(p):
+        r0, c0 = sensor_origin_px if sensor_origin_px is not None else (0, 0)
+        row, col = pupil.center_rc[0] - r0, pupil.center_rc[1] - c0
+        table["center_rc"] = [float(row), float(col)]
+        table["center_px"] = [float(col), float(row)]  # x first, for earlier readers
+        table["center_source"] = f"the target cubes: {pupil.center_source}"
+        notes.append("the flats show no fall-off to find the optical centre from: the target "
+                     f"cubes' centre (sensor row {pupil.center_rc[0]:.1f}, col "
+                     f"{pupil.center_rc[1]:.1f}) is the profile's")
+    else:
+        notes.append("the flats show no fall-off to find the optical centre from: the profile "
+                     "records their image centre, assumed; give --center where it matters")
+    return dataclasses.replace(lens, calibration=table)
 
 
 def _consistency(first, final, x0, x):

@@ -136,6 +136,40 @@ def test_a_flat_fields_result_is_no_calibration_flat(crops, cli):
         assert not (crops / "ratio.toml").exists()
 
 
+def test_a_centre_the_flats_cannot_show_is_said_to_be_assumed(crops, cli):
+    """Crop A shows no fall-off to find the centre from: the profile stored the crop's image
+    centre (527.5, 959.5 on the sensor; the axis is at 543.5, 1023.5) without saying it was
+    assumed, and correct used it as the lens's."""
+    from snapcorr.correct.geometry import optical_center_rc
+    from snapcorr.cube import Sensor
+    from snapcorr.data import sensor_path
+
+    res = cli("calibrate", *FLATS, "--sensor-origin-px", "400,800", "--exit-pupil-mm", "21",
+              "--method", "joint", "--out", "assumed.toml", cwd=crops)
+    assert res.returncode == 0, res.stderr
+    assert "image centre, assumed" in res.stdout
+    lens = Lens.load(crops / "assumed.toml")
+    assert lens.calibration["center_source"].startswith("image centre (assumed")
+    _, source = optical_center_rc(None, Sensor.load(sensor_path("mosaic_4x4_vis")), lens)
+    assert "assumed" in source, source
+
+
+@pytest.mark.slow
+def test_the_target_finds_the_centre_the_flats_cannot(crops, cli):
+    """With target cubes, the flats' assumed image centre was given to the target's fit as
+    "given" (x fitted about it, the profile keeping it): the target's fit now finds its own,
+    which the profile keeps, with where it came from."""
+    res = cli("calibrate", *FLATS, *TARGET, *_cubes("a"), "--sensor-origin-px", "400,800",
+              "--out", "target.toml", cwd=crops)
+    assert res.returncode == 0, res.stderr
+    assert "(given)" not in res.stdout
+    cal = Lens.load(crops / "target.toml").calibration
+    assert cal["center_source"].startswith("the target cubes: found from the f/2 cube")
+    assert cal["exit_pupil_fit"]["center_source"].startswith("found from the f/2 cube")
+    fitted = np.add(cal["exit_pupil_fit"]["center_rc"], 0)
+    assert cal["center_rc"] == pytest.approx(fitted - ORIGIN)
+
+
 def test_raw_vendor_flats_at_another_phase_are_refused(tmp_path, cli):
     """A crop of the vendor camera's raw whites at rows 300:550, columns 500:800, said to be
     at 301,500: calibrate took it (flatfield refuses such a white by its mosaic's phase)."""
