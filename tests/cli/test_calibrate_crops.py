@@ -115,6 +115,14 @@ def test_flats_are_read_rows_first(crops, cli):
     assert "read f/2: white_f2.npy (256 x 320 px)" in res.stderr, res.stderr
 
 
+def test_flats_of_other_sizes_are_listed_rows_first():
+    from snapcorr.calibrate import calibrate_lens
+
+    flats = {2.0: np.ones((16, 24)), 4.0: np.ones((24, 16))}
+    with pytest.raises(ValueError, match=r"f/2: 16 x 24, f/4: 24 x 16"):
+        calibrate_lens(flats, exit_pupil_mm=21, pixel_pitch_um=5.5)
+
+
 def test_a_flat_fields_result_is_no_calibration_flat(crops, cli):
     """A reflectance (or any variable in units of 1) given as a flat is a ratio to a white:
     its vignetting divided out, it calibrated a lens without any. Refused, naming it."""
@@ -195,3 +203,17 @@ def test_raw_vendor_flats_at_another_phase_are_refused(tmp_path, cli):
     args = argparse.Namespace(flat=[(f, tmp_path / f"w{f:g}.npy") for f in flats])
     _check_flat_phase(args, sensor, flats, {f: 1023 for f in flats},
                       np.load(tmp_path / "d.npy").astype(float), (300, 500))
+
+
+@pytest.mark.parametrize("center_px, refused", [([100.0, 900.0], True), ([900.0, 100.0], False)])
+def test_a_profile_with_two_centres_that_disagree_is_refused(tmp_path, center_px, refused):
+    """center_rc is row first, center_px x first: the two disagreeing were read silently."""
+    path = tmp_path / "lens.toml"
+    path.write_text("[lens]\nname = \"t\"\nexit_pupil_mm = 21.0\n\n[calibration]\n"
+                    f"center_rc = [100.0, 900.0]\ncenter_px = {center_px}\n"
+                    "pixel_pitch_um = 5.5\n")
+    if refused:
+        with pytest.raises(ValueError, match=r"center_rc \[100.0, 900.0\] .* disagree"):
+            Lens.load(path)
+    else:
+        assert Lens.load(path).calibration["center_rc"] == [100.0, 900.0]
