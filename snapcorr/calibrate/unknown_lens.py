@@ -213,6 +213,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     if not flats or not cubes:
         raise ValueError("give flat fields and target cubes (one of each at least)")
     shape = np.shape(next(iter(flats.values())))
+    _same_pixels(shape, cubes, sensor, sensor_origin_px)
     if provisional_x_mm is None:
         half_diag_mm = 0.5 * math.hypot(*shape[:2]) * float(pixel_pitch_um) * 1e-3
         provisional_x_mm = half_diag_mm / math.tan(math.radians(20.0))
@@ -258,6 +259,28 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     # spread), the centre held where this fit found it
     out._refit = functools.partial(fit_x, centre=pupil.center_rc, again=True)
     return out
+
+
+def _same_pixels(shape, cubes, sensor, sensor_origin_px):
+    """Raw flats of a mosaic and its cubes must be of the same sensor pixels: a cube that
+    records its area (``mosaic_area_px``) elsewhere than the flats' (their ``shape`` at
+    ``sensor_origin_px``, the whole sensor without it) is refused, naming both."""
+    if getattr(sensor, "layout", None) != "mosaic":
+        return
+    whole = sensor.size_px is not None and tuple(shape[:2]) == tuple(sensor.size_px)
+    if sensor_origin_px is None and not whole:
+        return  # flats of another grid than the sensor's: nothing to compare
+    r0, c0 = (int(v) for v in (sensor_origin_px or (0, 0)))
+    flats = (r0, c0, int(shape[0]), int(shape[1]))
+    for f, cube in cubes.items():
+        area = getattr(cube, "attrs", {}).get("mosaic_area_px")
+        if area is not None and tuple(int(v) for v in area) != flats:
+            a = [int(v) for v in area]
+            raise ValueError(
+                f"the flats ({flats[2]} x {flats[3]} px at sensor row {r0}, col {c0}) and the "
+                f"target cube at f/{float(f):g} ({a[2]} x {a[3]} px at sensor row {a[0]}, col "
+                f"{a[1]}) are not of the same pixels: take both of one sensor area "
+                "(sensor_origin_px= its first pixel)")
 
 
 def _raw_mosaic_of(sensor, shape, sensor_origin_px=None):

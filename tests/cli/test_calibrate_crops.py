@@ -217,3 +217,24 @@ def test_a_profile_with_two_centres_that_disagree_is_refused(tmp_path, center_px
             Lens.load(path)
     else:
         assert Lens.load(path).calibration["center_rc"] == [100.0, 900.0]
+
+
+def test_calibrate_with_target_refuses_cubes_of_other_pixels(crops):
+    """The library as the command: cubes recording another sensor area than the flats' are
+    refused before any fit (the corner's cubes against flats at the same origin were fitted;
+    cubes elsewhere were refused after the flats' fit, asking to leave the origin out)."""
+    from snapcorr.calibrate import calibrate_with_target
+    from snapcorr.cube import Sensor
+    from snapcorr.data import sensor_path
+    from snapcorr.pipeline import read_cube_or_frame
+
+    sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
+    flats = {f: np.load(crops / f"white_f{f}.npy") for f in (2, 11)}
+    for name, origin, words in (("corner", (0, 0), "128 x 160 px at sensor row 0, col 0"),
+                                ("a", (0, 0), "256 x 320 px at sensor row 400, col 800")):
+        cubes = {f: read_cube_or_frame(crops / f"tgt_{name}_f{f}.nc", sensor) for f in (2, 11)}
+        with pytest.raises(ValueError, match="not of the same pixels") as err:
+            calibrate_with_target(flats, cubes, sensor, pixel_pitch_um=5.5, magnification=0.06,
+                                  pupil_magnification=1.3, max_circles=1,
+                                  sensor_origin_px=origin, pupil_radiance="paper")
+        assert words in str(err.value)
