@@ -213,6 +213,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     if not flats or not cubes:
         raise ValueError("give flat fields and target cubes (one of each at least)")
     shape = np.shape(next(iter(flats.values())))
+    _same_pixels(shape, cubes, sensor, sensor_origin_px)
     if provisional_x_mm is None:
         half_diag_mm = 0.5 * math.hypot(*shape[:2]) * float(pixel_pitch_um) * 1e-3
         provisional_x_mm = half_diag_mm / math.tan(math.radians(20.0))
@@ -224,7 +225,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
                   **_raw_mosaic_of(sensor, shape, sensor_origin_px))
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
-    centre = _target_center(cubes, sensor, first.lens, sensor_origin_px, notes)
+    centre = (None if first.center_source == "image centre"  # assumed there, not found
+              else _target_center(cubes, sensor, first.lens, sensor_origin_px, notes))
 
     def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
         return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
@@ -248,6 +250,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
     total = np.hypot(own, x_part) if x_part.size else own
     lens = _profile(final, pupil, names, values, cov, total, x_part, provisional_x_mm)
+    if final.center_source == "image centre":
+        lens = _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes)
     out = LensAndPupil(lens, final, pupil, names, values,
                        np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
                        float(provisional_x_mm), notes)
@@ -255,6 +259,28 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     # spread), the centre held where this fit found it
     out._refit = functools.partial(fit_x, centre=pupil.center_rc, again=True)
     return out
+
+
+def _same_pixels(shape, cubes, sensor, sensor_origin_px):
+    """Raw flats of a mosaic and its cubes must be of the same sensor pixels: a cube that
+    records its area (``mosaic_area_px``) elsewhere than the flats' (their ``shape`` at
+    ``sensor_origin_px``, the whole sensor without it) is refused, naming both."""
+    if getattr(sensor, "layout", None) != "mosaic":
+        return
+    whole = sensor.size_px is not None and tuple(shape[:2]) == tuple(sensor.size_px)
+    if sensor_origin_px is None and not whole:
+        return  # flats of another grid than the sensor's: nothing to compare
+    r0, c0 = (int(v) for v in (sensor_origin_px or (0, 0)))
+    flats = (r0, c0, int(shape[0]), int(shape[1]))
+    for f, cube in cubes.items():
+        area = getattr(cube, "attrs", {}).get("mosaic_area_px")
+        if area is not None and tuple(int(v) for v in area) != flats:
+            a = [int(v) for v in area]
+            raise ValueError(
+                f"the flats ({flats[2]} x {flats[3]} px at sensor row {r0}, col {c0}) and the "
+                f"target cube at f/{float(f):g} ({a[2]} x {a[3]} px at sensor row {a[0]}, col "
+                f"{a[1]}) are not of the same pixels: take both of one sensor area "
+                "(sensor_origin_px= its first pixel)")
 
 
 def _raw_mosaic_of(sensor, shape, sensor_origin_px=None):
@@ -291,6 +317,30 @@ def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
                      "the target's fit found its own")
         return None
     return centre
+
+
+def _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes):
+    """The profile of flats that show no fall-off to find the optical centre from (their image
+    centre was only assumed): the centre the target's fit found instead, in the flats' pixels
+    (less the crop's origin) where they are the sensor's own; else the image centre, recorded
+    as assumed."""
+    import dataclasses
+
+    table = dict(lens.calibration)
+    p = getattr(sensor, "pixel_pitch_um", None)
+    if p and abs(float(pixel_pitch_um) - float(p)) <= 1e-9 * float(p):
+        r0, c0 = sensor_origin_px if sensor_origin_px is not None else (0, 0)
+        row, col = pupil.center_rc[0] - r0, pupil.center_rc[1] - c0
+        table["center_rc"] = [float(row), float(col)]
+        table["center_px"] = [float(col), float(row)]  # x first, for earlier readers
+        table["center_source"] = f"the target cubes: {pupil.center_source}"
+        notes.append("the flats show no fall-off to find the optical centre from: the target "
+                     f"cubes' centre (sensor row {pupil.center_rc[0]:.1f}, col "
+                     f"{pupil.center_rc[1]:.1f}) is the profile's")
+    else:
+        notes.append("the flats show no fall-off to find the optical centre from: the profile "
+                     "records their image centre, assumed; give --center where it matters")
+    return dataclasses.replace(lens, calibration=table)
 
 
 def _consistency(first, final, x0, x):

@@ -62,11 +62,26 @@ def _read_flats(args, sensor=None):
         sat[f] = (args.saturation if args.saturation is not None
                   else frame_saturation(sensor, [image], what=f"--flat {f:g}={path}")
                   or info["saturation"])
-        print(f"read f/{f:g}: {path} ({image.shape[1]} x {image.shape[0]}"
+        print(f"read f/{f:g}: {path} ({image.shape[0]} x {image.shape[1]} px"
               + (f", mean of {info['bands']} bands" if info["bands"] > 1 else "") + ")",
               file=sys.stderr)
     dark = read_flat(args.dark)[0] if args.dark else None
     return flats, bands, sat, dark
+
+
+def _check_flat_phase(args, sensor, flats, sat, dark, origin):
+    """Raw flats of a mosaic with measured responses: the stated origin (or a whole-sensor
+    frame) against the phase the first flat shows, before any fit, as ``flatfield`` checks its
+    white (:func:`~snapcorr.cube.phase.check_mosaic_phase`)."""
+    from ..cube.phase import check_mosaic_phase
+
+    if sensor is None or sensor.layout != "mosaic" or sensor.responses is None:
+        return
+    f, image = min(flats.items())
+    path = dict(args.flat)[f]
+    check_mosaic_phase(image, sensor, origin,
+                       dark=dark if dark is not None and dark.shape == image.shape else None,
+                       saturation=sat[f], what=f"--flat {f:g}={path}")
 
 
 def _flats_provenance(cal, args, bands):

@@ -29,9 +29,11 @@ def _add_target_fit_options(group, when=""):
                        help=f"{when}the target's spectrum, two columns (wavelength nm, "
                        "value); default: unknown, solved for")
     group.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
-                       help=f"{when}sensor row and column of the cubes' first pixel (crops)"
-                       + ("; without it, of the raw mosaic flats' (with --sensor)" if when
-                          else ""))
+                       help=("sensor row and column of the raw mosaic flats' first pixel "
+                             "(crops, with --sensor; with --target-cube, of the cubes' too: "
+                             "flats and cubes must be of the same pixels, and a cube that "
+                             "records its own must agree)" if when else
+                             "sensor row and column of the cubes' first pixel (crops)"))
 
 
 def _add_pupil_option(group):

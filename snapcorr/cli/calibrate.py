@@ -9,6 +9,7 @@ from pathlib import Path
 from .._names import CALIBRATION_METHODS
 from ._flats import (
     _band_gains_said,
+    _check_flat_phase,
     _flat_sensor,
     _flats_provenance,
     _no_dark_note,
@@ -120,7 +121,9 @@ def add_parser(subparsers):
                    "assumed; with --magnification > 0 the errors then include m_P over "
                    "[0.5, 2])")
     p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
-    _add_center(p, "optical centre in pixels (default: found from the flats)")
+    _add_center(p, "optical centre in sensor pixels, as pupil and correct take it (for flats "
+                "that are a crop: its first pixel at --sensor-origin-px; default: found from "
+                "the flats)")
     p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
@@ -167,13 +170,14 @@ def run(args):
                          "paper or lambertian")
     _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
+    _check_flat_phase(args, sensor, flats, sat, dark, args.sensor_origin_px)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
             flats, exit_pupil_mm=args.exit_pupil_mm, lens=given,
             exit_pupil_from=str(args.lens) if given is not None else None,
             pixel_pitch_um=args.pixel_pitch_um, magnification=args.magnification,
             pupil_magnification=args.pupil_magnification,
-            dark=dark, center_rc=args.center_rc, saturation=sat,
+            dark=dark, center_rc=_flats_center(args, args.sensor_origin_px), saturation=sat,
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
@@ -223,8 +227,8 @@ def _calibrate_with_target(args):
     # raw flats of a mosaic saturate at its largest code (calibrate_with_target divides out
     # the band gains of whole-sensor raw flats)
     flats, bands, sat, dark = _read_flats(args, sensor if sensor.layout == "mosaic" else None)
-    cubes = {f: _read(path, sensor, args.sensor_origin_px)
-             for f, path in sorted(args.target_cube)}
+    cubes, origin = _target_cubes(args, sensor, next(iter(flats.values())).shape)
+    _check_flat_phase(args, sensor, flats, sat, dark, origin)
     for f, cube in cubes.items():
         print(f"read target f/{f:g}: {seen[f]} ({cube.sizes['y']} x {cube.sizes['x']} x "
               f"{cube.sizes['band']})", file=sys.stderr)
@@ -234,9 +238,10 @@ def _calibrate_with_target(args):
                 flats, cubes, sensor, pixel_pitch_um=args.pixel_pitch_um,
                 fit_n_eff=args.fit_n_eff, magnification=args.magnification,
                 pupil_magnification=args.pupil_magnification,
-                dark=dark, center_rc=args.center_rc, saturation=sat, method=args.method,
+                dark=dark, center_rc=_flats_center(args, origin), saturation=sat,
+                method=args.method,
                 max_circles=args.max_circles, tolerance_nm=args.tolerance_nm,
-                target_spectrum=spectrum, sensor_origin_px=args.sensor_origin_px,
+                target_spectrum=spectrum, sensor_origin_px=origin,
                 name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
                 target_inputs=seen, progress=bar.step, pupil_radiance=args.pupil or "auto",
                 target_tolerance_nm=_target_tolerance(args.target_tolerance_nm),
@@ -259,3 +264,68 @@ def _calibrate_with_target(args):
     print("wrote " + ", ".join(str(w) for w in written))
     return 0
 
+
+
+def _flats_center(args, origin):
+    """``--center`` (sensor pixels, as ``pupil`` and ``correct`` take it) in the flats' pixels:
+    less the crop's ``origin`` (None: the flats are the whole sensor)."""
+    if args.center_rc is None or origin is None:
+        return args.center_rc
+    return (args.center_rc[0] - origin[0], args.center_rc[1] - origin[1])
+
+
+def _area(origin, shape):
+    """A sensor area for a message, rows first."""
+    return f"{shape[0]} x {shape[1]} px at sensor row {origin[0]}, col {origin[1]}"
+
+
+def _cube_area(cube):
+    """``(row, col, rows, cols)`` of the sensor area a mosaic cube records it covers (its
+    ``mosaic_area_px``, else its ``sensor_row`` / ``sensor_col``), or None."""
+    import numpy as np
+
+    area = cube.attrs.get("mosaic_area_px")
+    if area is not None:
+        return tuple(int(v) for v in area)
+    if "sensor_row" in cube.coords and "sensor_col" in cube.coords:
+        r, c = np.asarray(cube["sensor_row"].values), np.asarray(cube["sensor_col"].values)
+        return (int(r.min()), int(c.min()), int(r.max() - r.min()) + 1,
+                int(c.max() - c.min()) + 1)
+    return None
+
+
+def _target_cubes(args, sensor, shape):
+    """The target's cubes, and the sensor origin of the flats and the cubes alike (None: the
+    whole sensor). Of a mosaic, the flats (raw frames) and the cubes must be of the same
+    pixels: a cube that records its sensor area is read as it records it and refused, in one
+    line naming both, where that area is not the flats' (``--sensor-origin-px`` and their
+    size); flats that are a crop need ``--sensor-origin-px``."""
+    cubes = {}
+    if sensor.layout != "mosaic":
+        for f, path in sorted(args.target_cube):
+            cubes[f] = _read(path, sensor, args.sensor_origin_px)
+        return cubes, args.sensor_origin_px
+    whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
+    origin = args.sensor_origin_px
+    for f, path in sorted(args.target_cube):
+        cube = _read(path, sensor, None)
+        area = _cube_area(cube)
+        if area is None:  # it records nowhere: placed where the flats are
+            cube = _read(path, sensor, origin)
+            area = _cube_area(cube)
+        if origin is None and not whole:
+            raise ValueError(
+                f"the flats are {shape[0]} x {shape[1]} px, a crop of the sensor "
+                f"{sensor.name!r}" + (f" ({sensor.size_px[0]} x {sensor.size_px[1]} px)"
+                                      if sensor.size_px is not None else "")
+                + ": give --sensor-origin-px ROW,COL, the sensor row and column of their "
+                "first pixel" + (f" (the target cube f/{f:g} {path} records row {area[0]}, "
+                                 f"col {area[1]})" if area is not None else ""))
+        if area is not None and area != (*(origin or (0, 0)), *shape):
+            raise ValueError(
+                f"the flats ({_area(origin or (0, 0), shape)}) and the target cube f/{f:g} "
+                f"{path} ({_area(area[:2], area[2:])}) are not of the same pixels: take the "
+                "flats and the target's cubes of one sensor area, and give its origin "
+                "(--sensor-origin-px ROW,COL)")
+        cubes[f] = cube
+    return cubes, origin

@@ -180,7 +180,10 @@ def optical_center_rc(cube, sensor, lens, *, center_rc=None, positions=None):
         return check_center_rc(center_rc), "given"
     cal = getattr(lens, "calibration", {}) or {}
     if ("center_rc" in cal or "center_px" in cal) and cal.get("pixel_pitch_um") is not None:
-        return _calibrated_center_rc(cal, sensor)
+        centre, source = _calibrated_center_rc(cal, sensor)
+        if str(cal.get("center_source", "")).startswith("image centre"):
+            source += " (the flats' image centre, assumed: they showed no fall-off)"
+        return centre, source
     if sensor.size_px is not None:
         rows, cols = sensor.size_px
         return ((rows - 1) / 2.0, (cols - 1) / 2.0), "sensor centre"

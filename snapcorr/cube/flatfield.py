@@ -233,6 +233,18 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
 _RATIOS = ("reflectance", "transmittance")
 
 
+def _ratio_kind(value):
+    """What a DataArray says it is where it is a flat field's result, a ratio to a white
+    (``"a reflectance"``, ``"a ratio (units '1')"``): named as one of :data:`_RATIOS` (as its
+    name or ``long_name``) or in units of ``"1"`` (counts have none, or ``DN``); else None."""
+    if not isinstance(value, xr.DataArray):
+        return None
+    said = [n for n in (value.name, value.attrs.get("long_name")) if n in _RATIOS]
+    if said:
+        return f"a {said[0]}"
+    return "a ratio (units '1')" if str(value.attrs.get("units", "")).strip() == "1" else None
+
+
 def _refuse_ratios(raw, dark, white):
     """A cube or frame that says it is a flat field's result, given as the raw, a dark or a
     white: named as one (:data:`_RATIOS`, as a name or a ``long_name``), or in units of
@@ -242,13 +254,9 @@ def _refuse_ratios(raw, dark, white):
     for what, value in (("raw", raw), ("dark", dark), ("white", white)):
         values = value if isinstance(value, (list, tuple)) else [value]
         for k, v in enumerate(values, 1):
-            if not isinstance(v, xr.DataArray):
+            kind = _ratio_kind(v)
+            if kind is None:
                 continue
-            said = [n for n in (v.name, v.attrs.get("long_name")) if n in _RATIOS]
-            units = str(v.attrs.get("units", "")).strip()
-            if not said and units != "1":
-                continue
-            kind = f"a {said[0]}" if said else "a ratio (units '1')"
             source = v.attrs.get("source") or "a ratio to a white"
             label = ("the raw input" if what == "raw" else
                      f"the {what} frame {k} of {len(values)}" if len(values) > 1 else

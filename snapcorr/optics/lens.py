@@ -143,6 +143,14 @@ def _check_placement(cal):
                 raise ValueError(f"[calibration] {key} lies {max(abs(v) for v in pair):.3g} "
                                  f"pixels out; no sensor is wider than {PIXELS_MAX:,} pixels, "
                                  f"got {shown(cal[key])}")
+    if "center_rc" in cal and "center_px" in cal:  # one centre, twice: row first, x first
+        (row, col), (cx, cy) = (float(v) for v in cal["center_rc"]), \
+            (float(v) for v in cal["center_px"])
+        if max(abs(row - cy), abs(col - cx)) > 1e-6 * max(1.0, abs(row), abs(col)):
+            raise ValueError(
+                f"[calibration] center_rc {shown(cal['center_rc'])} (row, column) and "
+                f"center_px {shown(cal['center_px'])} (x first: column, row) disagree; keep "
+                "one (center_rc), or give center_px as [column, row]")
     if cal.get("sensor_origin_rc") is not None:
         origin = cal["sensor_origin_rc"]
         check_numbers("[calibration] sensor_origin_rc", origin)

@@ -34,6 +34,10 @@ def read_flat(path):
     ``.nc`` and ``.zarr`` cubes. The path is examined first: a FIFO, device, folder or link
     loop is refused before it is opened.
 
+    A flat field's result (a ratio to a white: a variable named or ``long_name``-d
+    reflectance or transmittance, or in units of ``"1"``) is refused: its vignetting was
+    divided out.
+
     Returns
     -------
     image : ndarray, shape (ny, nx), float64
@@ -42,9 +46,16 @@ def read_flat(path):
         ``bands`` (how many were averaged) and ``saturation`` (the largest value the file's
         integer type holds, or None for floating-point data).
     """
+    from ...cube.flatfield import _ratio_kind
     from ...files.api import read_array
 
     data = read_array(path, what="flat field", drop_alpha=True)
+    kind = _ratio_kind(data)
+    if kind is not None:  # its fall-off was divided out: a lens without vignetting
+        source = data.attrs.get("source") or "a ratio to a white"
+        raise ValueError(f"the flat field {path} is {kind} (a flat field's result: {source}), "
+                         "not the counts of a white: the lens's fall-off is divided out of it; "
+                         "give the raw white frames")
     if not isinstance(data, np.ndarray):  # a netCDF or Zarr variable
         data = np.asarray(data.values)
     sat = np.iinfo(data.dtype).max if np.issubdtype(data.dtype, np.integer) else None

@@ -226,12 +226,13 @@ def _check_inputs(flats, dark, vignetting_distance_mm):
         raise ValueError(f"f-number(s) given twice: {', '.join(f'f/{f:g}' for f in dup)}")
     shapes = {a.shape for _, a in items}
     if len(shapes) > 1:
-        listing = ", ".join(f"f/{f:g}: {a.shape[1]} x {a.shape[0]}" for f, a in items)
-        raise ValueError(f"flat fields differ in size ({listing}); all must come from the "
-                         "same sensor area")
+        listing = ", ".join(f"f/{f:g}: {a.shape[0]} x {a.shape[1]}" for f, a in items)
+        raise ValueError(f"flat fields differ in size (rows x columns: {listing}); all must "
+                         "come from the same sensor area")
     if min(items[0][1].shape) < 16:
-        raise ValueError(f"flat fields of {items[0][1].shape[1]} x {items[0][1].shape[0]} "
-                         "pixels are too small to calibrate from (16 x 16 at least)")
+        raise ValueError(f"flat fields of {items[0][1].shape[0]} x {items[0][1].shape[1]} "
+                         "pixels (rows x columns) are too small to calibrate from (16 x 16 at "
+                         "least)")
     if dark is not None and np.shape(dark) != items[0][1].shape:
         raise ValueError(f"the dark frame is {np.shape(dark)}, the flats "
                          f"{items[0][1].shape}")

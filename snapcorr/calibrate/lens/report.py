@@ -22,8 +22,13 @@ def _fmt_onset(o):
 def summary(res) -> str:
     """A few lines: centre, onsets (the paper's detectors against the chosen model), every
     model tried with its verdict, the choice and why."""
-    lines = [f"optical centre: row {res.center_rc[0]:.1f}, col {res.center_rc[1]:.1f} px "
-             f"({res.center_source}); chief-ray angles checked up to {res.max_cra_deg:.1f} deg"]
+    origin = (res.mosaic or {}).get("sensor_origin_px")
+    where = ("" if origin is None else " of the flats (sensor row "
+             f"{res.center_rc[0] + origin[0]:.1f}, col {res.center_rc[1] + origin[1]:.1f})")
+    source = ("image centre, assumed: no fall-off to find it from"
+              if res.center_source == "image centre" else res.center_source)
+    lines = [f"optical centre: row {res.center_rc[0]:.1f}, col {res.center_rc[1]:.1f} px{where} "
+             f"({source}); chief-ray angles checked up to {res.max_cra_deg:.1f} deg"]
     model_on = res.model_onsets_deg()
     lines.append("onsets (deg): ratio-profile discontinuity | area model per profile | "
                  "chosen model")

@@ -30,6 +30,11 @@ def _circle_stderrs(res):
     return [of.P_stderr_mm], [of.h_stderr_mm]
 
 
+#: What the profile says of a centre the flats could not show: their image centre, assumed.
+ASSUMED_CENTRE = ("image centre (assumed: the flats show no fall-off to find the optical centre "
+                  "from)")
+
+
 def _calibration_table(res, inputs):
     fs = [float(f) for f in res.f_numbers]
     table = {
@@ -42,7 +47,8 @@ def _calibration_table(res, inputs):
         "reference_f_number": res.reference_f_number if res.reference_f_number else "none",
         "center_rc": [float(c) for c in res.center_rc],
         "center_px": [float(res.center_rc[1]), float(res.center_rc[0])],  # x first, for 0.1
-        "center_source": res.center_source,
+        "center_source": (ASSUMED_CENTRE if res.center_source == "image centre"
+                          else res.center_source),
         "pixel_pitch_um": res.pixel_pitch_um,
         "image_shape_px": [int(res.shape[0]), int(res.shape[1])],
         "image_size_px": [int(res.shape[1]), int(res.shape[0])],  # x first, likewise
