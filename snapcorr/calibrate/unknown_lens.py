@@ -261,6 +261,23 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     return out
 
 
+def flats_areas(shape, sensor, sensor_origin_px=None):
+    """The sensor areas ``(row, col, rows, cols)`` a cube of the same pixels as raw mosaic
+    flats of ``shape`` at ``sensor_origin_px`` records: the frame's own, or (a tile or
+    demosaicked cube, ``mosaic_area_px``) its whole tiles inside the filter area."""
+    from ..cube.mosaic import frame_area
+
+    r0, c0 = (int(v) for v in (sensor_origin_px or (0, 0)))
+    areas = {(r0, c0, int(shape[0]), int(shape[1]))}
+    try:
+        (lo_r, lo_c), (rows, cols), _ = frame_area(tuple(shape[:2]), sensor,
+                                                   sensor_origin_px)
+    except ValueError:  # no whole tile: refused where the cubes are made
+        return areas
+    tr, tc = sensor.mosaic_shape
+    return areas | {(int(lo_r), int(lo_c), rows // tr * tr, cols // tc * tc)}
+
+
 def _same_pixels(shape, cubes, sensor, sensor_origin_px):
     """Raw flats of a mosaic and its cubes must be of the same sensor pixels: a cube that
     records its area (``mosaic_area_px``) elsewhere than the flats' (their ``shape`` at
@@ -272,9 +289,10 @@ def _same_pixels(shape, cubes, sensor, sensor_origin_px):
         return  # flats of another grid than the sensor's: nothing to compare
     r0, c0 = (int(v) for v in (sensor_origin_px or (0, 0)))
     flats = (r0, c0, int(shape[0]), int(shape[1]))
+    areas = flats_areas(shape, sensor, sensor_origin_px)
     for f, cube in cubes.items():
         area = getattr(cube, "attrs", {}).get("mosaic_area_px")
-        if area is not None and tuple(int(v) for v in area) != flats:
+        if area is not None and tuple(int(v) for v in area) not in areas:
             a = [int(v) for v in area]
             raise ValueError(
                 f"the flats ({flats[2]} x {flats[3]} px at sensor row {r0}, col {c0}) and the "

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._frames import _read
 from ._options import _origin_arg
 from ._output import _check_outputs
 
@@ -15,9 +16,11 @@ TARGET_TOLERANCE_HELP = (
     "0.05)")
 
 
-def _add_target_fit_options(group, when=""):
+def _add_target_fit_options(group, when="", origin_help="sensor row and column of the "
+                            "cubes' first pixel (crops)"):
     """The options of a fit to a target's cubes, shared by ``pupil`` and ``calibrate
-    --target-cube`` (``when`` says which option they go with)."""
+    --target-cube`` (``when`` says which option they go with; ``origin_help``, what
+    ``--sensor-origin-px`` places)."""
     group.add_argument("--fit-n-eff", action="store_true",
                        help=f"{when}fit the effective index too (needs two f-numbers to "
                        "separate it from x; one gives x * n_eff)")
@@ -29,11 +32,7 @@ def _add_target_fit_options(group, when=""):
                        help=f"{when}the target's spectrum, two columns (wavelength nm, "
                        "value); default: unknown, solved for")
     group.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
-                       help=("sensor row and column of the raw mosaic flats' first pixel "
-                             "(crops, with --sensor; with --target-cube, of the cubes' too: "
-                             "flats and cubes must be of the same pixels, and a cube that "
-                             "records its own must agree)" if when else
-                             "sensor row and column of the cubes' first pixel (crops)"))
+                       help=origin_help)
 
 
 def _add_pupil_option(group):
@@ -99,3 +98,68 @@ def _target_spectrum(path):
     sp = read_spectrum(path)
     return sp.wavelength_nm, sp.values
 
+
+def _area(origin, shape):
+    """A sensor area for a message, rows first."""
+    return f"{shape[0]} x {shape[1]} px at sensor row {origin[0]}, col {origin[1]}"
+
+
+def _cube_area(cube):
+    """``(row, col, rows, cols)`` of the sensor area a mosaic cube records it covers (its
+    ``mosaic_area_px``, else its ``sensor_row`` / ``sensor_col``), or None."""
+    import numpy as np
+
+    area = cube.attrs.get("mosaic_area_px")
+    if area is not None:
+        return tuple(int(v) for v in area)
+    if "sensor_row" in cube.coords and "sensor_col" in cube.coords:
+        r, c = np.asarray(cube["sensor_row"].values), np.asarray(cube["sensor_col"].values)
+        return (int(r.min()), int(c.min()), int(r.max() - r.min()) + 1,
+                int(c.max() - c.min()) + 1)
+    return None
+
+
+def _target_cubes(args, sensor, shape):
+    """The target's cubes, and the sensor origin of the flats and the cubes alike (None: the
+    whole sensor). Of a mosaic, the flats (raw frames) and the cubes must be of the same
+    pixels: a cube that records its sensor area is read as it records it and refused, in one
+    line naming both, where that area is not the flats' (``--sensor-origin-px`` and their
+    size); flats that are a crop need ``--sensor-origin-px``."""
+    cubes = {}
+    if sensor.layout != "mosaic":
+        for f, path in sorted(args.target_cube):
+            cubes[f] = _read(path, sensor, args.sensor_origin_px)
+        return cubes, args.sensor_origin_px
+    from ..calibrate.unknown_lens import flats_areas
+
+    whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
+    origin = args.sensor_origin_px
+    areas = flats_areas(shape, sensor, origin)
+    for f, path in sorted(args.target_cube):
+        try:  # a cube read as it records its place; a raw frame has none: at the origin
+            cube = _read(path, sensor, None)
+        except ValueError:
+            cube = _read(path, sensor, origin)
+        area = _cube_area(cube)
+        if area is None:  # it records nowhere: placed where the flats are
+            cube = _read(path, sensor, origin)
+            area = _cube_area(cube)
+        if origin is None and sensor.size_px is None and area is not None:
+            origin = area[:2]  # a sensor of no known size: the flats sit where the cube does
+            areas = flats_areas(shape, sensor, origin)
+        if origin is None and not whole and sensor.size_px is not None:
+            raise ValueError(
+                f"the flats are {shape[0]} x {shape[1]} px, a crop of the sensor "
+                f"{sensor.name!r}" + (f" ({sensor.size_px[0]} x {sensor.size_px[1]} px)"
+                                      if sensor.size_px is not None else "")
+                + ": give --sensor-origin-px ROW,COL, the sensor row and column of their "
+                "first pixel" + (f" (the target cube f/{f:g} {path} records row {area[0]}, "
+                                 f"col {area[1]})" if area is not None else ""))
+        if area is not None and area not in areas:
+            raise ValueError(
+                f"the flats ({_area(origin or (0, 0), shape)}) and the target cube f/{f:g} "
+                f"{path} ({_area(area[:2], area[2:])}) are not of the same pixels: take the "
+                "flats and the target's cubes of one sensor area, and give its origin "
+                "(--sensor-origin-px ROW,COL)")
+        cubes[f] = cube
+    return cubes, origin

@@ -16,7 +16,6 @@ from ._flats import (
     _pitch_option,
     _read_flats,
 )
-from ._frames import _read
 from ._options import (
     OVERWRITE_HELP,
     _add_center,
@@ -40,6 +39,7 @@ from ._targets import (
     _check_target_outputs,
     _fitted_sensor,
     _say_precision,
+    _target_cubes,
     _target_spectrum,
     _target_tolerance,
 )
@@ -106,7 +106,10 @@ def add_parser(subparsers):
                    "are, whose band gains (the tile pattern) are fitted in each flat and "
                    "divided out, pixels outside its filter area left out (a sensor of "
                    "another layout is refused: its flats have no tile pattern)")
-    _add_target_fit_options(t, "with --target-cube: ")
+    _add_target_fit_options(t, "with --target-cube: ", (
+        "sensor row and column of the raw mosaic flats' first pixel (crops, with --sensor; "
+        "with --target-cube, of the cubes' too: flats and cubes must be of the same pixels, "
+        "and a cube that records its own must agree)"))
     t.add_argument("--target-tolerance-nm", type=_positive, default=None, metavar="NM",
                    help="with --target-cube: " + TARGET_TOLERANCE_HELP)
     _add_pupil_option(t)
@@ -272,60 +275,3 @@ def _flats_center(args, origin):
     if args.center_rc is None or origin is None:
         return args.center_rc
     return (args.center_rc[0] - origin[0], args.center_rc[1] - origin[1])
-
-
-def _area(origin, shape):
-    """A sensor area for a message, rows first."""
-    return f"{shape[0]} x {shape[1]} px at sensor row {origin[0]}, col {origin[1]}"
-
-
-def _cube_area(cube):
-    """``(row, col, rows, cols)`` of the sensor area a mosaic cube records it covers (its
-    ``mosaic_area_px``, else its ``sensor_row`` / ``sensor_col``), or None."""
-    import numpy as np
-
-    area = cube.attrs.get("mosaic_area_px")
-    if area is not None:
-        return tuple(int(v) for v in area)
-    if "sensor_row" in cube.coords and "sensor_col" in cube.coords:
-        r, c = np.asarray(cube["sensor_row"].values), np.asarray(cube["sensor_col"].values)
-        return (int(r.min()), int(c.min()), int(r.max() - r.min()) + 1,
-                int(c.max() - c.min()) + 1)
-    return None
-
-
-def _target_cubes(args, sensor, shape):
-    """The target's cubes, and the sensor origin of the flats and the cubes alike (None: the
-    whole sensor). Of a mosaic, the flats (raw frames) and the cubes must be of the same
-    pixels: a cube that records its sensor area is read as it records it and refused, in one
-    line naming both, where that area is not the flats' (``--sensor-origin-px`` and their
-    size); flats that are a crop need ``--sensor-origin-px``."""
-    cubes = {}
-    if sensor.layout != "mosaic":
-        for f, path in sorted(args.target_cube):
-            cubes[f] = _read(path, sensor, args.sensor_origin_px)
-        return cubes, args.sensor_origin_px
-    whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
-    origin = args.sensor_origin_px
-    for f, path in sorted(args.target_cube):
-        cube = _read(path, sensor, None)
-        area = _cube_area(cube)
-        if area is None:  # it records nowhere: placed where the flats are
-            cube = _read(path, sensor, origin)
-            area = _cube_area(cube)
-        if origin is None and not whole:
-            raise ValueError(
-                f"the flats are {shape[0]} x {shape[1]} px, a crop of the sensor "
-                f"{sensor.name!r}" + (f" ({sensor.size_px[0]} x {sensor.size_px[1]} px)"
-                                      if sensor.size_px is not None else "")
-                + ": give --sensor-origin-px ROW,COL, the sensor row and column of their "
-                "first pixel" + (f" (the target cube f/{f:g} {path} records row {area[0]}, "
-                                 f"col {area[1]})" if area is not None else ""))
-        if area is not None and area != (*(origin or (0, 0)), *shape):
-            raise ValueError(
-                f"the flats ({_area(origin or (0, 0), shape)}) and the target cube f/{f:g} "
-                f"{path} ({_area(area[:2], area[2:])}) are not of the same pixels: take the "
-                "flats and the target's cubes of one sensor area, and give its origin "
-                "(--sensor-origin-px ROW,COL)")
-        cubes[f] = cube
-    return cubes, origin

@@ -8,6 +8,7 @@ from snapcorr.cube.attrs import encode_attrs as encode_attrs
 from snapcorr.cube.derived import rebuildable as rebuildable
 from snapcorr.cube.derived import with_fwhm_table as with_fwhm_table
 from snapcorr.cube.model import DIMS as DIMS
+from snapcorr.files.chunks import _zarr_consolidated as _zarr_consolidated
 from snapcorr.files.datasets import _GEOMETRY_UNITS as _GEOMETRY_UNITS
 from snapcorr.files.datasets import COMPRESSIONS as COMPRESSIONS
 from snapcorr.files.datasets import COMPUTED_WITH as COMPUTED_WITH
@@ -42,7 +43,6 @@ from snapcorr.files.datasets import _stored_as as _stored_as
 from snapcorr.files.datasets import _to_dataset as _to_dataset
 from snapcorr.files.datasets import _write_groups as _write_groups
 from snapcorr.files.datasets import _zarr_blocks as _zarr_blocks
-from snapcorr.files.datasets import _zarr_consolidated as _zarr_consolidated
 from snapcorr.files.datasets import _zarr_encoding as _zarr_encoding
 from snapcorr.files.datasets import check_storage as check_storage
 from snapcorr.files.datasets import refuse_packed_counts as refuse_packed_counts

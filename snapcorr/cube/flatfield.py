@@ -12,7 +12,8 @@ from .. import __version__
 from .._validation import check_positive
 from .model import check_cube, check_dtype
 
-__all__ = ["MASKED_WARN_FRACTION", "MaskedWarning", "cf_attrs", "check_masked", "flatfield"]
+__all__ = ["MASKED_WARN_FRACTION", "MaskedWarning", "cf_attrs", "check_masked", "flatfield",
+           "masked_causes", "ratio_kind"]
 
 #: Share of masked values above which :func:`check_masked` warns.
 MASKED_WARN_FRACTION = 0.5
@@ -233,7 +234,7 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
 _RATIOS = ("reflectance", "transmittance")
 
 
-def _ratio_kind(value):
+def ratio_kind(value):
     """What a DataArray says it is where it is a flat field's result, a ratio to a white
     (``"a reflectance"``, ``"a ratio (units '1')"``): named as one of :data:`_RATIOS` (as its
     name or ``long_name``) or in units of ``"1"`` (counts have none, or ``DN``); else None."""
@@ -254,7 +255,7 @@ def _refuse_ratios(raw, dark, white):
     for what, value in (("raw", raw), ("dark", dark), ("white", white)):
         values = value if isinstance(value, (list, tuple)) else [value]
         for k, v in enumerate(values, 1):
-            kind = _ratio_kind(v)
+            kind = ratio_kind(v)
             if kind is None:
                 continue
             source = v.attrs.get("source") or "a ratio to a white"

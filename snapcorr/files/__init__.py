@@ -5,7 +5,8 @@ for TIFF and OpenEXR, :mod:`~snapcorr.files.npy`, :mod:`~snapcorr.files.datasets
 and Zarr, :mod:`~snapcorr.files.envi_result`), each with one format object in the registry
 :data:`~snapcorr.files.registry.FILE_FORMATS`; the public readers and writers are in
 :mod:`~snapcorr.files.api`. Beneath them, format-blind: :mod:`~snapcorr.files.reading` (inputs
-checked before they are opened), :mod:`~snapcorr.files.safety` (atomic writes, temporaries,
+checked before they are opened), :mod:`~snapcorr.files.chunks` (a stored file lacking chunks
+refused), :mod:`~snapcorr.files.safety` (atomic writes, temporaries,
 signals), :mod:`~snapcorr.files.marks` (the writer's mark), :mod:`~snapcorr.files.outputs`
 (what is checked before anything is written), :mod:`~snapcorr.files.png` and
 :mod:`~snapcorr.files.toml`.

@@ -96,10 +96,10 @@ from ..cube.model import (
     make_cube,
 )
 from .attrs import _decode_positions, _json_attrs, _one_line, _positions, decode_attrs
+from .chunks import _IncompleteStore
 from .datasets import (
     COMPRESSIONS,
     _encoded,
-    _IncompleteStore,
     _open_dataset,
     _to_dataset,
     stored_as,

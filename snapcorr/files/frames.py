@@ -26,7 +26,8 @@ import numpy as np
 import xarray as xr
 
 from .api import read_frame
-from .datasets import _IncompleteStore, _open_dataset, _refuse_missing_chunks, refuse_packed_counts
+from .chunks import _IncompleteStore, _refuse_missing_chunks
+from .datasets import _open_dataset, refuse_packed_counts
 from .reading import check_input, open_image
 from .registry import format_by_suffix
 

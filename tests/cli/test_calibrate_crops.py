@@ -238,3 +238,39 @@ def test_calibrate_with_target_refuses_cubes_of_other_pixels(crops):
                                   pupil_magnification=1.3, max_circles=1,
                                   sensor_origin_px=origin, pupil_radiance="paper")
         assert words in str(err.value)
+
+
+def test_a_tile_cube_of_the_flats_pixels_is_taken_whatever_their_size(tmp_path, cli):
+    """A crop of 250 x 318 px is 62 x 79 whole tiles: its tile cube records 248 x 316 px, and
+    was refused as 'not of the same pixels' as the flats it was cut with; so was every cube
+    of a sensor whose filter area is smaller than its frame. A raw frame given as the target
+    is read at the flats' origin (it was read without one and refused), and a sensor without
+    a size is not said to be cropped."""
+    import dataclasses
+
+    import snapcorr.data
+    from snapcorr.calibrate.unknown_lens import flats_areas
+    from snapcorr.cli._targets import _target_cubes
+    from snapcorr.cube import Sensor
+
+    sensor = Sensor.load("mosaic_4x4_vis")
+    scene, dark, white = snapcorr.data.mosaic_frames("mosaic_4x4_vis", f_number=2, seed=2)
+    area = (slice(400, 650), slice(800, 1118))
+    for kind, img in (("scene", scene), ("dark", dark), ("white", white)):
+        np.save(tmp_path / f"{kind}.npy", img[area])
+    res = cli("flatfield", "scene.npy", "--dark", "dark.npy", "--white", "white.npy",
+              "--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "400,800", "--out", "t.nc",
+              "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert flats_areas((250, 318), sensor, (400, 800)) == {(400, 800, 250, 318),
+                                                          (400, 800, 248, 316)}
+    args = argparse.Namespace(target_cube=[(2.0, tmp_path / "t.nc"),
+                                           (11.0, tmp_path / "scene.npy")],
+                              sensor_origin_px=(400, 800))
+    cubes, origin = _target_cubes(args, sensor, (250, 318))
+    assert origin == (400, 800) and cubes[2.0].attrs["mosaic_area_px"] == [400, 800, 248, 316]
+    assert cubes[11.0].attrs["mosaic_area_px"] == [400, 800, 248, 316]
+    sizeless = dataclasses.replace(sensor, size_px=None)
+    args = argparse.Namespace(target_cube=[(2.0, tmp_path / "t.nc")], sensor_origin_px=None)
+    cubes, origin = _target_cubes(args, sizeless, (250, 318))
+    assert origin == (400, 800)

@@ -46,11 +46,11 @@ def read_flat(path):
         ``bands`` (how many were averaged) and ``saturation`` (the largest value the file's
         integer type holds, or None for floating-point data).
     """
-    from ...cube.flatfield import _ratio_kind
+    from ...cube.flatfield import ratio_kind
     from ...files.api import read_array
 
     data = read_array(path, what="flat field", drop_alpha=True)
-    kind = _ratio_kind(data)
+    kind = ratio_kind(data)
     if kind is not None:  # its fall-off was divided out: a lens without vignetting
         source = data.attrs.get("source") or "a ratio to a white"
         raise ValueError(f"the flat field {path} is {kind} (a flat field's result: {source}), "

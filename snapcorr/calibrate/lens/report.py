@@ -22,7 +22,7 @@ def _fmt_onset(o):
 def summary(res) -> str:
     """A few lines: centre, onsets (the paper's detectors against the chosen model), every
     model tried with its verdict, the choice and why."""
-    origin = (res.mosaic or {}).get("sensor_origin_px")
+    origin = (getattr(res, "mosaic", None) or {}).get("sensor_origin_px")
     where = ("" if origin is None else " of the flats (sensor row "
              f"{res.center_rc[0] + origin[0]:.1f}, col {res.center_rc[1] + origin[1]:.1f})")
     source = ("image centre, assumed: no fall-off to find it from"

@@ -89,6 +89,7 @@ from .target import (
     _annuli,
     _check_cubes,
     _spectrum,
+    check_given_center,
     check_modelled,
     check_n_bins,
     estimate_target_center,
@@ -300,6 +301,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     given, _, rng = ratio_range(magnification, pupil_magnification, lens)
     if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
         args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
+    if center_rc is not None:  # once, before the fits (refits hold their own centre)
+        check_given_center(cubes, sensor, args["lens"], sensor_origin_px, center_rc)
     fit = _checked_locate(**args)
     if rng[1] > rng[0]:  # m / m_P assumed: its spread in x's and n_eff's errors, said
         fit = _magnification.account_for_pupil_magnifications(

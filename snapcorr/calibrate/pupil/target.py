@@ -288,22 +288,35 @@ def _band_reader(cube):
 GIVEN_CENTER_SIGMAS = 20.0
 #: ... and further than this share of the cubes' diagonal: x is fitted to the annuli about
 #: the centre, so a wrong one gives a wrong x (--center 5000,5000 on a 1088 x 2048 sensor:
-#: x = 86 +- 0.25 mm for 21 mm).
+#: x = 86 +- 0.25 mm for 21 mm). The cubes speak only where they place the centre inside
+#: their field, this share of it from every edge: a crop that does not hold the axis puts
+#: its estimate at its edge, with errors that say nothing of how far the axis is.
 GIVEN_CENTER_SHARE = 0.25
+EDGE_SHARE = 0.1
 
 
-def _check_given_center(center, cubes, nb, positions):
-    """Refuse a given centre the cubes contradict (:data:`GIVEN_CENTER_SIGMAS`,
-    :data:`GIVEN_CENTER_SHARE`); where they cannot place it, the given one stands."""
+def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc):
+    """Refuse an optical centre ``(row, col)`` given to the fit that its cubes contradict
+    (:data:`GIVEN_CENTER_SIGMAS`, :data:`GIVEN_CENTER_SHARE`): where they cannot place it
+    (the estimate fails, or lands near their field's edge), the given one stands."""
+    from ...correct.geometry import cube_positions
+
+    center = check_center_rc(center_rc)
+    cubes = _check_cubes(cubes, sensor)
     f0 = min(cubes)
-    rows, cols = positions[f0]
+    rows, cols = cube_positions(cubes[f0], sensor, lens, sensor_origin_px)
     try:
-        found, err = estimate_target_center_rc(_band_reader(cubes[f0]), nb, rows, cols)
+        found, err = estimate_target_center_rc(_band_reader(cubes[f0]), sensor.n_bands,
+                                               rows, cols)
     except (ValueError, np.linalg.LinAlgError):
         return
     err = np.asarray(err, float)
     if not np.all(np.isfinite(err)) or np.any(err <= 0):
         return
+    for v, at in ((found[0], rows), (found[1], cols)):
+        lo, hi = float(np.min(at)), float(np.max(at))
+        if not lo + EDGE_SHARE * (hi - lo) <= v <= hi - EDGE_SHARE * (hi - lo):
+            return
     d = np.subtract(center, found)
     z = float(np.hypot(*(d / err)))
     span = float(np.hypot(np.ptp(rows), np.ptp(cols)))
@@ -326,7 +339,6 @@ def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
     nb = sensor.n_bands
     if center_rc is not None:
         center, center_source = check_center_rc(center_rc), "given"
-        _check_given_center(center, cubes, nb, positions)
     else:
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]

@@ -176,6 +176,18 @@ def test_a_given_centre_the_cubes_contradict_is_refused():
     assert near.center_source == "given"
 
 
+def test_a_crop_that_does_not_hold_the_axis_takes_the_centre_it_is_given():
+    """A crop beside the axis, given the true centre: taken (the cubes' own estimate is
+    not trusted outside their field; see test_pupil_hostile for a mosaic crop whose estimate
+    lands at its edge)."""
+    row, col = 61.6, 82.3
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    crop = {f: c.isel(y=slice(0, 36), x=slice(0, 44)) for f, c in data.items()}
+    got = locate_pupil(crop, sensor(), center_rc=(row, col), lens=as_lens(PLAIN),
+                       target_spectrum=sim.colour_filter, n_bins=16)
+    assert got.center_source == "given"
+
+
 def test_the_fits_arguments_are_checked_before_anything_is_sized_by_them():
     """n_bins of 1e9 asked for 7.5 GiB, a size of 1e9 x 1e9 pixels as much, an empty list of
     f-numbers ended in min()'s message, a lens by name in an AttributeError, one annulus
