@@ -326,8 +326,8 @@ def _band_reader(cube):
 
 
 #: A given optical centre is refused where the cubes place it more than this many standard
-#: errors away (the found centre's errors run up to several times small on crops: a wide
-#: margin) ...
+#: errors away (a wide margin: the found centre's scatter has heavier tails than a normal
+#: one where the signal is near the noise) ...
 GIVEN_CENTER_SIGMAS = 20.0
 #: ... and further than this share of the cubes' diagonal: x is fitted to the annuli about
 #: the centre, so a wrong one gives a wrong x (--center 5000,5000 on a 1088 x 2048 sensor:
