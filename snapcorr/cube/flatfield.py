@@ -234,16 +234,19 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
 _RATIOS = ("reflectance", "transmittance")
 
 
-def ratio_kind(value):
+def ratio_kind(value, *, by_units=True):
     """What a DataArray says it is where it is a flat field's result, a ratio to a white
     (``"a reflectance"``, ``"a ratio (units '1')"``): named as one of :data:`_RATIOS` (as its
-    name or ``long_name``) or in units of ``"1"`` (counts have none, or ``DN``); else None."""
+    name or ``long_name``) or, with ``by_units``, in units of ``"1"`` (counts have none, or
+    ``DN``; a calibration flat may be a white another tool normalised, which keeps its
+    fall-off); else None."""
     if not isinstance(value, xr.DataArray):
         return None
     said = [n for n in (value.name, value.attrs.get("long_name")) if n in _RATIOS]
     if said:
         return f"a {said[0]}"
-    return "a ratio (units '1')" if str(value.attrs.get("units", "")).strip() == "1" else None
+    units = str(value.attrs.get("units", "")).strip()
+    return "a ratio (units '1')" if by_units and units == "1" else None
 
 
 def _refuse_ratios(raw, dark, white):

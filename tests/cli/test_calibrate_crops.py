@@ -124,16 +124,21 @@ def test_flats_of_other_sizes_are_listed_rows_first():
 
 
 def test_a_flat_fields_result_is_no_calibration_flat(crops, cli):
-    """A reflectance (or any variable in units of 1) given as a flat is a ratio to a white:
-    its vignetting divided out, it calibrated a lens without any. Refused, naming it."""
+    """A reflectance (by its name, or its long_name) given as a flat is a ratio to a white:
+    its vignetting divided out, it calibrated a lens without any. Refused, naming it. Units
+    of 1 alone are not refused here: a white another tool normalised keeps its fall-off."""
     import xarray as xr
+
+    from snapcorr.cube.flatfield import ratio_kind
 
     for f in (2, 11):
         with xr.open_dataset(crops / f"tgt_a_f{f}.nc") as ds:
             signal = ds["reflectance"].mean("band").rename("signal").load()
-        signal.attrs = {"units": "1"}
+        signal.attrs = {"units": "1", "long_name": "reflectance"}
         signal.to_dataset().to_netcdf(crops / f"ratio_f{f}.nc")
-    for stem, kind in (("tgt_a", "a reflectance"), ("ratio", "a ratio (units '1')")):
+    assert ratio_kind(signal.assign_attrs(long_name="white"), by_units=False) is None
+    assert ratio_kind(signal.assign_attrs(long_name="white")) == "a ratio (units '1')"
+    for stem, kind in (("tgt_a", "a reflectance"), ("ratio", "a reflectance")):
         path = f"{stem}_f2.nc"
         res = cli("calibrate", "--flat", f"2={path}", "--flat", f"11={stem}_f11.nc",
                   "--exit-pupil-mm", "21", "--pixel-pitch-um", "5.5", "--out", "ratio.toml",

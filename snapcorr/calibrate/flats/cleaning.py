@@ -50,7 +50,7 @@ def read_flat(path):
     from ...files.api import read_array
 
     data = read_array(path, what="flat field", drop_alpha=True)
-    kind = ratio_kind(data)
+    kind = ratio_kind(data, by_units=False)  # a white normalised elsewhere keeps its fall-off
     if kind is not None:  # its fall-off was divided out: a lens without vignetting
         source = data.attrs.get("source") or "a ratio to a white"
         raise ValueError(f"the flat field {path} is {kind} (a flat field's result: {source}), "

@@ -301,13 +301,43 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     given, _, rng = ratio_range(magnification, pupil_magnification, lens)
     if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
         args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
-    if center_rc is not None:  # once, before the fits (refits hold their own centre)
-        check_given_center(cubes, sensor, args["lens"], sensor_origin_px, center_rc)
+    doubt = (None if center_rc is None else  # once (refits hold their own centre)
+             check_given_center(cubes, sensor, args["lens"], sensor_origin_px, center_rc))
     fit = _checked_locate(**args)
+    if doubt is not None:
+        fit = _given_center_doubted(fit, doubt)
     if rng[1] > rng[0]:  # m / m_P assumed: its spread in x's and n_eff's errors, said
         fit = _magnification.account_for_pupil_magnifications(
             fit, given, rng, functools.partial(_refit, args, fit), stacklevel=6)
     return fit
+
+
+def _given_center_doubted(fit, doubt):
+    """A fit about a given centre its cubes place elsewhere (``doubt``): refused where the
+    fit also misses the data beyond the noise (a wrong centre: 5000,5000 on a 1088 x 2048
+    sensor fitted x = 86 +- 0.25 mm for 21, at a reduced chi-square of 1.49 over 2601
+    degrees of freedom); else kept, the doubt in its notes and its profile (a crop far from
+    the axis can place the centre wrongly itself)."""
+    if _misfits(fit.chi2_red, fit.dof):
+        raise ValueError(f"{doubt}, and the fit about it misses the data (reduced chi-square "
+                         f"{fit.chi2_red:.3g} over {fit.dof} degrees of freedom): give the "
+                         "centre in sensor pixels of the lens these cubes were taken with, or "
+                         "leave it out to use the one found")
+    said = f"{doubt}; the fit about the given centre matches the data, so it is kept"
+    fit.notes.append(said)
+    cal = dict(fit.lens.calibration)
+    cal["center_doubt"] = said
+    fit.lens = dataclasses.replace(fit.lens, calibration=cal)
+    return fit
+
+
+def _misfits(chi2_red, dof):
+    """Whether a reduced chi-square over ``dof`` is more than the noise explains
+    (:data:`MISFIT_CHI2_RED`, :data:`MISFIT_P`)."""
+    from scipy import stats
+
+    return chi2_red > 2.0 or (chi2_red > MISFIT_CHI2_RED
+                              and float(stats.chi2.sf(chi2_red * dof, dof)) < MISFIT_P)
 
 
 def _refit(args, fit, ratio):
@@ -350,7 +380,7 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
                               fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
     if sensor.responses is not None:  # each band's whole measured curve, not a profile
         profile = "measured"
-    cubes = _check_cubes(cubes, sensor)
+    cubes = _check_cubes(cubes, sensor, **({} if center_rc is None else {"min_side": 1}))
     n_bins = check_n_bins(n_bins)
     base = lens or Lens(30.0, (), magnification or 0.0,
                         pupil_magnification if pupil_magnification is not None else 1.0)
@@ -521,16 +551,13 @@ MISFIT_P = 1e-6
 
 def _validity_notes(r_max, x, cone_rad, chi2_red, dof):
     """Notes where rays pass the index law's validated angle, or the model misfits."""
-    from scipy import stats
-
     notes = []
     aoi = math.degrees(math.atan(r_max / x) + cone_rad)
     if aoi > AOI_VALIDITY_DEG:
         notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
                      f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "
                      "2.2): x rests on its extrapolation")
-    if chi2_red > 2.0 or (chi2_red > MISFIT_CHI2_RED
-                          and stats.chi2.sf(chi2_red * dof, dof) < MISFIT_P):
+    if _misfits(chi2_red, dof):
         notes.append(f"reduced chi-square {chi2_red:.3g} over {dof} degrees of freedom is more "
                      "than the noise explains: the model misses something (an optical centre "
                      "or a lens that is not these cubes', a target that is not uniform, stray "

@@ -104,7 +104,7 @@ def check_n_bins(n_bins):
     return int(n)
 
 
-def _check_cubes(cubes, sensor):
+def _check_cubes(cubes, sensor, min_side=MIN_CUBE_SIDE_PX):
     if not cubes:
         raise ValueError("give at least one cube")
     out = {}
@@ -114,10 +114,10 @@ def _check_cubes(cubes, sensor):
             raise ValueError(f"f/{fv:g} given twice")
         sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
         ny, nx = (int(cube.sizes[d]) for d in ("y", "x"))
-        if min(ny, nx) < MIN_CUBE_SIDE_PX:
+        if min(ny, nx) < min_side:
             raise ValueError(f"the f/{fv:g} cube is {ny} x {nx} pixels: too few to find the "
                              f"optical centre and follow the shift across the field (at least "
-                             f"{MIN_CUBE_SIDE_PX} on each side)")
+                             f"{min_side} on each side; give the centre to fit smaller cubes)")
         if not bool(np.isfinite(cube).any()):
             raise ValueError(f"the f/{fv:g} cube has no finite value (every pixel NaN or "
                              "infinite): nothing to fit")
@@ -339,37 +339,40 @@ EDGE_SHARE = 0.1
 
 
 def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc):
-    """Refuse an optical centre ``(row, col)`` given to the fit that its cubes contradict
-    (:data:`GIVEN_CENTER_SIGMAS`, :data:`GIVEN_CENTER_SHARE`): where they cannot place it
-    (the estimate fails, or lands near their field's edge), the given one stands."""
+    """What the cubes say against an optical centre ``(row, col)`` given to the fit, or None:
+    where they place it further than :data:`GIVEN_CENTER_SIGMAS` standard errors and
+    :data:`GIVEN_CENTER_SHARE` of their diagonal away. Where they cannot place it (the
+    estimate fails, or lands near their field's edge), None. A crop far from the axis can
+    place it wrongly inside its field, so this alone refuses nothing:
+    :func:`~snapcorr.calibrate.pupil.locate.locate_pupil` refuses where the fit about the
+    given centre also misses the data, and notes it otherwise."""
     from ...correct.geometry import cube_positions
 
     center = check_center_rc(center_rc)
-    cubes = _check_cubes(cubes, sensor)
+    cubes = _check_cubes(cubes, sensor, min_side=1)
     f0 = min(cubes)
     rows, cols = cube_positions(cubes[f0], sensor, lens, sensor_origin_px)
     try:
         found, err = estimate_target_center_rc(_band_reader(cubes[f0]), sensor.n_bands,
                                                rows, cols)
     except (ValueError, np.linalg.LinAlgError):
-        return
+        return None
     err = np.asarray(err, float)
     if not np.all(np.isfinite(err)) or np.any(err <= 0):
-        return
+        return None
     for v, at in ((found[0], rows), (found[1], cols)):
         lo, hi = float(np.min(at)), float(np.max(at))
         if not lo + EDGE_SHARE * (hi - lo) <= v <= hi - EDGE_SHARE * (hi - lo):
-            return
+            return None
     d = np.subtract(center, found)
     z = float(np.hypot(*(d / err)))
     span = float(np.hypot(np.ptp(rows), np.ptp(cols)))
     if z > GIVEN_CENTER_SIGMAS and float(np.hypot(*d)) > GIVEN_CENTER_SHARE * span:
-        raise ValueError(
-            f"the optical centre given (row {center[0]:g}, col {center[1]:g}) is "
-            f"{float(np.hypot(*d)):.0f} px ({z:.0f} standard errors) from where the f/{f0:g} "
-            f"cube places it (row {found[0]:.1f} +- {err[0]:.2g}, col {found[1]:.1f} +- "
-            f"{err[1]:.2g}): give the centre in sensor pixels of the lens these cubes were "
-            "taken with, or leave it out to use the one found")
+        return (f"the optical centre given (row {center[0]:g}, col {center[1]:g}) is "
+                f"{float(np.hypot(*d)):.0f} px ({z:.0f} standard errors) from where the "
+                f"f/{f0:g} cube places it (row {found[0]:.1f} +- {err[0]:.2g}, col "
+                f"{found[1]:.1f} +- {err[1]:.2g})")
+    return None
 
 
 def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):

@@ -170,10 +170,28 @@ def test_a_given_centre_the_cubes_contradict_is_refused():
     kw = {"lens": as_lens(PLAIN), "target_spectrum": sim.colour_filter, "n_bins": 32}
     for far in ((500.0, 500.0), (row + 80.0, col - 60.0)):
         with pytest.raises(ValueError, match=r"optical centre given .* standard errors\) from "
-                                             r"where the f/2 cube places it \(row 37\.\d"):
+                                             r"where the f/2 cube places it \(row 37\.\d.*"
+                                             r"and the fit about it misses the data"):
             locate_pupil(data, sensor(), center_rc=far, **kw)
     near = locate_pupil(data, sensor(), center_rc=(row + 1.0, col - 1.0), **kw)
     assert near.center_source == "given"
+
+
+def test_a_doubted_centre_whose_fit_matches_the_data_is_kept_with_the_doubt_said(
+        monkeypatch):
+    """A crop far from the axis can place the centre wrongly inside its field; where the
+    fit about the given centre matches the data, the centre is kept and the doubt said, in
+    the summary and in the profile, not refused."""
+    import snapcorr.calibrate.pupil.locate as loc
+
+    row, col = 37.25, 81.5
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5, center=(col, row))
+    monkeypatch.setattr(loc, "check_given_center", lambda *a: "the cubes place it elsewhere")
+    got = locate_pupil(data, sensor(), center_rc=(row, col), lens=as_lens(PLAIN),
+                       target_spectrum=sim.colour_filter, n_bins=32)
+    assert got.center_source == "given" and got.chi2_red < 1.5
+    said = "the cubes place it elsewhere; the fit about the given centre matches the data"
+    assert said in got.summary() and said in got.lens.calibration["center_doubt"]
 
 
 def test_a_crop_that_does_not_hold_the_axis_takes_the_centre_it_is_given():
@@ -221,7 +239,7 @@ def test_the_fits_arguments_are_checked_before_anything_is_sized_by_them():
         locate_pupil(data, sensor(), lens=as_lens(PLAIN), n_bins=10**9)
     small = {2.0: data[2.0].isel(y=slice(0, 20), x=slice(0, 30))}
     with pytest.raises(ValueError, match=r"the f/2 cube is 20 x 30 pixels: too few .* \(at "
-                                         r"least 24 on each side\)"):
+                                         r"least 24 on each side; give the centre"):
         locate_pupil(small, sensor(), lens=as_lens(PLAIN))
 
 
