@@ -176,20 +176,31 @@ def _pupil_predict(args):
                          "(add size_px = [ROWS, COLS] to a sensor TOML)")
     lens = _lens(args.lens or "edmund_optics_16mm")
     targets = dict(CANDIDATE_TARGETS)
-    if args.target_spectrum is not None:
+    if args.target_spectrum is not None:  # checked as a fit checks it: not held at its ends
+        from ..calibrate import FeaturelessTargetError
+        from ..calibrate.pupil.target import check_target_spectrum
+
         wl, val = _target_spectrum(args.target_spectrum)
+        try:
+            check_target_spectrum(wl, val, sensor)
+        except FeaturelessTargetError:  # constant: its row says it gives nothing
+            pass
+        except ValueError as err:
+            raise ValueError(f"--target-spectrum {args.target_spectrum}: {err}") from None
         targets[Path(args.target_spectrum).name] = lambda lam: np.interp(lam, wl, val)
     args.noise_pct = 1.0 if args.noise_pct is None else args.noise_pct
     noise = args.noise_pct / 100.0
     fs = sorted(set(args.f_number))
     lens.working_f_number(fs)  # an f-number below the lens's limit is refused before any output
-    print(f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
-          f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
-          f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "
-          "band per pixel" + (", n_eff fitted too" if args.fit_n_eff else ""))
-    print(f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
-          + (f" {'n_eff':>12s}" if args.fit_n_eff else ""))
     fit_n = args.fit_n_eff and len(fs) > 1
+    table = [  # printed once every bound is computed: a refusal mid-way prints no part of it
+        f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
+        f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
+        f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "
+        "band per pixel" + (", n_eff fitted too" if fit_n else
+                            ", one f-number: x * n_eff only" if args.fit_n_eff else ""),
+        f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
+        + (f" {'n_eff':>12s}" if args.fit_n_eff else "")]
 
     def line(name, row):
         cells = [_precision_cell(p) for p in row]
@@ -197,7 +208,7 @@ def _pupil_predict(args):
         if args.fit_n_eff:
             extra = (f" {'x * n_eff only':>12s}" if len(fs) < 2 else
                      f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else f" {'-':>12s}")
-        print(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
+        table.append(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
 
     from ..spectra import COLOUR_CHECKER_PATCHES
 
@@ -212,11 +223,12 @@ def _pupil_predict(args):
             line(name, row)
         chart = _chart_line(sensor, fs, lens, noise, fit_n, bar)
         if isinstance(chart, str):
-            print(chart)
+            table.append(chart)
         else:
             best, rest = chart
             line(f"ColorChecker {best[0]}", best[1])
-            print(rest)
+            table.append(rest)
+    print("\n".join(table))
     print("noise only: a target that is not uniform, or filters of another shape than the "
           "sensor file says, add errors of their own")
     return 0

@@ -63,3 +63,28 @@ def test_predict_refuses_an_impossible_f_number_before_printing_anything(cli):
     assert res.returncode == 1 and res.stdout == ""
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "f/0.3 is below the physical limit" in lines[0]
+
+
+def test_predict_checks_a_spectrum_as_the_fit_does_and_prints_no_part_of_a_failed_table(
+        tmp_path, cli):
+    """--target-spectrum of 500-600 nm was rated (held at its ends beyond, where the bands
+    respond) and one in micrometres rated 'no information', where the fit refuses both; a
+    sensor without n_eff printed the table's header, then the refusal."""
+    lam = np.arange(500.0, 601.0)
+    np.savetxt(tmp_path / "part.csv", np.column_stack([lam, 0.5 + 0.4 * np.sin(lam / 7)]),
+               delimiter=",")
+    np.savetxt(tmp_path / "um.csv", np.column_stack([lam / 1000, 0.5 + 0.4 * np.sin(lam / 7)]),
+               delimiter=",")
+    base = ("pupil", "--predict", "--sensor", "mosaic_4x4_vis", "--f-number", "2",
+            "--f-number", "8")
+    for name, said in (("part.csv", "covers 500-600 nm, but the bands need"),
+                       ("um.csv", "look like micrometres")):
+        res = cli(*base, "--target-spectrum", name, cwd=tmp_path)
+        assert res.returncode == 1 and said in res.stderr and not res.stdout, res.stderr
+    toml = (tmp_path / "s.toml")
+    toml.write_text('[sensor]\nname = "no-index"\nlayout = "snapscan"\npixel_pitch_um = 5.5\n'
+                    'size_px = [512, 512]\ncwl_nm = [500.0, 510.0, 520.0, 530.0]\n'
+                    'fwhm_nm = [10.0, 10.0, 10.0, 10.0]\n')
+    res = cli("pupil", "--predict", "--sensor", "s.toml", "--f-number", "2", cwd=tmp_path)
+    assert res.returncode == 1 and "n_eff" in res.stderr and not res.stdout, (res.stdout,
+                                                                              res.stderr)

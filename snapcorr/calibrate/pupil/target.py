@@ -27,8 +27,8 @@ from ..._validation import (
 )
 from .target_model import radial_bins
 
-__all__ = ["FeaturelessTargetError", "check_modelled", "estimate_target_center",
-           "estimate_target_center_rc"]
+__all__ = ["FeaturelessTargetError", "check_modelled", "check_target_spectrum",
+           "estimate_target_center", "estimate_target_center_rc"]
 
 #: Cubes up to this size are read into memory once; larger ones band by band.
 IN_MEMORY_BYTES = 2 << 30
@@ -123,6 +123,26 @@ def _check_cubes(cubes, sensor, min_side=MIN_CUBE_SIDE_PX):
                              "infinite): nothing to fit")
         out[fv] = cube
     return dict(sorted(out.items()))
+
+
+def check_target_spectrum(wavelength_nm, values, sensor):
+    """A target's spectrum (samples) checked as a fit checks it: wavelengths in nm (not
+    micrometres), a curve that covers every band and its flanks (``cwl +- 2 fwhm``; nothing
+    is held at its ends), not constant (:class:`FeaturelessTargetError`).
+
+    Parameters
+    ----------
+    wavelength_nm, values : array_like
+        The spectrum's samples.
+    sensor : Sensor
+        Its bands (``cwl_nm``, ``fwhm_nm``) set the range the spectrum must cover.
+
+    Returns
+    -------
+    callable
+        ``S(lambda_nm)``, interpolated linearly.
+    """
+    return _spectrum((wavelength_nm, values), sensor)[0]
 
 
 def _spectrum(target, sensor):
