@@ -208,10 +208,14 @@ def read_spectrum(path) -> Spectrum:
     if a.ndim != 2 or a.shape[1] != 2:
         raise ValueError(f"{p}: need two columns (wavelength nm, value), got shape {a.shape}")
     order = np.argsort(a[:, 0])
-    try:
-        return Spectrum(a[order, 0], a[order, 1], p.name)
+    from ._validation import check_wavelengths_nm
+
+    try:  # a file in micrometres is said so, not left to fail as a spectrum too short
+        sp = Spectrum(a[order, 0], a[order, 1], p.name)
+        check_wavelengths_nm("its wavelengths", sp.wavelength_nm)
     except ValueError as exc:
         raise ValueError(f"{p}: {exc}") from None
+    return sp
 
 
 def cube_spectrum(cube, y=None, x=None) -> Spectrum:

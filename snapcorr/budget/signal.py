@@ -128,7 +128,10 @@ def _signals_lattice(lattice, profile, moments, k_phase, q):
         m_hi = int(np.ceil((hi - v0) / delta))
         n_first, n_last = m_lo + k0, m_hi + k1  # knots needed over all k of this phase
         if n_first < 0 or n_last > s.size - 1:
-            raise ValueError("the spectrum does not cover the band and its shifts")
+            have = f"{lam0:g}-{lam0 + delta * (s.size - 1):g} nm"
+            need = f"{lam0 + n_first * delta:g}-{lam0 + n_last * delta:g} nm"
+            raise ValueError(f"the spectrum ({have}) does not cover the band at "
+                             f"{profile.cwl_nm:g} nm and its shifts ({need})")
         m = np.arange(m_lo, m_hi + 1)
         v = v0 + m * delta
         C0, C1 = moments.at(np.clip(v, lo, hi))

@@ -54,6 +54,7 @@ def _source(value, cube=None):
     except (ValueError, OSError) as err:
         message = str(err)
         raise ValueError(message if message.startswith("--source") else
+                         f"--source {message}" if message.startswith(f"{value}:") else
                          f"--source {value}: {message}") from None
 
 

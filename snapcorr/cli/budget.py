@@ -87,6 +87,11 @@ def run(args):
         sensor.check_cube(cube, f"--cube {args.cube}")
     source = _source(args.source, cube)
     cra_max, field = _budget_field(args, lens, sensor, cube)
+    cutoff = float(lens.cutoff_cra_deg(args.f_number))
+    if args.cra_max is None and not cra_max < cutoff:  # the field, not an option given
+        raise ValueError(f"{field}: beyond the lens's full cut-off at f/{args.f_number:g} "
+                         f"({cutoff:.2f} deg), where no light arrives; check --center (sensor "
+                         "pixels), or give --cra-max DEG below the cut-off")
     from ..budget.scene import profile_of
 
     args.profile = profile_of(sensor, args.profile)

@@ -135,3 +135,28 @@ def test_correct_with_the_cubes_own_spectrum_on_the_command_line(files, tmp_path
     assert ds.attrs["budget_source"] == "cube mean" and ds.attrs["method"] != "none"
     assert "no model is within" in ds.attrs["method_reason"]
     assert "harmonised" in ds and "harmonised:" in res.stdout  # what the budget chose
+
+
+def test_budget_refusals_name_their_cause(tmp_path, cli):
+    """A source in micrometres said 'the spectrum does not cover the band and its shifts'
+    (no file, no ranges), as did one too short, without its range; a --center far off the
+    cube was refused as '--cra-max must lie in [0, 36.21)', an option not given."""
+    import numpy as np
+
+    lam = np.arange(400.0, 701.0, 5.0)
+    np.savetxt(tmp_path / "um.csv", np.column_stack([lam / 1000, np.ones_like(lam)]))
+    np.savetxt(tmp_path / "short.csv", np.array([[500.0, 1.0], [560.0, 1.2]]))
+    base = ("budget", "--sensor", "mosaic_4x4_vis", "--lens", "edmund_optics_16mm",
+            "--f-number", "2")
+    res = cli(*base, "--source", "um.csv", cwd=tmp_path)
+    assert res.returncode == 1 and "--source um.csv: its wavelengths must be in nanometres" \
+        in res.stderr and "look like micrometres" in res.stderr, res.stderr
+    res = cli(*base, "--source", "short.csv", cwd=tmp_path)
+    assert res.returncode == 1 and "the spectrum (500-560 nm) does not cover the band at" \
+        in res.stderr and "nm and its shifts (" in res.stderr, res.stderr
+    cube = np.full((8, 10, 16), 0.5, np.float32)
+    np.save(tmp_path / "c.npy", cube)
+    res = cli(*base, "--source", "cube:2,2", "--cube", "c.npy", "--sensor-origin-px", "400,800",
+              "--center", "99999,99999", cwd=tmp_path)
+    assert res.returncode == 1 and "beyond the lens's full cut-off at f/2" in res.stderr \
+        and "check --center" in res.stderr and "--cra-max must" not in res.stderr, res.stderr
