@@ -121,37 +121,26 @@ def test_a_ratio_under_another_name_is_not_taken_as_counts(tmp_path, monkeypatch
     assert_refused(rc, err, "--white renamed.hdr is a", "not raw counts")
 
 
-def test_a_white_at_its_types_largest_code_is_saturated_without_a_bit_depth(tmp_path,
-                                                                           monkeypatch, cli):
+@pytest.mark.parametrize("white, top", [(60000, 65535), (4000, 4095)])
+def test_the_types_largest_code_is_the_saturation_without_a_bit_depth_and_is_said(
+        tmp_path, monkeypatch, cli, white, top):
     """A sensor that states no bit depth, whites stored as uint16: a pixel at 65535 was
     clipped by the file if not by the sensor, and is masked as calibrate masks it (it was
-    taken as a white of 65535 and gave a reflectance too low by the clipping)."""
+    taken as a white of 65535 and gave a reflectance too low by the clipping). The level is
+    said even where no white reaches it: uint16 whites of a 12-bit camera peak at 4095, and
+    65535 masks nothing that camera clipped (it was said only where a white reached 65535,
+    and finding that out read every white once more)."""
     monkeypatch.chdir(tmp_path)
-    save_cubes(tmp_path, dtype=np.uint16, white=60000)
-    white = np.load("white.npy")
-    white[:3] = 65535
-    np.save("white.npy", white)
-    rc, _, err = cli(*FF, "--out", "ff.nc")
-    assert rc == 0, err
-    assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err
-    mask = read_result(tmp_path / "ff.nc")["mask"].values
-    assert mask[:3].all() and not mask[3:].any()
-
-
-def test_the_types_saturation_is_said_even_where_no_white_reaches_it(tmp_path, monkeypatch,
-                                                                      cli):
-    """uint16 whites of a 12-bit camera peak at 4095: the type's 65535 then masks nothing the
-    camera clipped, which the user must hear (before, it was said only where a white
-    reached 65535, and finding that out read every white once more)."""
-    monkeypatch.chdir(tmp_path)
-    save_cubes(tmp_path, dtype=np.uint16, white=4000)
-    white = np.load("white.npy")
-    white[:3] = 4095
-    np.save("white.npy", white)
+    save_cubes(tmp_path, dtype=np.uint16, white=white)
+    frame = np.load("white.npy")
+    frame[:3] = top
+    np.save("white.npy", frame)
     rc, _, err = cli(*FF, "--out", "ff.nc")
     assert rc == 0, err
     assert "saturation: 65535 DN, the largest code of the whites' type, uint16" in err
     assert "bit_depth in a sensor TOML" in err
+    mask = read_result(tmp_path / "ff.nc")["mask"].values
+    assert mask[:3].all() == (top == 65535) and not mask[3:].any()
 
 
 def test_whites_of_two_integer_types_get_no_saturation_of_one(tmp_path):
