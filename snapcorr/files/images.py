@@ -9,11 +9,12 @@ reflective channels). snapcorr keeps a cube's metadata as JSON in the image desc
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import numpy as np
 
-from .._validation import parse_json, shown
+from .._validation import WAVELENGTH_NM_RANGE, check_wavelengths_nm, parse_json, shown
 from ..cube.model import POSITION_DIMS
 from .attrs import _one_line
 from .reading import open_image
@@ -37,6 +38,24 @@ _PLAIN_CHANNEL = re.compile(r"^(\d+(?:\.\d*)?)nm$")
 
 
 # -- reading ---------------------------------------------------------------------------------
+
+
+def _channel_wavelengths(path, names, texts):
+    """The wavelengths (nm) channel ``names`` give as ``texts``; a channel whose number is no
+    wavelength (400 digits read as infinity, 0, beyond :data:`WAVELENGTH_NM_RANGE`) refused,
+    named with its file."""
+    lo, hi = WAVELENGTH_NM_RANGE
+    out = []
+    for name, text in zip(names, texts, strict=True):
+        try:
+            w = float(text)
+        except (ValueError, OverflowError):
+            w = math.nan
+        if not (math.isfinite(w) and lo <= w <= hi):
+            raise ValueError(f"{path}: channel {shown(name)} names {shown(text)} nm, which is "
+                             f"no wavelength (nm, {lo:g}-{hi:g}); rename the channel")
+        out.append(w)
+    return np.array(out, dtype=float)
 
 
 def _description(attrs):
@@ -122,7 +141,8 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
     parsed = [_CHANNEL.match(n) for n in names]
     if any(parsed):
         keep = [i for i, m in enumerate(parsed) if m]
-        wl = np.array([float(parsed[i].group(2).replace(",", ".")) for i in keep])
+        wl = _channel_wavelengths(path, [names[i] for i in keep],
+                                  [parsed[i].group(2).replace(",", ".") for i in keep])
         name = "reflectance" if parsed[keep[0]].group(1) == "T" else "radiance"
         order = np.argsort(wl, kind="stable")  # EXR stores channels sorted by name
         keep, wl = [keep[i] for i in order], wl[order]
@@ -131,7 +151,7 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
         _check_tifffile_shape(path, meta, data.shape)
     written = meta.get("wavelength_nm")
     if isinstance(written, list) and len(written) == len(keep):
-        written = np.asarray(written, dtype=float)
+        written = check_wavelengths_nm("the description's wavelength_nm", written, where=path)
         if wl is None:
             wl = written
         elif np.array_equal(np.sort(written), wl):
@@ -139,7 +159,7 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
             order = np.argsort(np.argsort(written, kind="stable"), kind="stable")
             keep, wl = [keep[i] for i in order], wl[order]
     elif wl is None and names and all(_PLAIN_CHANNEL.match(n) for n in names):
-        wl = np.array([float(_PLAIN_CHANNEL.match(n).group(1)) for n in names])
+        wl = _channel_wavelengths(path, names, [_PLAIN_CHANNEL.match(n).group(1) for n in names])
     elif wl is None and fmt == "exr" and len(keep) > 1:
         keep = [keep[i] for i in _exr_channel_order(path, [names[i] for i in keep])]
     data = data[..., keep]
@@ -246,7 +266,7 @@ def _oiio_pages(path, fmt, pages, what):
     names = [p[1][0] for p in pages]
     wl = None
     if all(_PLAIN_CHANNEL.match(n) for n in names):
-        wl = np.array([float(_PLAIN_CHANNEL.match(n).group(1)) for n in names])
+        wl = _channel_wavelengths(path, names, [_PLAIN_CHANNEL.match(n).group(1) for n in names])
     return _File(path, fmt, data, wavelength=wl, attrs={"source": str(path)})
 
 

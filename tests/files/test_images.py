@@ -176,3 +176,40 @@ def test_a_tifffile_array_whose_band_axis_cannot_be_told_is_refused(tmp_path):
                      planarconfig="contig")
     cube = read_cube(tmp_path / "contig.tif", wavelength_nm=500.0 + 10 * np.arange(6))
     assert_array_equal(cube.values, a)
+
+
+@pytest.mark.parametrize("number", ["9" * 250, "0", "0,0", "5", "99999999"],
+                         ids=["250-digits", "0", "0,0", "5", "1e8"])
+def test_an_exr_channel_whose_number_is_no_wavelength_is_refused(tmp_path, number):
+    """A channel's name is the band's wavelength: 250 digits (1e250 nm), 0 or 5 nm were taken
+    as wavelengths; refused, naming the file and the channel."""
+    _exr(tmp_path / "w.exr", [f"S0.{number}nm", "S0.500nm"])
+    with pytest.raises(ValueError, match=r"w\.exr: channel 'S0\.[0-9,]{1,8}.*no wavelength"):
+        read_cube(tmp_path / "w.exr")
+
+
+def test_a_channel_number_beyond_a_float_is_refused():
+    """400 digits parse as infinity (OpenEXR cuts names at 255 characters, other layouts do
+    not): refused as no wavelength, as 0 is."""
+    from snapcorr.files.images import _channel_wavelengths
+
+    for text in ("9" * 400, "0", "nan", "inf"):
+        with pytest.raises(ValueError, match=r"c\.tif: channel .* no wavelength"):
+            _channel_wavelengths("c.tif", [f"{text}nm"], [text])
+    assert_array_equal(_channel_wavelengths("c.tif", ["500nm"], ["500"]), [500.0])
+
+
+def test_a_description_whose_wavelengths_are_no_numbers_is_refused(tmp_path):
+    """The JSON description's wavelength_nm as strings ("1e999": infinity) were cast to
+    floats unchecked."""
+    import OpenImageIO as oiio
+
+    spec = oiio.ImageSpec(4, 3, 2, "float")
+    spec.attribute("ImageDescription", json.dumps({"wavelength_nm": ["1e999", "500"]}))
+    out = oiio.ImageOutput.create(str(tmp_path / "d.tif"))
+    assert out.open(str(tmp_path / "d.tif"), spec)
+    assert out.write_image(np.ones((3, 4, 2), np.float32))
+    out.close()
+    with pytest.raises(ValueError, match=r"d\.tif: the description's wavelength_nm must be "
+                                         "finite"):
+        read_cube(tmp_path / "d.tif")
