@@ -396,10 +396,11 @@ def stored_as(ds, dtype, pack_range=None, fmt=None):
                              "physical values (flat-field the counts first, or give the cube "
                              "its units)")
         if dtype == "float32":
-            if fmt == "envi" or var.dtype.itemsize <= 4:  # (ENVI is written from the values)
+            if var.dtype.itemsize <= 4:
                 var = var.astype(np.float32)
             # else cast as it is written, where finite values beyond float32's range, which
-            # the cast would make infinite, are clipped and counted (:func:`_packed`)
+            # the cast would make infinite, are clipped and counted (:func:`_packed`; ENVI's
+            # :func:`~snapcorr.files.envi_result.write_envi_result`)
             encoding["dtype"] = "float32"
         elif dtype == "float16":
             # clipped as it is cast, where the values beyond float16's range are counted

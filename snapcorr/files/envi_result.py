@@ -36,6 +36,7 @@ import numpy as np
 import xarray as xr
 
 from .attrs import JSON_PREFIX, _json_attrs, _positions, _version
+from .datasets import _narrowed, _say_clipped
 from .envi import NOMINAL_KEY, _envi_position_keys, _quiet_spectral
 from .outputs import _check_targets, _check_writable
 from .safety import atomic_write_files
@@ -63,6 +64,28 @@ def _as_image(var):
     if var.ndim == 2:
         data = data[:, :, None]
     return data
+
+
+def _stored_type(var):
+    """The float type ``var`` is stored as when its encoding asks for a narrower one than its
+    own (``--dtype float32`` of float64 values, :func:`~snapcorr.files.datasets.stored_as`),
+    else None."""
+    to = var.encoding.get("dtype")
+    if var.dtype.kind != "f" or to is None or np.dtype(to).kind != "f":
+        return None
+    return np.dtype(to) if np.dtype(to).itemsize < var.dtype.itemsize else None
+
+
+def _narrowed_image(data, to, counts):
+    """``data`` cast to the float type ``to``, the finite values it cannot hold (a cast makes
+    them infinite) at its largest of their sign, counted in ``counts`` as the blocks are
+    written (:func:`~snapcorr.files.datasets._narrowed`)."""
+    def narrow(a):
+        return _narrowed(a, to, counts).astype(to)
+
+    if hasattr(data, "dask"):
+        return data.map_blocks(narrow, dtype=to)
+    return narrow(np.asarray(data))
 
 
 def _write_image(path, data, header):
@@ -169,7 +192,8 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
     pairs = []
     for name, hdr in images:
         var = ds[name]
-        probe = xr.DataArray(np.empty((1, 1, 1), np.uint8 if var.dtype == bool else var.dtype),
+        kind = np.uint8 if var.dtype == bool else _stored_type(var) or var.dtype
+        probe = xr.DataArray(np.empty((1, 1, 1), kind),
                              dims=("y", "x", "band"))
         _check_writable("envi", probe, hdr, "bsq")
         pairs.append((name, hdr, _header(ds, name, var, stem, nominal, positions)))
@@ -179,9 +203,19 @@ def write_envi_result(ds, path, *, overwrite=False, inputs=(), include_input=Tru
                        inputs=inputs)
         targets += [hdr, hdr.with_suffix(".raw")]
 
+    clipped = {}
+
     def write(folder):
         for name, hdr, header in pairs:
-            _write_image(folder / hdr.name, _as_image(ds[name]), header)
+            data, to = _as_image(ds[name]), _stored_type(ds[name])
+            if to is not None:
+                top = float(np.finfo(to).max)
+                counts = clipped.setdefault(name, (
+                    [], f"{to}'s range -{top:g} to {top:g}",
+                    f"keep their {ds[name].dtype} (no --dtype)"))[0]
+                data = _narrowed_image(data, to, counts)
+            _write_image(folder / hdr.name, data, header)
 
     atomic_write_files(targets, write)
+    _say_clipped(clipped, path)
     return [hdr for _, hdr, _ in pairs]

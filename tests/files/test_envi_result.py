@@ -272,3 +272,21 @@ def test_correct_refuses_an_image_of_its_own_result_naming_the_file(files, cli, 
     assert f"r_{image}.hdr holds '{image}'" in line and "correct the cube it was made from " \
         "(cube.nc" in line, line
     assert "Python" not in line and not (d / "again.nc").exists()
+
+
+def test_envi_float32_result_clips_values_beyond_float32_and_says_so(files, cli):
+    """--dtype float32 of float64 values cast those beyond 3.4e38 to infinity without a word
+    in ENVI (the .nc and .zarr writers clip and warn): now clipped to float32's largest of
+    their sign and counted, as theirs are."""
+    d, cube, _, _ = files
+    values = cube.values.astype(np.float64)
+    values[0, 0, :2] = [1e39, -1e300]
+    make_cube(values, cube.wavelength.values, name="reflectance",
+              attrs={"units": "1"}).pipe(write_cube, d / "big.nc")
+    res = _correct(cli, d, "r.hdr", "--dtype", "float32", cube="big.nc")
+    assert "2 of 4608 values of 'reflectance'" in res.stderr, res.stderr
+    got = np.asarray(envi.open(str(d / "r.hdr")).load())
+    assert got.dtype == np.float32 and np.all(np.isfinite(got))
+    top = np.finfo(np.float32).max
+    np.testing.assert_array_equal(got[0, 0, :2], [top, -top])
+    np.testing.assert_array_equal(got[1:], values[1:].astype(np.float32))
