@@ -128,7 +128,16 @@ class _StepBar:
         self.started = True
         self.bar.set_postfix_str(what, refresh=True)
 
-    def __exit__(self, *exc):
+    def skip(self, n):
+        """``n`` steps of the total that will not be taken (work found not to apply): the bar
+        still ends at its total."""
+        if self.bar.total is not None:
+            self.bar.total = max(self.bar.total - n, self.bar.n)
+            self.bar.refresh()
+
+    def __exit__(self, exc_type, *exc):
+        if self.started and exc_type is None:  # the last step is done too: total of total
+            self.bar.update(1)
         self.ticking.close()
         self.bar.close()
 

@@ -242,12 +242,13 @@ def _chart_line(sensor, fs, lens, noise, fit_n, bar):
         colour_chart_precision,
         pupil_precision,
     )
-    from ..spectra import colour_checker
+    from ..spectra import COLOUR_CHECKER_PATCHES, colour_checker
 
     try:
         ranked = colour_chart_precision(sensor, fs, lens, noise=noise, fit_n_eff=fit_n,
                                         on_patch=lambda p: bar.step(f"ColorChecker {p[:14]}"))
     except OutsideChartError as exc:  # said before any bound is computed
+        bar.skip(len(COLOUR_CHECKER_PATCHES) + 1)
         return f"{'ColorChecker (24 patches)':34s} not judged: {exc}"
     name, unknown = ranked[0]
     bar.step(f"ColorChecker {name[:14]}, spectrum known")

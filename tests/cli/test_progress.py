@@ -84,3 +84,27 @@ def test_quiet_and_progress_together_are_a_usage_error(cli):
     res = cli("stream", "f.zarr", "--dark", "d.npy", "--white", "w.npy", "--sensor",
               "mosaic_4x4_vis", "--out", "o.zarr", "--quiet", "--progress")
     assert res.returncode == 2 and "not allowed with argument" in res.stderr
+
+
+@pytest.mark.parametrize("skipped", [0, 2])
+def test_a_bar_of_steps_ends_at_its_total(monkeypatch, skipped):
+    """A bar counts a step when the next begins, so the last was never counted: pupil
+    --predict's bar ended at 32/33. It ends at its total, with steps found not to apply taken
+    off it (skip), and where the work fails it stays where it stopped."""
+    monkeypatch.setattr(_progress, "_SHOW_PROGRESS", True)
+    for fails in (False, True):
+        err = _Terminal()
+        with contextlib.redirect_stderr(err), contextlib.suppress(RuntimeError):
+            with _progress._StepBar("steps", total=5) as bar:
+                for k in range(5 - skipped):
+                    bar.step(f"step {k}")
+                if skipped:
+                    bar.skip(skipped)
+                if fails:
+                    raise RuntimeError("stopped")
+        done = FINAL.findall(err.getvalue())[-1]
+        want = 5 - skipped
+        assert done == (str(want - 1 if fails else want), str(want)), err.getvalue()
+
+
+FINAL = re.compile(r"(\d+)/(\d+) \[")

@@ -110,23 +110,49 @@ def _row_bands(model):
     return out
 
 
+def _x_derivative(model, x, n, s, f0, eps_x, central):
+    """The derivative in ``x`` of ``design(x) @ s`` (``f0`` at ``x``), by differences whose
+    every ``x`` is a lens's (:data:`~snapcorr._validation.LENGTH_MIN_MM` to
+    :data:`~snapcorr._validation.LENGTH_MAX_MM`): at a bound the stencil steps inward, one-sided
+    (second order where ``central`` asks for it), as a lens at x = 1e6 mm was refused for its
+    own difference's 1000010 mm."""
+    from ..._validation import LENGTH_MAX_MM, LENGTH_MIN_MM
+
+    h = x * eps_x
+    hi, lo = x * (1 + eps_x), x * (1 - eps_x)
+    up, down = hi <= LENGTH_MAX_MM, lo >= LENGTH_MIN_MM
+
+    def at(v):
+        return model.design(v, n) @ s
+
+    if central and up and down:
+        return (at(hi) - at(lo)) / (2 * h)
+    if central and up:  # at the lower bound: forward, second order
+        return (-3 * f0 + 4 * at(hi) - at(x + 2 * h)) / (2 * h)
+    if central:  # at the upper bound: backward, second order
+        return (3 * f0 - 4 * at(lo) + at(x - 2 * h)) / (2 * h)
+    return (at(hi) - f0) / h if up else (f0 - at(lo)) / h
+
+
 def _prediction_derivatives(model, x, n, A, s, *, eps_x=1e-5, eps_n=1e-4, central=False):
     """The derivatives of the whitened prediction ``A s / sigma`` at fixed ``s``: in ``x``
     (a forward difference, or with ``central`` a central one: the kernels are new at every
-    ``x`` and have no derivative of their own), and every row in its own band's index (the
-    model's analytic derivative, :meth:`TargetModel.design` with ``dn``, where it has one,
-    else a forward difference; every band's rows depend on its own index only, so one
-    evaluation serves every band)."""
-    if central:
-        dx = ((model.design(x * (1 + eps_x), n) - model.design(x * (1 - eps_x), n)) @ s
-              / (2 * x * eps_x))
-    else:
-        dx = (model.design(x * (1 + eps_x), n) @ s - A @ s) / (x * eps_x)
+    ``x`` and have no derivative of their own; one-sided inward at the bounds of a lens's
+    ``x``, :func:`_x_derivative`), and every row in its own band's index (the model's
+    analytic derivative, :meth:`TargetModel.design` with ``dn``, where it has one, else a
+    forward difference, backward for an index whose step would reach
+    :data:`~snapcorr._validation.N_EFF_MAX`; every band's rows depend on its own index only,
+    so one evaluation serves every band)."""
+    from ..._validation import N_EFF_MAX
+
+    As = A @ s
+    dx = _x_derivative(model, x, n, s, As, eps_x, central)
     if getattr(model, "analytic_dn", False):
         dn = model.design(x, n, dn=True) @ s
     else:
-        step = eps_n * n
-        dn = (model.design(x, n + step) @ s - A @ s) / step[_row_bands(model)]
+        n = np.asarray(n, float)
+        step = np.where(n * (1 + eps_n) < N_EFF_MAX, eps_n, -eps_n) * n
+        dn = (model.design(x, n + step) @ s - As) / step[_row_bands(model)]
     return dx / model.sigma, dn / model.sigma
 
 

@@ -15,7 +15,8 @@ import pytest
 import spectralsim as sim
 from conftest import PAPER_LENS, PAPER_TRUTH
 
-from snapcorr.calibrate import ImpreciseTargetError, locate_pupil
+from snapcorr import Lens
+from snapcorr.calibrate import ImpreciseTargetError, locate_pupil, pupil_precision
 from snapcorr.calibrate.pupil.measured_target import target_model
 from snapcorr.calibrate.pupil.precision import DEFAULT_TOLERANCE_NM, target_precision
 from snapcorr.calibrate.pupil.solver import _Problem
@@ -124,3 +125,12 @@ def test_predict_for_a_sensor_with_measured_responses(tmp_path):
     with pytest.raises(ValueError, match="n_eff"):  # no index and none fitted: refused
         pupil_precision(rare_earth_glass, vendor, (8.0,), PAPER_LENS)
 
+
+
+@pytest.mark.parametrize("x_mm", [1e-3, 1e6])
+def test_a_lens_at_the_bounds_of_x_is_predicted(x_mm):
+    """x = 1e-3 mm and 1e6 mm are a lens's: its bound is computed (a central difference about
+    1e6 mm reached 1000010 mm and was refused as a lens's input)."""
+    p = pupil_precision(sim.rare_earth_glass, sensor(), FS, Lens(x_mm), fit_n_eff=True)
+    assert p.exit_pupil_mm == x_mm
+    assert p.x_stderr_mm > 0 and p.n_eff_stderr > 0

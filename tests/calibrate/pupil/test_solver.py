@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 from scipy import sparse
 
-from snapcorr.calibrate.pupil.solver import _pinv_solve, _project_off, _solve
+from snapcorr import Lens
+from snapcorr.calibrate.pupil.solver import (
+    _pinv_solve,
+    _prediction_derivatives,
+    _project_off,
+    _solve,
+)
+from snapcorr.optics.shift import check_n_eff
 
 
 def _design(seed, rows=60, cols=8, density=0.4):
@@ -81,3 +88,42 @@ def test_the_projection_removes_what_the_columns_explain():
     want = full - dense @ np.linalg.pinv(dense) @ full
     np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose(dense.T @ got, 0.0, atol=1e-9)
+
+
+class _BoundedModel:
+    """A model whose design at ``x`` builds the lens there and checks the index as the real
+    ones do (refusing a lens or an index out of bounds), with rows known in closed form:
+    ``log(x) n_b``, ``sqrt(x) n_b^2``, ``1 / x`` for each band ``b``."""
+
+    analytic_dn = False
+
+    def __init__(self):
+        self.sigma = np.ones(6)
+        self.n_rows = 6
+        self.blocks = [(0, k, slice(3 * k, 3 * k + 3), None) for k in range(2)]
+
+    def design(self, x, n):
+        Lens(x)
+        n = check_n_eff(n)
+        rows = [[f] for k in range(2)
+                for f in (np.log(x) * n[k], np.sqrt(x) * n[k] ** 2, 1.0 / x)]
+        return sparse.csr_array(np.array(rows))
+
+
+@pytest.mark.parametrize("central", [False, True])
+@pytest.mark.parametrize("x", [1e-3, 21.0, 1e6])
+def test_the_derivatives_step_inward_at_the_bounds_of_x_and_n_eff(x, central):
+    """A lens at x = 1e6 mm (or 1e-3 mm) and an index next to 5 are a lens's and a filter's:
+    the differences stay inside the bounds (a central step's 1000010 mm was refused) and give
+    the closed-form derivatives."""
+    model = _BoundedModel()
+    n = np.array([4.9999, 1.7])
+    s = np.array([1.0])
+    A = model.design(x, n)
+    dx, dn = _prediction_derivatives(model, x, n, A, s, central=central)
+    want_dx = np.concatenate([[n[k] / x, n[k] ** 2 / (2 * np.sqrt(x)), -1 / x**2]
+                              for k in range(2)])
+    np.testing.assert_allclose(dx, want_dx, rtol=1e-4 if not central else 1e-8,
+                               atol=1e-12 * np.max(np.abs(want_dx)))
+    want_dn = np.concatenate([[np.log(x), 2 * np.sqrt(x) * n[k], 0.0] for k in range(2)])
+    np.testing.assert_allclose(dn, want_dn, rtol=1e-3, atol=1e-9 * np.max(np.abs(want_dn)))
