@@ -30,7 +30,13 @@ from .files.marks import written_by_snapcorr
 from .files.outputs import check_folder_writable
 from .files.png import save_png
 from .files.reading import NotRegularFileError, file_kind, read_regular
-from .files.safety import atomic_write, checked_outputs, last_written, note_checked
+from .files.safety import (
+    atomic_write,
+    before_moving_in,
+    checked_outputs,
+    last_written,
+    note_checked,
+)
 from .optics import CORRECTION_MODELS, MEAN_SHIFT_METHODS, Lens, mean_shift
 
 __all__ = ["run_demo"]
@@ -44,9 +50,9 @@ DEMO_MODELS = tuple(m for m in CORRECTION_MODELS if m in MEAN_SHIFT_METHODS)
 MODELS = DEMO_MODELS
 
 
-#: Written into a demo's folder, last: the files the demo wrote there (name, size and SHA-256),
-#: which a later run may replace without ``overwrite``. A regular file, never followed through
-#: a link, replaced atomically.
+#: Written into a demo's folder before each output is moved in, and last: the files the demo
+#: wrote there (name, size and SHA-256), which a later run may replace without ``overwrite``.
+#: A regular file, never followed through a link, replaced atomically.
 MARKER = ".snapcorr-demo"
 #: The files the demo writes into its folder (besides :data:`MARKER`).
 OUTPUTS = ("mean_shift.png", "mean_shift.csv", "calibration.png", "lens.toml", "spectra.png",
@@ -58,9 +64,10 @@ _FILE_LIMIT = 64 << 20
 
 
 def _read_marker(out):
-    """The files :data:`MARKER` vouches for (``{name: {"size", "sha256"}}``; an earlier
-    version's marker vouches for none), or None without a marker. A marker that is not a
-    regular file (a symbolic link, a FIFO, a folder...) is refused before it is opened."""
+    """The files :data:`MARKER` vouches for (``{name: [{"size", "sha256"}, ...]}``: a name
+    may list the file there and the one about to replace it; an earlier version's marker
+    vouches for none), or None without a marker. A marker that is not a regular file (a
+    symbolic link, a FIFO, a folder...) is refused before it is opened."""
     path = out / MARKER
     try:
         mode = os.lstat(path).st_mode
@@ -84,18 +91,30 @@ def _read_marker(out):
     files = doc.get("files") if isinstance(doc, dict) else None
     if not isinstance(files, dict):
         return {}
-    return {n: e for n, e in files.items() if n in OUTPUTS and isinstance(e, dict)}
+    listed = {}
+    for name, entries in files.items():
+        entries = [entries] if isinstance(entries, dict) else entries
+        if name in OUTPUTS and isinstance(entries, list):
+            listed[name] = [e for e in entries if isinstance(e, dict)]
+    return listed
 
 
-def _vouched(path, entry):
-    """Whether ``path`` is the very file the marker lists (its size and SHA-256)."""
-    if not isinstance(entry.get("size"), int) or entry["size"] > _FILE_LIMIT:
+def _entry(data):
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _vouched(path, entries):
+    """Whether ``path`` is a file the marker lists (one of ``entries``: its size and
+    SHA-256)."""
+    entries = [e for e in entries if isinstance(e.get("size"), int)
+               and e["size"] <= _FILE_LIMIT]
+    if not entries:
         return False
     try:
         data = read_regular(path, _FILE_LIMIT, follow_links=False)
     except (OSError, ValueError):
         return False
-    return len(data) == entry["size"] and hashlib.sha256(data).hexdigest() == entry.get("sha256")
+    return _entry(data) in [{"size": e["size"], "sha256": e.get("sha256")} for e in entries]
 
 
 def _own_mark(path):
@@ -190,6 +209,14 @@ def _check_out_dir(out, overwrite):
     return out
 
 
+def _save_marker(out, listed):
+    """:data:`MARKER`, atomically, listing ``listed`` (``{name: [entry, ...]}``; one entry is
+    written as itself, a name without one not at all)."""
+    files = {n: es[0] if len(es) == 1 else es for n, es in listed.items() if es}
+    text = json.dumps({"written_by": f"snapcorr {__version__} demo", "files": files}, indent=1)
+    atomic_write(out / MARKER, lambda p: p.write_text(text + "\n", encoding="utf-8"))
+
+
 def _write_marker(out):
     """:data:`MARKER`, atomically, listing each output that is still the file the demo moved
     in (the same device, inode, size and time as when it was written)."""
@@ -208,9 +235,42 @@ def _write_marker(out):
                     st.st_size > _FILE_LIMIT:
                 continue  # not the file the demo wrote: not vouched for
             data = fh.read(_FILE_LIMIT + 1)
-        files[name] = {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
-    text = json.dumps({"written_by": f"snapcorr {__version__} demo", "files": files}, indent=1)
-    atomic_write(out / MARKER, lambda p: p.write_text(text + "\n", encoding="utf-8"))
+        files[name] = [_entry(data)]
+    _save_marker(out, files)
+
+
+def _on_disk(out, listed):
+    """``listed`` with only the entries that are the files at their names now."""
+    return {n: [e for e in es if _vouched(out / n, [e])] for n, es in listed.items()}
+
+
+def _marker_keeper(out):
+    """``(before_move, settle)`` for a run in ``out``: ``before_move(new, target)`` lists an
+    output in :data:`MARKER` before it is moved in (:func:`before_moving_in`), beside the file
+    still at its name; ``settle()`` drops what is no longer there.
+
+    Every file of the demo's at a name is so listed at every moment, however the run ends: a
+    previous run's outputs (as the marker listed them when the run began) until they are
+    replaced, then the new ones. A name listed whose file never came is harmless."""
+    listed = _on_disk(out, _read_marker(out) or {})
+    folder = os.path.realpath(out)
+
+    def before_move(new, target):
+        name = Path(target).name
+        if name not in OUTPUTS or os.path.realpath(Path(target).parent) != folder:
+            return
+        try:
+            data = read_regular(new, _FILE_LIMIT, follow_links=False)
+        except (OSError, ValueError):  # not one file the marker can list: never vouched for
+            return
+        listed[name] = [*_on_disk(out, {name: listed.get(name, [])})[name], _entry(data)]
+        _save_marker(out, listed)
+
+    def settle():
+        listed.update(_on_disk(out, listed))
+        _save_marker(out, listed)
+
+    return before_move, settle
 
 
 def _mean_shift_over_the_field(lens):
@@ -269,8 +329,9 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
 
     Refuses, before any work, a folder holding files the demo did not make unless
     ``overwrite``, and even then files of its names snapcorr did not write
-    (:func:`check_out_dir`); :data:`MARKER` is written after each output, listing the files
-    written so far (a run cut short can be run again in the same folder).
+    (:func:`check_out_dir`); :data:`MARKER` lists each output before it is moved in, beside
+    the previous run's file it replaces (a run cut short at any point can be run again in the
+    same folder).
 
     Parameters
     ----------
@@ -297,27 +358,35 @@ def run_demo(out_dir, *, lens: Lens | None = None, echo=print, overwrite=False):
 
 def _run(out, lens, echo):
     out.mkdir(exist_ok=True)  # in a folder that exists (checked)
+    before_move, settle = _marker_keeper(out)
+    with before_moving_in(before_move):  # each output listed before it is there
+        paths = _outputs(out, lens, echo, settle)
+    _write_marker(out)  # at the end: only the files this run moved in and left as they are
+    return paths
+
+
+def _outputs(out, lens, echo, settle):
+    """Write the outputs into ``out`` (``settle()`` after each step)."""
     lens = lens or Lens.load(lens_path())
     lines, rows, fig = _mean_shift_over_the_field(lens)
     figure = save_png(fig, out / "mean_shift.png", dpi=120)
-    _write_marker(out)  # after every output: an interrupted run leaves what it vouches for
+    settle()
 
     def write_csv(p):
         np.savetxt(p, np.array(rows), delimiter=",", header=_CSV_HEADER, comments="",
                    fmt="%.6f")
 
     table = atomic_write(out / "mean_shift.csv", write_csv)
-    _write_marker(out)
+    settle()
     echo("\n".join(lines))
     echo("")
     echo("The paper's experiment, simulated (about half a minute) ...")
     from .paper_experiment import run as run_experiment
 
-    exp_lines, _ = run_experiment(out, echo=echo, written=lambda: _write_marker(out))
+    exp_lines, _ = run_experiment(out, echo=echo, written=settle)
     lines += ["", "The paper's experiment, simulated end to end:", *exp_lines]
     text = "\n".join(lines) + "\n"
     summary = atomic_write(out / "summary.txt", lambda p: p.write_text(text, encoding="utf-8"))
-    _write_marker(out)  # it vouches only for what the demo wrote
     echo(f"wrote {', '.join(str(out / n) for n in OUTPUTS)}")
     return {"figure": figure, "table": table, "summary": summary,
             "spectra": out / "spectra.png", "calibration": out / "calibration.png",

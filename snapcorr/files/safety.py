@@ -59,6 +59,7 @@ __all__ = [
     "atomic_write",
     "atomic_write_dir",
     "atomic_write_files",
+    "before_moving_in",
     "checked_outputs",
     "cleanup_on_signals",
     "last_written",
@@ -480,6 +481,11 @@ def _replace(moves, expected):
     moves = [(Path(new), Path(target)) for new, target in moves]
     for new, target in moves:
         _check_kind(target, directory=new.is_dir())
+    with _LOCK:
+        hooks = list(_BEFORE_MOVE)
+    for hook in hooks:  # before anything is moved: told of every name first
+        for new, target in moves:
+            hook(new, target)
     # The old paths moved aside are not registered as temporaries: if anything goes wrong
     # they are put back, and a crash leaves them recoverable rather than deleted.
     asides, placed = [], []
@@ -517,6 +523,33 @@ def _replace(moves, expected):
         _note_written(target)
     for aside, _ in asides:
         shutil.rmtree(aside, ignore_errors=True)
+
+
+#: What :func:`before_moving_in` calls before each move in (innermost last).
+_BEFORE_MOVE: list = []
+
+
+@contextlib.contextmanager
+def before_moving_in(hook):
+    """Inside the block, ``hook(new, target)`` is called for every finished output just
+    before it is moved in: ``new`` is the complete temporary (its mark tied), ``target`` the
+    path it becomes. A file that lists what was written (the demo's marker) can so name a
+    file before it is there: however the command is cut short, a file it moved in is one it
+    listed. A hook that raises stops the write: nothing is moved in. Blocks nest.
+
+    Examples
+    --------
+    >>> from snapcorr.files.safety import before_moving_in
+    >>> with before_moving_in(lambda new, target: None):
+    ...     pass
+    """
+    with _LOCK:
+        _BEFORE_MOVE.append(hook)
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _BEFORE_MOVE.remove(hook)
 
 
 def _check_kind(target, *, directory):
