@@ -227,6 +227,10 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     notes = []
     centre = (None if first.center_source == "image centre"  # assumed there, not found
               else _target_center(cubes, sensor, first.lens, sensor_origin_px, notes))
+    # a refusal of the centre names the flats' where the flats found it; every fit about it
+    # (again with other circles, at other magnifications) shares one check of it
+    whose = "given" if first.center_source == "given" else "flats"
+    checks = {}
 
     def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
         return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
@@ -234,7 +238,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
                             profile=profile, inputs=target_inputs, name=name,
                             progress=progress, scale_circles=True,
                             tolerance_nm=None if again else target_tolerance_nm,
-                            report=None if again else report)
+                            report=None if again else report, center_from=whose,
+                            center_checks=checks)
 
     pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm

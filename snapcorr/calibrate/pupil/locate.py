@@ -89,6 +89,7 @@ from .target import (
     _annuli,
     _check_cubes,
     _spectrum,
+    check_center_from,
     check_given_center,
     check_modelled,
     check_n_bins,
@@ -214,7 +215,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
                  center_px=None, target_spectrum=None, sensor_origin_px=None, magnification=None,
                  pupil_magnification=None, profile="gaussian", n_bins=96, inputs=None,
                  name=None, progress=None, scale_circles=None, pupil_radiance=None,
-                 tolerance_nm=None, report=None) -> PupilFit:
+                 tolerance_nm=None, report=None, center_from="given",
+                 center_checks=None) -> PupilFit:
     """The exit pupil distance ``x`` (and ``n_eff``) from flat-fielded cubes of a target.
 
     Parameters
@@ -280,6 +282,15 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         prediction is in ``PupilFit.predicted`` all the same).
     report : callable, optional
         ``report(text)`` with the prediction, before the least squares.
+    center_from : {"given", "flats"}
+        Where ``center_rc`` came from, as a refusal of it says (:data:`~snapcorr.calibrate.
+        pupil.target.CENTER_FROM`): the caller's own, or the flats' centre
+        (``calibrate_with_target``).
+    center_checks : dict, optional
+        Where the check of a given centre against these cubes is kept, keyed by the centre,
+        and looked up before it is made again: a caller that fits the same cubes about the
+        same centre several times passes one dict to every fit (the check re-estimates the
+        centre from the cubes: up to some seconds).
 
     Returns
     -------
@@ -296,34 +307,60 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         magnification = check_magnification(magnification)
     if pupil_magnification is not None:
         pupil_magnification = check_pupil_magnification(pupil_magnification)
+    center_from = check_center_from(center_from)
     args = dict(locals())
-    del args["center_px"]  # turned into center_rc by accepts_center_rc
+    for k in ("center_px", "center_from", "center_checks"):  # center_px: now center_rc
+        del args[k]
     given, _, rng = ratio_range(magnification, pupil_magnification, lens)
     if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
         args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
     doubt = (None if center_rc is None else  # once (refits hold their own centre)
-             check_given_center(cubes, sensor, args["lens"], sensor_origin_px, center_rc))
+             _center_doubt(cubes, sensor, args["lens"], sensor_origin_px, center_rc,
+                           center_from, center_checks))
     fit = _checked_locate(**args)
     if doubt is not None:
-        fit = _given_center_doubted(fit, doubt)
+        fit = _given_center_doubted(fit, doubt, center_from)
     if rng[1] > rng[0]:  # m / m_P assumed: its spread in x's and n_eff's errors, said
         fit = _magnification.account_for_pupil_magnifications(
             fit, given, rng, functools.partial(_refit, args, fit), stacklevel=6)
     return fit
 
 
-def _given_center_doubted(fit, doubt):
+def _center_doubt(cubes, sensor, lens, sensor_origin_px, center_rc, center_from, checks):
+    """:func:`check_given_center`, looked up in ``checks`` (a dict, or None) and kept there."""
+    if checks is None:
+        return check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc,
+                                  center_from)
+    key = (tuple(float(v) for v in center_rc), center_from,
+           None if sensor_origin_px is None else tuple(float(v) for v in sensor_origin_px))
+    if key not in checks:
+        checks[key] = check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc,
+                                         center_from)
+    return checks[key]
+
+
+#: What a refusal of a given centre advises, by where it came from (``center_from``).
+_CENTER_ADVICE = {
+    "given": "give the centre in sensor pixels of the lens these cubes were taken with, or "
+             "leave it out to use the one found",
+    "flats": "the flats and the target cubes do not agree on the axis: take both with the "
+             "same lens, focus and sensor area, or give the centre in sensor pixels "
+             "(--center, center_rc=) where it is known"}
+
+
+def _given_center_doubted(fit, doubt, center_from="given"):
     """A fit about a given centre its cubes place elsewhere (``doubt``): refused where the
     fit also misses the data beyond the noise (a wrong centre: 5000,5000 on a 1088 x 2048
     sensor fitted x = 86 +- 0.25 mm for 21, at a reduced chi-square of 1.49 over 2601
     degrees of freedom); else kept, the doubt in its notes and its profile (a crop far from
-    the axis can place the centre wrongly itself)."""
+    the axis can place the centre wrongly itself). The advice is the one true where the
+    centre came from (``center_from``)."""
     if _misfits(fit.chi2_red, fit.dof):
         raise ValueError(f"{doubt}, and the fit about it misses the data (reduced chi-square "
-                         f"{fit.chi2_red:.3g} over {fit.dof} degrees of freedom): give the "
-                         "centre in sensor pixels of the lens these cubes were taken with, or "
-                         "leave it out to use the one found")
-    said = f"{doubt}; the fit about the given centre matches the data, so it is kept"
+                         f"{fit.chi2_red:.3g} over {fit.dof} degrees of freedom): "
+                         f"{_CENTER_ADVICE[center_from]}")
+    whose = "the given centre" if center_from == "given" else "the flats' centre"
+    said = f"{doubt}; the fit about {whose} matches the data, so it is kept"
     fit.notes.append(said)
     cal = dict(fit.lens.calibration)
     cal["center_doubt"] = said

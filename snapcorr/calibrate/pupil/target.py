@@ -274,6 +274,15 @@ def estimate_target_center_rc(band_image, n_bands, rows, cols, *, start_rc=None,
         the fit's (from its Jacobian) and a delete-a-group jackknife's over the blocks
         (:data:`JACKKNIFE_GROUPS`), which holds where the signal is near the noise.
     """
+    center, errors = _center_fit(band_image, n_bands, rows, cols, start_rc, n_use, block,
+                                 degree)
+    return center, errors()
+
+
+def _center_fit(band_image, n_bands, rows, cols, start_rc, n_use, block, degree):
+    """:func:`estimate_target_center_rc`'s centre ``(row, col)`` and ``errors()``, which gives
+    its standard errors on demand (the jackknife's refits cost some seconds: a caller that
+    needs only the centre where it lies near skips them)."""
     stats_ = []
     for b in range(n_bands):
         v = np.asarray(band_image(b), float)
@@ -329,10 +338,15 @@ def estimate_target_center_rc(band_image, n_bands, rows, cols, *, start_rc=None,
         err = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         err = np.array([math.inf, math.inf])
-    if np.all(np.isfinite(err)):
-        err = np.maximum(err, _jackknife_err(residuals, sol.x, gg, scale))
-    err = tuple(float(v) for v in err)
-    return (float(sol.x[1]), float(sol.x[0])), (err[1], err[0])
+
+    def errors():
+        e = err
+        if np.all(np.isfinite(e)):
+            e = np.maximum(e, _jackknife_err(residuals, sol.x, gg, scale))
+        e = tuple(float(v) for v in e)
+        return (e[1], e[0])
+
+    return (float(sol.x[1]), float(sol.x[0])), errors
 
 
 # -- the annuli ---------------------------------------------------------------------------
@@ -358,41 +372,109 @@ GIVEN_CENTER_SHARE = 0.25
 EDGE_SHARE = 0.1
 
 
-def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc):
+#: Where a given optical centre came from, as :func:`check_given_center` and
+#: :func:`~snapcorr.calibrate.pupil.locate.locate_pupil` say it: the caller's own, or the
+#: flats' (``calibrate_with_target`` hands the centre its flats fitted to the target's fit).
+CENTER_FROM = {"given": "the optical centre given", "flats": "the flats' optical centre"}
+
+
+def check_center_from(center_from):
+    """``center_from`` checked: one of :data:`CENTER_FROM`."""
+    if center_from not in CENTER_FROM:
+        raise ValueError(f"center_from must be one of {', '.join(map(repr, CENTER_FROM))}, "
+                         f"got {center_from!r}")
+    return center_from
+
+
+def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc, center_from="given"):
     """What the cubes say against an optical centre ``(row, col)`` given to the fit, or None:
     where they place it further than :data:`GIVEN_CENTER_SIGMAS` standard errors and
     :data:`GIVEN_CENTER_SHARE` of their diagonal away. Where they cannot place it (the
     estimate fails, or lands near their field's edge), None. A crop far from the axis can
     place it wrongly inside its field, so this alone refuses nothing:
     :func:`~snapcorr.calibrate.pupil.locate.locate_pupil` refuses where the fit about the
-    given centre also misses the data, and notes it otherwise."""
+    given centre also misses the data, and notes it otherwise. ``center_from`` (a key of
+    :data:`CENTER_FROM`) names where the centre came from in the text.
+
+    The centre's standard errors (a jackknife: seconds) are found only where the cubes place
+    it further than that share of their diagonal, the one condition they do not enter."""
     from ...correct.geometry import cube_positions
 
+    what = CENTER_FROM[check_center_from(center_from)]
     center = check_center_rc(center_rc)
     cubes = _check_cubes(cubes, sensor, min_side=1)
     f0 = min(cubes)
     rows, cols = cube_positions(cubes[f0], sensor, lens, sensor_origin_px)
     try:
-        found, err = estimate_target_center_rc(_band_reader(cubes[f0]), sensor.n_bands,
-                                               rows, cols)
+        found, errors = _center_fit(_band_reader(cubes[f0]), sensor.n_bands, rows, cols, None,
+                                    12, 4, 4)
     except (ValueError, np.linalg.LinAlgError):
-        return None
-    err = np.asarray(err, float)
-    if not np.all(np.isfinite(err)) or np.any(err <= 0):
         return None
     for v, at in ((found[0], rows), (found[1], cols)):
         lo, hi = float(np.min(at)), float(np.max(at))
         if not lo + EDGE_SHARE * (hi - lo) <= v <= hi - EDGE_SHARE * (hi - lo):
             return None
     d = np.subtract(center, found)
-    z = float(np.hypot(*(d / err)))
     span = float(np.hypot(np.ptp(rows), np.ptp(cols)))
-    if z > GIVEN_CENTER_SIGMAS and float(np.hypot(*d)) > GIVEN_CENTER_SHARE * span:
-        return (f"the optical centre given (row {center[0]:g}, col {center[1]:g}) is "
+    if not float(np.hypot(*d)) > GIVEN_CENTER_SHARE * span:
+        return None
+    err = np.asarray(errors(), float)
+    if not np.all(np.isfinite(err)) or np.any(err <= 0):
+        return None
+    z = float(np.hypot(*(d / err)))
+    if z > GIVEN_CENTER_SIGMAS:
+        return (f"{what} (row {center[0]:g}, col {center[1]:g}) is "
                 f"{float(np.hypot(*d)):.0f} px ({z:.0f} standard errors) from where the "
                 f"f/{f0:g} cube places it (row {found[0]:.1f} +- {err[0]:.2g}, col "
                 f"{found[1]:.1f} +- {err[1]:.2g})")
     return None
+
+
+#: A centre the cubes find is refused where its standard error is above this share of the
+#: sensor's diagonal (the cubes' field's, without a sensor size), or where it lies outside the
+#: sensor by more than :data:`FOUND_CENTER_SIGMAS` standard errors: it is not a measurement
+#: (a 64 x 80 crop of an f/2 mosaic, seed 103, found row 979 +- 848, col 2480 +- 2695 on a
+#: 1088 x 2048 sensor, whose axis is at its middle; every other seed of 24 was within 70 px).
+FOUND_CENTER_SHARE = 0.25
+FOUND_CENTER_SIGMAS = 3.0
+
+
+def check_found_center(center, err, rows, cols, sensor, f_number):
+    """Refuse an optical centre ``(row, col)`` the cubes found with standard errors ``err``
+    where it is not a measurement (:data:`FOUND_CENTER_SHARE`, :data:`FOUND_CENTER_SIGMAS`);
+    ``rows``, ``cols``: the cube's sensor positions (its field, where the sensor has no
+    size). The refusal names the way out: the centre given."""
+    if sensor.size_px is not None:
+        lo = (-0.5, -0.5)
+        hi = (sensor.size_px[0] - 0.5, sensor.size_px[1] - 0.5)
+    else:
+        lo = (float(np.min(rows)), float(np.min(cols)))
+        hi = (float(np.max(rows)), float(np.max(cols)))
+    span = float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
+    err = np.asarray(err, float)
+    out = [max(a - v, v - b, 0.0) for v, a, b in zip(center, lo, hi, strict=True)]
+    why = None
+    if not (np.all(np.isfinite(err)) and np.all(np.isfinite(center))):
+        why = "with no finite standard error"
+    elif float(np.hypot(*err)) > FOUND_CENTER_SHARE * span:
+        whose = "the sensor's" if sensor.size_px is not None else "the cubes'"
+        why = (f"+- {float(np.hypot(*err)):.0f} px in all, more than {FOUND_CENTER_SHARE:g} "
+               f"of {whose} diagonal ({span:.0f} px)")
+    elif sensor.size_px is not None and any(
+            o > FOUND_CENTER_SIGMAS * e for o, e in zip(out, err, strict=True)):
+        why = (f"outside the {sensor.size_px[0]} x {sensor.size_px[1]} px sensor by more than "
+               f"{FOUND_CENTER_SIGMAS:g} of its standard errors")
+    if why is not None:
+        raise ValueError(
+            f"the f/{f_number:g} cube cannot place the optical centre: it finds row "
+            f"{center[0]:.1f} +- {_px(err[0])}, col {center[1]:.1f} +- {_px(err[1])}, {why} (a "
+            "target too weak or too even over the field, or a crop far from the axis): give "
+            "the centre (--center ROW,COL; center_rc=), from the lens's flats")
+
+
+def _px(v):
+    """A standard error in pixels, as said: two digits, whole pixels from 100."""
+    return f"{v:.2g}" if not v >= 100 else f"{v:.0f}"
 
 
 def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
@@ -409,6 +491,7 @@ def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]
         center, err = estimate_target_center_rc(_band_reader(cubes[f0]), nb, rows, cols)
+        check_found_center(center, err, rows, cols, sensor, f0)
         center_source = (f"found from the f/{f0:g} cube (+- {err[0]:.2g} px in the row, "
                          f"{err[1]:.2g} px in the column)")
     bins = [radial_bins(_band_reader(c), nb, *positions[f], None, pitch, center_rc=center,
