@@ -108,9 +108,11 @@ def _refuse_missing_chunks(path, arrays, cf=True):
                 f"{path}: variable {name!r} lacks {missing} of its {every} "
                 f"{'shards' if arr.shards else 'chunks'} in the store; "
                 f"Zarr would read them as its fill value {np.asarray(arr.fill_value).tolist()!r}"
-                f", a valid {arr.dtype} value, so the data read would be wrong: restore the "
-                "missing chunks or write the store again (a writer that leaves out chunks "
-                "holding only the fill value: write with write_empty_chunks=True)")
+                f", a valid {arr.dtype} value, so the data read could be wrong: restore the "
+                "missing chunks, or, where they were left out for holding only that value (as "
+                "Zarr's writers do by default, and snapcorr's did before it wrote every "
+                "chunk), copy the store with them written: xarray.open_zarr(store).to_zarr("
+                "copy, write_empty_chunks=True)")
 
 
 def _refuse_unwritten_hdf5_chunks(path):

@@ -256,3 +256,26 @@ def test_a_netcdf_result_with_a_chunk_of_zeros_reads_back(tmp_path):
         write_dataset(ds, tmp_path / f"r{dtype}.nc", dtype=dtype)
         np.testing.assert_allclose(read_dataset(tmp_path / f"r{dtype}.nc")["reflectance"],
                                    values, atol=1e-4)
+
+
+def test_the_copy_a_refusal_advises_reads_chunks_left_out_as_their_fill_value(tmp_path):
+    """A store whose writer left out its chunks of zeros (Zarr's default, and snapcorr's
+    writer before it wrote every chunk) is refused; the copy the refusal names, made as it
+    says, holds every chunk and reads back with those zeros."""
+    import re
+
+    a = np.full((64, 64, 3), 1500, np.uint16)
+    a[16:32] = 0
+    path = tmp_path / "old.zarr"
+    make_cube(a, WL).to_dataset(name="raw").to_zarr(
+        path, consolidated=False,
+        encoding={"raw": {"chunks": (16, 64, 3), "write_empty_chunks": False}})
+    assert not (path / "raw" / "c" / "1" / "0" / "0").exists()  # left out as its writer does
+    with pytest.raises(ValueError, match="lacks 1 of its 4 chunks") as err:
+        read_cube(path)
+    recipe = re.search(r"(xarray\.open_zarr\(store\)\.to_zarr\(copy, [^)]*\))", str(err.value))
+    copy = tmp_path / "copy.zarr"
+    with warnings.catch_warnings():  # xarray says the store has no consolidated metadata
+        warnings.simplefilter("ignore", RuntimeWarning)
+        eval(recipe.group(1), {"xarray": xr, "store": str(path), "copy": str(copy)})
+    np.testing.assert_array_equal(read_cube(copy).values, a)
