@@ -170,7 +170,7 @@ def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):
                              f"the responses' grid resolves ({MIN_FWHM_STEPS:g} of its "
                              f"{step[b]:g} nm steps); ask for at least "
                              f"{MIN_FWHM_STEPS * step.max():g} nm")
-        out = np.flatnonzero((wl - 1.5 * fw < grid[0]) | (wl + 1.5 * fw > grid[-1]))
+        out = _responses.reaching_beyond(wl, fw, grid)
         if out.size:
             b = out[0]
             vendor = "the vendor file's correction matrix"
@@ -186,7 +186,7 @@ def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):
                 blame = f"its width comes from {source}; give a narrower virtual_fwhm_nm"
             raise ValueError(f"the virtual band at {wl[b]:g} nm (FWHM {fw[b]:g} nm) reaches "
                              f"beyond the responses' grid ({grid[0]:g}-{grid[-1]:g} nm) within "
-                             f"1.5 FWHM: {blame}")
+                             f"{_responses.VIRTUAL_REACH_FWHM:g} FWHM: {blame}")
     return wl, fw
 
 

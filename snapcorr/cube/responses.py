@@ -34,6 +34,20 @@ NOISE_FRACTION = 0.01
 #: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none). The
 #: bound of ``--virtual-fwhm-nm`` and of a vendor file's virtual-band widths alike.
 MIN_FWHM_STEPS = 2.0
+#: How far a virtual band's Gaussian must lie inside the responses' grid either side of its
+#: centre, in its FWHM: beyond, the bands cannot make its tails (0.2 % of its peak at 1.5).
+VIRTUAL_REACH_FWHM = 1.5
+
+
+def reaching_beyond(wavelength_nm, fwhm_nm, grid_nm):
+    """Indices of the virtual bands (centres ``wavelength_nm``, widths ``fwhm_nm``, nm) that
+    reach beyond ``grid_nm`` within :data:`VIRTUAL_REACH_FWHM` of their FWHM; a band of no
+    stated width (NaN) reaches nowhere."""
+    wl, fw = np.broadcast_arrays(np.asarray(wavelength_nm, float), np.asarray(fwhm_nm, float))
+    grid = np.asarray(grid_nm, float)
+    with np.errstate(invalid="ignore"):
+        out = (wl - VIRTUAL_REACH_FWHM * fw < grid[0]) | (wl + VIRTUAL_REACH_FWHM * fw > grid[-1])
+    return np.flatnonzero(out & np.isfinite(fw))
 
 
 class Peak(NamedTuple):

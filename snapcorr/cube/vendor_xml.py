@@ -31,6 +31,7 @@ expansion, no external resources).
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,12 +42,18 @@ from ..files.reading import check_input
 from .responses import (
     MIN_FWHM_STEPS,
     NOISE_FRACTION,
+    VIRTUAL_REACH_FWHM,
     CorrectionMatrix,
     FilterResponses,
     Peak,
+    reaching_beyond,
 )
 
-__all__ = ["MAX_FILE_BYTES", "VendorCalibration", "read_vendor_file"]
+__all__ = ["MAX_FILE_BYTES", "VendorCalibration", "VendorFileWarning", "read_vendor_file"]
+
+
+class VendorFileWarning(UserWarning):
+    """A vendor calibration file read, with a part of it that cannot be used as it stands."""
 
 #: Far larger than any calibration file (a 5x5 sensor's is 0.4 MB, the largest a few MB): a
 #: bigger file is refused by its size before it is parsed (parsing takes about ten times the
@@ -519,6 +526,16 @@ def _matrices_on_grid(f, matrices, grid, where):
         if out:
             f.fail(f"<{where}> {shown(m.name)} has a virtual band at {out[0]:g} nm, outside the "
                    f"responses' {grid[0]:g}-{grid[-1]:g} nm")
+        wide = reaching_beyond(m.wavelength_nm, m.fwhm_nm, grid)
+        if wide.size:  # the file is sound otherwise: its bands, responses, other matrices
+            b = wide[0]
+            warnings.warn(
+                f"{f.path}: <{where}> {shown(m.name)} has {wide.size} virtual band(s) whose "
+                f"width reaches beyond the responses' {grid[0]:g}-{grid[-1]:g} nm within "
+                f"{VIRTUAL_REACH_FWHM:g} FWHM (the first at {m.wavelength_nm[b]:g} nm, FWHM "
+                f"{m.fwhm_nm[b]:g} nm): the bands cannot make it so wide there, so virtual "
+                "bands from it are refused unless given a narrower width", VendorFileWarning,
+                stacklevel=2)
 
 
 def _on_grid(f, own, values, grid, where):

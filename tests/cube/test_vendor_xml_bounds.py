@@ -164,3 +164,28 @@ def test_a_file_far_larger_than_any_calibration_file_is_refused_by_its_size(tmp_
     finally:
         tracemalloc.stop()
     assert peak < 2**20, (peak, message)
+
+
+def test_a_virtual_band_reaching_past_the_grid_is_said_at_load(tmp_path, capsys):
+    """A matrix band inside the grid whose width reaches past its edge (465 nm with a FWHM of
+    50 nm on a 400-1000 nm grid: 1.5 FWHM below it is 390 nm) was read without a word, and
+    refused only by a correction asking for virtual bands. The file is read (its bands and
+    responses are sound), saying so, in the command's output as well."""
+    from snapcorr.cli import main
+    from snapcorr.cube.vendor_xml import VendorFileWarning
+
+    fx = imec_4x4()
+    name, kind, wl, fw, coeffs = fx.matrices[0]
+    fw = fw.copy()
+    fw[0] = 50.0
+    assert wl[0] - 1.5 * fw[0] < fx.grid[0] < wl[0]  # the centre inside, the width beyond
+    fx.matrices[0] = (name, kind, wl, fw, coeffs)
+    path = write_newer(tmp_path / "wide.xml", fx)
+    with pytest.warns(VendorFileWarning, match=rf"wide\.xml: .*'hsi_reflectance' has 1 virtual "
+                                               rf"band\(s\) whose width reaches beyond the "
+                                               rf"responses' 400-1000 nm .*at {wl[0]:g} nm, "
+                                               r"FWHM 50 nm"):
+        sensor = Sensor.load(path)
+    assert sensor.n_bands == 16
+    assert main(["sensor", str(path)]) == 0
+    assert "whose width reaches beyond" in capsys.readouterr().err
