@@ -197,7 +197,7 @@ def test_a_sharded_cube_lacking_a_shard_is_refused(tmp_path):
     raw.to_dataset(name="raw").to_zarr(path, consolidated=False, encoding={
         "raw": {"chunks": (8, 64, 3), "shards": (16, 64, 3)}})
     (path / "raw" / "c" / "3" / "0" / "0").unlink()
-    with pytest.raises(ValueError, match="variable 'raw' lacks 1 of its 4 shards"):
+    with pytest.raises(ValueError, match="variable 'raw' lacks 2 of its 8 chunks"):
         read_cube(path)
 
 
@@ -279,3 +279,68 @@ def test_the_copy_a_refusal_advises_reads_chunks_left_out_as_their_fill_value(tm
         warnings.simplefilter("ignore", RuntimeWarning)
         eval(recipe.group(1), {"xarray": xr, "store": str(path), "copy": str(copy)})
     np.testing.assert_array_equal(read_cube(copy).values, a)
+
+
+def test_a_shard_lacking_one_of_its_chunks_is_refused(tmp_path):
+    """A shard file that is there but lacks an inner chunk (its writer left out a chunk of the
+    fill value, or stopped part way) read that chunk as 0 DN without a word: the shards'
+    files alone were counted."""
+    a = np.full((32, 32, 16), 1500, np.uint16)
+    a[0:8, 8:16] = 0
+    path = tmp_path / "inner.zarr"
+    make_cube(a, np.linspace(450.0, 650.0, 16)).to_dataset(name="raw").to_zarr(
+        path, consolidated=False, encoding={"raw": {"chunks": (8, 8, 16),
+                                                    "shards": (16, 16, 16),
+                                                    "write_empty_chunks": False}})
+    assert (path / "raw" / "c" / "0" / "0" / "0").is_file()  # the shard is there
+    with pytest.raises(ValueError, match="variable 'raw' lacks 1 of its 16 chunks"):
+        read_cube(path)
+
+
+def test_a_shard_at_the_array_edge_counts_only_chunks_inside_it(tmp_path):
+    """Shards reaching past the array's end hold no chunk beyond it: a whole store reads."""
+    rng = np.random.default_rng(5)
+    a = rng.integers(1000, 2000, (40, 24, 3)).astype(np.uint16)
+    path = tmp_path / "edge.zarr"
+    make_cube(a, WL).to_dataset(name="raw").to_zarr(
+        path, consolidated=False, encoding={"raw": {"chunks": (8, 8, 3),
+                                                    "shards": (16, 16, 3)}})
+    np.testing.assert_array_equal(read_cube(path).values, a)
+
+
+def test_a_store_declaring_billions_of_chunks_is_refused_at_once(tmp_path):
+    """Metadata alone, 200000 x 200000 x 16 in 1 x 1 x 16 chunks (4e10 chunks): the check
+    walked every key, minutes before any bound; a grid far beyond the files there is not
+    walked."""
+    import time
+
+    path = tmp_path / "huge.zarr"
+    g = zarr.open_group(str(path), mode="w")
+    arr = g.create_array("raw", shape=(200000, 200000, 16), chunks=(1, 1, 16), dtype="uint16",
+                         dimension_names=("y", "x", "band"))
+    arr[0, 0] = 1
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"variable 'raw' lacks \d+ of its 40000000000 chunks"):
+        from snapcorr.files.chunks import _refuse_incomplete_zarr
+
+        _refuse_incomplete_zarr(path)
+    assert time.perf_counter() - t0 < 5.0
+
+
+def test_a_store_stating_no_fill_value_says_what_a_missing_chunk_reads_as(tmp_path):
+    rng = np.random.default_rng(6)
+    raw = make_cube(rng.integers(1000, 2000, (64, 64, 3)).astype(np.uint16), WL)
+    path = tmp_path / "nofill.zarr"
+    g = zarr.open_group(str(path), mode="w", zarr_format=2)
+    g.attrs["_ARRAY_DIMENSIONS"] = []
+    g.create_array("wavelength", data=np.array(WL))[...] = WL
+    g["wavelength"].attrs.update({"_ARRAY_DIMENSIONS": ["band"], "units": "nm"})
+    stored = g.create_array("raw", shape=(64, 64, 3), chunks=(16, 64, 3), dtype="uint16",
+                            fill_value=None)
+    stored[:] = raw.values
+    stored.attrs["_ARRAY_DIMENSIONS"] = ["y", "x", "band"]
+    assert zarr.open_array(str(path / "raw"), mode="r").fill_value is None
+    (path / "raw" / "1.0.0").unlink()
+    with pytest.raises(ValueError, match=r"read them as 0 \(it states no fill value\), a valid "
+                                         "uint16 value"):
+        read_cube(path)
