@@ -122,7 +122,8 @@ def test_a_centre_the_cubes_place_is_kept():
     """An ordinary target on a sensor of known size: its centre found and fitted about."""
     data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
     got = locate_pupil(data, dataclasses.replace(sensor(), size_px=(128, 160)),
-                       target_spectrum=sim.colour_filter, n_bins=16)
+                       target_spectrum=sim.colour_filter, n_bins=16, magnification=0.0,
+                       pupil_magnification=1.0)
     assert got.center_source.startswith("found from the f/2 cube")
     assert np.hypot(got.center_rc[0] - ROW, got.center_rc[1] - COL) < 1.0
 
