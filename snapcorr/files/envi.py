@@ -17,6 +17,7 @@ import logging
 import math
 import os
 import re
+import sys
 import warnings
 from pathlib import Path
 
@@ -274,6 +275,7 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
             f"({rows} x {cols} x {bands}, {dtype.name}, offset {p['offset']}) needs "
             f"{expected}; it is truncated or the header does not describe it"
         )
+    _check_byte_order(hdr, data_file, dtype, p["offset"], rows * cols * bands)
     ignore = None
     if "data ignore value" in h:
         try:
@@ -335,6 +337,61 @@ def _read_envi(hdr, data_file, chunks, what="cube"):
                                  "are needed")
             found.positions[name] = {"values": np.reshape(values, (n, bands)).tolist()}
     return found
+
+
+#: Values sampled from an ENVI data file to check its header's byte order (at its start and
+#: middle); and how much rougher, or how much less often ordinary, the stated order must read
+#: than the other before it is refused.
+_ORDER_SAMPLE = 32768
+_ORDER_FACTOR = 20.0
+
+
+def _check_byte_order(hdr, data_file, dtype, offset, n):
+    """Refuse a header whose ``byte order`` is evidently the wrong one for its data: read the
+    other way, a sample of floats spans under 4 decades (its magnitudes' interquartile)
+    where as stated it spans over 8 or is mostly not finite (a little-endian float32 read
+    big-endian gives 1e-7 beside 2e23 and +-2.4e38, NaN); a
+    sample of integers is at least :data:`_ORDER_FACTOR` times smoother (the median step
+    between neighbouring values: a swapped byte order turns a low byte's noise into a high
+    byte's). Data that read alike either way (constant, one-byte values) are not judged."""
+    if dtype.itemsize < 2 or n == 0:
+        return
+    take = min(_ORDER_SAMPLE, n)
+    parts = []
+    with open(data_file, "rb") as fh:
+        for start in sorted({0, max(0, n // 2 - take // 2)}):
+            fh.seek(offset + start * dtype.itemsize)
+            parts.append(np.frombuffer(fh.read(take * dtype.itemsize), dtype))
+    stated = np.concatenate(parts).astype(dtype.newbyteorder("="))  # the values, as stated
+    other = stated.byteswap()  # the same bytes, read the other way
+    if dtype.kind == "f":
+        def decades(v):  # the spread of the values' magnitudes: the interquartile, in decades
+            with np.errstate(all="ignore"):
+                a = np.abs(v.astype(np.float64))
+                a = a[np.isfinite(a) & (a > 0)]
+                if a.size < 0.5 * v.size:
+                    return math.inf
+                q = np.percentile(np.log10(a), [25, 75])
+            return float(q[1] - q[0])
+
+        wrong = decades(stated) > 8 and decades(other) < 4
+    elif dtype.kind in "iu":
+        def rough(v):
+            return float(np.median(np.abs(np.diff(v.astype(np.float64)))))
+
+        a, b = rough(stated), rough(other)
+        wrong = a > _ORDER_FACTOR * max(b, 1.0)
+    else:
+        return
+    if wrong:
+        said = "0 (little-endian)" if dtype.byteorder == "<" or (
+            dtype.byteorder == "=" and sys.byteorder == "little") else "1 (big-endian)"
+        raise ValueError(
+            f"{hdr}: its 'byte order' {said} does not fit the data in {data_file.name}: read "
+            f"that way its {dtype.name} values are "
+            + ("spread over more than 8 decades" if dtype.kind == "f" else
+               f"{_ORDER_FACTOR:g} times rougher than read the other way")
+            + ", and read the other way they are ordinary; fix the header's 'byte order'")
 
 
 #: What a JSON document that is no object holds, in JSON's words.
