@@ -252,18 +252,34 @@ def _held(spectrum):
     return lambda lam: np.interp(lam, spectrum.wavelength_nm, spectrum.values)
 
 
-def _beyond_the_chart(sensor):
+def _corner_scale(sensor, lens, f_numbers, size, n_design):
+    """The smallest ``s`` (a filter's curve at ``T0(lambda / s)``) on the field: the corner's
+    chief ray plus the fastest f-number's cone, at the smallest design index; and the corner's
+    CRA, degrees."""
+    rows, cols = size
+    r = 0.5 * math.hypot(rows - 1, cols - 1) * sensor.pixel_pitch_mm
+    cra = math.atan(r / float(lens.exit_pupil_mm))
+    phi = min(cra + math.radians(float(lens.cone_angle_deg(min(f_numbers)))), math.pi / 2)
+    n = float(np.min(n_design))
+    return math.sqrt(max(1 - math.sin(phi) ** 2 / n**2, 0.0)), math.degrees(cra)
+
+
+def _beyond_the_chart(sensor, scale=1.0, where=""):
     """Why the colour chart's published spectra cannot judge ``sensor`` (its bands respond
-    outside them), or None."""
+    outside them), or None. ``scale``: the smallest shift factor on the field, which moves
+    the responding range's blue end to ``scale`` times itself (``where`` says where)."""
     from ...spectra import colour_checker
 
     lo, hi = _responding_range_nm(sensor)
+    lo_field = lo * scale
     grid = colour_checker(1).wavelength_nm
     w0, w1 = float(grid[0]), float(grid[-1])
-    if lo < w0 or hi > w1:
+    if lo_field < w0 or hi > w1:
+        shifted = (f" ({lo_field:.0f} nm {where})" if lo_field < w0 <= lo else "")
         return (f"the ColorChecker's published spectra cover {w0:g}-{w1:g} nm and the sensor "
-                f"{sensor.name!r} responds over {lo:.0f}-{hi:.0f} nm: what its patches can "
-                "pin there is not known (use a target whose spectrum covers the bands)")
+                f"{sensor.name!r} responds over {lo:.0f}-{hi:.0f} nm{shifted}: what its "
+                "patches can pin there is not known (use a target whose spectrum covers the "
+                "bands)")
     return None
 
 
@@ -294,12 +310,18 @@ def colour_chart_precision(sensor, f_numbers, lens: Lens, *, noise=0.01, fit_n_e
     ------
     OutsideChartError
         A ``ValueError``, where the sensor's bands respond outside 380-780 nm, the range of
-        the published spectra (a near-infrared sensor): what a patch does there is not known.
+        the published spectra (a near-infrared sensor), or reach below it shifted at the
+        sensor's corner (the chief ray there and the fastest f-number's cone): what a patch
+        does there is not known.
     """
     from ...spectra import COLOUR_CHECKER_PATCHES, colour_checker
 
-    _checked_arguments(sensor, f_numbers, lens, size_px, n_bins)  # before 24 patches' work
-    beyond = _beyond_the_chart(sensor)
+    size, fs, _ = _checked_arguments(sensor, f_numbers, lens, size_px, n_bins)  # before 24
+    n_design = check_modelled(sensor, "the exit pupil's precision (snapcorr pupil --predict)",
+                              fit_n_eff=fit_n_eff)  # patches' work
+    scale, cra = _corner_scale(sensor, lens, fs, size, n_design)
+    beyond = _beyond_the_chart(sensor, scale, f"at the sensor's corner: its chief ray at "
+                                              f"{cra:.1f} deg and the f/{min(fs):g} cone")
     if beyond is not None:
         raise OutsideChartError(beyond)
     spectra = [colour_checker(p) for p in COLOUR_CHECKER_PATCHES]

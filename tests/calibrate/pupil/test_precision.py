@@ -134,3 +134,36 @@ def test_a_lens_at_the_bounds_of_x_is_predicted(x_mm):
     p = pupil_precision(sim.rare_earth_glass, sensor(), FS, Lens(x_mm), fit_n_eff=True)
     assert p.exit_pupil_mm == x_mm
     assert p.x_stderr_mm > 0 and p.n_eff_stderr > 0
+
+
+def test_the_chart_is_judged_where_the_corner_shifts_the_bands():
+    """Bands from 392 nm (FWHM 4 nm: responding from 382 nm) were judged by the chart's
+    380-780 nm spectra at normal incidence; at the corner of a 1088 x 2048 sensor behind a
+    21 mm exit pupil at f/1.4 the chief ray and the cone tilt them to about 358 nm, where the
+    chart says nothing. Recomputed here from a tilted filter's law, lambda * sqrt(1 -
+    sin^2(phi) / n^2), phi the corner's chief ray plus the cone's half-angle."""
+    import math
+
+    from snapcorr import Lens
+    from snapcorr.calibrate import OutsideChartError, colour_chart_precision
+    from snapcorr.cube import Sensor
+
+    lens = Lens(21.0, (), 0.0, 1.0)
+    pitch_um, size, n = 5.5, (1088, 2048), 1.7
+    blue = Sensor("blue", "snapscan", pitch_um, np.arange(392.0, 700.0, 20.0), 4.0, n,
+                  size_px=size)
+    r_mm = 0.5 * math.hypot(size[0] - 1, size[1] - 1) * pitch_um / 1000
+    phi = math.atan(r_mm / 21.0) + math.atan(lens.exit_pupil_radius_mm(1.4) / 21.0)
+    reach = 382.0 * math.sqrt(1 - math.sin(phi) ** 2 / n**2)
+    assert reach < 380 and 350 < reach  # the case: inside at normal incidence, not at the corner
+    with pytest.raises(OutsideChartError, match=rf"responds over 382-702 nm \({reach:.0f} nm "
+                                                r"at the sensor's corner: its chief ray at "
+                                                r"16\.9 deg and the f/1\.4 cone\)"):
+        colour_chart_precision(blue, [1.4, 8.0], lens)
+    # the same bands on a sensor small enough (64 x 64) that the corner keeps them above 380 nm
+    small = Sensor("blue", "snapscan", pitch_um, np.arange(392.0, 700.0, 20.0), 4.0, n,
+                   size_px=(64, 64))
+    from snapcorr.calibrate.pupil import precision
+
+    assert precision._beyond_the_chart(small, *precision._corner_scale(
+        small, lens, [8.0], (64, 64), np.array([n]))[:1]) is None
