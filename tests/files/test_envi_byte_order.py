@@ -79,3 +79,12 @@ def test_snapcorrs_own_results_read_back(tmp_path):
     cube = make_cube(_cube("reflectance", np.random.default_rng(4)), WL)
     write_cube(cube, tmp_path / "r.hdr")
     np.testing.assert_array_equal(read_cube(tmp_path / "r.hdr").values, cube.values)
+
+
+def test_values_in_the_high_byte_with_a_true_header_read(tmp_path):
+    """8-bit values left-aligned in uint16 (v * 256): as stated they step by hundreds, read the
+    other way by ones, yet the header is right; a low byte that never changes is not judged."""
+    rng = np.random.default_rng(7)
+    values = (np.clip(_cube("counts", rng) // 16, 0, 255).astype("<u2") * 256)
+    np.testing.assert_array_equal(read_cube(_envi(tmp_path / "hi.hdr", values, 0)).values,
+                                  values)
