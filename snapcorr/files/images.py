@@ -35,6 +35,8 @@ _TIFF_TYPES = {np.dtype(np.uint8): "uint8", np.dtype(np.uint16): "uint16",
 #: OpenEXR spectral channels (the decimal point written as a comma), and plain ``<nm>nm`` ones.
 _CHANNEL = re.compile(r"^(S0|T)\.(\d+(?:,\d*)?)nm$")
 _PLAIN_CHANNEL = re.compile(r"^(\d+(?:\.\d*)?)nm$")
+#: A channel named as a spectral one (``S0.``, ``T.``), whether or not a wavelength follows.
+_SPECTRAL_LIKE = re.compile(r"^(S0|T)\.")
 
 
 # -- reading ---------------------------------------------------------------------------------
@@ -141,6 +143,11 @@ def _read_oiio(path, fmt, drop_alpha, what="cube"):
     parsed = [_CHANNEL.match(n) for n in names]
     if any(parsed):
         keep = [i for i, m in enumerate(parsed) if m]
+        odd = [n for n, m in zip(names, parsed, strict=True) if not m and _SPECTRAL_LIKE.match(n)]
+        if odd:  # a band's channel whose name lost its wavelength (cut at 255 characters)
+            raise ValueError(f"{path}: channel {shown(odd[0])} is named as a spectral channel "
+                             f"but gives no wavelength (S0.<nm>nm or T.<nm>nm, the decimal "
+                             f"point a comma); {len(keep)} others do: rename it")
         wl = _channel_wavelengths(path, [names[i] for i in keep],
                                   [parsed[i].group(2).replace(",", ".") for i in keep])
         name = "reflectance" if parsed[keep[0]].group(1) == "T" else "radiance"

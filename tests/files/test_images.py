@@ -213,3 +213,17 @@ def test_a_description_whose_wavelengths_are_no_numbers_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"d\.tif: the description's wavelength_nm must be "
                                          "finite"):
         read_cube(tmp_path / "d.tif")
+
+
+@pytest.mark.parametrize("odd", ["S0." + "9" * 300 + "nm", "S0.500", "T.abcnm"],
+                         ids=["cut-at-255", "no-unit", "letters"])
+def test_a_spectral_channel_that_gives_no_wavelength_is_refused_not_dropped(tmp_path, odd):
+    """A channel named as a band (S0., T.) whose wavelength is lost (OpenEXR cuts a 300-digit
+    name at 255 characters, leaving no 'nm') was dropped without a word beside the bands
+    that parse: the cube lost a band. Refused, naming it; other channels (R, G, B) are still
+    left out."""
+    _exr(tmp_path / "w.exr", [odd, "S0.500nm", "S0.600nm"])
+    with pytest.raises(ValueError, match=r"w\.exr: channel 'S0\.|w\.exr: channel 'T\."):
+        read_cube(tmp_path / "w.exr")
+    _exr(tmp_path / "rgb.exr", ["S0.500nm", "S0.600nm", "R"])
+    assert_array_equal(read_cube(tmp_path / "rgb.exr").wavelength, [500.0, 600.0])
