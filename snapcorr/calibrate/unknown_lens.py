@@ -226,7 +226,8 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     first = calibrate_lens(flats, exit_pupil_mm=provisional_x_mm, **common)
     notes = []
     centre = (None if first.center_source == "image centre"  # assumed there, not found
-              else _target_center(cubes, sensor, first.lens, sensor_origin_px, notes))
+              else _target_center(cubes, sensor, _origin_kept(first.lens, sensor_origin_px),
+                                sensor_origin_px, notes))
     # a refusal of the centre names the flats' where the flats found it; every fit about it
     # (again with other circles, at other magnifications) shares one check of it
     whose = "given" if first.center_source == "given" else "flats"
@@ -257,6 +258,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     lens = _profile(final, pupil, names, values, cov, total, x_part, provisional_x_mm)
     if final.center_source == "image centre":
         lens = _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes)
+    lens = _origin_kept(lens, sensor_origin_px)
     out = LensAndPupil(lens, final, pupil, names, values,
                        np.sqrt(np.clip(np.diag(cov), 0, None)), cov, total, x_part,
                        float(provisional_x_mm), notes)
@@ -340,6 +342,20 @@ def _target_center(cubes, sensor, lens, sensor_origin_px, notes):
                      "the target's fit found its own")
         return None
     return centre
+
+
+def _origin_kept(lens, sensor_origin_px):
+    """The profile of flats that are a crop, their first pixel at ``sensor_origin_px``
+    (row, col) on the sensor: recorded (``sensor_origin_rc``), as raw mosaic flats' is, so the
+    optical centre, in the flats' pixels, is carried to the sensor's (without it, a crop's
+    centre was read as sensor pixels: the axis 32 rows and 40 columns off)."""
+    import dataclasses
+
+    if sensor_origin_px is None or "sensor_origin_rc" in lens.calibration:
+        return lens
+    table = dict(lens.calibration)
+    table["sensor_origin_rc"] = [int(sensor_origin_px[0]), int(sensor_origin_px[1])]
+    return dataclasses.replace(lens, calibration=table)
 
 
 def _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, notes):

@@ -250,3 +250,28 @@ def test_the_command_gives_the_centre_row_first(files, cli, monkeypatch, tmp_pat
     assert res.returncode == 1 and "stopped here" in res.stderr, res.stderr
     assert seen["center_rc"] == (37.25, 81.5) and "center_px" not in seen
     assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")
+
+
+def test_flats_and_cubes_of_a_crop_keep_their_origin_in_the_profile():
+    """Flats and target cubes of a crop at sensor row 16, col 20 (``sensor_origin_px``): the
+    profile held the centre in the crop's pixels and not the crop's origin, so a reader took
+    it as sensor pixels, 16 rows and 20 columns off. The origin is recorded, and the centre
+    carried through it lands on the simulators' axis."""
+    from snapcorr.correct.geometry import optical_center_rc
+
+    r0, c0 = 16, 20
+    flats = {f: v[r0:, c0:] for f, v in make_flats(
+        PAPER, FLAT_F_NUMBERS, shape=SHAPE, pitch_um=PITCH_UM, center_px=CENTER, noise=0.005,
+        seed=3).items()}
+    data = {f: c.isel(y=slice(r0, None), x=slice(c0, None)) for f, c in cubes(
+        "colour_filter", "paper", (2.0, 8.0), noise=0.002, seed=103).items()}
+    got = calibrate_with_target(flats, data, sensor(), pixel_pitch_um=PITCH_UM,
+                                magnification=PAPER.magnification,
+                                pupil_magnification=PAPER.pupil_magnification, max_circles=1,
+                                sensor_origin_px=(r0, c0))
+    assert got.lens.calibration["sensor_origin_rc"] == [r0, c0]
+    assert not any("could not be carried" in n for n in got.notes), got.notes
+    assert abs(got.pupil.center_rc[0] - CENTER[1]) < 0.5, got.pupil.center_rc  # the flats'
+    whole = make_cube(np.zeros((*SHAPE, sensor().n_bands)), sensor().cwl_nm)
+    (row, col), _ = optical_center_rc(whole, sensor(), got.lens)
+    assert abs(row - CENTER[1]) < 0.5 and abs(col - CENTER[0]) < 0.5, (row, col)
