@@ -222,34 +222,33 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     Parameters
     ----------
     cubes : dict of float -> xarray.DataArray
-        Flat-fielded cubes (``(y, x, band)``, the sensor's bands) of one spatially uniform
-        target with spectral features, keyed by f-number.
+        Flat-fielded cubes (``(y, x, band)``, the sensor's bands) of one uniform target with
+        spectral features, by f-number.
     sensor : Sensor
     lens : Lens, optional
-        Its vignetting circles (P, h), magnification and pupil magnification are used in the
-        model and copied to the result; its ``x`` is not used (the search scans the chief-ray
-        angles at the field's edge, :data:`EDGE_CRA_DEG`). Give the circles wherever the
-        fastest f-number is vignetted inside the field: without them that cube misleads.
+        Its vignetting circles (P, h), magnification and pupil magnification are used and
+        copied to the result; its ``x`` is not (the search scans the field edge's chief-ray
+        angles, :data:`EDGE_CRA_DEG`). Give the circles wherever the fastest f-number is
+        vignetted inside the field: without them that cube misleads.
     fit_n_eff : bool
         Fit the effective index too: one value (the sensor's values times one factor), or,
         where the data ask for it and constrain it (``N_EFF_P``, ``N_EFF_REL_STDERR``), the
-        sensor's values times a factor linear in wavelength, or one per band. With
-        one f-number only ``x * n_eff`` is determined: the result says so.
+        sensor's values times a factor linear in wavelength, or one per band. With one
+        f-number only ``x * n_eff`` is determined: the result says so.
     center_rc, center_px : (row, col), optional
-        Optical centre in sensor pixels (default: found from the cubes); ``center_px=(cx,
-        cy)`` is the deprecated x-first form.
+        Optical centre in sensor pixels (default: found from the cubes); ``center_px``: its
+        deprecated x-first form.
     target_spectrum : callable or (wavelength_nm, value), optional
-        The target's spectrum, known up to a scale per cube. Default: unknown, solved for.
+        The target's spectrum, known up to a scale per cube (default: unknown, solved for).
     sensor_origin_px : (row, col), optional
-        Sensor position of the cubes' first pixel, for crops that do not carry positions.
+        The sensor row and column of the cubes' first pixel (crops without positions).
     magnification, pupil_magnification : float, optional
         m and m_P of the working f-number, Eq. (27), in place of the lens's; None: not given
         (the lens's, if it states them). Those not given are assumed (m = 0, m_P = 1) and
         judged over a plausible range (:func:`~snapcorr.calibrate.lens.magnification.
-        ratio_range`): the target is fitted again at its nodes and the spread is in the errors
-        of x and n_eff (:mod:`~snapcorr.calibrate.pupil.magnification`), with a
-        :class:`~snapcorr.calibrate.lens.magnification.MagnificationWarning`; a lens whose
-        circles came from flats at an assumed ratio has them rescaled to the ratio given.
+        ratio_range`), their spread in the errors of x and n_eff, with a ``MagnificationWarning``
+        (:mod:`~snapcorr.calibrate.pupil.magnification`); a lens whose circles came from flats
+        at an assumed ratio has them rescaled to the ratio given.
     profile : str
         The filters' shape (a name in :data:`snapcorr.optics.PROFILES`); not used for a
         sensor with measured responses, whose whole curves are the filters
@@ -257,40 +256,33 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
     n_bins : int
         Annuli per cube.
     progress : callable, optional
-        ``progress(step)`` before every evaluation of the model, for a progress bar.
+        ``progress(step)`` before every evaluation of the model (a progress bar).
     scale_circles : bool, optional
-        The lens's circles came from flat fields at its ``x`` (``calibrate_lens``): flats fix
-        ``P / x`` and ``h / x^2``, so at every trial ``x`` the circles are scaled to it, and
-        the profile written holds them at the ``x`` found: one run gives a consistent
-        profile. Default: when the lens's calibration says it came from flats
-        (``exit_pupil_scaling``).
+        The lens's circles came from flats at its ``x`` (``calibrate_lens``), which fix ``P /
+        x`` and ``h / x^2``: they are scaled to every trial ``x``, and written at the ``x``
+        found. Default: where the lens's calibration says so (``exit_pupil_scaling``).
     pupil_radiance : {None, "paper", "lambertian", "auto"}
         How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
-        ``pupil=`` is its earlier name, deprecated). None: the lens's
-        (the paper's without a lens). ``"auto"``: both are fitted, and the Lambertian one is
+        ``pupil=``: its deprecated name). None: the lens's (the paper's without a lens).
+        ``"auto"``: both are fitted, and the Lambertian one is
         kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
         same parameters); the choice and the two chi-squares are in the notes and the profile.
         A lens with circles keeps its own pupil (they were found with its radius).
-
     tolerance_nm : float, optional
         The shift precision needed (nm, one standard deviation). Before the least squares the
         precision the cubes can give is predicted (:func:`~snapcorr.calibrate.pupil.precision.
-        target_precision`: the model's Fisher information at the search's start, with the
-        noise the annuli show), as the chief ray's shift at the sensor's corner (the cubes'
-        field without a sensor size) in the longest band; a target that cannot reach
-        ``tolerance_nm`` is refused (:class:`ImpreciseTargetError`). None: not checked (the
-        prediction is in ``PupilFit.predicted`` all the same).
+        target_precision`: the Fisher information at the search's start, with the annuli's
+        noise), as the chief ray's shift at the sensor's (or the cubes') corner in the longest
+        band; a target that cannot reach it is refused (:class:`ImpreciseTargetError`). None:
+        not checked (the prediction is in ``PupilFit.predicted`` all the same).
     report : callable, optional
         ``report(text)`` with the prediction, before the least squares.
     center_from : {"given", "flats"}
         Where ``center_rc`` came from, as a refusal of it says (:data:`~snapcorr.calibrate.
-        pupil.target.CENTER_FROM`): the caller's own, or the flats' centre
-        (``calibrate_with_target``).
+        pupil.target.CENTER_FROM`): the caller's, or the flats' (``calibrate_with_target``).
     center_checks : dict, optional
-        Where the check of a given centre against these cubes is kept, keyed by the centre,
-        and looked up before it is made again: a caller that fits the same cubes about the
-        same centre several times passes one dict to every fit (the check re-estimates the
-        centre from the cubes: up to some seconds).
+        The given centre's checks against these cubes (seconds each), kept by centre: one dict
+        for every fit of the same cubes about the same centre checks it once.
 
     Returns
     -------
@@ -307,23 +299,29 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         magnification = check_magnification(magnification)
     if pupil_magnification is not None:
         pupil_magnification = check_pupil_magnification(pupil_magnification)
-    center_from = check_center_from(center_from)
+    check_center_from(center_from)
     args = dict(locals())
     for k in ("center_px", "center_from", "center_checks"):  # center_px: now center_rc
         del args[k]
     given, _, rng = ratio_range(magnification, pupil_magnification, lens)
     if lens is not None:  # m, m_P given override the lens's (circles from flats rescaled)
         args["lens"] = _magnification.with_given(lens, magnification, pupil_magnification)
-    doubt = (None if center_rc is None else  # once (refits hold their own centre)
-             _center_doubt(cubes, sensor, args["lens"], sensor_origin_px, center_rc,
-                           center_from, center_checks))
-    fit = _checked_locate(**args)
-    if doubt is not None:
-        fit = _given_center_doubted(fit, doubt, center_from)
+    fit = _fit_checking_the_centre(args, center_from, center_checks)
     if rng[1] > rng[0]:  # m / m_P assumed: its spread in x's and n_eff's errors, said
         fit = _magnification.account_for_pupil_magnifications(
             fit, given, rng, functools.partial(_refit, args, fit), stacklevel=6)
     return fit
+
+
+def _fit_checking_the_centre(args, center_from, checks):
+    """:func:`_checked_locate` of ``args``, a given centre checked against the cubes once (the
+    refits for assumed magnifications hold their own centre)."""
+    center_rc = args["center_rc"]
+    doubt = (None if center_rc is None else
+             _center_doubt(args["cubes"], args["sensor"], args["lens"],
+                           args["sensor_origin_px"], center_rc, center_from, checks))
+    fit = _checked_locate(**args)
+    return fit if doubt is None else _given_center_doubted(fit, doubt, center_from)
 
 
 def _center_doubt(cubes, sensor, lens, sensor_origin_px, center_rc, center_from, checks):
