@@ -430,6 +430,22 @@ def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc, center_
     return None
 
 
+def cubes_center_rc(cubes, sensor, lens, sensor_origin_px):
+    """The optical centre ``(row, col)`` the fastest cube places (its point estimate, no
+    errors), or None where it cannot (the estimate fails)."""
+    from ...correct.geometry import cube_positions
+
+    cubes = _check_cubes(cubes, sensor, min_side=1)
+    f0 = min(cubes)
+    rows, cols = cube_positions(cubes[f0], sensor, lens, sensor_origin_px)
+    try:
+        found, _ = _center_fit(_band_reader(cubes[f0]), sensor.n_bands, rows, cols, None, 12,
+                               4, 4)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    return found if np.all(np.isfinite(found)) else None
+
+
 #: A centre the cubes find is refused where its standard error is above this share of the
 #: sensor's diagonal (the cubes' field's, without a sensor size), or where it lies outside the
 #: sensor by more than :data:`FOUND_CENTER_SIGMAS` standard errors: it is not a measurement
@@ -470,7 +486,7 @@ def check_found_center(center, err, rows, cols, sensor, f_number):
             f"the f/{f_number:g} cube cannot place the optical centre: it finds row "
             f"{center[0]:.1f} +- {_px(err[0])}, col {center[1]:.1f} +- {_px(err[1])}, {why} (a "
             "target too weak or too even over the field, or a crop far from the axis): give "
-            "the centre (--center ROW,COL; center_rc=), from the lens's flats")
+            "the centre (center_rc=), from the lens's flats")
 
 
 def _px(v):

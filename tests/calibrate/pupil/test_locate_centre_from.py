@@ -39,7 +39,7 @@ def test_a_refused_centre_of_the_flats_is_named_so_with_advice_true_there():
     assert said.startswith("the flats' optical centre (row 117.25, col 21.5) is ")
     assert "from where the f/2 cube places it" in said
     assert "the flats and the target cubes do not agree on the axis" in said
-    assert "--center" in said
+    assert "(center_rc=)" in said
     assert "given" not in said and "leave it out" not in said
 
 
