@@ -82,8 +82,8 @@ from .precision import line_lamp as line_lamp
 from .precision import rare_earth_glass as rare_earth_glass
 from .precision import white_tile as white_tile
 from .solver import _Problem
-from .target import IN_MEMORY_BYTES as IN_MEMORY_BYTES
 from .target import (
+    CENTER_FROM,
     FeaturelessTargetError,
     ImpreciseTargetError,
     _annuli,
@@ -93,9 +93,11 @@ from .target import (
     check_given_center,
     check_modelled,
     check_n_bins,
+    cubes_center_rc,
     estimate_target_center,
     estimate_target_center_rc,
 )
+from .target import IN_MEMORY_BYTES as IN_MEMORY_BYTES
 from .target_model import TargetModel, scaled_circles
 
 __all__ = [
@@ -321,7 +323,46 @@ def _fit_checking_the_centre(args, center_from, checks):
              _center_doubt(args["cubes"], args["sensor"], args["lens"],
                            args["sensor_origin_px"], center_rc, center_from, checks))
     fit = _checked_locate(**args)
-    return fit if doubt is None else _given_center_doubted(fit, doubt, center_from)
+    if doubt is not None:
+        return _given_center_doubted(fit, doubt, center_from)
+    if center_rc is not None and _misfits(fit.chi2_red, fit.dof):
+        _refuse_if_found_centre_fits(args, fit, center_from)
+    return fit
+
+
+#: A given centre whose fit misses the data is refused where the fit about the centre the
+#: cubes place lowers chi-square by more than this plus :data:`CENTER_CHI2_SIGMAS` times
+#: chi-square's spread, ``sqrt(2 dof)``: on 2600 degrees of freedom, by 386 (a centre 10 px
+#: off, 270 standard errors, fitted x 73 of its errors off at a reduced chi-square of 1.92,
+#: against about 1.0 about the cubes' centre, a drop of some 2400).
+CENTER_CHI2_GAIN = 25.0
+CENTER_CHI2_SIGMAS = 5.0
+
+
+def _refuse_if_found_centre_fits(args, fit, center_from):
+    """Refuse the fit about a given centre that misses the data where a fit about the centre
+    the cubes place fits them clearly better (:data:`CENTER_CHI2_GAIN`): a centre off by a
+    few pixels, within the quarter diagonal :func:`check_given_center` leaves alone, biases x
+    by tens of its errors. A centre the cubes place no better (a crop far from the axis,
+    whose own estimate may be wrong; a model short of the data either way) is kept."""
+    found = cubes_center_rc(args["cubes"], args["sensor"], args["lens"],
+                            args["sensor_origin_px"])
+    given = args["center_rc"]
+    if found is None or math.hypot(found[0] - given[0], found[1] - given[1]) < 0.5:
+        return
+    try:
+        other = _checked_locate(**{**args, "center_rc": found, "report": None,
+                                   "tolerance_nm": None})
+    except ValueError:  # the cubes' centre cannot be fitted about: no evidence against
+        return
+    gain = (fit.chi2_red - other.chi2_red) * fit.dof
+    if gain > CENTER_CHI2_GAIN + CENTER_CHI2_SIGMAS * math.sqrt(2 * fit.dof):
+        raise ValueError(
+            f"{CENTER_FROM[center_from]} (row {given[0]:g}, col {given[1]:g}) gives a fit that "
+            f"misses the data (reduced chi-square {fit.chi2_red:.3g} over {fit.dof} degrees "
+            f"of freedom), where one about the centre the f/{min(args['cubes']):g} cube places "
+            f"(row {found[0]:.1f}, col {found[1]:.1f}) fits it far better ({other.chi2_red:.3g}"
+            f"): {_CENTER_ADVICE[center_from]}")
 
 
 def _center_doubt(cubes, sensor, lens, sensor_origin_px, center_rc, center_from, checks):
@@ -343,7 +384,7 @@ _CENTER_ADVICE = {
              "leave it out to use the one found",
     "flats": "the flats and the target cubes do not agree on the axis: take both with the "
              "same lens, focus and sensor area, or give the centre in sensor pixels "
-             "(--center, center_rc=) where it is known"}
+             "(center_rc=) where it is known"}
 
 
 def _given_center_doubted(fit, doubt, center_from="given"):

@@ -103,8 +103,9 @@ def _one_way_cube(seed, kind):
 def test_a_centre_the_cubes_cannot_place_is_refused_naming_the_way_out(seed):
     """Cubes that change along one direction only: the centre found runs off the sensor
     (rows beyond +-2800 on a 128-row sensor, +- 5 px to 14000 px); it is refused, naming
-    --center, before anything is fitted about it (the ramp by its errors, with or without a
-    sensor size; the cosine, whose errors are small, by its place off the sensor)."""
+    center_rc= (--center on the command line), before anything is fitted about it (the ramp
+    by its errors, with or without a sensor size; the cosine, whose errors are small, by its
+    place off the sensor)."""
     s = sensor()
     sized = dataclasses.replace(s, size_px=(128, 160))
     for kind, sen, why in (("ramp", s, "more than 0.25 of the cubes' diagonal"),
@@ -113,7 +114,7 @@ def test_a_centre_the_cubes_cannot_place_is_refused_naming_the_way_out(seed):
                                           "its standard errors")):
         with pytest.raises(ValueError, match=r"the f/2 cube cannot place the optical centre: "
                                              rf"it finds row .*{why} .* give the centre "
-                                             r"\(--center ROW,COL; center_rc=\)"):
+                                             r"\(center_rc=\)"):
             locate_pupil(_one_way_cube(seed, kind), sen, target_spectrum=sim.colour_filter,
                          n_bins=16)
 
@@ -152,3 +153,43 @@ def test_a_found_centre_is_refused_by_its_errors_or_its_place_off_the_sensor():
     tg.check_found_center((500.0, 1000.0), (3.0, 3.0), rows, cols, s, 2.0)
     with pytest.raises(ValueError, match=r"more than 0.25 of the cubes' diagonal \(101 px\)"):
         tg.check_found_center((130.0, 340.0), (20.0, 20.0), rows, cols, s, 2.0)
+
+
+def test_a_given_centre_a_few_pixels_off_is_refused_where_the_cubes_centre_fits_far_better():
+    """A centre 10 or 20 px off, inside the quarter diagonal the first check leaves alone,
+    biased x by tens of its errors at a reduced chi-square of 7 to 45, written without a word:
+    refused where the fit about the centre the cubes place lowers chi-square far beyond its
+    spread. The true centre and one 2 px off (chi-square within its spread) are kept."""
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    kw = {"lens": as_lens(LensTruth(16.0, (), 0.0, 1.0)), "target_spectrum": sim.colour_filter,
+          "n_bins": 16}
+    for d in (10.0, 20.0):
+        given = (ROW + 0.6 * d, COL - 0.8 * d)
+        assert tg.check_given_center(data, sensor(), kw["lens"], None, given) is None
+        with pytest.raises(ValueError, match=r"the optical centre given \(row .*\) gives a fit "
+                                             r"that misses the data .* where one about the "
+                                             r"centre the f/2 cube places \(row 61\.\d, col "
+                                             r"82\.\d\) fits it far better"):
+            locate_pupil(data, sensor(), center_rc=given, **kw)
+    for d in (0.0, 2.0):
+        got = locate_pupil(data, sensor(), center_rc=(ROW + 0.6 * d, COL - 0.8 * d), **kw)
+        assert got.center_source == "given"
+        assert abs(got.exit_pupil_mm - 16.0) < 0.1
+
+
+def test_a_crop_beside_the_axis_keeps_its_true_centre_when_the_cubes_are_compared(monkeypatch):
+    """A crop beside the axis places the centre poorly itself: with the comparison forced to
+    run (the fit taken as a misfit), the true centre it is given is still kept."""
+    import snapcorr.calibrate.pupil.locate as loc
+
+    data = cubes("colour_filter", "plain", (2.0,), noise=0.01, seed=5)
+    crop = {f: c.isel(y=slice(0, 36), x=slice(0, 44)) for f, c in data.items()}
+    compared = []
+    real = loc._refuse_if_found_centre_fits
+    monkeypatch.setattr(loc, "_misfits", lambda *a: True)
+    monkeypatch.setattr(loc, "_refuse_if_found_centre_fits",
+                        lambda *a: compared.append(1) or real(*a))
+    got = locate_pupil(crop, sensor(), center_rc=(ROW, COL),
+                       lens=as_lens(LensTruth(16.0, (), 0.0, 1.0)),
+                       target_spectrum=sim.colour_filter, n_bins=16)
+    assert compared and got.center_source == "given"
