@@ -41,7 +41,9 @@ from .._validation import renamed_keywords
 from ..optics.lens import Lens
 from .lens import choice
 from .lens.calibration import LensCalibration, calibrate_lens, checked_magnifications
+from .lens.joint_fit import CENTER_NAMES
 from .lens.magnification import ASSUMED_MAGNIFICATION, ASSUMED_PUPIL_MAGNIFICATION, ratio_range
+from .pupil.centre_error import account_for_the_centre, fastest_positions
 from .pupil.locate import PupilFit, choose_pupil, locate_pupil
 from .unknown_magnification import account_for_target_magnifications
 
@@ -232,15 +234,24 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     # (again with other circles, at other magnifications) shares one check of it
     whose = "given" if first.center_source == "given" else "flats"
     checks = {}
+    flats_err = _flats_centre_err(first) if centre is not None and whose == "flats" else None
 
     def fit_x(lens, centre=centre, again=False):  # these circles scaled to every trial x
-        return locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
-                            target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
-                            profile=profile, inputs=target_inputs, name=name,
-                            progress=progress, scale_circles=True,
-                            tolerance_nm=None if again else target_tolerance_nm,
-                            report=None if again else report, center_from=whose,
-                            center_checks=checks)
+        fit = locate_pupil(cubes, sensor, lens=lens, fit_n_eff=fit_n_eff, center_rc=centre,
+                           target_spectrum=target_spectrum, sensor_origin_px=sensor_origin_px,
+                           profile=profile, inputs=target_inputs, name=name,
+                           progress=progress, scale_circles=True,
+                           tolerance_nm=None if again else target_tolerance_nm,
+                           report=None if again else report, center_from=whose,
+                           center_checks=checks)
+        if whose == "flats":
+            fit = _centre_named_the_flats(fit, first.center_source, flats_err)
+        if again or flats_err is None:
+            return fit
+        # the flats' centre is a measurement too: its error in x's and n_eff's
+        return account_for_the_centre(
+            fit, flats_err, *fastest_positions(cubes, sensor, None, sensor_origin_px),
+            lambda c: fit_x(lens, centre=c, again=True), whose="the flats' optical centre")
 
     pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
@@ -328,6 +339,30 @@ def _either_pupil(args):
     runs = {name: _one_pupil(**args, pupil_radiance=name) for name in ("paper", "lambertian")}
     return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()},
                         "the target's chi-square")
+
+
+def _centre_named_the_flats(fit, how, err):
+    """The target's fit about the flats' centre, saying so (not ``"given"``: the user gave
+    none), with how the flats found it and its errors where known."""
+    import dataclasses
+
+    said = f"the flats' ({how}" + ("" if err is None else
+                                   f", +- {err[0]:.2g} px in the row, {err[1]:.2g} px in "
+                                   "the column") + ")"
+    cal = {**fit.lens.calibration, "center_source": said}
+    return dataclasses.replace(fit, center_source=said,
+                               lens=dataclasses.replace(fit.lens, calibration=cal))
+
+
+def _flats_centre_err(first):
+    """The standard errors ``(row, col)`` of the optical centre the flats' joint fit found
+    (the chosen model's), or None where the centre came otherwise (their contours: no
+    error)."""
+    fit = first.fits.get(first.model)
+    if first.center_source != "joint fit" or fit is None:
+        return None
+    err = tuple(float(fit.stderr.get(k, np.nan)) for k in CENTER_NAMES)
+    return err if all(np.isfinite(e) and e > 0 for e in err) else None
 
 
 def _target_center(cubes, sensor, lens, sensor_origin_px, notes):

@@ -54,6 +54,7 @@ from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...spectra import colour_filter as colour_filter
 from ..lens.magnification import ratio_range
 from . import magnification as _magnification
+from .centre_error import account_for_the_centre, fastest_positions
 from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
 from .distance import HELDOUT_SKIP as HELDOUT_SKIP
 from .distance import MAX_REL_STDERR as MAX_REL_STDERR
@@ -138,6 +139,9 @@ class PupilFit:
         earlier form, deprecated).
     center_source : str
         ``"given"``, or where it was found and its standard errors.
+    center_stderr_px : (float, float) or None
+        The standard errors of a centre found from the cubes (row, col); None: given. They are
+        in x's and n_eff's errors (:mod:`~snapcorr.calibrate.pupil.centre_error`).
     lens : Lens
         The profile to write: ``x``, the circles and magnifications of the lens given.
     notes : list of str
@@ -163,6 +167,7 @@ class PupilFit:
     """Covariance of ``x`` (mm) and, when fitted as one value, the index scale."""
     predicted: object = None
     """The precision predicted before the least squares (:class:`TargetPrecision`)."""
+    center_stderr_px: tuple | None = None
 
     @property
     def center_px(self) -> tuple:
@@ -317,7 +322,8 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
 
 def _fit_checking_the_centre(args, center_from, checks):
     """:func:`_checked_locate` of ``args``, a given centre checked against the cubes once (the
-    refits for assumed magnifications hold their own centre)."""
+    refits for assumed magnifications hold their own centre), a found one's error carried into
+    x's and n_eff's (:func:`~snapcorr.calibrate.pupil.centre_error.account_for_the_centre`)."""
     center_rc = args["center_rc"]
     doubt = (None if center_rc is None else
              _center_doubt(args["cubes"], args["sensor"], args["lens"],
@@ -327,6 +333,11 @@ def _fit_checking_the_centre(args, center_from, checks):
         return _given_center_doubted(fit, doubt, center_from)
     if center_rc is not None and _misfits(fit.chi2_red, fit.dof):
         _refuse_if_found_centre_fits(args, fit, center_from)
+    if fit.center_stderr_px is not None:  # found: its error in x's and n_eff's
+        rows, cols = fastest_positions(args["cubes"], args["sensor"], args["lens"],
+                                       args["sensor_origin_px"])
+        fit = account_for_the_centre(fit, fit.center_stderr_px, rows, cols,
+                                     functools.partial(_refit_about, args, fit))
     return fit
 
 
@@ -416,6 +427,12 @@ def _misfits(chi2_red, dof):
                               and float(stats.chi2.sf(chi2_red * dof, dof)) < MISFIT_P)
 
 
+def _refit_about(args, fit, center_rc):
+    """The fit of ``args`` made again about ``center_rc``, its pupil held at ``fit``'s."""
+    return _locate(**{**args, "center_rc": center_rc, "pupil_radiance": fit.lens.pupil_radiance,
+                      "tolerance_nm": None, "report": None})
+
+
 def _refit(args, fit, ratio):
     """The fit of ``args`` made again at ``m / m_P = ratio`` (the lens's circles rescaled as
     flats would give them there), the centre and pupil held at those of ``fit``."""
@@ -464,8 +481,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
         base = dataclasses.replace(base, pupil_radiance=pupil_radiance)
     spectrum, spectrum_desc = _spectrum(target_spectrum, sensor)
     nb = sensor.n_bands
-    bins, center, center_source = _annuli(cubes, sensor, lens, sensor_origin_px, center_rc,
-                                          n_bins)
+    bins, center, center_source, center_err = _annuli(cubes, sensor, lens, sensor_origin_px,
+                                                      center_rc, n_bins)
     r_max = _field_radius(bins)
     x_lo, x_hi = _trial_range(r_max)
     cone = math.radians(float(base.cone_angle_deg(min(cubes))))  # the fastest cube's cone
@@ -519,7 +536,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
     return PupilFit(x, float(err[0]), np.asarray(n, float),
                     None if n_err is None else np.asarray(n_err, float), mode, xn, xn_err,
                     chi2_red, dof, center, center_source, spectrum_desc, out_lens, model, s,
-                    notes, cov * scale, pred)
+                    notes, cov * scale, pred,
+                    None if center_err is None else tuple(float(e) for e in center_err))
 
 
 def _edge_mm(sensor, center_rc, r_max):

@@ -495,15 +495,15 @@ def _px(v):
 
 
 def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
-    """Every cube's radial annuli about the optical centre (given or found), and the centre,
-    ``(row, col)``."""
+    """Every cube's radial annuli about the optical centre (given or found), the centre,
+    ``(row, col)``, where it came from, and its standard errors (None where given)."""
     from ...correct.geometry import cube_positions
 
     pitch = sensor.pixel_pitch_mm
     positions = {f: cube_positions(c, sensor, lens, sensor_origin_px) for f, c in cubes.items()}
     nb = sensor.n_bands
     if center_rc is not None:
-        center, center_source = check_center_rc(center_rc), "given"
+        center, center_source, err = check_center_rc(center_rc), "given", None
     else:
         f0 = min(cubes)  # the fastest f-number: the largest shifts, the sharpest centre
         rows, cols = positions[f0]
@@ -514,4 +514,4 @@ def _annuli(cubes, sensor, lens, sensor_origin_px, center_rc, n_bins):
     bins = [radial_bins(_band_reader(c), nb, *positions[f], None, pitch, center_rc=center,
                         f_number=f, n_bins=n_bins)
             for f, c in cubes.items()]
-    return bins, center, center_source
+    return bins, center, center_source, err

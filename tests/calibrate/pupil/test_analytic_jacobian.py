@@ -34,14 +34,14 @@ def folder(tmp_path_factory):
 
 
 def gaussian_bins(n_bins=16):
-    bins, _, _ = _annuli(tp.cubes("glass"), tp.sensor(), PAPER_LENS, None, tp.CENTER[::-1],
+    bins, *_ = _annuli(tp.cubes("glass"), tp.sensor(), PAPER_LENS, None, tp.CENTER[::-1],
                          n_bins)  # the centre (row, col)
     return bins
 
 
 def measured_bins(folder, n_bins=8):
     data, sensor = tmt.cubes(folder, "rare_earth_glass", (1.4, 8.0), noise=0.005, seed=1)
-    bins, _, _ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, n_bins)
+    bins, *_ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, n_bins)
     return bins, sensor
 
 

@@ -52,7 +52,7 @@ def model_bias(f_numbers, noise, n_bins=48):
     the truth on noise-free cubes, in standard errors at per-pixel ``noise``."""
     sensor = Sensor("test", "snapscan", PITCH_UM, CWL, FWHM, N_EFF)
     cubes = {f: make_cube(clean(f), CWL) for f in f_numbers}
-    bins, _, _ = _annuli(cubes, sensor, PAPER_LENS, None, CENTER[::-1], n_bins)  # (row, col)
+    bins, *_ = _annuli(cubes, sensor, PAPER_LENS, None, CENTER[::-1], n_bins)  # (row, col)
     bins = [dataclasses.replace(b, stderr=np.where(np.isfinite(b.mean),
                                                    noise / np.sqrt(b.count), np.nan))
             for b in bins]

@@ -184,7 +184,7 @@ def test_the_index_derivative_is_the_models_own(folder):
     from snapcorr.calibrate.pupil.measured_target import target_model
 
     data, sensor = cubes(folder, "rare_earth_glass", (1.4, 8.0), noise=0.005, seed=1)
-    bins, _, _ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, 8)
+    bins, *_ = _annuli(_check_cubes(data, sensor), sensor, PAPER_LENS, None, None, 8)
     n = np.linspace(1.7, 1.9, sensor.n_bands)
     model = target_model(bins, sensor, PAPER_LENS, n_eff_design=n, max_shift_rel=0.1)
     s = np.random.default_rng(4).uniform(0.0, 1.0, model.n_columns)

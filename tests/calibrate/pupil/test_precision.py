@@ -55,7 +55,7 @@ def cubes(target, seed=0, noise=0.01, fs=FS):
 
 
 def predicted(target, fs=FS):
-    bins, _, _ = _annuli(cubes(target, fs=fs), sensor(), PAPER_LENS, None, CENTER[::-1], 48)
+    bins, *_ = _annuli(cubes(target, fs=fs), sensor(), PAPER_LENS, None, CENTER[::-1], 48)
     n = np.full(CWL.size, 1.7)
     problem = _Problem(target_model(bins, sensor(), PAPER_LENS, n_eff_design=n,
                                     max_shift_rel=0.15), n)
