@@ -97,6 +97,7 @@ from .target import (
     cubes_center_rc,
     estimate_target_center,
     estimate_target_center_rc,
+    spectrum_short_of_the_edge,
 )
 from .target import IN_MEMORY_BYTES as IN_MEMORY_BYTES
 from .target_model import TargetModel, scaled_circles
@@ -519,6 +520,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
             err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
     xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
     notes += _validity_notes(r_max, x, cone, chi2_red, dof)
+    short = spectrum_short_of_the_edge(spectrum, sensor, r_max, x, n, cone, min(cubes))
+    notes += [short] if short else []
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
                             inputs, name, circles_at)
@@ -646,7 +649,7 @@ MISFIT_P = 1e-6
 def _validity_notes(r_max, x, cone_rad, chi2_red, dof):
     """Notes where rays pass the index law's validated angle, or the model misfits."""
     notes = []
-    aoi = math.degrees(math.atan(r_max / x) + cone_rad)
+    aoi = math.degrees(math.atan(r_max / x + math.tan(cone_rad)))  # from the pupil's far rim
     if aoi > AOI_VALIDITY_DEG:
         notes.append(f"rays reach the filters at up to {aoi:.1f} deg; the effective-index law "
                      f"is validated up to about {AOI_VALIDITY_DEG:g} deg (Goossens 2019, Sec. "

@@ -253,13 +253,15 @@ def _held(spectrum):
 
 
 def _corner_scale(sensor, lens, f_numbers, size, n_design):
-    """The smallest ``s`` (a filter's curve at ``T0(lambda / s)``) on the field: the corner's
-    chief ray plus the fastest f-number's cone, at the smallest design index; and the corner's
-    CRA, degrees."""
+    """The smallest ``s`` (a filter's curve at ``T0(lambda / s)``) on the field: the ray to
+    the corner from the rim of the fastest f-number's pupil farthest from it, at the smallest
+    design index; and the corner's CRA, degrees."""
     rows, cols = size
     r = 0.5 * math.hypot(rows - 1, cols - 1) * sensor.pixel_pitch_mm
     cra = math.atan(r / float(lens.exit_pupil_mm))
-    phi = min(cra + math.radians(float(lens.cone_angle_deg(min(f_numbers)))), math.pi / 2)
+    # the ray from the pupil's rim farthest from the corner: tan(phi) = tan(cra) + tan(cone)
+    phi = math.atan(math.tan(cra) + math.tan(math.radians(float(lens.cone_angle_deg(
+        min(f_numbers))))))
     n = float(np.min(n_design))
     return math.sqrt(max(1 - math.sin(phi) ** 2 / n**2, 0.0)), math.degrees(cra)
 

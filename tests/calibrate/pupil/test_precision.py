@@ -139,9 +139,9 @@ def test_a_lens_at_the_bounds_of_x_is_predicted(x_mm):
 def test_the_chart_is_judged_where_the_corner_shifts_the_bands():
     """Bands from 392 nm (FWHM 4 nm: responding from 382 nm) were judged by the chart's
     380-780 nm spectra at normal incidence; at the corner of a 1088 x 2048 sensor behind a
-    21 mm exit pupil at f/1.4 the chief ray and the cone tilt them to about 358 nm, where the
-    chart says nothing. Recomputed here from a tilted filter's law, lambda * sqrt(1 -
-    sin^2(phi) / n^2), phi the corner's chief ray plus the cone's half-angle."""
+    21 mm exit pupil at f/1.4 the ray from the pupil's far rim tilts them to about 361 nm,
+    where the chart says nothing. Recomputed here from a tilted filter's law, lambda * sqrt(1 -
+    sin^2(phi) / n^2), phi that ray's angle: tan(phi) = (r + R) / x, R the pupil's radius."""
     import math
 
     from snapcorr import Lens
@@ -153,7 +153,7 @@ def test_the_chart_is_judged_where_the_corner_shifts_the_bands():
     blue = Sensor("blue", "snapscan", pitch_um, np.arange(392.0, 700.0, 20.0), 4.0, n,
                   size_px=size)
     r_mm = 0.5 * math.hypot(size[0] - 1, size[1] - 1) * pitch_um / 1000
-    phi = math.atan(r_mm / 21.0) + math.atan(lens.exit_pupil_radius_mm(1.4) / 21.0)
+    phi = math.atan((r_mm + lens.exit_pupil_radius_mm(1.4)) / 21.0)
     reach = 382.0 * math.sqrt(1 - math.sin(phi) ** 2 / n**2)
     assert reach < 380 and 350 < reach  # the case: inside at normal incidence, not at the corner
     with pytest.raises(OutsideChartError, match=rf"responds over 382-702 nm \({reach:.0f} nm "
