@@ -62,9 +62,10 @@ FRAME_ORDER = ("by name without its suffix (.npy, .tif, ...: a folder holds one 
                "where reading the point as a decimal point and as a separator give one order, "
                "or, where every name has them, as numbers after a separator where two would be "
                "one decimal (.1, .10); a '-' or '+' before a number read as its sign only where "
-               "names differ by it, and where both readings give one order); names of one "
-               "number or one stem but for case refused; hidden files (names starting with "
-               "'.') left out")
+               "names differ by it, and where both readings give one order); letters "
+               "compared in one Unicode form (NFKC), characters that show nothing left out; "
+               "names of one number or one stem but for case refused; hidden files (names "
+               "starting with '.') left out")
 
 
 def _stem(name):
@@ -74,10 +75,23 @@ def _stem(name):
     return name[:at] if at >= 0 and name[at:].lower() in FRAME_SUFFIXES else name
 
 
+def _folded(name):
+    """``name``'s stem as the order reads it: one Unicode form for letters written either
+    way (``è`` as one character, as most systems write it, or as ``e`` and an accent, as
+    macOS does; a ligature ``ﬁ`` as ``fi``), characters that show nothing (a zero-width
+    space) left out, in lower case."""
+    text = unicodedata.normalize("NFKC", _stem(name))
+    return "".join(c for c in text if unicodedata.category(c) != "Cf").casefold()
+
+
 def _difference(a, b):
-    """What two names of one stem but for case (``f1.npy``, ``F1.tif``) differ by."""
+    """What two names of one stem but for case (``f1.npy``, ``F1.tif``), or for how their
+    letters are written, differ by."""
     if a.lower() == b.lower():
         return "case"
+    if _stem(a).lower() != _stem(b).lower() and _folded(a) == _folded(b):
+        return ("how their characters are written (one Unicode form or another, or one "
+                "that shows nothing)")
     return "their suffix" if _stem(a) == _stem(b) else "their suffix and case"
 
 
@@ -156,7 +170,7 @@ def _chain_widths(names):
     decimal and the separate readings of the points may order them differently."""
     seen = {}
     for n in names:
-        for i, chain in enumerate(_CHAIN.finditer(_stem(n))):
+        for i, chain in enumerate(_CHAIN.finditer(_folded(n))):
             for j, group in enumerate(chain.group().split(".")[1:]):
                 other = seen.setdefault((i, j), (len(group), n))
                 if other[0] != len(group):
@@ -212,16 +226,16 @@ def natural_order(names):
     names = list(names)
     stems = {}
     for n in sorted(names):
-        if _stem(n).lower() in stems:
-            other = stems[_stem(n).lower()]
+        if _folded(n) in stems:
+            other = stems[_folded(n)]
             if other == n:
                 raise ValueError(f"frame {n!r} is named twice")
             raise ValueError(f"frames {other!r} and {n!r} differ only in "
                              f"{_difference(other, n)}: one frame saved twice, or two frames "
                              "no order can tell apart; keep one of them")
-        stems[_stem(n).lower()] = n
+        stems[_folded(n)] = n
     order = _order(names, _NUMBER)
-    if any(_EXPONENT.search(_stem(n)) for n in names):
+    if any(_EXPONENT.search(_folded(n)) for n in names):
         try:
             other = _order(names, _NUMBER_NO_EXPONENT)
         except ValueError:  # refused when the 'e' is a letter: no one order either
@@ -238,7 +252,7 @@ def natural_order(names):
 
 def _order(names, number):
     """``names`` in natural order, numbers found by ``number`` (with exponents or without)."""
-    tokens = [_tokens(_stem(n), number) for n in names]
+    tokens = [_tokens(_folded(n), number) for n in names]
     after_comma = {(n, len(d.partition(",")[2].split("e")[0].split("E")[0]))
                    for n, t in zip(names, tokens, strict=True) for _, d in t[1::2] if "," in d}
     if len({k for _, k in after_comma}) > 1:

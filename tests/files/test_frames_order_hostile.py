@@ -4,8 +4,10 @@ of other scripts, one frame saved in two formats, and hidden files beside the fr
 
 from __future__ import annotations
 
+import functools
 import itertools
 import re
+import unicodedata
 
 import numpy as np
 import pytest
@@ -48,7 +50,7 @@ def test_digits_of_other_scripts_are_numbers():
     assert natural_order([ten, nine]) == [nine, ten]
     twelve, three = "t\u0661\u0662.npy", "t\u0663.npy"  # Arabic-Indic
     assert natural_order([twelve, three]) == [three, twelve]
-    with pytest.raises(ValueError, match="order is ambiguous"):
+    with pytest.raises(ValueError, match="how their characters are written"):
         natural_order(["t1.npy", "t\uff11.npy"])  # one number written twice
 
 
@@ -99,3 +101,16 @@ def test_hidden_files_in_a_folder_of_frames_are_left_out(tmp_path):
     assert frames.attrs["frame_files"] == ["t1.npy", "t2.npy"]
     assert "hidden files (names starting with '.') left out" in frames.attrs["frame_order"]
     np.testing.assert_array_equal(frames.values[:, 0, 0], [1, 2])
+
+
+def test_letters_written_in_either_unicode_form_order_as_one():
+    """``scène2`` written as ``e`` and an accent (as macOS names files), beside ``scène1`` and
+    ``scène3`` written with one character, streamed first; a zero-width space and a ligature
+    moved names after others. Compared as the letters they show."""
+    nfc, nfd = (functools.partial(unicodedata.normalize, f) for f in ("NFC", "NFD"))
+    for names in ([nfc("scène3"), nfd("scène2"), nfc("scène1")],
+                  ["t2", "t\u200b1", "t3"], ["file3", "\ufb01le1", "file2"]):
+        got = natural_order(names)
+        assert [n[-1] for n in got] == ["1", "2", "3"], got
+    with pytest.raises(ValueError, match="differ only in how their characters are written"):
+        natural_order([nfc("scène1"), nfd("scène1")])
