@@ -162,6 +162,11 @@ def virtual_targets(sensor, wavelengths_nm=None, fwhm_nm=None):
         fw = np.interp(wl, np.asarray(sensor.cwl_nm)[order], np.asarray(sensor.fwhm_nm)[order])
     if sensor.responses is not None:
         grid = sensor.responses.wavelength_nm
+        if wl.size > grid.size:  # before anything is sized by the count
+            raise ValueError(f"virtual_wavelengths_nm gives {wl.size:,} bands, more than the "
+                             f"{grid.size:,} samples of the responses' grid ({grid[0]:g}-"
+                             f"{grid[-1]:g} nm): bands closer than its step say nothing it "
+                             f"does not; ask for at most {grid.size:,}")
         step = np.interp(wl, grid[1:], np.diff(grid))
         narrow = np.flatnonzero(fw < MIN_FWHM_STEPS * step)
         if narrow.size:

@@ -23,6 +23,8 @@ NIR = Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir"))
     ([300.0], None, "virtual_wavelengths_nm must lie inside it"),  # the centre is outside
     ([700.0], 1e6, "virtual_fwhm_nm must be narrower"),  # the centre inside, the width not
     ([700.0], -3.0, "virtual_fwhm_nm"),
+    (np.linspace(600.0, 870.0, 602), 15.0, "virtual_wavelengths_nm gives 602 bands, more than "
+                                           "the 601 samples"),
 ])
 def test_targets_that_cannot_be_estimated_are_refused(wl, fwhm, words):
     with pytest.raises(ValueError, match=words):
@@ -50,6 +52,9 @@ def tile_cube(tmp_path_factory):
 @pytest.mark.parametrize("extra, words", [
     (["--virtual-wavelengths", "700,700"], "--virtual-wavelengths repeats [700.0] nm"),
     (["--virtual-fwhm-nm", "0.001"], "--virtual-fwhm-nm 0.001 nm at"),
+    # 100,001 bands asked 109 s and 3.3 GB for a 20 x 20 crop, 900,001 a 4 GiB matrix
+    (["--virtual-wavelengths=600:870:0.0027"], "--virtual-wavelengths gives 100,001 bands, "
+                                               "more than the 601 samples of the responses'"),
 ])
 @pytest.mark.parametrize("out", ["o.nc", "o.hdr"])
 def test_the_command_line_names_the_option_and_writes_nothing(tile_cube, cli, extra, words,
