@@ -43,6 +43,7 @@ import contextlib
 import errno
 import itertools
 import os
+import secrets
 import shutil
 import signal
 import sys
@@ -499,8 +500,11 @@ def _replace(moves, expected):
             else:
                 if _state(target) is None:
                     raise _changed(target, False)
-                aside = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old."))
+                # named and listed before it is made: an interruption between the two left
+                # an empty folder behind that no later run removed
+                aside = target.parent / f".{target.name}.old.{secrets.token_hex(4)}"
                 asides.append((aside, target))
+                os.mkdir(aside, 0o700)
                 try:
                     os.rename(target, aside / target.name)
                 except FileNotFoundError:  # gone since it was looked at
@@ -519,10 +523,13 @@ def _replace(moves, expected):
                     os.rename(aside / target.name, target)
                 os.rmdir(aside)
         raise
+    for aside, _ in asides:  # the old ones now go: a cleanup removes what an interruption
+        _register(aside)      # leaves of them
     for target in placed:
         _note_written(target)
     for aside, _ in asides:
         shutil.rmtree(aside, ignore_errors=True)
+        _unregister(aside)
 
 
 #: What :func:`before_moving_in` calls before each move in (innermost last).
