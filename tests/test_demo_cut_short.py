@@ -119,17 +119,17 @@ def test_a_demo_killed_before_an_output_is_moved_in_keeps_the_file_it_replaces_l
     dm = tmp_path / "dm"
     quick_demo(dm)
     _new_process(monkeypatch)
-    mkdtemp = safety.tempfile.mkdtemp
+    mkdir = safety.os.mkdir
 
-    def die_before_lens(*args, prefix="", **kwargs):  # the old file moved aside: not yet
-        if prefix.startswith(".lens.toml."):
+    def die_before_lens(path, *args, **kwargs):  # the old file moved aside: not yet
+        if Path(path).name.startswith(".lens.toml.old."):
             raise KeyboardInterrupt("SIGTERM received")
-        return mkdtemp(*args, prefix=prefix, **kwargs)
+        return mkdir(path, *args, **kwargs)
 
-    monkeypatch.setattr(safety.tempfile, "mkdtemp", die_before_lens)
+    monkeypatch.setattr(safety.os, "mkdir", die_before_lens)
     with pytest.raises(KeyboardInterrupt):
         quick_demo(dm)
-    monkeypatch.setattr(safety.tempfile, "mkdtemp", mkdtemp)
+    monkeypatch.setattr(safety.os, "mkdir", mkdir)
     entries = json.loads((dm / MARKER).read_text())["files"]["lens.toml"]
     assert isinstance(entries, list) and len(entries) == 2  # the old file and the new one
     check_out_dir(dm)  # the earlier run's lens.toml, still there, is the demo's
