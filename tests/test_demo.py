@@ -129,3 +129,23 @@ def test_a_demo_cut_short_can_be_run_again_in_its_folder(tmp_path, monkeypatch):
     check_out_dir(dm)  # a second run is not refused
     monkeypatch.setattr(snapcorr.paper_experiment, "run", _fake_experiment)
     run_demo(dm, echo=lambda *a: None)
+
+
+@pytest.mark.parametrize("name, edit", [
+    ("summary.txt", lambda text: text + "my own notes about this run\n"),
+    ("mean_shift.csv", lambda text: text.splitlines()[0] + "\n1.0,2.0,3.0\n"),
+])
+def test_overwrite_keeps_a_table_or_summary_edited_since_the_demo_wrote_it(
+        tmp_path, quick_demo, name, edit):
+    """The table's and the summary's mark is their first line, which an edit keeps: the
+    user's appended notes, or rows of their own under the header, were replaced with
+    overwrite=True. The marker lists the file the demo wrote there; another one is kept."""
+    dm = tmp_path / "dm"
+    quick_demo(dm)
+    path = dm / name
+    path.write_text(edit(path.read_text()))
+    before = snapshot_bounded(tmp_path)
+    with pytest.raises(ValueError, match=rf"{name.replace('.', '[.]')} exists and is not the "
+                                         r"file snapcorr demo wrote there"):
+        quick_demo(dm, overwrite=True)
+    assert snapshot_bounded(tmp_path) == before
