@@ -54,7 +54,11 @@ from ...optics.lens import Lens, check_magnification, check_pupil_magnification
 from ...spectra import colour_filter as colour_filter
 from ..lens.magnification import ratio_range
 from . import magnification as _magnification
-from .centre_error import account_for_the_centre, fastest_positions
+from .centre_error import (
+    account_for_a_disagreeing_centre,
+    account_for_the_centre,
+    fastest_positions,
+)
 from .distance import EDGE_CRA_DEG as EDGE_CRA_DEG
 from .distance import HELDOUT_SKIP as HELDOUT_SKIP
 from .distance import MAX_REL_STDERR as MAX_REL_STDERR
@@ -332,8 +336,8 @@ def _fit_checking_the_centre(args, center_from, checks):
     fit = _checked_locate(**args)
     if doubt is not None:
         return _given_center_doubted(fit, doubt, center_from)
-    if center_rc is not None and _misfits(fit.chi2_red, fit.dof):
-        _refuse_if_found_centre_fits(args, fit, center_from)
+    if center_rc is not None:
+        fit = _compared_with_found_centre(args, fit, center_from)
     if fit.center_stderr_px is not None:  # found: its error in x's and n_eff's
         rows, cols = fastest_positions(args["cubes"], args["sensor"], args["lens"],
                                        args["sensor_origin_px"])
@@ -342,39 +346,49 @@ def _fit_checking_the_centre(args, center_from, checks):
     return fit
 
 
-#: A given centre whose fit misses the data is refused where the fit about the centre the
-#: cubes place lowers chi-square by more than this plus :data:`CENTER_CHI2_SIGMAS` times
-#: chi-square's spread, ``sqrt(2 dof)``: on 2600 degrees of freedom, by 386 (a centre 10 px
-#: off, 270 standard errors, fitted x 73 of its errors off at a reduced chi-square of 1.92,
-#: against about 1.0 about the cubes' centre, a drop of some 2400).
+#: A given centre the cubes place far from it by their errors (more than
+#: :data:`CENTER_COMPARED_SIGMAS` of the fit's own and :data:`CENTER_COMPARED_PX`) is fitted
+#: about theirs too. Refused where that lowers chi-square by more than this plus
+#: :data:`CENTER_CHI2_SIGMAS` times chi-square's spread, ``sqrt(2 dof)`` (the annuli about
+#: another centre are other data): 10 px off on a 128 x 160 sensor, 7.3 against 0.97 over
+#: 478 degrees of freedom. Else the difference of the two fits is in the errors
+#: (:func:`~snapcorr.calibrate.pupil.centre_error.account_for_a_disagreeing_centre`):
+#: chi-square's level hardly tells centres 2-5 px off, whose x was 29-37 of its errors off.
 CENTER_CHI2_GAIN = 25.0
 CENTER_CHI2_SIGMAS = 5.0
+CENTER_COMPARED_SIGMAS = 5.0
+CENTER_COMPARED_PX = 0.5
 
 
-def _refuse_if_found_centre_fits(args, fit, center_from):
-    """Refuse the fit about a given centre that misses the data where a fit about the centre
-    the cubes place fits them clearly better (:data:`CENTER_CHI2_GAIN`): a centre off by a
-    few pixels, within the quarter diagonal :func:`check_given_center` leaves alone, biases x
-    by tens of its errors. A centre the cubes place no better (a crop far from the axis,
-    whose own estimate may be wrong; a model short of the data either way) is kept."""
-    found = cubes_center_rc(args["cubes"], args["sensor"], args["lens"],
-                            args["sensor_origin_px"])
+def _compared_with_found_centre(args, fit, center_from):
+    """The fit about a given centre, compared with one about the centre the cubes place
+    where that lies far from it by its errors: refused where theirs fits clearly better,
+    else widened by the difference. A centre the cubes cannot place (a crop far from the
+    axis whose estimate fails) leaves the fit as it is."""
+    placed = cubes_center_rc(args["cubes"], args["sensor"], args["lens"],
+                             args["sensor_origin_px"])
+    if placed is None:
+        return fit
+    found, err = placed
     given = args["center_rc"]
-    if found is None or math.hypot(found[0] - given[0], found[1] - given[1]) < 0.5:
-        return
+    d = (given[0] - found[0], given[1] - found[1])
+    if math.hypot(*d) < CENTER_COMPARED_PX or not math.hypot(
+            d[0] / max(err[0], 1e-9), d[1] / max(err[1], 1e-9)) > CENTER_COMPARED_SIGMAS:
+        return fit
     try:
         other = _checked_locate(**{**args, "center_rc": found, "report": None,
                                    "tolerance_nm": None})
     except ValueError:  # the cubes' centre cannot be fitted about: no evidence against
-        return
-    gain = (fit.chi2_red - other.chi2_red) * fit.dof
+        return fit
+    gain = fit.chi2_red * fit.dof - other.chi2_red * other.dof
     if gain > CENTER_CHI2_GAIN + CENTER_CHI2_SIGMAS * math.sqrt(2 * fit.dof):
         raise ValueError(
-            f"{CENTER_FROM[center_from]} (row {given[0]:g}, col {given[1]:g}) gives a fit that "
-            f"misses the data (reduced chi-square {fit.chi2_red:.3g} over {fit.dof} degrees "
-            f"of freedom), where one about the centre the f/{min(args['cubes']):g} cube places "
-            f"(row {found[0]:.1f}, col {found[1]:.1f}) fits it far better ({other.chi2_red:.3g}"
-            f"): {_CENTER_ADVICE[center_from]}")
+            f"{CENTER_FROM[center_from]} (row {given[0]:g}, col {given[1]:g}) fits the cubes "
+            f"clearly worse than the centre the f/{min(args['cubes']):g} cube places (row "
+            f"{found[0]:.1f}, col {found[1]:.1f}): chi-square higher by {gain:.0f} (reduced "
+            f"{fit.chi2_red:.3g} against {other.chi2_red:.3g} over {fit.dof} degrees of "
+            f"freedom), and x rests on the centre: {_CENTER_ADVICE[center_from]}")
+    return account_for_a_disagreeing_centre(fit, other, found, CENTER_FROM[center_from])
 
 
 def _center_doubt(cubes, sensor, lens, sensor_origin_px, center_rc, center_from, checks):
