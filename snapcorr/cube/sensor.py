@@ -579,6 +579,19 @@ class Sensor:
 
         cal = read_vendor_file(path)
         peaks = cal.responses.main_peaks()
+        try:
+            return cls._of_vendor(cal, path, peaks, name, n_eff, pixel_pitch_um, size_px,
+                                  calibration, bit_depth)
+        except ValueError as err:  # a check of the sensor's values: say which file gave them
+            if str(err).startswith(Path(path).name):
+                raise
+            raise ValueError(f"{Path(path).name}: {err} (the bands' main peaks, read from their "
+                             "measured responses)" if str(err).startswith("cwl_nm") else
+                             f"{Path(path).name}: {err}") from None
+
+    @classmethod
+    def _of_vendor(cls, cal, path, peaks, name, n_eff, pixel_pitch_um, size_px, calibration,
+                   bit_depth):
         ph, pw = cal.mosaic_shape
         return cls(
             name=name if name is not None else Path(path).stem, layout="mosaic",

@@ -33,7 +33,7 @@ def test_a_flipped_white_is_refused_naming_the_flip(vendor, how, flip, light):  
 
 
 def test_the_command_line_refuses_a_flipped_white_before_any_work(vendor, tmp_path):  # noqa: F811
-    fx, sensor, path = vendor
+    fx, _, path = vendor
     white, dark = white_frame(fx, (64, 96), ORIGIN, lamp("tungsten", fx.grid), seed=2)
     for name, a in (("white.npy", white), ("dark.npy", dark), ("raw.npy", 0.5 * white)):
         np.save(tmp_path / name, a[:, ::-1].astype(np.uint16))

@@ -231,3 +231,17 @@ def test_a_newer_virtual_band_width_the_grid_cannot_make_is_refused(tmp_path):
     fx = dataclasses.replace(fx, matrices=[*fx.matrices[:-1], (name, kind, wl, fw, coeffs)])
     _refused(write_newer(tmp_path / "fw.xml", fx),
              r"virtual_band\[3\]/fwhm_nm> is 1e-300 nm at .* narrower than the responses' grid")
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
+def test_two_bands_of_one_peak_are_refused_naming_the_file(tmp_path, writer):
+    """Two bands whose measured responses peak at one wavelength: 'cwl_nm repeats [622.5]
+    nm' named neither the file nor where the wavelengths came from."""
+    fx = imec_4x4()
+    curves = fx.curves.copy()
+    curves[1] = curves[0]
+    peaks = [list(p) for p in fx.peaks]
+    peaks[1] = list(peaks[0])
+    _refused(writer(tmp_path / "twice.xml", dataclasses.replace(fx, curves=curves, peaks=peaks)),
+             r"cwl_nm repeats \[[\d.]+\] nm; .* \(the bands' main peaks, read from their "
+             r"measured responses\)")
