@@ -83,6 +83,10 @@ def _message(err, options=None):
     (``--virtual-bands fitted``, ``--fit-n-eff``, ``--sensor-origin-px a,b``)."""
     message = _cut(str(err))
     message = " ".join(message.split())  # libraries' messages may span lines
+    if message.startswith("Stored and computed checksum do not match"):  # zarr's crc32c
+        return ("a chunk of an input Zarr store is damaged: its stored checksum does not match "
+                "its bytes (a truncated or corrupted copy); copy the store again from its "
+                "source")
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
     for keyword, option in (options or {}).items():

@@ -123,3 +123,31 @@ def test_a_vendor_file_with_megabytes_of_digits_is_one_short_line(tmp_path, cli)
     rc, _, err = cli("sensor", "x.xml", cwd=tmp_path)
     line = assert_refused(rc, err, "x.xml", "<sensor_info/width>", "10,485,760 characters")
     assert len(err) < 300 and "1" * 30 in line, err[:400]
+
+
+def test_a_damaged_zarr_chunk_is_said_in_a_users_words(tmp_path):
+    """A shard whose index bytes were damaged (a truncated or corrupted copy): zarr's 'Stored
+    and computed checksum do not match. Stored: b'...'' said neither what nor why."""
+    import pathlib
+
+    import numpy as np
+    import zarr
+
+    from snapcorr.cli._errors import _message
+
+    root = zarr.open_group(tmp_path / "s.zarr", mode="w", zarr_format=3)
+    a = root.create_array("raw", shape=(8, 16, 16), chunks=(1, 16, 16), shards=(4, 16, 16),
+                          dtype="uint16")
+    a[:] = np.arange(8 * 256, dtype="uint16").reshape(8, 16, 16)
+    shard = sorted(p for p in pathlib.Path(tmp_path / "s.zarr" / "raw").rglob("*")
+                   if p.is_file() and p.name != "zarr.json")[0]
+    data = bytearray(shard.read_bytes())
+    data[-10] ^= 0xFF  # inside the shard's index, which carries a checksum
+    shard.write_bytes(bytes(data))
+    try:
+        zarr.open_group(tmp_path / "s.zarr", mode="r")["raw"][:]
+    except ValueError as err:
+        said = _message(err)
+    else:
+        raise AssertionError("the damaged shard was read")
+    assert said.startswith("a chunk of an input Zarr store is damaged: its stored checksum")
