@@ -125,3 +125,17 @@ def test_a_sensor_written_out_reads_back_the_same(vendor, tmp_path):
     assert plain.band_offset == ((0, 1), (1, 1), (1, 0), (0, 0))
     assert plain.vendor_band == (1, 3, 2, 0)
     assert Sensor.from_dict(plain.to_dict()) == plain
+
+
+@pytest.mark.parametrize("tile_order", [True, False])
+def test_a_band_off_in_a_cube_of_either_order_is_said_by_how_much(vendor, tile_order):
+    """One band 0.5 nm off in a cube in the tile's order was said to differ by up to 197 nm
+    (the wavelengths compared as given, against the sensor's in wavelength order)."""
+    sensor, _, _ = vendor
+    tiles = mosaic_to_cube(_frame(np.ones((2, 2, 16)), 2, 2), sensor,
+                           sensor_origin_px=sensor.tile_origin_px)
+    cube = tiles.isel(band=np.argsort(sensor.vendor_band)) if tile_order else tiles
+    wl = cube["wavelength"].values.copy()
+    wl[3] += 0.5
+    with pytest.raises(ValueError, match=r"differ from the sensor .* \(by up to 0\.5 nm\)"):
+        sensor.check_cube(cube.assign_coords(wavelength=("band", wl)))
