@@ -70,6 +70,14 @@ class Spectrum:
     def step_nm(self) -> float:
         return float(np.median(np.diff(self.wavelength_nm)))
 
+    def peak_normalised(self) -> Spectrum:
+        """The spectrum scaled to a peak of 1: its shape, all that ratios of signals need (a
+        spectrum of 1e306 overflowed in their products and was said to have no signal)."""
+        peak = float(np.max(self.values))
+        if peak == 1.0:
+            return self
+        return Spectrum(self.wavelength_nm, self.values / peak, self.name)
+
     def __call__(self, wavelength_nm):
         lam = np.asarray(wavelength_nm, float)
         lo, hi = self.wavelength_nm[0], self.wavelength_nm[-1]

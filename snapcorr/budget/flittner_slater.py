@@ -55,6 +55,7 @@ def tolerance_ranges(source, cwl_nm, fwhm_nm, *, n_eff=1.7, profile="multi_loren
         or ``None`` where the nominal centre itself fails ("NA" in their table).
     """
     validate_method(profile, SIGNAL_PROFILES, "profile")
+    source = source.peak_normalised()  # ratios only: the scale goes, and any overflow
     cwl = np.atleast_1d(np.asarray(cwl_nm, float))
     fwhm = np.broadcast_to(np.asarray(fwhm_nm, float), cwl.shape)
     ms = []

@@ -66,6 +66,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     -------
     Budget
     """
+    source = source.peak_normalised()  # ratios only: the scale goes, and any overflow
     profile = profile_of(sensor, profile)
     for m in models:
         validate_method(m, CORRECTION_MODELS, "model")

@@ -252,6 +252,7 @@ def relative_signal(source, profile, shifts_nm):
     s = np.asarray(shifts_nm, float)
     if not np.all(np.isfinite(s)):
         raise ValueError("shifts must be finite")
+    source = source.peak_normalised()  # a ratio: the scale goes, and with it any overflow
     m = _FilterMoments.of(profile)
     p = _signals(source, profile, np.concatenate([[0.0], s.ravel()]), m)
     if not p[0] > 0:

@@ -179,3 +179,24 @@ def test_the_budget_recommends_the_model_correct_cube_takes():
     other = Sensor("other", "snapscan", 40.0, np.linspace(500, 900, 20), 10.0, 1.7)
     with pytest.raises(ValueError, match="has 21 bands, the sensor 'other' 20"):
         budget.recommend_model(cube, other, 1.4, PAPER, "cube")
+
+
+@pytest.mark.parametrize("scale", [1e306, 1e-300])
+def test_the_budget_is_the_same_for_a_spectrum_in_any_unit(scale):
+    """The errors are ratios of signals: a spectrum scaled to 1e306 overflowed in their
+    products and was said to have 'no signal in the band at 470 nm'; Flittner & Slater's
+    ranges and the signal ratio alike."""
+    from snapcorr.optics.profiles import Gaussian
+
+    sun = spectra.solar()
+    big = spectra.Spectrum(sun.wavelength_nm, sun.values / sun.values.max() * scale, "big")
+    sensor = Sensor("s", "snapscan", 5.5, np.linspace(470, 900, 6), 10.0, 1.7)
+    a = budget.scene_budget(sun, sensor, 8.0, PAPER_LENS, cra_max_deg=15.0, n_cra=5)
+    b = budget.scene_budget(big, sensor, 8.0, PAPER_LENS, cra_max_deg=15.0, n_cra=5)
+    np.testing.assert_allclose(b.data["residual"].values, a.data["residual"].values,
+                               rtol=1e-6, atol=1e-12)
+    assert budget.tolerance_ranges(big, [600.0], [10.0]) == budget.tolerance_ranges(
+        sun, [600.0], [10.0])
+    g = Gaussian(600.0, 10.0)
+    assert budget.relative_signal(big, g, [1.0]) == pytest.approx(
+        budget.relative_signal(sun, g, [1.0]), rel=1e-12)
