@@ -64,7 +64,7 @@ def test_a_frame_is_flat_fielded_pixel_by_pixel_and_its_mask_reaches_only_its_ow
     assert_allclose(ff["reflectance"].values, expected, rtol=1e-6)
     assert ff["mask"].values.sum() == 1 and ff["mask"].values[10, 21]
     assert_array_equal(ff["raw"].values, frame.values)  # kept as read
-    ds = demosaic(ff, vis, "ri", origin_px=ORIGIN)
+    ds = demosaic(ff, vis, "ri", sensor_origin_px=ORIGIN)
     cube = ds["reflectance"].values
     assert np.isnan(cube).sum() == 1  # masked, never spread to the neighbours
     yy, xx, bb = np.argwhere(np.isnan(cube))[0]
@@ -94,9 +94,9 @@ def test_correct_gives_every_pixel_of_a_demosaicked_cube_its_own_angle(vis, lens
     at the tile whose sample of b is that pixel: both at the same sensor position."""
     raw, dark, white = _frames((96, 128), seed=3)
     ff = flatfield(raw[0], dark, white)
-    full = correct_cube(demosaic(ff, vis, "bilinear", origin_px=ORIGIN)["reflectance"], vis,
+    full = correct_cube(demosaic(ff, vis, "bilinear", sensor_origin_px=ORIGIN)["reflectance"], vis,
                         1.4, lens)
-    tiles = correct_cube(mosaic_to_cube(ff["reflectance"].values, vis, origin_px=ORIGIN),
+    tiles = correct_cube(mosaic_to_cube(ff["reflectance"].values, vis, sensor_origin_px=ORIGIN),
                          vis, 1.4, lens)
     wl_full = full["wavelength_corrected"].values
     wl_tile = tiles["wavelength_corrected"].values
@@ -120,7 +120,7 @@ def test_virtual_bands_on_a_demosaicked_cube_are_the_matrix_at_every_pixel():
     nir = Sensor.load(data.sensor_path("imec_5x5_nir"))
     rows, cols = 40, 60
     raw, dark, white = _frames((rows, cols), seed=5)
-    ds = demosaic(flatfield(raw[0], dark, white), nir, "ppid", origin_px=(500, 1000))
+    ds = demosaic(flatfield(raw[0], dark, white), nir, "ppid", sensor_origin_px=(500, 1000))
     cube = ds["reflectance"]
     res = correct_cube(cube, nir, 2.0, Lens.load(data.lens_path("edmund_optics_16mm")),
                        virtual_bands="vendor")
@@ -185,13 +185,13 @@ def test_a_stream_is_the_frames_in_memory_with_numpy_dask_and_distributed(vis, l
     raw, dark, white = _frames(ROI, n=3, seed=11)
     raw[1, 5, 5] = 0  # a value below the dark: kept (negative), not masked
     raw[2, 30, 40] = 65535
-    kw = dict(demosaic_method="ri", lens=lens, f_number=2.0, origin_px=ORIGIN, saturation=60000,
-              resample=True)
+    kw = dict(demosaic_method="ri", lens=lens, f_number=2.0, sensor_origin_px=ORIGIN,
+              saturation=60000, resample=True)
     eager = process_stream(raw, dark, white, vis, **kw)
     lazy = process_stream(raw.chunk({"frame": 1, "y": 24}), dark, white, vis, **kw)
     assert lazy["reflectance"].chunks is not None
     one = [correct_cube(demosaic(flatfield(raw[i], dark, white, saturation=60000), vis, "ri",
-                                 origin_px=ORIGIN)["reflectance"], vis, 2.0, lens,
+                                 sensor_origin_px=ORIGIN)["reflectance"], vis, 2.0, lens,
                         resample=True) for i in range(3)]
     from dask.distributed import Client, LocalCluster
 
@@ -232,7 +232,7 @@ def test_flatfield_demosaic_from_the_command_line(frame_files, cli, vis):
     assert res.returncode == 0, res.stderr
     assert "demosaicked (ppid) to 64 x 96 x 16" in res.stdout
     ds = read_dataset(d / "full.nc")
-    ref = demosaic(flatfield(raw[0], dark, white), vis, "ppid", origin_px=ORIGIN)
+    ref = demosaic(flatfield(raw[0], dark, white), vis, "ppid", sensor_origin_px=ORIGIN)
     assert_array_equal(ds["reflectance"].values, ref["reflectance"].values)
     assert_array_equal(ds["raw"].values, raw.values[0])  # the raw data next to the result
     assert ds.attrs["demosaic_method"] == "ppid" and ds.attrs["raw_file"] == "raw.npy"
@@ -270,7 +270,7 @@ def test_stream_from_the_command_line(frame_files, cli, vis, lens):
               "--f-number", "2", "--out", "s.zarr", cwd=d)
     assert res.returncode == 0, res.stderr
     ds = read_dataset(d / "s.zarr")
-    ref = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN)
+    ref = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, sensor_origin_px=ORIGIN)
     assert_array_equal(ds["reflectance"].values, ref["reflectance"].values)
     assert_array_equal(ds["raw"].values, raw.values)
     assert ds.attrs["frames_file"] == "frames.zarr" and ds.attrs["demosaic_method"] == "ri"
@@ -292,7 +292,7 @@ def test_demosaic_warns_when_a_hole_leaves_other_bands_without_samples(vis):
     frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
     frame[20:34, 30:44] = np.nan  # wider than three tiles
     with pytest.warns(UserWarning, match="hole several tiles wide"):
-        demosaic(frame, vis, "bilinear", origin_px=ORIGIN)
+        demosaic(frame, vis, "bilinear", sensor_origin_px=ORIGIN)
     frame = flatfield(raw[0], dark, white)["reflectance"].values.copy()
     frame[20, 30] = np.nan
     with warnings.catch_warnings():
@@ -312,7 +312,7 @@ def test_the_mask_is_every_nan_of_the_cube_numpy_or_dask(vis):
         for method in ("nearest", "bilinear", "ppid", "ri"):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                ds = demosaic(ff, vis, method, origin_px=ORIGIN).compute()
+                ds = demosaic(ff, vis, method, sensor_origin_px=ORIGIN).compute()
             nan = np.isnan(ds["reflectance"].values)
             assert nan.sum() >= 400  # the blob's own values at least
             assert_array_equal(ds["mask"].values, nan, err_msg=method)
@@ -325,9 +325,9 @@ def test_a_small_region_of_interest_through_dask_is_the_same_as_in_memory(vis):
     for shape in ((4, 96), (35, 200), (200, 20)):
         f = np.random.default_rng(1).uniform(0.1, 1, shape).astype(np.float32)
         for method in ("nearest", "bilinear", "ppid", "ri"):
-            a = demosaic(f, vis, method, origin_px=ORIGIN).values
+            a = demosaic(f, vis, method, sensor_origin_px=ORIGIN).values
             b = demosaic(dsk.from_array(f, chunks=(16, 16)), vis, method,
-                         origin_px=ORIGIN).values
+                         sensor_origin_px=ORIGIN).values
             assert_array_equal(a, b, err_msg=f"{shape} {method}")
 
 
@@ -340,9 +340,9 @@ def test_a_wide_hole_on_the_5x5_sensor_is_the_same_through_dask():
     for method in ("nearest", "bilinear", "ppid", "ri"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            a = demosaic(f, nir, method, origin_px=(500, 1000)).values
+            a = demosaic(f, nir, method, sensor_origin_px=(500, 1000)).values
             b = demosaic(dsk.from_array(f, chunks=(50, 50)), nir, method,
-                         origin_px=(500, 1000)).values
+                         sensor_origin_px=(500, 1000)).values
         assert_array_equal(a, b, err_msg=method)
 
 
@@ -355,7 +355,7 @@ def test_frames_keep_their_times_and_streams_are_refused_when_empty_or_not_frame
         tmp_path / "timed.zarr", consolidated=False)
     frames = read_frames(tmp_path / "timed.zarr")
     assert_array_equal(frames["frame"].values, times)
-    ds = process_stream(frames, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN)
+    ds = process_stream(frames, dark, white, vis, lens=lens, f_number=2.0, sensor_origin_px=ORIGIN)
     assert_array_equal(ds["reflectance"]["frame"].values, times)
     np.save(tmp_path / "empty.npy", np.zeros((0, 64, 96), np.uint16))
     with pytest.raises(ValueError, match="holds no frame"):
@@ -370,9 +370,9 @@ def test_frames_keep_their_times_and_streams_are_refused_when_empty_or_not_frame
     with pytest.raises(ValueError, match="not a regular file"):
         read_frames(tmp_path / "broken")
     with pytest.raises(ValueError, match="harmonised spectra are made cube by cube"):
-        process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN,
+        process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, sensor_origin_px=ORIGIN,
                        method="harmonised")
-    ideal = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, origin_px=ORIGIN,
+    ideal = process_stream(raw, dark, white, vis, lens=lens, f_number=2.0, sensor_origin_px=ORIGIN,
                            method="ideal")
     assert ideal.attrs["method"] == "ideal"
 
@@ -393,12 +393,12 @@ def test_stream_refuses_swapped_references_and_an_origin_beyond_the_sensor(frame
 def test_what_a_frame_holds_is_checked(vis):
     f = np.random.default_rng(3).uniform(0.1, 1, ROI)
     f[10, 10] = np.inf  # an infinity is missing, as NaN is
-    cube = demosaic(f, vis, "ri", origin_px=ORIGIN).values
+    cube = demosaic(f, vis, "ri", sensor_origin_px=ORIGIN).values
     assert np.isnan(cube).sum() == 1 and np.isfinite(cube).sum() == cube.size - 1
     with pytest.raises(TypeError, match="complex"):
-        demosaic(f.astype(complex), vis, "bilinear", origin_px=ORIGIN)
+        demosaic(f.astype(complex), vis, "bilinear", sensor_origin_px=ORIGIN)
     counts = np.full(ROI, 2**24 + 1, np.int64)  # float32 would round these
-    cube = demosaic(counts, vis, "nearest", origin_px=ORIGIN)
+    cube = demosaic(counts, vis, "nearest", sensor_origin_px=ORIGIN)
     assert cube.dtype == np.float64 and (cube.values == 2**24 + 1).all()
     with pytest.raises(ValueError, match=r"use cube.transpose"):
         flatfield(xr.DataArray(np.ones((4, *ROI)), dims=("band", "y", "x")),
@@ -425,7 +425,7 @@ def test_flatfield_demosaic_with_a_filter_white(frame_files, cli, vis):
     assert res.returncode == 0, res.stderr
     ds = read_dataset(d / "tr.zarr")
     ref = demosaic(flatfield(raw[1], dark, white, name="transmittance"), vis, "bilinear",
-                   origin_px=ORIGIN)
+                   sensor_origin_px=ORIGIN)
     assert_array_equal(ds["transmittance"].values, ref["transmittance"].values)
     assert_array_equal(ds["filter_white_raw"].values, raw.values[1])
     assert ds.attrs["filter_white_file"] == "fw.npy"
@@ -438,16 +438,16 @@ def test_second_reading_refusals_and_what_files_hold(tmp_path, vis, lens):
     with pytest.raises(ValueError, match="masked by the references alone"):
         flatfield(raw, white, nearly)
     with pytest.raises(ValueError, match="demosaic_method"):
-        process_stream(raw, dark, white, vis, method="nearest", origin_px=ORIGIN)
+        process_stream(raw, dark, white, vis, method="nearest", sensor_origin_px=ORIGIN)
     with pytest.raises(ValueError, match="holds no frame"):
-        process_stream(raw[:0], dark, white, vis, origin_px=ORIGIN)
+        process_stream(raw[:0], dark, white, vis, sensor_origin_px=ORIGIN)
     # the writing instruction computed_with stays out of files, from memory or from dask
     from snapcorr.cube import write_dataset
 
     for ds, name in ((demosaic(flatfield(raw[0], dark, white), vis, "bilinear",
-                               origin_px=ORIGIN), "mem.nc"),
+                               sensor_origin_px=ORIGIN), "mem.nc"),
                      (process_stream(raw.chunk({"frame": 1}), dark, white, vis,
-                                     origin_px=ORIGIN), "lazy.zarr")):
+                                     sensor_origin_px=ORIGIN), "lazy.zarr")):
         write_dataset(ds, tmp_path / name)
         back = read_dataset(tmp_path / name)
         assert all("computed_with" not in back[v].attrs for v in back.data_vars), name

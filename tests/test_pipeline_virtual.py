@@ -29,21 +29,21 @@ def stream():
 @pytest.mark.parametrize("method", ["vendor", "fitted", "angle-aware"])
 def test_every_frame_gets_the_first_frames_virtual_bands(stream, method):
     sensor, lens, frames, dark, white = stream
-    kw = {"lens": lens, "f_number": 2.8, "origin_px": ORIGIN, "demosaic_method": "bilinear"}
+    kw = {"lens": lens, "f_number": 2.8, "sensor_origin_px": ORIGIN, "demosaic_method": "bilinear"}
     out = process_stream(frames, dark, white, sensor, virtual_bands=method, **kw)
     v = out["virtual"]
     assert v.dims == ("frame", "y", "x", "virtual_band")
     assert v.attrs["virtual_bands"] == method and "virtual_wavelength" in v.coords
     if method == "vendor":  # the first frame as correct_cube gives it (the others: the same)
         ff = demosaic(flatfield(frames.isel(frame=0), dark, white, saturation=1023), sensor,
-                      "bilinear", origin_px=ORIGIN)
+                      "bilinear", sensor_origin_px=ORIGIN)
         one = correct_cube(ff["reflectance"], sensor, 2.8, lens, virtual_bands=method)
         np.testing.assert_allclose(v.isel(frame=0).values, one["virtual"].values, rtol=1e-5,
                                    atol=1e-6)
     # every frame by the stream's one matrix (or table), computed here by hand
     for i in range(frames.sizes["frame"]):
         ff = demosaic(flatfield(frames.isel(frame=i), dark, white, saturation=1023), sensor,
-                      "bilinear", origin_px=ORIGIN)["reflectance"].values.astype(np.float64)
+                      "bilinear", sensor_origin_px=ORIGIN)["reflectance"].values.astype(np.float64)
         if method == "angle-aware":
             cra = out["cra_deg"].values  # (y, x) at full resolution
             nodes, mats = out["virtual_cra_deg"].values, out["virtual_table"].values

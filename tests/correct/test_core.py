@@ -160,8 +160,9 @@ def test_every_variable_and_coordinate_of_a_result_has_cf_units_and_long_name(tm
 
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
     frame = np.random.default_rng(3).uniform(500, 900, (16, 24)).astype(np.float32)
-    raw = mosaic_to_cube(frame, sensor, origin_px=(40, 80))
-    dark, white = (mosaic_to_cube(frame * 0 + v, sensor, origin_px=(40, 80)) for v in (100, 1e3))
+    raw = mosaic_to_cube(frame, sensor, sensor_origin_px=(40, 80))
+    dark, white = (mosaic_to_cube(frame * 0 + v, sensor, sensor_origin_px=(40, 80))
+                   for v in (100, 1e3))
     ff = flatfield(raw, dark, white)
     ds = correct_cube(ff["reflectance"], sensor, 1.4, PAPER, resample=True, mask=ff["mask"])
     for name, result in (("ff", ff), ("c", ds)):

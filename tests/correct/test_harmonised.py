@@ -39,7 +39,7 @@ def test_a_mosaic_is_harmonised_band_by_band():
     from snapcorr.data import sensor_path
 
     sensor = Sensor.load(sensor_path("mosaic_4x4_vis"))
-    cube = mosaic_to_cube(np.ones((64, 96), np.float32), sensor, origin_px=(400, 800))
+    cube = mosaic_to_cube(np.ones((64, 96), np.float32), sensor, sensor_origin_px=(400, 800))
     ds = correct_cube(cube, sensor, 1.4, as_lens(PAPER), center_px=(0.0, 0.0),
                       harmonise=True, resample=True)
     h = ds["harmonised"].values

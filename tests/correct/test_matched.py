@@ -316,7 +316,7 @@ def test_the_band_the_band_pass_edge_cuts_is_nan_and_named(f28, sensors):
     assert note.count(" nm (") == 1  # that band only
     # the criterion is the field's: a crop near the axis keeps the band
     crop = np.full((64, 64), FILL, np.float32)
-    near = correct_cube(mosaic_to_cube(crop, measured, origin_px=(512, 992)), measured, 2.8,
+    near = correct_cube(mosaic_to_cube(crop, measured, sensor_origin_px=(512, 992)), measured, 2.8,
                         PAPER_LENS, center_rc=CENTRE, harmonise=True)
     assert near["harmonised"].attrs["not_harmonised"].startswith("none")
     assert np.allclose(near["harmonised"].values, FILL, atol=1e-5)
@@ -338,7 +338,7 @@ def test_what_sparse_bands_cannot_harmonise_is_said_and_holds(f28):
 def corner(sensors):
     """A crop in the sensor's corner at f/2.8: its cube and result."""
     data = np.random.default_rng(3).uniform(0.2, 0.8, (64, 96)).astype(np.float32)
-    cube = mosaic_to_cube(data, sensors.measured, origin_px=(0, 0))
+    cube = mosaic_to_cube(data, sensors.measured, sensor_origin_px=(0, 0))
     return cube, correct_cube(cube, sensors.measured, 2.8, PAPER_LENS, center_rc=CENTRE,
                               harmonise=True)
 

@@ -75,7 +75,7 @@ def _places(cam, size):
 def _estimates(cam, sensor, placed, methods=METHODS, keep_demosaicking=True):
     """Nominal bands and each method's virtual bands of the RI-demosaicked frame."""
     frame = xr.DataArray(placed.raw.astype(np.float32), dims=("y", "x"), attrs={"units": "1"})
-    cube = demosaic(frame, sensor, "ri", origin_px=placed.origin, name="reflectance")
+    cube = demosaic(frame, sensor, "ri", sensor_origin_px=placed.origin, name="reflectance")
     if not keep_demosaicking:  # what a cube demosaicked elsewhere looks like
         cube.attrs.pop("demosaic_method")
     nearest = [int(np.argmin(np.abs(np.asarray(sensor.cwl_nm) - w))) for w in cam.virtual_nm]
@@ -154,7 +154,7 @@ def test_the_cross_validated_demosaicking_error_bounds_the_true_one(vis):
     placed = fs.place(cam, weights, fs.scene_spectra(8, seed=5), np.ones((96, 96)),
                       _places(cam, 96)["corner"], NOISE, seed=50)
     frame = xr.DataArray(placed.raw.astype(np.float32), dims=("y", "x"), attrs={"units": "1"})
-    cube = demosaic(frame, sensor, "ri", origin_px=placed.origin, name="reflectance")
+    cube = demosaic(frame, sensor, "ri", sensor_origin_px=placed.origin, name="reflectance")
     true = np.mean((cube.values - placed.bands).reshape(-1, 16) ** 2, axis=0)
     mse, count = demosaicking_error(cube, sensor, noise_var=NOISE**2)
     assert count == 96 * 96 + 16 * 8 * 8  # each sample once, and each 3 x 3 block centre
@@ -187,10 +187,10 @@ def test_a_cube_demosaicked_elsewhere_keeps_the_pixel_noise_model(vis):
     placed = fs.place(cam, weights, fs.scene_spectra(8, seed=4), np.ones((64, 64)),
                       _places(cam, 64)["centre"], NOISE, seed=40)
     frame = xr.DataArray(placed.raw.astype(np.float32), dims=("y", "x"), attrs={"units": "1"})
-    cube = demosaic(frame, sensor, "ri", origin_px=placed.origin, name="reflectance")
+    cube = demosaic(frame, sensor, "ri", sensor_origin_px=placed.origin, name="reflectance")
     with_dem = virtual_bands(cube, sensor, "fitted")
     assert "demosaicking (ri)" in with_dem["virtual_stderr"].attrs["source"]
-    lazy = demosaic(frame.chunk({"y": 32, "x": 32}), sensor, "ri", origin_px=placed.origin,
+    lazy = demosaic(frame.chunk({"y": 32, "x": 32}), sensor, "ri", sensor_origin_px=placed.origin,
                     name="reflectance")  # a dask cube: its patches read, the same figures
     np.testing.assert_allclose(virtual_bands(lazy, sensor, "fitted")["virtual_stderr"].values,
                                with_dem["virtual_stderr"].values, rtol=1e-5)

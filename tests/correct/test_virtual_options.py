@@ -44,7 +44,7 @@ def tile_cube(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("virtual")
     frames = snapcorr.data.mosaic_frames("imec_5x5_nir")
-    tiles = [mosaic_to_cube(f[100:200, 400:500], NIR, origin_px=(100, 400)) for f in frames]
+    tiles = [mosaic_to_cube(f[100:200, 400:500], NIR, sensor_origin_px=(100, 400)) for f in frames]
     write_dataset(flatfield(*tiles, saturation=NIR.full_scale_dn), d / "ff.nc")
     return d
 

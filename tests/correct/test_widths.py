@@ -190,7 +190,7 @@ def test_measured_responses_build_only_the_table_their_centres_need(monkeypatch,
     vendor = Sensor.load(VENDOR_XML)
     sensor = dataclasses.replace(vendor, n_eff=(1.8,) * 25, pixel_pitch_um=5.5)
     frame = np.random.default_rng(0).uniform(0.2, 0.8, (20, 20)).astype(np.float32)
-    cube = mosaic_to_cube(frame, sensor, origin_px=(40, 60))
+    cube = mosaic_to_cube(frame, sensor, sensor_origin_px=(40, 60))
     whole = with_fwhm_table(correct_cube(cube, sensor, 2.0, PAPER_LENS, method=method))
     calls = []
     original = MeasuredTable.build.__func__

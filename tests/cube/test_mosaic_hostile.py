@@ -36,7 +36,7 @@ def mosaic_cube():
 
     sensor = Sensor.load(MOSAIC)
     frame = np.random.default_rng(3).uniform(100, 200, (64, 64)).astype(np.float32)
-    return mosaic_to_cube(frame, sensor, origin_px=(400, 800)), sensor
+    return mosaic_to_cube(frame, sensor, sensor_origin_px=(400, 800)), sensor
 
 
 @pytest.mark.parametrize("ext", [".hdr", ".tif", ".exr", ".npy", ".nc", ".zarr"])
@@ -174,7 +174,7 @@ def test_raw_mosaic_crop_with_origin_goes_through_flatfield(tmp_path, monkeypatc
                                    "none", sensor=MOSAIC))
     assert rc == 0, err
     sensor = Sensor.load(MOSAIC)
-    expected = cra_of(correct_cube(mosaic_to_cube(frame, sensor, origin_px=(400, 800)),
+    expected = cra_of(correct_cube(mosaic_to_cube(frame, sensor, sensor_origin_px=(400, 800)),
                                    sensor, 1.4, Lens.load(LENS), center_px=(1024.0, 544.0),
                                    method="none"))
     np.testing.assert_allclose(cra_of(read_result(tmp_path / "c.nc")).values, expected.values,

@@ -45,7 +45,7 @@ def test_cubes_list_bands_by_wavelength_with_the_vendors_numbers(vendor, tmp_pat
     rng = np.random.default_rng(0)
     truth = rng.uniform(0.1, 0.9, (5, 6, 16))  # per tile, the file's band order
     raw = _frame(truth, 5, 6)
-    tiles = mosaic_to_cube(raw, sensor, origin_px=sensor.tile_origin_px)
+    tiles = mosaic_to_cube(raw, sensor, sensor_origin_px=sensor.tile_origin_px)
     frame = xr.DataArray(raw, dims=("y", "x"))
     v = tiles["vendor_band"].values
     assert np.all(np.diff(tiles["wavelength"].values) > 0)  # plots left to right
@@ -53,7 +53,7 @@ def test_cubes_list_bands_by_wavelength_with_the_vendors_numbers(vendor, tmp_pat
     np.testing.assert_array_equal(tiles.values, truth[:, :, v])  # each band its own values
     for ext in (".nc", ".zarr"):  # and a reader that is not snapcorr's sees the same
         ds = flatfield(frame, xr.zeros_like(frame), xr.ones_like(frame))
-        cube = demosaic(ds, sensor, "bilinear", origin_px=sensor.tile_origin_px)
+        cube = demosaic(ds, sensor, "bilinear", sensor_origin_px=sensor.tile_origin_px)
         out = write_dataset(cube, tmp_path / f"d{ext}")
         with xr.open_dataset(out, engine="zarr" if ext == ".zarr" else "h5netcdf") as back:
             assert np.all(np.diff(back["wavelength"].values) > 0)
@@ -65,7 +65,7 @@ def test_demosaicking_is_the_same_in_either_order(vendor):
     rng = np.random.default_rng(1)
     frame = _frame(rng.uniform(0.1, 0.9, (6, 8, 16)), 6, 8)
     cube = demosaic(xr.DataArray(frame, dims=("y", "x")), sensor, "ri",
-                    origin_px=sensor.tile_origin_px)
+                    sensor_origin_px=sensor.tile_origin_px)
     # the numpy core with the bands where the file puts them, in the file's order
     y0, x0 = np.arange(16) // TILE, np.arange(16) % TILE
     by_file = demosaic_array(frame, y0, x0, TILE, TILE, "ri")
@@ -78,7 +78,7 @@ def test_the_vendor_matrix_gives_the_same_virtual_bands(vendor):
     rng = np.random.default_rng(2)
     truth = rng.uniform(0.1, 0.9, (4, 5, 16))
     tiles = mosaic_to_cube(_frame(truth, 4, 5), sensor,
-                           origin_px=sensor.tile_origin_px)
+                           sensor_origin_px=sensor.tile_origin_px)
     tiles = tiles.rename("reflectance").assign_attrs(units="1")
     got = virtual_bands(tiles, sensor, "vendor")["virtual"].values
     # the file's reflectance matrix on the file's band order, by hand
@@ -97,7 +97,7 @@ def test_a_cube_in_the_old_tile_order_is_corrected_as_one_in_order(vendor, edmun
     rng = np.random.default_rng(3)
     truth = rng.uniform(0.1, 0.9, (6, 7, 16))
     tiles = mosaic_to_cube(_frame(truth, 6, 7), sensor,
-                           origin_px=sensor.tile_origin_px)
+                           sensor_origin_px=sensor.tile_origin_px)
     tiles = tiles.rename("reflectance").assign_attrs(units="1")
     back = np.argsort(sensor.vendor_band)
     old = tiles.isel(band=back)  # as files written in the tile order hold it

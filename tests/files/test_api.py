@@ -186,7 +186,7 @@ def _mosaic_cube():
 
     sensor = Sensor.load(REPO / "calibration" / "sensors" / "mosaic_4x4_vis.toml")
     frame = np.random.default_rng(3).integers(0, 4096, (32, 48)).astype(np.uint16)
-    return mosaic_to_cube(frame, sensor, origin_px=(8, 12))
+    return mosaic_to_cube(frame, sensor, sensor_origin_px=(8, 12))
 
 
 def _snapscan_crop():

@@ -160,7 +160,7 @@ def test_a_snapshot_white_one_row_short_is_refused_without_positions(tmp_path, c
     raw, dark, white = mosaic_frames("mosaic_4x4_vis")
 
     def cube(frame):
-        return mosaic_to_cube(frame[100:164, 200:264], sensor, origin_px=(100, 200)).values
+        return mosaic_to_cube(frame[100:164, 200:264], sensor, sensor_origin_px=(100, 200)).values
 
     np.save(tmp_path / "raw.npy", cube(raw))
     np.save(tmp_path / "dark.npy", cube(dark))
