@@ -73,7 +73,7 @@ def run(args):
 
 def _print_phase(args, sensor):
     """``sensor --phase-from WHITE``: where the white's first pixel sits on the tile grid."""
-    from ..cube.phase import mosaic_phase
+    from ..cube.phase import FLIP_ADVICE, flip_shown, mosaic_phase
 
     if args.toml or args.plot:
         raise ValueError("--phase-from reads a white frame: give --toml and --plot in a run "
@@ -86,10 +86,14 @@ def _print_phase(args, sensor):
     dark = (None if args.dark is None else
             _read_frame_checked(args.dark, sensor, "--dark", white.shape))
     try:
-        found = mosaic_phase(white, sensor, dark=dark, origin_px=args.sensor_origin_px)
+        found = mosaic_phase(white, sensor, dark=dark, sensor_origin_px=args.sensor_origin_px)
+        flipped = flip_shown(white, sensor, dark=dark, sensor_origin_px=args.sensor_origin_px,
+                             found=found)
     except ValueError as err:
         raise ValueError(f"--phase-from {args.phase_from}: {err}") from None
     print(f"{args.phase_from} ({white.shape[0]} x {white.shape[1]} px): {found.describe()}")
+    if flipped is not None:
+        raise ValueError(f"--phase-from {args.phase_from} {flipped}: {FLIP_ADVICE}")
     if found.agrees is not None:
         stated = ("the whole-sensor frame" if args.sensor_origin_px is None else
                   "--sensor-origin-px {},{}".format(*args.sensor_origin_px))

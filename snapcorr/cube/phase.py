@@ -36,8 +36,8 @@ from .._validation import called_from_outside, renamed_keywords, warn_renamed
 from .mosaic import _filter_part, _origin, frame_saturation
 from .sensor import Sensor
 
-__all__ = ["LAMP_DEGREE", "MISFIT_MAX", "RATIO_MIN", "MosaicPhase", "check_mosaic_phase",
-           "mosaic_phase"]
+__all__ = ["FLIP_ADVICE", "FLIP_CHECK_MISFIT", "LAMP_DEGREE", "MISFIT_MAX", "RATIO_MIN",
+           "MosaicPhase", "check_mosaic_phase", "flip_shown", "mosaic_phase"]
 
 #: Degree of the Legendre polynomial that stands for the unknown lamp (times the white
 #: target) over the responses' span: a tungsten lamp, daylight and a phosphor white LED are
@@ -355,7 +355,7 @@ def _decide(misfit, stated, sensor, n):
 
 
 #: A white whose best phase misfits by more than this (a smooth lamp through the right
-#: phase: 0.1-2 %) is tried flipped too (:func:`_refuse_if_mirrored`).
+#: phase: 0.1-2 %) is tried flipped too (:func:`flip_shown`).
 FLIP_CHECK_MISFIT = 0.02
 
 #: How a camera may flip its frames (a mirror or flip setting): the tile means' axes reversed.
@@ -365,37 +365,57 @@ _FLIPS = {"mirrored left-right": (slice(None), slice(None, None, -1)),
                                                      slice(None, None, -1))}
 
 
-def _refuse_if_mirrored(white, sensor, dark, sensor_origin_px, saturation, what, found):
-    """Refuse a raw white that fits a phase of the tile far better flipped than as it is
+def flip_shown(white, sensor, *, dark=None, sensor_origin_px=None, saturation=None,
+               found=None):
+    """Whether a raw white fits a phase of the tile far better flipped than as it is
     (:data:`RATIO_MIN` times): a camera set to mirror or flip its frames puts every band
     where another's pattern says it is, and flat-fielding went on without a word (imec 5x5:
     no phase within 23 % as saved, against 0.04 % mirrored back), or a wrong phase was
-    found and a wrong origin advised (imec 4x4: 9.7 % at another phase)."""
+    found and a wrong origin advised (imec 4x4: 9.7 % at another phase). Tried only where the
+    best phase misfits by more than :data:`FLIP_CHECK_MISFIT`.
+
+    Parameters
+    ----------
+    white, sensor, dark, sensor_origin_px, saturation
+        As :func:`mosaic_phase`.
+    found : MosaicPhase, optional
+        :func:`mosaic_phase` of the white as it is, if already known.
+
+    Returns
+    -------
+    str or None
+        What the white shows (``"fits the 'imec' tile far better mirrored left-right than as
+        it is (...)"``), or None.
+    """
     first = white[0] if isinstance(white, (list, tuple)) else white
-    if getattr(first, "ndim", 2) != 2:
-        return
+    if getattr(first, "ndim", 2) != 2 or sensor.responses is None:
+        return None
+    if found is None:
+        found = mosaic_phase(white, sensor, dark=dark, sensor_origin_px=sensor_origin_px,
+                             saturation=saturation)
+    if not (np.isfinite(found.misfit).any() and np.min(found.misfit) > FLIP_CHECK_MISFIT):
+        return None
     try:
         means, _, _, _ = _frame_means(white, dark, sensor, sensor_origin_px, saturation)
     except ValueError:
-        return
+        return None
     if means is None:
-        return
-    tried = []
-    for how, flip in _FLIPS.items():
-        flipped = means[flip]
-        if flipped.shape == means.shape:
-            tried.append((_decide(_misfits(flipped, sensor, LAMP_DEGREE), None, sensor, 0),
-                          how))
+        return None
+    tried = [(_decide(_misfits(means[flip], sensor, LAMP_DEGREE), None, sensor, 0), how)
+             for how, flip in _FLIPS.items() if means[flip].shape == means.shape]
     if not tried:
-        return
+        return None
     ph, how = min(tried, key=lambda t: np.min(t[0].misfit))
-    if ph.phase_px is not None and RATIO_MIN * np.min(ph.misfit) < np.min(found.misfit):
-        raise ValueError(
-            f"{what} fits the {sensor.name!r} tile far better {how} than as it is (a smooth "
-            f"lamp misfits its band means by {100 * np.min(ph.misfit):.2g} % {how}, "
-            f"{100 * np.min(found.misfit):.2g} % at best as it is): the camera flips its "
-            "frames (a mirror or flip setting); save them as the sensor reads out, or flip "
-            "them back, dark and raw frames alike")
+    if ph.phase_px is None or not RATIO_MIN * np.min(ph.misfit) < np.min(found.misfit):
+        return None
+    return (f"fits the {sensor.name!r} tile far better {how} than as it is (a smooth lamp "
+            f"misfits its band means by {100 * np.min(ph.misfit):.2g} % {how}, "
+            f"{100 * np.min(found.misfit):.2g} % at best as it is)")
+
+
+#: What a flipped white's refusal advises.
+FLIP_ADVICE = ("the camera flips its frames (a mirror or flip setting); save them as the sensor "
+               "reads out, or flip them back, dark and raw frames alike")
 
 
 @renamed_keywords(origin_px="sensor_origin_px")
@@ -445,8 +465,10 @@ def check_mosaic_phase(white, sensor, sensor_origin_px=None, *, dark=None, satur
             f"{sensor.size_px[1]} px sensor: give the sensor row and column of its first pixel "
             "(sensor_origin_px=), which set its chief-ray angles; "
             + found.describe())
-    if np.isfinite(found.misfit).any() and np.min(found.misfit) > FLIP_CHECK_MISFIT:
-        _refuse_if_mirrored(white, sensor, dark, sensor_origin_px, saturation, what, found)
+    flipped = flip_shown(white, sensor, dark=dark, sensor_origin_px=sensor_origin_px,
+                         saturation=saturation, found=found)
+    if flipped is not None:
+        raise ValueError(f"{what} {flipped}: {FLIP_ADVICE}")
     if found.agrees is not False:
         return found
     stated_misfit = found.misfit[tuple(found.stated_px)]

@@ -42,3 +42,15 @@ def test_the_command_line_refuses_a_flipped_white_before_any_work(vendor, tmp_pa
                            f"{ORIGIN[0]},{ORIGIN[1]}", "--out", "ff.nc", cwd=tmp_path)
     assert code == 1 and "--white white.npy fits the" in err, err
     assert "mirrored left-right" in err and not (tmp_path / "ff.nc").exists()
+
+
+def test_sensor_phase_from_says_the_flip(vendor, tmp_path):  # noqa: F811
+    """``snapcorr sensor --phase-from`` on the mirrored white said only that it cannot tell."""
+    fx, _, path = vendor
+    white, dark = white_frame(fx, (64, 96), ORIGIN, lamp("tungsten", fx.grid), seed=2)
+    for name, a in (("white.npy", white), ("dark.npy", dark)):
+        np.save(tmp_path / name, a[:, ::-1].astype(np.uint16))
+    code, _, err = run_cli("sensor", str(path), "--phase-from", "white.npy", "--dark",
+                           "dark.npy", "--sensor-origin-px", f"{ORIGIN[0]},{ORIGIN[1]}",
+                           cwd=tmp_path)
+    assert code == 1 and "far better mirrored left-right than as it is" in err, err
