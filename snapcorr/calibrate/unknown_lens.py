@@ -250,7 +250,7 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
             return fit
         # the flats' centre is a measurement too: its error in x's and n_eff's
         return account_for_the_centre(
-            fit, flats_err, *fastest_positions(cubes, sensor, None, sensor_origin_px),
+            fit, flats_err, *fastest_positions(cubes, sensor, lens, sensor_origin_px),
             lambda c: fit_x(lens, centre=c, again=True), whose="the flats' optical centre")
 
     pupil = fit_x(first.lens)

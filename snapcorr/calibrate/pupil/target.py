@@ -426,18 +426,13 @@ def check_given_center(cubes, sensor, lens, sensor_origin_px, center_rc, center_
 
     The centre's standard errors (a jackknife: seconds) are found only where the cubes place
     it further than that share of their diagonal, the one condition they do not enter."""
-    from ...correct.geometry import cube_positions
 
     what = CENTER_FROM[check_center_from(center_from)]
     center = check_center_rc(center_rc)
-    cubes = _check_cubes(cubes, sensor, min_side=1)
-    f0 = min(cubes)
-    rows, cols = cube_positions(cubes[f0], sensor, lens, sensor_origin_px)
-    try:
-        found, errors = _center_fit(_band_reader(cubes[f0]), sensor.n_bands, rows, cols, None,
-                                    12, 4, 4)
-    except (ValueError, np.linalg.LinAlgError):
+    placed = _placed_centre(cubes, sensor, lens, sensor_origin_px)
+    if placed is None:
         return None
+    f0, rows, cols, found, errors = placed
     for v, at in ((found[0], rows), (found[1], cols)):
         lo, hi = float(np.min(at)), float(np.max(at))
         if not lo + EDGE_SHARE * (hi - lo) <= v <= hi - EDGE_SHARE * (hi - lo):
@@ -462,6 +457,16 @@ def cubes_center_rc(cubes, sensor, lens, sensor_origin_px):
     """The optical centre ``(row, col)`` the fastest cube places and the fit's own standard
     errors (from its Jacobian, without the jackknife: seconds saved, and often too small),
     or None where it cannot (the estimate fails)."""
+    placed = _placed_centre(cubes, sensor, lens, sensor_origin_px)
+    if placed is None:
+        return None
+    found, errors = placed[3:]
+    return (found, errors.jacobian) if np.all(np.isfinite(found)) else None
+
+
+def _placed_centre(cubes, sensor, lens, sensor_origin_px):
+    """The fastest cube's f-number, sensor rows and columns, and the centre it places with
+    its ``errors()`` (:func:`_center_fit`), or None where the estimate fails."""
     from ...correct.geometry import cube_positions
 
     cubes = _check_cubes(cubes, sensor, min_side=1)
@@ -472,7 +477,7 @@ def cubes_center_rc(cubes, sensor, lens, sensor_origin_px):
                                     12, 4, 4)
     except (ValueError, np.linalg.LinAlgError):
         return None
-    return (found, errors.jacobian) if np.all(np.isfinite(found)) else None
+    return f0, rows, cols, found, errors
 
 
 #: A centre the cubes find is refused where its standard error is above this share of the
