@@ -4,8 +4,11 @@ library's parameter names)."""
 from __future__ import annotations
 
 import argparse
+import errno
+import os
 import re
 import sys
+from pathlib import Path
 
 #: Library parameter names as the command line spells them, for error messages.
 _CLI_TERMS = {
@@ -81,6 +84,11 @@ def _message(err, options=None):
     library message names no option: which a command has, only the command knows), and
     ``keyword='choice'``, ``keyword=True`` and ``keyword= (a, b)`` the option as typed
     (``--virtual-bands fitted``, ``--fit-n-eff``, ``--sensor-origin-px a,b``)."""
+    if isinstance(err, OSError) and err.errno == errno.ENAMETOOLONG and err.filename:
+        name = str(err.filename)
+        return (f"{_cut(name)}: a name in this path is too long for the file system (at most "
+                f"255 bytes a name, {len(os.fsencode(max(Path(name).parts, key=len)))} here); "
+                "give a shorter one")
     message = _cut(str(err))
     message = " ".join(message.split())  # libraries' messages may span lines
     if message.startswith("Stored and computed checksum do not match"):  # zarr's crc32c

@@ -130,7 +130,6 @@ def test_a_damaged_zarr_chunk_is_said_in_a_users_words(tmp_path):
     and computed checksum do not match. Stored: b'...'' said neither what nor why."""
     import pathlib
 
-    import numpy as np
     import zarr
 
     from snapcorr.cli._errors import _message
@@ -151,3 +150,15 @@ def test_a_damaged_zarr_chunk_is_said_in_a_users_words(tmp_path):
     else:
         raise AssertionError("the damaged shard was read")
     assert said.startswith("a chunk of an input Zarr store is damaged: its stored checksum")
+
+
+def test_a_name_too_long_for_the_file_system_is_said_so(tmp_path):
+    """A 300-character file name gave Python's bare '[Errno 36] File name too long: ...'."""
+    from conftest import run_cli
+
+    np.save(tmp_path / "w.npy", np.ones((8, 8), np.uint16))
+    code, _, err = run_cli("flatfield", "w.npy", "--dark", "d" * 300 + ".npy", "--white",
+                           "w.npy", "--out", "o.nc", cwd=tmp_path)
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    assert "a name in this path is too long for the file system (at most 255 bytes a name, " \
+           "304 here)" in err and "Errno" not in err, err
