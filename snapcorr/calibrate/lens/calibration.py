@@ -500,29 +500,25 @@ def _raw_mosaic(items, dark, saturation, sensor, origin_px):
 
 
 #: A given centre is doubted in the notes where the flats' contours place the axis more than
-#: this many pixels from it (the median of their circles' centres: to 0.05 px on flats of the
-#: paper's lens at 0.5 % noise, the circles scattering by 6 px).
+#: this many pixels from it (:func:`~snapcorr.calibrate.lens.stages.optical_center_rc`, the
+#: median of their circles' centres: to 0.05 px on flats of the paper's lens at 0.5 % noise,
+#: the circles scattering by 6 px).
 GIVEN_CENTRE_DOUBT_PX = 2.0
 
 
-def _given_centre_doubted(ratios, given):
+def _given_centre_doubted(flats, ratios, given):
     """A note where the flats' own contours place the optical centre far from the one given
     (a centre 5 px off was fitted with three circles where the lens has one, the misfit
     blamed on the light), else none."""
-    from ..flats.radial import estimate_center_rc
-
-    found, spread = estimate_center_rc(ratios.ratios, ratios.ratio_ok)
-    if found is None:
+    found, how, _ = stages.optical_center_rc(flats, ratios)
+    if how != "contours":
         return []
-    b = ratios.block  # block coordinates -> pixels
-    found = (found[0] * b + (b - 1) / 2.0, found[1] * b + (b - 1) / 2.0)
     d = math.hypot(found[0] - given[0], found[1] - given[1])
     if not d > GIVEN_CENTRE_DOUBT_PX:
         return []
     return [f"the flats' contours place the optical centre at row {found[0]:.1f}, col "
-            f"{found[1]:.1f}, {d:.1f} px from the one given (the median of circles whose "
-            f"centres scatter by {spread * b:.2g} px): a wrong centre shows as extra circles "
-            "and a misfit; leave the centre out to have it found, or check it"]
+            f"{found[1]:.1f}, {d:.1f} px from the one given: a wrong centre shows as extra "
+            "circles and a misfit; leave the centre out to have it found, or check it"]
 
 
 def _prepare_flats(items, center_rc, *, dark=None, saturation=None, pixel_gains=None):
@@ -535,7 +531,7 @@ def _prepare_flats(items, center_rc, *, dark=None, saturation=None, pixel_gains=
     if note:
         notes.append(note)
     if center_rc is not None and not fl.single:
-        notes += _given_centre_doubted(ratios, center)
+        notes += _given_centre_doubted(fl, ratios, center)
     if fl.single:
         notes.append("one flat: nothing cancels the source's non-uniformity or other fall-off "
                      "(cos^4 is divided out); use an integrating sphere, or flats at several "

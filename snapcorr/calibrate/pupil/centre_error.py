@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from .magnification import recorded_errors, widen_by_deviations
+
 __all__ = ["NEGLIGIBLE_SHARE", "account_for_a_disagreeing_centre", "account_for_the_centre",
            "centre_sensitivity_mm", "fastest_positions"]
 
@@ -111,7 +113,7 @@ def account_for_the_centre(fit, err_rc, rows, cols, refit, whose="the optical ce
         return _with_record(fit, rule)
     moved = [refit((c[0] + err_rc[0], c[1])), refit((c[0], c[1] + err_rc[1]))]
     before = fit.exit_pupil_stderr_mm
-    sx, sn = _widened(fit, moved)
+    sx, sn = widen_by_deviations(fit, moved)
     index = (f", n_eff +- {sn:.2g}" if sn is not None else "")
     note = (f"{whose} was found to +- {err_rc[0]:.2g} px (row), {err_rc[1]:.2g} px "
             f"(column): fitted again about it moved by those, x moves by {sx:.3g} mm{index}, "
@@ -127,8 +129,8 @@ def account_for_a_disagreeing_centre(fit, other, found_rc, whose="the optical ce
     """Widen a fit about a given centre by its difference from ``other``, the fit about the
     centre the cubes place (``found_rc``), where the cubes place it far from the given one by
     their errors and fit about it no worse beyond chi-square's spread: which is right the
-    cubes cannot tell, and x rests on it (centres 2-5 px off fitted at reduced chi-squares of
-    1.04-1.07 with x 29-37 of its errors off). x, n_eff and ``x n_eff`` take the difference
+    cubes cannot tell, and x rests on it (centres 2-10 px off fitted at reduced chi-squares
+    of 1.04-1.07 with x 29-37 of its errors off). x, n_eff and ``x n_eff`` take the difference
     in quadrature; noted and recorded in the profile.
 
     Parameters
@@ -143,7 +145,7 @@ def account_for_a_disagreeing_centre(fit, other, found_rc, whose="the optical ce
     PupilFit
     """
     before = fit.exit_pupil_stderr_mm
-    sx, sn = _widened(fit, [other])
+    sx, sn = widen_by_deviations(fit, [other])
     index = (f", n_eff by {sn:.2g}" if sn is not None else "")
     note = (f"{whose} (row {fit.center_rc[0]:g}, col {fit.center_rc[1]:g}) lies far from the "
             f"one the cubes place (row {found_rc[0]:.2f}, col {found_rc[1]:.2f}) by their "
@@ -157,42 +159,13 @@ def account_for_a_disagreeing_centre(fit, other, found_rc, whose="the optical ce
     return _with_record(fit, rule, note)
 
 
-def _widened(fit, moved):
-    """``fit``'s errors and covariance with the deviations of the fits ``moved`` added in
-    quadrature; returns x's part and n_eff's largest (None where n_eff has no error)."""
-    n0 = np.asarray(fit.n_eff, float)
-    dx = np.array([f.exit_pupil_mm - fit.exit_pupil_mm for f in moved])
-    dn = np.array([np.asarray(f.n_eff, float) - n0 if np.shape(f.n_eff) == n0.shape
-                   else np.full(n0.shape, np.mean(f.n_eff) - np.mean(n0)) for f in moved])
-    dxn = np.array([f.x_n_eff_mm - fit.x_n_eff_mm for f in moved])
-    sx, sxn = float(np.sqrt(dx @ dx)), float(np.sqrt(dxn @ dxn))
-    sn = np.sqrt(np.sum(dn**2, axis=0))
-    cov = np.array(fit.covariance, float)
-    dev = [dx]
-    if cov.shape[0] > 1 and fit.n_eff_stderr is not None and fit.n_eff_stderr[0] > 0:
-        dev.append(dn[:, 0] * np.sqrt(cov[1, 1]) / float(fit.n_eff_stderr[0]))  # as the scale
-    d = np.nan_to_num(np.transpose(dev))
-    cov[:len(dev), :len(dev)] += d.T @ d
-    fit.covariance = cov
-    fit.exit_pupil_stderr_mm = float(np.hypot(fit.exit_pupil_stderr_mm, sx))
-    fit.x_n_eff_stderr_mm = float(np.hypot(fit.x_n_eff_stderr_mm, sxn))
-    if fit.n_eff_stderr is None:
-        return sx, None
-    fit.n_eff_stderr = np.hypot(np.asarray(fit.n_eff_stderr, float), sn)
-    return sx, float(np.max(sn))
-
-
 def _with_record(fit, rule, note=None):
-    cal = dict(fit.lens.calibration)
+    """``fit`` with its profile recording ``rule`` and, where the errors were widened, them
+    and ``note``."""
+    cal = dict(fit.lens.calibration) if note is None else recorded_errors(fit,
+                                                                           fit.lens.calibration)
     cal["center_error"] = rule
     if note is not None:
-        cal["exit_pupil_stderr_mm"] = float(f"{fit.exit_pupil_stderr_mm:.3g}")
-        cal["x_times_n_eff_stderr_mm"] = float(f"{fit.x_n_eff_stderr_mm:.3g}")
-        if fit.n_eff_stderr is not None and "n_eff_stderr" in cal:
-            e = fit.n_eff_stderr
-            cal["n_eff_stderr"] = (float(f"{e[0]:.3g}") if not isinstance(cal["n_eff_stderr"],
-                                                                            list)
-                                   else [float(f"{v:.3g}") for v in e])
         cal["notes"] = [*cal.get("notes", []), note]
     fit.lens = dataclasses.replace(fit.lens, calibration=cal)
     return fit

@@ -353,7 +353,7 @@ def _fit_checking_the_centre(args, center_from, checks):
 #: another centre are other data): 10 px off on a 128 x 160 sensor, 7.3 against 0.97 over
 #: 478 degrees of freedom. Else the difference of the two fits is in the errors
 #: (:func:`~snapcorr.calibrate.pupil.centre_error.account_for_a_disagreeing_centre`):
-#: chi-square's level hardly tells centres 2-5 px off, whose x was 29-37 of its errors off.
+#: chi-square's level hardly tells centres 2-10 px off, whose x was 11-37 of its errors off.
 CENTER_CHI2_GAIN = 25.0
 CENTER_CHI2_SIGMAS = 5.0
 CENTER_COMPARED_SIGMAS = 5.0

@@ -33,8 +33,16 @@ N_NODES = 2
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(N_NODES)
 
-__all__ = ["N_NODES", "account_for_pupil_magnifications", "at_ratio", "range_nodes",
-           "rms_covariance", "with_given"]
+__all__ = [
+    "N_NODES",
+    "account_for_pupil_magnifications",
+    "at_ratio",
+    "range_nodes",
+    "recorded_errors",
+    "rms_covariance",
+    "widen_by_deviations",
+    "with_given",
+]
 
 
 def range_nodes(rng):
@@ -143,11 +151,40 @@ def account_for_pupil_magnifications(fit, given, rng, refit, *, stacklevel=2):
     """
     nodes, w = range_nodes(rng)
     fits = [refit(float(r)) for r in nodes]
+    sx, sn = widen_by_deviations(fit, fits, w)
+    note = _note(given, rng, sx, sn)
+    warnings.warn(note, MagnificationWarning, stacklevel=stacklevel)
+    fit.notes.append(note)
+    fit.lens = _recorded(fit, given, rng, nodes, [f.exit_pupil_mm for f in fits], note)
+    return fit
+
+
+def widen_by_deviations(fit, others, weights=None):
+    """Add to a :class:`~snapcorr.calibrate.pupil.locate.PupilFit`'s errors and covariance
+    the spread of ``others``, the same fit made under other assumptions (magnifications, an
+    optical centre moved): the weighted RMS deviation of x, n_eff and ``x n_eff``, in
+    quadrature. Changed in place.
+
+    Parameters
+    ----------
+    fit : PupilFit
+    others : sequence of PupilFit
+    weights : array_like, optional
+        One per fit of ``others`` (default: 1 each, a sum of squares).
+
+    Returns
+    -------
+    sx : float
+        x's part, mm.
+    sn : float or None
+        n_eff's largest part (None where n_eff has no error).
+    """
+    w = np.ones(len(others)) if weights is None else np.asarray(weights, float)
     n0 = np.asarray(fit.n_eff, float)
-    dx = np.array([f.exit_pupil_mm - fit.exit_pupil_mm for f in fits])
+    dx = np.array([f.exit_pupil_mm - fit.exit_pupil_mm for f in others])
     dn = np.array([np.asarray(f.n_eff, float) - n0 if np.shape(f.n_eff) == n0.shape
-                   else np.full(n0.shape, np.mean(f.n_eff) - np.mean(n0)) for f in fits])
-    dxn = np.array([f.x_n_eff_mm - fit.x_n_eff_mm for f in fits])
+                   else np.full(n0.shape, np.mean(f.n_eff) - np.mean(n0)) for f in others])
+    dxn = np.array([f.x_n_eff_mm - fit.x_n_eff_mm for f in others])
     sx, sxn = float(np.sqrt(w @ dx**2)), float(np.sqrt(w @ dxn**2))
     sn = np.sqrt(np.tensordot(w, dn**2, axes=1))
     cov = np.array(fit.covariance, float)
@@ -158,13 +195,26 @@ def account_for_pupil_magnifications(fit, given, rng, refit, *, stacklevel=2):
     fit.covariance = cov
     fit.exit_pupil_stderr_mm = float(np.hypot(fit.exit_pupil_stderr_mm, sx))
     fit.x_n_eff_stderr_mm = float(np.hypot(fit.x_n_eff_stderr_mm, sxn))
-    if fit.n_eff_stderr is not None:
-        fit.n_eff_stderr = np.hypot(np.asarray(fit.n_eff_stderr, float), sn)
-    note = _note(given, rng, sx, float(np.max(sn)) if fit.n_eff_stderr is not None else None)
-    warnings.warn(note, MagnificationWarning, stacklevel=stacklevel)
-    fit.notes.append(note)
-    fit.lens = _recorded(fit, given, rng, nodes, [f.exit_pupil_mm for f in fits], note)
-    return fit
+    if fit.n_eff_stderr is None:
+        return sx, None
+    fit.n_eff_stderr = np.hypot(np.asarray(fit.n_eff_stderr, float), sn)
+    return sx, float(np.max(sn))
+
+
+def recorded_errors(fit, calibration):
+    """``calibration`` (a profile's table) with the fit's errors as they now are: x's,
+    ``x n_eff``'s and n_eff's (where the table has them), three digits."""
+    def r(v):
+        return float(f"{float(v):.3g}")
+
+    cal = dict(calibration)
+    cal["exit_pupil_stderr_mm"] = r(fit.exit_pupil_stderr_mm)
+    cal["x_times_n_eff_stderr_mm"] = r(fit.x_n_eff_stderr_mm)
+    if fit.n_eff_stderr is not None and "n_eff_stderr" in cal:
+        e = fit.n_eff_stderr
+        cal["n_eff_stderr"] = (r(e[0]) if not isinstance(cal["n_eff_stderr"], list)
+                               else [r(v) for v in e])
+    return cal
 
 
 def _note(given, rng, sx, sn):
@@ -189,13 +239,7 @@ def _recorded(fit, given, rng, nodes, xs, note):
         return float(f"{float(v):.{d}g}")
 
     lens = fit.lens
-    cal = dict(lens.calibration)
-    cal["exit_pupil_stderr_mm"] = r(fit.exit_pupil_stderr_mm)
-    cal["x_times_n_eff_stderr_mm"] = r(fit.x_n_eff_stderr_mm)
-    if fit.n_eff_stderr is not None and "n_eff_stderr" in cal:
-        e = fit.n_eff_stderr
-        cal["n_eff_stderr"] = (r(e[0]) if not isinstance(cal["n_eff_stderr"], list)
-                               else [r(v) for v in e])
+    cal = recorded_errors(fit, lens.calibration)
     cal["magnification"] = {
         "assumed": True, "given": given, "magnification": lens.magnification,
         "pupil_magnification": lens.pupil_magnification,
