@@ -22,6 +22,7 @@ import itertools
 import numpy as np
 
 from .._validation import MAX_VIGNETTING_CIRCLES, check_disc_count
+from . import discs
 from .discs import _segment, arc_half_angle, extreme_radii
 
 __all__ = [
@@ -34,6 +35,8 @@ __all__ = [
     "min_radius_mm",
     "nu",
     "overlap_area_mm2",
+    "overlap_irradiance_mm2",
+    "relative_irradiance",
     "vignetted_area_mm2",
 ]
 
@@ -245,6 +248,121 @@ def overlap_area_mm2(radii_mm, centers_mm):
         ck = np.take_along_axis(c, best[None], 0)[0]
         area += np.where(b > a, antiderivative(b, rk, ck) - antiderivative(a, rk, ck), 0.0)
     return np.where(hi > lo, area, 0.0)[()]
+
+
+#: Gauss-Legendre nodes per arc of :func:`overlap_irradiance_mm2`: its integrand is smooth
+#: on each arc, and 12 nodes hold it to 1e-15 of its largest value at f/1 to f/2.8 with one
+#: and two circles over tan(CRA) 0-0.7 (against 64 nodes; 8 nodes: 4e-11, 6: 3e-8).
+IRRADIANCE_NODES = 12
+
+
+def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIANCE_NODES):
+    """The discs' common area weighted by ``cos^4(phi)``: the irradiance a pixel receives
+    from a pupil of uniform radiance (a Lambertian disc) through it, in units of ``L / x^2``.
+
+    A pupil element ``dA`` at ``p`` seen from the pixel (foot ``F`` on the pupil plane, at
+    distance ``x``) under the angle ``phi``, ``tan^2(phi) = |p - F|^2 / x^2``, gives it
+    ``L cos^4(phi) dA / x^2``. Over the discs' intersection (all centres and the foot on one
+    line, :mod:`snapcorr.optics.discs`) the weight ``w(s) = (1 + s)^-2``, ``s = tan^2(phi)``,
+    has the potential ``Psi(s) = (1 / 2s) int_0^s w = 1 / (2 (1 + s))``, and Green's theorem
+    turns the area integral into one along the boundary's arcs, ``contour of Psi (p - F) x dp``
+    (the part on the line adds nothing), each by a Gauss-Legendre rule. It tends to
+    :func:`overlap_area_mm2` as ``x`` grows.
+
+    Parameters
+    ----------
+    radii_mm, centers_mm : sequence of array_like
+        One radius (> 0) and one signed centre position per disc along the pixel's radial
+        line: the exit pupil, the projected vignetting circles.
+    foot_mm : array_like
+        The pixel's foot on the pupil plane, ``x tan(CRA)`` along the same line.
+    x_mm : array_like
+        Distance of the pupil plane from the sensor, > 0.
+    nodes : int
+        Gauss-Legendre nodes per arc.
+
+    Returns
+    -------
+    ndarray
+        ``integral of cos^4(phi) dA`` over the intersection, mm^2 (0 where the discs do not
+        all overlap).
+
+    Examples
+    --------
+    >>> round(float(overlap_irradiance_mm2([1.0], [0.0], 0.0, 1.0)), 6)  # pi / 2
+    1.570796
+    """
+    x = np.asarray(x_mm, float)
+    radii = [np.asarray(r, float) / x for r in radii_mm]
+    centers = [np.asarray(c, float) / x for c in centers_mm]
+    F = np.asarray(foot_mm, float) / x
+    b = discs.boundary(radii, centers)
+    rk, ck, t_right, t_left = discs.arc_angles(b, radii, centers)
+    F = np.broadcast_to(F, b.lo.shape)
+    area = discs.upper_area(b, rk, t_right, t_left)
+    xi, w = np.polynomial.legendre.leggauss(int(nodes))
+    half = 0.5 * (t_left - t_right)
+    c = np.cos(t_right[..., None] + half[..., None] * (1.0 + xi))
+    e = (ck - F)[..., None]
+    rr = rk[..., None]
+    rec = rr * e * c  # |p - F|^2 = e^2 + r^2 + 2 r e cos(t); (p - F) x dp = r^2 + r e cos(t)
+    s_ref = (0.5 * (b.lo + b.hi) - F) ** 2  # a point inside: the rest is small and smooth
+    psi_ref = 0.5 / (1.0 + s_ref)
+    psi = 2.0 * rec
+    psi += 1.0 + e * e + rr * rr
+    np.divide(0.5, psi, out=psi)
+    psi -= psi_ref[..., None]
+    rec += rr * rr
+    psi *= rec
+    rest = np.sum(half * (psi @ w), axis=0)
+    upper = rest + 2.0 * psi_ref * area
+    return (np.where(b.hi > b.lo, 2.0 * upper, 0.0) * x * x)[()]
+
+
+def relative_irradiance(radii_mm, centers_mm, foot_mm, x_mm, *, weight="area",
+                        natural=True):
+    """A flat field's signal through the discs, relative to the full pupil on the axis.
+
+    ``weight="area"`` (the paper's pupil, rays uniform per area): the common area over
+    ``pi R^2`` (``R`` the first disc's radius), times ``cos^4(CRA)`` of the chief ray with
+    ``natural``. ``weight="cos4"`` (a Lambertian pupil): the ``cos^4(phi)``-weighted area of
+    every ray (:func:`overlap_irradiance_mm2`) over its value on the axis,
+    ``pi R^2 x^2 / (x^2 + R^2)``; without ``natural``, the area fraction alone. The two
+    differ where the pupil is wide: unvignetted, at a CRA of 20 deg, the Lambertian pupil
+    gives 4.8 % more signal than the chief ray's cos^4 says at f/1.4 and 0.17 % at f/8 (x =
+    21 mm), a difference between f-numbers no gain per pixel can take up.
+
+    Parameters
+    ----------
+    radii_mm, centers_mm : sequence of array_like
+        The exit pupil first (centre 0), then the projected vignetting circles, along the
+        pixel's radial line.
+    foot_mm : array_like
+        ``x tan(CRA)``.
+    x_mm : float
+        Exit-pupil distance.
+    weight : {"area", "cos4"}
+        How the pupil weights a ray (:data:`snapcorr.optics.lens.RAY_WEIGHTS`).
+    natural : bool
+        Include the cos^4 fall-off (the chief ray's, or every ray's).
+
+    Returns
+    -------
+    ndarray
+        1 on the axis for an unvignetted pupil.
+    """
+    R = np.asarray(radii_mm[0], float)
+    x = np.asarray(x_mm, float)
+    if weight == "cos4" and natural:
+        return overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x) * (
+            (x * x + R * R) / (np.pi * R * R * x * x))
+    if weight not in ("area", "cos4"):
+        raise ValueError(f"weight must be 'area' or 'cos4', got {weight!r}")
+    v = overlap_area_mm2(radii_mm, centers_mm) / (np.pi * R * R)
+    if natural:
+        t = np.asarray(foot_mm, float) / x
+        v = v / (1.0 + t * t) ** 2
+    return v
 
 
 def max_radius_eq44(R_mm, d_mm, P_mm=None, dv_mm=None):

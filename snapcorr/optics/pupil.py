@@ -16,6 +16,8 @@ from .aperture import (
     lens_boundary_arcs,
     nu,
     overlap_area_mm2,
+    overlap_irradiance_mm2,
+    relative_irradiance,
     vignetted_area_mm2,
 )
 
@@ -31,6 +33,8 @@ __all__ = [
     "min_radius_mm",
     "nu",
     "overlap_area_mm2",
+    "overlap_irradiance_mm2",
+    "relative_irradiance",
     "vignetted_area_mm2",
 ]
 

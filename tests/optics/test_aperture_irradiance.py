@@ -1,0 +1,65 @@
+"""The cos^4-weighted overlap of discs against a quadrature over the pupil plane."""
+
+import numpy as np
+import pytest
+
+from snapcorr.optics.aperture import overlap_area_mm2, overlap_irradiance_mm2
+
+
+def brute_irradiance(radii, centers, foot, x, n=1601):
+    """Midpoint rule on a square grid over the first disc: every point's cos^4 summed."""
+    R = radii[0]
+    g = (np.arange(n) + 0.5) / n * 2 * R - R + centers[0]
+    u, v = np.meshgrid(g, g - centers[0], indexing="ij")
+    inside = np.ones(u.shape, bool)
+    for r, c in zip(radii, centers, strict=True):
+        inside &= (u - c) ** 2 + v**2 < r * r
+    cos2 = x * x / (x * x + (u - foot) ** 2 + v**2)
+    return float(np.sum(cos2**2 * inside)) * (2 * R / n) ** 2
+
+
+CASES = [
+    # (radii, centres, foot, x): f/1.4 on axis; a pixel at tan(CRA) 0.4 through one circle;
+    # three circles; the foot outside the pupil (CRA steeper than the cone)
+    ([7.5], [0.0], 0.0, 21.0),
+    ([7.5, 10.0], [0.0, 17.0 * 0.4], 21.0 * 0.4, 21.0),
+    ([5.25, 8.0, 9.0, 12.0], [0.0, 3.0, -2.0, -6.0], 7.0, 21.0),
+    ([2.0, 6.0], [0.0, 5.0], 12.0, 21.0),
+]
+
+
+@pytest.mark.parametrize("radii, centers, foot, x", CASES)
+def test_matches_a_quadrature_over_the_plane(radii, centers, foot, x):
+    exact = float(overlap_irradiance_mm2(radii, centers, foot, x))
+    brute = brute_irradiance(radii, centers, foot, x)
+    # the midpoint rule's error is its boundary's: ~ perimeter * step^2 / ... , about 1e-4 here
+    assert exact == pytest.approx(brute, rel=3e-4)
+    area = float(overlap_area_mm2(radii, centers))
+    assert exact < area  # every weight is below 1 off the foot
+    # the naive model, the area times cos^4 of the chief ray, is far from both
+    naive = area * (1.0 + (foot / x) ** 2) ** -2
+    assert abs(naive - brute) > 10 * 3e-4 * brute
+
+
+def test_the_closed_form_on_axis():
+    """A disc of radius R about the foot: pi x^2 R^2 / (x^2 + R^2) exactly."""
+    for R in (0.1, 3.0, 7.5, 21.0, 40.0):
+        x = 21.0
+        got = float(overlap_irradiance_mm2([R], [0.0], 0.0, x))
+        assert got == pytest.approx(np.pi * x * x * R * R / (x * x + R * R), rel=1e-12)
+
+
+def test_empty_and_broadcast():
+    assert float(overlap_irradiance_mm2([1.0, 1.0], [0.0, 5.0], 0.0, 10.0)) == 0.0
+    t = np.linspace(0.0, 0.5, 7)
+    got = overlap_irradiance_mm2([np.full(7, 7.5), 10.0], [0.0, 17.0 * t], 21.0 * t, 21.0)
+    one = [float(overlap_irradiance_mm2([7.5, 10.0], [0.0, 17.0 * v], 21.0 * v, 21.0))
+           for v in t]
+    np.testing.assert_allclose(got, one, rtol=1e-14)
+    assert np.all(np.diff(got) < 0)  # more cut and steeper rays away from the axis
+
+
+def test_tends_to_the_area_far_away():
+    radii, centers = [7.5, 10.0], [0.0, 3.0]
+    got = float(overlap_irradiance_mm2(radii, centers, 1.0, 1e6))
+    assert got == pytest.approx(float(overlap_area_mm2(radii, centers)), rel=1e-9)
