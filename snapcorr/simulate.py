@@ -51,7 +51,7 @@ import numpy as np
 
 from ._coords import accepts_center_rc
 from ._validation import validate_method
-from .optics.aperture import overlap_area_mm2
+from .optics.aperture import relative_irradiance
 from .optics.chief_ray import pixel_tangents
 
 __all__ = [
@@ -122,14 +122,15 @@ def _discs(lens, f_number, pixel_acceptance_deg):
     return R, radii, slopes
 
 
-def _exact_profile(t, R, radii, slopes, natural):
-    """V at ``tan(CRA) = t``: common area of the discs over ``pi R^2``, times cos^4(CRA)."""
+def _exact_profile(t, R, radii, slopes, natural, pupil=(1.0, "area")):
+    """V at ``tan(CRA) = t``: the discs' common area over ``pi R^2`` times cos^4(CRA), or
+    for a Lambertian pupil (``pupil = (x, "cos4")``) every ray's cos^4
+    (:func:`~snapcorr.optics.aperture.relative_irradiance`)."""
     t = np.asarray(t, float)
-    area = overlap_area_mm2(radii, [k * t for k in slopes])
-    v = np.broadcast_to(area, t.shape) / (np.pi * R * R)
-    if natural:
-        v = v / (1.0 + t * t) ** 2  # cos^4(CRA) = 1 / (1 + tan^2)^2
-    return v
+    x, weight = pupil
+    v = relative_irradiance(radii, [k * t for k in slopes], x * t, x, weight=weight,
+                            natural=natural)
+    return np.broadcast_to(v, t.shape)
 
 
 def _tangencies(radii, slopes):
@@ -143,7 +144,7 @@ def _tangencies(radii, slopes):
     return np.asarray(out, float)
 
 
-def _radial_profile(t_max, R, radii, slopes, natural):
+def _radial_profile(t_max, R, radii, slopes, natural, pupil=(1.0, "area")):
     """Adaptive samples ``(t, V)`` on ``[0, t_max]`` such that linear interpolation between them
     misses the exact V by at most ``_INTERP_TOL`` at the checked points."""
     kinks = _tangencies(radii, slopes)
@@ -151,7 +152,7 @@ def _radial_profile(t_max, R, radii, slopes, natural):
         np.linspace(0.0, t_max, _INITIAL_INTERVALS + 1),
         kinks[(kinks > 0) & (kinks < t_max)],
     ]))
-    v = _exact_profile(t, R, radii, slopes, natural)
+    v = _exact_profile(t, R, radii, slopes, natural, pupil)
     ts, vs = [t], [v]
     a, b, fa, fb = t[:-1], t[1:], v[:-1], v[1:]
     q = np.array([0.25, 0.5, 0.75])
@@ -160,7 +161,7 @@ def _radial_profile(t_max, R, radii, slopes, natural):
         if a.size == 0:
             break
         tq = a[:, None] + (b - a)[:, None] * q
-        fq = _exact_profile(tq, R, radii, slopes, natural)
+        fq = _exact_profile(tq, R, radii, slopes, natural, pupil)
         ts.append(tq.ravel())
         vs.append(fq.ravel())
         err = np.max(np.abs(fq - (fa[:, None] + (fb - fa)[:, None] * q)), axis=1)
@@ -183,7 +184,8 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_r
     ``V = A / (pi R^2) * cos^4(CRA) * S``: ``A`` the area common to the exit pupil (radius
     ``R``, Eq. 28), the lens's projected vignetting circles (radius ``P_i``, centre
     ``h_i tan(CRA)``) and the pixel's acceptance circle (radius ``x tan(a)``, centre
-    ``x tan(CRA)``, if given); ``S`` the source's relative signal (1 if uniform).
+    ``x tan(CRA)``, if given); ``S`` the source's relative signal (1 if uniform). A Lambertian
+    pupil has every ray's cos^4 for ``A cos^4(CRA)`` (:func:`~.aperture.relative_irradiance`).
 
     Parameters
     ----------
@@ -198,7 +200,7 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_r
         Optical centre, pixels, row first; ``center_px=(cx, cy)`` is the deprecated x-first
         form. Default: the image centre.
     natural_vignetting : bool
-        Include ``cos^4(CRA)``.
+        Include ``cos^4(CRA)`` (a Lambertian pupil: every ray's).
     pixel_acceptance_deg : float, optional
         Half-angle ``a`` (0 < a < 90) of the cone about its normal from which a pixel accepts
         light (pixel vignetting; default none). A cone narrower than the lens's
@@ -208,9 +210,9 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_r
         of sight in object space, taken equal to the image-side chief ray's:
         ``tan_x = (j - cx) * pitch / x``, ``tan_y = (i - cy) * pitch / x``.
     method : {"radial", "exact"}
-        ``"radial"``: the lens terms, functions of ``tan(CRA)`` only, exact on an adaptive 1-D
-        grid (linear interpolation within 1e-7 at the checked points; the discs' tangencies are
-        nodes), interpolated per pixel; ``"exact"``: every pixel's disc overlap (10x slower).
+        ``"radial"``: the lens terms (of ``tan(CRA)`` only) on an adaptive 1-D grid (linear
+        within 1e-7 at checked points, nodes at the discs' tangencies), interpolated per
+        pixel; ``"exact"``: every pixel's disc overlap (10x slower).
 
     Returns
     -------
@@ -225,9 +227,8 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_r
 
     Notes
     -----
-    For a lens focused far away a line of sight's object-side angle is nearer ``arctan(d / f)``
-    than the image-side ``arctan(d / x)`` used: where ``x > f`` (the Edmund Optics lens: 21 and
-    16 mm) the simulated non-uniformity of a lamp-plaque source is somewhat too small.
+    Focused far away, a line of sight's object-side angle is nearer ``arctan(d / f)`` than the
+    ``arctan(d / x)`` used: where ``x > f`` a lamp-plaque's non-uniformity comes out too small.
 
     Examples
     --------
@@ -258,18 +259,18 @@ def relative_illumination_map(shape, pixel_pitch_um, f_number, lens, *, center_r
     tx, ty = pixel_tangents(shape, pixel_pitch_um, lens.exit_pupil_mm, center_rc=center_rc)
     ny, nx = ty.size, tx.size
     R, radii, slopes = _discs(lens, f_number, pixel_acceptance_deg)
-    natural = bool(natural_vignetting)
+    natural, pupil = bool(natural_vignetting), (float(lens.exit_pupil_mm), lens.ray_weight)
 
     if method == "radial":
         t_max = math.hypot(np.max(np.abs(tx)), np.max(np.abs(ty)))
-        tg, vg = _radial_profile(t_max, R, radii, slopes, natural)
+        tg, vg = _radial_profile(t_max, R, radii, slopes, natural, pupil)
         v = np.hypot(ty[:, None], tx[None, :])
         v = np.interp(v, tg, vg)
     else:
         v = np.empty((ny, nx))
         for r0, r1 in _row_blocks(ny, nx):
             t = np.hypot(ty[r0:r1, None], tx[None, :])
-            v[r0:r1] = _exact_profile(t, R, radii, slopes, natural)
+            v[r0:r1] = _exact_profile(t, R, radii, slopes, natural, pupil)
 
     if source is not None:
         for r0, r1 in _row_blocks(ny, nx):

@@ -214,9 +214,10 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
         per circle for several circles. ``None``: ideal aperture.
     nodes : int, optional
         Gauss-Legendre nodes per arc (default :data:`DEFAULT_NODES`).
-    pupil : {"paper", "lambertian"}
+    pupil : {"paper", "lambertian", "paper-lambertian"}
         Each ray weighted by its area in the pupil plane (Eq. 22), or by ``cos^4(phi)`` per
-        area (:data:`snapcorr.optics.lens.PUPILS`, :func:`lambertian_potentials`).
+        area (both Lambertian pupils, :data:`snapcorr.optics.lens.RAY_WEIGHTS`,
+        :func:`lambertian_potentials`); the pupil's radius is ``R_mm``, as given.
 
     Returns
     -------
@@ -228,8 +229,9 @@ def mean_shift_contour(cwl_nm, n_eff, x_mm, R_mm, d_mm, P_mm=None, dv_mm=None, *
     PupilCutOffError
         Where the vignetting circles leave no part of the pupil.
     """
-    if pupil not in ("paper", "lambertian"):
-        raise ValueError(f"pupil must be 'paper' or 'lambertian', got {pupil!r}")
+    if pupil not in ("paper", "lambertian", "paper-lambertian"):
+        raise ValueError("pupil must be 'paper', 'lambertian' or 'paper-lambertian', got "
+                         f"{pupil!r}")
     circles = circle_list(P_mm, dv_mm)
     if len(circles) > 1:
         return _mean_shift_discs(cwl_nm, n_eff, x_mm, R_mm, d_mm, circles, nodes, pupil)

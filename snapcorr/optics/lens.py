@@ -32,7 +32,7 @@ from .._validation import (
 )
 from ..files.toml import read_toml, write_toml
 
-__all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "Lens"]
+__all__ = ["PUPILS", "PUPIL_RADIANCE_MODELS", "RAY_WEIGHTS", "Lens"]
 
 
 def _spells_a_number(text):
@@ -225,7 +225,14 @@ MIN_WORKING_F_NUMBER = 0.5
 #: pupil, uniform in direction cosines: each ray weighted by ``cos^4(phi)`` per unit area of
 #: the plane (Jacobian of direction cosines over the plane at ``x``). They differ on axis by
 #: about 1.1 nm at f/1.4, 0.3 nm at f/2 and 0.02 nm at f/4 (1000 nm filters, n_eff 1.5).
-PUPIL_RADIANCE_MODELS = ("paper", "lambertian")
+#: ``"paper-lambertian"``: the paper's disc (radius ``x / (2 f_W)``) radiating as a
+#: Lambertian surface, each ray weighted by ``cos^4(phi)`` per area: the radiometry of a flat
+#: pupil of uniform radiance, whose flat fields fall off with the cos^4 of every ray, not of
+#: the chief ray alone.
+PUPIL_RADIANCE_MODELS = ("paper", "lambertian", "paper-lambertian")
+#: How each radiance model weights a ray per unit area of the pupil plane: ``"area"``
+#: (uniformly) or ``"cos4"`` (by ``cos^4(phi)``, a Lambertian pupil).
+RAY_WEIGHTS = {"paper": "area", "lambertian": "cos4", "paper-lambertian": "cos4"}
 #: The earlier name of :data:`PUPIL_RADIANCE_MODELS`.
 PUPILS = PUPIL_RADIANCE_MODELS
 
@@ -260,7 +267,7 @@ class Lens:
         kept as-is through load/save. Only the keys that place the optical axis on another
         sensor are read (``center_rc``, ``center_px``, ``pixel_pitch_um``, ``image_size_px``:
         checked here); the rest is free-form.
-    pupil_radiance : {"paper", "lambertian"}
+    pupil_radiance : {"paper", "lambertian", "paper-lambertian"}
         How the light fills the exit pupil, the pupil's radiance model
         (:data:`PUPIL_RADIANCE_MODELS`); default the paper's. ``pupil`` is its earlier name
         (a keyword and an attribute, deprecated; the lens file's ``pupil`` key stays).
@@ -300,6 +307,12 @@ class Lens:
 
     # -- optics ---------------------------------------------------------------------------
     @property
+    def ray_weight(self) -> str:
+        """How the pupil weights a ray per unit area: ``"area"`` or ``"cos4"``
+        (:data:`RAY_WEIGHTS`)."""
+        return RAY_WEIGHTS[self.pupil_radiance]
+
+    @property
     def has_vignetting(self) -> bool:
         """True if the lens has at least one vignetting circle."""
         return bool(self.vignetting)
@@ -323,12 +336,12 @@ class Lens:
         return fw
 
     def exit_pupil_radius_mm(self, f_number):
-        """Exit-pupil radius R: ``x / (2 f_W)``, Eq. (28), for the paper's pupil;
-        ``x NA / sqrt(1 - NA^2)``, ``NA = 1 / (2 f_W)``, for the Lambertian one
-        (:data:`PUPIL_RADIANCE_MODELS`).
+        """Exit-pupil radius R: ``x / (2 f_W)``, Eq. (28), for the paper's disc (``"paper"``,
+        ``"paper-lambertian"``); ``x NA / sqrt(1 - NA^2)``, ``NA = 1 / (2 f_W)``, for the
+        aplanatic Lambertian one (:data:`PUPIL_RADIANCE_MODELS`).
         """
         fw = self.working_f_number(f_number)
-        if self.pupil_radiance == "paper":
+        if self.pupil_radiance != "lambertian":
             return self.exit_pupil_mm / (2.0 * fw)
         na = 1.0 / (2.0 * fw)
         if np.any(na >= 1.0):

@@ -138,7 +138,7 @@ def kernel_bins_batch(cwl_nm, n_eff, f_number, cra_deg, lens: Lens, *, step_nm=0
         at = which[:, None, None]
         K = kernel(lam, cwl_nm, n_eff, x, R, d[at], *_circles_at(P, dv, at))
         # the Lambertian pupil weights each ray by cos^4(phi) = (1 - sin^2 phi)^2 per area
-        if lens.pupil_radiance == "lambertian":
+        if lens.ray_weight == "cos4":
             sin2 = np.clip(n_eff * n_eff * (1.0 - (1.0 + lam / cwl_nm) ** 2), 0.0, 1.0)
             K = K * (1.0 - sin2) ** 2
         mass = (K @ w) * half  # Gauss-Legendre over each bin

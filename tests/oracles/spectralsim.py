@@ -22,7 +22,8 @@ Model (Goossens et al. 2019 [1]_, Sec. 2, Eq. 3, 8-10, 27-28):
 * Another pupil, to measure what the paper's assumptions are worth: a lens whose
   ``meta["pupil"]`` is ``"sine"`` has its marginal ray at ``sin(theta) = 1 / (2 f_W)`` (the
   sine condition) instead of Eq. 28's ``tan``, and each ray weighted by ``cos^4(phi)`` per unit
-  area (a Lambertian pupil: uniform in direction cosines).
+  area (a Lambertian pupil: uniform in direction cosines); ``"disc-cos4"`` keeps Eq. 28's
+  radius and weights each ray by ``cos^4(phi)`` (a flat disc of uniform radiance).
 * Value. ``int S T_hat dlambda / int T_hat dlambda``: the target's reflectance ``S`` after
   flat-fielding with a white reference (``S = 1``) seen through the same ``T_hat`` (Eq. 29).
 
@@ -312,7 +313,7 @@ def _sin2_phi(lens, f_number, d_mm):
     x = float(lens.exit_pupil_mm)
     rho2 = (u - d_mm) ** 2 + v * v  # tan(phi) = rho / x
     q = rho2 / (rho2 + x * x)
-    if lens.meta.get("pupil", "paper") == "sine":  # a Lambertian pupil: cos^4(phi) per area
+    if lens.meta.get("pupil", "paper") in ("sine", "disc-cos4"):  # Lambertian: cos^4 per area
         w = w * (1.0 - q) ** 2
     return q, w
 
