@@ -38,9 +38,14 @@ import numpy as np
 
 from .._coords import accepts_center_rc
 from .._validation import renamed_keywords
-from ..optics.lens import Lens
+from ..optics.lens import PUPIL_RADIANCE_MODELS, Lens
 from .lens import choice
-from .lens.calibration import LensCalibration, calibrate_lens, checked_magnifications
+from .lens.calibration import (
+    LensCalibration,
+    calibrate_lens,
+    checked_magnifications,
+    flats_bic,
+)
 from .lens.joint_fit import CENTER_NAMES
 from .lens.magnification import ASSUMED_MAGNIFICATION, ASSUMED_PUPIL_MAGNIFICATION, ratio_range
 from .pupil.centre_error import account_for_the_centre, fastest_positions
@@ -171,12 +176,14 @@ def calibrate_with_target(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff=Fal
         f-number -> path of each flat and cube, recorded in the profile.
     progress : callable, optional
         ``progress(step)`` before each long step.
-    pupil_radiance : {"paper", "lambertian", "auto"}
+    pupil_radiance : {"paper", "lambertian", "paper-lambertian", "auto"}
         How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`),
         for the flats and the target alike. ``"auto"``: the whole calibration is run with
-        each, and the Lambertian pupil is kept only where the target's chi-square falls by
-        more than :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (the flats hardly
-        tell them apart; the target's spectral structure does). Earlier name: ``pupil``.
+        each, and one other than the paper's is kept only where the target's chi-square plus
+        the flats' BIC falls by more than
+        :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (fast flats tell a
+        Lambertian pupil by every ray's cos^4; the target's spectral structure tells the
+        radii). Earlier name: ``pupil``.
     target_tolerance_nm, report
         The shift precision the target must be able to give, and where its prediction is
         said: ``tolerance_nm`` and ``report`` of :func:`~snapcorr.calibrate.locate_pupil`
@@ -256,12 +263,16 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     pupil = fit_x(first.lens)
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
     final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
-    notes += _consistency(first, final, provisional_x_mm, x)
+    differ = _consistency(first, final, provisional_x_mm, x)
+    if not (differ and final.model == first.model and final.lens.ray_weight == "cos4"):
+        notes += differ
     if final.model != first.model:  # x was fitted with other circles: fit it with these
         pupil = fit_x(final.lens)
         x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
         final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
         notes.append(f"x was fitted again with the {final.model!r} circles: {x:.4g} mm")
+    elif differ:
+        pupil, final, x, sx = _settled_x(fit_x, final, pupil, flats, common, notes)
     names, values, cov = _joint_covariance(final, pupil, sensor)
     x_part = _shift_stderr_from_x(final, x, sx)
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)
@@ -333,12 +344,15 @@ def _raw_mosaic_of(sensor, shape, sensor_origin_px=None):
 
 
 def _either_pupil(args):
-    """``calibrate_with_target(pupil_radiance="auto")``: the paper's pupil unless the Lambertian one
-    fits the target clearly better (:data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`)."""
+    """``calibrate_with_target(pupil_radiance="auto")``: the paper's pupil unless another fits
+    the target clearly better (:data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`)."""
     args = {k: v for k, v in args.items() if k != "pupil_radiance"}
-    runs = {name: _one_pupil(**args, pupil_radiance=name) for name in ("paper", "lambertian")}
-    return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof for k, r in runs.items()},
-                        "the target's chi-square")
+    runs = {name: _one_pupil(**args, pupil_radiance=name) for name in PUPIL_RADIANCE_MODELS}
+    # the flats tell the pupils apart too where they are fast (every ray's cos^4 against the
+    # chief ray's): their information criterion joins the target's chi-square
+    return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof + flats_bic(r.calibration)
+                               for k, r in runs.items()},
+                        "the target's chi-square plus the flats' BIC")
 
 
 def _centre_named_the_flats(fit, how, err):
@@ -415,6 +429,34 @@ def _target_centre_kept(lens, pupil, sensor, sensor_origin_px, pixel_pitch_um, n
         notes.append("the flats show no fall-off to find the optical centre from: the profile "
                      "records their image centre, assumed; give --center where it matters")
     return dataclasses.replace(lens, calibration=table)
+
+
+#: Most rounds of :func:`_settled_x`; x moves by less than a tenth of its error after two
+#: where the flats change with x only through every ray's cos^4.
+SETTLE_ROUNDS = 4
+
+
+def _settled_x(fit_x, final, pupil, flats, common, notes):
+    """x fitted again with the circles the flats give at the x found, until it stays within a
+    tenth of its error: a Lambertian pupil's flats weight every ray by its cos^4, which
+    depends on x itself, so they fix ``P / x`` and ``h / x^2`` only approximately and the
+    circles from the provisional x, scaled, are not those at the x found (15 % off from
+    12.4 mm to 20.8 mm)."""
+    x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
+    for k in range(SETTLE_ROUNDS):
+        again = fit_x(final.lens)
+        moved = again.exit_pupil_mm - x
+        pupil, x, sx = again, again.exit_pupil_mm, again.exit_pupil_stderr_mm
+        final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
+        if abs(moved) <= 0.1 * sx:
+            notes.append(f"x fitted again with the circles the flats give at it, {k + 1} "
+                         f"time(s), until it moved by less than a tenth of its error: "
+                         f"{x:.5g} mm")
+            return pupil, final, x, sx
+    notes.append(f"x fitted again with the circles the flats give at it {SETTLE_ROUNDS} "
+                 f"times and still moving ({moved:+.2g} mm the last time, against an error "
+                 f"of {sx:.2g} mm): its error does not cover that")
+    return pupil, final, x, sx
 
 
 def _consistency(first, final, x0, x):

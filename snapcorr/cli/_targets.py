@@ -40,12 +40,14 @@ def _add_pupil_option(group):
     (``snapcorr.optics.lens.PUPIL_RADIANCE_MODELS``, ``Lens.pupil_radiance``); ``--pupil``, its
     earlier name, still taken."""
     group.add_argument("--pupil-radiance", "--pupil", dest="pupil", default=None,
-                       choices=["paper", "lambertian", "auto"],
+                       choices=["paper", "lambertian", "paper-lambertian", "auto"],
                        help="how the light fills the exit pupil (--pupil, the earlier name, "
                        "is still taken): paper (Goossens 2019 Eq. 28, "
                        "uniform per area), lambertian (sine condition, uniform in direction "
-                       "cosines) or auto (both fitted to the target, the Lambertian kept only "
-                       "for a chi-square gain above 10; twice the time). Default: auto with "
+                       "cosines), paper-lambertian (Eq. 28's disc, each ray weighted by its "
+                       "cos^4: a flat pupil of uniform radiance) or auto (all fitted, another "
+                       "than the paper's kept only for a chi-square gain above 10). "
+                       "Default: auto with "
                        "target cubes (the --lens profile's when it has circles, which belong to "
                        "its pupil), else the --lens profile's, else paper")
 
@@ -119,6 +121,15 @@ def _cube_area(cube):
     return None
 
 
+def _crop_without_origin(shape, sensor, f, path, area):
+    """The refusal of flats smaller than the sensor whose place on it is not given."""
+    return (f"the flats are {shape[0]} x {shape[1]} px, a crop of the sensor {sensor.name!r} "
+            f"({sensor.size_px[0]} x {sensor.size_px[1]} px): give --sensor-origin-px ROW,COL, "
+            "the sensor row and column of their first pixel" + (
+                f" (the target cube f/{f:g} {path} records row {area[0]}, col {area[1]})"
+                if area is not None else ""))
+
+
 def _target_cubes(args, sensor, shape):
     """The target's cubes, and the sensor origin of the flats and the cubes alike (None: the
     whole sensor). Of a mosaic, the flats (raw frames) and the cubes must be of the same
@@ -126,14 +137,18 @@ def _target_cubes(args, sensor, shape):
     line naming both, where that area is not the flats' (``--sensor-origin-px`` and their
     size); flats that are a crop need ``--sensor-origin-px``."""
     cubes = {}
-    if sensor.layout != "mosaic":
-        for f, path in sorted(args.target_cube):
-            cubes[f] = _read(path, sensor, args.sensor_origin_px)
-        return cubes, args.sensor_origin_px
-    from ..calibrate.unknown_lens import flats_areas
-
     whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
     origin = args.sensor_origin_px
+    if sensor.layout != "mosaic":
+        for f, path in sorted(args.target_cube):
+            cubes[f] = _read(path, sensor, origin)
+            area = _cube_area(cubes[f])
+            if origin is None and not whole and sensor.size_px is not None:
+                # before any work: flats of unknown place cannot be put about the axis
+                raise ValueError(_crop_without_origin(shape, sensor, f, path, area))
+        return cubes, origin
+    from ..calibrate.unknown_lens import flats_areas
+
     areas = flats_areas(shape, sensor, origin)
     for f, path in sorted(args.target_cube):
         try:  # a cube read as it records its place; a raw frame has none: at the origin
@@ -148,13 +163,7 @@ def _target_cubes(args, sensor, shape):
             origin = area[:2]  # a sensor of no known size: the flats sit where the cube does
             areas = flats_areas(shape, sensor, origin)
         if origin is None and not whole and sensor.size_px is not None:
-            raise ValueError(
-                f"the flats are {shape[0]} x {shape[1]} px, a crop of the sensor "
-                f"{sensor.name!r}" + (f" ({sensor.size_px[0]} x {sensor.size_px[1]} px)"
-                                      if sensor.size_px is not None else "")
-                + ": give --sensor-origin-px ROW,COL, the sensor row and column of their "
-                "first pixel" + (f" (the target cube f/{f:g} {path} records row {area[0]}, "
-                                 f"col {area[1]})" if area is not None else ""))
+            raise ValueError(_crop_without_origin(shape, sensor, f, path, area))
         if area is not None and area not in areas:
             raise ValueError(
                 f"the flats ({_area(origin or (0, 0), shape)}) and the target cube f/{f:g} "

@@ -167,10 +167,6 @@ def run(args):
     _check_outputs({"--out": args.out, "--plot": args.plot}, inputs, args.overwrite,
                    [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
-    if args.pupil == "auto":
-        raise ValueError("--pupil-radiance auto chooses by a spectral target's fit, which "
-                         "flats alone cannot make: give --target-cube, or --pupil-radiance "
-                         "paper or lambertian")
     _pitch_option(args, sensor)
     flats, bands, sat, dark = _read_flats(args, sensor)
     _check_flat_phase(args, sensor, flats, sat, dark, args.sensor_origin_px)

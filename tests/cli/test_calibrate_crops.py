@@ -279,3 +279,32 @@ def test_a_tile_cube_of_the_flats_pixels_is_taken_whatever_their_size(tmp_path, 
     args = argparse.Namespace(target_cube=[(2.0, tmp_path / "t.nc")], sensor_origin_px=None)
     cubes, origin = _target_cubes(args, sizeless, (250, 318))
     assert origin == (400, 800)
+
+
+def test_snapscan_flats_of_a_crop_without_their_place_are_refused_before_any_work(tmp_path,
+                                                                                cli):
+    """Flats and target cubes of a snapscan-like sensor, smaller than it, no origin: the
+    flats were calibrated first (about a centre found beside them) and refused for "too few
+    f-numbers"; now one line asks for --sensor-origin-px before anything is fitted."""
+    from snapcorr.cube import Sensor, make_cube, write_cube
+
+    cwl = np.arange(500.0, 800.0, 20.0)
+    Sensor("scan", "snapscan", 44.0, cwl, 12.0, 1.7, size_px=(300, 300)).save(
+        tmp_path / "sensor.toml")
+    rng = np.random.default_rng(0)
+    args = []
+    for f in (2, 4, 8):
+        np.save(tmp_path / f"flat_f{f}.npy", 3000.0 + rng.normal(0, 3, (120, 100)))
+        args += ["--flat", f"{f}=flat_f{f}.npy"]
+    for f in (2, 8):
+        write_cube(make_cube(0.5 + rng.normal(0, 0.01, (120, 100, cwl.size)), cwl),
+                   tmp_path / f"cube_f{f}.nc")
+        args += ["--target-cube", f"{f}=cube_f{f}.nc"]
+    res = cli("calibrate", *args, "--sensor", "sensor.toml", "--out", "lens.toml",
+              "--magnification", "0", "--pupil-magnification", "1", cwd=tmp_path)
+    assert res.returncode == 1, res.stderr
+    last = res.stderr.strip().splitlines()[-1]
+    assert "a crop of the sensor 'scan' (300 x 300 px)" in last
+    assert "give --sensor-origin-px ROW,COL" in last
+    assert "calibrating" not in res.stderr  # refused before the flats were fitted
+    assert not (tmp_path / "lens.toml").exists()

@@ -49,6 +49,7 @@ from ..._validation import (
 )
 from ...optics.chief_ray import cra_map
 from ...optics.lens import (
+    PUPIL_RADIANCE_MODELS,
     Lens,
     check_length_mm,
     check_magnification,
@@ -326,11 +327,16 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
         Most vignetting circles tried (0 to 3).
     progress : callable, optional
         ``progress(step)`` before each long step (a model fitted, a flat left out).
-    pupil_radiance : {"paper", "lambertian"}, optional
+    pupil_radiance : {"paper", "lambertian", "paper-lambertian", "auto"}, optional
         The pupil's radiance model (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
         ``pupil=`` is its earlier name, deprecated; default that of ``lens``, else the
-        paper's): its radius sets the onsets; the flats' area model stays the paper's (area
-        times ``cos^4(CRA)``).
+        paper's): its radius sets the onsets, and its ray weight the flats' model (the area
+        times the chief ray's ``cos^4``, or for a Lambertian pupil every ray's ``cos^4``
+        over the vignetted pupil, :func:`~snapcorr.optics.aperture.relative_irradiance`).
+        ``"auto"``: the flats calibrated with each (three times the work), one other than
+        the paper's kept only for a BIC lower by more than
+        :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN`; the choice is in the
+        notes and the profile's ``[calibration] pupil_choice``.
     sensor, sensor_origin_px : Sensor, (int, int), optional
         Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
         and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
@@ -351,12 +357,16 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
                                                                 pupil_magnification)
     given = _from_lens(lens, exit_pupil_mm, exit_pupil_stderr_mm, magnification,
                        pupil_magnification, pupil_radiance)
-    result = _calibrate(flats, pixel_pitch_um=pixel_pitch_um, **given, dark=dark,
-                        center_rc=center_rc, saturation=saturation,
-                        vignetting_distance_mm=vignetting_distance_mm, method=method,
-                        inputs=inputs, name=name, tolerance_nm=tolerance_nm,
-                        max_circles=max_circles, progress=progress, sensor=sensor,
-                        sensor_origin_px=sensor_origin_px)
+    run = functools.partial(_calibrate, flats, pixel_pitch_um=pixel_pitch_um, dark=dark,
+                            center_rc=center_rc, saturation=saturation,
+                            vignetting_distance_mm=vignetting_distance_mm, method=method,
+                            inputs=inputs, name=name, tolerance_nm=tolerance_nm,
+                            max_circles=max_circles, progress=progress, sensor=sensor,
+                            sensor_origin_px=sensor_origin_px)
+    if given["pupil_radiance"] == "auto":
+        result = _every_pupil(run, given)
+    else:
+        result = run(**given)
     if lens is not None:
         result.lens = _lens_recorded(result.lens, lens, exit_pupil_from)
     # magnifications not given are assumed: their spread enters the errors, said and recorded
@@ -364,6 +374,36 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
 
     return _magnification.account_for_magnifications(result, magnification,
                                                       pupil_magnification, lens, stacklevel=5)
+
+
+def _radiance_advice(notes, base):
+    """The estimator's notes, where the paper's area model leaves a misfit with what fast
+    flats of a Lambertian pupil do under it: every ray's cos^4 is not the chief ray's."""
+    if base.pupil_radiance != "paper":
+        return notes
+    advice = ("; flats of a Lambertian pupil (each ray's own cos^4) leave one under the "
+              "paper's pupil: pupil_radiance='auto' (--pupil-radiance auto) fits every "
+              "radiance model and keeps the best")
+    return [n + (advice if n.startswith("the area model leaves a misfit") else "")
+            for n in notes]
+
+
+def flats_bic(result):
+    """The information criterion of a calibration's chosen joint-fit model (chi-square plus
+    ``k ln n``), by which :func:`calibrate_lens` (``pupil_radiance="auto"``) compares
+    radiance models fitted to the same flats."""
+    return float(result.fits[result.model].bic)
+
+
+def _every_pupil(run, given):
+    """``calibrate_lens(pupil_radiance="auto")``: the flats calibrated with every radiance
+    model, the paper's kept unless another lowers the BIC by more than
+    :data:`~snapcorr.calibrate.pupil.locate.PUPIL_CHI2_GAIN` (fast flats tell a Lambertian
+    pupil, whose every ray falls off with its own cos^4)."""
+    from ..pupil.locate import choose_pupil
+
+    runs = {name: run(**{**given, "pupil_radiance": name}) for name in PUPIL_RADIANCE_MODELS}
+    return choose_pupil(runs, {k: flats_bic(r) for k, r in runs.items()}, "the flats' BIC")
 
 
 #: What a lens given to :func:`calibrate_lens` records of its exit pupil, and the key each
@@ -445,11 +485,20 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
         center, center_source, model, verdicts, ons, max_cra = _recenter_on_fit(
             fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
             pixel_pitch_um, vignetting_distance_mm, decide)
+    elif fix_center is None and (lead := _best_circle_model(fits, bic, center)) is not None:
+        # no circle kept about the contours' centre may be a field measured about the wrong
+        # centre (a crop beside the axis): the choice is made again about the best circle
+        # model's own centre, and kept where a circle then stands
+        again = _recenter_on_fit(fl, ratios, fits, bic, lead, verdicts, center,
+                                 center_source, ons, base, pixel_pitch_um,
+                                 vignetting_distance_mm, decide)
+        if again[2] != "none":
+            center, center_source, model, verdicts, ons, max_cra = again
     predict = functools.partial(_predict, data, fs, fits[model], ons, base, center, fix_center,
                                 vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
-    notes += fit_notes + method_notes
+    notes += fit_notes + _radiance_advice(method_notes, base)
     model = _unless_joint(used, verdicts, model)
     lens = dataclasses.replace(base, vignetting=circles)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
@@ -587,6 +636,11 @@ def _fit_joint_models(fl, ratios, base, pixel_pitch_um, center, fix_center, onse
     return fits, bic, notes, data, rivals
 
 
+#: A fitted optical centre this far (pixels) from the contours' is taken as the field's
+#: centre: the onsets and the choice are made again about it.
+RECENTRE_PX = 2.0
+
+
 def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_source, ons, base,
                      pixel_pitch_um, vignetting_distance_mm, decide):
     """Re-centre on the chosen model's centre: the onsets, the choice and the field about it."""
@@ -595,7 +649,7 @@ def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_sour
     # choice is made again over that field.
     contour_center, contour_source = center, center_source
     center, center_source = _fitted_center(fits[model]), "joint fit"
-    if np.hypot(center[0] - contour_center[0], center[1] - contour_center[1]) > 2.0:
+    if np.hypot(center[0] - contour_center[0], center[1] - contour_center[1]) > RECENTRE_PX:
         ons = _onsets_about(fl, ratios, center, base, pixel_pitch_um, vignetting_distance_mm)
         model, verdicts = decide(fits, bic, ons.max_cra_deg)
         if model == "none":  # no circle after all: the contours' centre stands
@@ -605,6 +659,17 @@ def _recenter_on_fit(fl, ratios, fits, bic, model, verdicts, center, center_sour
     max_cra = float(cra_map(fl.shape, pixel_pitch_um, base.exit_pupil_mm,
                             center_rc=center).max())
     return center, center_source, model, verdicts, ons, max_cra
+
+
+def _best_circle_model(fits, bic, center):
+    """The circle model of least BIC among those fitted, where its centre lies more than
+    :data:`RECENTRE_PX` from ``center``; else None."""
+    ok = [m for m, f in fits.items() if m != "none" and f.success and m in bic]
+    if not ok:
+        return None
+    best = min(ok, key=bic.get)
+    c = _fitted_center(fits[best])
+    return best if math.hypot(c[0] - center[0], c[1] - center[1]) > RECENTRE_PX else None
 
 
 def _fitted_center(fit):

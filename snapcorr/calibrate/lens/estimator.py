@@ -159,7 +159,20 @@ def _refuse_unpinned_vignetting(fits, verdicts):
             f"{fits['none'].reduced_chi2:.1f}, with {report.CIRCLES[m]} "
             f"{fits[m].reduced_chi2:.2f}, but {verdicts[m].problems[0]}; take flats at more "
             "f-numbers between the fastest and the slowest (each circle's onset must fall "
-            "inside the field at two), or of the whole field")
+            "inside the field at two), or of the whole field" + _centre_advice(fits[m]))
+
+
+def _centre_advice(fit):
+    """Where the fit found the optical centre itself, the advice to give it: a crop beside
+    the axis places it poorly, and circles fitted about a centre off its place are not
+    pinned either."""
+    err = [float(fit.stderr.get(k, 0.0)) for k in ("center_row_px", "center_col_px")]
+    if not all(np.isfinite(e) and e > 0 for e in err):
+        return ""  # the centre was given (held)
+    row, col = (float(fit.params[k]) for k in ("center_row_px", "center_col_px"))
+    return (f"; the optical centre was found from these flats, at row {row:.1f}, col "
+            f"{col:.1f} (+- {err[0]:.2g}, {err[1]:.2g} px): flats beside the axis place it "
+            "poorly, so give it where it is known (center_rc=, in the flats' pixels)")
 
 
 def _decide_method(method, model, fits, verdicts, ons, max_cra, x, predict):

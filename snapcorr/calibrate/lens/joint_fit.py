@@ -39,7 +39,7 @@ from scipy.optimize import least_squares
 
 from ..._coords import accepts_center_rc
 from ..._validation import called_from_outside, warn_renamed
-from ...optics.aperture import overlap_area_mm2
+from ...optics.aperture import overlap_area_mm2, relative_irradiance
 
 __all__ = ["CIRCLE_MODELS", "BlockData", "ModelFit", "block_average", "block_centroids",
            "fit_model"]
@@ -76,6 +76,10 @@ class BlockData:
     pitch_mm: float
     x_mm: float
     natural: bool = False  # model includes cos^4 (a single flat, no reference)
+    #: how the pupil weights a ray (:data:`snapcorr.optics.lens.RAY_WEIGHTS`): ``"cos4"``
+    #: models each flat as the cos^4-weighted area of every ray, whose fall-off differs
+    #: between f-numbers (the chief ray's cos^4, in the gains, does not)
+    ray_weight: str = "area"
     #: side of the square blocks, pixels: the model is averaged over each block (1: centres)
     block_px: int = 1
     #: (n_f, n_blocks) offsets of each flat's valid pixels' centroid from the block centre,
@@ -257,8 +261,15 @@ def block_centroids(valids, block):
     return out
 
 
-def _area_fraction(R, circles, t):
-    """Fraction of the pupil (radius R) left by the circles [(P, h), ...] at tan(CRA) = t."""
+def _area_fraction(R, circles, t, x_mm=None, weight="area"):
+    """Fraction of the pupil (radius R) left by the circles [(P, h), ...] at tan(CRA) = t;
+    for a Lambertian pupil (``weight="cos4"``) the flat's signal relative to the full pupil
+    on the axis, every ray's cos^4 included (:func:`~snapcorr.optics.aperture.
+    relative_irradiance`)."""
+    if weight == "cos4":
+        radii = [R] + [P for P, _ in circles]
+        centers = [np.zeros_like(t)] + [h * t for _, h in circles]
+        return relative_irradiance(radii, centers, x_mm * t, x_mm, weight="cos4")
     if not circles:
         return np.ones_like(t)
     radii = [R] + [P for P, _ in circles]
@@ -340,18 +351,19 @@ def model_ratio(data: BlockData, model, p, tan_cra, weights=None, per_flat=False
     frac = pos - i
     # every f-number (and the reference) in one call: the grid is small, the call overhead not
     R = np.asarray(list(data.R_mm) + ([] if data.R_ref_mm is None else [data.R_ref_mm]))
-    a = _area_fraction(R[:, None], circles, grid[None, :])
+    a = _area_fraction(R[:, None], circles, grid[None, :], data.x_mm, data.ray_weight)
     a = np.broadcast_to(a, (R.size, grid.size))
+    chief_cos4 = data.natural and data.ray_weight != "cos4"  # cos4: every ray's, in a
     if per_flat:
         m = np.empty(i.shape)
         for f in range(R.size):
             lo = a[f, i[f]]
             m[f] = lo + (a[f, i[f] + 1] - lo) * frac[f]
-        if data.natural:
+        if chief_cos4:
             m *= (1.0 + tan_cra**2) ** -2
         return np.einsum("fkn,k->fn", m, weights)
     m = a[:, i] + (a[:, i + 1] - a[:, i]) * frac
-    if data.natural:
+    if chief_cos4:
         m *= (1.0 + tan_cra**2) ** -2  # cos^4
     if weights is not None:
         m = np.tensordot(m, weights, axes=([1], [0]))

@@ -195,7 +195,7 @@ def _predicted_ratio(res, f, tan):
     data = BlockData(np.zeros((1, 1)), np.ones((1, 1)), np.zeros(1), np.zeros(1),
                      np.array([lens.exit_pupil_radius_mm(f)]),
                      float(lens.exit_pupil_radius_mm(res.reference_f_number)), 1.0,
-                     lens.exit_pupil_mm)
+                     lens.exit_pupil_mm, ray_weight=lens.ray_weight)
     p = []
     for i, (P, h) in enumerate(circles):
         p += [P, h] + ([0.0, 0.0] if i == 0 else [])

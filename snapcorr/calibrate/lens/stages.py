@@ -420,17 +420,18 @@ def profiles_and_onsets(flats: Flats, ratios: Ratios, center_rc, base: Lens, pix
                     "f-number")
             onsets["ratio"][f] = detect_onset(prof.cra_deg, prof.value, prof.stderr)
         onsets["model"][f] = _model_onset(prof, float(R[i]), R_ref, x, max_cra,
-                                          fixed_h=fixed_h, natural=single)
+                                          fixed_h=fixed_h, natural=single,
+                                          ray_weight=base.ray_weight)
     return profiles, ratio_profiles, onsets, max_cra
 
 
-def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False):
+def _model_onset(prof, R_F, R_ref, x, max_cra, fixed_h=None, natural=False, ray_weight="area"):
     """Onset from fitting the vignetted-area ratio to one profile (model-based detection)."""
     tan = np.tan(np.deg2rad(prof.cra_deg))
     ok = prof.stderr > 0
     data = BlockData(q=prof.value[None, ok], sigma=prof.stderr[None, ok], xpix=tan[ok] * x,
                      ypix=np.zeros(ok.sum()), R_mm=np.array([R_F]), R_ref_mm=R_ref,
-                     pitch_mm=1.0, x_mm=x, natural=natural)
+                     pitch_mm=1.0, x_mm=x, natural=natural, ray_weight=ray_weight)
     starts = [[R_F + h * math.tan(math.radians(th)), h, 0.0, 0.0]
               for h in ((fixed_h,) if fixed_h else (0.5 * x, 0.8 * x, 1.2 * x, 2.0 * x))
               for th in (0.1 * max_cra, 0.4 * max_cra, 0.7 * max_cra)]
@@ -514,7 +515,8 @@ def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> Bloc
         Blocks used by at least two flats, the reference among them.
     """
     R = base.exit_pupil_radius_mm(flats.f_numbers)
-    common = dict(pitch_mm=pixel_pitch_um * 1e-3, x_mm=base.exit_pupil_mm)
+    common = dict(pitch_mm=pixel_pitch_um * 1e-3, x_mm=base.exit_pupil_mm,
+                  ray_weight=base.ray_weight)
     if flats.single:
         ok = ratios.ratio_ok[0]
         return BlockData(q=ratios.ratios[0][None, ok],

@@ -65,7 +65,10 @@ def _calibration_table(res, inputs):
                    "dh_dx": [_clean(v) for v in dh],
                    "rule": "the flats fix P / x and h / x^2: P and h scale with x"
                            + ("; a circle held at h = x (pixel vignetting) moves with x"
-                              if held else ""),
+                              if held else "")
+                           + ("; only approximately for a Lambertian pupil, whose every "
+                              "ray's cos^4 depends on x: calibrate again at the x found"
+                              if res.lens.ray_weight == "cos4" else ""),
                    "exit_pupil_stderr_mm": ("not given" if res.exit_pupil_stderr_mm is None
                                             else _clean(res.exit_pupil_stderr_mm))}
         if res.exit_pupil_stderr_mm is not None:

@@ -50,7 +50,12 @@ import numpy as np
 from ... import __version__
 from ..._coords import accepts_center_rc, called_from_outside, warn_x_first_return
 from ..._validation import renamed_keywords
-from ...optics.lens import Lens, check_magnification, check_pupil_magnification
+from ...optics.lens import (
+    PUPIL_RADIANCE_MODELS,
+    Lens,
+    check_magnification,
+    check_pupil_magnification,
+)
 from ...spectra import colour_filter as colour_filter
 from ..lens.magnification import ratio_range
 from . import magnification as _magnification
@@ -273,12 +278,12 @@ def locate_pupil(cubes, sensor, *, lens: Lens | None = None, fit_n_eff=False, ce
         The lens's circles came from flats at its ``x`` (``calibrate_lens``), which fix ``P /
         x`` and ``h / x^2``: they are scaled to every trial ``x``, and written at the ``x``
         found. Default: where the lens's calibration says so (``exit_pupil_scaling``).
-    pupil_radiance : {None, "paper", "lambertian", "auto"}
+    pupil_radiance : {None, "paper", "lambertian", "paper-lambertian", "auto"}
         How the light fills the pupil (:data:`snapcorr.optics.lens.PUPIL_RADIANCE_MODELS`;
         ``pupil=``: its deprecated name). None: the lens's (the paper's without a lens).
-        ``"auto"``: both are fitted, and the Lambertian one is
+        ``"auto"``: every one is fitted, and one other than the paper's is
         kept only if it lowers chi-square by more than :data:`PUPIL_CHI2_GAIN` (they have the
-        same parameters); the choice and the two chi-squares are in the notes and the profile.
+        same parameters); the choice and the chi-squares are in the notes and the profile.
         A lens with circles keeps its own pupil (they were found with its radius).
     tolerance_nm : float, optional
         The shift precision needed (nm, one standard deviation). Before the least squares the
@@ -536,6 +541,7 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
     notes += _validity_notes(r_max, x, cone, chi2_red, dof)
     short = spectrum_short_of_the_edge(spectrum, sensor, r_max, x, n, cone, min(cubes))
     notes += [short] if short else []
+    notes += _scaled_lambertian_circles(base, circles_at, x, err[0])
     out_lens = _result_lens(base, lens, x, err[0], n, n_err, mode, xn, xn_err, chi2_red, dof,
                             center, center_source, sensor, cubes, spectrum_desc, profile,
                             inputs, name, circles_at)
@@ -602,11 +608,11 @@ PUPIL_CHI2_GAIN = 10.0
 
 
 def _either_pupil(args):
-    """``locate_pupil(pupil_radiance="auto")``: both pupils fitted, the paper's kept unless the
-    Lambertian one fits clearly better."""
+    """``locate_pupil(pupil_radiance="auto")``: every pupil fitted, the paper's kept unless
+    another fits clearly better."""
     args = {k: v for k, v in args.items() if k != "pupil_radiance"}
     fits = {}
-    for name in ("paper", "lambertian"):
+    for name in PUPIL_RADIANCE_MODELS:
         try:
             fits[name] = _checked_locate(**args, pupil_radiance=name)
             args["report"] = None  # the precision said once, for the first pupil fitted
@@ -625,16 +631,21 @@ def _either_pupil(args):
 
 def choose_pupil(results, chi2, what):
     """The result to keep of ``results`` (pupil -> a result with ``notes`` and ``lens``):
-    the paper's pupil unless the Lambertian one lowers ``chi2`` (pupil -> chi-square) by more
-    than :data:`PUPIL_CHI2_GAIN`; the choice and both chi-squares go into its notes and its
-    lens's ``[calibration] pupil_choice``."""
-    gain = chi2.get("paper", np.inf) - chi2.get("lambertian", np.inf)
-    name = "lambertian" if "paper" not in results or gain > PUPIL_CHI2_GAIN else "paper"
+    the paper's pupil unless the best of the others lowers ``chi2`` (pupil -> chi-square) by
+    more than :data:`PUPIL_CHI2_GAIN`; the choice and every chi-square go into its notes and
+    its lens's ``[calibration] pupil_choice``."""
+    others = {k: v for k, v in chi2.items() if k != "paper" and k in results}
+    best = min(others, key=others.get) if others else "paper"
+    gain = chi2.get("paper", np.inf) - chi2.get(best, np.inf)
+    name = best if "paper" not in results or gain > PUPIL_CHI2_GAIN else "paper"
     got = results[name]
     said = ", ".join(f"{k} {v:.6g}" for k, v in chi2.items())
-    got.notes.append(f"pupil: {name} ({what} {said}; the Lambertian pupil is kept only for a "
-                     f"gain above {PUPIL_CHI2_GAIN:g})")
+    note = (f"pupil: {name} ({what} {said}; a pupil other than the paper's is kept only for "
+            f"a gain above {PUPIL_CHI2_GAIN:g})")
+    got.notes.append(note)
     cal = dict(got.lens.calibration)
+    if "notes" in cal:  # a profile that keeps its notes (the flats' calibration) keeps this
+        cal["notes"] = [*cal["notes"], note]
     cal["pupil_choice"] = {"chosen": name, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
                            "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
     got.lens = dataclasses.replace(got.lens, calibration=cal)
@@ -658,6 +669,26 @@ def _x_n_eff(x, n, err, cov, k, n_design, one_k):
 #: physical rays behind the right lens give 1.00.
 MISFIT_CHI2_RED = 1.1
 MISFIT_P = 1e-6
+
+
+#: Relative distance between the x a Lambertian pupil's circles were found at and the x
+#: fitted beyond which :func:`_scaled_lambertian_circles` says their scaling is in doubt.
+LAMBERTIAN_SCALING_REL = 0.01
+
+
+def _scaled_lambertian_circles(base, circles_at, x, x_err):
+    """Where a Lambertian pupil's circles, found by flats at another x, were scaled to the
+    trial x: its flats fix ``P / x`` and ``h / x^2`` only approximately (every ray's cos^4
+    depends on x), so x leans towards where they were found (12.4 mm circles scaled to
+    20.8 mm were 15 % off, x 24 of its errors low)."""
+    if circles_at is None or base.ray_weight != "cos4":
+        return []
+    if abs(x - circles_at) <= max(LAMBERTIAN_SCALING_REL * x, 0.1 * x_err):
+        return []
+    return [f"the circles were found by flats at x = {circles_at:.4g} mm and scaled to "
+            f"{x:.4g} mm; for a Lambertian pupil that scaling is only approximate: calibrate "
+            "the flats again at this x (calibrate --lens with this profile) and fit x again, "
+            "or give flats and target together (calibrate --target-cube)"]
 
 
 def _validity_notes(r_max, x, cone_rad, chi2_red, dof):
