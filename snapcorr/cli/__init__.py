@@ -149,8 +149,52 @@ def _local_scheduler(args):
     return dask_threads(import_dask=True)
 
 
+def _noting_moves(moved):
+    """A :func:`~snapcorr.files.safety.before_moving_in` hook that notes, for each finished
+    output about to be moved in, its final name and what the finished temporary is (device,
+    inode: a move keeps them), in ``moved``."""
+    import os
+
+    def note(new, target):
+        try:
+            st = os.lstat(new)
+        except OSError:
+            return
+        moved.append((target, (st.st_dev, st.st_ino)))
+
+    return note
+
+
+def _kept(moved):
+    """The final names of ``moved`` (:func:`_noting_moves`) under which the finished output
+    is now, complete: it was moved in before the interruption, and is kept."""
+    import os
+
+    kept = []
+    for target, identity in moved:
+        try:
+            st = os.lstat(target)
+        except OSError:
+            continue
+        if (st.st_dev, st.st_ino) == identity and str(target) not in kept:
+            kept.append(str(target))
+    return kept
+
+
+def _interrupted(command, moved):
+    """What an interruption of ``command`` left: unfinished outputs removed, and the outputs
+    already complete under their final names kept (:func:`_kept`)."""
+    kept = _kept(moved)
+    if not kept:
+        return f"snapcorr {command}: interrupted; unfinished outputs were removed"
+    names = ", ".join(kept)
+    were = "was complete and was kept" if len(kept) == 1 else "were complete and were kept"
+    return (f"snapcorr {command}: interrupted; only unfinished outputs were removed: {names} "
+            f"{were}")
+
+
 def main(argv=None):
-    from ..files.safety import cleanup_on_signals
+    from ..files.safety import before_moving_in, cleanup_on_signals
 
     parser = build_parser()
     argv = _negative_pairs(parser, sys.argv[1:] if argv is None else list(argv))
@@ -163,8 +207,10 @@ def main(argv=None):
         return 0
     _progress._SHOW_PROGRESS = (False if getattr(args, "quiet", False) else
                       True if getattr(args, "progress", False) else None)
+    moved = []  # the outputs moved in, to tell an interruption's kept outputs
     try:
-        with cleanup_on_signals(), warnings.catch_warnings():
+        with cleanup_on_signals(), before_moving_in(_noting_moves(moved)), \
+                warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = _one_line_warning
             _center_option(args)
@@ -177,15 +223,15 @@ def main(argv=None):
     except KeyboardInterrupt:
         # Libraries interrupted mid-write (h5netcdf, zarr's threads) may fail again when their
         # half-closed objects are collected; Python would print those as "Exception ignored"
-        # tracebacks. The outputs are already removed: say it once, quietly.
+        # tracebacks. The unfinished outputs are already removed: say it once, quietly, with
+        # those complete under their final names before the interruption, which are kept.
         import signal
 
         # finishing: a second Ctrl-C waits (for the command line; a caller of main(argv) in a
         # Python session gets its handlers back)
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
         hook, sys.unraisablehook = sys.unraisablehook, _quiet_unraisable
-        print(f"snapcorr {args.command}: interrupted; unfinished outputs were removed",
-              file=sys.stderr)
+        print(_interrupted(args.command, moved), file=sys.stderr)
         if argv is not None:
             signal.signal(signal.SIGINT, previous)
             sys.unraisablehook = hook

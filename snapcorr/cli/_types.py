@@ -15,6 +15,7 @@ from .._validation import (
     LENGTH_MAX_MM,
     LENGTH_MIN_MM,
     PIXELS_MAX,
+    WAVELENGTH_NM_RANGE,
     check_f_number,
     check_pack_range,
     check_positive,
@@ -152,26 +153,63 @@ def _pupil_magnification(value):
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
-def _wavelength_list(value):
-    """``NM,NM,...`` or ``START:STOP:STEP`` (inclusive of STOP when it falls on a step)."""
+def _in_wavelength_range(what, v, value):
+    """Refuse ``v`` (``what``: ``"START"``, ``"wavelength"``), nm, outside
+    :data:`~snapcorr._validation.WAVELENGTH_NM_RANGE`, the wavelengths snapcorr accepts."""
+    lo, hi = WAVELENGTH_NM_RANGE
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{what} must be a finite number of nm, got {value!r}")
+    if v > hi:
+        raise argparse.ArgumentTypeError(
+            f"{what} {v:g} nm is beyond the longest wavelength snapcorr accepts, {hi:g} nm "
+            f"(wavelengths are {lo:g}-{hi:g} nm), got {value!r}")
+    if v < lo:
+        raise argparse.ArgumentTypeError(
+            f"{what} {v:g} nm is below the shortest wavelength snapcorr accepts, {lo:g} nm "
+            f"(wavelengths are {lo:g}-{hi:g} nm), got {value!r}")
+
+
+def _wavelength_range(value):
+    """``START:STOP:STEP``, nm, inclusive of STOP when it falls on a step."""
     try:
-        if ":" in value:
-            start, stop, step = (float(v) for v in value.split(":"))
-            if not step > 0 or not stop >= start:
-                raise ValueError
-            count = (stop - start) / step + 1
-            if not count <= _MAX_WAVELENGTHS:
-                raise argparse.ArgumentTypeError(
-                    f"{value!r} gives {count:.3g} wavelengths; at most {_MAX_WAVELENGTHS:,} "
-                    "(is the step in nm?)")
-            values = np.arange(start, stop + 0.5 * step, step)
-        else:
-            values = np.array([float(v) for v in value.split(",")])
+        start, stop, step = (float(v) for v in value.split(":"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected NM,NM,... or START:STOP:STEP in nm, got "
                                          f"{value!r}") from None
-    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise argparse.ArgumentTypeError(f"wavelengths must be finite and > 0 nm, got {value!r}")
+    _in_wavelength_range("START", start, value)
+    _in_wavelength_range("STOP", stop, value)
+    if not (math.isfinite(step) and step > 0):
+        raise argparse.ArgumentTypeError(f"STEP must be a finite number > 0 nm, got {value!r}")
+    if stop < start:
+        raise argparse.ArgumentTypeError(f"STOP {stop:g} nm is below START {start:g} nm, got "
+                                         f"{value!r}")
+    if stop == start:  # a range of no width: the one wavelength, whatever the step
+        return np.array([start])
+    count = (stop - start) / step + 1
+    if not count <= _MAX_WAVELENGTHS:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} gives {count:.3g} wavelengths; at most {_MAX_WAVELENGTHS:,} "
+            "(is the step in nm?)")
+    values = np.arange(start, stop + 0.5 * step, step)
+    if np.unique(values).size != values.size:
+        raise argparse.ArgumentTypeError(
+            f"STEP {step:g} nm is too fine to tell wavelengths near {stop:g} nm apart, got "
+            f"{value!r}")
+    return values
+
+
+def _wavelength_list(value):
+    """``NM,NM,...`` or ``START:STOP:STEP`` (inclusive of STOP when it falls on a step), each
+    wavelength within :data:`~snapcorr._validation.WAVELENGTH_NM_RANGE`."""
+    if ":" in value:
+        return _wavelength_range(value)
+    try:
+        values = np.array([float(v) for v in value.split(",")])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NM,NM,... or START:STOP:STEP in nm, got "
+                                         f"{value!r}") from None
+    for v in values:
+        _in_wavelength_range("wavelength", v, value)
     return values
 
 

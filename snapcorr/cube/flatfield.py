@@ -127,7 +127,7 @@ def _average_reference(label, frames, raw, dtype, saturation, snapshot):
         bad = bad | ignored.drop_vars([c for c in ignored.coords
                                        if c not in ("wavelength", "fwhm")])
     if saturation is not None and label == "white":
-        bad = bad | (stack >= saturation)
+        bad = bad | (stack >= np.float64(saturation))
     ref, bad = stack.mean("frame", skipna=False), bad.any("frame")
     if ref.sizes["y"] > raw.sizes["y"]:
         raise ValueError(f"the {label} reference has {ref.sizes['y']} rows but the cube "
@@ -276,7 +276,7 @@ def _result(raw, plain, d, w, reference_bad, saturation, name, dtype, counts, *,
     denom = w - d
     mask = (denom <= 0) | ~np.isfinite(r) | reference_bad
     if saturation is not None:
-        mask = mask | (plain >= saturation)
+        mask = mask | (plain >= np.float64(saturation))
     ignore = raw.attrs.get("data_ignore_value")
     if ignore is not None:
         mask = mask | (plain == ignore)
@@ -351,7 +351,7 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
                 hit = (f.drop_vars(list(f.coords)) == ignore).expand_dims(ref=[i])
                 bad = bad | hit.reindex(ref=range(len(frames)), fill_value=False)
         if saturation is not None and label == "white":
-            bad = bad | (stack >= saturation)
+            bad = bad | (stack >= np.float64(saturation))
         averaged[label] = (stack.mean("ref", skipna=False), bad.any("ref"))
     (d, dark_bad), (w, white_bad) = averaged["dark"], averaged["white"]
     # the frame's own coordinates (a stream's times, say) are kept, along frame only

@@ -225,7 +225,7 @@ def _frame_means(white, dark, sensor, sensor_origin_px, saturation):
     if w.ndim != 2:
         raise ValueError(f"a white frame is 2-D, got shape {w.shape}")
     if saturation is not None:
-        w = np.where(w >= saturation, np.nan, w)
+        w = np.where(w >= np.float64(saturation), np.nan, w)
     if dark is not None:
         d = _as_array(dark)
         if d.shape != w.shape:

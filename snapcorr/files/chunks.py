@@ -58,9 +58,12 @@ def _missing_chunks(arr, folder):
     """``(missing, all)``: how many of a Zarr array's chunks are not stored in its ``folder``,
     from a listing of its files and, where it is sharded, each shard's index (no data read;
     zarr's own ``nchunks_initialized`` compares each key with a list of them, quadratic: 7.9 s
-    for 20 000 chunks, against 2.7 s here, nearly all of it listing their folders). A grid
-    far larger than the files listed is not walked: ``missing`` is then at least the count
-    given."""
+    for 20 000 chunks, against 2.7 s here, nearly all of it listing their folders). Only the
+    files named as chunks (or shards) of the grid count; the array's metadata (``zarr.json``,
+    ``.zarray``, ``.zattrs``) and anything else in the folder do not. ``all`` counts the
+    chunks overlapping the array. A grid far larger than the files listed is not walked:
+    where it is sharded, a shard file there is counted whole, so ``missing`` is then at least
+    the count given."""
     import itertools
     import math
     import os
@@ -75,9 +78,10 @@ def _missing_chunks(arr, folder):
     every = math.prod(grid)
     per = ([s // c for s, c in zip(arr.shards, arr.chunks, strict=True)] if arr.shards
            else [1] * arr.ndim)
-    inner = math.prod(per)
+    total = math.prod(math.ceil(n / c) for n, c in zip(arr.shape, arr.chunks, strict=True))
     if every > _WALK_FACTOR * len(stored) + 1000:  # most are missing: no walk needed
-        return (every - len(stored)) * inner, every * inner
+        present = (_chunk_coords(arr, key, grid) for key in stored)
+        return total - sum(_inside(arr, c, per) for c in present if c is not None), total
     missing = 0
     for c in itertools.product(*map(range, grid)):
         key = arr.metadata.encode_chunk_key(c)
@@ -85,7 +89,18 @@ def _missing_chunks(arr, folder):
             missing += _inside(arr, c, per)
         elif arr.shards:
             missing += _unwritten_in_shard(arr, Path(folder) / key, c, per)
-    return missing, every * inner
+    return missing, total
+
+
+def _chunk_coords(arr, key, grid):
+    """The grid position of the chunk (or shard) a file's ``key`` (its path in the array's
+    folder) names, or None where it names none of the grid (metadata, another file)."""
+    import re
+
+    coords = tuple(int(d) for d in re.findall(r"\d+", key))
+    if len(coords) != len(grid) or any(i >= n for i, n in zip(coords, grid, strict=True)):
+        return None
+    return coords if arr.metadata.encode_chunk_key(coords) == key else None
 
 
 def _inside(arr, shard, per):

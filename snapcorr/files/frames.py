@@ -61,8 +61,10 @@ FRAME_ORDER = ("by name without its suffix (.npy, .tif, ...: a folder holds one 
                "groups have as many digits, digits after a point with no digit before it (t.5) "
                "where reading the point as a decimal point and as a separator give one order, "
                "or, where every name has them, as numbers after a separator where two would be "
-               "one decimal (.1, .10); a '-' or '+' before a number read as its sign only where "
-               "names differ by it, and where both readings give one order); letters "
+               "one decimal (.1, .10); a '-' or '+' before a number read as its sign where the "
+               "names differ by it at that place, else as part of the text (where the names "
+               "hold different counts of numbers, refused if the two readings give different "
+               "orders; where they hold as many, read so without comparing them); letters "
                "compared in one Unicode form (NFKC), characters that show nothing left out; "
                "names of one number or one stem but for case refused; hidden files (names "
                "starting with '.') left out")
