@@ -55,11 +55,16 @@ class Budget:
             if worst[m] <= tol:
                 cheaper = ", ".join(f"{c} {worst[c]:.2g} %" for c in self.models[:i])
                 return m, (f"for {src}: {m} leaves at most {worst[m]:.2g} % <= {tol:g} %"
-                           + (f" (cheaper: {cheaper})" if cheaper else ""))
+                           + (f" (cheaper: {cheaper})" if cheaper else "") + self._left_out())
         best = min(worst, key=worst.get)
         return best, (f"for {src}: no model is within {tol:g} %; {best} leaves the least, "
                       f"{worst[best]:.2g} % (the kernel also changes the filter's shape, "
-                      "which no shift of the wavelengths undoes)")
+                      "which no shift of the wavelengths undoes)" + self._left_out())
+
+    def _left_out(self):
+        """What the budget did not evaluate, and why (a pupil Eq. 6 does not hold for)."""
+        said = self.data.attrs.get("models_left_out")
+        return f"; left out: {said}" if said else ""
 
     def radius_mm(self, tolerance_pct=None, model="none", *, relative_to="nominal"):
         """Mishev & Bakalova's radius: the image radius (mm) inside which ``model`` leaves no

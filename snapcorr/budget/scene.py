@@ -72,6 +72,11 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
         validate_method(m, CORRECTION_MODELS, "model")
     # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
     models = tuple(m for m in CORRECTION_MODELS if m in models or m == "none")
+    # Eq. (6) is derived for the paper's pupil: another pupil's budget leaves it out, said
+    left_out = ("asymptotic (Eq. 6 holds for the paper's pupil, not the "
+                f"{lens.pupil_radiance} one)" if lens.pupil_radiance != "paper"
+                and "asymptotic" in models else "")
+    models = tuple(m for m in models if not (left_out and m == "asymptotic"))
     tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
@@ -119,7 +124,8 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
         coords={"model": list(models), "cra": ("cra", cra, {"units": "deg"}),
                 "wavelength": ("band", cwl, {"units": "nm"})},
         attrs={"source": source.name, "lens": lens.name, "f_number": f,
-               "sensor": sensor.name, "profile": profile, "kernel_step_nm": kernel_step_nm},
+               "sensor": sensor.name, "profile": profile, "kernel_step_nm": kernel_step_nm,
+               **({"models_left_out": left_out} if left_out else {})},
     )
     return Budget(ds, tolerance_pct=tolerance_pct)
 

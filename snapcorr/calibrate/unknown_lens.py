@@ -352,7 +352,8 @@ def _either_pupil(args):
     # chief ray's): their information criterion joins the target's chi-square
     return choose_pupil(runs, {k: r.pupil.chi2_red * r.pupil.dof + flats_bic(r.calibration)
                                for k, r in runs.items()},
-                        "the target's chi-square plus the flats' BIC")
+                        "the target's chi-square plus the flats' BIC",
+                        key="chi2_plus_flats_bic")
 
 
 def _centre_named_the_flats(fit, how, err):

@@ -139,6 +139,11 @@ def _target_cubes(args, sensor, shape):
     cubes = {}
     whole = sensor.size_px is not None and tuple(shape) == tuple(sensor.size_px)
     origin = args.sensor_origin_px
+    if sensor.size_px is not None and any(
+            n > m for n, m in zip(shape[:2], sensor.size_px, strict=True)):
+        raise ValueError(f"the flats are {shape[0]} x {shape[1]} px, larger than the sensor "
+                         f"{sensor.name!r} ({sensor.size_px[0]} x {sensor.size_px[1]} px): "
+                         "frames of another camera? check --sensor")
     if sensor.layout != "mosaic":
         for f, path in sorted(args.target_cube):
             cubes[f] = _read(path, sensor, origin)

@@ -285,7 +285,14 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     -------
     ndarray
         ``integral of cos^4(phi) dA`` over the intersection, mm^2 (0 where the discs do not
-        all overlap).
+        all overlap). Within 1e-8 of a quadrature over the pupil for a foot up to ``1000 x``
+        from the pupil (a CRA of 89.94 deg); the potential's contour cancels as
+        ``(|F| / x)^2`` beyond.
+
+    Raises
+    ------
+    ValueError
+        A radius or ``x`` not finite and > 0, a centre or the foot not finite.
 
     Examples
     --------
@@ -293,6 +300,14 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     1.570796
     """
     x = np.asarray(x_mm, float)
+    for name, values, positive in (("x_mm", [x], True), ("radii_mm", radii_mm, True),
+                                   ("centers_mm", centers_mm, False),
+                                   ("foot_mm", [foot_mm], False)):
+        for v in values:
+            v = np.asarray(v, float)
+            if not np.all(np.isfinite(v)) or (positive and not np.all(v > 0)):
+                raise ValueError(f"{name} must be finite" + (" and > 0" if positive else "")
+                                 + f", got {v if v.size < 5 else '...'}")
     radii = [np.asarray(r, float) / x for r in radii_mm]
     centers = [np.asarray(c, float) / x for c in centers_mm]
     F = np.asarray(foot_mm, float) / x

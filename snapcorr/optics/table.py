@@ -381,7 +381,8 @@ class ShiftGrid:
         _check_build(tolerance_nm, cwl_max_nm, cra_max_deg)
         if lens.pupil_radiance != "paper":  # the grid's pupil radius is the paper's, x a / 2
             raise ValueError("ShiftGrid covers the paper's pupil only, not the "
-                             f"{lens.pupil_radiance} one: use a ShiftTable per f-number")
+                             f"{lens.pupil_radiance} one: use a ShiftTable per f-number "
+                             "(method='table', or method='auto')")
         f_lo, f_hi = sorted(float(v) for v in f_range)
         if not f_hi > f_lo:
             raise ValueError(f"f_range must span an interval, got {f_range!r}; for a single "

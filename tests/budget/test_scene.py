@@ -200,3 +200,18 @@ def test_the_budget_is_the_same_for_a_spectrum_in_any_unit(scale):
     g = Gaussian(600.0, 10.0)
     assert budget.relative_signal(big, g, [1.0]) == pytest.approx(
         budget.relative_signal(sun, g, [1.0]), rel=1e-12)
+
+
+@pytest.mark.parametrize("pupil", ["lambertian", "paper-lambertian"])
+def test_a_lambertian_pupils_budget_leaves_out_eq_6_and_says_so(sun, pupil):
+    """A budget of a lens with a Lambertian pupil was refused whole: Eq. 6 (asymptotic) is
+    the paper's pupil's. It is left out, the other models evaluated, and the reason said."""
+    import dataclasses
+
+    sensor = Sensor("s", "snapscan", 5.5, np.linspace(470, 900, 7), 10.0, 1.7)
+    lens = dataclasses.replace(PAPER, pupil_radiance=pupil)
+    b = budget.scene_budget(sun, sensor, 1.4, lens, cra_max_deg=15.0, n_cra=5)
+    assert "asymptotic" not in b.models and "vignetted" in b.models
+    assert "Eq. 6 holds for the paper's pupil" in b.recommend(0.5)[1]
+    paper = budget.scene_budget(sun, sensor, 1.4, PAPER, cra_max_deg=15.0, n_cra=5)
+    assert "asymptotic" in paper.models and "left out" not in paper.recommend(0.5)[1]

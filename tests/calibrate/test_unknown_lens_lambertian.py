@@ -45,7 +45,7 @@ def test_the_lambertian_disc_is_chosen_and_x_covers():
                                 max_circles=1, pupil_radiance="auto")
     assert got.lens.pupil_radiance == "paper-lambertian", got.summary()
     choice = got.lens.calibration["pupil_choice"]
-    assert set(choice["chi2"]) == {"paper", "lambertian", "paper-lambertian"}
+    assert set(choice["chi2_plus_flats_bic"]) == {"paper", "lambertian", "paper-lambertian"}
     z = {n: v for n, v in zip(got.names, (got.values - np.array(
         [X, N_EFF] + [np.nan] * (len(got.names) - 2))) / got.stderr, strict=True)}
     assert abs(z["exit_pupil_mm"]) < 4 and abs(z["n_eff"]) < 4, (z, got.summary())

@@ -112,3 +112,16 @@ def test_an_output_interrupted_before_it_was_moved_in_is_said_removed(frames, cl
     assert sorted(p.name for p in frames.iterdir()) == ["d.npy", "frames.npy", "w.npy"]
     assert res.stderr.strip() == ("snapcorr stream: interrupted; unfinished outputs were "
                                   "removed"), res.stderr
+
+
+def test_the_grid_refused_for_a_lambertian_pupil_names_the_options(tmp_path, cli):
+    """`shift --method grid` of a Lambertian pupil's lens advised "a ShiftTable per
+    f-number", a Python class; the command line names its own choices."""
+    from snapcorr import Lens
+
+    Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, pupil_radiance="paper-lambertian").save(
+        tmp_path / "lens.toml")
+    res = cli("shift", "--lens", "lens.toml", "--f-number", "2", "--cra", "10", "--method",
+              "grid", cwd=tmp_path)
+    assert res.returncode == 1
+    assert "(--method table, or --method auto)" in res.stderr.strip().splitlines()[-1]

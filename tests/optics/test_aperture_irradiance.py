@@ -63,3 +63,21 @@ def test_tends_to_the_area_far_away():
     radii, centers = [7.5, 10.0], [0.0, 3.0]
     got = float(overlap_irradiance_mm2(radii, centers, 1.0, 1e6))
     assert got == pytest.approx(float(overlap_area_mm2(radii, centers)), rel=1e-9)
+
+
+@pytest.mark.parametrize("bad", [dict(x_mm=0.0), dict(x_mm=-1.0), dict(x_mm=np.nan),
+                                 dict(radii_mm=[-1.0]), dict(radii_mm=[0.0]),
+                                 dict(radii_mm=[np.nan]), dict(foot_mm=np.inf),
+                                 dict(centers_mm=[np.nan])])
+def test_a_geometry_outside_physics_is_refused(bad):
+    """x = 0 gave 0.0 with warnings, a radius of -1 or NaN gave 0.0 silently."""
+    args = dict(radii_mm=[1.0], centers_mm=[0.0], foot_mm=0.0, x_mm=1.0) | bad
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        overlap_irradiance_mm2(**args)
+
+
+def test_far_feet_stay_accurate():
+    """A disc seen from far off its axis: the weight nearly uniform over it, ~ pi / F^4."""
+    for F in (30.0, 100.0, 1000.0):
+        got = float(overlap_irradiance_mm2([1.0], [0.0], F, 1.0))
+        assert got == pytest.approx(np.pi / (1 + F * F) ** 2, rel=3 / F**2 + 1e-7)

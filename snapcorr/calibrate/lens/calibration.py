@@ -376,15 +376,25 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
                                                       pupil_magnification, lens, stacklevel=5)
 
 
-def _radiance_advice(notes, base):
-    """The estimator's notes, where the paper's area model leaves a misfit with what fast
-    flats of a Lambertian pupil do under it: every ray's cos^4 is not the chief ray's."""
-    if base.pupil_radiance != "paper":
+def _misfit_advice(notes, base, center, center_source, shape):
+    """The estimator's notes, where the area model leaves a misfit with its likely causes
+    that snapcorr can name: an optical centre found outside the flats (a crop beside the
+    axis places it poorly), and for the paper's pupil a Lambertian one (every ray's cos^4,
+    not the chief ray's)."""
+    causes = []
+    outside = not (0 <= center[0] < shape[0] and 0 <= center[1] < shape[1])
+    if center_source != "given" and outside:
+        causes.append(f"the optical centre was found outside the flats (row {center[0]:.1f}, "
+                      f"col {center[1]:.1f}), which flats beside the axis place poorly: give "
+                      "it where it is known (center_rc=, in the flats' pixels)")
+    if base.pupil_radiance == "paper":
+        causes.append("flats of a Lambertian pupil (each ray's own cos^4) leave one under "
+                      "the paper's pupil: pupil_radiance='auto' (--pupil-radiance auto) fits "
+                      "every radiance model and keeps the best")
+    if not causes:
         return notes
-    advice = ("; flats of a Lambertian pupil (each ray's own cos^4) leave one under the "
-              "paper's pupil: pupil_radiance='auto' (--pupil-radiance auto) fits every "
-              "radiance model and keeps the best")
-    return [n + (advice if n.startswith("the area model leaves a misfit") else "")
+    said = "; it may be that " + "; or that ".join(causes)
+    return [n + (said if n.startswith("the area model leaves a misfit") else "")
             for n in notes]
 
 
@@ -403,7 +413,8 @@ def _every_pupil(run, given):
     from ..pupil.locate import choose_pupil
 
     runs = {name: run(**{**given, "pupil_radiance": name}) for name in PUPIL_RADIANCE_MODELS}
-    return choose_pupil(runs, {k: flats_bic(r) for k, r in runs.items()}, "the flats' BIC")
+    return choose_pupil(runs, {k: flats_bic(r) for k, r in runs.items()}, "the flats' BIC",
+                        key="bic")
 
 
 #: What a lens given to :func:`calibrate_lens` records of its exit pupil, and the key each
@@ -498,7 +509,7 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
                                 vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
-    notes += fit_notes + _radiance_advice(method_notes, base)
+    notes += fit_notes + _misfit_advice(method_notes, base, center, center_source, fl.shape)
     model = _unless_joint(used, verdicts, model)
     lens = dataclasses.replace(base, vignetting=circles)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
@@ -559,6 +570,9 @@ def _given_centre_doubted(flats, ratios, given):
     """A note where the flats' own contours place the optical centre far from the one given
     (a centre 5 px off was fitted with three circles where the lens has one, the misfit
     blamed on the light), else none."""
+    rows, cols = flats.shape
+    if not (0 <= given[0] < rows and 0 <= given[1] < cols):
+        return []  # beside the flats their contours cannot place it: nothing to doubt by
     found, how, _ = stages.optical_center_rc(flats, ratios)
     if how != "contours":
         return []

@@ -629,11 +629,12 @@ def _either_pupil(args):
     return chosen
 
 
-def choose_pupil(results, chi2, what):
+def choose_pupil(results, chi2, what, *, key="chi2"):
     """The result to keep of ``results`` (pupil -> a result with ``notes`` and ``lens``):
-    the paper's pupil unless the best of the others lowers ``chi2`` (pupil -> chi-square) by
-    more than :data:`PUPIL_CHI2_GAIN`; the choice and every chi-square go into its notes and
-    its lens's ``[calibration] pupil_choice``."""
+    the paper's pupil unless the best of the others lowers ``chi2`` (pupil -> chi-square, or
+    another criterion ``what`` names: a BIC) by more than :data:`PUPIL_CHI2_GAIN`; the
+    choice and every value go into its notes and its lens's ``[calibration] pupil_choice``,
+    under ``key``."""
     others = {k: v for k, v in chi2.items() if k != "paper" and k in results}
     best = min(others, key=others.get) if others else "paper"
     gain = chi2.get("paper", np.inf) - chi2.get(best, np.inf)
@@ -646,8 +647,8 @@ def choose_pupil(results, chi2, what):
     cal = dict(got.lens.calibration)
     if "notes" in cal:  # a profile that keeps its notes (the flats' calibration) keeps this
         cal["notes"] = [*cal["notes"], note]
-    cal["pupil_choice"] = {"chosen": name, "rule": f"chi-square gain > {PUPIL_CHI2_GAIN:g}",
-                           "chi2": {k: float(f"{v:.6g}") for k, v in chi2.items()}}
+    cal["pupil_choice"] = {"chosen": name, "rule": f"{what}: a gain > {PUPIL_CHI2_GAIN:g}",
+                           key: {k: float(f"{v:.6g}") for k, v in chi2.items()}}
     got.lens = dataclasses.replace(got.lens, calibration=cal)
     return got
 

@@ -46,3 +46,22 @@ def test_too_few_onsets_about_a_found_centre_asks_for_the_centre():
     text = str(err.value)
     assert "take flats at more f-numbers" in text
     assert "the optical centre was found from these flats" in text and "center_rc=" in text
+
+
+def test_a_crop_far_beside_the_axis_names_the_centre_and_keeps_a_given_one():
+    """60 x 60 px with the axis 150 px off in both directions: found from the flats the
+    centre lands on the wrong side and the misfit was blamed on the pupil alone; given, it
+    was doubted because the flats' contours (which cannot reach it) placed it elsewhere."""
+    flats = make_flats(TRUTH, (1.4, 2.0, 2.8, 4.0, 8.0), shape=(60, 60), pitch_um=44.0,
+                       center_px=(-150.0, -150.0), noise=0.003, seed=1)
+    found = _calibrate(flats)
+    misfit = [n for n in found.notes if n.startswith("the area model leaves a misfit")]
+    assert misfit and "the optical centre was found outside the flats" in misfit[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        given = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0,
+                               pupil_magnification=1, center_rc=(-150.0, -150.0))
+    (P, h), = given.lens.vignetting
+    assert P == pytest.approx(10.0, rel=1e-3) and h == pytest.approx(17.0, rel=1e-3)
+    assert not any("contours place the optical centre" in n for n in given.notes)
+    assert not any("misfit" in n for n in given.notes)

@@ -106,5 +106,6 @@ def test_the_papers_area_model_misfits_them_and_auto_finds_the_pupil(flats):
     assert auto.lens.pupil_radiance == "paper-lambertian"
     choice = auto.lens.calibration["pupil_choice"]
     assert choice["chosen"] == "paper-lambertian"
-    assert set(choice["chi2"]) == {"paper", "lambertian", "paper-lambertian"}
+    assert set(choice["bic"]) == {"paper", "lambertian", "paper-lambertian"}
+    assert choice["rule"] == "the flats' BIC: a gain > 10"
     assert any(n.startswith("pupil: paper-lambertian") for n in auto.lens.calibration["notes"])
