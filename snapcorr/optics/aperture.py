@@ -254,6 +254,8 @@ def overlap_area_mm2(radii_mm, centers_mm):
 #: on each arc, and 12 nodes hold it to 1e-15 of its largest value at f/1 to f/2.8 with one
 #: and two circles over tan(CRA) 0-0.7 (against 64 nodes; 8 nodes: 4e-11, 6: 3e-8).
 IRRADIANCE_NODES = 12
+#: Most nodes :func:`overlap_irradiance_mm2` takes (64 already reach the last digit).
+MAX_IRRADIANCE_NODES = 256
 
 
 def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIANCE_NODES):
@@ -299,6 +301,10 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     >>> round(float(overlap_irradiance_mm2([1.0], [0.0], 0.0, 1.0)), 6)  # pi / 2
     1.570796
     """
+    if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or not (
+            1 <= nodes <= MAX_IRRADIANCE_NODES):
+        raise ValueError(f"nodes must be a whole number from 1 to {MAX_IRRADIANCE_NODES}, got "
+                         f"{nodes!r}")
     x = np.asarray(x_mm, float)
     for name, values, positive in (("x_mm", [x], True), ("radii_mm", radii_mm, True),
                                    ("centers_mm", centers_mm, False),

@@ -110,8 +110,8 @@ def _paper_pupil_only(lens, what):
     """Refuse a formula derived for the paper's pupil for another one."""
     if lens.pupil_radiance != "paper":
         raise ValueError(f"{what} is derived for the paper's pupil (Eq. 28, uniform per area), "
-                         f"not the {lens.pupil_radiance} one: use method 'vignetted', 'ideal', "
-                         "'table' or 'auto'")
+                         f"not the {lens.pupil_radiance} one: use method 'vignetted', 'ideal' "
+                         "or 'auto'")
 
 
 def _riemann(cwl_nm, n_eff, f_number, cra_deg, lens, step_nm=g19.RIEMANN_STEP_NM):

@@ -81,3 +81,11 @@ def test_far_feet_stay_accurate():
     for F in (30.0, 100.0, 1000.0):
         got = float(overlap_irradiance_mm2([1.0], [0.0], F, 1.0))
         assert got == pytest.approx(np.pi / (1 + F * F) ** 2, rel=3 / F**2 + 1e-7)
+
+
+@pytest.mark.parametrize("nodes", [0, -1, 3.7, "12", True, 10**6])
+def test_nodes_outside_a_rule_are_refused(nodes):
+    """nodes=3.7 was truncated to 3, 0 gave numpy's 'deg must be a positive integer' and
+    10**6 asked for 7 TiB."""
+    with pytest.raises(ValueError, match="nodes must be a whole number from 1 to 256"):
+        overlap_irradiance_mm2([1.0], [0.0], 0.0, 1.0, nodes=nodes)

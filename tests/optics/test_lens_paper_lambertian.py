@@ -50,6 +50,9 @@ def test_the_papers_own_formulas_refuse_it():
     for method in ("asymptotic", "riemann"):
         with pytest.raises(ValueError, match="paper's pupil"):
             mean_shift(CWL, N_EFF, 2.0, 5.0, lens, method=method)
+    with pytest.raises(ValueError, match="paper's pupil") as err:
+        mean_shift(CWL, N_EFF, 2.0, 5.0, lens, method="asymptotic")
+    assert "'table'" not in str(err.value)  # correct has no such method: advice for both
     with pytest.raises(ValueError, match="paper's pupil only"):
         ShiftGrid.build(N_EFF, lens, f_range=(2.0, 8.0), cra_max_deg=10.0)
     assert float(mean_shift(CWL, N_EFF, 2.0, 5.0, lens, method="auto")) == pytest.approx(

@@ -391,6 +391,11 @@ def _misfit_advice(notes, base, center, center_source, shape):
         causes.append("flats of a Lambertian pupil (each ray's own cos^4) leave one under "
                       "the paper's pupil: pupil_radiance='auto' (--pupil-radiance auto) fits "
                       "every radiance model and keeps the best")
+    else:
+        causes.append(f"the pupil is not the {base.pupil_radiance} one (flats of the "
+                      "paper's pupil fall off with the chief ray's cos^4 alone): "
+                      "pupil_radiance='auto' (--pupil-radiance auto) fits every radiance "
+                      "model and keeps the best")
     if not causes:
         return notes
     said = "; it may be that " + "; or that ".join(causes)
@@ -505,6 +510,8 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
                                  vignetting_distance_mm, decide)
         if again[2] != "none":
             center, center_source, model, verdicts, ons, max_cra = again
+    if center_source == "joint fit":  # found after all: the contours' fallback is not used
+        notes = [n for n in notes if not n.startswith(stages.NO_FALL_OFF)]
     predict = functools.partial(_predict, data, fs, fits[model], ons, base, center, fix_center,
                                 vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(

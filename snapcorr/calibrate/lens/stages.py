@@ -67,6 +67,10 @@ BIN_DEG = 0.1
 PROFILE_SIZE = 1024
 
 
+#: How the note begins that says the flats show no fall-off to find the optical centre by.
+NO_FALL_OFF = "no radial fall-off to find the optical centre from"
+
+
 @dataclass
 class Flats:
     """Cleaned flats, sorted by f-number (the last is the reference of the ratios)."""
@@ -304,7 +308,7 @@ def optical_center_rc(flats: Flats, ratios: Ratios, center_rc=None):
     if c is None:
         shape = flats.shape
         return (((shape[0] - 1) / 2.0, (shape[1] - 1) / 2.0), "image centre",
-                "no radial fall-off to find the optical centre from: the image centre is used")
+                NO_FALL_OFF + ": the image centre is used")
     b = ratios.block  # block coordinates -> pixels
     return (c[0] * b + (b - 1) / 2.0, c[1] * b + (b - 1) / 2.0), "contours", None
 

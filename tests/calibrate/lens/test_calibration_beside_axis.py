@@ -65,3 +65,16 @@ def test_a_crop_far_beside_the_axis_names_the_centre_and_keeps_a_given_one():
     assert P == pytest.approx(10.0, rel=1e-3) and h == pytest.approx(17.0, rel=1e-3)
     assert not any("contours place the optical centre" in n for n in given.notes)
     assert not any("misfit" in n for n in given.notes)
+
+
+def test_a_centre_the_joint_fit_found_is_not_said_to_be_the_image_centre():
+    """The axis above a 60 x 60 crop: the contours found no fall-off and noted that the
+    image centre is used; the joint fit then found the centre (row -149, col 30) and the
+    note stayed in the profile beside it."""
+    flats = make_flats(TRUTH, (1.4, 2.0, 2.8, 4.0, 8.0), shape=(60, 60), pitch_um=44.0,
+                       center_px=(30.0, -150.0), noise=0.003, seed=1)
+    res = _calibrate(flats)
+    assert res.center_source == "joint fit"
+    assert abs(res.center_rc[0] + 150.0) < 3 and abs(res.center_rc[1] - 30.0) < 3
+    assert not any("the image centre is used" in n for n in res.notes)
+    assert not any("the image centre is used" in n for n in res.lens.calibration["notes"])

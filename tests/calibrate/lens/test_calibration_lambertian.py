@@ -109,3 +109,19 @@ def test_the_papers_area_model_misfits_them_and_auto_finds_the_pupil(flats):
     assert set(choice["bic"]) == {"paper", "lambertian", "paper-lambertian"}
     assert choice["rule"] == "the flats' BIC: a gain > 10"
     assert any(n.startswith("pupil: paper-lambertian") for n in auto.lens.calibration["notes"])
+
+
+def test_paper_flats_fitted_as_a_lambertian_disc_say_the_pupil_may_be_wrong():
+    """The misfit of a Lambertian model on flats of the paper's pupil named only a source
+    or aberrations; it names the pupil and auto too."""
+    from flatsim import LensTruth
+    from flatsim import make_flats as paper_flats
+
+    flats = paper_flats(LensTruth(X, ((P, H),), 0.0, 1.0), F_NUMBERS, shape=SHAPE,
+                        pitch_um=PITCH, center_px=(CENTRE[1], CENTRE[0]), noise=0.003, seed=2)
+    res = calibrate_lens(flats, exit_pupil_mm=X, pixel_pitch_um=PITCH, magnification=0.0,
+                         pupil_magnification=1.0, pupil_radiance="paper-lambertian",
+                         method="joint", max_circles=1)
+    misfit = [n for n in res.notes if n.startswith("the area model leaves a misfit")]
+    assert misfit and "the pupil is not the paper-lambertian one" in misfit[0]
+    assert "pupil_radiance='auto'" in misfit[0]
