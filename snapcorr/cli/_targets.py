@@ -148,6 +148,12 @@ def _target_cubes(args, sensor, shape):
         for f, path in sorted(args.target_cube):
             cubes[f] = _read(path, sensor, origin)
             area = _cube_area(cubes[f])
+            size = (cubes[f].sizes["y"], cubes[f].sizes["x"])
+            if size != tuple(shape[:2]):
+                raise ValueError(
+                    f"the flats ({shape[0]} x {shape[1]} px) and the target cube f/{f:g} "
+                    f"{path} ({size[0]} x {size[1]} px) are not of the same pixels: take the "
+                    "flats and the target's cubes of one sensor area")
             if origin is None and not whole and sensor.size_px is not None:
                 # before any work: flats of unknown place cannot be put about the axis
                 raise ValueError(_crop_without_origin(shape, sensor, f, path, area))

@@ -254,6 +254,9 @@ def overlap_area_mm2(radii_mm, centers_mm):
 #: on each arc, and 12 nodes hold it to 1e-15 of its largest value at f/1 to f/2.8 with one
 #: and two circles over tan(CRA) 0-0.7 (against 64 nodes; 8 nodes: 4e-11, 6: 3e-8).
 IRRADIANCE_NODES = 12
+#: The largest pupil radius and foot distance :func:`overlap_irradiance_mm2` takes, in units
+#: of x: within it the result holds to 1e-8 of a quadrature over the pupil.
+MAX_PUPIL_TO_DISTANCE = 1000.0
 #: Most nodes :func:`overlap_irradiance_mm2` takes (64 already reach the last digit).
 MAX_IRRADIANCE_NODES = 256
 
@@ -288,13 +291,15 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     ndarray
         ``integral of cos^4(phi) dA`` over the intersection, mm^2 (0 where the discs do not
         all overlap). Within 1e-8 of a quadrature over the pupil for a foot up to ``1000 x``
-        from the pupil (a CRA of 89.94 deg); the potential's contour cancels as
-        ``(|F| / x)^2`` beyond.
+        from the axis (a CRA of 89.94 deg) and a pupil up to ``1000 x`` wide; beyond, the
+        potential's contour cancels and the geometry is refused. Any larger ``x`` is
+        taken (the area, as ``x`` grows).
 
     Raises
     ------
     ValueError
-        A radius or ``x`` not finite and > 0, a centre or the foot not finite.
+        A radius or ``x`` not finite and > 0, a centre or the foot not finite, or the pupil
+        or the foot beyond :data:`MAX_PUPIL_TO_DISTANCE` times ``x``.
 
     Examples
     --------
@@ -314,9 +319,18 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
             if not np.all(np.isfinite(v)) or (positive and not np.all(v > 0)):
                 raise ValueError(f"{name} must be finite" + (" and > 0" if positive else "")
                                  + f", got {v if v.size < 5 else '...'}")
-    radii = [np.asarray(r, float) / x for r in radii_mm]
-    centers = [np.asarray(c, float) / x for c in centers_mm]
-    F = np.asarray(foot_mm, float) / x
+    # lengths in units of the first disc's radius L (no underflow however far x is), the
+    # weight (1 + k |p - F|^2)^-2 with k = (L / x)^2
+    L = np.asarray(radii_mm[0], float)
+    k = (L / x) ** 2
+    if np.any(k > MAX_PUPIL_TO_DISTANCE**2) or np.any(
+            np.abs(np.asarray(foot_mm, float)) > MAX_PUPIL_TO_DISTANCE * x):
+        raise ValueError(f"the pupil's radius and the foot must lie within "
+                         f"{MAX_PUPIL_TO_DISTANCE:g} x of the pupil plane's distance (a "
+                         "working f-number of 0.5 gives R = x); beyond, the contour cancels")
+    radii = [np.asarray(r, float) / L for r in radii_mm]
+    centers = [np.asarray(c, float) / L for c in centers_mm]
+    F = np.asarray(foot_mm, float) / L
     b = discs.boundary(radii, centers)
     rk, ck, t_right, t_left = discs.arc_angles(b, radii, centers)
     F = np.broadcast_to(F, b.lo.shape)
@@ -327,17 +341,20 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     e = (ck - F)[..., None]
     rr = rk[..., None]
     rec = rr * e * c  # |p - F|^2 = e^2 + r^2 + 2 r e cos(t); (p - F) x dp = r^2 + r e cos(t)
-    s_ref = (0.5 * (b.lo + b.hi) - F) ** 2  # a point inside: the rest is small and smooth
+    kk = np.broadcast_to(k, b.lo.shape)
+    s_ref = kk * (0.5 * (b.lo + b.hi) - F) ** 2  # a point inside: the rest small and smooth
     psi_ref = 0.5 / (1.0 + s_ref)
     psi = 2.0 * rec
-    psi += 1.0 + e * e + rr * rr
+    psi += e * e + rr * rr
+    psi *= kk[..., None]
+    psi += 1.0
     np.divide(0.5, psi, out=psi)
     psi -= psi_ref[..., None]
     rec += rr * rr
     psi *= rec
     rest = np.sum(half * (psi @ w), axis=0)
     upper = rest + 2.0 * psi_ref * area
-    return (np.where(b.hi > b.lo, 2.0 * upper, 0.0) * x * x)[()]
+    return (np.where(b.hi > b.lo, 2.0 * upper, 0.0) * L * L)[()]
 
 
 def relative_irradiance(radii_mm, centers_mm, foot_mm, x_mm, *, weight="area",

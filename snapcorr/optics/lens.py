@@ -565,7 +565,7 @@ def _unstated_magnifications(table, calibration):
 
 
 def _check_pupil_radiance(name, value):
-    if value not in PUPIL_RADIANCE_MODELS:
+    if not isinstance(value, str) or value not in PUPIL_RADIANCE_MODELS:
         raise ValueError(f"{name} must be one of {', '.join(PUPIL_RADIANCE_MODELS)}, got "
                          f"{shown(value)}")
 

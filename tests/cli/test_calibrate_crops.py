@@ -312,3 +312,27 @@ def test_snapscan_flats_of_a_crop_without_their_place_are_refused_before_any_wor
         assert w in last, (w, last)
     assert "calibrating" not in res.stderr  # refused before the flats were fitted
     assert not (tmp_path / "lens.toml").exists()
+
+
+def test_snapscan_flats_and_cubes_of_other_sizes_are_refused_before_any_work(tmp_path, cli):
+    """Whole-sensor flats and 60 x 80 target cubes were fitted (the precision predicted, x
+    scanned) and refused only for the target's lack of features."""
+    from snapcorr.cube import Sensor, make_cube, write_cube
+
+    cwl = np.arange(500.0, 800.0, 20.0)
+    Sensor("scan", "snapscan", 44.0, cwl, 12.0, 1.7, size_px=(120, 100)).save(
+        tmp_path / "sensor.toml")
+    rng = np.random.default_rng(0)
+    args = []
+    for f in (2, 8):
+        np.save(tmp_path / f"flat_f{f}.npy", 3000.0 + rng.normal(0, 3, (120, 100)))
+        write_cube(make_cube(0.5 + rng.normal(0, 0.01, (60, 80, cwl.size)), cwl),
+                   tmp_path / f"cube_f{f}.nc")
+        args += ["--flat", f"{f}=flat_f{f}.npy", "--target-cube", f"{f}=cube_f{f}.nc"]
+    res = cli("calibrate", *args, "--sensor", "sensor.toml", "--out", "lens.toml",
+              "--magnification", "0", "--pupil-magnification", "1", cwd=tmp_path)
+    assert res.returncode == 1, res.stderr
+    last = res.stderr.strip().splitlines()[-1]
+    assert "(120 x 100 px) and the target cube f/2 cube_f2.nc (60 x 80 px) are not of the " \
+           "same pixels" in last
+    assert "predicted" not in res.stderr and not (tmp_path / "lens.toml").exists()

@@ -89,3 +89,18 @@ def test_nodes_outside_a_rule_are_refused(nodes):
     10**6 asked for 7 TiB."""
     with pytest.raises(ValueError, match="nodes must be a whole number from 1 to 256"):
         overlap_irradiance_mm2([1.0], [0.0], 0.0, 1.0, nodes=nodes)
+
+
+def test_any_distance_of_the_pupil_plane_or_a_refusal():
+    """x = 1e200 gave 0.0 (the area underflowed in units of x), x = 1e-9 a value 162 x too
+    large, a foot 1e6 x away 15 x too large: far planes tend to the area, and a pupil or a
+    foot beyond 1000 x is refused."""
+    for x in (1e10, 1e100, 1e200, 1e300):
+        assert float(overlap_irradiance_mm2([1.0], [0.0], 0.0, x)) == pytest.approx(np.pi,
+                                                                                     rel=1e-12)
+    for R in (3.0, 300.0):
+        got = float(overlap_irradiance_mm2([R], [0.0], 0.0, 1.0))
+        assert got == pytest.approx(np.pi * R * R / (1 + R * R), rel=1e-10)
+    for args in (([1.0], [0.0], 0.0, 1e-9), ([1.0], [0.0], 1e6, 1.0)):
+        with pytest.raises(ValueError, match="within 1000 x"):
+            overlap_irradiance_mm2(*args)

@@ -94,3 +94,10 @@ def test_flats_fall_off_with_every_rays_cos4(f):
     paper = relative_illumination_map((1, 300), 44.0, f, Lens(21.0, circles),
                                       center_rc=(0, 0))[0, cols]
     assert np.max(np.abs(paper / want - 1)) > (0.02 if f < 2 else 0.002)
+
+
+def test_a_pupil_given_as_an_array_is_refused():
+    """np.array(['paper-lambertian']) passed the membership test; ray_weight then raised
+    'unhashable type'."""
+    with pytest.raises(ValueError, match="pupil_radiance must be one of"):
+        Lens(21.0, pupil_radiance=np.array(["paper-lambertian"]))

@@ -230,6 +230,14 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
         if lost > 0.05:
             notes.append(f"f/{f:g}: {100 * lost:.1f} % of pixels masked (saturated, dead, hot "
                          "or non-finite)")
+        raw = np.asarray(img, float) - (0.0 if dark is None else np.asarray(dark, float))
+        with np.errstate(invalid="ignore"):
+            lit = np.isfinite(raw) & (raw > 0)  # saturated pixels are lit
+        if ok.mean() < 0.2 and lit.mean() < 0.2:  # nothing above its dark: say that
+            raise ValueError(f"the flat at f/{f:g} has no light in {100 * (1 - lit.mean()):.0f} "
+                             "% of its pixels (values at or below 0"
+                             + (" after the dark" if dark is not None else "")
+                             + "): check the file, its sign and the dark frame")
         if ok.mean() < 0.2:
             raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
                              "pixels (saturated, dead or non-finite); lower the exposure or "
@@ -245,8 +253,12 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
         valids.append(ok)
         variances.append(var)
     for (f, _), img, ok in zip(items, images, valids, strict=True):
-        if not np.percentile(img[ok], 99) > 0:
-            raise ValueError(f"the flat at f/{f:g} has no signal above the dark frame")
+        top = float(np.percentile(img[ok], 99))
+        if not top > 0:
+            raise ValueError(f"the flat at f/{f:g} has no light (99 % of its pixels at or "
+                             f"below {top:.4g}"
+                             + (" after the dark" if dark is not None else "")
+                             + "): check the file, its sign and the dark frame")
     return Flats(np.array([f for f, _ in items]), images, valids, variances,
                  items[0][1].shape, notes)
 

@@ -50,13 +50,14 @@ def test_too_few_onsets_about_a_found_centre_asks_for_the_centre():
 
 def test_a_crop_far_beside_the_axis_names_the_centre_and_keeps_a_given_one():
     """60 x 60 px with the axis 150 px off in both directions: found from the flats the
-    centre lands on the wrong side and the misfit was blamed on the pupil alone; given, it
-    was doubted because the flats' contours (which cannot reach it) placed it elsewhere."""
+    centre landed on the wrong side, two circles were written at a reduced chi-square of
+    361 and the misfit blamed on the pupil; given, it was doubted because the flats'
+    contours (which cannot reach it) placed it elsewhere."""
     flats = make_flats(TRUTH, (1.4, 2.0, 2.8, 4.0, 8.0), shape=(60, 60), pitch_um=44.0,
                        center_px=(-150.0, -150.0), noise=0.003, seed=1)
-    found = _calibrate(flats)
-    misfit = [n for n in found.notes if n.startswith("the area model leaves a misfit")]
-    assert misfit and "the optical centre was found outside the flats" in misfit[0]
+    with pytest.raises(ValueError, match="the optical centre could not be placed") as err:
+        _calibrate(flats)
+    assert "outside them" in str(err.value) and "center_rc=" in str(err.value)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         given = calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0,

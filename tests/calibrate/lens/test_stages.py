@@ -86,3 +86,17 @@ def test_the_profiles_take_the_centre_row_first_and_the_x_first_keyword_warns():
     d_mm = np.hypot(95 - ROW, 0 - COL) * SMALL["pitch_um"] * 1e-3
     assert new[3] == pytest.approx(np.degrees(np.arctan(d_mm / PAPER_LENS.exit_pupil_mm)),
                                    rel=1e-12)
+
+
+def test_a_flat_without_light_is_refused_as_such_not_as_a_mosaic():
+    """A negated flat (every value below 0, smooth) was refused for '0 % usable pixels' with
+    the advice to give a mosaic sensor; it says there is no light, and checks to make."""
+    from snapcorr.calibrate import calibrate_lens
+
+    yy, xx = np.mgrid[:64, :80]
+    smooth = 3000.0 * (1 - 1e-4 * ((yy - 32) ** 2 + (xx - 40) ** 2))
+    flats = {2.0: -smooth, 4.0: -0.5 * smooth}
+    with pytest.raises(ValueError, match=r"f/2 has no light") as err:
+        calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0,
+                       pupil_magnification=1)
+    assert "sign" in str(err.value) and "mosaic" not in str(err.value)
