@@ -71,12 +71,8 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
     for m in models:
         validate_method(m, CORRECTION_MODELS, "model")
     # in order of cost, for recommend(); "none" always (the reference of radius_mm and plot)
-    models = tuple(m for m in CORRECTION_MODELS if m in models or m == "none")
-    # Eq. (6) is derived for the paper's pupil: another pupil's budget leaves it out, said
-    left_out = ("asymptotic (Eq. 6 holds for the paper's pupil, not the "
-                f"{lens.pupil_radiance} one)" if lens.pupil_radiance != "paper"
-                and "asymptotic" in models else "")
-    models = tuple(m for m in models if not (left_out and m == "asymptotic"))
+    models, left_out = _models_for(lens, tuple(
+        m for m in CORRECTION_MODELS if m in models or m == "none"))
     tolerance_pct = check_positive("tolerance_pct", tolerance_pct)
     if int(n_cra) < 2:
         raise ValueError(f"n_cra must be >= 2 (the axis and the field's edge), got {n_cra!r}")
@@ -128,6 +124,16 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
                **({"models_left_out": left_out} if left_out else {})},
     )
     return Budget(ds, tolerance_pct=tolerance_pct)
+
+
+def _models_for(lens, models):
+    """The models a budget of ``lens`` evaluates, and what it leaves out and why: Eq. (6) is
+    derived for the paper's pupil, so another pupil's budget goes without it."""
+    if lens.pupil_radiance == "paper" or "asymptotic" not in models:
+        return models, ""
+    return (tuple(m for m in models if m != "asymptotic"),
+            f"asymptotic (Eq. 6 holds for the paper's pupil, not the {lens.pupil_radiance} "
+            "one)")
 
 
 def profile_of(sensor, profile=None):

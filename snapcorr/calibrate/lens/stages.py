@@ -234,7 +234,7 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
         with np.errstate(invalid="ignore"):
             lit = np.isfinite(raw) & (raw > 0)  # saturated pixels are lit
         if ok.mean() < 0.2 and lit.mean() < 0.2:  # nothing above its dark: say that
-            raise ValueError(f"the flat at f/{f:g} has no light in {100 * (1 - lit.mean()):.0f} "
+            raise ValueError(f"the flat at f/{f:g} has no signal in {100 * (1 - lit.mean()):.0f} "
                              "% of its pixels (values at or below 0"
                              + (" after the dark" if dark is not None else "")
                              + "): check the file, its sign and the dark frame")
@@ -255,7 +255,7 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
     for (f, _), img, ok in zip(items, images, valids, strict=True):
         top = float(np.percentile(img[ok], 99))
         if not top > 0:
-            raise ValueError(f"the flat at f/{f:g} has no light (99 % of its pixels at or "
+            raise ValueError(f"the flat at f/{f:g} has no signal (99 % of its pixels at or "
                              f"below {top:.4g}"
                              + (" after the dark" if dark is not None else "")
                              + "): check the file, its sign and the dark frame")

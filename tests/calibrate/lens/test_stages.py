@@ -96,7 +96,7 @@ def test_a_flat_without_light_is_refused_as_such_not_as_a_mosaic():
     yy, xx = np.mgrid[:64, :80]
     smooth = 3000.0 * (1 - 1e-4 * ((yy - 32) ** 2 + (xx - 40) ** 2))
     flats = {2.0: -smooth, 4.0: -0.5 * smooth}
-    with pytest.raises(ValueError, match=r"f/2 has no light") as err:
+    with pytest.raises(ValueError, match=r"f/2 has no signal") as err:
         calibrate_lens(flats, exit_pupil_mm=21.0, pixel_pitch_um=44.0, magnification=0,
                        pupil_magnification=1)
     assert "sign" in str(err.value) and "mosaic" not in str(err.value)
