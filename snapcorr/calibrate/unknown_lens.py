@@ -264,15 +264,16 @@ def _one_pupil(flats, cubes, sensor, *, pixel_pitch_um, fit_n_eff, provisional_x
     x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
     final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
     differ = _consistency(first, final, provisional_x_mm, x)
-    if not (differ and final.model == first.model and final.lens.ray_weight == "cos4"):
-        notes += differ
     if final.model != first.model:  # x was fitted with other circles: fit it with these
+        notes += differ
         pupil = fit_x(final.lens)
         x, sx = pupil.exit_pupil_mm, pupil.exit_pupil_stderr_mm
         final = calibrate_lens(flats, exit_pupil_mm=x, exit_pupil_stderr_mm=sx, **common)
         notes.append(f"x was fitted again with the {final.model!r} circles: {x:.4g} mm")
-    elif differ:
+    elif differ and final.lens.ray_weight == "cos4":  # expected: their flats depend on x
         pupil, final, x, sx = _settled_x(fit_x, final, pupil, flats, common, notes)
+    else:
+        notes += differ
     names, values, cov = _joint_covariance(final, pupil, sensor)
     x_part = _shift_stderr_from_x(final, x, sx)
     own = final.shift_stderr_nm if final.shift_stderr_nm.size else np.zeros_like(x_part)

@@ -383,20 +383,30 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
 LOST_CENTRE_CHI2 = 10.0
 
 
-def _misfit_advice(notes, base, center, center_source, shape, chi2_red):
-    """The estimator's notes, where the area model leaves a misfit with its likely causes
-    that snapcorr can name: an optical centre found outside the flats (a crop beside the
-    axis places it poorly), and for the paper's pupil a Lambertian one (every ray's cos^4,
-    not the chief ray's)."""
-    causes = []
-    outside = not (0 <= center[0] < shape[0] and 0 <= center[1] < shape[1])
-    if center_source != "given" and outside and chi2_red > LOST_CENTRE_CHI2:
+def _found_outside(center, center_source, shape):
+    """The optical centre was found (not given) and lies outside the flats."""
+    inside = 0 <= center[0] < shape[0] and 0 <= center[1] < shape[1]
+    return center_source != "given" and not inside
+
+
+def _refuse_a_lost_centre(center, center_source, shape, chi2_red):
+    """Refuse a centre the flats put outside them where the model misfits them grossly
+    (:data:`LOST_CENTRE_CHI2`): circles fitted about it are not the lens's."""
+    if _found_outside(center, center_source, shape) and chi2_red > LOST_CENTRE_CHI2:
         raise ValueError(
             f"the optical centre could not be placed: the flats put it outside them (row "
             f"{center[0]:.1f}, col {center[1]:.1f}), where the model misfits them (reduced "
             f"chi2 {chi2_red:.3g}); flats beside the axis do not show where it is: "
             "give it (center_rc=, in the flats' pixels), or take flats that reach the axis")
-    if center_source != "given" and outside:
+
+
+def _misfit_advice(notes, base, center, center_source, shape):
+    """The estimator's notes, where the area model leaves a misfit with its likely causes
+    that snapcorr can name: an optical centre found outside the flats (a crop beside the
+    axis places it poorly), and another pupil than the one fitted (the paper's: every
+    ray's cos^4, not the chief ray's)."""
+    causes = []
+    if _found_outside(center, center_source, shape):
         causes.append(f"the optical centre was found outside the flats (row {center[0]:.1f}, "
                       f"col {center[1]:.1f}), which flats beside the axis place poorly: give "
                       "it where it is known (center_rc=, in the flats' pixels)")
@@ -409,8 +419,6 @@ def _misfit_advice(notes, base, center, center_source, shape, chi2_red):
                       "paper's pupil fall off with the chief ray's cos^4 alone): "
                       "pupil_radiance='auto' (--pupil-radiance auto) fits every radiance "
                       "model and keeps the best")
-    if not causes:
-        return notes
     said = "; it may be that " + "; or that ".join(causes)
     return [n + (said if n.startswith("the area model leaves a misfit") else "")
             for n in notes]
@@ -529,8 +537,8 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
                                 vignetting_distance_mm, progress)
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
-    notes += fit_notes + _misfit_advice(method_notes, base, center, center_source, fl.shape,
-                                        fits[model].reduced_chi2)
+    _refuse_a_lost_centre(center, center_source, fl.shape, fits[model].reduced_chi2)
+    notes += fit_notes + _misfit_advice(method_notes, base, center, center_source, fl.shape)
     model = _unless_joint(used, verdicts, model)
     lens = dataclasses.replace(base, vignetting=circles)
     next_best, diff = _next_best(model if used == "joint" else None, fits, bic, lens, base,
