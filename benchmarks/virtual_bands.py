@@ -82,6 +82,7 @@ def accuracy(*, quick=False, echo=print):
         for cra in angles:
             R = ms.responses(mf, TRUTH, f, cra, N_EFF)
             y = ms.band_values(R, X) + NOISE * rng.standard_normal((X.shape[0], 25))
+            y = y[:, sensor.vendor_band]  # the file's order of the bands into the sensor's
             cube = make_cube(y[:, None, :].astype(np.float32), sensor.cwl_nm, name="reflectance")
             for method in METHODS:
                 if method == "none":
