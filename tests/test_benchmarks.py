@@ -186,3 +186,15 @@ def test_quick_pupil_model_benchmark_runs():
     assert lines[-1].startswith("sine")
     # the sine-condition lens: pupil_radiance="auto" takes the Lambertian pupil, and x comes right
     assert rows[0]["chosen"] == "lambertian" and abs(rows[0]["x_rel_error"]) < 0.005
+
+
+def test_quick_virtual_coverage_benchmark_runs_and_its_error_bars_cover():
+    from benchmarks import virtual_coverage
+
+    lines = []
+    rows = virtual_coverage.run(quick=True, echo=lines.append, write=False)
+    assert {r["case"] for r in rows} == {"two", "off_centre"}
+    assert all(0.5 <= r["z_rms"] <= 2 for r in rows)
+    assert all(r["rmse"] < 0.1 for r in rows)  # the bands in the sensor's order
+    assert max(r["cra_deg"] for r in rows if r["case"] == "off_centre") > 25
+    assert len(lines) == 4 and all("outside [0.5, 2]: 0" in line for line in lines)
