@@ -62,8 +62,7 @@ def _missing_chunks(arr, folder):
     files named as chunks (or shards) of the grid count; the array's metadata (``zarr.json``,
     ``.zarray``, ``.zattrs``) and anything else in the folder do not. ``all`` counts the
     chunks overlapping the array. A grid far larger than the files listed is not walked:
-    where it is sharded, a shard file there is counted whole, so ``missing`` is then at least
-    the count given."""
+    only the listed files are looked up (and each listed shard's index read)."""
     import itertools
     import math
     import os
@@ -80,8 +79,13 @@ def _missing_chunks(arr, folder):
            else [1] * arr.ndim)
     total = math.prod(math.ceil(n / c) for n, c in zip(arr.shape, arr.chunks, strict=True))
     if every > _WALK_FACTOR * len(stored) + 1000:  # most are missing: no walk needed
-        present = (_chunk_coords(arr, key, grid) for key in stored)
-        return total - sum(_inside(arr, c, per) for c in present if c is not None), total
+        held = 0
+        for key in stored:
+            c = _chunk_coords(arr, key, grid)
+            if c is not None:  # a chunk, or a shard less the inner chunks its index lacks
+                held += _inside(arr, c, per) - (
+                    _unwritten_in_shard(arr, Path(folder) / key, c, per) if arr.shards else 0)
+        return total - held, total
     missing = 0
     for c in itertools.product(*map(range, grid)):
         key = arr.metadata.encode_chunk_key(c)

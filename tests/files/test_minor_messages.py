@@ -49,6 +49,19 @@ def test_a_huge_sharded_grid_counts_chunks_inside_the_array(tmp_path):
         _refuse_incomplete_zarr(tmp_path / "sh.zarr")
 
 
+def test_a_huge_sharded_grid_counts_the_chunks_a_shard_lacks(tmp_path):
+    """A shard holding one of its four chunks was counted whole where the grid is too large
+    to walk: three missing chunks left out of the count."""
+    g = zarr.open_group(str(tmp_path / "part.zarr"), mode="w")
+    arr = g.create_array("raw", shape=(2000, 10**7), chunks=(500, 1000),
+                         shards=(1000, 2000), dtype="uint16")
+    arr[0:500, 0:1000] = 1  # shard (0, 0): one of its four chunks written
+    arr[1000:2000, 2000:4000] = 2  # shard (1, 1): all four
+    total = 4 * 10**4
+    with pytest.raises(ValueError, match=rf"lacks {total - 5} of its {total} chunks"):
+        _refuse_incomplete_zarr(tmp_path / "part.zarr")
+
+
 def test_the_recorded_frame_order_says_how_signs_are_read(tmp_path):
     """Names of as many numbers whose signs differ (a-1, a-2, a3) are read as signed numbers
     with no comparison of the two readings (as text a3 would come first): the record says the
