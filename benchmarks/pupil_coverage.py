@@ -100,7 +100,9 @@ def run(cases=tuple(CASES), seeds=8, first=100, write=True):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
-    ap.add_argument("case", nargs="*", default=list(CASES), choices=list(CASES))
+    ap.add_argument("case", nargs="*", help=f"of {', '.join(CASES)} (default: all)")
     ap.add_argument("--seeds", type=int, default=8)
     a = ap.parse_args()
-    run(tuple(a.case), a.seeds)
+    if set(a.case) - set(CASES):
+        ap.error(f"cases are {', '.join(CASES)}, got {', '.join(a.case)}")
+    run(tuple(a.case or CASES), a.seeds)
