@@ -46,7 +46,9 @@ def _add_pupil_option(group):
                        "uniform per area), lambertian (sine condition, uniform in direction "
                        "cosines), paper-lambertian (Eq. 28's disc, each ray weighted by its "
                        "cos^4: a flat pupil of uniform radiance) or auto (all fitted, another "
-                       "than the paper's kept only for a chi-square gain above 10). "
+                       "than the paper's kept only where it lowers the criterion by more than "
+                       "10: the chi-square of target cubes, the BIC of flats, their sum for "
+                       "both). "
                        "Default: auto with "
                        "target cubes (the --lens profile's when it has circles, which belong to "
                        "its pupil), else the --lens profile's, else paper")

@@ -311,14 +311,7 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
         raise ValueError(f"nodes must be a whole number from 1 to {MAX_IRRADIANCE_NODES}, got "
                          f"{nodes!r}")
     x = np.asarray(x_mm, float)
-    for name, values, positive in (("x_mm", [x], True), ("radii_mm", radii_mm, True),
-                                   ("centers_mm", centers_mm, False),
-                                   ("foot_mm", [foot_mm], False)):
-        for v in values:
-            v = np.asarray(v, float)
-            if not np.all(np.isfinite(v)) or (positive and not np.all(v > 0)):
-                raise ValueError(f"{name} must be finite" + (" and > 0" if positive else "")
-                                 + f", got {v if v.size < 5 else '...'}")
+    _check_discs(radii_mm, centers_mm, foot_mm, x)
     # lengths in units of the first disc's radius L (no underflow however far x is), the
     # weight (1 + k |p - F|^2)^-2 with k = (L / x)^2
     L = np.asarray(radii_mm[0], float)
@@ -357,6 +350,22 @@ def overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x_mm, *, nodes=IRRADIA
     return (np.where(b.hi > b.lo, 2.0 * upper, 0.0) * L * L)[()]
 
 
+def _check_discs(radii_mm, centers_mm, foot_mm, x):
+    """Refuse discs of no number, of radii or a distance not finite and > 0, or centres or a
+    foot not finite, naming the argument."""
+    if len(radii_mm) == 0 or len(radii_mm) != len(centers_mm):
+        raise ValueError(f"radii_mm and centers_mm must give the same number of discs, at "
+                         f"least one (the pupil), got {len(radii_mm)} and {len(centers_mm)}")
+    for name, values, positive in (("x_mm", [x], True), ("radii_mm", radii_mm, True),
+                                   ("centers_mm", centers_mm, False),
+                                   ("foot_mm", [foot_mm], False)):
+        for v in values:
+            v = np.asarray(v, float)
+            if not np.all(np.isfinite(v)) or (positive and not np.all(v > 0)):
+                raise ValueError(f"{name} must be finite" + (" and > 0" if positive else "")
+                                 + f", got {v if v.size < 5 else '...'}")
+
+
 def relative_irradiance(radii_mm, centers_mm, foot_mm, x_mm, *, weight="area",
                         natural=True):
     """A flat field's signal through the discs, relative to the full pupil on the axis.
@@ -389,8 +398,9 @@ def relative_irradiance(radii_mm, centers_mm, foot_mm, x_mm, *, weight="area",
     ndarray
         1 on the axis for an unvignetted pupil.
     """
-    R = np.asarray(radii_mm[0], float)
     x = np.asarray(x_mm, float)
+    _check_discs(radii_mm, centers_mm, foot_mm, x)
+    R = np.asarray(radii_mm[0], float)
     if weight == "cos4" and natural:
         return overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x) * (
             (x * x + R * R) / (np.pi * R * R * x * x))

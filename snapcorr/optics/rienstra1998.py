@@ -92,6 +92,10 @@ def ray_bundle_weights(f_number_w, cra_deg, *, step_deg=DEFAULT_STEP_DEG, lens=N
     """
     check_positive("step_deg", step_deg)
     check_positive("f_number_w", f_number_w)
+    if lens is not None and lens.pupil_radiance != "paper":
+        raise ValueError("Rienstra's ray bundle (1998) weights the paper's pupil (uniform per "
+                         f"area); the lens's pupil is {lens.pupil_radiance!r}: use "
+                         "snapcorr.optics.filter_response(method='kernel')")
     if not (np.isfinite(cra_deg) and abs(cra_deg) < 90):
         raise ValueError(f"cra_deg must be finite and between -90 and 90, got {cra_deg!r}")
     A = 1.0 / (2.0 * float(f_number_w))

@@ -125,3 +125,13 @@ def test_the_grid_refused_for_a_lambertian_pupil_names_the_options(tmp_path, cli
               "grid", cwd=tmp_path)
     assert res.returncode == 1
     assert "(--method table, or --method auto)" in res.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("command", ["calibrate", "pupil"])
+def test_the_help_of_auto_names_the_criterion_of_each_input(cli, command):
+    """The help said "a chi-square gain above 10" where flats alone are judged by their BIC
+    (and recorded so)."""
+    res = cli(command, "--help")
+    text = " ".join(res.stdout.split())
+    assert "the chi-square of target cubes, the BIC of flats, their sum for both" in text
+    assert "chi-square gain above 10" not in text

@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from snapcorr.optics.aperture import overlap_area_mm2, overlap_irradiance_mm2
+from snapcorr.optics.aperture import (
+    overlap_area_mm2,
+    overlap_irradiance_mm2,
+    relative_irradiance,
+)
 
 
 def brute_irradiance(radii, centers, foot, x, n=1601):
@@ -74,6 +78,27 @@ def test_a_geometry_outside_physics_is_refused(bad):
     args = dict(radii_mm=[1.0], centers_mm=[0.0], foot_mm=0.0, x_mm=1.0) | bad
     with pytest.raises(ValueError, match=next(iter(bad))):
         overlap_irradiance_mm2(**args)
+
+
+@pytest.mark.parametrize("weight, natural", [("area", True), ("area", False),
+                                             ("cos4", True), ("cos4", False)])
+@pytest.mark.parametrize("bad", [dict(x_mm=0.0), dict(x_mm=-1.0), dict(radii_mm=[-1.0]),
+                                 dict(radii_mm=[np.nan]), dict(foot_mm=np.nan)])
+def test_every_weight_of_the_relative_irradiance_refuses_such_a_geometry(bad, weight,
+                                                                         natural):
+    """Only the cos^4 weight checked: the area's gave inf at x = 0, 0.64 at x = -1, 0.0
+    for a radius of -1 and NaN for one of NaN, all silently."""
+    args = dict(radii_mm=[1.0], centers_mm=[0.0], foot_mm=0.0, x_mm=1.0) | bad
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        relative_irradiance(**args, weight=weight, natural=natural)
+
+
+@pytest.mark.parametrize("radii, centers", [([], []), ([1.0], []), ([1.0, 2.0], [0.0])])
+def test_discs_of_no_number_or_unmatched_centres_are_refused(radii, centers):
+    """No disc at all gave an IndexError."""
+    for fn in (overlap_irradiance_mm2, relative_irradiance):
+        with pytest.raises(ValueError, match="same number of discs, at least one"):
+            fn(radii, centers, 0.0, 1.0)
 
 
 def test_far_feet_stay_accurate():

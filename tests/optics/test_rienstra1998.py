@@ -102,3 +102,14 @@ def test_rienstra_transform_is_the_bundles_average_of_the_scaled_curve():
     # a curve scaled by S has its centroid at S * 700 nm and its area times S
     assert centroid(P_GRID, got) == pytest.approx(700.0 * (S**2).sum() / S.sum(), abs=0.02)
     assert centroid(P_GRID, got) < 700.0 - 4.0  # the band moved to the blue
+
+
+@pytest.mark.parametrize("pupil", ["lambertian", "paper-lambertian"])
+@pytest.mark.parametrize("circles", [[], [(7.4236, 16.991)]])
+def test_the_ray_bundle_refuses_a_pupil_that_is_not_the_papers(pupil, circles):
+    """Rienstra's weights are the paper's pupil's: a Lambertian lens had been given the same
+    weights (their sum 1.00055, the curve's centroid the same to 0.001 nm) silently."""
+    lens = Lens(21.0, circles, 0.06, 1.3, pupil_radiance=pupil)
+    with pytest.raises(ValueError, match=rf"pupil is '{pupil}': use .*method='kernel'"):
+        ray_bundle_weights(2.0, 10.0, lens=lens)
+    ray_bundle_weights(2.0, 10.0, lens=Lens(21.0, circles, 0.06, 1.3))
