@@ -467,4 +467,6 @@ def errors_not_below_the_prediction(x, x_err, n_err, xn_err, pred, notes):
                  "reported")
     if n_err is not None and pred.n_eff_stderr is not None:
         n_err = np.maximum(n_err, pred.n_eff_stderr)
-    return pred.x_stderr_mm, n_err, xn_err * pred.x_stderr_mm / x_err
+    if x_err > 0:
+        xn_err = xn_err * pred.x_stderr_mm / x_err
+    return pred.x_stderr_mm, n_err, xn_err

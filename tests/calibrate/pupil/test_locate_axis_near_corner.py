@@ -87,6 +87,9 @@ def test_an_error_below_half_the_prediction_is_raised_to_it_and_said():
     assert x_err == 0.045 and n_err[0] == pytest.approx(0.0027)
     assert xn_err == pytest.approx(0.0117 * 0.045 / 0.0059)
     assert len(notes) == 1 and "0.0059 mm" in notes[0] and "0.045 mm" in notes[0]
+    # an error of 0 (a model flat in x nowhere near): raised, x n_eff's kept, no division
+    assert errors_not_below_the_prediction(21.0, 0.0, None, 0.01, _pred(), [])[::2] == (
+        0.045, 0.01)
 
 
 @pytest.mark.parametrize("case", ["above half", "far start", "no information", "no index"])
