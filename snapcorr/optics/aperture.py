@@ -399,11 +399,12 @@ def relative_irradiance(radii_mm, centers_mm, foot_mm, x_mm, *, weight="area",
         1 on the axis for an unvignetted pupil.
     """
     x = np.asarray(x_mm, float)
+    if weight == "cos4" and natural:  # overlap_irradiance_mm2 checks the discs
+        v = overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x)
+        R = np.asarray(radii_mm[0], float)
+        return v * ((x * x + R * R) / (np.pi * R * R * x * x))
     _check_discs(radii_mm, centers_mm, foot_mm, x)
     R = np.asarray(radii_mm[0], float)
-    if weight == "cos4" and natural:
-        return overlap_irradiance_mm2(radii_mm, centers_mm, foot_mm, x) * (
-            (x * x + R * R) / (np.pi * R * R * x * x))
     if weight not in ("area", "cos4"):
         raise ValueError(f"weight must be 'area' or 'cos4', got {weight!r}")
     v = overlap_area_mm2(radii_mm, centers_mm) / (np.pi * R * R)

@@ -570,8 +570,8 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
         if mode != "one":
             err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
     xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
-    err[0], n_err, xn_err = errors_not_below_the_prediction(x, float(err[0]), n_err, xn_err,
-                                                            predicted[0], notes)
+    err[0], n_err, xn_err, cov = errors_not_below_the_prediction(
+        x, float(err[0]), n_err, xn_err, predicted[0], notes, cov)
     notes += _validity_notes(r_max, x, cone, chi2_red, dof)
     short = spectrum_short_of_the_edge(spectrum, sensor, r_max, x, n, cone, min(cubes))
     notes += [short] if short else []

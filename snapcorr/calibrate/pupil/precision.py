@@ -447,19 +447,21 @@ def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
 #: A fit's own error of x below this share of the one predicted before it, at a start within
 #: :data:`BOUND_NEAR_REL` of the x fitted, is not believed: the model is not smooth where the
 #: fit ended (three vignetting circles, 0.5 % noise: one seed of six reported 0.0059 mm,
-#: where the prediction and the other five gave 0.045-0.047, and was 4 of its errors off).
+#: where the prediction and the other five gave 0.045-0.047, and was 8 of it off).
 BOUND_SHARE = 0.5
 BOUND_NEAR_REL = 0.05
 
 
-def errors_not_below_the_prediction(x, x_err, n_err, xn_err, pred, notes):
+def errors_not_below_the_prediction(x, x_err, n_err, xn_err, pred, notes, cov=None):
     """x's, n_eff's and ``x n_eff``'s errors raised to the prediction made before the fit
     (``pred``, a :class:`TargetPrecision`) where x's falls below :data:`BOUND_SHARE` of it;
-    said in ``notes``."""
+    said in ``notes``. With ``cov`` (the fit's, of x and the index's scale) also that,
+    raised alike (:func:`raised_covariance`), as a fourth value."""
     if (pred is None or not math.isfinite(pred.x_stderr_mm)
             or abs(pred.x_mm - x) > BOUND_NEAR_REL * x
             or not x_err < BOUND_SHARE * pred.x_stderr_mm):
-        return x_err, n_err, xn_err
+        return (x_err, n_err, xn_err) if cov is None else (x_err, n_err, xn_err, cov)
+    fit_n_err = n_err
     notes.append(f"x's error from the fit ({x_err:.2g} mm) is below half of what these cubes "
                  f"can give by the prediction before it ({pred.x_stderr_mm:.2g} mm at x = "
                  f"{pred.x_mm:.4g} mm): the model is not smooth where the fit ended (a "
@@ -469,4 +471,21 @@ def errors_not_below_the_prediction(x, x_err, n_err, xn_err, pred, notes):
         n_err = np.maximum(n_err, pred.n_eff_stderr)
     if x_err > 0:
         xn_err = xn_err * pred.x_stderr_mm / x_err
-    return pred.x_stderr_mm, n_err, xn_err
+    out = (pred.x_stderr_mm, n_err, xn_err)
+    if cov is None:
+        return out
+    return (*out, raised_covariance(cov, pred.x_stderr_mm, x_err, n_err, fit_n_err))
+
+
+def raised_covariance(cov, x_err, x_fit_err, n_err, n_fit_err):
+    """The fit's covariance of (x, the index's scale) with each row and column scaled as
+    :func:`errors_not_below_the_prediction` raised that parameter's error (x's alone where
+    the covariance is x's only), so what reads it (``calibrate_with_target``'s propagation)
+    agrees with the errors reported."""
+    f = [x_err / x_fit_err if x_fit_err > 0 else 1.0]
+    if np.shape(cov)[0] > 1:
+        f.append(float(np.mean(n_err) / np.mean(n_fit_err))
+                 if n_err is not None and np.mean(n_fit_err) > 0 else 1.0)
+    f += [1.0] * (np.shape(cov)[0] - len(f))
+    d = np.asarray(f)
+    return np.asarray(cov) * np.outer(d, d)

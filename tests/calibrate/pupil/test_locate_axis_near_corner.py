@@ -87,6 +87,13 @@ def test_an_error_below_half_the_prediction_is_raised_to_it_and_said():
     assert x_err == 0.045 and n_err[0] == pytest.approx(0.0027)
     assert xn_err == pytest.approx(0.0117 * 0.045 / 0.0059)
     assert len(notes) == 1 and "0.0059 mm" in notes[0] and "0.045 mm" in notes[0]
+    # the covariance of (x, the index's scale) raised alike, the off-diagonal with both
+    cov = np.array([[0.0059**2, 0.5 * 0.0059 * 0.00055], [0.5 * 0.0059 * 0.00055, 0.00055**2]])
+    *_, raised = errors_not_below_the_prediction(21.05, 0.0059, np.array([0.00094]), 0.0117,
+                                                 _pred(), [], cov)
+    assert np.sqrt(np.diag(raised)) == pytest.approx([0.045, 0.00055 * 0.0027 / 0.00094])
+    assert raised[0, 1] / np.sqrt(raised[0, 0] * raised[1, 1]) == pytest.approx(0.5)
+    assert errors_not_below_the_prediction(21.0, 0.04, None, 0.01, _pred(), [], cov)[3] is cov
     # an error of 0 (a model flat in x nowhere near): raised, x n_eff's kept, no division
     assert errors_not_below_the_prediction(21.0, 0.0, None, 0.01, _pred(), [])[::2] == (
         0.045, 0.01)
