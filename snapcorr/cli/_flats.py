@@ -11,18 +11,44 @@ from ._options import _sensor
 
 def _flat_sensor(args):
     """``--sensor`` without --target-cube: the mosaic whose raw frames the flats are (its band
-    gains are divided out); a sensor of another layout is refused."""
+    gains are divided out), or a sensor of another layout (a Snapscan camera) that gives the
+    pixel pitch and bounds a crop at ``--sensor-origin-px``."""
     if args.sensor is None:
-        if args.sensor_origin_px is not None:
-            raise ValueError("--sensor-origin-px needs --sensor (the mosaic whose raw frames "
-                             "the flats are)")
         return None
-    sensor = _sensor(args.sensor)
-    if sensor.layout != "mosaic":
-        raise ValueError(f"--sensor {args.sensor} is not a mosaic (layout {sensor.layout!r}): "
-                         "its flats carry no tile pattern to remove; leave --sensor out (it "
-                         "goes with raw mosaic flats, or with --target-cube)")
-    return sensor
+    return _sensor(args.sensor)
+
+
+def _mosaic_of(sensor):
+    """The sensor whose band gains are divided out of the flats: a mosaic's, else None."""
+    return sensor if sensor is not None and sensor.layout == "mosaic" else None
+
+
+def _check_crop(args, sensor, flats):
+    """Flats of a sensor without a tile pattern: a crop at ``--sensor-origin-px`` must lie on
+    the sensor, and flats smaller than a sensor of known size need the origin (their optical
+    centre is recorded in their own pixels)."""
+    if sensor is None or sensor.layout == "mosaic" or sensor.size_px is None:
+        return
+    (f, path), rows, cols = min(args.flat), *next(iter(flats.values())).shape
+    pitch = float(sensor.pixel_pitch_um or 0)
+    if abs(args.pixel_pitch_um - pitch) > 1e-9 * max(pitch, 1.0):  # binned: placed by mm
+        if args.sensor_origin_px is not None:
+            raise ValueError(f"--sensor-origin-px is in the sensor's {pitch:g} um pixels and "
+                             f"the flats' are {args.pixel_pitch_um:g} um (--pixel-pitch-um): "
+                             "a crop's origin needs the sensor's own pixels")
+        return
+    r0, c0 = args.sensor_origin_px or (0, 0)
+    size = tuple(int(v) for v in sensor.size_px)
+    if r0 + rows > size[0] or c0 + cols > size[1]:
+        where = (f"at sensor row {r0}, column {c0} " if args.sensor_origin_px else "")
+        raise ValueError(f"--flat {f:g}={path}: {rows} x {cols} px {where}reaches beyond the "
+                         f"sensor {args.sensor} ({size[0]} x {size[1]} px): check "
+                         "--sensor-origin-px and --sensor")
+    if args.sensor_origin_px is None and (rows, cols) != size:
+        raise ValueError(f"--flat {f:g}={path} is {rows} x {cols} px, a crop of the sensor "
+                         f"{args.sensor} ({size[0]} x {size[1]} px): give --sensor-origin-px "
+                         "ROW,COL (the crop's first pixel on the sensor), so the profile places "
+                         "the optical centre on the sensor")
 
 
 def _band_gains_said(res, cal, args):

@@ -9,9 +9,11 @@ from pathlib import Path
 from .._names import CALIBRATION_METHODS
 from ._flats import (
     _band_gains_said,
+    _check_crop,
     _check_flat_phase,
     _flat_sensor,
     _flats_provenance,
+    _mosaic_of,
     _no_dark_note,
     _pitch_option,
     _read_flats,
@@ -104,12 +106,14 @@ def add_parser(subparsers):
                    help="with --target-cube: the camera of the cubes (bundled name, .toml or "
                    "vendor .xml); without it: a snapshot mosaic whose raw frames the flats "
                    "are, whose band gains (the tile pattern) are fitted in each flat and "
-                   "divided out, pixels outside its filter area left out (a sensor of "
-                   "another layout is refused: its flats have no tile pattern)")
+                   "divided out, pixels outside its filter area left out; of another layout (a "
+                   "Snapscan camera): it gives the pixel pitch and the size a crop lies in")
     _add_target_fit_options(t, "with --target-cube: ", (
-        "sensor row and column of the raw mosaic flats' first pixel (crops, with --sensor; "
-        "with --target-cube, of the cubes' too: flats and cubes must be of the same pixels, "
-        "and a cube that records its own must agree)"))
+        "sensor row and column of the flats' first pixel, for flats that are a crop (raw "
+        "mosaic frames or a Snapscan camera's region of interest), recorded in the profile "
+        "so the optical centre is placed on the sensor; with --target-cube, of the cubes' "
+        "too: flats and cubes must be of the same pixels, and a cube that records its own "
+        "must agree"))
     t.add_argument("--target-tolerance-nm", type=_positive, default=None, metavar="NM",
                    help="with --target-cube: " + TARGET_TOLERANCE_HELP)
     _add_pupil_option(t)
@@ -168,8 +172,10 @@ def run(args):
                    [(".toml",), (".png",)])
     given = _lens(args.lens) if args.lens else None
     _pitch_option(args, sensor)
-    flats, bands, sat, dark = _read_flats(args, sensor)
-    _check_flat_phase(args, sensor, flats, sat, dark, args.sensor_origin_px)
+    mosaic = _mosaic_of(sensor)
+    flats, bands, sat, dark = _read_flats(args, mosaic)
+    _check_crop(args, sensor, flats)
+    _check_flat_phase(args, mosaic, flats, sat, dark, args.sensor_origin_px)
     with _StepBar("calibrating") as bar:
         res = calibrate_lens(
             flats, exit_pupil_mm=args.exit_pupil_mm, lens=given,
@@ -180,7 +186,7 @@ def run(args):
             vignetting_distance_mm=args.vignetting_distance_mm, method=args.method,
             name=args.name or args.out.stem, inputs={f: str(p) for f, p in args.flat},
             tolerance_nm=args.tolerance_nm, max_circles=args.max_circles, progress=bar.step,
-            pupil_radiance=args.pupil, sensor=sensor, sensor_origin_px=args.sensor_origin_px)
+            pupil_radiance=args.pupil, sensor=mosaic, sensor_origin_px=args.sensor_origin_px)
     cal = _flats_provenance(dict(res.lens.calibration), args, bands)
     _band_gains_said(res, cal, args)
     lens = dataclasses.replace(res.lens, calibration=cal)

@@ -249,8 +249,9 @@ def test_raw_mosaic_flats_with_their_sensor(mosaic_flats, cli):
 
 
 @pytest.mark.parametrize("extra, words", [
-    (["--sensor", "snapscan_vnir"], "--sensor snapscan_vnir is not a mosaic"),
-    (["--sensor-origin-px", "0,4"], "--sensor-origin-px needs --sensor"),
+    # flats of another pitch than snapscan_vnir's are not a crop of it: here they show a tile
+    (["--sensor", "snapscan_vnir"], "raw frames of a snapshot mosaic; give its sensor"),
+    (["--sensor-origin-px", "0,4"], "repeats a 4 x 4 pattern of pixel gains"),
     (["--sensor", "mosaic_4x4_vis"], "give the sensor row and column of its first pixel"),
     (["--sensor", "mosaic_4x4_vis", "--sensor-origin-px", "1000,0"], "reaches beyond the sensor"),
     (["--sensor", "raw4x4.toml", "--fit-n-eff"], "--fit-n-eff goes with --target-cube"),
@@ -301,3 +302,24 @@ def test_flats_spanning_too_few_angles_say_about_which_centre(flats, cli, center
     for w in words:
         assert w in line, (w, line)
     assert not (flats / "never.toml").exists()
+
+
+def test_a_crop_of_flats_without_a_tile_pattern_records_where_it_sits(flats, cli):
+    """Flats cut to rows 20-219 and columns 30-249 with --sensor-origin-px 20,30 (no mosaic:
+    a Snapscan camera's region of interest): the profile records the origin and its centre
+    in the crop's pixels (placed on the sensor by it: test_cleaning_band_gains.py)."""
+    from snapcorr.calibrate import read_flat
+
+    crop = []
+    for arg in FLATS[1::2]:
+        f, path = arg.split("=")
+        np.save(flats / f"crop_{path}.npy", read_flat(flats / path)[0][20:220, 30:250])
+        crop += ["--flat", f"{f}=crop_{path}.npy"]
+    np.save(flats / "cropdark.npy", np.load(flats / "dark.npy")[20:220, 30:250])
+    res = cli("calibrate", *crop, *OPTICS, "--dark", "cropdark.npy", "--sensor-origin-px",
+              "20,30", "--out", "crop.toml", cwd=flats)
+    assert res.returncode == 0, res.stderr
+    cal = Lens.load(flats / "crop.toml").calibration
+    assert cal["sensor_origin_rc"] == [20, 30]
+    assert abs(cal["center_rc"][0] - (CENTER[1] - 20)) < 1, cal["center_rc"]
+    assert abs(cal["center_rc"][1] - (CENTER[0] - 30)) < 1, cal["center_rc"]

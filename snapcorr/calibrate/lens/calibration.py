@@ -43,6 +43,7 @@ from ..._names import CALIBRATION_METHODS
 from ..._validation import (
     check_center,  # noqa: F401 (calibrate.lens_calibration re-exports it)
     check_center_rc,
+    check_integers,
     check_pixel_pitch_um,
     check_positive,
     renamed_keywords,
@@ -135,6 +136,10 @@ class LensCalibration:
         Raw flats of a snapshot mosaic: ``sensor``, ``sensor_origin_px`` (None: the whole
         sensor) and ``band_gains`` (f-number -> each band's gain divided out, mean 1). Empty
         for flats without a tile pattern.
+    sensor_origin_px : (int, int) or None
+        Sensor row and column of the flats' first pixel, for flats that are a crop (of a
+        mosaic or not), recorded in the profile as ``sensor_origin_rc`` so that the centre
+        is placed on the sensor; None for flats of the whole sensor.
     """
 
     lens: Lens
@@ -167,6 +172,7 @@ class LensCalibration:
     shift_stderr_noise_nm: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rivals: dict = field(default_factory=dict)
     mosaic: dict = field(default_factory=dict)
+    sensor_origin_px: tuple | None = None
 
     @property
     def center_px(self) -> tuple:
@@ -340,7 +346,10 @@ def calibrate_lens(flats, *, exit_pupil_mm=None, pixel_pitch_um, exit_pupil_stde
     sensor, sensor_origin_px : Sensor, (int, int), optional
         Flats that are raw frames of this snapshot mosaic, whose first pixel is at sensor row
         and column ``sensor_origin_px`` (default: the whole sensor): each flat's band gains are
-        fitted and divided out first (:func:`~snapcorr.calibrate.remove_band_gains`).
+        fitted and divided out first (:func:`~snapcorr.calibrate.remove_band_gains`). Without
+        ``sensor``, ``sensor_origin_px`` is the first pixel of flats that are a crop of a
+        sensor without a tile pattern (a Snapscan camera's region of interest). Either way
+        it is recorded (``sensor_origin_rc``), and the centre is placed on the sensor by it.
     lens : Lens, optional
         A lens whose exit pupil is known (the profile ``snapcorr pupil`` writes), instead of
         ``exit_pupil_mm``: its x, and its m, m_P, pupil and the standard error of x unless
@@ -505,7 +514,8 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
      tolerance_nm) = _check_args(method, exit_pupil_mm, pixel_pitch_um, vignetting_distance_mm,
                                  center_rc, exit_pupil_stderr_mm, tolerance_nm, max_circles)
     items = _check_inputs(flats, dark, vignetting_distance_mm)
-    items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, sensor_origin_px)
+    origin = _crop_origin(sensor_origin_px)
+    items, cleaning, mosaic = _raw_mosaic(items, dark, saturation, sensor, origin)
     base = Lens(exit_pupil_mm, (), magnification, pupil_magnification, name=name,
                 pupil_radiance=pupil_radiance)
     fl, ratios, center, center_source, notes = _prepare_flats(items, center_rc, **cleaning)
@@ -556,7 +566,8 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
         ratio_profiles=ons.ratio_profiles, pixel_pitch_um=float(pixel_pitch_um),
         shape=fl.shape, bic_floor=bic, verdicts=verdicts, next_best=next_best,
         shift_difference_nm=diff, tolerance_nm=tolerance_nm, notes=notes, predictive=scores,
-        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, mosaic=mosaic, **errs)
+        exit_pupil_stderr_mm=exit_pupil_stderr_mm, rivals=rivals, mosaic=mosaic,
+        sensor_origin_px=origin, **errs)
     result.lens = dataclasses.replace(lens, calibration=_calibration_table(result, inputs))
     return result
 
@@ -571,15 +582,24 @@ class _Onsets(NamedTuple):
     fits: dict
 
 
+def _crop_origin(origin_px):
+    """``sensor_origin_px`` as two whole numbers >= 0 (None: flats of the whole sensor)."""
+    if origin_px is None:
+        return None
+    o = check_integers("sensor_origin_px", origin_px)
+    if o.shape != (2,) or np.any(o < 0):
+        raise ValueError("sensor_origin_px must be a sensor row and column (whole numbers "
+                         f">= 0), got {origin_px!r}")
+    return int(o[0]), int(o[1])
+
+
 def _raw_mosaic(items, dark, saturation, sensor, origin_px):
     """Raw flats of a mosaic ``sensor`` with their band gains divided out, what is left of
     cleaning them (keywords of :func:`_prepare_flats`: the dark is subtracted and saturated
     pixels are masked already; each pixel's gain, for its noise), and the record of it (as
-    :attr:`LensCalibration.mosaic`); without ``sensor``, the flats as they came and ``{}``."""
+    :attr:`LensCalibration.mosaic`); without ``sensor``, the flats as they came and ``{}``
+    (``origin_px``, checked by :func:`_crop_origin`, is then only recorded)."""
     if sensor is None:
-        if origin_px is not None:
-            raise ValueError("sensor_origin_px needs sensor (the mosaic whose band gains are "
-                             "removed from the flats)")
         return items, {"dark": dark, "saturation": saturation}, {}
     check_mosaic_sensor(sensor)
     items, gains, pixel_gains = stages.without_band_gains(items, dark, saturation, sensor,

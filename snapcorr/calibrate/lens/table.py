@@ -110,9 +110,9 @@ def _calibration_table(res, inputs):
         table[f"onset_{det}"] = entry
     if res.mosaic:
         table["band_gains"] = _band_gain_table(res.mosaic)
-        origin = res.mosaic.get("sensor_origin_px")
-        if origin is not None:  # the flats are a crop: where their first pixel sits
-            table["sensor_origin_rc"] = [int(origin[0]), int(origin[1])]
+    origin = res.sensor_origin_px
+    if origin is not None:  # the flats are a crop (of a mosaic or not): their first pixel
+        table["sensor_origin_rc"] = [int(origin[0]), int(origin[1])]
     table["joint_fit"] = _joint_fit_table(res)
     table["model_choice"] = _model_choice_table(res)
     if inputs:

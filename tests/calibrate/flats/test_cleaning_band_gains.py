@@ -138,13 +138,35 @@ def test_a_crop_off_the_tile_grid_calibrates_as_well(light, without_pattern):
     assert abs(col - (CENTER[0] + CROP_ORIGIN[1])) < 0.5
 
 
+def test_a_crop_without_a_tile_pattern_records_its_origin(light):
+    """Flats that are a crop of a sensor without a tile pattern (a Snapscan camera's region
+    of interest) at ``sensor_origin_px``: the profile records the origin, and the centre found
+    on the crop is placed on a 300 x 400 px sensor by it (by hand: the crop's centre plus the
+    origin); an origin that is not two whole numbers >= 0 is refused before any fit."""
+    from snapcorr.correct.geometry import optical_center_rc
+    from snapcorr.cube import make_cube
+
+    res = _calibrate(_raw(light, 1.0), sensor_origin_px=CROP_ORIGIN)
+    _check_lens(res)
+    assert res.lens.calibration["sensor_origin_rc"] == list(CROP_ORIGIN)
+    assert "band_gains" not in res.lens.calibration
+    scan = Sensor("scan", "snapscan", PITCH, (500.0,), 10.0, 1.7, size_px=CROP_SENSOR)
+    (row, col), source = optical_center_rc(make_cube(np.ones((*SHAPE, 1)), [500.0]), scan,
+                                           res.lens)
+    assert abs(row - (CENTER[1] + CROP_ORIGIN[0])) < 0.5, row
+    assert abs(col - (CENTER[0] + CROP_ORIGIN[1])) < 0.5, col
+    assert "cropped at sensor row 5, column 7" in source
+    flats = _raw(light, 1.0)
+    for bad in ((-1, 0), (1.5, 2), (1, 2, 3)):
+        with pytest.raises(ValueError, match="sensor_origin_px"):
+            _calibrate(flats, sensor_origin_px=bad)
+
+
 def test_sensor_mistakes_are_value_errors(light):
     raw = _raw(light, _pattern())[11.0]
     with pytest.raises(ValueError, match="is not a mosaic"):
         _calibrate({2.0: raw, 11.0: raw}, sensor=Sensor("scan", "snapscan", PITCH, (500.0,),
                                                         10.0, 1.7))
-    with pytest.raises(ValueError, match="sensor_origin_px needs sensor"):
-        _calibrate({2.0: raw, 11.0: raw}, sensor_origin_px=(0, 0))
     with pytest.raises(ValueError, match="f/2: the frame is 256 x 320 px but the sensor"):
         _calibrate({2.0: raw, 11.0: raw}, sensor=_sensor(CROP_SENSOR, CROP_AREA))
     with pytest.raises(TypeError, match="must be a Sensor"):
