@@ -115,21 +115,40 @@ class _File:
         raise ValueError(f"{self.path.name}: {message}")
 
     def child(self, el, where, *tags, required=True):
-        """The first child of ``el`` named one of ``tags``; refused when missing."""
+        """The child of ``el`` named one of ``tags`` (the variant's own first); refused when
+        missing, or when the file states it twice (which of two values to believe is no
+        reader's guess)."""
         for tag in tags:
-            found = el.find(tag)
-            if found is not None:
-                return found
+            found = el.findall(tag)
+            if len(found) > 1:
+                self.fail(f"<{where}/{tag}> appears {len(found)} times; a calibration file "
+                          "states it once")
+            if found:
+                return found[0]
         if required:
             self.fail(f"<{where}/{tags[0]}> is missing; is this a complete sensor calibration "
                       "file?")
         return None
+
+    def present(self, el, *tags):
+        """The first of ``tags`` that ``el`` holds (else the first): the name a message about
+        its value gives, as the file spells it."""
+        return next((t for t in tags if el.find(t) is not None), tags[0])
+
+    def descendant(self, root, tag):
+        """The one element named ``tag`` anywhere under ``root`` (None if none); refused when
+        there are several."""
+        found = list(root.iter(tag))
+        if len(found) > 1:
+            self.fail(f"<{tag}> appears {len(found)} times; a calibration file states it once")
+        return found[0] if found else None
 
     def number(self, el, where, *tags, integer=False, minimum=None, required=True,
                default=None):
         node = self.child(el, where, *tags, required=required)
         if node is None:
             return default
+        tags = (node.tag,)  # the messages below name the element the file holds
         text = (node.text or "").strip()
         if len(text) > MAX_CHARS_PER_VALUE:  # measured, not parsed: 10 MiB of digits took 1 s
             self.fail(f"<{where}/{tags[0]}> holds {len(text):,} characters, {shown(text)}: "
@@ -294,7 +313,8 @@ def _sensor_info(f, root, variant):
 
     rows = f.number(si, "sensor_info", *tags("height_px", "height"), integer=True, minimum=1)
     cols = f.number(si, "sensor_info", *tags("width_px", "width"), integer=True, minimum=1)
-    for tag, n in ((tags("height_px", "height")[0], rows), (tags("width_px", "width")[0], cols)):
+    for tag, n in ((f.present(si, *tags("height_px", "height")), rows),
+                   (f.present(si, *tags("width_px", "width")), cols)):
         if n > SENSOR_PX_MAX:
             f.fail(f"<sensor_info/{tag}> is {n} px; no sensor is more than {SENSOR_PX_MAX} px "
                    "across")
@@ -302,7 +322,7 @@ def _sensor_info(f, root, variant):
     pitch = f.number(si, "sensor_info", *pitch_tag, minimum=0, required=False, default=0.0)
     if pitch > 0:  # 0: not given
         try:
-            check_pixel_pitch_um(f"<sensor_info/{pitch_tag[0]}>", pitch)
+            check_pixel_pitch_um(f"<sensor_info/{f.present(si, *pitch_tag)}>", pitch)
         except ValueError as err:
             f.fail(str(err))
     from .sensor import BIT_DEPTH_MAX  # the bound a Sensor's bit_depth takes
@@ -310,8 +330,8 @@ def _sensor_info(f, root, variant):
     bits_tag = tags("bit_depth", "input_bpp")
     bits = f.number(si, "sensor_info", *bits_tag, integer=True, minimum=1, required=False)
     if bits is not None and bits > BIT_DEPTH_MAX:
-        f.fail(f"<sensor_info/{bits_tag[0]}> is {bits}: no camera's codes have more than "
-               f"{BIT_DEPTH_MAX} bits")
+        f.fail(f"<sensor_info/{f.present(si, *bits_tag)}> is {bits}: no camera's codes have "
+               f"more than {BIT_DEPTH_MAX} bits")
     return (rows, cols), (float(pitch) if pitch > 0 else None), bits
 
 
@@ -420,7 +440,8 @@ def _grid_from_range(f, ci, where):
     if not step > 0:
         f.fail(f"<{where}> gives a step of {step:g} nm; it must be > 0")
     if n > MAX_SAMPLES or n > f.path.stat().st_size // 2:
-        f.fail(f"<{where}/nr_measurements> is {n}: more samples than the file holds room for "
+        f.fail(f"<{where}/{f.present(ci, 'nr_measurements', 'nr_data_points')}> is {n}: more "
+               "samples than the file holds room for "
                f"(at most {min(MAX_SAMPLES, f.path.stat().st_size // 2)})")
     grid = start + step * np.arange(n)
     end = f.number(ci, where, "measurement_range_end_nm", "wavelength_end_nm", required=False)
@@ -441,14 +462,14 @@ def _older(f, root, info):
                            ("pattern_position_index", "index"), n_bands, grid,
                            ("response_composition", "data"))
     system, name = np.ones(grid.size), "none"
-    rej = info.find("rejection_filter")
+    rej = f.child(info, "filter_info", "rejection_filter", required=False)
     if rej is not None:
         where = "filter_info/rejection_filter"
         holder = f.child(rej, where, "filter_response")
         node = f.child(holder, where, "data")
         values = f.curve(f.numbers(node, f"{where}/filter_response/data", holder=holder),
                          f"{where}/filter_response/data")
-        if rej.find("wavelength_start_nm") is not None:
+        if f.child(rej, where, "wavelength_start_nm", required=False) is not None:
             own = _grid_from_range(f, rej, where)
             if values.size != own.size:
                 f.fail(f"<{where}/filter_response/data> holds {values.size} values, its grid "
@@ -459,12 +480,13 @@ def _older(f, root, info):
         else:
             f.fail(f"<{where}/filter_response/data> holds {values.size} values, the response "
                    f"grid {grid.size}")
-        kind = rej.find("type")
+        kind = f.child(rej, where, "type", required=False)
         name = (kind.text or "").strip() if kind is not None and kind.text else "band-pass"
     responses = _responses(f, grid, curves, system, peaks, name)
     matrices = ()
-    sci = root.find(".//spectral_correction_info")
-    if sci is not None and sci.find("virtual_bands") is not None:
+    sci = f.descendant(root, "spectral_correction_info")
+    if sci is not None and f.child(sci, "spectral_correction_info", "virtual_bands",
+                                   required=False) is not None:
         fwhm = f.number(sci, "spectral_correction_info", "fwhm_virtual_filters_nm",
                         required=False, default=np.nan)
         matrices = (_older_matrix(f, sci, n_bands, fwhm, grid),)
@@ -566,17 +588,16 @@ def _newer(f, root, info):
     curves, peaks = _bands(f, f.child(zone, where, "bands"), f"{where}/bands",
                            ("index", "pattern_position_index"), n_bands, grid, ("response",))
     system, names = np.ones(grid.size), []
-    si = root.find("system_info")
-    if si is None:
-        si = root.find(".//system_info")
-    comps = si.find("optical_components") if si is not None else None
+    si = f.descendant(root, "system_info")
+    comps = (f.child(si, "system_info", "optical_components", required=False)
+             if si is not None else None)
     for k, comp in enumerate(comps.findall("optical_component") if comps is not None else []):
         w = f"system_info/optical_components/optical_component[{k}]"
         own = f.numbers(f.child(comp, w, "sample_points_nm"), f"{w}/sample_points_nm")
         values = f.curve(f.numbers(f.child(comp, w, "response"), f"{w}/response",
                                    count=own.size), f"{w}/response")
         system = system * _on_grid(f, own, values, grid, w)
-        kind = comp.find("type")
+        kind = f.child(comp, w, "type", required=False)
         names.append((kind.text or "").strip() if kind is not None and kind.text else
                      f"component {k}")
     responses = _responses(f, grid, curves, system, peaks, " x ".join(names) or "none")

@@ -245,3 +245,34 @@ def test_two_bands_of_one_peak_are_refused_naming_the_file(tmp_path, writer):
     _refused(writer(tmp_path / "twice.xml", dataclasses.replace(fx, curves=curves, peaks=peaks)),
              r"cwl_nm repeats \[[\d.]+\] nm; .* \(the bands' main peaks, read from their "
              r"measured responses\)")
+
+
+@pytest.mark.parametrize(("old", "new", "words"), [
+    ("<pattern_width>5</pattern_width>", "<pattern_width>5</pattern_width>"
+     "<pattern_width>4</pattern_width>", r"<filter_info/pattern_width> appears 2 times"),
+    ('<sensor_info version="0">', '<sensor_info version="0"><width>1024</width></sensor_info>'
+     '<sensor_info version="0">', r"<sensor_calibration/sensor_info> appears 2 times"),
+    ("<wavelength_nm>608.2067</wavelength_nm>", "<wavelength_nm>608.2067</wavelength_nm>"
+     "<wavelength_nm>700</wavelength_nm>", r"virtual_bands/band\[0\]/wavelength_nm> appears 2"),
+    ("<type>bandpass_600xi-875eo</type>", "<type>bandpass_600xi-875eo</type><type>none</type>",
+     r"<filter_info/rejection_filter/type> appears 2 times"),
+    ('<spectral_correction_info version="1">', '<spectral_correction_info version="1">'
+     '</spectral_correction_info><spectral_correction_info version="1">',
+     r"<spectral_correction_info> appears 2 times"),
+    ("<bands>", "<bands></bands><bands>", r"<filter_info/bands> appears 2 times"),
+])
+def test_an_element_stated_twice_is_refused_naming_it(tmp_path, old, new, words):
+    """Two values of one element (a second pattern width, sensor block, band wavelength,
+    band-pass type, correction block or band list) were read as the first, silently."""
+    _refused(_real(tmp_path, "twice.xml", old, new), words)
+
+
+def test_a_message_names_the_element_as_the_file_spells_it(tmp_path):
+    """The older variant's band-pass counts its samples in <nr_data_points>: a count of 1e10
+    there was refused naming <nr_measurements>, which that element has not got."""
+    _refused(_real(tmp_path, "count.xml", "<nr_data_points>601</nr_data_points>",
+                   "<nr_data_points>10000000000</nr_data_points>"),
+             r"<filter_info/rejection_filter/nr_data_points> is 10000000000: more samples")
+    _refused(_real(tmp_path, "word.xml", "<nr_data_points>601</nr_data_points>",
+                   "<nr_data_points>six</nr_data_points>"),
+             r"<filter_info/rejection_filter/nr_data_points> must be a number")
