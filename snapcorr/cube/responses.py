@@ -30,6 +30,14 @@ PASSBAND_FRACTION = 0.5
 #: How far below zero a measured curve may dip, as a fraction of its largest value
 #: (measurement noise about a zero baseline: a real band-pass dips to -0.0008 of 0.97).
 NOISE_FRACTION = 0.01
+
+#: The largest response (or system response) value read: squares, products with the system's
+#: response and sums over a grid of up to a million samples stay finite in float64 below it.
+RESPONSE_MAX = 1e100
+
+#: A band's response that varies by no more than this share of its largest value over the
+#: whole grid has no peak: it is no filter's.
+FLAT_FRACTION = 1e-9
 #: The narrowest virtual band, in steps of the responses' grid: a Gaussian narrower than
 #: two samples has no area the grid can integrate (0.001 nm on a 1 nm grid has none). The
 #: bound of ``--virtual-fwhm-nm`` and of a vendor file's virtual-band widths alike.
@@ -114,6 +122,16 @@ class FilterResponses:
             if not np.all(top >= np.finfo(float).tiny) or np.any(low < -NOISE_FRACTION * top):
                 raise ValueError(f"the {name} must be positive somewhere and not negative "
                                  f"beyond noise ({NOISE_FRACTION:g} of the largest value)")
+            if np.any(top > RESPONSE_MAX):
+                raise ValueError(f"the {name} reach {float(np.max(top)):g}, beyond "
+                                 f"{RESPONSE_MAX:g}: their squares and products overflow; "
+                                 "no response is so large (scale them)")
+        flat = np.flatnonzero(np.max(curves, axis=-1) - np.min(curves, axis=-1)
+                              <= FLAT_FRACTION * np.max(curves, axis=-1))
+        if flat.size:
+            raise ValueError(f"band {int(flat[0])}'s response is the same at every wavelength "
+                             f"of the grid ({curves[flat[0], 0]:g}): a filter's response has a "
+                             "peak")
         with np.errstate(over="ignore"):
             if not np.all(np.isfinite(curves * system)):
                 raise ValueError("the responses times the system's response overflow: their "

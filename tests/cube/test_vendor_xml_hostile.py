@@ -114,6 +114,25 @@ def test_a_response_of_subnormal_numbers_is_nowhere_positive(tmp_path):
 
 
 @pytest.mark.parametrize("writer", [write_newer, write_older])
+@pytest.mark.parametrize(("value", "words"), [
+    (1e300, r"the responses reach 1e\+300, beyond 1e\+100: their squares and products "
+            "overflow"),
+    (1e101, r"reach 1e\+101"),
+    (0.5, r"band 3's response is the same at every wavelength of the grid \(0\.5\): a "
+          "filter's response has a peak"),
+])
+def test_a_response_too_large_or_without_a_peak_is_refused(tmp_path, writer, value, words):
+    """One band's response 1e300 at every sample was read (a warning of overflow, then that
+    band's corrected width 267 nm in a harmonised cube); a flat one has no filter's peak."""
+    fx = imec_4x4()
+    curves = fx.curves.copy()
+    curves[3] = value
+    _refused(writer(tmp_path / "big.xml", dataclasses.replace(fx, curves=curves)), words)
+    curves[3] = fx.curves[3] * 1e90  # large, but a response: read
+    Sensor.load(writer(tmp_path / "ok.xml", dataclasses.replace(fx, curves=curves)))
+
+
+@pytest.mark.parametrize("writer", [write_newer, write_older])
 def test_a_peak_wider_than_the_whole_grid_is_refused(tmp_path, writer):
     """A FWHM of 1e300 nm was accepted and shown as the band's width by ``snapcorr sensor``:
     no curve on a 400-1000 nm grid shows a band so wide."""
