@@ -84,16 +84,27 @@ def _frames(frames, what):
     return frames
 
 
-def _check_dtypes(dtype, raw, dark, white):
-    """The result's numpy type; refuse any other, and inputs that are not numbers."""
+def _check_dtypes(dtype, raw, darks, whites):
+    """The result's numpy type and the type the arithmetic is done in; refuse any other
+    result type, and inputs that are not numbers.
+
+    The differences ``DN - dark`` and ``white - dark`` are taken in float64 where any input is
+    float64 or an integer wider than 16 bits: float32 holds whole numbers exactly only up to
+    2**24, so counts near 4e9 would be rounded to 256 DN before they are subtracted (a
+    reflectance 0.03 off for a white 4096 DN above its dark). The result is then rounded to
+    ``dtype`` once, at the end."""
     if str(np.dtype(dtype)) not in _DTYPES:
         raise ValueError(f"dtype must be float32 or float64, got {dtype!r}")
     dtype = _DTYPES[str(np.dtype(dtype))]
-    for what, kind in (("raw", raw.dtype), ("dark", dark.dtype), ("white", white.dtype)):
-        if not (np.issubdtype(kind, np.integer) or np.issubdtype(kind, np.floating)):
-            raise TypeError(f"the {what} cube is {kind}; flat-fielding needs integer or real "
-                            "digital numbers")
-    return dtype
+    work = dtype
+    for what, frames in (("raw", [raw]), ("dark", darks), ("white", whites)):
+        for kind in {f.dtype for f in frames}:
+            if not (np.issubdtype(kind, np.integer) or np.issubdtype(kind, np.floating)):
+                raise TypeError(f"the {what} cube is {kind}; flat-fielding needs integer or "
+                                "real digital numbers")
+            if kind == np.float64 or (np.issubdtype(kind, np.integer) and kind.itemsize > 2):
+                work = np.float64
+    return dtype, work
 
 
 def _average_reference(label, frames, raw, dtype, saturation, snapshot):
@@ -220,13 +231,13 @@ def flatfield(raw, dark, white, *, saturation=None, name="reflectance", dtype="f
                                  dtype)
     raw = check_cube(raw)
     darks, whites = _frames(dark, "dark"), _frames(white, "white")
-    dtype = _check_dtypes(dtype, raw, darks[0], whites[0])
+    dtype, work = _check_dtypes(dtype, raw, darks, whites)
     if saturation is not None:
         saturation = check_positive("saturation", saturation)
     snapshot = bool(snapshot) or _is_snapshot(raw)
-    d, dark_bad = _average_reference("dark", darks, raw, dtype, saturation, snapshot)
-    w, white_bad = _average_reference("white", whites, raw, dtype, saturation, snapshot)
-    return _result(raw, raw, d, w, dark_bad | white_bad, saturation, name, dtype,
+    d, dark_bad = _average_reference("dark", darks, raw, work, saturation, snapshot)
+    w, white_bad = _average_reference("white", whites, raw, work, saturation, snapshot)
+    return _result(raw, raw, d, w, dark_bad | white_bad, saturation, name, (dtype, work),
                    (len(darks), len(whites)), frame=False)
 
 
@@ -271,8 +282,10 @@ def _refuse_ratios(raw, dark, white):
 
 def _result(raw, plain, d, w, reference_bad, saturation, name, dtype, counts, *, frame):
     """``(plain - d) / (w - d)`` with its mask, the raw values kept and the provenance: the
-    Dataset :func:`flatfield` returns, for a cube or for frames (``frame``)."""
-    r = plain.astype(dtype)
+    Dataset :func:`flatfield` returns, for a cube or for frames (``frame``); ``dtype`` is the
+    result's type and the arithmetic's (:func:`_check_dtypes`)."""
+    dtype, work = dtype
+    r = plain.astype(work)
     denom = w - d
     mask = (denom <= 0) | ~np.isfinite(r) | reference_bad
     if saturation is not None:
@@ -337,12 +350,12 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
                                  f"raw frame {raw.shape[-2]} x {raw.shape[-1]}: a snapshot's "
                                  "references are frames of the same size and place")
         refs[label] = frames
-    dtype = _check_dtypes(dtype, raw, refs["dark"][0], refs["white"][0])
+    dtype, work = _check_dtypes(dtype, raw, refs["dark"], refs["white"])
     if saturation is not None:
         saturation = check_positive("saturation", saturation)
     averaged = {}
     for label, frames in refs.items():
-        stack = xr.concat([f.drop_vars(list(f.coords)).astype(dtype) for f in frames],
+        stack = xr.concat([f.drop_vars(list(f.coords)).astype(work) for f in frames],
                           dim="ref")
         bad = ~np.isfinite(stack)
         for i, f in enumerate(frames):  # a reference's own ENVI data ignore value
@@ -364,5 +377,5 @@ def _flatfield_frames(raw, dark, white, saturation, name, dtype):
                          "not a white?), or the references hold no finite value"
                          + (" below the saturation level" if saturation is not None else "")
                          + "; check the dark and white files")
-    return _result(raw, plain, d, w, reference_bad, saturation, name, dtype,
+    return _result(raw, plain, d, w, reference_bad, saturation, name, (dtype, work),
                    (len(refs["dark"]), len(refs["white"])), frame=True)

@@ -310,6 +310,24 @@ def test_float32_by_default_and_float64_on_request():
         flatfield(_cube(raw), _cube(d), _cube(w), dtype="int16")
 
 
+@pytest.mark.parametrize("kind", [np.uint32, np.int64, np.float64])
+@pytest.mark.parametrize("frames", [False, True])
+def test_counts_beyond_float32s_whole_numbers_are_subtracted_exactly(kind, frames):
+    """Counts near 4e9 (uint32, int64, or float64 references) with a white 4096 DN above the
+    dark: float32 holds whole numbers only to 2**24, and the differences taken in it were up
+    to 128 DN (reflectance 0.031) off. They are now taken in float64 and the float32 result
+    is k / 4096 to float32's rounding, for cubes and raw frames alike."""
+    rng = np.random.default_rng(3)
+    shape = (6, 5) if frames else (4, 3, 5)
+    k = rng.integers(0, 4097, shape)
+    dark = np.full(shape, 4_000_000_000, kind)
+    raw, white = (dark + k).astype(kind), (dark + 4096).astype(kind)
+    wrap = ((lambda a: xr.DataArray(a, dims=("y", "x"))) if frames else _cube)
+    ds = flatfield(wrap(raw), wrap(dark), wrap(white))
+    assert ds.reflectance.dtype == np.float32 and ds.raw.dtype == kind
+    assert_allclose(ds.reflectance.values, k / 4096.0, rtol=1e-7, atol=0)
+
+
 @pytest.mark.parametrize("bad", [np.nan, -1.0, 0.0, np.inf])
 def test_saturation_must_be_a_positive_number(bad):
     with pytest.raises(ValueError, match="saturation"):
