@@ -677,6 +677,26 @@ def _narrowed(values, to, counts):
     return values
 
 
+def _float16_widened(ds):
+    """Every float16 variable (data or coordinate, an input's raw copy included) as float32,
+    which holds each of its values exactly: netCDF has no 16-bit float, and HDF5's half float
+    written into a netCDF-4 file is one netCDF tools cannot read (netCDF4-python crashed on
+    it). A float16 asked for as storage is refused before any work (:func:`check_storage`)."""
+    names = [n for n, v in ds.variables.items()
+             if v.dtype == np.float16 or np.dtype(v.encoding.get("dtype", v.dtype)) == np.float16]
+    if not names:
+        return ds
+    ds = ds.copy()
+    for name in names:
+        var = ds[name].astype(np.float32) if ds[name].dtype == np.float16 else ds[name]
+        var.attrs = {**ds[name].attrs, "stored_as": "float32: every float16 value exactly "
+                     "(netCDF has no 16-bit float)"}
+        var.encoding = {k: v for k, v in ds[name].encoding.items()
+                        if k not in (*STORED_TYPE, "dtype")}
+        ds[name] = var
+    return ds
+
+
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
@@ -685,6 +705,8 @@ def _store_dataset(ds, path, fmt, compression="auto"):
         ds = _in_zarr_blocks(ds)
     clipped = {}
     ds = _packed(ds, clipped)
+    if fmt == "netcdf":
+        ds = _float16_widened(ds)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()

@@ -331,3 +331,28 @@ def test_the_narrower_float_clip_counts_what_the_cast_makes_infinite(wide, narro
     stored = out.astype(narrow)
     np.testing.assert_array_equal(np.isinf(stored), np.isinf(values))
     np.testing.assert_array_equal(np.isnan(stored), np.isnan(values))
+
+
+@pytest.mark.parametrize("lazy", [False, True])
+def test_float16_values_go_to_netcdf_as_float32_every_value_exact(tmp_path, lazy):
+    """A float16 cube (from a float16 Zarr store) and a float16 raw copy (frames of a float16
+    camera file) were written into netCDF-4 as HDF5 half floats, which netCDF tools cannot read
+    (netCDF4-python crashed opening them). They are stored as float32, each value exactly, and
+    say so; asking for float16 storage in .nc is still refused before any work."""
+    rng = np.random.default_rng(8)
+    refl = rng.normal(0.4, 0.05, (6, 5, NB)).astype(np.float16)
+    raw = (rng.random((6, 5, NB)) * 1000).astype(np.float16)
+    ds = xr.Dataset({"reflectance": (("y", "x", "band"), refl, {"units": "1"}),
+                     "raw": (("y", "x", "band"), raw, {"units": "count"})},
+                    coords={"wavelength": ("band", WL)})
+    if lazy:
+        ds = ds.chunk({"y": 3})
+    write_dataset(ds, tmp_path / "h.nc")
+    with h5py.File(tmp_path / "h.nc") as f:
+        assert f["reflectance"].dtype == np.float32 and f["raw"].dtype == np.float32
+        assert np.array_equal(f["raw"][...], raw.astype(np.float32))
+        assert "every float16 value exactly" in str(f["raw"].attrs["stored_as"])
+    back = read_dataset(tmp_path / "h.nc")
+    assert np.array_equal(back["reflectance"].values, refl.astype(np.float32))
+    with pytest.raises(ValueError, match="netCDF has no 16-bit float"):
+        write_dataset(ds, tmp_path / "h2.nc", dtype="float16")
