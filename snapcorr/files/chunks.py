@@ -239,7 +239,7 @@ def _refuse_incomplete_zarr(path):
     import zarr
 
     try:
-        group = zarr.open_group(str(path), mode="r")
+        group = zarr.open_group(str(path), mode="r", use_consolidated=False)
     except Exception:  # not a group: xarray's open says what it is
         return
     _refuse_missing_chunks(path, ((name, Path(path) / name, arr)

@@ -20,7 +20,7 @@ from .._validation import outside_stacklevel, shown
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
-from .chunks import _refuse_incomplete_zarr, _refuse_unwritten_hdf5_chunks, _zarr_consolidated
+from .chunks import _refuse_incomplete_zarr, _refuse_unwritten_hdf5_chunks
 from .marks import writer_mark as _mark
 from .safety import atomic_write, atomic_write_dir
 from .storage import FileFormat, _File, _Rows
@@ -54,8 +54,8 @@ def _open_dataset(path, fmt, chunks):
         if fmt == "netcdf":
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=None, cache=False)
         return _unpacked_as_stored(xr.open_dataset(
-            path, engine="zarr", consolidated=_zarr_consolidated(path), chunks=None,
-            cache=False, mask_and_scale=False))
+            path, engine="zarr", consolidated=False, chunks=None, cache=False,
+            mask_and_scale=False))
     if fmt == "netcdf":
         with warnings.catch_warnings():
             # blocks that split the file's own chunks read some of them twice: a cost, not an
@@ -64,8 +64,10 @@ def _open_dataset(path, fmt, chunks):
             warnings.filterwarnings("ignore", message="The specified chunks separate")
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
     # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
-    # directly, chunks that split the stored ones make xarray warn).
-    ds = _unpacked_as_stored(xr.open_zarr(path, consolidated=_zarr_consolidated(path),
+    # directly, chunks that split the stored ones make xarray warn). Each array's own
+    # metadata is read, never the consolidated copy: a copy left stale by a later write
+    # (an array grown from 3 frames to 4) would read a store as it no longer is.
+    ds = _unpacked_as_stored(xr.open_zarr(path, consolidated=False,
                                           chunks=None if chunks is None else {},
                                           mask_and_scale=False))
     if chunks:
@@ -170,9 +172,9 @@ def which_cube(path, cubes, what="cubes (y, x, band)"):
     unknown = [n for n in cubes if n not in _BESIDE_THE_CUBE]
     if len(unknown) > 1:
         raise ValueError(f"{path} holds {len(unknown)} {what}: "
-                         f"{', '.join(map(str, unknown))}; which one to read cannot be told: "
-                         "save the one you need alone (or name it radiance, reflectance or "
-                         "transmittance)")
+                         f"{', '.join(sorted(map(str, unknown)))}; which one to read cannot "
+                         "be told: save the one you need alone (or name it radiance, "
+                         "reflectance or transmittance)")
     return (unknown or cubes)[0]
 
 

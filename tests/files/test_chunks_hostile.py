@@ -344,3 +344,20 @@ def test_a_store_stating_no_fill_value_says_what_a_missing_chunk_reads_as(tmp_pa
     with pytest.raises(ValueError, match=r"read them as 0 \(it states no fill value\), a valid "
                                          "uint16 value"):
         read_cube(path)
+
+
+@pytest.mark.parametrize("zarr_format", [2, 3])
+def test_consolidated_metadata_left_stale_is_not_believed(tmp_path, zarr_format):
+    """A store written with consolidated metadata, then one array grown from 3 frames to 4 by
+    a writer that did not consolidate again: the consolidated copy says 3, and the 4th frame
+    was streamed away without a word. Each array's own metadata is read."""
+    path = tmp_path / "frames.zarr"
+    frames = np.arange(3 * 8 * 8, dtype=np.uint16).reshape(3, 8, 8)
+    xr.Dataset({"raw": (("frame", "y", "x"), frames)}).to_zarr(
+        path, consolidated=True, zarr_format=zarr_format, encoding={"raw": {"chunks": (1, 8, 8)}})
+    arr = zarr.open_array(str(path / "raw"), mode="r+")
+    arr.resize((4, 8, 8))
+    arr[3] = 7
+    ds = read_dataset(path)
+    assert ds["raw"].shape == (4, 8, 8) and int(ds["raw"][3].max()) == 7
+    assert read_frames(path).shape[0] == 4
