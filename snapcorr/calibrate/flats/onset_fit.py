@@ -103,7 +103,11 @@ def solve_vignetting_circle(onset_cra_deg, exit_pupil_radius_mm, onset_stderr_de
         Aw, Rw = A / sig_R[:, None], R / sig_R
         (P, h), *_ = np.linalg.lstsq(Aw, Rw, rcond=None)
     residuals = A @ np.array([P, h]) - R
-    cov = np.linalg.inv(Aw.T @ Aw)
+    try:
+        cov = np.linalg.inv(Aw.T @ Aw)
+    except np.linalg.LinAlgError:  # weights of 1e12 beside others (h ~ 0): no P and h
+        raise ValueError("the onsets' weights do not tell P from h (the fitted h is about "
+                         "0): their angles fit no circle") from None
     chi2 = float(np.sum((residuals / sig_R) ** 2)) / dof if dof > 0 else 1.0
     cov = cov * max(chi2, 1.0)
     P_err, h_err = np.sqrt(np.diag(cov))

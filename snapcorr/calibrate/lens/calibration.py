@@ -409,6 +409,26 @@ def _refuse_a_lost_centre(center, center_source, shape, chi2_red):
             "give it (center_rc=, in the flats' pixels), or take flats that reach the axis")
 
 
+def _refuse_a_contradicted_centre(flats, ratios, given, chi2_red):
+    """Refuse a given centre that the flats' own contours place elsewhere, inside them,
+    where the model misfits them grossly about it (:data:`LOST_CENTRE_CHI2`): a centre 250 px
+    off gave two circles of 50 mm at a reduced chi2 of 57, written as the lens's. (A crop
+    beside the axis has no contours' centre inside it to contradict the one given.)"""
+    if not chi2_red > LOST_CENTRE_CHI2:
+        return
+    found, how, _ = stages.optical_center_rc(flats, ratios)
+    rows, cols = flats.shape
+    d = math.hypot(found[0] - given[0], found[1] - given[1])
+    if how == "contours" and 0 <= found[0] < rows and 0 <= found[1] < cols \
+            and d > GIVEN_CENTRE_DOUBT_PX:
+        raise ValueError(
+            f"the optical centre given (row {given[0]:g}, col {given[1]:g}) is not the flats': "
+            f"their contours place it at row {found[0]:.1f}, col {found[1]:.1f}, {d:.1f} px "
+            f"away, and the model misfits them about the one given (reduced chi2 "
+            f"{chi2_red:.3g}): check center_rc= (in the flats' pixels), or leave it out to "
+            "have it found")
+
+
 def _misfit_advice(notes, base, center, center_source, shape):
     """The estimator's notes, where the area model leaves a misfit with its likely causes
     that snapcorr can name: an optical centre found outside the flats (a crop beside the
@@ -548,6 +568,8 @@ def _calibrate(flats, *, exit_pupil_mm, pixel_pitch_um, exit_pupil_stderr_mm,
     used, reason, circles, method_notes, scores = _decide_method(
         method, model, fits, verdicts, ons, max_cra, base.exit_pupil_mm, predict)
     _refuse_a_lost_centre(center, center_source, fl.shape, fits[model].reduced_chi2)
+    if center_source == "given" and not fl.single:
+        _refuse_a_contradicted_centre(fl, ratios, center, fits[model].reduced_chi2)
     notes += fit_notes + _misfit_advice(method_notes, base, center, center_source, fl.shape)
     model = _unless_joint(used, verdicts, model)
     lens = dataclasses.replace(base, vignetting=circles)

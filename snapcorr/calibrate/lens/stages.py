@@ -506,8 +506,12 @@ def solve_onsets(onsets, base: Lens, h_given=None) -> OnsetFit | None:
     t = np.array([o.cra_deg for _, o in found])
     if np.ptp(t) == 0:
         return None
-    return solve_vignetting_circle(t, base.exit_pupil_radius_mm([f for f, _ in found]),
-                                   onset_stderr_deg=[max(o.stderr_deg, 1e-3) for _, o in found])
+    try:
+        return solve_vignetting_circle(t, base.exit_pupil_radius_mm([f for f, _ in found]),
+                                       onset_stderr_deg=[max(o.stderr_deg, 1e-3)
+                                                         for _, o in found])
+    except ValueError:  # onsets no circle fits (a centre far off): as too few of them
+        return None
 
 
 def block_data(flats: Flats, ratios: Ratios, base: Lens, pixel_pitch_um) -> BlockData:

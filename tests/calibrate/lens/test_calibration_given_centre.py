@@ -41,3 +41,14 @@ def test_a_given_centre_the_flats_place_elsewhere_is_said(flats):
 @pytest.mark.parametrize("off", [(0.0, 0.0), (1.0, 1.0)])
 def test_a_given_centre_the_flats_agree_with_is_not_doubted(flats, off):
     assert not _notes(flats, (ROW + off[0], COL + off[1]))
+
+
+@pytest.mark.parametrize("given", [(200.0, 300.0), (ROW + 40.0, COL - 50.0)])
+def test_a_given_centre_the_flats_contradict_and_misfit_is_refused(flats, given):
+    """A centre far from the one the flats show (outside them, or inside 64 px off): the
+    fit about it misfits grossly (reduced chi2 57-161 on another simulator's flats), and the
+    lens it gave (two circles of 50 mm, or none up to 62 deg) was written as the lens's."""
+    with pytest.raises(ValueError, match=r"the optical centre given \(row .*\) is not the "
+                       r"flats': their contours place it at row 61\.6, col 82\.3, .*reduced "
+                       r"chi2 .*: check center_rc="):
+        _notes(flats, given)
