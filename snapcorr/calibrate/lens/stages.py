@@ -198,6 +198,31 @@ def _tile_period(image, ok, periods=range(2, 9)):
     return k, found[k]
 
 
+#: A flat's largest value is a clipped plateau where at least this many pixels hold it, and
+#: at least :data:`CLIP_RATIO` times as many as hold its next largest value (a smooth fall-off
+#: rounded to whole numbers has about as many pixels at its top value as at the next).
+CLIP_MIN_PIXELS = 16
+CLIP_RATIO = 5.0
+
+
+def clipped_level(image):
+    """The value a flat is clipped at (its largest, held by a plateau of pixels: an ADC's or a
+    file's limit, a float flat saturated where no type says where), or None."""
+    a = np.asarray(image)
+    a = a[np.isfinite(a)] if a.dtype.kind == "f" else a.ravel()
+    if a.size < CLIP_MIN_PIXELS:
+        return None
+    top = a.max()
+    at_top = int(np.count_nonzero(a == top))
+    if at_top < CLIP_MIN_PIXELS:
+        return None
+    below = a[a < top]
+    if below.size == 0:
+        return None  # a constant image is no flat: said where its signal is checked
+    nxt = int(np.count_nonzero(below == below.max()))
+    return float(top) if at_top >= CLIP_RATIO * nxt else None
+
+
 def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
     """Dark-subtract and mask each flat (:func:`~snapcorr.calibrate.clean_flat`); refuse flats
     with too few usable pixels (< 20 %) or no signal.
@@ -224,6 +249,13 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
     notes = []
     images, valids, variances = [], [], []
     for f, img in items:
+        clip = clipped_level(img)
+        if clip is not None and (sat.get(f) is None or clip < sat[f]):
+            count = int(np.count_nonzero(np.asarray(img) == clip))
+            notes.append(f"f/{f:g}: {count} pixels hold its largest value, {clip:g}, exactly "
+                         "(a clipped plateau: no other value is nearly so common): taken as "
+                         "saturated and left out; give saturation= if that is wrong")
+            sat = {**sat, f: clip}
         image, ok, var = clean_flat(img, dark=dark, saturation=sat.get(f),
                                     gain=(pixel_gains or {}).get(f))
         lost = 1.0 - ok.mean()
