@@ -35,6 +35,11 @@ NOISE_FRACTION = 0.01
 #: response and sums over a grid of up to a million samples stay finite in float64 below it.
 RESPONSE_MAX = 1e100
 
+#: The largest correction-matrix coefficient read: applied in float32 to values up to 1e6
+#: and summed over a few hundred bands it stays finite; real matrices' coefficients are of
+#: order 1-100.
+COEFFICIENT_MAX = 1e30
+
 #: A band's response that varies by no more than this share of its largest value over the
 #: whole grid has no peak: it is no filter's.
 FLAT_FRACTION = 1e-9
@@ -260,6 +265,10 @@ class CorrectionMatrix:
         if c.ndim != 2 or c.shape[0] != wl.size or not np.all(np.isfinite(c)):
             raise ValueError(f"matrix {shown(self.name)}: coefficients must be finite, one row per "
                              f"virtual band ({wl.size}), got shape {c.shape}")
+        if c.size and float(np.max(np.abs(c))) > COEFFICIENT_MAX:
+            raise ValueError(f"matrix {shown(self.name)}: a coefficient is "
+                             f"{float(np.max(np.abs(c))):g}, beyond {COEFFICIENT_MAX:g}: applied "
+                             "to a band's values it overflows; no correction matrix is so large")
         set_(self, "name", str(self.name))
         set_(self, "wavelength_nm", _frozen(wl))
         set_(self, "fwhm_nm", _frozen(fw))

@@ -374,6 +374,11 @@ def _peaks(f, band, where):
                         int(order) if order and _WHOLE.fullmatch(order.strip()) else None))
     if not out:
         f.fail(f"<{where}/peaks> lists no peak")
+    seen = [p.wavelength_nm for p in out]
+    twice = sorted({w for w in seen if seen.count(w) > 1})
+    if twice:
+        f.fail(f"<{where}/peaks> lists the peak at {twice[0]:g} nm twice: one band has each of "
+               "its peaks once")
     for p in out:
         if np.isfinite(p.qe) and p.qe < 0:
             f.fail(f"<{where}/peaks> has a peak at {p.wavelength_nm:g} nm with QE {p.qe:g}: a "

@@ -295,3 +295,24 @@ def test_a_message_names_the_element_as_the_file_spells_it(tmp_path):
     _refused(_real(tmp_path, "word.xml", "<nr_data_points>601</nr_data_points>",
                    "<nr_data_points>six</nr_data_points>"),
              r"<filter_info/rejection_filter/nr_data_points> must be a number")
+
+
+@pytest.mark.parametrize(("value", "refused"), [("1e300", True), ("-1e31", True), ("1e29", False)])
+def test_a_correction_coefficient_that_overflows_is_refused(tmp_path, value, refused):
+    """A virtual band's coefficient of 1e300 was read; the vendor bands were then inf at every
+    pixel with only numpy's "overflow encountered in cast"."""
+    path = _real(tmp_path, "coef.xml", "<data>0.006918495,", f"<data>{value},")
+    if refused:
+        _refused(path, r"matrix 'custom': a coefficient is .*, beyond 1e\+30: applied to a "
+                       "band's values it overflows")
+    else:
+        Sensor.load(path)
+
+
+def test_a_peak_listed_twice_in_one_band_is_refused(tmp_path):
+    """The same peak twice in a band was read as a band of two peaks."""
+    peak = ('<peak version="0" order="1">\n                        <wavelength_nm>'
+            '614.9032232924481</wavelength_nm>')
+    path = _real(tmp_path, "peak2.xml", peak, peak.replace("<peak ", '<peak order="1" ', 0)
+                 + '\n<fwhm_nm>6.589033018692362</fwhm_nm><QE>56.59</QE></peak>' + peak)
+    _refused(path, r"band\[0\]/peaks> lists the peak at 614\.903 nm twice")
