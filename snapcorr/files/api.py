@@ -81,6 +81,7 @@ Modules
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -253,6 +254,10 @@ def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
     mask = f.extras.get("mask")
     if mask is not None and cube.chunks is not None:  # block for block with the cube
         mask = mask.chunk(dict(zip(mask.dims, cube.chunks, strict=True)))
+    ignore = cube.attrs.get("data_ignore_value")
+    if ignore is not None:  # an ENVI cube's no-data value (kept in the cube, as stored)
+        ignored = (cube == ignore).drop_vars(list(cube.coords)).rename("mask")
+        mask = ignored if mask is None else (mask | ignored)
     return cube, mask
 
 
@@ -267,6 +272,10 @@ def _cube_wavelengths(f, given, n_bands):
         except ValueError:
             if given is None:
                 raise
+            if str(f.units).strip().lower() != "index":  # ENVI's word for band numbers
+                warnings.warn(f"{f.path}: its wavelength units {f.units!r} are not a length, "
+                              "so its wavelengths are not read: the sensor's are used",
+                              stacklevel=4)
     if wl is None:
         if given is None:
             raise ValueError(f"{f.path} carries no wavelengths; pass wavelength_nm")

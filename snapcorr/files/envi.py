@@ -79,10 +79,24 @@ def _said(key, value):
     return f"'{key} = {shown(text, quote=False)}'"
 
 
+#: The largest ENVI header read: a header's lists (wavelengths, widths, gains, offsets, band
+#: names) of a hundred thousand bands take about 8 MiB; one of 36 MiB (six million
+#: wavelengths for eight bands) took 18 s and 930 MB before its count was compared.
+MAX_HEADER_BYTES = 8 * 2**20
+
+
 def _envi_header(hdr):
     """The header as Spectral Python parses it, validated; raises one clear line otherwise."""
     from spectral.io import envi
 
+    try:
+        size = Path(hdr).stat().st_size
+    except OSError:
+        size = 0  # Spectral Python's own error says what is wrong with the path
+    if size > MAX_HEADER_BYTES:
+        raise ValueError(f"{hdr}: the header holds {size / 2**20:.1f} MiB, more than any ENVI "
+                         f"header of a cube ({MAX_HEADER_BYTES / 2**20:.0f} MiB holds a "
+                         "hundred thousand bands' lists); is this the header?")
     try:
         with _quiet_spectral():
             h = envi.read_envi_header(str(hdr))
@@ -138,20 +152,23 @@ def _envi_repeated_keys(hdr):
         return []
     # walked as Spectral Python reads it: lines without "=" and comment lines (";") skipped,
     # a value opened by "{" running to the first line that ends in "}"
-    keys, lines = [], text.splitlines(keepends=True)[1:]  # the first line is "ENVI"
-    while lines:
-        line = lines.pop(0)
+    from collections import Counter
+
+    keys, lines = Counter(), text.splitlines()[1:]  # the first line is "ENVI"
+    i, n = 0, len(lines)
+    while i < n:  # one pass: a header of 40 000 keys took a minute popping from a list's front
+        line, i = lines[i], i + 1
         if "=" not in line or line.startswith(";"):
             continue
         key, _, val = line.partition("=")
-        keys.append(key.strip().lower())
+        keys[key.strip().lower()] += 1
         val = val.strip()
         if val.startswith("{"):
-            while not val.endswith("}") and lines:
-                line = lines.pop(0)
+            while not val.endswith("}") and i < n:
+                line, i = lines[i], i + 1
                 if not line.startswith(";"):
-                    val += line.strip()
-    return sorted({k for k in keys if k and keys.count(k) > 1})
+                    val = line.strip()  # only whether the value has closed matters
+    return sorted(k for k, c in keys.items() if k and c > 1)
 
 
 def _envi_values(h, hdr, bands):
@@ -181,6 +198,13 @@ def _envi_values(h, hdr, bands):
         raise ValueError(f"{hdr}: the data gain / offset values, reflectance scale factor or "
                          "bbl are not finite numbers (gains and offsets), a number > 0 (the "
                          "scale factor) and 0 or 1 per band (bbl); fix the header")
+    if np.any(gain == 0):
+        raise ValueError(f"{hdr}: 'data gain values' is 0 for band {int(np.argmax(gain == 0))}, "
+                         "which makes every value of it the band's offset: no measurement; "
+                         "fix the header")
+    if np.all(bbl == 0):
+        raise ValueError(f"{hdr}: 'bbl' marks every band bad: nothing is left to read; fix "
+                         "the header")
     if np.all(gain == 1) and np.all(offset == 0) and scale == 1 and np.all(bbl == 1):
         return None  # as stored
     return gain, offset, scale, bbl == 0
