@@ -26,6 +26,7 @@ from .._validation import (
     renamed_keywords,
     shown,
 )
+from ..files.reading import check_input
 from ..files.toml import read_toml, write_toml
 from .responses import CorrectionMatrix, FilterResponses
 
@@ -643,12 +644,16 @@ class Sensor:
                              f"it may add or override only {list(VENDOR_OVERRIDES)}, got "
                              f"{shown(unknown, 120)}")
         target = path.parent / vendor
-        if not target.exists():
+        try:
+            check_input(target, what="sensor calibration file")
+        except ValueError as err:  # a loop of links, a folder, a device: said with the TOML
+            raise ValueError(f"its vendor_file {shown(vendor)}: {err}") from None
+        except FileNotFoundError:
             raise FileNotFoundError(
                 f"{path}: its vendor_file {shown(vendor)} is not found (looked for "
-                f"{target.resolve()}"
+                f"{os.path.abspath(target)}"
                 + ("" if Path(vendor).is_absolute() else ", relative to the sensor file")
-                + "): put the vendor's .xml there, or correct vendor_file")
+                + "): put the vendor's .xml there, or correct vendor_file") from None
         return cls.from_vendor(target, calibration=calibration, **table)
 
     def save(self, path, *, overwrite=False) -> Path:

@@ -79,3 +79,19 @@ def test_a_toml_moved_away_from_its_vendor_file_says_where_it_looked(layout, cli
     res = cli("sensor", moved / "s.toml")
     assert res.returncode != 0 and "Traceback" not in res.stderr
     assert "looked for" in res.stderr
+
+
+@pytest.mark.parametrize("kind", ["loop", "folder"])
+def test_a_vendor_file_that_is_no_file_is_one_line(tmp_path, kind):
+    """A vendor_file that is a loop of symbolic links raised pathlib's RuntimeError (a
+    traceback from the command line); now it is refused naming the TOML and the link."""
+    if kind == "loop":
+        os.symlink(tmp_path / "b.xml", tmp_path / "a.xml")
+        os.symlink(tmp_path / "a.xml", tmp_path / "b.xml")
+    else:
+        (tmp_path / "a.xml").mkdir()
+    toml = tmp_path / "s.toml"
+    toml.write_text('[sensor]\nvendor_file = "a.xml"\n')
+    words = "a loop of symbolic links" if kind == "loop" else "is a folder"
+    with pytest.raises(ValueError, match=rf"s\.toml: its vendor_file 'a\.xml': .*{words}"):
+        Sensor.load(toml)
