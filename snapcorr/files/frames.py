@@ -194,7 +194,8 @@ def natural_order(names):
     numbers are written without an exponent (``0.001``). A decimal comma (``t0,25``) is read
     as one where every name has as many digits after its comma, which orders the names the
     same whether it is a decimal comma or a separator; otherwise the order is ambiguous, and
-    refused. A ``-`` or ``+``
+    refused; so are names that a comma read as a thousands separator (``t1,000`` as 1000)
+    orders otherwise (``t1,000``, ``t2,000`` beside ``t999``). A ``-`` or ``+``
     right before a number is its sign only where the names differ by it at that place
     (``z-0.5``, ``z+0``, ``z+0.5``; ``f+1`` beside ``f1`` is one number, refused); where
     every name has the same one (``frame-1``, ``2026-12-01``) it is a separator; in names of
@@ -237,6 +238,7 @@ def natural_order(names):
                              "no order can tell apart; keep one of them")
         stems[_folded(n)] = n
     order = _order(names, _NUMBER)
+    _refuse_thousands(names, order)
     if any(_EXPONENT.search(_folded(n)) for n in names):
         try:
             other = _order(names, _NUMBER_NO_EXPONENT)
@@ -250,6 +252,30 @@ def natural_order(names):
                              "and the two readings order them differently; rename them "
                              "(numbers without exponents: 0.001, not 1e-3)")
     return order
+
+
+#: A comma that may separate thousands: between digits, three digits after it.
+_THOUSANDS = re.compile(r"(?<=\d),(?=\d{3}(?!\d))")
+
+
+def _refuse_thousands(names, order):
+    """Refuse names whose order read with commas as thousands separators (``t1,000`` as
+    1000) is not the ``order`` read with decimal commas (``t1,000``, ``t2,000``, ``t999``)."""
+    if not any(_THOUSANDS.search(n) for n in names):
+        return
+    joined = {_THOUSANDS.sub("", n): n for n in names}
+    if len(joined) < len(names):
+        return  # two names one number apart only by a comma: refused as written twice
+    try:
+        other = [joined[n] for n in _order(list(joined), _NUMBER)]
+    except ValueError:
+        return
+    if other != order:
+        a, b = next((x, y) for x, y in zip(order, other, strict=True) if x != y)
+        raise ValueError(f"frames {a!r} and {b!r}: a comma between digits may be a decimal "
+                         "comma or a thousands separator (t1,000 is 1 or 1000), and the two "
+                         "readings order them differently; rename them (decimal points, or "
+                         "zero-padded numbers)")
 
 
 def _order(names, number):

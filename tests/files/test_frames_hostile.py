@@ -31,6 +31,16 @@ def test_a_comma_read_two_ways_is_refused():
         natural_order(["t0,5", "t0,25", "t1"])
 
 
+def test_a_comma_that_may_separate_thousands_is_refused_where_the_orders_differ():
+    """t1,000 t2,000 t999 streamed as 1,000; 2,000; 999: read as thousands, 999 is first.
+    Where both readings give one order (every name with its comma, or commas of other
+    widths) the names are taken."""
+    with pytest.raises(ValueError, match="decimal comma or a thousands separator"):
+        natural_order(["t1,000", "t2,000", "t999"])
+    assert natural_order(["t3,500", "t1,000", "t2,000"]) == ["t1,000", "t2,000", "t3,500"]
+    assert natural_order(["t1,5", "t0,5", "t2"]) == ["t0,5", "t1,5", "t2"]
+
+
 def test_the_same_number_written_twice_is_still_refused():
     for names in (["f1", "f1.0"], ["f1e3", "f1000"], ["t0,5", "t0.5"]):
         with pytest.raises(ValueError, match="same number"):
