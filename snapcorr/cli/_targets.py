@@ -3,11 +3,10 @@ options, its outputs and the sensor with the fitted index."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ._frames import _read
 from ._options import _origin_arg
 from ._output import _check_outputs
+from ._types import _path
 
 TARGET_TOLERANCE_HELP = (
     "the shift precision x and n_eff must give (nm, one standard deviation, the chief ray at "
@@ -24,11 +23,11 @@ def _add_target_fit_options(group, when="", origin_help="sensor row and column o
     group.add_argument("--fit-n-eff", action="store_true",
                        help=f"{when}fit the effective index too (needs two f-numbers to "
                        "separate it from x; one gives x * n_eff)")
-    group.add_argument("--sensor-out", type=Path, default=None, metavar="SENSOR.toml",
+    group.add_argument("--sensor-out", type=_path, default=None, metavar="SENSOR.toml",
                        help="with --fit-n-eff and two or more f-numbers: also write the "
                        "sensor description with the fitted n_eff, for the correction "
                        "(correct --sensor)")
-    group.add_argument("--target-spectrum", type=Path, default=None, metavar="PATH",
+    group.add_argument("--target-spectrum", type=_path, default=None, metavar="PATH",
                        help=f"{when}the target's spectrum, two columns (wavelength nm, "
                        "value); default: unknown, solved for")
     group.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",

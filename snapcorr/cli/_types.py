@@ -28,6 +28,15 @@ _MAX_PX = PIXELS_MAX
 _MAX_WAVELENGTHS = 1_000_000
 
 
+def _path(value):
+    """A path argument; an empty one (an unset shell variable, ``""``) is refused rather than
+    read as the current folder."""
+    if not str(value).strip():
+        raise argparse.ArgumentTypeError("an empty path (an unset shell variable?); give a "
+                                         "file or folder")
+    return Path(value)
+
+
 def _pair_arg(what, names, *, integer=False):
     def parse(value):
         try:

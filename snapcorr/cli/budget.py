@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from ._options import (
     add_command,
 )
 from ._output import _check_outputs
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = ("which bands and pixels a scene needs corrected, and with which model (signal error of "
@@ -51,9 +51,9 @@ def add_parser(subparsers):
                    "spectrum or one pixel's) or a two-column file (wavelength nm, value)")
     p.add_argument("--tolerance-pct", type=_positive, default=0.5, metavar="PCT",
                    help="radiometric tolerance, percent (default: %(default)s)")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="error against band and against image radius")
-    p.add_argument("--cube", type=Path, default=None,
+    p.add_argument("--cube", type=_path, default=None,
                    help="a cube: its pixels set the field, and --source cube its spectrum")
     _add_center(p, "optical centre in the cube's sensor pixels, for --cube (default: "
                    "from the lens calibration, else the sensor's centre)")

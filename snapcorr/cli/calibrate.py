@@ -4,7 +4,6 @@ f-numbers (Goossens Sec. 2.7, 3.2), with x fitted to a spectral target as well w
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from .._names import CALIBRATION_METHODS
 from ._flats import (
@@ -45,6 +44,7 @@ from ._targets import (
     _target_spectrum,
     _target_tolerance,
 )
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = ("lens profile (vignetting circles P, h) from flat fields at several f-numbers (Goossens "
@@ -127,12 +127,12 @@ def add_parser(subparsers):
                    help="pupil magnification m_P (default: the --lens value, else 1, "
                    "assumed; with --magnification > 0 the errors then include m_P over "
                    "[0.5, 2])")
-    p.add_argument("--dark", type=Path, default=None, help="dark frame, same size")
+    p.add_argument("--dark", type=_path, default=None, help="dark frame, same size")
     _add_center(p, "optical centre in sensor pixels, as pupil and correct take it (for flats "
                 "that are a crop: its first pixel at --sensor-origin-px; default: found from "
                 "the flats)")
-    p.add_argument("--out", type=Path, required=True, help="lens profile to write (.toml)")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--out", type=_path, required=True, help="lens profile to write (.toml)")
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="draw the profiles, onsets and model (the paper's Fig. 8)")
     p.add_argument("--method", default="auto", choices=list(CALIBRATION_METHODS),
                    help="estimator of P and h (default: %(default)s: the joint fit unless "

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from .._names import CORRECTION_MODELS
@@ -28,6 +26,7 @@ from ._options import (
 )
 from ._output import RAW_COPIES, _check_outputs, _print_virtual, _quicklook, _write_result
 from ._progress import _StageBar
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = "corrected central wavelength of every pixel and band (Eq. 23)"
@@ -58,14 +57,14 @@ EXAMPLES = r"""
 
 def add_parser(subparsers):
     p = add_command(subparsers, "correct", HELP, EXAMPLES)
-    p.add_argument("cube", type=Path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
+    p.add_argument("cube", type=_path, help="the cube (.hdr, .tif, .exr, .nc, .zarr, .npy), "
                    "ideally flat-fielded; or a 2-D mosaic frame with a mosaic --sensor")
     p.add_argument("--lens", required=True,
                    help="lens profile (.toml) or a bundled one (edmund_optics_16mm)")
     p.add_argument("--sensor", required=True, help=SENSOR_HELP)
     p.add_argument("--f-number", type=_f_number, required=True, metavar="F",
                    help="the f-number the cube was taken at")
-    p.add_argument("--out", type=Path, required=True,
+    p.add_argument("--out", type=_path, required=True,
                    help="result: .nc or .zarr (everything, provenance in the attributes), or "
                    "STEM.hdr for ENVI pairs (STEM.hdr the input's values, "
                    "STEM_wavelength_corrected.hdr, STEM_resampled.hdr, ...)")
@@ -95,7 +94,7 @@ def add_parser(subparsers):
                    help="with --harmonise: the common response's FWHM for every band (at "
                    "least the widest in the field)")
     _add_virtual_options(p)
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="quick look: a band image, the CRA and shift maps, a few pixels' "
                    "spectra at nominal and corrected wavelengths")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ._options import add_command
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = ("the main job on a bundled default: calibrate the paper's lens, correct a simulated cube,"
@@ -19,7 +18,7 @@ EXAMPLES = r"""
 
 def add_parser(subparsers):
     p = add_command(subparsers, "demo", HELP, EXAMPLES)
-    p.add_argument("--out", default="snapcorr-demo", type=Path,
+    p.add_argument("--out", default="snapcorr-demo", type=_path,
                    help="output folder (default: %(default)s); a folder holding other files "
                    "is refused")
     p.add_argument("--overwrite", action="store_true",

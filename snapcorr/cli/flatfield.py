@@ -4,7 +4,6 @@ raw mosaic frame (then demosaicked with ``--demosaic``)."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from ._errors import name_references
 from ._frames import (
@@ -29,6 +28,7 @@ from ._options import (
 )
 from ._output import RAW_COPIES, _check_outputs, _quicklook, _stored_type, _write_result
 from ._progress import _StageBar
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = "flat-field a cube: (DN - dark) / (white - dark) (Eq. 29)"
@@ -53,18 +53,18 @@ EXAMPLES = r"""
 
 def add_parser(subparsers):
     p = add_command(subparsers, "flatfield", HELP, EXAMPLES)
-    p.add_argument("raw", type=Path, help="the cube to correct (.hdr, .tif (one band per page "
+    p.add_argument("raw", type=_path, help="the cube to correct (.hdr, .tif (one band per page "
                    "or channel), .exr, .nc, .zarr, .npy), or a raw 2-D mosaic frame with a "
                    "mosaic --sensor")
-    p.add_argument("--dark", type=Path, action="append", required=True,
+    p.add_argument("--dark", type=_path, action="append", required=True,
                    help="dark frame (repeat to average several)")
-    p.add_argument("--white", type=Path, action="append", required=True,
+    p.add_argument("--white", type=_path, action="append", required=True,
                    help="white reference (repeat to average several; a strip of fewer rows "
                    "than the cube is broadcast along the scan axis)")
-    p.add_argument("--filter-white", type=Path, default=None,
+    p.add_argument("--filter-white", type=_path, default=None,
                    help="the white target seen through a filter: adds the filter's "
                    "transmittance (Goossens Sec. 3.1) to the output")
-    p.add_argument("--out", type=Path, required=True, help="result, .nc or .zarr")
+    p.add_argument("--out", type=_path, required=True, help="result, .nc or .zarr")
     p.add_argument("--sensor", default=None,
                    help=SENSOR_HELP + ": the wavelengths of files that have none, and the "
                    "band layout of raw mosaic frames")
@@ -83,7 +83,7 @@ def add_parser(subparsers):
                    "replication), bilinear (weighted bilinear), ppid (pseudo-panchromatic "
                    "difference) or ri (residual interpolation, the most accurate); without "
                    "it, one spectrum per tile")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="quick look: a band image, the mask and a few pixels' spectra")
     _add_output_options(p, input_name="the raw data (raw, filter_white_raw)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)

@@ -34,6 +34,7 @@ from ._targets import (
     _target_spectrum,
     _target_tolerance,
 )
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = ("exit pupil distance x (and n_eff) from flat-fielded cubes of a spectral target (Goossens"
@@ -65,7 +66,7 @@ def add_parser(subparsers):
                    "f-number (any format snapcorr reads); repeat for each f-number")
     p.add_argument("--sensor", type=str, required=True, metavar="SENSOR",
                    help="sensor description (bundled name or .toml)")
-    p.add_argument("--out", type=Path, default=None, help="lens profile to write (.toml)")
+    p.add_argument("--out", type=_path, default=None, help="lens profile to write (.toml)")
     p.add_argument("--lens", type=str, default=None, metavar="LENS",
                    help="lens profile whose vignetting circles (P, h) and magnifications are "
                    "used and copied (bundled name or .toml)")
@@ -82,7 +83,7 @@ def add_parser(subparsers):
                    "assumed)")
     p.add_argument("--tolerance-nm", type=_positive, default=None, metavar="NM",
                    help=TARGET_TOLERANCE_HELP)
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="draw the target over the field and chi-square in x")
     p.add_argument("--name", default=None, help="lens name (default: the output's stem)")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)

@@ -3,11 +3,10 @@ grid."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ._frames import _read_frame_checked
 from ._options import OVERWRITE_HELP, _origin_arg, _sensor, add_command
 from ._output import _check_outputs, _quicklook
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = "what a sensor file holds: bands, layout, active area, filter responses, correction matrices"
@@ -30,17 +29,17 @@ def add_parser(subparsers):
     p = add_command(subparsers, "sensor", HELP, EXAMPLES)
     p.add_argument("file", help="a vendor calibration file (.xml), a sensor TOML or a bundled "
                    "sensor's name")
-    p.add_argument("--toml", type=Path, default=None, metavar="OUT.toml",
+    p.add_argument("--toml", type=_path, default=None, metavar="OUT.toml",
                    help="write the equivalent sensor TOML (naming the vendor file, where there "
                    "is one), to add n_eff or the pixel pitch")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+    p.add_argument("--plot", type=_path, default=None, metavar="PNG",
                    help="draw the bands' responses and what each correction matrix makes of "
                    "them")
-    p.add_argument("--phase-from", type=Path, default=None, metavar="WHITE",
+    p.add_argument("--phase-from", type=_path, default=None, metavar="WHITE",
                    help="a raw white frame of a mosaic sensor with measured responses: print "
                    "where its first pixel sits on the tile grid (the band gains under a smooth "
                    "lamp are the tile's fingerprint)")
-    p.add_argument("--dark", type=Path, default=None, metavar="DARK",
+    p.add_argument("--dark", type=_path, default=None, metavar="DARK",
                    help="with --phase-from: a dark frame, subtracted from the white")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
                    help="with --phase-from: the stated sensor row and column of the white's "

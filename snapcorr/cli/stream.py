@@ -4,7 +4,6 @@ frame."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from ._frames import _default_saturation, _read_frame_checked
 from ._options import (
@@ -28,6 +27,7 @@ from ._options import (
 )
 from ._output import RAW_COPIES, _check_outputs, _masked_in, _print_virtual, _write_result
 from ._progress import _StageBar
+from ._types import _path
 
 #: Its line in ``snapcorr --help``, and the start of its own.
 HELP = "a stream of raw mosaic frames: flat-field, demosaic and correct each frame"
@@ -50,13 +50,13 @@ EXAMPLES = r"""
 
 def add_parser(subparsers):
     p = add_command(subparsers, "stream", HELP, EXAMPLES)
-    p.add_argument("frames", type=Path, help="frames (frame, y, x): a .zarr or .nc holding one "
+    p.add_argument("frames", type=_path, help="frames (frame, y, x): a .zarr or .nc holding one "
                    "3-D variable, a 3-D .npy, a multi-page .tif (a frame per page) or a folder "
                    "of frame files (.npy, .tif, .exr, .hdr; in the order of their names, "
                    "numbers in them read as numbers: t0.25, t0.5, t1)")
-    p.add_argument("--dark", type=Path, action="append", required=True,
+    p.add_argument("--dark", type=_path, action="append", required=True,
                    help="dark frame (repeat to average several)")
-    p.add_argument("--white", type=Path, action="append", required=True,
+    p.add_argument("--white", type=_path, action="append", required=True,
                    help="white reference frame (repeat to average several)")
     p.add_argument("--sensor", required=True, help=SENSOR_HELP + " (a mosaic)")
     p.add_argument("--sensor-origin-px", type=_origin_arg, default=None, metavar="ROW,COL",
@@ -81,7 +81,7 @@ def add_parser(subparsers):
     p.add_argument("--dtype", default="float32", choices=["float64", *STORAGE_CHOICES],
                    help=DTYPE_HELP + "; float64 computes and stores in double precision "
                    "(default: %(default)s)")
-    p.add_argument("--out", type=Path, required=True, help="result, .zarr (or .nc)")
+    p.add_argument("--out", type=_path, required=True, help="result, .zarr (or .nc)")
     _add_output_options(p, input_name="the raw frames (raw)", derived=True)
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     _add_progress_options(p)

@@ -189,3 +189,20 @@ def test_options_that_gather_values_still_take_many(tmp_path, monkeypatch, cli):
                      "--white", "white.npy", "--white", "white.npy", "--sensor", "sensor.toml",
                      "--out", "o.nc")
     assert rc == 0 and "2 dark and 2 white frame(s) averaged" in out, err
+
+
+@pytest.mark.parametrize("argv", [
+    ["stream", "", "--dark", "d.npy", "--white", "w.npy", "--sensor", "mosaic_4x4_vis",
+     "--out", "o.zarr"],
+    ["flatfield", " ", "--dark", "d.npy", "--white", "w.npy", "--out", "o.nc"],
+    ["correct", "c.nc", "--lens", "edmund_optics_16mm", "--f-number", "2", "--out", ""],
+])
+def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, monkeypatch, argv,
+                                                                 cli):
+    """stream "" (an unset shell variable) streamed every frame file of the current folder."""
+    monkeypatch.chdir(tmp_path)
+    np.save(tmp_path / "f1.npy", np.zeros((8, 8), np.uint16))
+    before = snapshot(tmp_path)
+    rc, _, err = cli(*argv)
+    assert_refused(rc, err, "an empty path")
+    assert snapshot(tmp_path) == before
