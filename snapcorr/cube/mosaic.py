@@ -196,6 +196,16 @@ def sensor_positions(sensor: Sensor, ny, nx, sensor_origin_px=(0, 0)):
     else:
         rows = np.repeat((r0 + np.arange(ny))[:, None], sensor.n_bands, axis=1)
         cols = np.repeat((c0 + np.arange(nx))[:, None], sensor.n_bands, axis=1)
+    size = sensor.size_px
+    if r0 < 0 or c0 < 0 or (size is not None and (rows.max() >= size[0]
+                                                  or cols.max() >= size[1])):
+        reach = f"{int(rows.max()) + 1} x {int(cols.max()) + 1} px"
+        raise ValueError(f"a cube of {ny} x {nx} {'tiles' if sensor.layout == 'mosaic' else 'px'} "
+                         f"at sensor row {r0}, column {c0} reaches beyond the sensor "
+                         f"{sensor.name!r} ({size[0]} x {size[1]} px; it would need {reach}): "
+                         "check sensor_origin_px= (row, col) and the sensor"
+                         if size is not None else
+                         f"sensor_origin_px ({r0}, {c0}) must be >= 0")
     return rows, cols
 
 
