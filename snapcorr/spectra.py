@@ -169,12 +169,13 @@ def read_spectrum(path) -> Spectrum:
     """A spectrum from a text file (two columns, wavelength in nm and value; ``#`` comments;
     comma, semicolon, tab or space separated; header lines before the numbers are skipped) or
     an ``.npy`` array of shape (n, 2) or (2, n)."""
-    from .files.reading import check_input
+    from .files.reading import check_input, check_table_size
 
     try:
         p = check_input(path, what="spectrum")
     except FileNotFoundError:
         raise ValueError(f"no spectrum file {str(path)!r}") from None
+    check_table_size(p, "spectrum")
     if p.suffix == ".npy":
         try:
             a = np.load(p)  # never pickles: an object array is refused

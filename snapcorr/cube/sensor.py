@@ -692,12 +692,13 @@ def _read_shape_cached(path):
     if p.suffix.lower() not in (".csv", ".txt", ".tsv", ".dat"):
         raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)} or a two-column "
                          f"file (.csv, .txt), got {shown(p.name)}")
-    from ..files.reading import check_input
+    from ..files.reading import check_input, check_table_size
 
     try:
         check_input(p, what="filter profile")
     except FileNotFoundError:
         raise FileNotFoundError(f"filter profile file not found: {p}") from None
+    check_table_size(p, "filter profile")
     rows = []
     for k, line in enumerate(p.read_text(errors="replace").splitlines()):
         line = line.split("#", 1)[0].strip()

@@ -212,3 +212,18 @@ def test_a_file_of_a_radiance_and_a_reflectance_cube_is_refused(tmp_path, ext):
     path = tmp_path / f"ff{ext}"
     ff.to_netcdf(path) if ext == ".nc" else ff.to_zarr(path)
     assert read_cube(path).name == "reflectance"
+
+
+def test_a_text_table_larger_than_any_is_refused_unread(tmp_path):
+    """A 17 MiB two-column file as a spectrum or a sensor's measured filter shape: read whole
+    (a 64 MB one took 830 MB and 24 s) before any check."""
+    from snapcorr.cube import Sensor
+    from snapcorr.spectra import read_spectrum
+
+    big = tmp_path / "big.csv"
+    with open(big, "w") as f:
+        f.write("0, 1\n" * (17 * 2**20 // 5 + 1))
+    with pytest.raises(ValueError, match=r"the spectrum holds 17\.0 MiB of text, more than 16"):
+        read_spectrum(big)
+    with pytest.raises(ValueError, match=r"the filter profile holds 17\.0 MiB of text"):
+        Sensor("s", "snapscan", 5.5, (500.0, 600.0), 10.0, 1.7, profile=str(big))
