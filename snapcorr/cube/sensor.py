@@ -197,6 +197,11 @@ class Sensor:
                 raise ValueError(f"size_px must be [rows, cols], whole numbers 1-"
                                  f"{SENSOR_PX_MAX}, got {shown(self.size_px)}")
             set_(self, "size_px", tuple(int(v) for v in size))
+            if self.layout == "mosaic" and any(t > z for t, z in zip(self.mosaic_shape,
+                                                                     self.size_px, strict=True)):
+                raise ValueError(f"a {self.mosaic_shape[0]} x {self.mosaic_shape[1]} tile does "
+                                 f"not fit on a sensor of {self.size_px[0]} x {self.size_px[1]} "
+                                 "px: check mosaic_shape and size_px")
         set_(self, "profile", str(self.profile))
         if self.bit_depth is not None:
             bits = check_integers("bit_depth", self.bit_depth, BIT_DEPTH_MAX)
@@ -548,6 +553,10 @@ class Sensor:
         missing = {"name", "layout", "pixel_pitch_um", "cwl_nm", "fwhm_nm", "n_eff"} - set(table)
         if missing:
             raise ValueError(f"[sensor] is missing required key(s) {sorted(missing)}")
+        for key in ("name", "layout", "profile"):
+            if key in table and not isinstance(table[key], str):
+                raise ValueError(f"[sensor] {key} must be text (in quotes), got "
+                                 f"{shown(table[key])}")
         return cls(**table, calibration=calibration or {})
 
     @classmethod

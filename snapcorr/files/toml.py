@@ -64,7 +64,10 @@ def read_toml(path, table, what, *, others=("calibration",)):
         if size > MAX_TOML_BYTES:
             raise ValueError(_too_large(path, size, what))
         data = read_regular(path, MAX_TOML_BYTES)
-        doc = tomllib.loads(data.decode("utf-8"))
+        text = data.decode("utf-8")
+        if text.startswith("\ufeff"):  # a byte-order mark some editors write: not TOML's
+            text = text[1:]
+        doc = tomllib.loads(text)
     except FileNotFoundError:
         raise FileNotFoundError(f"{what} not found: {path}") from None
     except OSError as err:  # bytes that cannot be read (/proc/self/mem: EIO)
@@ -79,6 +82,13 @@ def read_toml(path, table, what, *, others=("calibration",)):
         raise ValueError(_too_deep(path, what))
     if table not in doc:
         raise ValueError(f"{path} has no [{table}] table")
+    if not isinstance(doc[table], dict):
+        kind = ("an array of tables ([[" + table + "]])" if isinstance(doc[table], list)
+                else f"a {type(doc[table]).__name__} value")
+        raise ValueError(f"{path}: {table} is {kind}; a {what} holds one [{table}] table")
+    for name in others:
+        if name in doc and not isinstance(doc[name], dict):
+            raise ValueError(f"{path}: {name} is not a table; write it [{name}]")
     extra = sorted(set(doc) - {table, *others})
     if extra:
         hint = "".join(f" ([[{k}]] inside it is written [[{table}.{k}]])" for k in extra

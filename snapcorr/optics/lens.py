@@ -493,6 +493,10 @@ class Lens:
                              f"valid keys are {sorted(known)} (or {sorted(single)} for one circle)")
         if "exit_pupil_mm" not in table:
             raise ValueError("[lens] is missing required key(s) ['exit_pupil_mm']")
+        for key in ("name", "pupil", "pupil_radiance"):
+            if key in table and not isinstance(table[key], str):
+                raise ValueError(f"[lens] {key} must be text (in quotes), got "
+                                 f"{shown(table[key])}")
         args = {k: v for k, v in table.items() if k not in single}
         if "pupil" in args and "pupil_radiance" in args:
             raise ValueError("give the pupil's radiance model once: [lens] pupil, or its other "

@@ -106,3 +106,17 @@ def test_text_of_100_kb_in_a_sensor_file_is_quoted_as_an_excerpt(tmp_path, cli, 
     (tmp_path / "s.toml").write_text(mosaic_sensor_text(**{key: value}))
     err = refused_in_one_line(cli("sensor", "s.toml", cwd=tmp_path))
     assert len(err) < 400 and value[1:21] in err, err[:500]
+
+
+def test_a_tile_larger_than_the_sensor_is_refused():
+    """A 1000 x 1000 tile on a 64 x 64 px sensor was described as such, and only a later
+    correct refused it."""
+    from snapcorr.cube import Sensor
+
+    with pytest.raises(ValueError, match=r"a 1000 x 1000 tile does not fit on a sensor of 64 x "
+                                         "64 px"):
+        Sensor("m", "mosaic", 5.5, (500.0,), 10.0, 1.7, mosaic_shape=(1000, 1000),
+               band_offset=((0, 0),), size_px=(64, 64))
+    with pytest.raises(ValueError, match=r"\[sensor\] name must be text"):
+        Sensor.from_dict({"name": 5, "layout": "snapscan", "pixel_pitch_um": 5.5,
+                          "cwl_nm": [500.0], "fwhm_nm": 10.0, "n_eff": 1.7})

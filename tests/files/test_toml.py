@@ -81,3 +81,33 @@ def test_every_toml_the_command_line_reads_refuses_deep_nesting_in_one_line(tmp_
             else ("sensor", "deep.toml"))
     err = refused_in_one_line(cli(*args, cwd=tmp_path))
     assert "deep.toml: its arrays or tables nest more than 32 levels" in err
+
+
+def test_a_table_written_as_an_array_and_a_byte_order_mark(tmp_path):
+    """[[sensor]] gave Python's "dictionary update sequence element #0 has length 1"; a
+    UTF-8 byte-order mark (some editors write one) gave "Invalid statement" at line 1."""
+    from snapcorr.cube import Sensor
+
+    arr = tmp_path / "a.toml"
+    arr.write_text('[[sensor]]\nname = "x"\n')
+    with pytest.raises(ValueError, match=r"a\.toml: sensor is an array of tables \(\[\[sensor\]\]\)"
+                       r"; a sensor description holds one \[sensor\] table"):
+        Sensor.load(arr)
+    bom = tmp_path / "b.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + b'[sensor]\nname = "b"\nlayout = "snapscan"\n'
+                    b"pixel_pitch_um = 5.5\ncwl_nm = [500.0, 600.0]\nfwhm_nm = 10.0\n"
+                    b"n_eff = 1.7\n")
+    assert Sensor.load(bom).name == "b"
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ('[lens]\nexit_pupil_mm = 21.0\nname = ["a"]\n', r"\[lens\] name must be text"),
+    ('[lens]\nexit_pupil_mm = 21.0\npupil = 3\n', r"\[lens\] pupil must be text"),
+])
+def test_a_lens_name_that_is_not_text_is_refused(tmp_path, text, words):
+    from snapcorr import Lens
+
+    path = tmp_path / "l.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=words):
+        Lens.load(path)
