@@ -448,14 +448,26 @@ def _pack_range(name, var, pack_range):
                      "range (pack_range=)")
 
 
+#: Words of the codecs' errors on bytes they cannot decode (Blosc, Zstandard, zlib, LZ4):
+#: an input's damaged chunk, met while the output is computed.
+_DAMAGED = ("decompression", "decompress", "dictionary is corrupted", "corrupt", "invalid "
+            "stored block", "incorrect header check", "checksum")
+
+
 def _store(ds, path, fmt, compression="auto"):
     try:
         return _store_dataset(ds, path, fmt, compression)
     except (OSError, ValueError, TypeError):
         raise
     except Exception as err:  # the libraries' own error types: report them plainly
-        raise ValueError(f"cannot write {path}: {type(err).__name__}: {_one_line(err)}") \
-            from None
+        text = _one_line(err)
+        if any(w in text.lower() for w in _DAMAGED):
+            source = ds.encoding.get("source")
+            raise ValueError(f"a chunk of {'the input ' + str(source) if source else 'an input'}"
+                             f" cannot be decoded ({type(err).__name__}: {text}): the store is "
+                             "damaged or truncated; copy it again from its source. Nothing was "
+                             f"written to {path}") from None
+        raise ValueError(f"cannot write {path}: {type(err).__name__}: {text}") from None
 
 
 def _compresses(var):

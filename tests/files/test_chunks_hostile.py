@@ -361,3 +361,20 @@ def test_consolidated_metadata_left_stale_is_not_believed(tmp_path, zarr_format)
     ds = read_dataset(path)
     assert ds["raw"].shape == (4, 8, 8) and int(ds["raw"][3].max()) == 7
     assert read_frames(path).shape[0] == 4
+
+
+def test_a_damaged_input_chunk_is_said_of_the_input_not_the_output(tmp_path):
+    """One chunk's bytes overwritten in a Blosc-compressed store: computing the output met
+    Blosc's "error during blosc decompression: -1", said as "cannot write OUT"."""
+    src = tmp_path / "in.zarr"
+    cube = make_cube(np.random.default_rng(1).random((32, 16, 3)).astype(np.float32), WL)
+    cube.to_dataset(name="reflectance").to_zarr(src, consolidated=False, zarr_format=2,
+                                                encoding={"reflectance": {"chunks": (8, 16, 3)}})
+    chunk = src / "reflectance" / "1.0.0"
+    chunk.write_bytes(chunk.read_bytes()[:16] + b"\x00" * (len(chunk.read_bytes()) - 16))
+    ds = read_dataset(src, chunks={"y": 8})
+    with pytest.raises(ValueError, match=r"a chunk of the input .*in\.zarr cannot be decoded "
+                       r"\(.*\): the store is damaged or truncated; .* Nothing was written to "
+                       r".*out\.nc"):
+        write_dataset(ds, tmp_path / "out.nc")
+    assert not (tmp_path / "out.nc").exists()
