@@ -74,10 +74,33 @@ def _to_json(value, where):
                         "convert it to a string, number, boolean, None, list or dict") from None
 
 
+def _utf8(text):
+    """``text`` as UTF-8 can store it: a file name's bytes that are no UTF-8 (Python holds
+    them as lone surrogates, ``'fr\\udce9me.npy'``) written as escapes (``fr\\xe9me.npy``),
+    where netCDF's writer failed on them after the work."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return text
+
+
+def _utf8_deep(value):
+    """:func:`_utf8` of every string in lists, tuples and dicts (keys too)."""
+    if isinstance(value, str):
+        return _utf8(value)
+    if isinstance(value, list | tuple):
+        return [_utf8_deep(v) for v in value]
+    if isinstance(value, dict):
+        return {(_utf8(k) if isinstance(k, str) else k): _utf8_deep(v) for k, v in value.items()}
+    return value
+
+
 def _encode_value(value, where):
     if value is None or isinstance(value, bool | np.bool_ | list | tuple | dict):
-        return JSON_PREFIX + _to_json(value, where)
+        return JSON_PREFIX + _to_json(_utf8_deep(value), where)
     if isinstance(value, str):
+        value = _utf8(value)
         return JSON_PREFIX + _to_json(value, where) if value.startswith(JSON_PREFIX) else value
     if isinstance(value, int | np.integer):
         return value if -2**63 <= int(value) < 2**63 else JSON_PREFIX + str(int(value))

@@ -126,3 +126,22 @@ def test_an_attribute_that_cannot_be_stored_is_refused_before_writing(tmp_path, 
     with pytest.raises(TypeError, match="variable 'a': attribute 'taken' is a datetime"):
         write_dataset(ds, tmp_path / f"r{ext}")
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("ext", [".nc", ".zarr"])
+def test_a_file_name_that_is_no_utf8_is_stored_escaped(tmp_path, ext):
+    """A frame named by bytes that are no UTF-8 (b'fr\\xe9me.npy', held by Python as a lone
+    surrogate) in the attributes: netCDF's writer failed after the work with "'utf-8' codec
+    can't encode character '\\udce9'"."""
+    import xarray as xr
+
+    from snapcorr.cube import read_dataset, write_dataset
+
+    name = b"fr\xe9me.npy".decode("utf-8", "surrogateescape")
+    ds = xr.Dataset({"reflectance": (("y", "x", "band"), np.zeros((2, 2, 1), np.float32),
+                                     {"units": "1", "source": name})},
+                    coords={"wavelength": ("band", [500.0])}, attrs={"inputs": [name],
+                                                                     "source": name})
+    write_dataset(ds, tmp_path / f"o{ext}")
+    back = read_dataset(tmp_path / f"o{ext}")
+    assert back.attrs["source"] == "fr\\xe9me.npy" == back["reflectance"].attrs["source"]
