@@ -134,6 +134,16 @@ def _as_chunks(chunks):
     :class:`~snapcorr.files.storage._Rows` of :data:`BLOCK_BYTES` (looked up now)."""
     if isinstance(chunks, str) and chunks == "rows":
         return _Rows(BLOCK_BYTES)
+    if chunks is None or isinstance(chunks, _Rows):
+        return chunks
+    if not isinstance(chunks, dict):
+        raise ValueError(f"chunks must be a dict of block sizes by dim ({{'y': 256}}), "
+                         f"'rows' or None, got {chunks!r:.60}")
+    for dim, size in chunks.items():
+        whole = isinstance(size, int | np.integer) and not isinstance(size, bool)
+        if not (whole and (size > 0 or size == -1)) and size not in ("auto", None):
+            raise ValueError(f"chunks[{dim!r}] must be a whole number of values > 0, -1 (the "
+                             f"whole dim) or 'auto', got {size!r:.60}")
     return chunks
 
 

@@ -88,3 +88,14 @@ def test_the_recorded_frame_order_says_how_signs_are_read(tmp_path):
                             "without comparing them)")
     with pytest.raises(ValueError, match="in names of different forms the two orders differ"):
         natural_order(["x-1", "x0", "x1_2"])
+
+
+@pytest.mark.parametrize("chunks", [{"y": 0}, 7, {"y": 1.5}, {"y": True}])
+def test_chunks_that_are_no_block_sizes_are_refused_by_name(tmp_path, chunks):
+    """read_cube(..., chunks={'y': 0}) was said as "FILE: cannot read it as zarr:
+    ZeroDivisionError", blaming the file for the argument."""
+    from snapcorr.cube import make_cube, read_cube, write_cube
+
+    write_cube(make_cube(np.ones((4, 4, 2), np.float32), [500.0, 600.0]), tmp_path / "c.zarr")
+    with pytest.raises(ValueError, match=r"^chunks"):
+        read_cube(tmp_path / "c.zarr", chunks=chunks)
