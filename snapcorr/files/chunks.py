@@ -1,7 +1,9 @@
 """Whether a stored file holds every chunk it declares: Zarr stores (a chunk left out reads as
 the array's fill value) and netCDF-4 files (HDF5 reads an unwritten chunk as its fill value,
 0 by default). Where that value is a datum, not a mark of missing data, the file is refused
-before anything is read (a copied-in-part store read as zeros, silently)."""
+before anything is read (a copied-in-part store read as zeros, silently). Also: an input chunk
+that cannot be decoded, said of the input, and the stored types a format has not got (float16
+in netCDF, stored as float32)."""
 
 from __future__ import annotations
 
@@ -244,3 +246,49 @@ def _refuse_incomplete_zarr(path):
         return
     _refuse_missing_chunks(path, ((name, Path(path) / name, arr)
                                   for name, arr in group.arrays()))
+
+
+#: Words of the codecs' errors on bytes they cannot decode (Blosc, Zstandard, zlib, LZ4):
+#: an input's damaged chunk, met while the output is computed.
+_DAMAGED = ("decompression", "decompress", "dictionary is corrupted", "corrupt", "invalid "
+            "stored block", "incorrect header check", "checksum")
+
+
+def _damaged_input(text):
+    """Whether a codec's error ``text`` says it met bytes it cannot decode."""
+    return any(w in text.lower() for w in _DAMAGED)
+
+
+def _damaged_input_error(err, text, source, path):
+    """The error of an input chunk that cannot be decoded, met while ``path`` was computed
+    (``source``: the input store, where the dataset knows it)."""
+    return ValueError(f"a chunk of {'the input ' + str(source) if source else 'an input'} "
+                      f"cannot be decoded ({type(err).__name__}: {text}): the store is damaged "
+                      f"or truncated; copy it again from its source. Nothing was written to "
+                      f"{path}")
+
+
+#: Encoding keys a file read sets for the type it stored a variable as (Zarr's fill value,
+#: codecs and their element size, HDF5 filters): dropped where another type is stored.
+STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer", "zlib",
+               "complevel", "shuffle", "compression", "compression_opts", "fletcher32")
+
+
+def _float16_widened(ds):
+    """Every float16 variable (data or coordinate, an input's raw copy included) as float32,
+    which holds each of its values exactly: netCDF has no 16-bit float, and HDF5's half float
+    written into a netCDF-4 file is one netCDF tools cannot read (netCDF4-python crashed on
+    it). A float16 asked for as storage is refused before any work (:func:`check_storage`)."""
+    names = [n for n, v in ds.variables.items()
+             if v.dtype == np.float16 or np.dtype(v.encoding.get("dtype", v.dtype)) == np.float16]
+    if not names:
+        return ds
+    ds = ds.copy()
+    for name in names:
+        var = ds[name].astype(np.float32) if ds[name].dtype == np.float16 else ds[name]
+        var.attrs = {**ds[name].attrs, "stored_as": "float32: every float16 value exactly "
+                     "(netCDF has no 16-bit float)"}
+        var.encoding = {k: v for k, v in ds[name].encoding.items()
+                        if k not in (*STORED_TYPE, "dtype")}
+        ds[name] = var
+    return ds

@@ -20,7 +20,14 @@ from .._validation import outside_stacklevel, shown
 from ..cube.derived import rebuildable, with_fwhm_table
 from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
-from .chunks import _refuse_incomplete_zarr, _refuse_unwritten_hdf5_chunks
+from .chunks import (
+    STORED_TYPE,
+    _damaged_input,
+    _damaged_input_error,
+    _float16_widened,
+    _refuse_incomplete_zarr,
+    _refuse_unwritten_hdf5_chunks,
+)
 from .marks import writer_mark as _mark
 from .safety import atomic_write, atomic_write_dir
 from .storage import FileFormat, _File, _Rows
@@ -63,10 +70,9 @@ def _open_dataset(path, fmt, chunks):
             # block, read whole by every block cut from it)
             warnings.filterwarnings("ignore", message="The specified chunks separate")
             return xr.open_dataset(path, engine=_netcdf_engine(path), chunks=chunks)
-    # Zarr: opened in the store's own chunks, then rechunked lazily as asked (asked for
-    # directly, chunks that split the stored ones make xarray warn). Each array's own
-    # metadata is read, never the consolidated copy: a copy left stale by a later write
-    # (an array grown from 3 frames to 4) would read a store as it no longer is.
+    # Zarr: opened in the store's own chunks, then rechunked as asked (asked for directly,
+    # chunks that split the stored ones make xarray warn); each array's own metadata, never a
+    # consolidated copy a later write may have left stale (3 frames said, 4 stored)
     ds = _unpacked_as_stored(xr.open_zarr(path, consolidated=False,
                                           chunks=None if chunks is None else {},
                                           mask_and_scale=False))
@@ -362,12 +368,6 @@ def check_storage(dtype, pack_range=None, fmt=None, what="dtype"):
                          "cannot read HDF5's); write .zarr for float16, or .nc as uint16")
 
 
-#: Encoding keys a file read sets for the type it stored a variable as (Zarr's fill value,
-#: codecs and their element size, HDF5 filters): dropped where another type is stored.
-STORED_TYPE = ("fill_value", "compressors", "compressor", "filters", "serializer", "zlib",
-               "complevel", "shuffle", "compression", "compression_opts", "fletcher32")
-
-
 def stored_as(ds, dtype, pack_range=None, fmt=None):
     """``ds`` with its values laid out for storage as ``dtype`` (see :func:`write_dataset`):
     cast (float16's finite values clipped to its range as they are written, and counted), or
@@ -448,12 +448,6 @@ def _pack_range(name, var, pack_range):
                      "range (pack_range=)")
 
 
-#: Words of the codecs' errors on bytes they cannot decode (Blosc, Zstandard, zlib, LZ4):
-#: an input's damaged chunk, met while the output is computed.
-_DAMAGED = ("decompression", "decompress", "dictionary is corrupted", "corrupt", "invalid "
-            "stored block", "incorrect header check", "checksum")
-
-
 def _store(ds, path, fmt, compression="auto"):
     try:
         return _store_dataset(ds, path, fmt, compression)
@@ -461,12 +455,8 @@ def _store(ds, path, fmt, compression="auto"):
         raise
     except Exception as err:  # the libraries' own error types: report them plainly
         text = _one_line(err)
-        if any(w in text.lower() for w in _DAMAGED):
-            source = ds.encoding.get("source")
-            raise ValueError(f"a chunk of {'the input ' + str(source) if source else 'an input'}"
-                             f" cannot be decoded ({type(err).__name__}: {text}): the store is "
-                             "damaged or truncated; copy it again from its source. Nothing was "
-                             f"written to {path}") from None
+        if _damaged_input(text):
+            raise _damaged_input_error(err, text, ds.encoding.get("source"), path) from None
         raise ValueError(f"cannot write {path}: {type(err).__name__}: {text}") from None
 
 
@@ -691,36 +681,13 @@ def _narrowed(values, to, counts):
     return values
 
 
-def _float16_widened(ds):
-    """Every float16 variable (data or coordinate, an input's raw copy included) as float32,
-    which holds each of its values exactly: netCDF has no 16-bit float, and HDF5's half float
-    written into a netCDF-4 file is one netCDF tools cannot read (netCDF4-python crashed on
-    it). A float16 asked for as storage is refused before any work (:func:`check_storage`)."""
-    names = [n for n, v in ds.variables.items()
-             if v.dtype == np.float16 or np.dtype(v.encoding.get("dtype", v.dtype)) == np.float16]
-    if not names:
-        return ds
-    ds = ds.copy()
-    for name in names:
-        var = ds[name].astype(np.float32) if ds[name].dtype == np.float16 else ds[name]
-        var.attrs = {**ds[name].attrs, "stored_as": "float32: every float16 value exactly "
-                     "(netCDF has no 16-bit float)"}
-        var.encoding = {k: v for k, v in ds[name].encoding.items()
-                        if k not in (*STORED_TYPE, "dtype")}
-        ds[name] = var
-    return ds
-
-
 def _store_dataset(ds, path, fmt, compression="auto"):
     # Dask-backed variables are written one at a time: computed together, a block read once
     # for two variables (a cube and its resampled copy) stays in memory until both are done,
     # which can hold the whole cube. Apart, each streams through in bounded memory.
-    if fmt == "zarr":
-        ds = _in_zarr_blocks(ds)
+    ds = _in_zarr_blocks(ds) if fmt == "zarr" else _float16_widened(ds)  # netCDF has none
     clipped = {}
     ds = _packed(ds, clipped)
-    if fmt == "netcdf":
-        ds = _float16_widened(ds)
     lazy = [v for v in ds.data_vars if ds[v].chunks is not None]
     groups = _write_groups(ds, lazy)
     ds = ds.copy()

@@ -266,6 +266,12 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
         with np.errstate(invalid="ignore"):
             lit = np.isfinite(raw) & (raw > 0)  # saturated pixels are lit
         if ok.mean() < 0.2 and lit.mean() < 0.2:  # nothing above its dark: say that
+            bad = 1.0 - np.isfinite(raw).mean()
+            if bad > 0.8:
+                raise ValueError(f"the flat at f/{f:g} holds no number in {100 * bad:.0f} % of "
+                                 "its pixels (NaN or infinite"
+                                 + (", itself or in the dark" if dark is not None else "")
+                                 + "): check the file")
             raise ValueError(f"the flat at f/{f:g} has no signal in {100 * (1 - lit.mean()):.0f} "
                              "% of its pixels (values at or below 0"
                              + (" after the dark" if dark is not None else "")

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import warnings
 
-import numpy as np
 import pytest
 from flatsim import make_flats
 
@@ -53,37 +52,3 @@ def test_a_given_centre_the_flats_contradict_and_misfit_is_refused(flats, given)
                        r"flats': their contours place it at row 61\.6, col 82\.3, .*reduced "
                        r"chi2 .*: check center_rc="):
         _notes(flats, given)
-
-
-def test_a_float_flat_clipped_flat_is_masked_where_it_is_clipped(flats):
-    """The f/1.4 flat (float, no saturation given) clipped at 80 % of its top: a plateau of
-    pixels at exactly its largest value. Fitted as light, it gave P and h 120 of their errors
-    off; now the plateau is saturation, said in the notes, and P and h are the lens's."""
-    clipped = dict(flats)
-    top = 0.8 * float(clipped[1.4].max())
-    clipped[1.4] = np.minimum(clipped[1.4].astype(float), top)
-    assert (clipped[1.4] == top).mean() > 0.01
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        got = calibrate_lens(clipped, pixel_pitch_um=PITCH_UM, exit_pupil_mm=PAPER.exit_pupil_mm,
-                             magnification=PAPER.magnification,
-                             pupil_magnification=PAPER.pupil_magnification, max_circles=1)
-    said = [n for n in got.notes if "a clipped plateau" in n]
-    assert len(said) == 1 and said[0].startswith("f/1.4: "), got.notes
-    (P, h), = got.lens.vignetting
-    (P_true, h_true), = PAPER.circles
-    assert abs(P / P_true - 1) < 0.01 and abs(h / h_true - 1) < 0.01, (P, h)
-
-
-def test_the_top_of_a_rounded_fall_off_is_no_plateau():
-    """A smooth fall-off rounded to whole numbers has about as many pixels at its top value
-    as at the next; a float flat's repeated top value, and one held by few pixels, neither."""
-    from snapcorr.calibrate.lens.stages import clipped_level
-
-    yy, xx = np.mgrid[:200, :200]
-    smooth = np.round(4000 - 0.05 * ((yy - 100.3) ** 2 + (xx - 99.6) ** 2))
-    assert clipped_level(smooth) is None
-    assert clipped_level(np.minimum(smooth, 3900)) == 3900
-    noisy = np.random.default_rng(2).normal(smooth, 20)
-    assert clipped_level(noisy) is None and clipped_level(np.round(noisy)) is None
-    assert clipped_level(np.minimum(noisy, 3900)) == 3900
