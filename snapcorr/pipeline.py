@@ -153,6 +153,12 @@ def read_mosaic_frame(path, sensor, *, what=None, shape=None):
     from .files.api import read_frame
 
     frame = read_frame(path, chunks="rows")
+    size = getattr(sensor, "size_px", None)
+    if size is not None and (frame.shape[0] > size[0] or frame.shape[1] > size[1]):
+        raise ValueError(f"{(what + ' ') if what else ''}{path} is {frame.shape[0]} x "
+                         f"{frame.shape[1]} px, larger than the sensor {sensor.name!r} "
+                         f"({size[0]} x {size[1]} px): not a raw frame of it (another camera, "
+                         "or another sensor file?)")
     frame = frame.chunk({"y": tile_rows(frame, sensor), "x": -1})
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} {path} is {frame.shape[0]} x {frame.shape[1]} px but the raw "

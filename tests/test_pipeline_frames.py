@@ -472,3 +472,19 @@ def test_snapcorr_cube_loads_without_numba_and_the_reach_follows_the_window():
     from snapcorr.cube.msfa import monno2017
 
     assert DEMOSAIC_REACH_TILES["ri"] == DEMOSAIC_REACH_TILES["ppid"] + 2 * monno2017.RADIUS
+
+
+def test_a_frame_larger_than_the_sensor_is_refused_before_any_work(tmp_path):
+    """A 4096 x 4096 white for a 2048 x 1088 sensor (sensor --phase-from): 19 s and 700 MB
+    of work, then "cannot tell the phase"."""
+    from snapcorr.cube import Sensor
+    from snapcorr.pipeline import read_mosaic_frame
+
+    sensor = Sensor.load("mosaic_4x4_vis")
+    rows, cols = sensor.size_px
+    np.save(tmp_path / "big.npy", np.zeros((rows + 4, cols), np.uint16))
+    with pytest.raises(ValueError, match=rf"--white .*big\.npy is {rows + 4} x {cols} px, "
+                       rf"larger than the sensor .*\({rows} x {cols} px\): not a raw frame"):
+        read_mosaic_frame(tmp_path / "big.npy", sensor, what="--white")
+    np.save(tmp_path / "ok.npy", np.zeros((rows, cols), np.uint16))
+    assert read_mosaic_frame(tmp_path / "ok.npy", sensor).shape == (rows, cols)

@@ -106,6 +106,9 @@ def run(args):
                          "--f-number too")
     if args.resample and args.lens is None:
         raise ValueError("--resample needs --lens and --f-number")
+    if args.store_derived and args.lens is None:  # nothing derived is stored without a lens
+        raise ValueError("--store-derived stores the corrected wavelengths: it needs --lens "
+                         "and --f-number")
     _check_virtual_options(args, sensor)
     if args.virtual_bands is not None and args.lens is None:
         raise ValueError("--virtual-bands needs --lens and --f-number (the stream is corrected "

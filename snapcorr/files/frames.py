@@ -445,9 +445,12 @@ def read_frames(path, *, frames_per_chunk=1):
     import dask.array as da
 
     path = Path(path)
+    whole = (isinstance(frames_per_chunk, int | np.integer)
+             and not isinstance(frames_per_chunk, bool | np.bool_))
+    if not whole or frames_per_chunk < 1:  # 1.5 was cut to 1, True taken as 1
+        raise ValueError(f"frames_per_chunk must be a whole number >= 1, got "
+                         f"{frames_per_chunk!r}")
     per = int(frames_per_chunk)
-    if per < 1:
-        raise ValueError(f"frames_per_chunk must be at least 1, got {frames_per_chunk!r}")
     attrs = {"source": str(path)}
     coords = {}
     if not path.exists() and not path.is_symlink():

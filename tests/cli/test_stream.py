@@ -9,6 +9,9 @@ import pytest
     (["--sensor", "mosaic_4x4_vis", "--lens", "edmund_optics_16mm"],
      "correcting a stream needs both --lens and --f-number"),
     (["--sensor", "mosaic_4x4_vis", "--resample"], "--resample needs --lens and --f-number"),
+    # accepted, and nothing derived stored without a lens
+    (["--sensor", "mosaic_4x4_vis", "--store-derived"],
+     "--store-derived stores the corrected wavelengths: it needs --lens and --f-number"),
     (["--sensor", "mosaic_4x4_vis", "--virtual-bands", "fitted"],
      "--virtual-bands needs --lens and --f-number"),
 ])

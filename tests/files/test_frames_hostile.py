@@ -52,3 +52,15 @@ def test_a_stream_that_is_not_there_is_said_to_be_missing(tmp_path):
 
     with pytest.raises(FileNotFoundError, match="no such file or folder of frames"):
         read_frames(tmp_path / "frames")
+
+
+@pytest.mark.parametrize("per", [1.5, True, 0, "2"])
+def test_frames_per_chunk_is_a_whole_number(tmp_path, per):
+    """read_frames(frames_per_chunk=1.5) cut it to 1, and True was taken as 1."""
+    import numpy as np
+
+    from snapcorr.cube import read_frames
+
+    np.save(tmp_path / "s.npy", np.zeros((3, 4, 4), np.uint16))
+    with pytest.raises(ValueError, match="frames_per_chunk must be a whole number >= 1"):
+        read_frames(tmp_path / "s.npy", frames_per_chunk=per)
