@@ -297,6 +297,10 @@ def process_stream(frames, dark, white, sensor, *, demosaic_method="ri", lens=No
         (``wavelength_corrected(y, x, band)``, ``cra_deg``, ...) and its provenance, and
         ``virtual(frame, y, x, virtual_band)`` when asked for. Lazy for dask frames.
     """
+    from .correct.virtual import check_virtual_options
+
+    check_virtual_options(virtual_bands, virtual_matrix, virtual_wavelengths_nm,
+                          virtual_fwhm_nm)
     if not isinstance(frames, xr.DataArray) or tuple(frames.dims) != ("frame", "y", "x"):
         dims = tuple(frames.dims) if isinstance(frames, xr.DataArray) else type(frames).__name__
         raise ValueError(f"a stream is a DataArray of dims (frame, y, x), got {dims}")

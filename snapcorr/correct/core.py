@@ -25,7 +25,7 @@ from .geometry import _largest_cra_deg
 from .harmonised import HARMONISE_NODE_STEP_DEG as HARMONISE_NODE_STEP_DEG
 from .harmonised import _harmonised
 from .plan import CorrectionPlan, plan_correction
-from .virtual import VirtualBandOptions
+from .virtual import VirtualBandOptions, check_virtual_options
 from .wavelengths import DEFAULT_TOLERANCE_NM, _field_max_deg, _model, relative_shift
 from .widths import FWHM_TOLERANCE_NM as FWHM_TOLERANCE_NM
 from .widths import _width_table, _widths_needed, _with_fwhm, _with_lazy_fwhm
@@ -109,6 +109,8 @@ def correct_cube(cube, sensor, f_number, lens, *, method="auto",
         response) on request; ``mask`` when given; ``virtual(y, x, virtual_band)`` and the
         matrix used, on request; provenance in attrs.
     """
+    check_virtual_options(virtual_bands, virtual_matrix, virtual_wavelengths_nm,
+                          virtual_fwhm_nm)
     f, cube, mask = _check_inputs(cube, sensor, f_number, lens, method, tolerance_nm,
                                   target_fwhm_nm, harmonise, mask, resample)
     cra_max = _field_max_deg(_largest_cra_deg(cube, sensor, lens, center_rc, sensor_origin_px),

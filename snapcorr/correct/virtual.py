@@ -47,8 +47,8 @@ from .._validation import validate_method
 from ..cube import responses as _responses
 from ..cube.flatfield import cf_attrs
 
-__all__ = ["VIRTUAL_METHODS", "VirtualBandOptions", "apply_virtual", "virtual_bands",
-           "virtual_targets"]
+__all__ = ["VIRTUAL_METHODS", "VirtualBandOptions", "apply_virtual", "check_virtual_options",
+           "virtual_bands", "virtual_targets"]
 
 VIRTUAL_METHODS = ("vendor", "fitted", "angle-aware")
 #: Most pixels the regularisation is chosen from and the error bars averaged over.
@@ -338,6 +338,26 @@ def apply_virtual(cube, ds, cra_deg=None):
     return _apply(cube, table=table, cra=cra_deg)
 
 
+def check_virtual_options(method, matrix=None, wavelengths_nm=None, fwhm_nm=None,
+                          names=("virtual_matrix=", "virtual_wavelengths_nm=",
+                                 "virtual_fwhm_nm=")):
+    """Refuse options the virtual-band ``method`` (None: no virtual bands) does not use: the
+    vendor's matrix has its own bands (``wavelengths_nm``, ``fwhm_nm`` go with ``"fitted"``
+    and ``"angle-aware"``), and those methods fit their own matrix (``matrix`` goes with
+    ``"vendor"``); given where they mean nothing, they were ignored without a word."""
+    given = [n for n, v in zip(names, (matrix, wavelengths_nm, fwhm_nm), strict=True)
+             if v is not None]
+    if method is None and given:
+        raise ValueError(f"{given[0]} goes with virtual_bands=; give the method too")
+    own = [n for n in given if n != names[0]]
+    if method == "vendor" and own:
+        raise ValueError(f"{own[0]} goes with virtual_bands='fitted' or 'angle-aware': the "
+                         "vendor's matrix has its own bands")
+    if method in ("fitted", "angle-aware") and matrix is not None:
+        raise ValueError(f"{names[0]} goes with virtual_bands='vendor': the {method} "
+                         "method fits its own matrix")
+
+
 def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=None,
                   matrix=None, wavelengths_nm=None, fwhm_nm=None, noise=None,
                   tolerance=VIRTUAL_TOLERANCE):
@@ -382,6 +402,7 @@ def virtual_bands(cube, sensor, method, *, f_number=None, lens=None, cra_deg=Non
         when the lens is given.
     """
     method = validate_method(method, VIRTUAL_METHODS, "virtual_bands")
+    check_virtual_options(method, matrix, wavelengths_nm, fwhm_nm)
     reflectance = _is_reflectance(cube)
     if method != "vendor":
         if sensor.responses is None:

@@ -1,6 +1,7 @@
 """The virtual-band options are checked for the sensor before any work or write, with the
 option's name in the one-line error: repeated or non-nm wavelengths, widths the responses'
-grid cannot resolve, bands beyond the grid."""
+grid cannot resolve, bands beyond the grid; and options the chosen method does not use are
+refused, not ignored."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 import snapcorr.data
-from snapcorr.correct.virtual import virtual_targets
+from snapcorr.correct.virtual import check_virtual_options, virtual_targets
 from snapcorr.cube import Sensor
 
 NIR = Sensor.load(snapcorr.data.sensor_path("imec_5x5_nir"))
@@ -65,3 +66,36 @@ def test_the_command_line_names_the_option_and_writes_nothing(tile_cube, cli, ex
     assert code == 1 and len(err.strip().splitlines()) == 1, err
     assert words in err
     assert sorted(p.name for p in tile_cube.iterdir()) == ["ff.nc"]
+
+
+@pytest.mark.parametrize(("method", "kw", "words"), [
+    (None, {"wavelengths_nm": [700.0, 750.0]}, "virtual_wavelengths_nm= goes with "
+                                               "virtual_bands=; give the method too"),
+    (None, {"fwhm_nm": 10.0}, "virtual_fwhm_nm= goes with virtual_bands="),
+    ("vendor", {"wavelengths_nm": [700.0, 750.0]}, "virtual_wavelengths_nm= goes with "
+                                                   "virtual_bands='fitted' or 'angle-aware'"),
+    ("fitted", {"matrix": "custom"}, "virtual_matrix= goes with virtual_bands='vendor'"),
+    ("angle-aware", {"matrix": "custom"}, "the angle-aware method fits its own matrix"),
+])
+def test_an_option_the_method_does_not_use_is_refused(method, kw, words):
+    with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        check_virtual_options(method, **kw)
+
+
+def test_the_options_each_method_uses_are_taken():
+    check_virtual_options(None)
+    check_virtual_options("vendor", matrix="custom")
+    check_virtual_options("fitted", wavelengths_nm=[700.0], fwhm_nm=12.0)
+
+
+def test_correct_cube_and_process_stream_refuse_them_before_any_work():
+    """correct_cube(virtual_bands='vendor', virtual_wavelengths_nm=...) returned the vendor's
+    bands; process_stream took virtual_wavelengths_nm without virtual_bands."""
+    from snapcorr.correct import correct_cube
+    from snapcorr.pipeline import process_stream
+
+    with pytest.raises(ValueError, match="virtual_wavelengths_nm= goes with"):
+        correct_cube(None, None, None, 2.0, virtual_bands="vendor",
+                     virtual_wavelengths_nm=[700.0, 750.0])
+    with pytest.raises(ValueError, match="virtual_wavelengths_nm= goes with virtual_bands="):
+        process_stream(None, None, None, None, virtual_wavelengths_nm=[700.0, 700.0])
