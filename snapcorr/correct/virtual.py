@@ -338,23 +338,36 @@ def apply_virtual(cube, ds, cra_deg=None):
     return _apply(cube, table=table, cra=cra_deg)
 
 
-def check_virtual_options(method, matrix=None, wavelengths_nm=None, fwhm_nm=None,
-                          names=("virtual_matrix=", "virtual_wavelengths_nm=",
-                                 "virtual_fwhm_nm=")):
-    """Refuse options the virtual-band ``method`` (None: no virtual bands) does not use: the
-    vendor's matrix has its own bands (``wavelengths_nm``, ``fwhm_nm`` go with ``"fitted"``
-    and ``"angle-aware"``), and those methods fit their own matrix (``matrix`` goes with
-    ``"vendor"``); given where they mean nothing, they were ignored without a word."""
-    given = [n for n, v in zip(names, (matrix, wavelengths_nm, fwhm_nm), strict=True)
-             if v is not None]
+def check_virtual_options(method, matrix=None, wavelengths_nm=None, fwhm_nm=None):
+    """Refuse options the virtual-band ``method`` does not use, before any work: given where
+    they mean nothing, they were ignored without a word.
+
+    Parameters
+    ----------
+    method : {None, "vendor", "fitted", "angle-aware"}
+        The method asked for (None: no virtual bands, and so none of the options).
+    matrix : str, optional
+        The vendor matrix's name: with ``"vendor"`` only (the other methods fit their own).
+    wavelengths_nm, fwhm_nm : array_like or float, optional
+        The virtual bands' centres and width: with ``"fitted"`` and ``"angle-aware"`` only
+        (the vendor's matrix has its own bands).
+
+    Raises
+    ------
+    ValueError
+        An option the method does not use, named as ``correct_cube`` takes it.
+    """
+    given = [n for n, v in (("virtual_matrix=", matrix),
+                            ("virtual_wavelengths_nm=", wavelengths_nm),
+                            ("virtual_fwhm_nm=", fwhm_nm)) if v is not None]
     if method is None and given:
         raise ValueError(f"{given[0]} goes with virtual_bands=; give the method too")
-    own = [n for n in given if n != names[0]]
+    own = [n for n in given if n != "virtual_matrix="]
     if method == "vendor" and own:
         raise ValueError(f"{own[0]} goes with virtual_bands='fitted' or 'angle-aware': the "
                          "vendor's matrix has its own bands")
     if method in ("fitted", "angle-aware") and matrix is not None:
-        raise ValueError(f"{names[0]} goes with virtual_bands='vendor': the {method} "
+        raise ValueError(f"virtual_matrix= goes with virtual_bands='vendor': the {method} "
                          "method fits its own matrix")
 
 
