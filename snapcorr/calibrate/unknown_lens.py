@@ -462,8 +462,11 @@ def _settled_x(fit_x, final, pupil, flats, common, notes):
 
 
 def _consistency(first, final, x0, x):
-    """Both calibrations must give the same ``P / x`` and ``h / x^2``."""
-    a, b = first.lens.vignetting, final.lens.vignetting
+    """Both calibrations must give the same ``P / x`` and ``h / x^2``, circle for circle:
+    matched by ``h / x^2``, as the two fits may list them in either order (compared by
+    index, two right circles were said to differ by 110 %)."""
+    a = sorted(first.lens.vignetting, key=lambda c: c[1] / x0**2)
+    b = sorted(final.lens.vignetting, key=lambda c: c[1] / x**2)
     if first.model != final.model or len(a) != len(b):
         return [f"the flats chose {first.model!r} circles at the provisional x = {x0:.4g} mm "
                 f"and {final.model!r} at x = {x:.4g} mm; the second is used"]

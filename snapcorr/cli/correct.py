@@ -173,7 +173,9 @@ def run(args):
     if len(written) > 1:
         print("ENVI pairs (header and .raw) in " + f"{args.out.parent}: "
               + ", ".join(p.name for p in written))
-    print(f"wrote {args.out}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
+    named = args.out if any(str(w) == str(args.out) for w in written) else (
+        f"the corrected variables of {args.out.name} (not its input's copy: --no-input)")
+    print(f"wrote {named}: {cube.shape[0]} x {cube.shape[1]} x {cube.shape[2]} cube, f/"
           f"{args.f_number:g}, method {ds.attrs['method']} ({ds.attrs['method_reason']}); "
           f"CRA up to {ds.attrs['cra_max_deg']:.2f} deg, optical centre row "
           f"{ds.attrs['optical_center_rc'][0]:g}, col {ds.attrs['optical_center_rc'][1]:g} "

@@ -275,3 +275,22 @@ def test_flats_and_cubes_of_a_crop_keep_their_origin_in_the_profile():
     whole = make_cube(np.zeros((*SHAPE, sensor().n_bands)), sensor().cwl_nm)
     (row, col), _ = optical_center_rc(whole, sensor(), got.lens)
     assert abs(row - CENTER[1]) < 0.5 and abs(col - CENTER[0]) < 0.5, (row, col)
+
+
+def test_the_two_calibrations_are_compared_circle_for_circle_in_either_order():
+    """Two right circles that the fits at the provisional x and at the final x listed in the
+    other order were said to differ by 110 %; a real change of scale is still said."""
+    from types import SimpleNamespace
+
+    from snapcorr.calibrate.unknown_lens import _consistency
+
+    def cal(circles):
+        return SimpleNamespace(model="two", lens=SimpleNamespace(vignetting=circles))
+
+    x0, x = 15.0, 21.0
+    k = x / x0
+    first = cal([(7.42 / k, 17.0 / k**2), (10.5 / k, 35.0 / k**2)])
+    assert _consistency(first, cal([(10.5, 35.0), (7.42, 17.0)]), x0, x) == []
+    assert _consistency(first, cal([(7.42, 17.0), (10.5, 35.0)]), x0, x) == []
+    said = _consistency(first, cal([(7.42, 17.0), (10.5, 40.0)]), x0, x)
+    assert len(said) == 1 and "differ by 14 %" in said[0], said

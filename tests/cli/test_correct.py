@@ -40,6 +40,18 @@ def test_correct_writes_what_the_library_computes(files, cli):
     assert ds.attrs["cube_file"] == "cube.nc" and ds.attrs["f_number"] == 1.4
 
 
+def test_envi_without_the_input_says_what_it_wrote(files, cli):
+    """--no-input with an ENVI --out: the cube's own pair is left out, and "wrote out.hdr"
+    named a file that was never written."""
+    d, _, _ = files
+    res = cli("correct", "cube.nc", "--lens", "lens.toml", "--sensor", "sensor.toml",
+              "--f-number", "1.4", "--no-input", "--out", "out.hdr", cwd=d)
+    assert res.returncode == 0, res.stderr
+    assert not (d / "out.hdr").exists() and (d / "out_wavelength_corrected.hdr").exists()
+    assert "wrote the corrected variables of out.hdr (not its input's copy" in res.stdout
+    assert "wrote out.hdr" not in res.stdout
+
+
 @pytest.mark.parametrize("extra", [[], ["--source", "solar"]], ids=["model", "budget"])
 def test_a_cube_of_another_sensor_is_one_line(files, cli, extra):
     d, _, _ = files
