@@ -264,8 +264,9 @@ def read_cube_and_mask(path, *, wavelength_nm=None, chunks=None):
     mask = f.extras.get("mask")
     if mask is not None and cube.chunks is not None:  # block for block with the cube
         mask = mask.chunk(dict(zip(mask.dims, cube.chunks, strict=True)))
-    ignore = cube.attrs.get("data_ignore_value")
-    if ignore is not None:  # an ENVI cube's no-data value (kept in the cube, as stored)
+    ignore = cube.attrs.get("data_ignore_value") if f.fmt == "envi" else None
+    if ignore is not None:  # the header's no-data value (kept in the cube, as stored); a
+        # result's copy of its raw cube's value says nothing of the values it computed
         ignored = (cube == ignore).drop_vars(list(cube.coords)).rename("mask")
         mask = ignored if mask is None else (mask | ignored)
     return cube, mask

@@ -84,3 +84,17 @@ def test_wavelengths_in_units_that_are_no_length_are_said_when_the_sensor_gives_
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         read_cube(hdr, wavelength_nm=[501.0, 551.0, 601.0, 651.0])
+
+
+def test_a_results_copy_of_its_raw_ignore_value_masks_nothing(tmp_path):
+    """A flat-field result keeps its raw cube's attributes, its ENVI no-data value among
+    them: read for correct, every reflectance equal to that number (0 where raw == dark)
+    was masked. Only an ENVI header's own value masks."""
+    from snapcorr.cube import flatfield, make_cube, write_dataset
+
+    raw = make_cube(np.full((4, 4, 2), 100, np.uint16), [500.0, 600.0])
+    raw.attrs["data_ignore_value"] = 0
+    ref = [make_cube(np.full((4, 4, 2), v, np.float32), [500.0, 600.0]) for v in (100.0, 900.0)]
+    write_dataset(flatfield(raw, *ref), tmp_path / "ff.nc")
+    cube, mask = read_cube_and_mask(tmp_path / "ff.nc")
+    assert float(cube.max()) == 0.0 and int(mask.sum()) == 0
