@@ -6,7 +6,7 @@
 #       extension: .py
 #       format_name: percent
 #       format_version: '1.3'
-#       jupytext_version: 1.19.6
+#       jupytext_version: 1.19.7
 #   kernelspec:
 #     display_name: Python 3 (ipykernel)
 #     language: python
@@ -266,11 +266,13 @@ fig = fit.plot()
 #
 # ## One f-number only
 #
-# With one cube, the cone cannot be told from the field: only `x * n_eff` is determined, and
-# `x` then rests on the sensor file's index. The fit says so in a note. The product is fixed
-# exactly only at small angles (`sin^2` against `tan^2` of the chief-ray angle); with angles
-# up to 18.5 degrees it comes out a little off, while `x` alone is off by about the ratio of
-# the indices.
+# With one cube the cone cannot be told from the field at small angles: there only `x * n_eff`
+# is fixed. Over a wide field with a fast cone the field's curvature (`sin^2` against `tan^2`
+# of the chief-ray angle) and the cone's tilt off axis pin the index too, so `locate_pupil`
+# fits it with `x` and keeps it where it is known to 1 %. At f/8 it is not: `x` is then fitted
+# again at the sensor file's index (a note says so) and is off by about the ratio of the
+# indices, while `x * n_eff` comes from the fit with the index free, its error including how
+# little the index is known.
 
 # %%
 one = locate_pupil({8.0: cubes[8.0]}, binned, lens=known, fit_n_eff=True, n_bins=24)

@@ -21,8 +21,9 @@ def _add_target_fit_options(group, when="", origin_help="sensor row and column o
     --target-cube`` (``when`` says which option they go with; ``origin_help``, what
     ``--sensor-origin-px`` places)."""
     group.add_argument("--fit-n-eff", action="store_true",
-                       help=f"{when}fit the effective index too (needs two f-numbers to "
-                       "separate it from x; one gives x * n_eff)")
+                       help=f"{when}fit the effective index too (two f-numbers far apart "
+                       "separate it from x; one does where the field is wide and the cone "
+                       "fast, and otherwise gives x * n_eff with x at the sensor's index)")
     group.add_argument("--sensor-out", type=_path, default=None, metavar="SENSOR.toml",
                        help="with --fit-n-eff and two or more f-numbers: also write the "
                        "sensor description with the fitted n_eff, for the correction "
@@ -58,7 +59,7 @@ def _check_target_outputs(args, seen, inputs, cubes):
     (:func:`~snapcorr.files.outputs.check_outputs` refuses two of them at one path)."""
     if args.sensor_out is not None and not (args.fit_n_eff and len(seen) >= 2):
         raise ValueError(f"--sensor-out needs --fit-n-eff and {cubes} at two or more "
-                         "f-numbers (one f-number fixes only x * n_eff)")
+                         "f-numbers (one f-number may not pin n_eff)")
     _check_outputs({"--out": args.out, "--plot": args.plot, "--sensor-out": args.sensor_out},
                    inputs, args.overwrite,
                    [(".toml",), (".png",), (".toml",)])

@@ -193,13 +193,14 @@ def _pupil_predict(args):
     noise = args.noise_pct / 100.0
     fs = sorted(set(args.f_number))
     lens.working_f_number(fs)  # an f-number below the lens's limit is refused before any output
-    fit_n = args.fit_n_eff and len(fs) > 1
+    fit_n = args.fit_n_eff
     table = [  # printed once every bound is computed: a refusal mid-way prints no part of it
         f"predicted standard error of the exit pupil distance x = {lens.exit_pupil_mm:g} mm "
         f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
         f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "
-        "band per pixel" + (", n_eff fitted too" if fit_n else
-                            ", one f-number: x * n_eff only" if args.fit_n_eff else ""),
+        "band per pixel" + (", n_eff fitted too" if fit_n else "")
+        + (" (one f-number: where n_eff is not known to 1 %, x assumes the sensor's)"
+           if fit_n and len(fs) < 2 else ""),
         f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
         + (f" {'n_eff':>12s}" if args.fit_n_eff else "")]
 
@@ -207,8 +208,8 @@ def _pupil_predict(args):
         cells = [_precision_cell(p) for p in row]
         extra = ""
         if args.fit_n_eff:
-            extra = (f" {'x * n_eff only':>12s}" if len(fs) < 2 else
-                     f" {row[0].n_eff_stderr:12.2g}" if row[0].informative else f" {'-':>12s}")
+            extra = (f" {row[0].n_eff_stderr:12.2g}" if row[0].informative
+                     else f" {'-':>12s}")
         table.append(f"{name[:34]:34s} {cells[0]:>22s} {cells[1]:>20s}{extra}")
 
     from ..spectra import COLOUR_CHECKER_PATCHES

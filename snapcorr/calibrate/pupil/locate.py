@@ -75,6 +75,7 @@ from .distance import (
     _field_radius,
     _fit_x,
     _heldout,
+    _index_at_one_f_number,
     _max_shift_rel,
     _one_blas_thread,
     _target_models,
@@ -86,9 +87,12 @@ from .index import _index_ladder
 from .precision import (
     CANDIDATE_TARGETS,
     Precision,
+    edge_mm,
     errors_not_below_the_prediction,
+    precision_check,
     pupil_precision,
     target_precision,
+    x_times_n_eff,
 )
 from .precision import DEFAULT_TOLERANCE_NM as DEFAULT_TOLERANCE_NM
 from .precision import LAMP_LINES_NM as LAMP_LINES_NM
@@ -522,7 +526,7 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
             scale_circles, pupil_radiance, tolerance_nm, report):
     """:func:`locate_pupil` for one pupil (its body); the centre ``(row, col)``."""
     n_design = check_modelled(sensor, "the exit-pupil fit (snapcorr pupil)",
-                              fit_n_eff=bool(fit_n_eff) and len(cubes) >= 2)
+                              fit_n_eff=bool(fit_n_eff))
     if sensor.responses is not None:  # each band's whole measured curve, not a profile
         profile = "measured"
     cubes = _check_cubes(cubes, sensor, **({} if center_rc is None else {"min_side": 1}))
@@ -544,11 +548,18 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
                                    circles_at)
     problem = _Problem(model, n_design, progress)
     several = len(cubes) >= 2
-    fit_k = bool(fit_n_eff) and several
-    predicted = []
-    before = _precision_check(problem, fit_k, _edge_mm(sensor, center, r_max),
-                              float(np.max(sensor.cwl_nm)), tolerance_nm, report, predicted)
-    p, cov, r, s, rank = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k, before)
+    fit_k = bool(fit_n_eff)
+    predicted, edge, cwl_max = [], edge_mm(sensor, center, r_max), float(np.max(sensor.cwl_nm))
+    before = precision_check(problem, fit_k, edge, cwl_max, tolerance_nm, report, predicted)
+    p, cov, r, s, rank = fit = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k, before)
+    one_f = None
+    if fit_k and not several:
+        (p, cov, r, s, rank), one_f = _index_at_one_f_number(problem, fit, x_lo, x_hi,
+                                                             model.n_rows)
+        if one_f is not None:
+            _one_f_number_needs_an_index(sensor, one_f, min(cubes))
+            fit_k = False
+            predicted[0] = target_precision(problem, float(p[0]), False, edge, cwl_max)
     x, k = float(p[0]), float(p[1]) if fit_k else 1.0
     chi2 = float(r @ r)
     dof = max(round(model.n_rows - rank - len(p)), 1)
@@ -561,15 +572,15 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
     n = n_design * k
     n_err = n_design * err[1] if fit_k else None
     mode = "one" if fit_k else ("product" if fit_n_eff else "no")
-    notes = ["one f-number: the field fixes only x * n_eff; x assumes the sensor's n_eff. A "
-             "cube at a second f-number (far apart, e.g. f/2 and f/8) separates them through "
-             "the cone term"] if fit_n_eff and not several else []
+    notes = _one_f_number_notes(one_f, fit_n_eff and not several, err, k)
     if fit_k and nb >= 2:
         mode, x, x_err, n, n_err, chi2, red = _index_ladder(problem, x, n, float(err[0]),
                                                             n_err, chi2, scale, notes)
         if mode != "one":
             err, cov, chi2_red = np.array([x_err]), np.array([[x_err**2 / scale]]), red
-    xn, xn_err = _x_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
+    xn, xn_err = x_times_n_eff(x, n, err, cov * scale, k, n_design, fit_k and mode == "one")
+    if one_f is not None:  # with the index free: its error includes the index's
+        xn, xn_err = one_f.x_n_eff_mm, one_f.x_n_eff_stderr_mm
     err[0], n_err, xn_err, cov = errors_not_below_the_prediction(
         x, float(err[0]), n_err, xn_err, predicted[0], notes, cov)
     notes += _validity_notes(r_max, x, cone, chi2_red, dof)
@@ -597,42 +608,31 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
                     None if center_err is None else tuple(float(e) for e in center_err))
 
 
-def _edge_mm(sensor, center_rc, r_max):
-    """The distance from the axis (at ``center_rc``, ``(row, col)``) the prediction speaks of:
-    the sensor's farthest corner (the field the lens profile serves), or the cubes' field
-    without a sensor size."""
-    if sensor.size_px is None:
-        return r_max
-    rows, cols = sensor.size_px
-    row, col = center_rc
-    far = max(math.hypot(r - row, c - col) for r in (-0.5, rows - 0.5)
-              for c in (-0.5, cols - 0.5))
-    return max(far * sensor.pixel_pitch_mm, r_max)
+def _one_f_number_needs_an_index(sensor, said, f_number):
+    """Refuse a sensor without an index (a vendor file) where one f-number does not pin it."""
+    if sensor.n_eff is None:
+        raise ValueError(
+            f"one f-number (f/{f_number:g}) does not pin the effective index here (to "
+            f"{100 * said.rel_stderr:.2g} % from the field alone, where "
+            f"{100 * N_EFF_REL_STDERR:g} % is needed) and the sensor {sensor.name!r} gives "
+            "none: add cubes at a second f-number far from this one (e.g. f/2 and f/8), or "
+            "give n_eff in a sensor TOML naming the vendor file (vendor_file = ..., n_eff = "
+            "...)")
 
 
-def _precision_check(problem, fit_k, edge_mm, cwl_nm, tolerance_nm, report, keep):
-    """``before(x0)`` for the search: the precision predicted at ``x0`` (kept in ``keep``),
-    reported, and a target that cannot reach ``tolerance_nm`` refused."""
-    if tolerance_nm is not None and not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
-        raise ValueError(f"tolerance_nm must be > 0 nm, got {tolerance_nm!r}")
-
-    def before(x0):
-        pred = target_precision(problem, float(x0), fit_k, edge_mm, cwl_nm)
-        keep.append(pred)
-        if report is not None:
-            report(pred.summary())
-        if tolerance_nm is not None and not pred.shift_stderr_nm <= tolerance_nm:
-            what = "x and n_eff" if fit_k else "x"
-            raise ImpreciseTargetError(
-                f"the target cannot pin {what} to the shift precision asked: the shift at "
-                f"{edge_mm:.3g} mm from the axis ({cwl_nm:.4g} nm) to +- "
-                f"{pred.shift_stderr_nm:.2g} nm at best, above the tolerance of "
-                f"{tolerance_nm:g} nm (x +- {pred.x_stderr_mm:.2g} mm, predicted from the "
-                "target's features and the cubes' noise): use a target with narrow features "
-                "inside the bands (a rare-earth glass, a line lamp), less noise (average "
-                "frames), or a looser tolerance")
-
-    return before
+def _one_f_number_notes(said, one_f_number, err, k):
+    """What one f-number told of the index, for the fit's notes."""
+    if not one_f_number:
+        return []
+    if said is None:
+        return [f"one f-number: the field alone (the curvature of sin^2 against tan^2 of the "
+                f"chief-ray angle, the cone's tilt off axis) pins the index to "
+                f"{100 * err[1] / k:.2g} %"]
+    return [f"one f-number: the field alone pins the index to {100 * said.rel_stderr:.2g} % "
+            f"only (not {100 * N_EFF_REL_STDERR:g} %), so x assumes the sensor's n_eff and "
+            "its error is given that index; x * n_eff is from the fit with the index free, "
+            "its error including the index's. A cube at a second f-number (far apart, e.g. "
+            "f/2 and f/8) separates them through the cone term"]
 
 
 #: ``pupil_radiance="auto"`` keeps the Lambertian pupil only if it lowers chi-square by more
@@ -685,17 +685,6 @@ def choose_pupil(results, chi2, what, *, key="chi2"):
                            key: {k: float(f"{v:.6g}") for k, v in chi2.items()}}
     got.lens = dataclasses.replace(got.lens, calibration=cal)
     return got
-
-
-def _x_n_eff(x, n, err, cov, k, n_design, one_k):
-    """The product ``x * mean(n_eff)`` and its standard error (``cov`` scaled)."""
-    xn = x * float(np.mean(n))
-    if one_k:
-        g = np.array([k, x]) * float(np.mean(n_design))
-        xn_err = float(np.sqrt(max(g @ cov @ g, 0.0)))
-    else:
-        xn_err = float(err[0]) * float(np.mean(n))
-    return xn, xn_err
 
 
 #: A fit's reduced chi-square is said to be more than the noise explains above this, where

@@ -22,7 +22,7 @@ from .distance import MAX_REL_STDERR, _max_shift_rel, _one_blas_thread
 from .index import N_EFF_BAND_STDERR, N_EFF_REL_STDERR
 from .measured_target import target_model
 from .solver import _pinv_solve, _prediction_derivatives, _project_off, _row_bands, _whiten
-from .target import check_modelled
+from .target import ImpreciseTargetError, check_modelled
 from .target_model import PRIOR_SD, RadialBins
 
 __all__ = ["CANDIDATE_TARGETS", "OutsideChartError", "Precision", "colour_chart_precision",
@@ -489,3 +489,52 @@ def raised_covariance(cov, x_err, x_fit_err, n_err, n_fit_err):
     f += [1.0] * (np.shape(cov)[0] - len(f))
     d = np.asarray(f)
     return np.asarray(cov) * np.outer(d, d)
+
+
+def edge_mm(sensor, center_rc, r_max):
+    """The distance from the axis (at ``center_rc``, ``(row, col)``) the prediction speaks of:
+    the sensor's farthest corner (the field the lens profile serves), or the cubes' field
+    without a sensor size."""
+    if sensor.size_px is None:
+        return r_max
+    rows, cols = sensor.size_px
+    row, col = center_rc
+    far = max(math.hypot(r - row, c - col) for r in (-0.5, rows - 0.5)
+              for c in (-0.5, cols - 0.5))
+    return max(far * sensor.pixel_pitch_mm, r_max)
+
+
+def precision_check(problem, fit_k, edge_mm, cwl_nm, tolerance_nm, report, keep):
+    """``before(x0)`` for the search: the precision predicted at ``x0`` (kept in ``keep``),
+    reported, and a target that cannot reach ``tolerance_nm`` refused."""
+    if tolerance_nm is not None and not (math.isfinite(tolerance_nm) and tolerance_nm > 0):
+        raise ValueError(f"tolerance_nm must be > 0 nm, got {tolerance_nm!r}")
+
+    def before(x0):
+        pred = target_precision(problem, float(x0), fit_k, edge_mm, cwl_nm)
+        keep.append(pred)
+        if report is not None:
+            report(pred.summary())
+        if tolerance_nm is not None and not pred.shift_stderr_nm <= tolerance_nm:
+            what = "x and n_eff" if fit_k else "x"
+            raise ImpreciseTargetError(
+                f"the target cannot pin {what} to the shift precision asked: the shift at "
+                f"{edge_mm:.3g} mm from the axis ({cwl_nm:.4g} nm) to +- "
+                f"{pred.shift_stderr_nm:.2g} nm at best, above the tolerance of "
+                f"{tolerance_nm:g} nm (x +- {pred.x_stderr_mm:.2g} mm, predicted from the "
+                "target's features and the cubes' noise): use a target with narrow features "
+                "inside the bands (a rare-earth glass, a line lamp), less noise (average "
+                "frames), or a looser tolerance")
+
+    return before
+
+
+def x_times_n_eff(x, n, err, cov, k, n_design, one_k):
+    """The product ``x * mean(n_eff)`` and its standard error (``cov`` scaled)."""
+    xn = x * float(np.mean(n))
+    if one_k:
+        g = np.array([k, x]) * float(np.mean(n_design))
+        xn_err = float(np.sqrt(max(g @ cov @ g, 0.0)))
+    else:
+        xn_err = float(err[0]) * float(np.mean(n))
+    return xn, xn_err
