@@ -169,6 +169,18 @@ def _check_placement(cal):
         if size.shape != (2,) or np.any(size <= 0):
             raise ValueError("[calibration] image_size_px must be two whole numbers > 0 "
                              f"([width, height]), got {shown(cal['image_size_px'])}")
+    if "image_shape_px" in cal:
+        shape = check_integers("[calibration] image_shape_px", _as_list(cal["image_shape_px"],
+                                                                          "image_shape_px"),
+                               PIXELS_MAX)
+        if shape.shape != (2,) or np.any(shape <= 0):
+            raise ValueError("[calibration] image_shape_px must be two whole numbers > 0 "
+                             f"([rows, columns]), got {shown(cal['image_shape_px'])}")
+        if "image_size_px" in cal and list(shape[::-1]) != list(size):
+            raise ValueError(
+                f"[calibration] image_shape_px {shown(cal['image_shape_px'])} (rows, columns) "
+                f"and image_size_px {shown(cal['image_size_px'])} (width, height) disagree; "
+                "keep one, or give them as the same pixels")
 
 
 def _as_list(value, key):

@@ -112,6 +112,12 @@ def test_a_huge_integer_in_a_lens_file_is_one_line(tmp_path, cli, body):
     # beyond int64: refused before the cast, which made garbage and a numpy warning
     ({"image_size_px": [10**20, 512]}, "image_size_px must be whole numbers of at most "
                                         "1,000,000"),
+    # the flats' shape, written beside image_size_px: never read, so never checked
+    ({"image_shape_px": [512, 0]}, r"image_shape_px must be two whole numbers > 0"),
+    ({"image_shape_px": "512x640"}, "image_shape_px must be a list of two numbers"),
+    ({"image_shape_px": [512, 640], "image_size_px": [512, 640]},
+     r"image_shape_px \[512, 640\] \(rows, columns\) and image_size_px \[512, 640\] "
+     r"\(width, height\) disagree"),
     ({"center_rc": [1.0, "a"]}, "center_rc must be a number, got text"),
     ({"center_px": 3}, "center_px must be a list of two numbers"),
     # the bounds --center and --sensor-origin-px have on the command line
@@ -132,7 +138,8 @@ def test_the_placement_keys_of_a_calibration_are_checked(calibration, match):
 
 def test_other_calibration_keys_stay_free_form_and_good_ones_load():
     lens = Lens(21.0, calibration={"center_rc": [250.5, 320.0], "pixel_pitch_um": 5.5,
-                                   "image_size_px": [640, 512], "notes": True, "x": "free"})
+                                   "image_size_px": [640, 512], "image_shape_px": [512, 640],
+                                   "notes": True, "x": "free"})
     assert lens.calibration["notes"] is True
 
 
