@@ -18,7 +18,13 @@ from .._validation import check_f_number, check_positive, validate_method
 from ..optics import CORRECTION_MODELS, Lens, mean_shift
 from ..optics.response import kernel_bins
 from .report import Budget
-from .signal import SIGNAL_PROFILES, _FilterMoments, _lattice, _signals_on_grid
+from .signal import (
+    SIGNAL_PROFILES,
+    _dense_on_a_lattice,
+    _FilterMoments,
+    _lattice,
+    _signals_on_grid,
+)
 
 __all__ = ["profile_of", "scene_budget"]
 
@@ -96,7 +102,7 @@ def scene_budget(source, sensor, f_number, lens: Lens, *, cra_max_deg,
         per_model[n] = {m: (np.zeros(cra.size) if m == "none" else np.asarray(
             mean_shift(ref, n, f, cra, lens, method="vignetted" if m == "harmonised" else m),
             float)) for m in models}
-    lat = _lattice(source)
+    lat = _lattice(source) or _dense_on_a_lattice(source)
     d = shift_step_nm if lat is None else lat[1] / math.ceil(lat[1] / shift_step_nm - 1e-9)
     widening = (_widening(cwl, fwhm, n_eff, f, cra, lens, profile) if "harmonised" in models
                 else None)
