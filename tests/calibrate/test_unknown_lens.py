@@ -41,6 +41,7 @@ def z_scores(got):
                                                       strict=True)}
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_one_run_recovers_x_n_eff_p_h_and_the_centre_without_x():
     """x within 0.5 %, P, h and n_eff within 1 %, each within 3 of its standard error; the
     profile holds the joint covariance and the circles at the x found."""
@@ -198,6 +199,7 @@ def test_pupil_is_the_earlier_name_of_pupil_radiance():
                               pupil_radiance="paper")
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_the_centre_is_taken_row_first_and_its_x_first_form_warns():
     """center_rc=(row, col), off both middles of the frame, is the flats' centre, held, and
     the target's, carried to the cubes by the flats' lens; center_px=(cx, cy), the x-first
@@ -252,6 +254,7 @@ def test_the_command_gives_the_centre_row_first(files, cli, monkeypatch, tmp_pat
     assert ("--center-px CX,CY is deprecated" in res.stderr) == (given[0] == "--center-px")
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_flats_and_cubes_of_a_crop_keep_their_origin_in_the_profile():
     """Flats and target cubes of a crop at sensor row 16, col 20 (``sensor_origin_px``): the
     profile held the centre in the crop's pixels and not the crop's origin, so a reader took

@@ -25,6 +25,7 @@ def _run(cube_center=CENTER, **kw):
         **kw)
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_the_flats_centre_the_cubes_contradict_is_refused_as_the_flats():
     """The user gave no centre: the refusal names the flats' and does not advise leaving
     out a centre never given."""
@@ -37,6 +38,7 @@ def test_the_flats_centre_the_cubes_contradict_is_refused_as_the_flats():
     assert "leave it out" not in said and "centre given" not in said
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_every_fit_of_the_target_about_the_flats_centre_shares_one_check(monkeypatch):
     """The magnifications assumed: the target is fitted again at other ratios, every fit
     about the flats' centre; the cubes re-estimate the centre once for each centre (the

@@ -57,6 +57,7 @@ def z_scores(got, truth):
     return z, shift / got.shift_stderr_nm
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_left_out_magnifications_are_in_the_joint_errors_said_and_recorded():
     """The representative: m and m_P left out, n_eff fitted. x, n_eff and h are 4 % off (the
     noise's errors alone put them 200, 120 and 60 errors away); the errors with the spread

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 
 def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path, cli):
@@ -25,6 +26,7 @@ def test_target_cubes_too_small_for_any_annulus_are_refused_in_one_line(tmp_path
     assert not (tmp_path / "x.toml").exists()
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_crop_beside_the_axis_takes_the_true_centre_it_is_given(tmp_path, cli):
     """A crop of the sensor's corner (rows 0-127, columns 0-159; the axis at row 543.5, col
     1023.5): the cubes place the centre at the crop's edge (row 138, col 191, +- 22 and 30

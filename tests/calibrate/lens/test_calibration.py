@@ -119,6 +119,7 @@ def test_no_onset_inside_the_field_chooses_the_ideal_aperture():
     assert "ideal-aperture" in res.summary()
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_very_noisy_flats_report_large_uncertainty(paper_sphere):
     # 30 % noise per pixel: the joint fit still finds the lens, with honest error bars;
     # the onsets of the ratio profiles carry uncertainties of tenths of a degree or more.
@@ -165,6 +166,7 @@ def test_flats_of_different_sizes_and_repeated_f_numbers():
         calibrate_lens({2.0: a, 4.0: a}, exit_pupil_mm=21, pixel_pitch_um=5, method="x")
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_pixel_vignetting_needs_a_second_circle():
     flats = _flats(PAPER, seed=8, pixel_acceptance_deg=22.0)
     res = _calibrate(flats, PAPER)

@@ -48,6 +48,7 @@ def test_too_few_onsets_about_a_found_centre_asks_for_the_centre():
     assert "the optical centre was found from these flats" in text and "center_rc=" in text
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_crop_far_beside_the_axis_names_the_centre_and_keeps_a_given_one():
     """60 x 60 px with the axis 150 px off in both directions: found from the flats the
     centre landed on the wrong side, two circles were written at a reduced chi-square of

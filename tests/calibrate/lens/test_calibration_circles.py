@@ -594,6 +594,7 @@ def test_a_circle_the_noise_hides_is_in_the_error_bar():
     assert set(res.lens.calibration["model_choice"]["rivals"]) & {"pixel", "free"}
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_pixel_vignetting_is_the_second_circle_where_a_free_h_buys_nothing():
     """A free second circle's h wanders along the valley of onsets it shares with P: in this
     seed, at 0.5 % noise, it stopped at P 8.63, h 21.46 mm (true 8.5, 21.0) for a shift 0.021

@@ -34,6 +34,7 @@ def _without_record(cal):
                                                       *LENS_RECORD_KEYS.values())}
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_the_lens_gives_x_m_mp_the_pupil_and_the_error_of_x(flats):
     got = _calibrate(flats, lens=KNOWN, exit_pupil_from="pupil.toml")
     same = _calibrate(flats, exit_pupil_mm=21.0, magnification=0.05, pupil_magnification=1.2,

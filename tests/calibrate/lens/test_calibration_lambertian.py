@@ -93,6 +93,7 @@ def test_the_lambertian_disc_is_calibrated_and_covers(flats):
     assert not any("misfit" in n for n in res.notes)
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_the_papers_area_model_misfits_them_and_auto_finds_the_pupil(flats):
     paper = calibrate_lens(flats, exit_pupil_mm=X, pixel_pitch_um=PITCH, magnification=0.0,
                            pupil_magnification=1.0, pupil_radiance="paper", method="joint",

@@ -58,6 +58,7 @@ def test_the_rules_are_each_decisive():
     assert np.nanmax(shift_difference_nm(a, c, FS, 16.0)) > 0.1
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_pixel_vignetting_is_kept_only_where_it_matters_to_the_tolerance():
     truth = LensTruth(X, ((7.4236, 16.991), (8.5, X)), 0.06, 1.3)
     flats = make_flats(truth, FS, noise=0.005, seed=1, **SCENE)
@@ -107,6 +108,7 @@ def test_max_circles_zero_tries_no_circle_and_says_so(user_flats):
     assert "no vignetting circle tried" in res.reason
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_two_circles_predict_left_out_flats_better_than_the_onsets():
     # the paper's onsets see one circle: they predict a flat they did not see worse than the
     # two-circle joint fit, so auto keeps the joint fit and says by how much

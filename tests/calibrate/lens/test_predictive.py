@@ -37,6 +37,7 @@ def two_circles(request):
     return out, calls
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_two_circle_lens_keeps_the_joint_fit(two_circles):
     out, _ = two_circles
     res = out.res

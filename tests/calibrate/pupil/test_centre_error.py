@@ -31,6 +31,7 @@ def _fit(seed, shape=(96, 120), center=BEYOND, **kw):
                             target_spectrum=sim.colour_filter, n_bins=16, **kw)
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_crop_beside_the_axis_reports_errors_that_cover_over_seeds():
     """Six seeds: x within 1 %, and the RMS of its errors over the reported ones in [0.5, 2]
     (without the centre's part, about 16: the errors were 0.003 mm for misses of 0.07)."""

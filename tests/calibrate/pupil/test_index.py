@@ -22,6 +22,7 @@ from snapcorr.calibrate import locate_pupil
 from snapcorr.cube import make_cube
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_an_index_linear_in_wavelength_is_found_and_nothing_richer():
     """Filters whose index rises from 1.6 to 2.1 across the bands (the sensor file says 1.8
     everywhere): one value misfits, a factor linear in wavelength fits; one per band is not

@@ -273,6 +273,7 @@ def test_precision_predicts_the_reported_error():
 
 
 # -- stability: where the method is pushed -------------------------------------------------
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_five_percent_noise_is_honest():
     truth = PAPER
     got = locate_pupil(cubes("rare_earth_glass", "paper", (2.0, 8.0), noise=0.05, seed=8),
@@ -283,6 +284,7 @@ def test_five_percent_noise_is_honest():
     assert got.exit_pupil_stderr_mm > 0.001 * truth.exit_pupil_mm  # not a wishful error bar
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_target_with_one_feature_only():
     got = locate_pupil(cubes("single_feature", "plain", (2.0, 8.0), noise=0.01, seed=9),
                        sensor(), lens=as_lens(PLAIN))
@@ -304,6 +306,7 @@ def test_a_crop_off_center_with_its_origin():
     assert abs(err) < 0.02 * PAPER.exit_pupil_mm
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_masked_pixels_and_a_dead_band():
     data = cubes("rare_earth_glass", "paper", (2.0, 8.0), noise=0.01, seed=11,
                  nan_fraction=0.2)

@@ -45,6 +45,7 @@ def _corner_cubes(seed=300, noise=0.005):
     return out, sensor, Lens(21.0, [(9.5, 26.0)], 0.0, 1.0)
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_a_given_centre_is_not_widened_by_a_centre_that_fits_far_worse():
     cubes, sensor, lens = _corner_cubes()
     with warnings.catch_warnings():

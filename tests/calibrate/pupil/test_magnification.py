@@ -29,6 +29,7 @@ def _z(fit):
             (fit.n_eff[0] - N) / fit.n_eff_stderr[0])
 
 
+@pytest.mark.slow  # 10-60 s on two cores: kept out of the default run
 def test_circles_from_flats_without_magnifications_widen_x_and_n_eff():
     """The representative: the circles a calibration not given m and m_P writes (P and h
     times 1 + m / m_P, recorded as assumed), given to the target fit: x and n_eff 4 % off,
