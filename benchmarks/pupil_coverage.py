@@ -14,6 +14,9 @@ the lens's circles given and the optical centre found:
   ``tests/calibrate/pupil/test_measured_target.py``'s forward model (every ray scales the whole
   measured curve; the band-pass does not move) at 0.5 %
   noise, 16 annuli, split with ``mosaic_to_cube``.
+* ``one_f2``, ``one_f8``: the modelled sensor at f/2 or f/8 alone, the filters' true index 1.75
+  where the sensor says 1.7: at f/2 the field pins the index; at f/8 it does not, x assumes
+  the sensor's index and the z that counts is x * n_eff's.
 
 Prints and writes ``pupil_coverage.csv``: per case and seed, x and n_eff, their reported
 errors and z; then the RMS z per case. ``python -m benchmarks.pupil_coverage [CASE] [--seeds N]``.
@@ -22,6 +25,7 @@ errors and z; then the RMS z per case. ``python -m benchmarks.pupil_coverage [CA
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import tempfile
 import time
@@ -67,7 +71,33 @@ def measured(seed):
     return tpm.fit(folder, seed, n_nodes=384), tpm.N_EFF
 
 
-CASES = {"modelled": modelled, "measured": measured}
+_ONE = {}
+
+
+def one_f_number(f_number, seed, noise=0.002):
+    """The modelled sensor at one f-number, its filters' index 1.75 where the sensor says 1.7."""
+    import spectralsim as sim
+    from conftest import PAPER_LENS, PAPER_TRUTH
+
+    from snapcorr.calibrate import locate_pupil
+    from snapcorr.cube import Sensor, make_cube
+
+    cwl = np.arange(500.0, 849.0, 12.0)
+    if f_number not in _ONE:
+        _ONE[f_number] = sim.target_cube(sim.rare_earth_glass, cwl_nm=cwl, fwhm_nm=12.0,
+                                         n_eff=1.75, f_number=f_number, lens=PAPER_TRUTH,
+                                         shape=(128, 160), pixel_pitch_um=44.0,
+                                         center_px=(82.3, 61.6))
+    rng = np.random.default_rng(seed)
+    clean = _ONE[f_number]
+    cubes = {f_number: make_cube(clean + rng.normal(0.0, noise, clean.shape), cwl)}
+    sensor = Sensor("modelled", "snapscan", 44.0, cwl, 12.0, 1.7)
+    return locate_pupil(cubes, sensor, lens=PAPER_LENS, fit_n_eff=True), 1.75
+
+
+CASES = {"modelled": modelled, "measured": measured,
+         "one_f2": lambda seed: one_f_number(2.0, seed),
+         "one_f8": lambda seed: one_f_number(8.0, seed)}
 
 
 def run(cases=tuple(CASES), seeds=8, first=100, write=True):
@@ -79,18 +109,25 @@ def run(cases=tuple(CASES), seeds=8, first=100, write=True):
             t = time.perf_counter()
             got, n_true = CASES[case](seed)
             zx = (got.exit_pupil_mm - X_MM) / got.exit_pupil_stderr_mm
-            zn = (got.n_eff[0] - n_true) / got.n_eff_stderr[0]
+            fitted = got.n_eff_stderr is not None
+            zn = (got.n_eff[0] - n_true) / got.n_eff_stderr[0] if fitted else math.nan
+            zxn = (got.x_n_eff_mm - X_MM * n_true) / got.x_n_eff_stderr_mm
             rows.append({"case": case, "seed": seed, "x_mm": got.exit_pupil_mm,
                          "x_stderr_mm": got.exit_pupil_stderr_mm, "z_x": zx,
-                         "n_eff": float(got.n_eff[0]), "n_eff_stderr": float(got.n_eff_stderr[0]),
-                         "z_n_eff": zn, "chi2_red": got.chi2_red, "mode": got.n_eff_fitted,
+                         "n_eff": float(got.n_eff[0]),
+                         "n_eff_stderr": float(got.n_eff_stderr[0]) if fitted else math.nan,
+                         "z_n_eff": zn, "x_n_eff_mm": got.x_n_eff_mm,
+                         "x_n_eff_stderr_mm": got.x_n_eff_stderr_mm, "z_x_n_eff": zxn,
+                         "chi2_red": got.chi2_red, "mode": got.n_eff_fitted,
                          "seconds": time.perf_counter() - t})
             print(" ".join(f"{k}={v:.5g}" if isinstance(v, float) else f"{k}={v}"
                            for k, v in rows[-1].items()), flush=True)
-        z = np.array([[r["z_x"], r["z_n_eff"]] for r in rows if r["case"] == case])
+        z = np.array([[r["z_x"], r["z_n_eff"], r["z_x_n_eff"]] for r in rows
+                      if r["case"] == case])
         rms = np.sqrt(np.mean(z**2, axis=0))
-        print(f"{case}: RMS z of x {rms[0]:.2f}, of n_eff {rms[1]:.2f} over {len(z)} seeds",
-              flush=True)
+        print(f"{case}: RMS z of x {rms[0]:.2f}, of n_eff {rms[1]:.2f}, of x * n_eff "
+              f"{rms[2]:.2f} over {len(z)} seeds (x assumes the sensor's index where n_eff "
+              "is not fitted)", flush=True)
     if write:
         name = "pupil_coverage.csv" if len(cases) == len(CASES) else \
             f"pupil_coverage_{'_'.join(cases)}.csv"

@@ -214,7 +214,7 @@ class OneFNumberIndex(NamedTuple):
     x_n_eff_stderr_mm: float
 
 
-def _index_at_one_f_number(problem, fit, x_lo, x_hi, n_rows):
+def _index_at_one_f_number(problem, fit, x_lo, x_hi, n_rows, predicted_rel=0.0):
     """``(fit, said)`` for cubes at one f-number, ``fit`` from :func:`_fit` in ``x`` and the
     index's scale together.
 
@@ -225,7 +225,10 @@ def _index_at_one_f_number(problem, fit, x_lo, x_hi, n_rows):
     scale pinned to :data:`~snapcorr.calibrate.pupil.index.N_EFF_REL_STDERR` (and inside
     :data:`INDEX_SCALE_BOUNDS`) keeps ``fit`` (``said`` None). Otherwise ``x`` is fitted again
     with the sensor's index held (``x`` assumes it), and ``said`` keeps ``x * n_eff`` of the
-    fit with the index free, whose error includes how little the index is known."""
+    fit with the index free, whose error includes how little the index is known. The scale's
+    error is the larger of the fit's and ``predicted_rel`` (the prediction before the fit,
+    relative): a fit that ends where the model is not smooth reports too small a one (at f/8,
+    1 % where the prediction and the result said 6 %)."""
     p, cov, r, _, rank = fit
     scale = max(1.0, float(r @ r) / max(round(n_rows - rank - p.size), 1))
     var = np.asarray(cov, float) * scale
@@ -234,13 +237,20 @@ def _index_at_one_f_number(problem, fit, x_lo, x_hi, n_rows):
     with np.errstate(invalid="ignore"):
         rel = math.sqrt(var[1, 1]) / k if np.all(np.isfinite(var)) and var[1, 1] >= 0 \
             else math.inf
+    rel = max(rel, float(predicted_rel))
     inside = INDEX_SCALE_BOUNDS[0] < k < INDEX_SCALE_BOUNDS[1]
     if rel <= N_EFF_REL_STDERR and inside:
         return fit, None
     g = np.array([k, x]) * n
     xn = x * k * n
     xn_err = math.sqrt(max(float(g @ var @ g), 0.0)) if np.all(np.isfinite(var)) else math.inf
+    from .precision import x_times_n_eff_bound  # the prediction's, where the fit's is less
+
     held = _fit(problem, x * k, False, x_lo, x_hi)
+    # the bound where the fit ended and where the index is held: a fit that ends where the
+    # model is not smooth (an onset at an annulus's edge) reports too small an error
+    xn_err = max(xn_err, *(x_times_n_eff_bound(problem, at, kk) * math.sqrt(scale)
+                           for at, kk in ((x, k), (float(held[0][0]), 1.0))))
     if not inside:  # the scale stopped at a bound: its linear error is not the whole story
         xn_err = math.hypot(xn_err, abs(xn - float(held[0][0]) * n))
     return held, OneFNumberIndex(rel, xn, xn_err)

@@ -554,8 +554,10 @@ def _locate(cubes, sensor, *, lens, fit_n_eff, center_rc, target_spectrum, senso
     p, cov, r, s, rank = fit = _fit_x(problem, coarse, sensor, r_max, x_lo, x_hi, fit_k, before)
     one_f = None
     if fit_k and not several:
-        (p, cov, r, s, rank), one_f = _index_at_one_f_number(problem, fit, x_lo, x_hi,
-                                                             model.n_rows)
+        pred_n = predicted[0].n_eff_stderr
+        (p, cov, r, s, rank), one_f = _index_at_one_f_number(
+            problem, fit, x_lo, x_hi, model.n_rows,
+            pred_n / float(np.mean(n_design)) if pred_n is not None else math.inf)
         if one_f is not None:
             _one_f_number_needs_an_index(sensor, one_f, min(cubes))
             fit_k = False
