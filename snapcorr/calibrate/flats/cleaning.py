@@ -67,6 +67,11 @@ def read_flat(path):
     return image, {"bands": int(data.shape[2]), "saturation": sat}
 
 
+#: :func:`noise_model` measures the noise from at least this many pixels' residuals (a flat of
+#: 16 x 16 pixels has 196); with fewer it gives none.
+MIN_NOISE_PIXELS = 20
+
+
 def noise_model(image, valid, *, gain=None):
     """Noise variance as ``a + b * signal + c * signal**2`` (read, shot and gain noise: the
     photon-transfer curve), measured in the image.
@@ -108,8 +113,8 @@ def noise_model(image, valid, *, gain=None):
         ok &= np.isfinite(gain) & (np.asarray(gain) > 0)
     signal = cv2.blur(img, (3, 3))[ok]
     r = resid[ok]
-    if r.size < 200:
-        return 0.0, 0.0, 0.0
+    if r.size < MIN_NOISE_PIXELS:
+        return 0.0, 0.0, 0.0  # no measure of the noise: nothing is called an outlier by it
     if gain is None:
         groups = [(np.arange(r.size), 1.0, 1.0)]
     else:
@@ -119,10 +124,11 @@ def noise_model(image, valid, *, gain=None):
     for members, ka, kb in groups:
         members = members[::step]
         order = members[np.argsort(signal[members], kind="stable")]
-        # 20 bins of equal count (a band's share of the pixels: fewer, of 100 or more)
-        n_bins = 20 if gain is None else int(np.clip(order.size // 100, 1, 20))
+        # 20 bins of equal count (a band's share of the pixels, or a small flat's: fewer, of
+        # 100 or more; a flat of a few hundred pixels, one bin)
+        n_bins = int(np.clip(order.size // 100, 1, 20))
         for part in np.array_split(order, n_bins):
-            if part.size < 50:
+            if part.size < min(50, order.size):
                 continue
             rr = r[part]
             mad = np.median(np.abs(rr - np.median(rr)))
@@ -235,7 +241,9 @@ def clean_flat(image, *, dark=None, saturation=None, gain=None):
     level = np.maximum(med, 0.0)
     g = 1.0 if gain is None else np.where(valid, gain, 1.0)
     var = (a / g**2 + (b / g + c * level) * level + floor).astype(np.float32)
-    outlier = np.abs(img - med) > OUTLIER_SIGMA * np.sqrt(var)
+    # without a measure of the noise (a flat of a few pixels) no pixel is called an outlier
+    outlier = np.abs(img - med) > OUTLIER_SIGMA * np.sqrt(var) if a + b + c > 0 else \
+        np.zeros(img.shape, bool)
     if min(img.shape) >= 5:
         # ... and off the surface its neighbours follow: a 5 x 5 median departs from a
         # steep, curved fall-off (far from the axis), and masking there kept only the
