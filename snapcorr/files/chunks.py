@@ -244,8 +244,29 @@ def _refuse_incomplete_zarr(path):
         group = zarr.open_group(str(path), mode="r", use_consolidated=False)
     except Exception:  # not a group: xarray's open says what it is
         return
-    _refuse_missing_chunks(path, ((name, Path(path) / name, arr)
-                                  for name, arr in group.arrays()))
+    arrays = list(group.arrays())
+    _refuse_missing_chunks(path, ((name, Path(path) / name, arr) for name, arr in arrays))
+    for name, arr in arrays:
+        _refuse_a_chunk_of_another_type(path, name, arr)
+
+
+def _refuse_a_chunk_of_another_type(path, name, arr):
+    """Decode the first chunk of ``arr``: a store whose metadata states another type than its
+    chunks hold (``data_type`` edited, a chunk copied from another array) fails there with
+    numpy's reshape text, met later where the values are first computed."""
+    if arr.size == 0 or arr.ndim == 0:
+        return
+    first = tuple(slice(0, min(c, s)) for c, s in zip(arr.chunks, arr.shape, strict=True))
+    try:
+        arr[first]
+    except ValueError as err:
+        if "reshape" not in str(err):
+            raise
+        raise ValueError(
+            f"{path}: variable {name!r}: its first chunk does not hold {arr.dtype} values of "
+            f"the chunk's shape {tuple(s.stop for s in first)} ({err}): the store's "
+            "metadata does not match its chunks (its type changed?); copy the store again "
+            "from its source") from None
 
 
 #: Words of the codecs' errors on bytes they cannot decode (Blosc, Zstandard, zlib, LZ4):

@@ -26,7 +26,7 @@ import numpy as np
 import xarray as xr
 
 from .api import read_frame
-from .chunks import _IncompleteStore, _refuse_missing_chunks
+from .chunks import _IncompleteStore, _refuse_a_chunk_of_another_type, _refuse_missing_chunks
 from .datasets import _open_dataset, refuse_packed_counts
 from .reading import check_input, open_image
 from .registry import format_by_suffix
@@ -570,6 +570,7 @@ def _plain_zarr(path, first_error):
     if arr.ndim != 3:
         raise ValueError(f"{path} holds a {arr.ndim}-D array; a stream is (frame, y, x)")
     _refuse_missing_chunks(path, [("the array", path, arr)], cf=False)  # read as stored, unmasked
+    _refuse_a_chunk_of_another_type(path, "the array", arr)
     return da.from_zarr(arr)
 
 

@@ -378,3 +378,35 @@ def test_a_damaged_input_chunk_is_said_of_the_input_not_the_output(tmp_path):
                        r".*out\.nc"):
         write_dataset(ds, tmp_path / "out.nc")
     assert not (tmp_path / "out.nc").exists()
+
+
+@pytest.mark.parametrize("stored", ["float64", "float16"])
+def test_a_store_whose_metadata_states_another_type_is_refused_naming_the_variable(
+        tmp_path, stored):
+    """``data_type`` edited from float32: the chunk's bytes are too few or too many for the
+    shape, and zarr failed with numpy's "cannot reshape array of size 2304" wherever the
+    values were first computed, naming neither the store nor the variable."""
+    import json
+
+    rng = np.random.default_rng(0)
+    path = tmp_path / "c.zarr"
+    write_cube(make_cube(rng.random((24, 32, 3)).astype(np.float32), WL, name="reflectance"),
+               path)
+    meta = path / "reflectance" / "zarr.json"
+    doc = json.loads(meta.read_text())
+    assert doc["data_type"] == "float32"
+    doc["data_type"] = stored
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"c\.zarr: variable 'reflectance': its first chunk "
+                       rf"does not hold {stored} values.*metadata does not match its chunks"):
+        read_cube(path)
+    # a plain array of frames (no xarray names) likewise
+    arr = zarr.open_array(str(tmp_path / "frames.zarr"), mode="w", shape=(2, 8, 8),
+                          chunks=(1, 8, 8), dtype="uint16")
+    arr[:] = 7
+    meta = tmp_path / "frames.zarr" / "zarr.json"
+    doc = json.loads(meta.read_text())
+    doc["data_type"] = "uint8"
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"the array.*does not hold uint8 values"):
+        read_frames(tmp_path / "frames.zarr")
