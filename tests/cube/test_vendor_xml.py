@@ -290,9 +290,9 @@ def test_measured_responses_leave_no_room_for_a_second_description(tmp_path):
 def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_numbers():
     """The fit models measured responses (tests/calibrate/pupil/test_measured_target.py); the index
     it starts from is the sensor's, or, where the file gives none, a typical one, but only where it
-    is fitted (two f-numbers): otherwise x would rest on a guess. The precision's prediction
-    models them (tests/calibrate/pupil/test_precision.py) but needs the pitch this file gives as
-    0."""
+    is fitted (two f-numbers, or one that pins it): otherwise x would rest on a guess. The
+    precision's prediction models them (tests/calibrate/pupil/test_precision.py) but needs the
+    pitch this file gives as 0."""
     import dataclasses
 
     from conftest import PAPER_LENS
@@ -300,9 +300,12 @@ def test_the_exit_pupil_fit_of_measured_responses_needs_an_index_or_two_f_number
     from snapcorr.calibrate import locate_pupil, pupil_precision
 
     s = Sensor.load(VENDOR_XML)
-    for fit in (False, True):
-        with pytest.raises(ValueError, match="effective index n_eff"):
-            locate_pupil({2.0: None}, s, fit_n_eff=fit)
+    with pytest.raises(ValueError, match="effective index n_eff"):
+        locate_pupil({2.0: None}, s, fit_n_eff=False)
+    # fitted, one f-number may pin it (tests/calibrate/pupil/test_locate_one_f_number.py):
+    # the cubes are read first
+    with pytest.raises(TypeError, match=r"the f/2 cube must be a cube .* got NoneType"):
+        locate_pupil({2.0: None}, s, fit_n_eff=True)
     with pytest.raises(ValueError, match="pixel pitch, which its file gives as 0"):
         pupil_precision(lambda lam: lam, dataclasses.replace(s, n_eff=1.8), (2.0, 8.0),
                         PAPER_LENS)

@@ -112,6 +112,9 @@ def _check_cubes(cubes, sensor, min_side=MIN_CUBE_SIDE_PX):
         fv = check_positive("f-number", f)
         if fv in out:
             raise ValueError(f"f/{fv:g} given twice")
+        if not hasattr(cube, "sizes") or not {"y", "x", "band"} <= set(cube.sizes):
+            raise TypeError(f"the f/{fv:g} cube must be a cube (an xarray.DataArray with dims "
+                            f"y, x and band, e.g. from read_cube), got {type(cube).__name__}")
         sensor.check_cube(cube, f"the f/{fv:g} cube", atol_nm=0.5)
         ny, nx = (int(cube.sizes[d]) for d in ("y", "x"))
         if min(ny, nx) < min_side:
