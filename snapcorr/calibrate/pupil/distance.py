@@ -22,7 +22,7 @@ import numpy as np
 from scipy import optimize
 
 from ...optics.shift import EffectiveIndexWarning
-from .index import N_EFF_REL_STDERR
+from .index import N_EFF_REL_STDERR, _per_band_jacobian
 from .measured_target import target_model
 from .solver import _Problem, _solve
 from .target import FeaturelessTargetError
@@ -206,6 +206,21 @@ def _fit_x(problem, coarse_model, sensor, r_max, x_lo, x_hi, fit_k, before=None)
         return _fit(problem, x0, fit_k, x_lo, x_hi)
 
 
+def x_times_n_eff_bound(problem, x, k=1.0):
+    """The standard error of ``x * n_eff`` the cubes in ``problem`` give at ``x`` and the
+    index's scale ``k``, both fitted (the information matrix of :func:`target_precision`,
+    with the noise the annuli show); inf where it is singular."""
+    nd = problem.n_design * k
+    _, Jp = _per_band_jacobian(problem.model, x, nd, central=True)
+    J = np.column_stack([Jp[:, 0], Jp[:, 1:] @ nd])
+    F = J.T @ J
+    if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14:
+        return math.inf
+    n = float(np.mean(nd))
+    g = np.array([n, x * n])  # d(x n k)/dx, d/d(scale) at the scale k
+    return float(math.sqrt(max(g @ np.linalg.inv(F) @ g, 0.0)))
+
+
 class OneFNumberIndex(NamedTuple):
     """What one f-number said of the index: its relative standard error with ``x`` (chi-square
     scaled), and ``x * n_eff`` with the index free (its error includes the index's)."""
@@ -244,8 +259,6 @@ def _index_at_one_f_number(problem, fit, x_lo, x_hi, n_rows, predicted_rel=0.0):
     g = np.array([k, x]) * n
     xn = x * k * n
     xn_err = math.sqrt(max(float(g @ var @ g), 0.0)) if np.all(np.isfinite(var)) else math.inf
-    from .precision import x_times_n_eff_bound  # the prediction's, where the fit's is less
-
     held = _fit(problem, x * k, False, x_lo, x_hi)
     # the bound where the fit ended and where the index is held: a fit that ends where the
     # model is not smooth (an onset at an annulus's edge) reports too small an error

@@ -444,23 +444,6 @@ def target_precision(problem, x, fit_k, edge_mm, cwl_nm):
                            edge_mm, cwl_nm, band)
 
 
-def x_times_n_eff_bound(problem, x, k=1.0):
-    """The standard error of ``x * n_eff`` the cubes in ``problem`` give at ``x`` and the
-    index's scale ``k``, both fitted (the information matrix of :func:`target_precision`,
-    with the noise the annuli show); inf where it is singular."""
-    from .index import _per_band_jacobian
-
-    nd = problem.n_design * k
-    _, Jp = _per_band_jacobian(problem.model, x, nd, central=True)
-    J = np.column_stack([Jp[:, 0], Jp[:, 1:] @ nd])
-    F = J.T @ J
-    if not np.all(np.isfinite(F)) or np.linalg.cond(F) > 1e14:
-        return math.inf
-    n = float(np.mean(nd))
-    g = np.array([n, x * n])  # d(x n k)/dx, d/d(scale) at the scale k
-    return float(math.sqrt(max(g @ np.linalg.inv(F) @ g, 0.0)))
-
-
 #: A fit's own error of x below this share of the one predicted before it, at a start within
 #: :data:`BOUND_NEAR_REL` of the x fitted, is not believed: the model is not smooth where the
 #: fit ended (three vignetting circles, 0.5 % noise: one seed of six reported 0.0059 mm,
