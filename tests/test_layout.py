@@ -121,7 +121,7 @@ FLOORS = {
     "paper_experiment": 9,
     "demo": 10,
     "cli": 11,
-    "__main__": 12, "__init__": 12,
+    "_entry": 12, "__main__": 13, "__init__": 13,
 }
 
 
