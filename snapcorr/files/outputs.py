@@ -202,8 +202,10 @@ def _check_one(out, allowed, name, overwrite, srcs, family, folders, seen):
                              "other; give each its own path")
     seen.append((res, out))
     _refuse_sources(out, res, srcs)
+    # hard links, and the files that belong to an input: before its existence is judged (a
+    # hard link to the input was said to exist, or to be a file snapcorr did not write)
+    refuse_inputs([out], family)
     _check_output(out, res, allowed, overwrite)
-    refuse_inputs([out], family)  # hard links, and the files that belong to an input
     check_folder_writable(out, name, folder=res.parent)  # probed: root passes any mode
 
 

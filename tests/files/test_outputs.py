@@ -38,6 +38,13 @@ def test_a_hard_link_to_an_input_is_refused(tmp_path):
     os.link(src, tmp_path / "link.nc")
     with pytest.raises(ValueError, match="is also an input"):
         _check([tmp_path / "link.nc"], [src], overwrite=True)
+    # without overwrite too, and whatever its suffix: the link is the input, not an output
+    # that exists ("exists", or "a TOML file snapcorr did not write", named the wrong cause)
+    os.link(src, tmp_path / "link.toml")
+    for overwrite in (False, True):
+        with pytest.raises(ValueError, match="is also an input"):
+            _check([tmp_path / "link.toml"], [src], overwrite=overwrite,
+                   suffixes=[(".toml",)])
 
 
 def test_the_data_file_of_an_envi_input_is_refused(tmp_path):
