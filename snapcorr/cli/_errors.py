@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import argparse
 import errno
-import os
 import re
 import sys
-from pathlib import Path
 
 #: Library parameter names as the command line spells them, for error messages.
 _CLI_TERMS = {
@@ -85,10 +83,9 @@ def _message(err, options=None):
     ``keyword='choice'``, ``keyword=True`` and ``keyword= (a, b)`` the option as typed
     (``--virtual-bands fitted``, ``--fit-n-eff``, ``--sensor-origin-px a,b``)."""
     if isinstance(err, OSError) and err.errno == errno.ENAMETOOLONG and err.filename:
-        name = str(err.filename)
-        return (f"{_cut(name)}: a name in this path is too long for the file system (at most "
-                f"255 bytes a name, {len(os.fsencode(max(Path(name).parts, key=len)))} here); "
-                "give a shorter one")
+        from ..files.reading import too_long_said
+
+        return too_long_said(err.filename)
     message = _cut(str(err))
     message = " ".join(message.split())  # libraries' messages may span lines
     if message.startswith("Stored and computed checksum do not match"):  # zarr's crc32c
@@ -119,10 +116,13 @@ MESSAGE_MAX = 2000
 
 
 def _cut(text):
-    """``text`` cut to :data:`MESSAGE_MAX` characters, saying how much was left out."""
+    """``text`` cut to :data:`MESSAGE_MAX` characters, saying how much was left out; its end
+    is kept, where a message quoting a long value says what is wrong with it."""
     if len(text) <= MESSAGE_MAX:
         return text
-    return f"{text[:MESSAGE_MAX]}... ({len(text) - MESSAGE_MAX:,} more characters left out)"
+    head, tail = MESSAGE_MAX * 3 // 4, MESSAGE_MAX // 4
+    return (f"{text[:head]}... ({len(text) - head - tail:,} characters left out) ..."
+            f"{text[-tail:]}")
 
 
 def command_parser(parser, command):

@@ -16,12 +16,13 @@ that (:func:`snapcorr.files.safety.note_checked`).
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
 
 from .marks import _check_content, _written_by_snapcorr
-from .reading import file_kind
+from .reading import file_kind, too_long_said
 from .registry import FILE_FORMATS, input_files
 from .safety import _probe_folder, _unwritable_folder, note_checked, refuse_inputs
 
@@ -184,6 +185,8 @@ def check_outputs(outputs, inputs, *, overwrite, suffixes, protected=(), names=N
                 raise
             raise type(err)(f"{name} {err}") from None
         except OSError as err:  # a name too long, a loop of links: said, not a traceback
+            if err.errno == errno.ENAMETOOLONG:
+                raise ValueError(f"{name + ' ' if name else ''}{too_long_said(out)}") from None
             raise ValueError(f"{name + ' ' if name else ''}{out}: "
                              f"{err.strerror or type(err).__name__}; choose another output "
                              "path") from None

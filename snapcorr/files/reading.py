@@ -20,6 +20,38 @@ __all__ = ["MAX_TABLE_BYTES", "NotRegularFileError", "check_input", "check_table
 
 
 
+#: The longest name of one file or folder most file systems take, in bytes.
+NAME_MAX = 255
+
+
+def _path_max():
+    """The longest path the file system takes, in bytes (4096 where it does not say)."""
+    try:
+        return int(os.pathconf("/", "PC_PATH_MAX"))
+    except (OSError, ValueError, AttributeError):
+        return 4096
+
+
+def _short(path, keep=120):
+    """A path of more than ``keep`` characters as its start and end."""
+    if len(path) <= keep:
+        return path
+    return f"{path[:keep // 2]}...({len(path) - keep:,} characters)...{path[-keep // 2:]}"
+
+
+def too_long_said(path):
+    """What is too long in ``path`` (``ENAMETOOLONG``): one of its names, or the whole path
+    (every name short enough), with the path shortened, for a message."""
+    name = str(path)
+    longest = len(os.fsencode(max(Path(name).parts, key=len, default="")))
+    if longest > NAME_MAX:
+        return (f"{_short(name)}: a name in this path is too long for the file system (at "
+                f"most {NAME_MAX} bytes a name, {longest} here); give a shorter one")
+    return (f"{_short(name)}: this path is too long for the file system (at most "
+            f"{_path_max()} bytes, {len(os.fsencode(name)):,} here, every name in it short "
+            "enough); give a shorter one, or work from a folder nearer the file")
+
+
 def file_kind(mode):
     """What a ``st_mode`` describes, in words ("a regular file", "a FIFO (named pipe)", ...)."""
     for test, name in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a folder"),

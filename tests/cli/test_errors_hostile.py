@@ -107,7 +107,11 @@ def test_a_message_of_megabytes_is_cut_before_it_is_rewritten():
     message = _message(ValueError(text), _options("shift"))
     assert message.startswith("--n-eff must be finite, got '111")
     assert len(message) < MESSAGE_MAX + 100
-    assert message.endswith(f"({len(text) - MESSAGE_MAX:,} more characters left out)")
+    head, tail = MESSAGE_MAX * 3 // 4, MESSAGE_MAX // 4
+    assert f"({len(text) - head - tail:,} characters left out) ..." in message
+    # the end is kept: where a message quoting a long value says what is wrong with it
+    cause = _message(ValueError("x" * 10_000 + ": this is the cause"), {})
+    assert cause.endswith(": this is the cause") and len(cause) < MESSAGE_MAX + 100
     # a message of ordinary length is said whole
     assert _message(ValueError("x" * MESSAGE_MAX), {}) == "x" * MESSAGE_MAX
 
@@ -162,3 +166,20 @@ def test_a_name_too_long_for_the_file_system_is_said_so(tmp_path):
     assert code == 1 and len(err.strip().splitlines()) == 1, err
     assert "a name in this path is too long for the file system (at most 255 bytes a name, " \
            "304 here)" in err and "Errno" not in err, err
+
+
+def test_a_path_too_long_with_short_names_is_said_so_not_its_names(tmp_path):
+    """A path of 5 000 bytes whose every name is 200 bytes long was said to have "a name too
+    long (at most 255 bytes a name, 200 here)"; as an output, the cause was cut off the line."""
+    from conftest import run_cli
+
+    np.save(tmp_path / "w.npy", np.ones((8, 8), np.uint16))
+    deep = str(tmp_path / "/".join(["a" * 200] * 25))
+    for args in (("flatfield", deep + "/w.npy", "--dark", "w.npy", "--white", "w.npy",
+                  "--out", "o.nc"),
+                 ("flatfield", "w.npy", "--dark", "w.npy", "--white", "w.npy", "--out",
+                  deep + "/o.nc")):
+        code, _, err = run_cli(*args, cwd=tmp_path)
+        assert code == 1 and len(err.strip().splitlines()) == 1, err
+        assert "this path is too long for the file system (at most" in err, err
+        assert "every name in it short enough" in err and len(err) < 600, err
