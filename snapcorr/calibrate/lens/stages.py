@@ -217,10 +217,18 @@ def clipped_level(image):
     if at_top < CLIP_MIN_PIXELS:
         return None
     below = a[a < top]
-    if below.size == 0:
-        return None  # a constant image is no flat: said where its signal is checked
+    if below.size == 0:  # one value everywhere: clipped whole (accepted, such a flat was
+        return float(top)  # calibrated with a note that no model described it)
     nxt = int(np.count_nonzero(below == below.max()))
     return float(top) if at_top >= CLIP_RATIO * nxt else None
+
+
+def _lost_said(img, saturation):
+    """What a flat's masked pixels are, for a refusal: most saturated (at which level)?"""
+    with np.errstate(invalid="ignore"):
+        share = 0.0 if saturation is None else float(np.mean(np.asarray(img, float) >= saturation))
+    return (f"{100 * share:.0f} % saturated, at or above {saturation:g}; the rest dead or "
+            "non-finite" if share >= 0.5 else "saturated, dead or non-finite")
 
 
 def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
@@ -278,7 +286,7 @@ def clean_flats(items, dark, saturation, pixel_gains=None) -> Flats:
                              + "): check the file, its sign and the dark frame")
         if ok.mean() < 0.2:
             raise ValueError(f"the flat at f/{f:g} has only {100 * ok.mean():.0f} % usable "
-                             "pixels (saturated, dead or non-finite); lower the exposure or "
+                             f"pixels ({_lost_said(img, sat.get(f))}); lower the exposure or "
                              "check the file" + _pattern_hint(img, sat.get(f), pixel_gains))
         period = None if pixel_gains else _tile_period(image, ok)
         if period is not None:

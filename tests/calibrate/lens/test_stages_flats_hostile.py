@@ -65,3 +65,21 @@ def test_a_flat_of_no_numbers_is_said_so(flats):
     with pytest.raises(ValueError, match=r"the flat at f/2 holds no number in 100 % of its "
                        r"pixels \(NaN or infinite\)"):
         _calibrate(bad)
+
+
+@pytest.mark.parametrize("share", [1.0, 0.98])
+def test_a_flat_saturated_whole_or_nearly_is_refused_as_saturated(flats, share):
+    """A flat of one value in every pixel (65535: the exposure far too long) was calibrated,
+    with only a note that no model described the flats; one 98 % saturated was said to be
+    "saturated, dead or non-finite". Both are refused, saying how much is saturated."""
+    bad = dict(flats)
+    f2 = bad[2.0].astype(float)
+    if share == 1.0:
+        bad[2.0] = np.full(f2.shape, 65535, np.uint16)
+    else:
+        scale = 65535 / np.quantile(f2, 1 - share)
+        bad[2.0] = np.minimum(f2 * scale, 65535).astype(np.uint16)
+    assert abs(float(np.mean(bad[2.0] == 65535)) - share) < 0.01
+    with pytest.raises(ValueError, match=rf"the flat at f/2 has only \d+ % usable pixels "
+                       rf"\({round(100 * share)} % saturated, at or above 65535"):
+        _calibrate(bad)
