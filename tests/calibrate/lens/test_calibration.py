@@ -350,12 +350,14 @@ def test_bad_library_inputs_are_value_errors():
         calibrate_lens({2.0: np.ones((64, 64), bool), 4.0: np.ones((64, 64))}, **kw)
     with pytest.raises(ValueError, match="no signal"):
         calibrate_lens({2.0: np.zeros((64, 64)), 4.0: np.zeros((64, 64))}, **kw)
+    # a fall-off (flats of one value everywhere are refused as clipped whole)
+    fall = np.fromfunction(lambda y, x: 3000.0 - (y - 32) ** 2 - (x - 32) ** 2, (64, 64))
     with pytest.raises(ValueError, match="chief-ray angle"):
-        calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
-                       pixel_pitch_um=0.1)
+        calibrate_lens({2.0: fall, 4.0: fall}, exit_pupil_mm=21.0, pixel_pitch_um=0.1)
     with pytest.raises(ValueError, match="no camera's pixel pitch"):
-        calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, exit_pupil_mm=21.0,
-                       pixel_pitch_um=0.01)
+        calibrate_lens({2.0: fall, 4.0: fall}, exit_pupil_mm=21.0, pixel_pitch_um=0.01)
+    with pytest.raises(ValueError, match=r"100 % saturated, at or above 1\b"):
+        calibrate_lens({2.0: np.ones((64, 64)), 4.0: np.ones((64, 64))}, **kw)
 
 
 @pytest.mark.parametrize("key", ["vignetting_distance_mm", "exit_pupil_mm"])
