@@ -30,7 +30,7 @@ from .chunks import (
 )
 from .marks import writer_mark as _mark
 from .safety import atomic_write, atomic_write_dir
-from .storage import FileFormat, _File, _Rows
+from .storage import FileFormat, _File, _Rows, _zarr_row_blocks, _zarr_row_chunks
 
 __all__ = ["COMPRESSIONS", "COMPUTED_WITH", "STORAGE_DTYPES", "STORED_FROM",
            "PackingClipWarning", "check_storage", "refuse_packed_counts", "which_cube"]
@@ -487,8 +487,8 @@ def _zarr_encoding(ds, compression="auto"):
     from zarr.codecs import BloscCodec
 
     if compression == "none":
-        return {name: {**_storage_keys(ds[name]), "compressors": None}
-                for name in _compressible(ds, compression)}
+        return {name: {**_storage_keys(ds[name]), "compressors": None,
+                       **_zarr_row_chunks(ds[name])} for name in _compressible(ds, compression)}
     def codec(var):
         stored = np.dtype(var.encoding.get("dtype", var.dtype))
         return BloscCodec(cname="lz4", clevel=9 if stored.itemsize <= 2 else 5,
@@ -497,7 +497,8 @@ def _zarr_encoding(ds, compression="auto"):
     # every chunk written as it is: zarr's check that a chunk holds only the fill value (to
     # leave it out) is a pass over each chunk, 14 % of a stream's time (a mask, often all
     # false, keeps the check: cheap on booleans)
-    return {name: {**_storage_keys(ds[name]), "compressors": [codec(ds[name])]}
+    return {name: {**_storage_keys(ds[name]), "compressors": [codec(ds[name])],
+                   **_zarr_row_chunks(ds[name])}
             | ({} if ds[name].dtype == bool else {"write_empty_chunks": True})
             for name in _compressible(ds, compression)}
 
@@ -588,7 +589,7 @@ def _in_zarr_blocks(ds):
         if var.chunks is None:
             continue
         sizes = {d: max(b) for d, b in zip(var.dims, var.chunks, strict=True)
-                 if not _zarr_blocks(b)}
+                 if not _zarr_blocks(b)} | _zarr_row_blocks(var)
         if not sizes:
             continue
         if name in ds.coords:

@@ -138,6 +138,37 @@ class _Rows:
                 **dict.fromkeys(dims[1:], -1)}
 
 
+#: A variable held in memory (not dask) of more than this many bytes is stored in Zarr chunks
+#: of whole rows of about :data:`ZARR_ROWS_BYTES`: left to zarr, a flat field of a whole
+#: 2048 x 1088 x 16 frame was one chunk of 142 MB, decoded whole by every block a reader
+#: took (``correct`` zarr to zarr peaked at 783 MiB on it).
+ZARR_WHOLE_BYTES = 32 * 2**20
+ZARR_ROWS_BYTES = 16 * 2**20
+
+
+def _zarr_row_chunks(var):
+    """``{"chunks": ...}`` for an in-memory ``var`` of two or more dims larger than
+    :data:`ZARR_WHOLE_BYTES` (blocks of its first dim), else ``{}`` (a dask variable is
+    stored in its blocks, :func:`_zarr_row_blocks`)."""
+    if var.chunks is not None or var.ndim < 2 or var.nbytes <= ZARR_WHOLE_BYTES:
+        return {}
+    row = max(var.nbytes // var.shape[0], 1)
+    return {"chunks": (max(1, min(var.shape[0], ZARR_ROWS_BYTES // row)), *var.shape[1:])}
+
+
+def _zarr_row_blocks(var):
+    """``{first dim: rows}`` for a dask ``var`` of two or more dims with a block larger than
+    :data:`ZARR_WHOLE_BYTES` (a whole frame computed as one block), to be stored in blocks
+    of whole rows of about :data:`ZARR_ROWS_BYTES`; else ``{}``."""
+    if var.chunks is None or var.ndim < 2:
+        return {}
+    block = var.dtype.itemsize * int(np.prod([max(b) for b in var.chunks]))
+    if block <= ZARR_WHOLE_BYTES:
+        return {}
+    row = max(var.nbytes // var.shape[0], 1)
+    return {var.dims[0]: max(1, min(var.shape[0], ZARR_ROWS_BYTES // row))}
+
+
 def _resolve_chunks(chunks, shape, dtype, dims=DIMS):
     """``chunks`` as a dict by dim (or None): :class:`_Rows` decided for ``shape`` and
     ``dtype``, anything else as it is."""
