@@ -154,7 +154,7 @@ class _IncompleteStore(ValueError):
     (:func:`_refuse_missing_chunks`, :func:`_refuse_unwritten_hdf5_chunks`)."""
 
 
-def _refuse_missing_chunks(path, arrays, cf=True):
+def _refuse_missing_chunks(path, arrays, cf=True, whole=False):
     """Refuse a Zarr store whose arrays lack chunks that would read as valid values.
 
     Zarr reads a chunk missing from the store as the array's fill value. Where that is a
@@ -173,6 +173,9 @@ def _refuse_missing_chunks(path, arrays, cf=True):
         Its arrays: the name, the folder holding the array's files, the array.
     cf : bool
         They are read through xarray, which masks a CF ``_FillValue`` (NaN, missing).
+    whole : bool
+        The store is snapcorr's (its ``written_by`` mark), which writes every chunk but a
+        mask's all-false ones: a float array's missing chunk, NaN on reading, is refused too.
 
     Raises
     ------
@@ -180,14 +183,19 @@ def _refuse_missing_chunks(path, arrays, cf=True):
         Naming the store, the variable and how many chunks it lacks.
     """
     for name, folder, arr in arrays:
-        if arr.ndim < 2 or _fill_is_missing(arr, cf):
+        # a store snapcorr wrote (``whole``) has every chunk but a mask's all-false ones:
+        # one missing read as NaN, silently (a chunk deleted, its keys renamed)
+        exempt = arr.dtype == bool if whole else _fill_is_missing(arr, cf)
+        if arr.ndim < 2 or exempt:
             continue
         missing, every = _missing_chunks(arr, Path(folder))
         if missing > 0:
             raise _IncompleteStore(
                 f"{path}: variable {name!r} lacks {missing} of its {every} "
-                f"chunks in the store; Zarr would read them as {_fill_said(arr)}, a valid "
-                f"{arr.dtype} value, so the data read could be wrong: restore the "
+                f"chunks in the store; Zarr would read them as {_fill_said(arr)}, "
+                + ("missing values where snapcorr, which wrote the store, wrote data"
+                   if _fill_is_missing(arr, cf) else f"a valid {arr.dtype} value")
+                + ", so the data read could be wrong: restore the "
                 "missing chunks, or, where they were left out for holding only that value (as "
                 "Zarr's writers do by default, and snapcorr's did before it wrote every "
                 "chunk), copy the store with them written: xarray.open_zarr(store).to_zarr("
@@ -245,7 +253,9 @@ def _refuse_incomplete_zarr(path):
     except Exception:  # not a group: xarray's open says what it is
         return
     arrays = list(group.arrays())
-    _refuse_missing_chunks(path, ((name, Path(path) / name, arr) for name, arr in arrays))
+    ours = str(group.attrs.get("written_by", "")).startswith("snapcorr ")
+    _refuse_missing_chunks(path, ((name, Path(path) / name, arr) for name, arr in arrays),
+                           whole=ours)
     for name, arr in arrays:
         _refuse_a_chunk_of_another_type(path, name, arr)
 

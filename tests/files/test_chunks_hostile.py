@@ -410,3 +410,17 @@ def test_a_store_whose_metadata_states_another_type_is_refused_naming_the_variab
     meta.write_text(json.dumps(doc))
     with pytest.raises(ValueError, match=r"the array.*does not hold uint8 values"):
         read_frames(tmp_path / "frames.zarr")
+
+
+def test_a_chunk_missing_from_a_float_store_snapcorr_wrote_is_refused(tmp_path):
+    """A float cube's fill value is NaN, which reads as missing, so a chunk deleted (or its
+    keys renamed, a separator edited) read as NaN, silently: snapcorr writes every chunk, so
+    in its own stores that is refused."""
+    rng = np.random.default_rng(0)
+    path = tmp_path / "c.zarr"
+    write_cube(make_cube(rng.random((24, 32, 3)).astype(np.float32), WL, name="reflectance"),
+               path)
+    shutil.rmtree(path / "reflectance" / "c")
+    with pytest.raises(ValueError, match=r"variable 'reflectance' lacks 1 of its 1 chunks.*"
+                       "missing values where snapcorr, which wrote the store, wrote data"):
+        read_cube(path)
