@@ -177,3 +177,20 @@ def test_a_narrow_feature_among_sparse_knots_survives_the_lattice():
     want = signal._signals(src, prof, np.arange(-100, 101) * 0.1, moments)
     got = signal._signals_on_grid(src, prof, moments, -100, 100, 0.1)
     np.testing.assert_allclose(got, want, rtol=1e-4)
+
+
+def test_a_band_near_the_end_of_a_dense_source_is_ranged_as_on_a_sparse_one():
+    """A source every 0.008 nm from 300 nm: the lattice's step beyond the shifts' ends
+    reached one knot below the source, and Flittner & Slater's ranges of a band at 481.5 nm
+    were refused as beyond the source ("n/a") where the same curve every 1 nm gave them."""
+    from snapcorr.budget import tolerance_ranges
+
+    def curve(lam):
+        return 1 + 0.5 * np.sin(lam / 37.0) + 0.3 * np.exp(-0.5 * ((lam - 650) / 8) ** 2)
+
+    got = {}
+    for step in (1.0, 0.008):
+        lam = np.arange(300.0, 1100.0 + step / 2, step)
+        got[step] = tolerance_ranges(spectra.Spectrum(lam, curve(lam)), [481.544, 700.0],
+                                     [10.0, 10.0], profile="gaussian")
+    assert got[0.008] == got[1.0]
