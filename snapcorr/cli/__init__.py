@@ -220,6 +220,20 @@ def main(argv=None):
         options = option_names(command_parser(parser, args.command) or parser)
         print(f"snapcorr {args.command}: error: {_message(err, options)}", file=sys.stderr)
         return 1
+    except Exception as err:  # a codec's own error type on an input's damaged chunk
+        from ..files.chunks import _damaged_input
+
+        text = " ".join(str(err).split())
+        if not _damaged_input(text):
+            raise
+        print(f"snapcorr {args.command}: error: a chunk of an input cannot be decoded "
+              f"({type(err).__name__}: {text}): the store is damaged or truncated; copy it "
+              "again from its source", file=sys.stderr)
+        if argv is None:  # the command line's process: zarr's reads left pending are said
+            import logging  # when collected, not worth a line
+
+            logging.getLogger("asyncio").setLevel(logging.CRITICAL)
+        return 1
     except KeyboardInterrupt:
         # Libraries interrupted mid-write (h5netcdf, zarr's threads) may fail again when their
         # half-closed objects are collected; Python would print those as "Exception ignored"

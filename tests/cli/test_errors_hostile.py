@@ -183,3 +183,30 @@ def test_a_path_too_long_with_short_names_is_said_so_not_its_names(tmp_path):
         assert code == 1 and len(err.strip().splitlines()) == 1, err
         assert "this path is too long for the file system (at most" in err, err
         assert "every name in it short enough" in err and len(err) < 600, err
+
+
+def test_a_truncated_chunk_of_a_raw_store_is_one_line_in_a_real_process(tmp_path):
+    """Blosc's RuntimeError ("error during blosc decompression: -1") escaped the command line
+    as a 118-line traceback when flatfield met a truncated chunk of its raw store; with zarr's
+    pending reads said at exit too."""
+    import subprocess
+    import sys
+
+    from snapcorr.cube import Sensor, make_cube, write_cube
+
+    rng = np.random.default_rng(0)
+    for name, level in (("raw", 1500), ("dark", 100), ("white", 3000)):
+        counts = (level + rng.random((24, 32, 6)) * 10).astype("uint16")
+        write_cube(make_cube(counts, np.linspace(500, 900, 6), name="counts").chunk({"y": 8}),
+                   tmp_path / f"{name}.zarr")
+    Sensor("s", "snapscan", 40.0, np.linspace(500, 900, 6), 10.0, 1.7).save(tmp_path / "s.toml")
+    chunk = tmp_path / "raw.zarr" / "counts" / "c" / "2" / "0" / "0"
+    chunk.write_bytes(chunk.read_bytes()[:100])
+    res = subprocess.run([sys.executable, "-m", "snapcorr", "flatfield", "raw.zarr", "--dark",
+                          "dark.zarr", "--white", "white.zarr", "--sensor", "s.toml", "--out",
+                          "ff.nc"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 1
+    assert res.stderr.startswith("snapcorr flatfield: error: a chunk of an input cannot be "
+                                 "decoded"), res.stderr[-2000:]
+    assert len(res.stderr.strip().splitlines()) == 1, res.stderr[-2000:]
+    assert not (tmp_path / "ff.nc").exists()
