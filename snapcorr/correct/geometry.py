@@ -33,13 +33,23 @@ class PlacementError(ValueError):
     """Where the cube or the optical axis sits on the sensor is not known well enough."""
 
 
+def _image_size(cal):
+    """The calibration image's ``[width, height]``: ``image_size_px``, or ``image_shape_px``
+    (rows, columns) turned about where only that is given (the two agree where both are,
+    :class:`~snapcorr.optics.Lens` checks); None without either."""
+    if cal.get("image_size_px") is not None:
+        return cal["image_size_px"]
+    shape = cal.get("image_shape_px")
+    return None if shape is None else [shape[1], shape[0]]
+
+
 def _full_frame(lens, sensor):
     """The full image size (rows, cols) in this sensor's pixels, and whence: the sensor's own
     ``size_px``, else the lens calibration's image converted to this pitch; None if neither."""
     if sensor.size_px is not None:
         return tuple(sensor.size_px), f"the sensor {sensor.name!r} (size_px)"
     cal = getattr(lens, "calibration", {}) or {}
-    size, pitch = cal.get("image_size_px"), cal.get("pixel_pitch_um")
+    size, pitch = _image_size(cal), cal.get("pixel_pitch_um")
     if size is not None and pitch is not None:
         k = float(pitch) / sensor.require("pixel_pitch_um", "placing the cube")  # -> this
         # sensor's pixels
@@ -203,7 +213,7 @@ def _calibrated_center_rc(cal, sensor):
     p = sensor.require("pixel_pitch_um", "carrying the lens calibration's centre over")
     if cal.get("sensor_origin_rc") is not None:
         return _crop_center_rc(cal, sensor, (row, col), p_cal, p)
-    size = cal.get("image_size_px")
+    size = _image_size(cal)
     same_pitch = abs(p_cal - p) < 1e-9 * p
     if same_pitch and (size is None or sensor.size_px is None):
         return (row, col), "lens calibration"  # the same pixel grid, as far as is known
@@ -244,7 +254,7 @@ def _crop_center_rc(cal, sensor, center, p_cal, p):
             "pixels")
     size = sensor.size_px
     if size is not None:
-        w, h = cal.get("image_size_px", (1, 1))  # the flats' [width, height], these pixels
+        w, h = _image_size(cal) or (1, 1)  # the flats' [width, height], these pixels
         if r0 + h > size[0] or c0 + w > size[1]:
             raise PlacementError(
                 f"the lens profile's flats were a {h} x {w} px crop at sensor row {r0:g}, "

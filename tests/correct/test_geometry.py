@@ -276,3 +276,24 @@ def test_a_centre_measured_on_cropped_flats_is_placed_by_their_origin():
     beyond = replace(lens, calibration={**cal, "sensor_origin_rc": [50, 90]})
     with pytest.raises(PlacementError, match=r"256 x 320 px crop at sensor row 50, column 90"):
         cube_cra(_cube(sensor, ny=300, nx=400), sensor, beyond)
+
+
+def test_a_profile_giving_only_image_shape_px_places_the_centre_as_image_size_px_does():
+    """image_shape_px (rows, columns) was checked but never read: a profile giving only it was
+    said not to record the calibration image's size, and its centre was not carried over."""
+    import numpy as np
+
+    from snapcorr.correct import correct_cube
+    from snapcorr.cube import Sensor, make_cube
+    from snapcorr.optics import Lens
+
+    sensor = Sensor("s2", "snapscan", 20.0, np.linspace(500, 900, 6), 10.0, 1.7,
+                    size_px=(24, 32))
+    cube = make_cube(np.random.default_rng(0).random((24, 32, 6)).astype(np.float32),
+                     sensor.cwl_nm)
+    cra = {}
+    for key, value in (("image_shape_px", [48, 64]), ("image_size_px", [64, 48])):
+        lens = Lens(21.0, [(7.4236, 16.991)], 0.06, 1.3, calibration={
+            "pixel_pitch_um": 10.0, "center_rc": [20.0, 24.0], key: value})
+        cra[key] = correct_cube(cube, sensor, 2.0, lens)["cra_deg"].values
+    np.testing.assert_array_equal(cra["image_shape_px"], cra["image_size_px"])
