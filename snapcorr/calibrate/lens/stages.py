@@ -225,8 +225,11 @@ def clipped_level(image):
 
 def _lost_said(img, saturation):
     """What a flat's masked pixels are, for a refusal: most saturated (at which level)?"""
+    a = np.asarray(img, float)
+    if a.size and np.nanmin(a) == np.nanmax(a):  # no fall-off, no noise: clipped whole?
+        return f"one value, {np.nanmax(a):g}, in every pixel: saturated whole or no flat field"
     with np.errstate(invalid="ignore"):
-        share = 0.0 if saturation is None else float(np.mean(np.asarray(img, float) >= saturation))
+        share = 0.0 if saturation is None else float(np.mean(a >= saturation))
     return (f"{100 * share:.0f} % saturated, at or above {saturation:g}; the rest dead or "
             "non-finite" if share >= 0.5 else "saturated, dead or non-finite")
 

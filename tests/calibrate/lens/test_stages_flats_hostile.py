@@ -80,6 +80,8 @@ def test_a_flat_saturated_whole_or_nearly_is_refused_as_saturated(flats, share):
         scale = 65535 / np.quantile(f2, 1 - share)
         bad[2.0] = np.minimum(f2 * scale, 65535).astype(np.uint16)
     assert abs(float(np.mean(bad[2.0] == 65535)) - share) < 0.01
+    said = ("one value, 65535, in every pixel: saturated whole" if share == 1.0 else
+            f"{round(100 * share)} % saturated, at or above 65535")
     with pytest.raises(ValueError, match=rf"the flat at f/2 has only \d+ % usable pixels "
-                       rf"\({round(100 * share)} % saturated, at or above 65535"):
+                       rf"\({said}"):
         _calibrate(bad)
