@@ -162,25 +162,19 @@ def _check_placement(cal):
                              f"{PIXELS_MAX:,}, got {shown(origin)}")
     if "pixel_pitch_um" in cal:
         check_pixel_pitch_um("[calibration] pixel_pitch_um", cal["pixel_pitch_um"])
-    if "image_size_px" in cal:
-        size = check_integers("[calibration] image_size_px", _as_list(cal["image_size_px"],
-                                                                        "image_size_px"),
-                              PIXELS_MAX)
-        if size.shape != (2,) or np.any(size <= 0):
-            raise ValueError("[calibration] image_size_px must be two whole numbers > 0 "
-                             f"([width, height]), got {shown(cal['image_size_px'])}")
-    if "image_shape_px" in cal:
-        shape = check_integers("[calibration] image_shape_px", _as_list(cal["image_shape_px"],
-                                                                          "image_shape_px"),
-                               PIXELS_MAX)
-        if shape.shape != (2,) or np.any(shape <= 0):
-            raise ValueError("[calibration] image_shape_px must be two whole numbers > 0 "
-                             f"([rows, columns]), got {shown(cal['image_shape_px'])}")
-        if "image_size_px" in cal and list(shape[::-1]) != list(size):
-            raise ValueError(
-                f"[calibration] image_shape_px {shown(cal['image_shape_px'])} (rows, columns) "
-                f"and image_size_px {shown(cal['image_size_px'])} (width, height) disagree; "
-                "keep one, or give them as the same pixels")
+    sizes = {}
+    for key, order in (("image_size_px", "width, height"), ("image_shape_px", "rows, columns")):
+        if key in cal:
+            v = check_integers(f"[calibration] {key}", _as_list(cal[key], key), PIXELS_MAX)
+            if v.shape != (2,) or np.any(v <= 0):
+                raise ValueError(f"[calibration] {key} must be two whole numbers > 0 "
+                                 f"([{order}]), got {shown(cal[key])}")
+            sizes[key] = list(v)
+    if len(sizes) == 2 and sizes["image_shape_px"][::-1] != sizes["image_size_px"]:
+        raise ValueError(
+            f"[calibration] image_shape_px {shown(cal['image_shape_px'])} (rows, columns) "
+            f"and image_size_px {shown(cal['image_size_px'])} (width, height) disagree; "
+            "keep one, or give them as the same pixels")
 
 
 def _as_list(value, key):
