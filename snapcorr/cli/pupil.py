@@ -199,8 +199,9 @@ def _pupil_predict(args):
         f"(Cramer-Rao bound), sensor {sensor.name}, lens {lens.name or args.lens}, "
         f"f/{', f/'.join(f'{f:g}' for f in fs)}, noise {args.noise_pct:g} % of the brightest "
         "band per pixel" + (", n_eff fitted too" if fit_n else "")
-        + (" (one f-number: where n_eff is not known to 1 %, x assumes the sensor's)"
-           if fit_n and len(fs) < 2 else ""),
+        + (" (one f-number: x's bound is with n_eff free; where that leaves n_eff known to "
+           "worse than 1 %, the fit holds the sensor's index, and x's error is then x's at "
+           "that index)" if fit_n and len(fs) < 2 else ""),
         f"{'target':34s} {'x, spectrum unknown':>22s} {'x, spectrum known':>20s}"
         + (f" {'n_eff':>12s}" if args.fit_n_eff else "")]
 
