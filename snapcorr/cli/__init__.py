@@ -221,10 +221,10 @@ def main(argv=None):
         print(f"snapcorr {args.command}: error: {_message(err, options)}", file=sys.stderr)
         return 1
     except Exception as err:  # a codec's own error type on an input's damaged chunk
-        from ..files.chunks import _damaged_input
+        from ..files.chunks import damaged_input
 
         text = " ".join(str(err).split())
-        if not _damaged_input(text):
+        if not damaged_input(text):
             raise
         print(f"snapcorr {args.command}: error: a chunk of an input cannot be decoded "
               f"({type(err).__name__}: {text}): the store is damaged or truncated; copy it "

@@ -285,7 +285,7 @@ _DAMAGED = ("decompression", "decompress", "dictionary is corrupted", "corrupt",
             "stored block", "incorrect header check", "checksum")
 
 
-def _damaged_input(text):
+def damaged_input(text):
     """Whether a codec's error ``text`` says it met bytes it cannot decode."""
     return any(w in text.lower() for w in _DAMAGED)
 

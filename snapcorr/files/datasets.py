@@ -22,11 +22,11 @@ from ..cube.model import DIMS
 from .attrs import _one_line, decode_attrs, encode_attrs
 from .chunks import (
     STORED_TYPE,
-    _damaged_input,
     _damaged_input_error,
     _float16_widened,
     _refuse_incomplete_zarr,
     _refuse_unwritten_hdf5_chunks,
+    damaged_input,
 )
 from .marks import writer_mark as _mark
 from .safety import atomic_write, atomic_write_dir
@@ -455,7 +455,7 @@ def _store(ds, path, fmt, compression="auto"):
         raise
     except Exception as err:  # the libraries' own error types: report them plainly
         text = _one_line(err)
-        if _damaged_input(text):
+        if damaged_input(text):
             raise _damaged_input_error(err, text, ds.encoding.get("source"), path) from None
         raise ValueError(f"cannot write {path}: {type(err).__name__}: {text}") from None
 
