@@ -221,14 +221,13 @@ def main(argv=None):
         print(f"snapcorr {args.command}: error: {_message(err, options)}", file=sys.stderr)
         return 1
     except Exception as err:  # a codec's own error type on an input's damaged chunk
-        from ..files.chunks import damaged_input
+        from ..files.chunks import damaged_input, damaged_input_said
 
         text = " ".join(str(err).split())
         if not damaged_input(text):
             raise
-        print(f"snapcorr {args.command}: error: a chunk of an input cannot be decoded "
-              f"({type(err).__name__}: {text}): the store is damaged or truncated; copy it "
-              "again from its source", file=sys.stderr)
+        print(f"snapcorr {args.command}: error: {damaged_input_said(err, text)}",
+              file=sys.stderr)
         if argv is None:  # the command line's process: zarr's reads left pending are said
             import logging  # when collected, not worth a line
 

@@ -92,6 +92,10 @@ def _message(err, options=None):
         return ("a chunk of an input Zarr store is damaged: its stored checksum does not match "
                 "its bytes (a truncated or corrupted copy); copy the store again from its "
                 "source")
+    if re.match(r"cannot reshape array of size \d+ into shape", message):  # a Zarr chunk
+        return (f"a chunk of an input Zarr store does not hold what its metadata says "
+                f"({message}): a chunk copied in from another array, or its type edited; copy "
+                "the store again from its source")
     for term, cli in _CLI_TERMS.items():
         message = message.replace(term, cli)
     for keyword, option in (options or {}).items():

@@ -262,8 +262,9 @@ def _refuse_incomplete_zarr(path):
 
 def _refuse_a_chunk_of_another_type(path, name, arr):
     """Decode the first chunk of ``arr``: a store whose metadata states another type than its
-    chunks hold (``data_type`` edited, a chunk copied from another array) fails there with
-    numpy's reshape text, met later where the values are first computed."""
+    chunks hold (``data_type`` edited) fails there with numpy's reshape text, met later where
+    the values are first computed. Only the first chunk is read: one copied in from another
+    array elsewhere is said where it is read (the command line's ``_message``)."""
     if arr.size == 0 or arr.ndim == 0:
         return
     first = tuple(slice(0, min(c, s)) for c, s in zip(arr.chunks, arr.shape, strict=True))
@@ -290,13 +291,18 @@ def damaged_input(text):
     return any(w in text.lower() for w in _DAMAGED)
 
 
+def damaged_input_said(err, text, source=None):
+    """What to say of an input chunk that cannot be decoded (``text``: ``err``'s, on one line;
+    ``source``: the input store, where it is known)."""
+    return (f"a chunk of {'the input ' + str(source) if source else 'an input'} cannot be "
+            f"decoded ({type(err).__name__}: {text}): the store is damaged or truncated; copy "
+            "it again from its source")
+
+
 def _damaged_input_error(err, text, source, path):
     """The error of an input chunk that cannot be decoded, met while ``path`` was computed
     (``source``: the input store, where the dataset knows it)."""
-    return ValueError(f"a chunk of {'the input ' + str(source) if source else 'an input'} "
-                      f"cannot be decoded ({type(err).__name__}: {text}): the store is damaged "
-                      f"or truncated; copy it again from its source. Nothing was written to "
-                      f"{path}")
+    return ValueError(f"{damaged_input_said(err, text, source)}. Nothing was written to {path}")
 
 
 #: Encoding keys a file read sets for the type it stored a variable as (Zarr's fill value,

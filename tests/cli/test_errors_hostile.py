@@ -210,3 +210,12 @@ def test_a_truncated_chunk_of_a_raw_store_is_one_line_in_a_real_process(tmp_path
                                  "decoded"), res.stderr[-2000:]
     assert len(res.stderr.strip().splitlines()) == 1, res.stderr[-2000:]
     assert not (tmp_path / "ff.nc").exists()
+
+
+def test_a_chunk_that_does_not_fit_its_array_is_said_of_the_store():
+    """A chunk copied in from another array, not the first (which is checked on opening):
+    numpy's "cannot reshape array of size 768 into shape (8,32,6)" named neither cause nor
+    store."""
+    said = _message(ValueError("cannot reshape array of size 768 into shape (8,32,6)"), {})
+    assert said.startswith("a chunk of an input Zarr store does not hold what its metadata "
+                           "says (cannot reshape array of size 768")
